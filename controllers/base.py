@@ -1,0 +1,189 @@
+"""The controller interface: what a train knows (an :class:`Observation`) and what it asks for (a :class:`Command`).
+
+Every controller in this package — the line controllers (ATO, moving-block separation, CACC) and the research
+controllers of the papers — is an object with one method::
+
+    command(obs: Observation) -> Command
+
+Controllers are created once per train (so model-predictive controllers can keep warm starts) and called every
+control step. They never see ground truth and never import libsumo: the engine builds the observation from
+what the train *knows* — its own odometry, messages delivered by the communication layer (delayed, lossy,
+possibly stale), its movement authority from the interlocking and the route data of its timetable.
+
+Coordinates
+    All positions in an observation are **route chainage of the train front** in metres, measured along the
+    observing train's own route from its start (``position_m``). Objects ahead (the predecessor, the stop mark,
+    the end of authority) are expressed in the same frame, so ``gap`` arithmetic is plain subtraction.
+    ``pred.rear_position_m = pred.position_m - pred.length_m``; the front-to-rear gap is
+    ``pred.rear_position_m - own.position_m`` (named ``gap_m`` throughout), the front-to-front spacing is
+    ``pred.position_m - own.position_m`` (named ``spacing_m``; Paper A uses it).
+
+Acceleration semantics
+    :attr:`Command.accel_mps2` is the **applied** specific force: traction (>0) or braking (<0) force divided by
+    the effective mass. Running resistance and gradient act on top of it in the plant
+    (:mod:`railsim.dynamics`), exactly as in the papers' models ``dv/dt = u − ω(v)``. A controller that wants a
+    net acceleration ``a`` asks for ``vehicle.net_to_applied(a, v, gradient)`` (same physics as the plant). The plant clips
+    the command to the traction/brake envelope and the jerk limit and logs every saturation.
+
+Roles
+    A train's final command is the minimum over its *active* roles (the most restrictive wins):
+
+    * ``ato``      — runs to the line speed, obeys speed limits, stops at the stop mark and before the end of
+      movement authority (every train has one);
+    * ``follow``   — keeps distance to the train ahead: ``separation`` (absolute braking distance, for trains
+      that are not coupled) or a virtual-coupling law (CACC, the papers' controllers) when coupling/coupled.
+
+The engine does this arbitration (:func:`arbitrate`), so a research controller only implements its own law.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Callable, Mapping, Protocol, runtime_checkable
+
+from railsim.vehicle import VehicleParams
+
+
+@dataclass(frozen=True)
+class SpeedLimit:
+    """A speed restriction on ``[start_m, end_m)`` of the observer's route (route chainage, train front)."""
+
+    start_m: float
+    end_m: float
+    speed_mps: float
+
+
+@dataclass(frozen=True)
+class StopTarget:
+    """The next scheduled station stop.
+
+    ``mark_m`` is where the train front should halt (the stopping mark); ``window_start_m``/``window_end_m`` is the
+    range of front positions SUMO accepts as "whole train on the platform" (``[startPos + length, endPos]``).
+    ``dwell_remaining_s`` is > 0 while the train is dwelling at this stop, ``None`` before arrival.
+    ``departure_not_before_s`` is the timetable departure (absolute simulation time) if any.
+    """
+
+    station_id: str
+    mark_m: float
+    window_start_m: float
+    window_end_m: float
+    dwelling: bool = False
+    departure_not_before_s: float | None = None
+
+
+@dataclass(frozen=True)
+class PredecessorState:
+    """The train ahead as *this train knows it*: from the last delivered message (or on-board sensing).
+
+    ``position_m`` is the predecessor's **front** in the observer's route frame at the time the message was
+    sent (``stamp_s``); ``age_s = obs.t_s - stamp_s`` tells how stale it is. ``planned_*`` carry the
+    predecessor's broadcast plan (DMPC-style), sampled every ``plan_dt_s`` from ``stamp_s`` on, if it sent one.
+    """
+
+    train_id: str
+    position_m: float
+    speed_mps: float
+    accel_mps2: float
+    length_m: float
+    stamp_s: float
+    age_s: float
+    service_decel_mps2: float = 1.0
+    emergency_decel_mps2: float = 1.2
+    planned_position_m: tuple[float, ...] = ()
+    planned_speed_mps: tuple[float, ...] = ()
+    planned_accel_mps2: tuple[float, ...] = ()
+    plan_dt_s: float = 0.0
+    source: str = "t2t"  # "t2t" radio message, "ground" (moving-block server) or "sensor"
+
+    @property
+    def rear_position_m(self) -> float:
+        return self.position_m - self.length_m
+
+
+@dataclass(frozen=True)
+class OwnState:
+    """The train's own state from odometry (possibly with sensor noise)."""
+
+    train_id: str
+    position_m: float  # front, route chainage [m]
+    speed_mps: float
+    accel_mps2: float  # applied acceleration last step (after the plant) [m/s²]
+    length_m: float
+    gradient_permille: float = 0.0  # gradient under the train front (uphill positive)
+
+
+@dataclass(frozen=True)
+class Observation:
+    """Everything a controller may use at one control step."""
+
+    t_s: float
+    dt_s: float
+    own: OwnState
+    vehicle: VehicleParams
+    route_length_m: float
+    speed_limits: tuple[SpeedLimit, ...] = ()  # restrictions that apply now or ahead (within look-ahead)
+    line_speed_mps: float = 20.0  # the general line speed where no restriction applies
+    next_stop: StopTarget | None = None
+    authority_end_m: float | None = None  # the train front must not pass this point (switch not locked, end of route)
+    predecessor: PredecessorState | None = None
+    formation_state: str = "free"  # free | coupling | coupled | decoupling (railsim.events.formations)
+    target_gap_m: float | None = None  # front-to-rear target gap while coupling/coupled
+    extras: Mapping[str, Any] = field(default_factory=dict)  # scenario-specific signals (e.g. junction plan)
+
+
+@dataclass(frozen=True)
+class Command:
+    """A controller's request for one step.
+
+    ``accel_mps2`` is the applied specific force (see module docstring). ``fallback`` is True when the controller
+    could not compute its law (solver failure, infeasible QP) and returned its safe brake instead; ``info``
+    carries diagnostics the recorder keeps (solve time, chosen model, status).
+    """
+
+    accel_mps2: float
+    fallback: bool = False
+    emergency: bool = False
+    info: Mapping[str, Any] = field(default_factory=dict)
+
+
+@runtime_checkable
+class Controller(Protocol):
+    """Anything with ``command(obs) -> Command``; ``reset()`` is optional."""
+
+    def command(self, obs: Observation) -> Command: ...
+
+
+ControllerFactory = Callable[[Mapping[str, Any], VehicleParams], Controller]
+_REGISTRY: dict[str, ControllerFactory] = {}
+
+
+def register(name: str) -> Callable[[ControllerFactory], ControllerFactory]:
+    """Class/function decorator: make a controller available to scenarios under ``name``.
+
+    The factory receives the scenario's parameter mapping and the train's :class:`VehicleParams` and must raise
+    ``ValueError("<param>: <what was expected>")`` for bad parameters (the scenario loader adds file and path).
+    """
+
+    def deco(factory: ControllerFactory) -> ControllerFactory:
+        if name in _REGISTRY and _REGISTRY[name] is not factory:
+            raise RuntimeError(f"controller name {name!r} registered twice")
+        _REGISTRY[name] = factory
+        return factory
+
+    return deco
+
+
+def registered() -> dict[str, ControllerFactory]:
+    """All registered controller factories by name (importing :mod:`controllers` registers the built-ins)."""
+    return dict(_REGISTRY)
+
+
+def create(name: str, params: Mapping[str, Any], vehicle: VehicleParams) -> Controller:
+    """Instantiate controller ``name`` for one train (KeyError if unknown, ValueError for bad params)."""
+    return _REGISTRY[name](params, vehicle)
+
+
+def arbitrate(commands: Mapping[str, Command]) -> tuple[str, Command]:
+    """The most restrictive command wins (smallest acceleration). Returns ``(role, command)``."""
+    role = min(commands, key=lambda r: commands[r].accel_mps2)
+    return role, commands[role]

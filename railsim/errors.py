@@ -1,0 +1,45 @@
+"""User-facing errors: one exception type that names the file, the field path and the expectation.
+
+Everything a user can get wrong (a scenario, a line description, an impossible parameter) raises
+:class:`ConfigError`. The CLI prints ``str(err)`` on one line and exits with code 2, so the user sees e.g.::
+
+    scenarios/peak.yaml: services[2].headway_s: expected a number > 0, got -150
+
+and never a traceback. Internal bugs stay ordinary exceptions (they deserve a traceback).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class ConfigError(Exception):
+    """Bad input from a user file or an impossible parameter.
+
+    Attributes:
+        source: the file (or a short label such as ``"<scenario>"``) the bad value came from.
+        field: the dotted/indexed path of the value inside that file, e.g. ``stations[3].km``.
+        message: what was expected and what was found.
+    """
+
+    def __init__(self, source: str | Path | None, field: str | None, message: str) -> None:
+        self.source = str(source) if source is not None else None
+        self.field = field
+        self.message = message
+        super().__init__(self.__str__())
+
+    def __str__(self) -> str:
+        parts = [p for p in (self.source, self.field) if p]
+        prefix = ": ".join(parts)
+        return f"{prefix}: {self.message}" if prefix else self.message
+
+
+class SimulationError(Exception):
+    """A run could not continue (SUMO refused an operation, a world is inconsistent with a scenario).
+
+    The CLI reports these on one line with exit code 3; the partial outputs already written stay on disk.
+    """
+
+
+EXIT_CONFIG_ERROR = 2
+EXIT_SIMULATION_ERROR = 3
