@@ -90,4 +90,6 @@ def preset(name: str) -> VehicleParams:
     """The shipped preset ``name`` (KeyError if unknown; the scenario loader turns that into a ConfigError)."""
     fields = dict(_preset_table()[name])
     fields.pop("sources", None)
+    # YAML 1.1 reads "1.0e9" as a string; presets are numbers by construction, so coerce explicitly
+    fields = {k: (int(v) if k == "capacity_pax" else float(v)) for k, v in fields.items()}
     return VehicleParams(name=name, **fields)

@@ -1,0 +1,337 @@
+"""The topology of a built world: stations, switches and routes with chainage that matches SUMO's odometer.
+
+The network builder (:mod:`network.generator`) turns a line description into a SUMO net and a *track
+graph*, a :class:`networkx.DiGraph` whose
+
+* **nodes are the SUMO normal edges** (one-way track pieces). Attributes: ``line`` (line id), ``direction``
+  (``'up'`` = increasing chainage, ``'down'``), ``length_m`` and ``speed_mps`` (read back from the .net.xml),
+  ``from_node``/``to_node`` (SUMO junction ids), ``design_start_m`` (design chainage, metres, of lane
+  position 0) and ``design_sign`` (+1 up, -1 down; design chainage = design_start_m + sign * lane_pos),
+  ``station``/``stop_id`` (the platform on this piece, or None);
+* **edges are SUMO connections** (a train may run from piece u to piece v). Attributes: ``node`` (SUMO
+  junction), ``via`` (list of ``[internal_lane_id, length_m, speed_mps]`` in travel order, read from the
+  .net.xml), ``switch`` (switch id or None) and ``leg`` (``'normal'``/``'reverse'`` or None).
+
+``graph.graph`` holds ``name``, ``gradients`` (``{line: [[from_m, to_m, permille_up], ...]}``, design metres)
+and ``points`` (``{point_id: [line, design_m]}``).
+
+A :class:`RouteInfo` is computed from the graph alone (:func:`make_route`), so a bundle loaded from the
+cache gives exactly the same routes as a fresh build. Route chainage is metres from the start of the
+route's first edge and **includes the internal junction lanes**, which is what SUMO's odometer
+(``vehicle.getDistance``) accumulates: a train inserted at lane position p on the first edge has
+``chainage = p + odometer``.
+"""
+
+from __future__ import annotations
+
+import functools
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any, Iterable, Sequence
+
+import networkx as nx
+
+
+@dataclass(frozen=True)
+class PlatformInfo:
+    """One platform (one direction) of a station: the SUMO trainStop and where it lies on its edge."""
+
+    direction: str
+    stop_id: str
+    edge: str
+    start_pos_m: float
+    end_pos_m: float
+
+
+@dataclass(frozen=True)
+class StationInfo:
+    id: str
+    name: str
+    line: str
+    km: float  # design chainage of the platform centre
+    platform_length_m: float
+    turnback: bool
+    platforms: tuple[PlatformInfo, ...]
+    crossover_speed_mps: float | None = None  # speed over the turnback crossover, if one is recorded
+
+    def platform(self, direction: str) -> PlatformInfo:
+        for p in self.platforms:
+            if p.direction == direction:
+                return p
+        raise KeyError(f"station {self.id!r} has no {direction!r} platform")
+
+
+@dataclass(frozen=True)
+class SwitchInfo:
+    """A switch (turnout) for one direction of travel.
+
+    ``kind`` is 'diverge' (one edge in, two out: ``normal_edge``/``reverse_edge`` are the outgoing legs) or
+    'merge' (two in, one out: the legs are the incoming edges). ``trunk_edge`` is the common edge.
+    """
+
+    id: str
+    sumo_node: str
+    kind: str
+    normal_edge: str
+    reverse_edge: str
+    trunk_edge: str
+    throw_time_s: float
+    diverging_speed_mps: float
+    normal_speed_mps: float
+
+
+@dataclass(frozen=True)
+class RouteStop:
+    station_id: str
+    stop_id: str
+    edge: str
+    start_pos_m: float  # lane positions of the platform on that edge
+    end_pos_m: float
+    start_m: float  # route chainage of the platform start/end (front of a stopped train <= end_m)
+    end_m: float
+
+
+@dataclass(frozen=True)
+class RouteSwitch:
+    switch_id: str
+    point_m: float  # route chainage of the switch node (toe of a diverge / fouling point of a merge)
+    leg: str  # 'normal' | 'reverse'
+
+
+@dataclass(frozen=True)
+class RoutePoint:
+    point_id: str
+    point_m: float
+
+
+@dataclass(frozen=True)
+class RouteInfo:
+    id: str
+    edges: tuple[str, ...]
+    edge_start_m: tuple[float, ...]
+    length_m: float
+    stops: tuple[RouteStop, ...]
+    speed_limits: tuple[tuple[float, float, float], ...]
+    gradients: tuple[tuple[float, float, float], ...]
+    switches: tuple[RouteSwitch, ...]
+    points: tuple[RoutePoint, ...] = ()
+    # route chainage of the start of every internal junction edge (':J_3') on the route
+    internal_start_m: tuple[tuple[str, float], ...] = ()
+
+    @functools.cached_property
+    def _starts(self) -> dict[str, float]:
+        starts = dict(self.internal_start_m)
+        starts.update(zip(self.edges, self.edge_start_m))
+        return starts
+
+    def chainage(self, edge_id: str, lane_pos_m: float) -> float:
+        """Route chainage of lane position ``lane_pos_m`` on ``edge_id`` (normal or internal junction edge)."""
+        try:
+            return self._starts[edge_id] + float(lane_pos_m)
+        except KeyError:
+            raise KeyError(f"edge {edge_id!r} is not on route {self.id!r}") from None
+
+    def stop(self, station_id: str) -> RouteStop:
+        for s in self.stops:
+            if s.station_id == station_id:
+                return s
+        raise KeyError(f"station {station_id!r} is not on route {self.id!r}")
+
+    def speed_at(self, chainage_m: float) -> float:
+        for a, b, v in self.speed_limits:
+            if a <= chainage_m < b:
+                return v
+        return self.speed_limits[-1][2]
+
+    def to_json(self) -> dict[str, Any]:
+        return {
+            "id": self.id, "edges": list(self.edges), "edge_start_m": list(self.edge_start_m),
+            "length_m": self.length_m,
+            "stops": [vars(s) for s in self.stops],
+            "speed_limits": [list(x) for x in self.speed_limits],
+            "gradients": [list(x) for x in self.gradients],
+            "switches": [vars(s) for s in self.switches],
+            "points": [vars(p) for p in self.points],
+            "internal_start_m": [list(x) for x in self.internal_start_m],
+        }
+
+    @staticmethod
+    def from_json(d: dict[str, Any]) -> "RouteInfo":
+        return RouteInfo(
+            id=d["id"], edges=tuple(d["edges"]), edge_start_m=tuple(d["edge_start_m"]), length_m=d["length_m"],
+            stops=tuple(RouteStop(**s) for s in d["stops"]),
+            speed_limits=tuple(tuple(x) for x in d["speed_limits"]),  # type: ignore[misc]
+            gradients=tuple(tuple(x) for x in d["gradients"]),  # type: ignore[misc]
+            switches=tuple(RouteSwitch(**s) for s in d["switches"]),
+            points=tuple(RoutePoint(**p) for p in d.get("points", [])),
+            internal_start_m=tuple((a, b) for a, b in d.get("internal_start_m", [])),
+        )
+
+
+def _merge_runs(runs: Iterable[tuple[float, float, float]]) -> tuple[tuple[float, float, float], ...]:
+    """Join adjacent (start, end, value) runs with equal values; drop empty ones."""
+    out: list[list[float]] = []
+    for a, b, v in runs:
+        if b - a <= 1e-9:
+            continue
+        if out and abs(out[-1][2] - v) < 1e-9 and abs(out[-1][1] - a) < 1e-6:
+            out[-1][1] = b
+        else:
+            out.append([a, b, v])
+    return tuple((a, b, v) for a, b, v in out)
+
+
+def _gradient_runs(line_grads: Sequence[Sequence[float]], d0: float, d1: float, r0: float,
+                   sign: int) -> list[tuple[float, float, float]]:
+    """Gradient runs over route chainage [r0, r0 + |d1 - d0|] where design position runs d0 -> d1."""
+    lo, hi = min(d0, d1), max(d0, d1)
+    cuts = {lo, hi}
+    for a, b, _ in line_grads:
+        for x in (a, b):
+            if lo < x < hi:
+                cuts.add(x)
+    xs = sorted(cuts)
+    runs = []
+    for a, b in zip(xs, xs[1:]):
+        mid = 0.5 * (a + b)
+        g = next((p for ga, gb, p in line_grads if ga <= mid < gb), 0.0)
+        # route chainage of design positions a and b
+        ra, rb = sorted((r0 + sign * (a - d0), r0 + sign * (b - d0)))
+        runs.append((ra, rb, sign * g + 0.0))  # + 0.0 turns -0.0 into 0.0
+    runs.sort()
+    return runs
+
+
+def make_route(graph: nx.DiGraph, route_id: str, edges: Sequence[str]) -> RouteInfo:
+    """Chainage, stops, speed limits, gradients, switches and named points of a path through the graph."""
+    starts: list[float] = []
+    internal: list[tuple[str, float]] = []
+    speeds: list[tuple[float, float, float]] = []
+    grads: list[tuple[float, float, float]] = []
+    switches: list[RouteSwitch] = []
+    points: list[RoutePoint] = []
+    stops: list[RouteStop] = []
+    line_grads: dict[str, list[list[float]]] = graph.graph.get("gradients", {})
+    line_points: dict[str, list[Any]] = graph.graph.get("points", {})
+    pos = 0.0
+    for i, e in enumerate(edges):
+        a = graph.nodes[e]
+        seg_start = pos  # route chainage where this piece's design span begins (incl. the junction before it)
+        if i > 0:
+            prev = edges[i - 1]
+            if not graph.has_edge(prev, e):
+                raise ValueError(f"route {route_id!r}: no connection from {prev!r} to {e!r}")
+            c = graph.edges[prev, e]
+            if c.get("switch"):
+                switches.append(RouteSwitch(c["switch"], pos, c["leg"]))
+            for lane_id, length, speed in c["via"]:
+                internal.append((lane_id.rsplit("_", 1)[0], pos))
+                speeds.append((pos, pos + length, speed))
+                pos += length
+        starts.append(pos)
+        length = a["length_m"]
+        speeds.append((pos, pos + length, a["speed_mps"]))
+        # design position is linear in route chainage over [seg_start, pos + length] (the generator
+        # shortens each piece by the internal lane in front of it, so the junction takes its design place)
+        sign = a["design_sign"]
+        d_at_pos = a["design_start_m"]
+        d0 = d_at_pos - sign * (pos - seg_start)
+        d1 = d_at_pos + sign * length
+        grads += _gradient_runs(line_grads.get(a["line"], []), d0, d1, seg_start, sign)
+        for pid, (pline, pm) in line_points.items():
+            if pline == a["line"] and min(d0, d1) - 1e-6 <= pm <= max(d0, d1) + 1e-6:
+                r = seg_start + sign * (pm - d0)
+                if not any(p.point_id == pid for p in points):
+                    points.append(RoutePoint(pid, r))
+        if a.get("stop_id"):
+            sp, ep = a["stop_start_pos_m"], a["stop_end_pos_m"]
+            stops.append(RouteStop(a["station"], a["stop_id"], e, sp, ep, pos + sp, pos + ep))
+        pos += length
+    grads.sort()
+    return RouteInfo(
+        id=route_id, edges=tuple(edges), edge_start_m=tuple(starts), length_m=pos, stops=tuple(stops),
+        speed_limits=_merge_runs(speeds), gradients=_merge_runs(grads), switches=tuple(switches),
+        points=tuple(points), internal_start_m=tuple(internal),
+    )
+
+
+@dataclass(frozen=True)
+class NetworkBundle:
+    """A built world: SUMO files plus the topology the engine and the planners need.
+
+    ``routes`` holds the named through-routes (every free line end to every reachable free line end, per
+    direction), e.g. ``"yudong->jiangbei-airport-t2"``; :meth:`route_between` makes service routes.
+    """
+
+    name: str
+    net_file: Path
+    stops_file: Path
+    topology_file: Path
+    graph: nx.DiGraph
+    stations: dict[str, StationInfo]
+    switches: dict[str, SwitchInfo]
+    routes: dict[str, RouteInfo]
+    cache_key: str = ""
+    build_time_s: float = field(default=0.0, compare=False)
+
+    def route_between(self, from_station: str, to_station: str, via: Sequence[str] = ()) -> RouteInfo:
+        """Route for a service from ``from_station`` to ``to_station`` (optionally through ``via`` stations).
+
+        It starts on the edge holding ``from_station``'s platform in the travel direction (a train starting
+        there is inserted with its front at the platform end minus 1 m) and ends on the edge holding
+        ``to_station``'s platform. Raises KeyError for an unknown station, ValueError if unreachable.
+        """
+        for sid in (from_station, to_station, *via):
+            if sid not in self.stations:
+                raise KeyError(f"unknown station {sid!r} in world {self.name!r}; "
+                               f"known: {', '.join(sorted(self.stations))}")
+        if from_station == to_station:
+            raise ValueError(f"a route needs two different stations, got {from_station!r} twice")
+        for direction in ("up", "down"):
+            try:
+                chain = [self.stations[s].platform(direction).edge for s in (from_station, *via, to_station)]
+            except KeyError:
+                continue
+            path: list[str] = [chain[0]]
+            try:
+                for a, b in zip(chain, chain[1:]):
+                    path += nx.shortest_path(self.graph, a, b)[1:]
+            except nx.NetworkXNoPath:
+                continue
+            if len(set(path)) != len(path):
+                continue  # via stations out of order would revisit track
+            rid = f"{from_station}->{to_station}" + (f" via {','.join(via)}" if via else "")
+            return make_route(self.graph, rid, path)
+        via_txt = f" via {', '.join(via)}" if via else ""
+        raise ValueError(f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r} "
+                         "(trains do not reverse on the way; end the trip at a turnback instead)")
+
+
+def bundle_to_json(bundle: NetworkBundle) -> dict[str, Any]:
+    g = bundle.graph
+    return {
+        "name": bundle.name,
+        "cache_key": bundle.cache_key,
+        "net_file": bundle.net_file.name,
+        "stops_file": bundle.stops_file.name,
+        "stations": {k: {**{f: getattr(v, f) for f in ("id", "name", "line", "km", "platform_length_m",
+                                                       "turnback", "crossover_speed_mps")},
+                         "platforms": [vars(p) for p in v.platforms]} for k, v in bundle.stations.items()},
+        "switches": {k: vars(v) for k, v in bundle.switches.items()},
+        "routes": {k: v.to_json() for k, v in bundle.routes.items()},
+        "graph": nx.node_link_data(g, edges="links"),
+    }
+
+
+def bundle_from_json(d: dict[str, Any], folder: Path, topology_file: Path) -> NetworkBundle:
+    graph = nx.node_link_graph(d["graph"], directed=True, edges="links")
+    stations = {}
+    for k, v in d["stations"].items():
+        plats = tuple(PlatformInfo(**p) for p in v.pop("platforms"))
+        stations[k] = StationInfo(**v, platforms=plats)
+    return NetworkBundle(
+        name=d["name"], net_file=folder / d["net_file"], stops_file=folder / d["stops_file"],
+        topology_file=topology_file, graph=graph, stations=stations,
+        switches={k: SwitchInfo(**v) for k, v in d["switches"].items()},
+        routes={k: RouteInfo.from_json(v) for k, v in d["routes"].items()}, cache_key=d.get("cache_key", ""),
+    )
