@@ -1,0 +1,223 @@
+"""ATO: automatic train operation — run to the line speed, obey restrictions, stop on the mark, hold, creep.
+
+Every train has this role (see :mod:`controllers.base`); the engine takes the minimum of its command and the
+``follow`` role's. The law is a minimum over a few simple sub-laws, each returning a **net** acceleration that
+is turned into the applied command with :meth:`VehicleParams.net_to_applied` (resistance and gradient
+feed-forward, the same physics as the plant):
+
+Cruise (speed tracking)
+    ``a = k_v·(v_target − v)`` clipped to ``[−b_plan, traction − resistance]``, with
+    ``v_target = min(line speed, v_max, restrictions under the train) − speed_margin``. With the plant's
+    first-order lag τ the loop ``τ·s² + s + k_v`` is over-damped for ``k_v < 1/(4τ)`` (default 0.4 /s for
+    τ = 0.5 s), so the speed approaches the target without overshoot; the margin absorbs the rest.
+
+Speed restrictions (continuous braking curve, :mod:`controllers.braking`)
+    A restriction ``[start, end)`` must be respected from the moment the **front** reaches ``start`` until
+    the **rear** has cleared ``end`` (front ≥ ``end + own length``). For restrictions ahead, the constant
+    deceleration needed to be at ``limit − margin`` at ``start`` is computed with the dead-time model (lag,
+    jerk ramp); braking starts when that reaches the planning deceleration ``b_plan`` and follows the
+    required deceleration from then on. The cruise target is also capped by the planning braking curve so the
+    train settles at the restriction speed instead of re-accelerating before it.
+
+Stopping on the mark (exact discrete predictor)
+    The stop points are the station's stopping mark (clamped so that the aim is at least ``stop_tolerance``
+    inside the platform window) and the end of movement authority minus ``authority_margin``. For each, the
+    controller predicts with the plant's *exact* discrete recursion (lag, Euler position update, speed clamp)
+    how far the train runs if it held a constant net deceleration from now on
+    (:func:`controllers.braking.discrete_stop_distance_m`), and
+
+    * starts braking when, one step from now plus the jerk ramp's dead time, braking at ``b_plan`` would no
+      longer stop before the point;
+    * from then on solves, every step, for the constant deceleration that stops the front **exactly** on the
+      point (:func:`controllers.braking.discrete_required_decel_mps2`) and commands it.
+
+    Because the prediction is the plant's own difference equation at the observation's ``dt``, the stop is
+    exact up to the resistance change during braking and the jerk ramp at the onset, and both are corrected by
+    re-solving every step (receding horizon) — this is what keeps the stopping error well inside ±0.5 m at
+    dt = 0.1, 0.5 and 1.0 s with a 0.5 s actuator lag. ``b_plan`` (default 0.8 × service braking, reduced on
+    downhill gradients) leaves headroom for those corrections. Braking stays engaged while the train is
+    already braking and the required deceleration is at least ``release_fraction × b_plan``; this hysteresis
+    keeps cruise and stop laws from alternating when the onset overshoots the plan slightly.
+
+Holding and creeping
+    The train holds (a brake command of ``hold_decel``) while ``next_stop.dwelling`` is true, while it stands
+    in the platform window (arrival is registered by SUMO about a second after the halt; the engine advances
+    ``next_stop`` when the dwell is over and the departure time ``departure_not_before_s`` has passed), and
+    while it stands on a stop point. A train standing short of a stop point (e.g. held by the train ahead) with
+    less than ``creep_zone_m`` to go moves up at ``creep_speed`` and stops precisely as above.
+
+If even service braking cannot stop the train before the authority end itself, the command is emergency
+braking (``emergency=True``).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from controllers.base import Command, Observation, register
+from controllers.braking import (
+    allowed_speed_mps,
+    build_up_delay_s,
+    discrete_required_decel_mps2,
+    discrete_stop_distance_m,
+    params_from_mapping,
+    require,
+    required_decel_mps2,
+    traction_limit_mps2,
+)
+from railsim.vehicle import VehicleParams
+
+# Below this speed the train counts as standing [m/s].
+_STANDING_MPS = 1e-3
+
+
+@dataclass(frozen=True)
+class AtoParams:
+    """ATO tuning; defaults suit a metro (cq3_6car)."""
+
+    speed_margin_mps: float = 0.3  # run this far below a line speed or restriction [m/s]
+    speed_gain_per_s: float = 0.4  # k_v of the speed tracking law [1/s]
+    planning_decel_fraction: float = 0.8  # b_plan as a fraction of service braking [-]
+    release_fraction: float = 0.5  # keep braking while required ≥ this × b_plan [-]
+    max_accel_mps2: float = math.inf  # comfort cap on the applied traction [m/s²] (inf: traction envelope)
+    authority_margin_m: float = 5.0  # stop this far before the end of movement authority [m]
+    stop_tolerance_m: float = 0.5  # "on the mark" and minimum aim inside the platform window [m]
+    creep_speed_mps: float = 1.0  # speed to move up when standing short of a stop point [m/s]
+    creep_zone_m: float = 30.0  # creeping applies when the stop point is closer than this [m]
+    hold_decel_mps2: float = 0.5  # brake command while holding at a standstill [m/s²]
+
+    def __post_init__(self) -> None:
+        require("speed_margin_mps", self.speed_margin_mps >= 0.0, "a number >= 0", self.speed_margin_mps)
+        require("speed_gain_per_s", self.speed_gain_per_s > 0.0, "a number > 0", self.speed_gain_per_s)
+        require(
+            "planning_decel_fraction",
+            0.0 < self.planning_decel_fraction <= 1.0,
+            "a number in (0, 1]",
+            self.planning_decel_fraction,
+        )
+        require("release_fraction", 0.0 < self.release_fraction < 1.0, "a number in (0, 1)", self.release_fraction)
+        require("max_accel_mps2", self.max_accel_mps2 > 0.0, "a number > 0", self.max_accel_mps2)
+        require("authority_margin_m", self.authority_margin_m >= 0.0, "a number >= 0", self.authority_margin_m)
+        require("stop_tolerance_m", self.stop_tolerance_m > 0.0, "a number > 0", self.stop_tolerance_m)
+        require("creep_speed_mps", self.creep_speed_mps > 0.0, "a number > 0", self.creep_speed_mps)
+        require("creep_zone_m", self.creep_zone_m >= 0.0, "a number >= 0", self.creep_zone_m)
+        require("hold_decel_mps2", self.hold_decel_mps2 > 0.0, "a number > 0", self.hold_decel_mps2)
+
+
+class Ato:
+    """The ATO law for one train (stateless between calls: the same observation gives the same command)."""
+
+    def __init__(self, params: AtoParams, vehicle: VehicleParams) -> None:
+        require(
+            "hold_decel_mps2",
+            params.hold_decel_mps2 <= vehicle.service_decel_mps2,
+            f"a number <= the service deceleration {vehicle.service_decel_mps2}",
+            params.hold_decel_mps2,
+        )
+        self.params = params
+        self.vehicle = vehicle
+
+    def reset(self) -> None:
+        """Nothing to forget: the law keeps no state."""
+
+    def command(self, obs: Observation) -> Command:
+        p = self.params
+        veh = obs.vehicle
+        own = obs.own
+        v = max(own.speed_mps, 0.0)
+        x = own.position_m
+        grade = own.gradient_permille
+        m_eff = veh.effective_mass_kg
+        rho = veh.resistance_n(v, grade) / m_eff  # resistance + gradient as a deceleration [m/s²]
+        applied_now = own.accel_mps2
+        net_now = applied_now - rho
+        service = veh.service_decel_mps2
+        tau = veh.actuator_time_constant_s
+        dt = obs.dt_s
+        standing = v <= _STANDING_MPS
+        # Net braking the train can plan with: on a downhill part of the brake only holds the train.
+        b_service_net = max(service + rho, 0.05)
+        b_plan = p.planning_decel_fraction * min(service, b_service_net)
+        hold_applied = -min(service, max(p.hold_decel_mps2, -rho + 0.1))
+
+        stop = obs.next_stop
+        if stop is not None:
+            in_window = stop.window_start_m - p.stop_tolerance_m <= x <= stop.window_end_m + p.stop_tolerance_m
+            if stop.dwelling or (standing and in_window):
+                return Command(hold_applied, info={"phase": "hold"})
+
+        # ---- cruise target: line speed, vehicle limit, restrictions under the train (rear rule)
+        v_target = min(obs.line_speed_mps, veh.max_speed_mps) - p.speed_margin_mps
+        jerk = veh.jerk_limit_mps3
+        delay_plan = build_up_delay_s(applied_now, b_plan, tau, jerk)
+        brake_net = math.inf  # most restrictive braking sub-law (net acceleration, <= 0)
+        phase = "cruise"
+        braking_now = net_now <= -0.3 * b_plan
+        for lim in obs.speed_limits:
+            v_lim = lim.speed_mps - p.speed_margin_mps
+            if lim.start_m <= x < lim.end_m + own.length_m:
+                v_target = min(v_target, v_lim)
+            elif x < lim.start_m:
+                d = lim.start_m - x
+                v_target = min(v_target, allowed_speed_mps(d, b_plan, delay_plan, 0.0, v_lim))
+                if v > v_lim:
+                    b_req = required_decel_mps2(v, d, delay_plan, net_now, v_lim)
+                    if b_req >= b_plan or (braking_now and b_req >= p.release_fraction * b_plan):
+                        if -min(b_req, b_service_net) < brake_net:
+                            brake_net = -min(b_req, b_service_net)
+                            phase = "restriction"
+        v_target = max(v_target, 0.0)
+
+        # ---- stop points: the stopping mark (aimed inside the window) and the end of authority
+        points: list[float] = []
+        if stop is not None:
+            lo = stop.window_start_m + p.stop_tolerance_m
+            hi = stop.window_end_m - p.stop_tolerance_m
+            aim = min(max(stop.mark_m, lo), hi) if lo <= hi else 0.5 * (stop.window_start_m + stop.window_end_m)
+            points.append(aim)
+        emergency = False
+        if obs.authority_end_m is not None:
+            points.append(obs.authority_end_m - p.authority_margin_m)
+            hard_m = obs.authority_end_m - x
+            if v > 0.0 and discrete_stop_distance_m(v, net_now, b_service_net, dt, tau) > hard_m:
+                emergency = True
+        ramp_m = v * 0.5 * max(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
+        for point_m in points:
+            d = point_m - x
+            if standing and d <= p.stop_tolerance_m:
+                return Command(hold_applied, info={"phase": "hold"})
+            if v <= p.creep_speed_mps and d <= p.creep_zone_m:
+                v_target = min(v_target, p.creep_speed_mps)
+            if d <= 0.0:
+                brake_net = -b_service_net
+                phase = "stop"
+                continue
+            triggered = d - v * dt - ramp_m <= discrete_stop_distance_m(v, net_now, b_plan, dt, tau)
+            if triggered or braking_now:
+                b_req = discrete_required_decel_mps2(v, net_now, d, dt, tau, b_service_net)
+                if (triggered or b_req >= p.release_fraction * b_plan) and -b_req < brake_net:
+                    brake_net = -b_req
+                    phase = "stop"
+
+        # ---- cruise law and the minimum
+        traction = min(traction_limit_mps2(veh, v), p.max_accel_mps2)
+        if v >= veh.max_speed_mps:
+            traction = 0.0
+        cruise_net = p.speed_gain_per_s * (v_target - v)
+        cruise_net = min(max(cruise_net, -b_plan), traction - rho)
+        net = min(cruise_net, brake_net)
+        if net < cruise_net and phase == "cruise":
+            phase = "brake"
+        applied = veh.net_to_applied(net, v, grade)
+        if emergency:
+            return Command(-veh.emergency_decel_mps2, emergency=True, info={"phase": "emergency"})
+        applied = min(max(applied, -service), traction)
+        return Command(applied, info={"phase": phase})
+
+
+@register("ato")
+def make_ato(params: Mapping[str, Any], vehicle: VehicleParams) -> Ato:
+    """Factory for scenarios: ``controllers: {ato: {type: ato, speed_margin_mps: 0.5}}``."""
+    return Ato(params_from_mapping(AtoParams, params), vehicle)

@@ -1,0 +1,233 @@
+"""CACC: cooperative adaptive cruise control for a virtually coupled follower (constant gap + safety check).
+
+Used in the ``follow`` role while a formation is ``coupling`` or ``coupled`` (see :mod:`controllers.base`).
+
+Tracking law (net accelerations; the applied command adds resistance and gradient feed-forward)::
+
+    gap  = (rear_p + v_p·age) − x            front-to-rear, predecessor extrapolated by the message age
+    e    = gap − gap*                          gap* = obs.target_gap_m
+    a    = k_gap·e + k_speed·(v_p − v) + k_ff·â_p
+
+written in cascade form ``a = k_speed·(v_p + v_close − v) + k_ff·â_p`` with the closing-speed reference
+``v_close = (k_gap/k_speed)·e``, limited while the gap is much larger than its target to
+``min(approach_speed, √(2·approach_decel·e))`` — in the linear region this *is* the law above; far out it closes
+at a bounded relative speed and sheds it at a comfortable relative deceleration, so coupling converges from
+hundreds of metres without overshoot.
+
+Feed-forward and string stability. ``â_p`` should be the acceleration the predecessor is *commanding now*:
+its command passes through the same lag τ as ours, so the follower replicates it in step and the string is
+neutral — the gap-error transfer from one train to the next is Γ ≡ 1 for any gains (with ``P`` the plant
+from command to position and ``C`` the feedback, ``X = P·(C·(X_p − X) + U_p)`` and ``X_p = P·U_p`` give
+``X = X_p``). Where it comes from, in order of preference:
+
+1. the predecessor's broadcast plan (``planned_accel_mps2``, DMPC-style), entry ``⌊age/plan_dt⌋`` — exact
+   when the engine publishes a train's command before its follower decides;
+2. ``ff_lag_compensation`` (default): the command reconstructed from two consecutive messages by inverting
+   the lag, ``û = a_prev + (a_new − a_prev)/(1 − e^{−Δt/τ})`` (Δt between the time stamps, τ of this train's
+   vehicle as a proxy) — this is the predecessor's command of the *previous* step;
+3. otherwise the reported applied acceleration.
+
+With (2) or (3) the feed-forward is at least one step old, and with constant spacing and predecessor-only
+information that makes some amplification unavoidable (Seiler, Pant & Hedrick 2004): for the default gains
+max |Γ| ≈ 1.1 at dt = 0.1 s, ≈ 1.6 at dt = 0.5 s, ≈ 2.5 at dt = 1.0 s (around 1.5–2 rad/s). Lower gains
+reduce it (k_gap = 0.02, k_speed = 0.5: 1.26 at dt = 0.5 s) at the cost of a slow gap loop. The defaults
+``k_gap = 0.1 /s²``, ``k_speed = 1.0 /s`` give ζ ≈ 0.68 with the cq3_6car plant (τ = 0.5 s) at dt = 0.5 s
+and a slowest time constant of ≈ 9 s. The controller keeps one piece of state: the last message of the
+current predecessor (for the reconstruction).
+
+Safety check (relative braking distance, Hou et al. RDBM reading). With the predecessor extrapolated by its
+message age under worst-case emergency braking (``v_pw``, ``rear_w``)::
+
+    RBD = S_f(v) − v_pw²/(2·b_p) + margin,     S_f(v) = v·T + a0·T²/2 + (v + a0·T)²/(2·b_f)
+    h   = (rear_w − x) − RBD ≥ 0
+
+``b_f`` is this train's emergency deceleration (net: gradient and the constant Davis term, i.e. the resistance at
+a crawl, the least it gets during a stop), ``b_p`` the predecessor's emergency deceleration plus its running
+resistance at its present speed (estimated with this train's Davis coefficients; a predecessor that stops sooner
+is the worse case), ``T`` = actuator lag + reaction time + one control step (the command is held for a step
+before the next decision; emergency braking bypasses the jerk limit). The message age enters through the
+worst-case extrapolation, i.e. like extra reaction time. So the target gap is only kept where it is safe: with
+the defaults (margin 10 m, τ = 0.5 s) at dt = 0.5 s and 0.5 s old messages a 30 m gap is consistent up to about
+11 m/s; above that the safety cap holds the follower further back (≈ 38 m at 15 m/s) — scenarios should set
+``target_gap_m`` ≳ v·(τ + dt + age) + margin + (braking-rate asymmetry) for their speed. As in
+:mod:`controllers.separation` the acceleration is capped so that ``h`` decays no faster than ``−γ·h``
+(γ ≤ 0.5/dt)::
+
+    a ≤ [(v_p − v) + (v_pw/b_p)·a_p + γ·h] / (T + (v + a0·T)/b_f)
+
+(the rate uses the reported speed: the worst-case extrapolation sets the level of ``h`` and is refreshed by
+every message; it is not a trend).
+
+and ``emergency=True`` (emergency braking) when that cap asks for more than service braking can give.
+
+Gap policy (``gap_policy``). ``constant`` tracks ``obs.target_gap_m`` as given. ``safe`` (default) tracks
+``max(obs.target_gap_m, G(v) + gap_buffer_m)`` where ``G`` is the steady-state gap that keeps the safety
+barrier above zero at equal speeds with the current message age::
+
+    G(v) = S_f(v) − v²/(2·b_p) + margin + v·age
+
+so at standstill a formation keeps its configured (platform-sized) gap and at speed the relative braking
+distance the safety check demands — the controller never fights its own safety cap. The effective target is
+reported in ``Command.info["target_gap_m"]``; the engine measures gap errors against it.
+
+Stopping behind a standing leader (``obs.extras["vc_tracking"] is False``). When the predecessor already
+stands at the station this train is stopping at, the stop is a point-stopping problem (the ATO stops the
+front exactly ``target gap`` behind the leader's rear); the CACC then applies only its safety cap, so its slow
+final gap loop does not freeze the train a metre short.
+
+Without a predecessor or without a target gap there is nothing to track: the command is the traction limit,
+so the engine's ``min()`` leaves ATO in charge.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from controllers.base import Command, Observation, PredecessorState, register
+from controllers.braking import (
+    net_braking_mps2,
+    params_from_mapping,
+    require,
+    stopping_distance_m,
+    traction_limit_mps2,
+)
+from railsim.vehicle import VehicleParams
+
+
+@dataclass(frozen=True)
+class CaccParams:
+    """CACC gains and safety parameters; defaults tuned for cq3_6car at dt = 0.5 s (τ = 0.5 s)."""
+
+    k_gap_per_s2: float = 0.1  # gap-error gain [1/s²]
+    k_speed_per_s: float = 1.0  # relative-speed gain [1/s]
+    k_ff: float = 1.0  # predecessor acceleration feed-forward gain [-]
+    ff_lag_compensation: bool = True  # reconstruct the predecessor's command by inverting the lag
+    approach_speed_mps: float = 3.0  # largest closing speed while the gap is much larger than target [m/s]
+    approach_decel_mps2: float = 0.3  # relative deceleration to shed the closing speed [m/s²]
+    safety_margin_m: float = 10.0  # relative-braking-distance margin [m]
+    reaction_time_s: float = 0.0  # reaction allowance on top of actuator lag and one control step [s]
+    barrier_rate_per_s: float = 1.0  # γ of the safety cap [1/s] (capped at 0.5/dt)
+    gap_policy: str = "safe"  # "safe": max(target, steady-state safe gap + buffer); "constant": target as given
+    gap_buffer_m: float = 2.0  # added to the steady-state safe gap under the "safe" policy [m]
+
+    def __post_init__(self) -> None:
+        require("k_gap_per_s2", self.k_gap_per_s2 > 0.0, "a number > 0", self.k_gap_per_s2)
+        require("k_speed_per_s", self.k_speed_per_s > 0.0, "a number > 0", self.k_speed_per_s)
+        require("k_ff", 0.0 <= self.k_ff <= 2.0, "a number in [0, 2]", self.k_ff)
+        require("approach_speed_mps", self.approach_speed_mps > 0.0, "a number > 0", self.approach_speed_mps)
+        require("approach_decel_mps2", self.approach_decel_mps2 > 0.0, "a number > 0", self.approach_decel_mps2)
+        require("safety_margin_m", self.safety_margin_m >= 0.0, "a number >= 0", self.safety_margin_m)
+        require("reaction_time_s", self.reaction_time_s >= 0.0, "a number >= 0", self.reaction_time_s)
+        require("barrier_rate_per_s", self.barrier_rate_per_s > 0.0, "a number > 0", self.barrier_rate_per_s)
+        require("gap_policy", self.gap_policy in ("safe", "constant"), "'safe' or 'constant'", self.gap_policy)
+        require("gap_buffer_m", self.gap_buffer_m >= 0.0, "a number >= 0", self.gap_buffer_m)
+
+
+class Cacc:
+    """CACC for one follower. Keeps the last message of its predecessor (for the lag compensation)."""
+
+    def __init__(self, params: CaccParams, vehicle: VehicleParams) -> None:
+        self.params = params
+        self.vehicle = vehicle
+        self._last: tuple[str, float, float] | None = None  # (train_id, stamp_s, accel_mps2) of the last message
+        self._command_estimate_mps2 = 0.0
+
+    def reset(self) -> None:
+        """Forget the predecessor's message history."""
+        self._last = None
+        self._command_estimate_mps2 = 0.0
+
+    def _predecessor_command(self, pred: PredecessorState, lag_s: float) -> float:
+        """The predecessor's commanded acceleration, reconstructed from consecutive messages (applied if unknown)."""
+        last = self._last
+        if last is None or last[0] != pred.train_id or pred.stamp_s < last[1]:
+            self._last = (pred.train_id, pred.stamp_s, pred.accel_mps2)
+            self._command_estimate_mps2 = pred.accel_mps2
+        elif pred.stamp_s > last[1]:
+            interval_s = pred.stamp_s - last[1]
+            alpha = 1.0 - math.exp(-interval_s / lag_s) if lag_s > 0.0 else 1.0
+            estimate = last[2] + (pred.accel_mps2 - last[2]) / alpha
+            # Bound by what any train can do; a lost message in between makes the inversion approximate.
+            self._command_estimate_mps2 = min(max(estimate, -pred.emergency_decel_mps2), 2.0)
+            self._last = (pred.train_id, pred.stamp_s, pred.accel_mps2)
+        return self._command_estimate_mps2
+
+    def command(self, obs: Observation) -> Command:
+        veh = obs.vehicle
+        own = obs.own
+        v = max(own.speed_mps, 0.0)
+        traction = traction_limit_mps2(veh, v)
+        pred = obs.predecessor
+        if pred is None or obs.target_gap_m is None:
+            return Command(traction, info={"phase": "free"})
+        p = self.params
+        grade = own.gradient_permille
+        m_eff = veh.effective_mass_kg
+        tau = veh.actuator_time_constant_s
+        age_s = max(pred.age_s, 0.0)
+        v_p = max(pred.speed_mps, 0.0)
+        rho_p = veh.resistance_n(v_p, grade) / m_eff  # predecessor's resistance, own Davis as proxy
+
+        # ---- tracking law
+        if pred.planned_accel_mps2 and pred.plan_dt_s > 0.0:
+            # The predecessor broadcast its plan: the entry for "now" is the command it is applying.
+            index = min(int(age_s / pred.plan_dt_s + 1e-9), len(pred.planned_accel_mps2) - 1)
+            a_p_applied = pred.planned_accel_mps2[index]
+        elif p.ff_lag_compensation:
+            a_p_applied = self._predecessor_command(pred, tau)
+        else:
+            a_p_applied = pred.accel_mps2
+        # ---- relative-braking-distance quantities (shared by the gap policy and the safety cap)
+        b_f = max(net_braking_mps2(veh, veh.emergency_decel_mps2, grade, davis_speed_mps=0.0), 0.05)
+        b_p = max(pred.emergency_decel_mps2 + rho_p, 0.05)
+        v_pw = max(v_p - b_p * age_s, 0.0)
+        rear_w = pred.rear_position_m + (v_p * v_p - v_pw * v_pw) / (2.0 * b_p)
+        a0 = own.accel_mps2
+        delay_s = tau + p.reaction_time_s + obs.dt_s  # a command holds for a whole step (zero-order hold)
+
+        target_m = float(obs.target_gap_m)
+        if p.gap_policy == "safe":
+            steady_m = stopping_distance_m(v, b_f, delay_s, 0.0) - v * v / (2.0 * b_p) + p.safety_margin_m \
+                + v * age_s
+            target_m = max(target_m, steady_m + p.gap_buffer_m)
+        gap_m = pred.rear_position_m + v_p * age_s - own.position_m
+        error_m = gap_m - target_m
+        v_close = p.k_gap_per_s2 / p.k_speed_per_s * error_m
+        if error_m > 0.0:
+            v_close = min(v_close, p.approach_speed_mps, math.sqrt(2.0 * p.approach_decel_mps2 * error_m))
+        track_net = p.k_speed_per_s * (v_p + v_close - v) + p.k_ff * (a_p_applied - rho_p)
+        if obs.extras.get("vc_tracking") is False:
+            track_net = math.inf  # stopping behind a standing leader: the ATO stops us, we only guard safety
+        rbd_m = stopping_distance_m(v, b_f, delay_s, a0) - v_pw * v_pw / (2.0 * b_p) + p.safety_margin_m
+        h = rear_w - own.position_m - rbd_m
+        a_p_net = max(pred.accel_mps2 - rho_p, -b_p) if v_pw > 0.0 else 0.0
+        slope_s = delay_s + max(v + a0 * delay_s, 0.0) / b_f
+        # Rate of change of h: the gap changes with the *reported* speeds; the worst-case extrapolation only sets
+        # the level of h (it is refreshed with every message, it is not a trend).
+        # γ·dt ≤ 0.5: a sampled barrier with γ·dt near 1 rings (limit cycle) against the lagged plant.
+        gamma = min(p.barrier_rate_per_s, 0.5 / obs.dt_s)
+        numer = (v_p - v) + v_pw / b_p * a_p_net + gamma * h
+        cap_net = numer / slope_s if slope_s > 0.0 else (math.inf if numer >= 0.0 else -math.inf)
+
+        info: dict[str, Any] = {"phase": "track", "gap_m": gap_m, "gap_error_m": error_m, "rbd_margin_m": h,
+                                "target_gap_m": target_m}
+        service_net = net_braking_mps2(veh, veh.service_decel_mps2, grade, davis_speed_mps=v)
+        if cap_net < -service_net and v > 0.0:
+            info["phase"] = "emergency"
+            return Command(-veh.emergency_decel_mps2, emergency=True, info=info)
+        net = track_net
+        if cap_net < track_net:
+            net = cap_net
+            info["phase"] = "safety"
+        if math.isinf(net):
+            return Command(traction, info=info)
+        applied = veh.net_to_applied(net, v, grade)
+        return Command(min(max(applied, -veh.service_decel_mps2), traction), info=info)
+
+
+@register("cacc")
+def make_cacc(params: Mapping[str, Any], vehicle: VehicleParams) -> Cacc:
+    """Factory for scenarios: ``controllers: {follow: {type: cacc, k_gap_per_s2: 0.1}}``."""
+    return Cacc(params_from_mapping(CaccParams, params), vehicle)

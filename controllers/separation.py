@@ -1,0 +1,137 @@
+"""Moving-block separation with the absolute braking distance (the ``follow`` role of uncoupled trains).
+
+Rule (ETCS level 3 / CBTC moving block, "brick wall"): the follower must at every moment be able to stop
+behind the predecessor's rear **as last known**, minus a safety margin, assuming the predecessor could stand
+still there. A stale message is conservative because trains do not reverse: the true rear is at or ahead of the
+last reported one.
+
+Free distance and braking distance (dead-time model of :mod:`controllers.braking`)::
+
+    d_free = rear_known − margin − x_front
+    S(v)   = v·T + a0·T²/2 + (v + a0·T)² / (2·b)
+    T      = reaction_time + message age + dt + actuator lag τ + ½·jerk ramp (a0 → −b)
+
+(``dt``: a command is held for one control step before the next decision.)
+
+with ``b`` the service braking as a net deceleration (gradient included, running resistance left out so that
+one's own braking is not over-estimated). The safety invariant is ``h = d_free − S(v) ≥ 0``.
+
+Control law (a control-barrier-function reading of "stay on or below the braking curve"): the command is
+capped so that ``h`` decays no faster than ``−γ·h``. Differentiating with a brick-wall predecessor
+(``d_free`` shrinks at ``v``) and ``∂S/∂v = T + (v + a0·T)/b``::
+
+    a ≤ (γ·h − v) / (T + (v + a0·T)/b)
+
+Far from the predecessor the cap is large and ATO is in charge (the engine takes the minimum). Approaching a
+standing train the cap starts biting about ``v/γ`` before the braking curve and then brings the train to rest
+with ``h → 0``, i.e. before ``rear − margin`` (the barrier is taken one step of travel ``v·dt`` plus a 1 m
+standstill buffer short of the boundary, so the sampled, lagged plant halts before it rather than on it;
+the last metre at a crawl is replaced by a gentle halt). Behind a running predecessor the follower settles
+at roughly ``S(v) + v/γ + margin`` behind the last known rear. When ``h < 0`` (a new predecessor appears close, a
+long message outage) the same cap asks for more than ``v/(∂S/∂v)`` of braking (clipped to service), and
+``emergency=True`` if service braking with no
+reaction allowance (predicted with the plant's exact discrete recursion, see :mod:`controllers.braking`)
+would no longer stop before ``rear − margin``.
+
+Reading of the brief: the message age is added to the reaction time although a brick-wall rear is already the
+worst case for a stale message — the extra distance is the degraded-mode behaviour of a train whose data is old.
+Without a predecessor there is no restriction: the command is the traction limit, so ``min()`` leaves ATO in
+charge.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Mapping
+
+from controllers.base import Command, Observation, register
+from controllers.braking import (
+    build_up_delay_s,
+    discrete_stop_distance_m,
+    net_braking_mps2,
+    params_from_mapping,
+    require,
+    stopping_distance_m,
+    traction_limit_mps2,
+)
+from railsim.vehicle import VehicleParams
+
+_STANDSTILL_BUFFER_M = 1.0  # aim to halt this far before rear − margin [m]
+_CRAWL_MPS = 0.5  # below this speed and ...
+_CRAWL_ZONE_M = 1.0  # ... this close to the halting point, brake to a stop [m]
+_CRAWL_STOP_DECEL_MPS2 = 0.3  # net deceleration of that final halt [m/s²]
+
+
+@dataclass(frozen=True)
+class SeparationParams:
+    """Absolute-braking-distance separation parameters."""
+
+    margin_m: float = 50.0  # stop at least this far behind the predecessor's last known rear [m]
+    reaction_time_s: float = 1.0  # reaction/latency allowance on top of the message age [s]
+    barrier_rate_per_s: float = 0.5  # γ: how fast the free distance may be used up [1/s] (capped at 0.5/dt)
+
+    def __post_init__(self) -> None:
+        require("margin_m", self.margin_m >= 0.0, "a number >= 0", self.margin_m)
+        require("reaction_time_s", self.reaction_time_s >= 0.0, "a number >= 0", self.reaction_time_s)
+        require("barrier_rate_per_s", self.barrier_rate_per_s > 0.0, "a number > 0", self.barrier_rate_per_s)
+
+
+class Separation:
+    """Moving-block separation for one train (stateless)."""
+
+    def __init__(self, params: SeparationParams, vehicle: VehicleParams) -> None:
+        self.params = params
+        self.vehicle = vehicle
+
+    def reset(self) -> None:
+        """Nothing to forget: the law keeps no state."""
+
+    def command(self, obs: Observation) -> Command:
+        veh = obs.vehicle
+        own = obs.own
+        v = max(own.speed_mps, 0.0)
+        pred = obs.predecessor
+        traction = traction_limit_mps2(veh, v)
+        if pred is None:
+            return Command(traction, info={"phase": "free"})
+        p = self.params
+        grade = own.gradient_permille
+        a0 = own.accel_mps2
+        b = max(net_braking_mps2(veh, veh.service_decel_mps2, grade), 0.05)
+        age_s = max(pred.age_s, 0.0)
+        reaction_s = p.reaction_time_s + age_s + obs.dt_s  # + one step: a command is held until the next decision
+        delay = build_up_delay_s(a0, b, veh.actuator_time_constant_s, veh.jerk_limit_mps3, reaction_s)
+        free_m = pred.rear_position_m - p.margin_m - own.position_m
+        # The barrier aims one step of travel plus a small standstill buffer short of the boundary: the law
+        # is continuous-time, the plant is sampled and lagged, and the train should come to rest *before*
+        # rear − margin rather than converge onto it.
+        h = free_m - stopping_distance_m(v, b, delay, a0) - v * obs.dt_s - _STANDSTILL_BUFFER_M
+        info: dict[str, Any] = {"phase": "follow", "free_m": free_m, "barrier_m": h}
+        if h < 0.0 and v > 0.0:
+            # Inside the braking curve's allowance already (a predecessor appeared close, a long outage):
+            # emergency only if service braking, predicted exactly for the plant (lag, Euler) plus the jerk
+            # ramp, would no longer stop before rear − margin.
+            rho = veh.resistance_n(v, grade) / veh.effective_mass_kg
+            ramp_m = 0.5 * v * max(a0 + veh.service_decel_mps2, 0.0) / veh.jerk_limit_mps3
+            if discrete_stop_distance_m(v, a0 - rho, b, obs.dt_s, veh.actuator_time_constant_s) + ramp_m > free_m:
+                info["phase"] = "emergency"
+                return Command(-veh.emergency_decel_mps2, emergency=True, info=info)
+            info["phase"] = "brake"
+        slope_s = delay + max(v + a0 * delay, 0.0) / b
+        gamma = min(p.barrier_rate_per_s, 0.5 / obs.dt_s)  # a sampled barrier with γ·dt near 1 rings
+        net_cap = (gamma * h - v) / slope_s if slope_s > 0.0 else math.inf
+        if not math.isfinite(net_cap):
+            return Command(traction, info=info)
+        if v < _CRAWL_MPS and free_m - _STANDSTILL_BUFFER_M < _CRAWL_ZONE_M:
+            # The barrier approaches its end point asymptotically; rather than crawl for minutes, halt.
+            net_cap = min(net_cap, -_CRAWL_STOP_DECEL_MPS2)
+            info["phase"] = "halt"
+        applied = veh.net_to_applied(net_cap, v, grade)
+        return Command(min(max(applied, -veh.service_decel_mps2), traction), info=info)
+
+
+@register("separation")
+def make_separation(params: Mapping[str, Any], vehicle: VehicleParams) -> Separation:
+    """Factory for scenarios: ``controllers: {follow: {type: separation, margin_m: 50}}``."""
+    return Separation(params_from_mapping(SeparationParams, params), vehicle)

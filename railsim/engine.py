@@ -1,0 +1,780 @@
+"""One simulation: the step loop that joins SUMO, the simpy event layer, the plant and the controllers.
+
+Per step ``k`` at time ``t_k`` (DESIGN.md §3)::
+
+    layer.advance_to(t_k)      departures due, message deliveries, switch throws, formation commands
+    truth = sumo.read()        odometer → route chainage of every train (ground truth)
+    bookkeeping                stop registration / dwell end / arrival, switch lock requests and releases,
+                               true gaps → formations and the recorder, collision detection on truth
+    comms                      every train reports to the ground (t2g); formation leaders to followers (t2t)
+    for each train:            obs = what the train KNOWS (own odometry + delivered messages + authority)
+                               u   = min over active roles (ato, separation | coupled controller)
+                               v'  = dynamics.step(...)   (envelopes, jerk, lag, resistance, gradient)
+    sumo.set_speeds(v'); sumo.step()
+
+Truth vs knowledge: controllers see predecessor states only as delivered messages (stale when late, missing
+when lost); the recorder and the formation state machine see ground truth. SUMO's own collision check runs too
+and is recorded separately.
+
+Interlocking: every switch on a train's route is requested ``lock_request_distance_m`` before its point; until
+granted, the train's movement authority ends ``protection_margin_m`` before the switch point; the lock is
+released when the train's rear is ``clearance_m`` past the point. A coupled pair on the same leg holds one lock.
+
+Virtual coupling on a line: a follower in a formation is inserted behind its leader when the formation couples
+on departure; while coupling/coupled it stops at stations ``leader length + target gap`` behind the leader's mark
+(both units stand on one long platform), and it follows with the ``coupled`` controller on t2t messages. If the
+leader's messages are older than ``max_message_age_s`` the follower degrades to ``separation`` on ground data
+(logged). Decoupling ``before_switch`` happens when the leader departs the last stop before that switch (or
+``decouple_distance_m`` before it), after which the units separate with absolute braking distance and each takes
+its own switch lock.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+import sys
+import time as _time
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+import controllers as ctl
+from controllers.base import Command, Observation, OwnState, PredecessorState, StopTarget, arbitrate
+from railsim import dynamics
+from railsim.errors import ConfigError, SimulationError
+from railsim.occupancy import Ahead, Body, Occupancy
+from railsim.routeview import RouteView, route_view
+from railsim.trips import Trip, TripStop, make_stops, plan_free_run
+
+log = logging.getLogger(__name__)
+
+INF = float("inf")
+APART_GAP_M = 1.0e9  # "gap" reported to a formation whose units are on different tracks
+
+
+@dataclass(frozen=True)
+class EngineSettings:
+    """Operating rules of the engine (not of any one controller); scenario ``engine:`` may override."""
+
+    lock_request_distance_m: float = 1500.0
+    protection_margin_m: float = 20.0
+    clearance_m: float = 10.0
+    max_message_age_s: float = 2.0
+    decouple_distance_m: float = 2000.0
+    lookahead_m: float = 5000.0
+    separation_gap_m: float = 300.0  # formation decoupling completes at this true gap (front-to-rear)
+    missed_stop_tolerance_m: float = 0.5
+    final_approach_margin_m: float = 50.0  # coupled follower: hand the stop to the ATO this far before braking
+
+
+@dataclass
+class TrainRuntime:
+    """Everything that changes about one trip during the run."""
+
+    trip: Trip
+    view: RouteView
+    controllers: dict[str, Any]
+    plant: dynamics.PlantState = field(default_factory=lambda: dynamics.PlantState(speed_mps=0.0))
+    status: str = "scheduled"  # scheduled | inserting | running | arrived | removed
+    inserted_s: float | None = None
+    departed_s: float | None = None
+    arrived_s: float | None = None
+    next_stop: int = 1
+    front_m: float = 0.0
+    halted_s: float | None = None
+    halt_error_m: float | None = None
+    sumo_stopped: bool = False
+    dwell_started_s: float | None = None
+    energy_j: float = 0.0
+    min_gap_m: float = INF
+    coupled_s: float = 0.0
+    max_jerk_mps3: float = 0.0
+    last_applied_mps2: float = 0.0
+    fallbacks: int = 0
+    saturations: dict[str, int] = field(default_factory=dict)
+    locks: dict[str, Any] = field(default_factory=dict)  # switch id -> LockRequest (own or group)
+    released: set[str] = field(default_factory=set)
+    violations: set[str] = field(default_factory=set)
+    last_role: str = "ato"
+    last_cmd_mps2: float = 0.0
+    last_gap_m: float = INF
+    stale_max_s: float = 0.0
+    degraded: bool = False
+    stops_served: int = 0
+    depart_chainage_m: float = 0.0
+    sumo_stopped_now: bool = False
+    vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
+
+    @property
+    def train_id(self) -> str:
+        return self.trip.trip_id
+
+
+class Simulation:
+    """Builds the world and the trains for a scenario and runs the step loop. Use :func:`run`."""
+
+    def __init__(self, scenario: Any, out_dir: Path | None, seed: int | None = None,
+                 progress: bool | None = None, settings: EngineSettings | None = None) -> None:
+        import network
+        from railsim import scenario as scn_mod
+        from railsim.events import (Channel, DelaySpec, EventLayer, FormationManager, Formation, Interlocking,
+                                    Outage, Switch)
+
+        self.scenario = scenario
+        self.out_dir = Path(out_dir) if out_dir is not None else None
+        sim = scenario.simulation
+        self.seed = int(sim.seed if seed is None else seed)
+        self.dt = float(sim.step_s)
+        self.duration_s = float(sim.duration_s)
+        self.step_method = sim.step_method
+        self.settings = settings or EngineSettings()
+        self.progress = sys.stderr.isatty() if progress is None else progress
+        self.rng = np.random.default_rng(self.seed)
+
+        world = scenario.world
+        if world.kind == "net":
+            raise ConfigError(scenario.source, "world.net", "running on an existing .net.xml is not supported yet")
+        name_or_path, params = world.build_args()
+        self.bundle = network.build(name_or_path, **params)
+        scn_mod.check_against_world(scenario, self.bundle.stations.keys(), self.bundle.switches.keys())
+
+        # ---- event layer
+        self.layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(self.rng.integers(2**63)))
+        self.events = self.layer.log
+        self.formations = FormationManager(self.layer)
+        self.interlocking = Interlocking(self.layer)
+        for sw in self.bundle.switches.values():
+            self.interlocking.add_switch(Switch(sw.id, throw_time_s=float(sw.throw_time_s)))
+        self.channels: dict[str, Any] = {}
+        for name, spec in scenario.faults.comm.items():
+            delay = DelaySpec.from_mapping(_delay_mapping(spec.delay), str(scenario.source),
+                                           f"faults.comm.{name}.delay_s")
+            outages = tuple(Outage(o.start_s, o.end_s, frozenset(o.trains) if o.trains else None)
+                            for o in spec.outages)
+            self.channels[name] = Channel(self.layer, name, delay, float(spec.loss_prob), outages)
+        self.noise_pos_sd = float(scenario.faults.sensor_noise.position_sd_m)
+        self.noise_speed_sd = float(scenario.faults.sensor_noise.speed_sd_mps)
+        self.noise_rng = np.random.default_rng(self.rng.integers(2**63))
+
+        # ---- trips
+        self.trains: dict[str, TrainRuntime] = {}
+        self.trips_by_service: dict[str, list[Trip]] = {}
+        self._build_trips()
+        self.formation_of_follower: dict[str, Any] = {}
+        self.formation_of_leader: dict[str, list[Any]] = {}
+        self._build_formations(Formation)
+        self._schedule_departures()
+        self._schedule_timed_events()
+
+        # what a train knows of another before any message arrived: (receiver, sender) -> report
+        self._registration: dict[tuple[str, str], tuple[str, float, float, float, float]] = {}
+        self.occupancy = Occupancy()
+        self.collisions: list[dict[str, Any]] = []
+        self._colliding_pairs: set[tuple[str, str]] = set()
+        self.sumo_collisions: list[dict[str, Any]] = []
+        from railsim.record import Recorder
+
+        self.recorder = Recorder(self, stride_s=float(scenario.outputs.trace_stride_s))
+        self.steps = 0
+        self.wall_s = 0.0
+
+    # ------------------------------------------------------------------ set-up
+    def _controller(self, role: str, trip_roles: dict[str, str], vehicle: Any) -> Any:
+        name = trip_roles.get(role)
+        if name is None:
+            return None
+        spec = self.scenario.controllers[name]
+        return ctl.create(spec.type, dict(spec.params or {}), vehicle)
+
+    def _closing_ato(self, trip_roles: dict[str, str], vehicle: Any) -> Any:
+        """The follower's ATO while coupled: the same ATO without its cruise margin below the line speed.
+
+        Both units of a formation otherwise cruise at the same speed (line speed − margin) and a follower that
+        fell back while accelerating could never close up; without the margin it closes at up to that margin
+        and still never exceeds the line speed or a restriction. ATOs without a ``speed_margin_mps`` parameter
+        are used as they are.
+        """
+        spec = self.scenario.controllers[trip_roles["ato"]]
+        try:
+            return ctl.create(spec.type, {**dict(spec.params or {}), "speed_margin_mps": 0.0}, vehicle)
+        except (ValueError, TypeError):
+            return None
+
+    def _build_trips(self) -> None:
+        scn = self.scenario
+        for svc in scn.services:
+            try:
+                route = self.bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+            except (KeyError, ValueError) as exc:
+                raise ConfigError(scn.source, f"services[{svc.id}]", f"no route: {exc}") from None
+            vehicle = scn.vehicles[svc.vehicle]
+            stops = make_stops(route, vehicle.length_m, tuple(svc.skip), svc.dwell_default_s,
+                               dict(svc.dwell_by_station), svc.from_station, svc.to_station)
+            if len(stops) < 2 or stops[0].station_id != svc.from_station or stops[-1].station_id != svc.to_station:
+                raise ConfigError(scn.source, f"services[{svc.id}]",
+                                  f"route from {svc.from_station} to {svc.to_station} does not serve both stations")
+            trips = []
+            for k, (trip_id, dep) in enumerate(zip(svc.trip_ids, svc.departures_s)):
+                trip = Trip(trip_id=trip_id, service_id=svc.id, index=k, vehicle_name=svc.vehicle, vehicle=vehicle,
+                            route=route, depart_s=float(dep), stops=stops, roles=dict(svc.roles))
+                ato_factory = lambda r=dict(svc.roles), v=vehicle: self._controller("ato", r, v)  # noqa: E731
+                arr, depm = plan_free_run(trip, ato_factory, self.dt, self.step_method)
+                trip.planned_arrival_s.update(arr)
+                trip.planned_departure_s.update(depm)
+                ctrls = {role: self._controller(role, trip.roles, vehicle) for role in ("ato", "separation", "coupled")}
+                ctrls["ato_closing"] = self._closing_ato(trip.roles, vehicle)
+                self.trains[trip_id] = TrainRuntime(trip=trip, view=route_view(route), controllers=ctrls)
+                trips.append(trip)
+            self.trips_by_service[svc.id] = trips
+
+    def _trip_ref(self, ref: Any, where: str) -> TrainRuntime:
+        trips = self.trips_by_service.get(ref.service)
+        if not trips or not (0 <= ref.trip < len(trips)):
+            raise ConfigError(self.scenario.source, where, f"no trip {ref.trip} in service {ref.service!r}")
+        return self.trains[trips[ref.trip].trip_id]
+
+    def _build_formations(self, Formation: Any) -> None:
+        for k, f in enumerate(self.scenario.formations):
+            leader = self._trip_ref(f.leader, f"formations[{k}].leader")
+            follower = self._trip_ref(f.follower, f"formations[{k}].follower")
+            form = Formation(id=f.id, leader_id=leader.train_id, follower_id=follower.train_id,
+                             target_gap_m=float(f.target_gap_m), separation_gap_m=self.settings.separation_gap_m,
+                             coupling_timeout_s=float(f.coupling_timeout_s))
+            self.formations.add(form)
+            if _trig(f.couple, "on_departure"):
+                origin = follower.trip.origin.station_id
+                planned = leader.trip.planned_departure_s.get(origin)
+                if planned is None:
+                    raise ConfigError(self.scenario.source, f"formations[{k}].couple",
+                                      f"the leader's trip does not stop at the follower's origin {origin!r}")
+                shift = planned - follower.trip.depart_s
+                follower.trip.depart_s = planned
+                for d in (follower.trip.planned_arrival_s, follower.trip.planned_departure_s):
+                    for key in d:
+                        d[key] += shift
+            self.formation_of_follower[follower.train_id] = f
+            self.formation_of_leader.setdefault(leader.train_id, []).append(f)
+
+    def _schedule_departures(self) -> None:
+        for tr in self.trains.values():
+            f = self.formation_of_follower.get(tr.train_id)
+            if f is not None and _trig(f.couple, "on_departure"):
+                continue  # inserted behind its leader when the leader stands at the follower's origin
+            self.layer.at(tr.trip.depart_s, lambda _t, tr=tr: self._insert(tr), "departure_due", tr.train_id)
+
+    def _schedule_timed_events(self) -> None:
+        for f in self.scenario.formations:
+            if _trig(f.couple, "at_s"):
+                self.formations.request_couple(f.id, at_s=float(f.couple.at_s))
+            if _trig(f.decouple, "at_s"):
+                self.formations.request_decouple(f.id, at_s=float(f.decouple.at_s))
+        for ev in self.scenario.events:
+            if ev.type == "couple":
+                self.formations.request_couple(ev.formation, at_s=float(ev.at_s))
+            elif ev.type == "decouple":
+                self.formations.request_decouple(ev.formation, at_s=float(ev.at_s))
+
+    # ------------------------------------------------------------------ insertion
+    def _insert(self, tr: TrainRuntime, behind: TrainRuntime | None = None, gap_m: float = 0.0) -> None:
+        trip = tr.trip
+        if tr.status != "scheduled":
+            return
+        depart_m = trip.depart_chainage_m
+        if behind is not None:
+            off = behind.view.offset_to(tr.view, behind.front_m - behind.trip.vehicle.length_m)
+            if off is None:
+                raise SimulationError(f"{tr.train_id} cannot start behind {behind.train_id}: routes share no track")
+            depart_m = behind.front_m + off - behind.trip.vehicle.length_m - gap_m
+            if depart_m < trip.origin.window_start_m:
+                self.events.record(self.layer.now_s, "platform_too_short", tr.train_id,
+                                   detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m")
+        edge0_start = tr.view.edge_start_m[0]
+        from railsim.sumo import StopSpec
+
+        stops = []
+        for s in trip.stops[1:]:
+            stops.append(StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s))
+        self.bridge.add_route(trip.route.id, trip.route.edges)
+        self.bridge.add_train(tr.train_id, trip.route.id, trip.vehicle_name, depart_m - edge0_start, stops,
+                              controlled=True)
+        if behind is not None:  # the follower starts knowing where its leader stands (it was placed behind it)
+            self._registration[(tr.train_id, behind.train_id)] = (
+                behind.trip.route.id, behind.front_m, behind.plant.speed_mps, behind.plant.applied_accel_mps2,
+                self.layer.now_s)
+        tr.status = "inserting"
+        tr.front_m = depart_m
+        tr.depart_chainage_m = depart_m
+        tr.inserted_s = self.layer.now_s
+        self.events.record(self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id,
+                           chainage_m=round(depart_m, 3))
+
+    # ------------------------------------------------------------------ main loop
+    def run(self) -> dict[str, Any]:
+        from railsim.sumo import SumoBridge, SumoConfig, VTypeSpec
+
+        vtypes = [VTypeSpec(name, v.length_m, max(v.max_speed_mps * 1.5, 1.0), accel_mps2=1.0,
+                            decel_mps2=v.service_decel_mps2, emergency_decel_mps2=max(v.emergency_decel_mps2, 1.3))
+                  for name, v in self.scenario.vehicles.items()]
+        outs = tuple(self.scenario.outputs.sumo)
+        cfg = SumoConfig(net_file=self.bundle.net_file, additional_files=[self.bundle.stops_file], step_s=self.dt,
+                         seed=self.seed, step_method=self.step_method, vtypes=vtypes,
+                         output_dir=self.out_dir if outs else None, sumo_outputs=outs)
+        t_wall = _time.perf_counter()
+        bar = None
+        if self.progress:
+            from tqdm import tqdm
+
+            bar = tqdm(total=int(self.duration_s), unit="sim-s", desc=self.scenario.name, leave=False)
+        with SumoBridge(cfg) as bridge:
+            self.bridge = bridge
+            t = bridge.time_s
+            last_bar = t
+            while t <= self.duration_s + 1e-9:
+                self._step(t)
+                bridge.step()
+                self.steps += 1
+                t = bridge.time_s
+                if bar is not None and t - last_bar >= 10:
+                    bar.update(int(t - last_bar))
+                    last_bar = t
+                if self._all_done():
+                    break
+            self.end_s = t
+        if bar is not None:
+            bar.close()
+        self.wall_s = _time.perf_counter() - t_wall
+        return self.recorder.summary()
+
+    def _all_done(self) -> bool:
+        return all(tr.status in ("arrived", "removed") for tr in self.trains.values())
+
+    def _active(self) -> list[TrainRuntime]:
+        return [tr for tr in self.trains.values() if tr.status in ("inserting", "running")]
+
+    def _step(self, t: float) -> None:
+        self.layer.advance_to(t)
+        bridge = self.bridge
+        present = set(bridge.present_ids())
+        active = [tr for tr in self._active() if tr.train_id in present]
+        for tr in self._active():
+            if tr.status == "inserting" and tr.train_id in present:
+                tr.status = "running"
+                tr.departed_s = t
+                self.events.record(t, "train_departed", tr.train_id, station=tr.trip.origin.station_id)
+        if not active:
+            return
+        ids = [tr.train_id for tr in active]
+        truth = bridge.read(ids)
+        for i, tr in enumerate(active):
+            tr.front_m = tr.depart_chainage_m + float(truth.odometer_m[i])
+            sumo_v = float(truth.speed_mps[i])
+            if abs(sumo_v - tr.plant.speed_mps) > 1e-6:
+                # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
+                tr.plant = dynamics.PlantState(speed_mps=sumo_v, applied_accel_mps2=0.0 if sumo_v == 0 else
+                                               tr.plant.applied_accel_mps2,
+                                               target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2)
+            tr.sumo_stopped_now = bool(truth.stopped[i])
+
+        self.occupancy.update([Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m) for tr in active])
+        ahead: dict[str, Ahead | None] = {}
+        for tr in active:
+            a = self.occupancy.ahead(tr.train_id, self.settings.lookahead_m)
+            ahead[tr.train_id] = a
+            self._truth_checks(t, tr, a)
+        for c in bridge.collisions():
+            c["t_s"] = t
+            self.sumo_collisions.append(c)
+            self.events.record(t, "sumo_collision", str(c["collider"]), victim=str(c["victim"]), type=str(c["type"]))
+
+        for tr in active:
+            self._stop_bookkeeping(t, tr)
+            self._formation_bookkeeping(t, tr, ahead[tr.train_id])
+            self._interlocking_bookkeeping(t, tr)
+        self._communicate(t, active)
+
+        speeds = []
+        for tr in active:
+            v_next = self._control(t, tr, ahead[tr.train_id])
+            speeds.append(v_next)
+        bridge.set_speeds(ids, speeds)
+        self.recorder.step(t, active, ahead)
+        # trains that finished this step leave SUMO now
+        for tr in active:
+            if tr.status == "arrived":
+                bridge.remove(tr.train_id)
+                tr.status = "removed"
+
+    # ------------------------------------------------------------------ truth checks
+    def _truth_checks(self, t: float, tr: TrainRuntime, a: Ahead | None) -> None:
+        if a is None:
+            tr.last_gap_m = INF
+            return
+        tr.last_gap_m = a.gap_m
+        if a.gap_m < tr.min_gap_m:
+            tr.min_gap_m = a.gap_m
+        if a.gap_m < 0.0:
+            pair = (tr.train_id, a.train_id)
+            if pair not in self._colliding_pairs:
+                self._colliding_pairs.add(pair)
+                self.collisions.append({"t_s": t, "follower": tr.train_id, "leader": a.train_id,
+                                        "overlap_m": -a.gap_m, "chainage_m": tr.front_m})
+                self.events.record(t, "collision", tr.train_id, leader=a.train_id, overlap_m=round(-a.gap_m, 3))
+                log.error("collision at t=%.1f s: %s ran into %s (overlap %.2f m)", t, tr.train_id, a.train_id,
+                          -a.gap_m)
+
+    # ------------------------------------------------------------------ stops
+    def _coupled_mark_offset(self, tr: TrainRuntime, stop: TripStop) -> float:
+        """How far behind the platform mark a coupled follower halts (leader length + target gap), or 0."""
+        f = self.formation_of_follower.get(tr.train_id)
+        if f is None:
+            return 0.0
+        state = self.formations.state(f.id)
+        if state not in ("coupling", "coupled", "decoupling"):
+            return 0.0
+        leader = self.trains[self.formations_leader_id(f)]
+        if leader.status not in ("running", "inserting"):
+            return 0.0
+        lstop = leader.trip.stops[leader.next_stop] if leader.next_stop < len(leader.trip.stops) else None
+        if lstop is None or lstop.station_id != stop.station_id:
+            return 0.0
+        return leader.trip.vehicle.length_m + float(f.target_gap_m)
+
+    def formations_leader_id(self, f: Any) -> str:
+        return self.trains[self.trips_by_service[f.leader.service][f.leader.trip].trip_id].train_id
+
+    def _current_stop(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
+        if tr.next_stop >= len(tr.trip.stops):
+            return None, 0.0
+        stop = tr.trip.stops[tr.next_stop]
+        return stop, self._coupled_mark_offset(tr, stop)
+
+    def _stop_bookkeeping(self, t: float, tr: TrainRuntime) -> None:
+        stop, offset = self._current_stop(tr)
+        if stop is None:
+            return
+        stopped_now = tr.sumo_stopped_now
+        v = tr.plant.speed_mps
+        mark = stop.mark_m - offset
+        if stopped_now and not tr.sumo_stopped:
+            tr.sumo_stopped = True
+            tr.dwell_started_s = t
+            if v > 0.1:
+                self.events.record(t, "stop_registered_moving", tr.train_id, station=stop.station_id, speed_mps=v)
+                log.error("SUMO registered %s as stopped at %s while moving at %.2f m/s", tr.train_id,
+                          stop.station_id, v)
+            if tr.halted_s is None:  # SUMO saw the halt before we did (same step)
+                tr.halted_s = t
+                tr.halt_error_m = tr.front_m - mark
+            tr.stops_served += 1
+            self.events.record(t, "stop_registered", tr.train_id, station=stop.station_id)
+            if stop.is_destination:
+                tr.arrived_s = tr.halted_s
+                tr.status = "arrived"
+                self.recorder.stop_record(tr, stop, tr.halted_s, None, tr.halt_error_m)
+                self.events.record(t, "train_arrived", tr.train_id, station=stop.station_id)
+                self._release_all_locks(t, tr)
+            return
+        if tr.sumo_stopped and not stopped_now:
+            # dwell over: departure
+            tr.sumo_stopped = False
+            self.recorder.stop_record(tr, stop, tr.halted_s, t, tr.halt_error_m)
+            self.events.record(t, "stop_departed", tr.train_id, station=stop.station_id)
+            self._on_departed_station(t, tr, stop)
+            tr.next_stop += 1
+            tr.halted_s = None
+            tr.halt_error_m = None
+            return
+        if not tr.sumo_stopped and tr.halted_s is None and v == 0.0 and \
+                stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6:
+            tr.halted_s = t
+            tr.halt_error_m = tr.front_m - mark
+        if not tr.sumo_stopped and tr.front_m > stop.window_end_m + self.settings.missed_stop_tolerance_m:
+            self.events.record(t, "stop_missed", tr.train_id, station=stop.station_id,
+                               overrun_m=round(tr.front_m - stop.window_end_m, 3))
+            log.warning("%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id,
+                        tr.front_m - stop.window_end_m)
+            self.recorder.stop_record(tr, stop, None, None, None, missed=True)
+            self.bridge.skip_next_stop(tr.train_id)
+            tr.next_stop += 1
+            tr.halted_s = None
+            if stop.is_destination:
+                tr.status = "arrived"
+                tr.arrived_s = t
+
+    def _on_departed_station(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
+        # a formation follower waiting for its leader to stand here is inserted now... (handled on halt below)
+        for f in self.formation_of_leader.get(tr.train_id, ()):  # decouple when the leader departs X
+            st = self.formations.state(f.id)
+            if st in ("coupling", "coupled"):
+                if (_trig(f.decouple, "at_station") and f.decouple.station == stop.station_id) or \
+                        self._last_stop_before_switch(tr, stop, f):
+                    self.formations.request_decouple(f.id)
+        f = self.formation_of_follower.get(tr.train_id)
+        if f is not None and _trig(f.couple, "at_station") and f.couple.station == stop.station_id:
+            self.formations.request_couple(f.id)
+
+    def _last_stop_before_switch(self, leader: TrainRuntime, stop: TripStop, f: Any) -> bool:
+        if not _trig(f.decouple, "before_switch"):
+            return False
+        sw_id = f.decouple.switch
+        later_marks = [s.mark_m for s in leader.trip.stops if s.mark_m > stop.mark_m]
+        for rs in leader.trip.route.switches:
+            if rs.switch_id == sw_id and 0.0 <= rs.point_m - stop.mark_m <= self.settings.decouple_distance_m:
+                # only the last stop before the switch: no other stop of the leader lies in between
+                return not any(m < rs.point_m for m in later_marks)
+        return False
+
+    # ------------------------------------------------------------------ formations
+    def _formation_bookkeeping(self, t: float, tr: TrainRuntime, a: Ahead | None) -> None:
+        # insert followers that couple on departure once their leader stands at the follower's origin
+        for f in self.formation_of_leader.get(tr.train_id, ()):  # tr is a leader
+            follower = self._trip_ref(f.follower, "formations")
+            if follower.status == "scheduled" and _trig(f.couple, "on_departure"):
+                stop, _ = self._current_stop(tr)
+                if stop is not None and tr.sumo_stopped and stop.station_id == follower.trip.origin.station_id:
+                    self._insert(follower, behind=tr, gap_m=float(f.target_gap_m))
+                    self.formations.request_couple(f.id)
+            if _trig(f.decouple, "before_switch") and self.formations.state(f.id) in ("coupling", "coupled"):
+                for rs in tr.trip.route.switches:
+                    if rs.switch_id == f.decouple.switch and \
+                            rs.point_m - tr.front_m <= self.settings.decouple_distance_m and tr.front_m < rs.point_m:
+                        nxt, _ = self._current_stop(tr)
+                        if nxt is None or nxt.mark_m > rs.point_m:  # no stop left before the switch
+                            self.formations.request_decouple(f.id)
+        f = self.formation_of_follower.get(tr.train_id)
+        if f is not None:
+            leader = self.trains[self.formations_leader_id(f)]
+            if a is not None and a.train_id == leader.train_id:
+                # the state machine judges the error against the controller's effective target (gap policy:
+                # larger than the standstill target at speed), expressed around the formation's own target
+                gap_for_fsm = a.gap_m - (self._effective_target(tr, f) - float(f.target_gap_m))
+                self.formations.observe(t, f.id, gap_for_fsm, tr.plant.speed_mps - leader.plant.speed_mps)
+            elif self.formations.state(f.id) == "decoupling":
+                # the leader is no longer ahead on our track (it took the other leg, or left the line):
+                # the units are apart, which completes decoupling
+                self.formations.observe(t, f.id, APART_GAP_M, 0.0)
+            if self.formations.state(f.id) == "coupled":
+                tr.coupled_s += self.dt
+
+    def _effective_target(self, tr: TrainRuntime, f: Any) -> float:
+        """Target gap in force for a follower: its controller's policy value if it reported one."""
+        return tr.vc_target_gap_m if tr.vc_target_gap_m is not None else float(f.target_gap_m)
+
+    def _in_final_approach(self, tr: TrainRuntime, mark_m: float) -> bool:
+        """Close enough to ``mark_m`` that station braking is (about to be) under way."""
+        v = tr.plant.speed_mps
+        plan_decel = 0.5 * tr.trip.vehicle.service_decel_mps2  # gentler than the ATO's: starts the hand-over early
+        return mark_m - tr.front_m <= v * v / (2.0 * plan_decel) + self.settings.final_approach_margin_m
+
+    # ------------------------------------------------------------------ interlocking
+    def _interlocking_bookkeeping(self, t: float, tr: TrainRuntime) -> None:
+        length = tr.trip.vehicle.length_m
+        for rs in tr.trip.route.switches:
+            sid = rs.switch_id
+            if sid in tr.released:
+                continue
+            if rs.point_m < tr.trip.depart_chainage_m - length:
+                continue
+            if sid not in tr.locks and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m:
+                holders = self._lock_group(tr, rs)
+                if holders is not None:
+                    req = self.interlocking.request(holders, sid, rs.leg)
+                    for h in holders:
+                        self.trains[h].locks[sid] = req
+            if sid in tr.locks and tr.front_m > rs.point_m and sid not in tr.violations and \
+                    not self.interlocking.is_locked_for(tr.train_id, sid, rs.leg):
+                tr.violations.add(sid)
+                self.events.record(t, "switch_violation", tr.train_id, switch=sid, leg=rs.leg)
+                log.error("%s passed switch %s without its lock", tr.train_id, sid)
+            if sid in tr.locks and tr.front_m - length > rs.point_m + self.settings.clearance_m:
+                self.interlocking.release(tr.train_id, sid)
+                tr.released.add(sid)
+
+    def _lock_group(self, tr: TrainRuntime, rs: Any) -> tuple[str, ...] | None:
+        """Who requests: a coupled follower on the same leg rides on its leader's request."""
+        f = self.formation_of_follower.get(tr.train_id)
+        if f is not None and self.formations.state(f.id) in ("coupling", "coupled"):
+            leader = self.trains[self.formations_leader_id(f)]
+            if rs.switch_id in leader.locks and rs.switch_id not in leader.released:
+                req = leader.locks[rs.switch_id]
+                if tr.train_id in getattr(req, "holder_ids", ()):
+                    return None  # already in the leader's group
+        group = [tr.train_id]
+        for f2 in self.formation_of_leader.get(tr.train_id, ()):  # include coupled followers on the same leg
+            if self.formations.state(f2.id) not in ("coupling", "coupled"):
+                continue
+            fol = self._trip_ref(f2.follower, "formations")
+            if fol.status not in ("inserting", "running") or rs.switch_id in fol.locks:
+                continue
+            if any(s.switch_id == rs.switch_id and s.leg == rs.leg for s in fol.trip.route.switches):
+                group.append(fol.train_id)
+        return tuple(group)
+
+    def _release_all_locks(self, t: float, tr: TrainRuntime) -> None:
+        for sid in list(tr.locks):
+            if sid not in tr.released:
+                self.interlocking.release(tr.train_id, sid)
+                tr.released.add(sid)
+
+    def _authority_end(self, tr: TrainRuntime) -> float:
+        end = tr.view.length_m - 1.0
+        for rs in tr.trip.route.switches:
+            if rs.point_m <= tr.front_m - 1e-6 or rs.switch_id in tr.released:
+                continue
+            if not self.interlocking.is_locked_for(tr.train_id, rs.switch_id, rs.leg):
+                return min(end, rs.point_m - self.settings.protection_margin_m)
+        return end
+
+    # ------------------------------------------------------------------ communication
+    def _communicate(self, t: float, active: list[TrainRuntime]) -> None:
+        t2g = self.channels.get("t2g")
+        t2t = self.channels.get("t2t")
+        for tr in active:
+            report = (tr.trip.route.id, tr.front_m, tr.plant.speed_mps, tr.plant.applied_accel_mps2, t)
+            if t2g is not None:
+                t2g.send(tr.train_id, "ground", report)
+            if t2t is not None:
+                for f in self.formation_of_leader.get(tr.train_id, ()):  # leaders talk to their followers
+                    fol = self._trip_ref(f.follower, "formations")
+                    if fol.status in ("inserting", "running"):
+                        t2t.send(tr.train_id, fol.train_id, report)
+
+    def _known_state(self, observer: TrainRuntime, other: TrainRuntime, channel: str,
+                     receiver: str) -> PredecessorState | None:
+        """What ``observer`` knows of ``other`` via ``channel`` (mapped into the observer's frame)."""
+        ch = self.channels.get(channel)
+        msg = ch.latest(receiver, other.train_id) if ch is not None else None
+        if msg is None:
+            # no message yet: a registration report — a follower placed behind its leader knows where the leader
+            # stood; the ground knows where each train was inserted (stale and behind the truth: conservative)
+            reg = self._registration.get((observer.train_id, other.train_id))
+            route_id, pos, v, acc, stamp = reg if reg is not None else (
+                other.trip.route.id, other.depart_chainage_m, 0.0, 0.0, other.inserted_s or 0.0)
+        else:
+            route_id, pos, v, acc, stamp = msg.payload
+        veh = other.trip.vehicle
+        mapped = observer.view.map_body(other.view, pos, veh.length_m)
+        if mapped is None:
+            return None
+        front, rear = mapped  # only the part of its body on our track (see RouteView.map_body)
+        return PredecessorState(train_id=other.train_id, position_m=front, speed_mps=v, accel_mps2=acc,
+                                length_m=front - rear, stamp_s=stamp, age_s=max(0.0, self.layer.now_s - stamp),
+                                service_decel_mps2=veh.service_decel_mps2,
+                                emergency_decel_mps2=veh.emergency_decel_mps2, source=channel)
+
+    # ------------------------------------------------------------------ control
+    def _control(self, t: float, tr: TrainRuntime, a: Ahead | None) -> float:
+        veh = tr.trip.vehicle
+        stop, offset = self._current_stop(tr)
+        target = None
+        if stop is not None:
+            # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
+            target = StopTarget(stop.station_id, stop.mark_m - offset, stop.window_start_m, stop.window_end_m,
+                                dwelling=tr.sumo_stopped or tr.halted_s is not None)
+        own_pos = tr.front_m
+        own_v = tr.plant.speed_mps
+        if self.noise_pos_sd > 0:
+            own_pos += float(self.noise_rng.normal(0.0, self.noise_pos_sd))
+        if self.noise_speed_sd > 0:
+            own_v = max(0.0, own_v + float(self.noise_rng.normal(0.0, self.noise_speed_sd)))
+        grad = tr.view.gradient_at(tr.front_m)
+        base = dict(
+            t_s=t, dt_s=self.dt,
+            own=OwnState(tr.train_id, own_pos, own_v, tr.plant.applied_accel_mps2, veh.length_m, grad),
+            vehicle=veh, route_length_m=tr.view.length_m,
+            speed_limits=tr.view.limits_ahead(tr.front_m - veh.length_m, tr.front_m + self.settings.lookahead_m),
+            line_speed_mps=tr.view.line_speed_mps, next_stop=target, authority_end_m=self._authority_end(tr),
+        )
+        commands: dict[str, Command] = {}
+        f = self.formation_of_follower.get(tr.train_id)
+        fstate = self.formations.state(f.id) if f is not None else "free"
+        leader = self.trains[self.formations_leader_id(f)] if f is not None else None
+        ato = tr.controllers["ato"]
+        if fstate in ("coupling", "coupled") and tr.controllers.get("ato_closing") is not None and not tr.degraded:
+            ato = tr.controllers["ato_closing"]
+        commands["ato"] = ato.command(Observation(**base))
+
+        # following: coupled controller on t2t data, or separation on ground data
+        used_vc = False
+        if f is not None and fstate in ("coupling", "coupled") and leader is not None and \
+                leader.status in ("inserting", "running") and tr.controllers.get("coupled") is not None:
+            pred = self._known_state(tr, leader, "t2t", tr.train_id)
+            if pred is not None and pred.age_s <= self.settings.max_message_age_s:
+                extras = {}
+                if stop is not None and offset > 0.0 and self._in_final_approach(tr, stop.mark_m - offset):
+                    # both units stop at this platform: the ATO stops us exactly behind the leader's mark, the
+                    # coupled controller keeps only its safety cap (its slow gap loop would halt us short)
+                    extras["vc_tracking"] = False
+                obs = Observation(**base, predecessor=pred, formation_state=fstate,
+                                  target_gap_m=float(f.target_gap_m), extras=extras)
+                vc_cmd = tr.controllers["coupled"].command(obs)
+                commands["coupled"] = vc_cmd
+                tgt = vc_cmd.info.get("target_gap_m") if vc_cmd.info else None
+                tr.vc_target_gap_m = float(tgt) if tgt is not None else None
+                used_vc = True
+                tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+                if tr.degraded:
+                    tr.degraded = False
+                    self.events.record(t, "vc_restored", tr.train_id)
+            elif not tr.degraded:
+                tr.degraded = True
+                self.events.record(t, "vc_degraded", tr.train_id,
+                                   age_s=None if pred is None else round(pred.age_s, 3))
+        if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
+            other = self.trains[a.train_id]
+            pred = self._known_state(tr, other, "t2g", "ground")
+            if pred is not None:
+                tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+                obs = Observation(**base, predecessor=pred, formation_state=fstate)
+                commands["separation"] = tr.controllers["separation"].command(obs)
+        role, cmd = arbitrate(commands)
+        if cmd.fallback:
+            tr.fallbacks += 1
+        if not math.isfinite(cmd.accel_mps2):
+            self.events.record(t, "controller_nan", tr.train_id, role=role)
+            log.error("%s: %s controller returned %r; braking", tr.train_id, role, cmd.accel_mps2)
+            cmd = Command(-veh.service_decel_mps2, fallback=True)
+            tr.fallbacks += 1
+        res = dynamics.step(veh, tr.plant, cmd.accel_mps2, self.dt, grad, cmd.emergency, self.step_method)
+        jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
+        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
+        tr.plant = res.state
+        tr.energy_j += res.traction_energy_j
+        for s in res.saturations:
+            tr.saturations[s] = tr.saturations.get(s, 0) + 1
+        tr.last_role = role
+        tr.last_cmd_mps2 = cmd.accel_mps2
+        return res.state.speed_mps
+
+
+def _trig(trigger: Any, kind: str) -> bool:
+    """True if a formation trigger (``couple``/``decouple``, possibly None) is of ``kind``."""
+    return trigger is not None and trigger.kind == kind
+
+
+_DELAY_KEYS = {"value": "value_s", "low": "low_s", "high": "high_s", "mean": "mean_s", "sd": "std_s"}
+
+
+def _delay_mapping(delay: Any) -> dict[str, Any]:
+    """Scenario delay spec (``dist`` + ``value|low,high|mean,sd`` in seconds) → the comms layer's field names."""
+    out: dict[str, Any] = {"dist": delay.dist}
+    for key, value in dict(delay.params).items():
+        out[_DELAY_KEYS.get(key, key)] = value
+    return out
+
+
+def run(scenario: Any, out_dir: Path | str | None, seed: int | None = None, progress: bool | None = None,
+        settings: EngineSettings | None = None) -> dict[str, Any]:
+    """Run ``scenario`` (a :class:`railsim.scenario.Scenario`) and write its outputs to ``out_dir``.
+
+    Returns the summary dictionary (also written as ``summary.json``).
+    """
+    sim = Simulation(scenario, Path(out_dir) if out_dir is not None else None, seed=seed, progress=progress,
+                     settings=settings)
+    summary = sim.run()
+    if sim.out_dir is not None:
+        sim.recorder.write(sim.out_dir)
+    return summary

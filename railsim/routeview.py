@@ -1,0 +1,145 @@
+"""Fast look-ups along one route: speed limits, gradient, which edge a chainage is on, and frame changes.
+
+Every position inside the engine is a **route chainage** (metres of the train front from the start of that
+train's route, equal to SUMO's odometer plus the depart chainage). Two trains on different routes (an Airport
+unit and a Jurenba unit, or an up train entering at a merge) measure in different frames. Where their routes
+share a physical track (a SUMO edge), the frames differ by a constant on that edge::
+
+    chainage_in_B = chainage_in_A + (B.edge_start[e] - A.edge_start[e])
+
+:meth:`RouteView.offset_to` gives that constant for the first edge the two routes share at or after a given
+point, which is all the engine needs to express "the train ahead" in the observer's frame.
+
+Edge ``i`` of a route covers ``[edge_start_m[i], edge_start_m[i+1])``: the internal junction lane that follows an
+edge is counted with it (SUMO's odometer runs through internal lanes, our chainage does too).
+"""
+
+from __future__ import annotations
+
+import bisect
+from dataclasses import dataclass, field
+from typing import Any
+
+from controllers.base import SpeedLimit
+
+
+@dataclass
+class RouteView:
+    """Pre-computed arrays for one :class:`network.RouteInfo` (built once per route, shared by its trips)."""
+
+    route: Any
+    edges: tuple[str, ...] = ()
+    edge_start_m: tuple[float, ...] = ()
+    edge_index: dict[str, int] = field(default_factory=dict)
+    limit_starts: list[float] = field(default_factory=list)
+    limits: tuple[SpeedLimit, ...] = ()
+    grade_starts: list[float] = field(default_factory=list)
+    grades: tuple[tuple[float, float, float], ...] = ()
+    line_speed_mps: float = 20.0
+    _offsets: dict[tuple[str, int], float | None] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        r = self.route
+        self.edges = tuple(r.edges)
+        self.edge_start_m = tuple(float(x) for x in r.edge_start_m)
+        self.edge_index = {e: i for i, e in enumerate(self.edges)}
+        lims = sorted((float(a), float(b), float(v)) for a, b, v in r.speed_limits)
+        self.limits = tuple(SpeedLimit(a, b, v) for a, b, v in lims)
+        self.limit_starts = [a for a, _, _ in lims]
+        self.line_speed_mps = max((v for _, _, v in lims), default=20.0)
+        self.grades = tuple(sorted((float(a), float(b), float(g)) for a, b, g in r.gradients))
+        self.grade_starts = [a for a, _, _ in self.grades]
+
+    @property
+    def length_m(self) -> float:
+        return float(self.route.length_m)
+
+    def edge_at(self, chainage_m: float) -> int:
+        """Index of the route edge that covers ``chainage_m`` (clamped to the route)."""
+        i = bisect.bisect_right(self.edge_start_m, chainage_m) - 1
+        return min(max(i, 0), len(self.edges) - 1)
+
+    def gradient_at(self, chainage_m: float) -> float:
+        """Gradient [‰] under ``chainage_m`` (0 where the route has no gradient data)."""
+        i = bisect.bisect_right(self.grade_starts, chainage_m) - 1
+        if i < 0:
+            return 0.0
+        a, b, g = self.grades[i]
+        return g if a <= chainage_m < b else 0.0
+
+    def limits_ahead(self, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
+        """Restrictions overlapping ``[from_m, to_m]`` (those at or below line speed; all of them, in order)."""
+        i = max(bisect.bisect_right(self.limit_starts, from_m) - 1, 0)
+        out = []
+        for lim in self.limits[i:]:
+            if lim.start_m > to_m:
+                break
+            if lim.end_m >= from_m and lim.speed_mps < self.line_speed_mps:
+                out.append(lim)
+        return tuple(out)
+
+    def offset_on_edge(self, other: "RouteView", edge_id: str) -> float | None:
+        """Constant taking a chainage of *this* route to ``other``'s frame on the shared edge ``edge_id``."""
+        i = self.edge_index.get(edge_id)
+        j = other.edge_index.get(edge_id)
+        if i is None or j is None:
+            return None
+        return other.edge_start_m[j] - self.edge_start_m[i]
+
+    def map_body(self, other: "RouteView", front_m: float, length_m: float) -> tuple[float, float] | None:
+        """A train on ``other``'s route (front at ``front_m`` in its frame) as ``(front, rear)`` in *this* frame.
+
+        Only the part of its body on track this route shares counts. At a merge the other train's front may be on
+        our track while its tail is still on the other leg: its rear is then clamped to where the shared track
+        begins (the switch), so the tail on the other leg is not "ahead of us". At a diverge the front may already
+        be on the other leg while the tail is on our track: the frame change uses the shared edge under the tail,
+        and the rear is exact. Returns None if no part of the body is on our route.
+        """
+        rear_m = front_m - length_m
+        i_front = other.edge_at(front_m)
+        i_rear = other.edge_at(rear_m)
+        for i in range(i_front, i_rear - 1, -1):  # the frontmost shared edge under the body
+            j = self.edge_index.get(other.edges[i])
+            if j is None:
+                continue
+            off = self.edge_start_m[j] - other.edge_start_m[i]
+            k, jj = i, j
+            while k - 1 >= i_rear and jj - 1 >= 0 and other.edges[k - 1] == self.edges[jj - 1]:
+                k -= 1
+                jj -= 1
+            rear_here = rear_m + off
+            if k > i_rear:  # part of the tail is on track we do not use: it starts where our track is shared
+                rear_here = max(rear_here, self.edge_start_m[jj])
+            return front_m + off, rear_here
+        return None
+
+    def offset_to(self, other: "RouteView", from_chainage_m: float) -> float | None:
+        """Constant to add to a chainage in *this* frame to express it in ``other``'s frame.
+
+        Uses the first edge at or after ``from_chainage_m`` (in this route) that ``other`` also uses; ``None`` if
+        the routes share no track from there on.
+        """
+        i0 = self.edge_at(from_chainage_m)
+        key = (other.route.id, i0)
+        if key in self._offsets:
+            return self._offsets[key]
+        result = None
+        for i in range(i0, len(self.edges)):
+            j = other.edge_index.get(self.edges[i])
+            if j is not None:
+                result = other.edge_start_m[j] - self.edge_start_m[i]
+                break
+        self._offsets[key] = result
+        return result
+
+
+_VIEWS: dict[str, RouteView] = {}
+
+
+def route_view(route: Any) -> RouteView:
+    """The (cached) view of ``route``; routes are identified by their id within a process."""
+    view = _VIEWS.get(route.id)
+    if view is None or view.route is not route:
+        view = RouteView(route)
+        _VIEWS[route.id] = view
+    return view

@@ -1,0 +1,46 @@
+"""Shared helpers for tests that run SUMO: every SUMO run happens in a child process.
+
+A SUMO crash kills the Python interpreter under libsumo, so a test that runs a simulation starts a fresh
+interpreter (``railsim run`` or a small script) and inspects what it wrote. One crash fails one test.
+"""
+
+from __future__ import annotations
+
+import csv
+import json
+import os
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).resolve().parent / "data"
+
+
+def railsim_cmd() -> list[str]:
+    return [sys.executable, "-m", "railsim.cli"]
+
+
+def run_railsim(args: list[str], cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    if cache_dir is not None:
+        env["RAILSIM_CACHE"] = str(cache_dir)
+    return subprocess.run(railsim_cmd() + args, capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
+
+
+def run_python(code: str, cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+    env = dict(os.environ)
+    if cache_dir is not None:
+        env["RAILSIM_CACHE"] = str(cache_dir)
+    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, env=env,
+                          cwd=ROOT)
+
+
+def read_csv(path: Path) -> list[dict[str, str]]:
+    with open(path, newline="", encoding="utf-8") as fh:
+        return list(csv.DictReader(fh))
+
+
+def read_summary(out: Path) -> dict[str, Any]:
+    return json.loads((out / "summary.json").read_text(encoding="utf-8"))
