@@ -64,7 +64,7 @@ Gap policy (``gap_policy``). ``constant`` tracks ``obs.target_gap_m`` as given. 
 ``max(obs.target_gap_m, G(v) + gap_buffer_m)`` where ``G`` is the steady-state gap that keeps the safety
 barrier above zero at equal speeds with the current message age::
 
-    G(v) = S_f(v) − v²/(2·b_p) + margin + v·age
+    G(v) = S_f(v, a0 = R(v)/m_eff) − v²/(2·b_p) + margin + v·age
 
 so at standstill a formation keeps its configured (platform-sized) gap and at speed the relative braking
 distance the safety check demands — the controller never fights its own safety cap. The effective target is
@@ -189,7 +189,10 @@ class Cacc:
 
         target_m = float(obs.target_gap_m)
         if p.gap_policy == "safe":
-            steady_m = stopping_distance_m(v, b_f, delay_s, 0.0) - v * v / (2.0 * b_p) + p.safety_margin_m \
+            # steady cruise at v: the applied acceleration is the resistance feed-forward, which keeps acting
+            # through the braking delay (the barrier below uses the same a0)
+            a_cruise = veh.resistance_n(v, grade) / m_eff
+            steady_m = stopping_distance_m(v, b_f, delay_s, a_cruise) - v * v / (2.0 * b_p) + p.safety_margin_m \
                 + v * age_s
             target_m = max(target_m, steady_m + p.gap_buffer_m)
         gap_m = pred.rear_position_m + v_p * age_s - own.position_m

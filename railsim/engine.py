@@ -42,7 +42,7 @@ from typing import Any
 import numpy as np
 
 import controllers as ctl
-from controllers.base import Command, Observation, OwnState, PredecessorState, StopTarget, arbitrate
+from controllers.base import Command, Observation, OwnState, PredecessorState, SpeedLimit, StopTarget, arbitrate
 from railsim import dynamics
 from railsim.errors import ConfigError, SimulationError
 from railsim.occupancy import Ahead, Body, Occupancy
@@ -563,6 +563,18 @@ class Simulation:
         """Target gap in force for a follower: its controller's policy value if it reported one."""
         return tr.vc_target_gap_m if tr.vc_target_gap_m is not None else float(f.target_gap_m)
 
+    def _formation_tail_m(self, tr: TrainRuntime) -> float:
+        """Length behind a formation leader's rear that belongs to its coupled formation (gap + follower), or 0."""
+        tail = 0.0
+        for f in self.formation_of_leader.get(tr.train_id, ()):  # usually one follower
+            if self.formations.state(f.id) not in ("coupling", "coupled"):
+                continue
+            fol = self._trip_ref(f.follower, "formations")
+            if fol.status == "running":
+                tail = max(tail, self._effective_target(fol, f) + fol.trip.vehicle.length_m +
+                           self._formation_tail_m(fol))
+        return tail
+
     def _in_final_approach(self, tr: TrainRuntime, mark_m: float) -> bool:
         """Close enough to ``mark_m`` that station braking is (about to be) under way."""
         v = tr.plant.speed_mps
@@ -681,11 +693,16 @@ class Simulation:
         if self.noise_speed_sd > 0:
             own_v = max(0.0, own_v + float(self.noise_rng.normal(0.0, self.noise_speed_sd)))
         grad = tr.view.gradient_at(tr.front_m)
+        tail_m = self._formation_tail_m(tr)
+        limits = tr.view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
+        if tail_m > 0.0:
+            # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears
+            limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
         base = dict(
             t_s=t, dt_s=self.dt,
             own=OwnState(tr.train_id, own_pos, own_v, tr.plant.applied_accel_mps2, veh.length_m, grad),
             vehicle=veh, route_length_m=tr.view.length_m,
-            speed_limits=tr.view.limits_ahead(tr.front_m - veh.length_m, tr.front_m + self.settings.lookahead_m),
+            speed_limits=limits,
             line_speed_mps=tr.view.line_speed_mps, next_stop=target, authority_end_m=self._authority_end(tr),
         )
         commands: dict[str, Command] = {}

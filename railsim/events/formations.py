@@ -297,6 +297,16 @@ class FormationManager:
             # The hold timer is due at this same instant but sits later in the queue: success wins the tie.
             self._enter_coupled(rt, t_s)
             return
+        if rt.last_obs_s < t_s:
+            # The engine observes *after* advancing to an instant, so an observation at exactly the deadline
+            # has not been made yet. Decide one ulp later: an in-band observation at the deadline with
+            # hold_s = 0 then still counts (its hold timer runs at the deadline, before this re-check).
+            yield self._layer.timeout_at(math.nextafter(t_s, math.inf))
+            if rt.state is not FormationState.COUPLING or rt.attempt != attempt:
+                return
+            if rt.in_band_since_s is not None and rt.in_band_since_s + rt.spec.hold_s <= t_s:
+                self._enter_coupled(rt, t_s)
+                return
         rt.failures += 1
         rt.state = FormationState.FREE
         rt.in_band_since_s = None
