@@ -17,7 +17,7 @@ $(STAMP): pyproject.toml
 venv: $(STAMP)
 
 demo: $(STAMP)
-	$(BIN)/railsim network show chongqing_line3
+	$(BIN)/railsim network build chongqing_line3 --out $(OUT)/network
 	$(BIN)/railsim run $(SCENARIO) --out $(OUT)
 
 test: $(STAMP)
