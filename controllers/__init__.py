@@ -23,7 +23,7 @@ def _register_builtins() -> None:
     # Imported for their @register side effect; each module is optional while the library grows.
     import importlib
 
-    for mod in ("controllers.ato", "controllers.separation", "controllers.cacc"):
+    for mod in ("controllers.ato", "controllers.separation", "controllers.cacc", "controllers.speed_profile"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:  # pragma: no cover - only while a module is not written yet

@@ -107,6 +107,7 @@ class TrainRuntime:
     depart_chainage_m: float = 0.0
     sumo_stopped_now: bool = False
     vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
+    last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
 
     @property
     def train_id(self) -> str:
@@ -158,6 +159,8 @@ class Simulation:
         self.noise_pos_sd = float(scenario.faults.sensor_noise.position_sd_m)
         self.noise_speed_sd = float(scenario.faults.sensor_noise.speed_sd_mps)
         self.noise_rng = np.random.default_rng(self.rng.integers(2**63))
+        self.actuator_sd = float(scenario.faults.actuator_noise.accel_sd_mps2)
+        self.actuator_rng = np.random.default_rng(self.rng.integers(2**63))
 
         # ---- trips
         self.trains: dict[str, TrainRuntime] = {}
@@ -219,7 +222,8 @@ class Simulation:
             trips = []
             for k, (trip_id, dep) in enumerate(zip(svc.trip_ids, svc.departures_s)):
                 trip = Trip(trip_id=trip_id, service_id=svc.id, index=k, vehicle_name=svc.vehicle, vehicle=vehicle,
-                            route=route, depart_s=float(dep), stops=stops, roles=dict(svc.roles))
+                            route=route, depart_s=float(dep), stops=stops, roles=dict(svc.roles),
+                            start_offset_m=float(svc.start_offset_m), start_speed_mps=float(svc.start_speed_mps))
                 ato_factory = lambda r=dict(svc.roles), v=vehicle: self._controller("ato", r, v)  # noqa: E731
                 arr, depm = plan_free_run(trip, ato_factory, self.dt, self.step_method)
                 trip.planned_arrival_s.update(arr)
@@ -299,24 +303,44 @@ class Simulation:
             stops.append(StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s))
         self.bridge.add_route(trip.route.id, trip.route.edges)
         self.bridge.add_train(tr.train_id, trip.route.id, trip.vehicle_name, depart_m - edge0_start, stops,
-                              controlled=True)
-        if behind is not None:  # the follower starts knowing where its leader stands (it was placed behind it)
-            self._registration[(tr.train_id, behind.train_id)] = (
-                behind.trip.route.id, behind.front_m, behind.plant.speed_mps, behind.plant.applied_accel_mps2,
-                self.layer.now_s)
+                              controlled=True, depart_speed_mps=trip.start_speed_mps)
         tr.status = "inserting"
         tr.front_m = depart_m
+        tr.plant = dynamics.PlantState(speed_mps=trip.start_speed_mps)
+        self._handshake(tr)
         tr.depart_chainage_m = depart_m
         tr.inserted_s = self.layer.now_s
         self.events.record(self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id,
                            chainage_m=round(depart_m, 3))
 
+    def _handshake(self, tr: TrainRuntime) -> None:
+        """Formation partners exchange a registration snapshot when both are on the line.
+
+        Before the first radio message arrives, a follower knows where its leader was at this moment (it was
+        placed behind it, or the pair registered together); without it a follower starting in motion would fall
+        back to separation on ground data and brake for no reason.
+        """
+        now = self.layer.now_s
+        pairs = []
+        f = self.formation_of_follower.get(tr.train_id)
+        if f is not None:
+            pairs.append((tr, self.trains[self.formations_leader_id(f)]))
+        for f2 in self.formation_of_leader.get(tr.train_id, ()):
+            pairs.append((self._trip_ref(f2.follower, "formations"), tr))
+        for follower, leader in pairs:
+            if follower.status in ("inserting", "running") and leader.status in ("inserting", "running"):
+                self._registration[(follower.train_id, leader.train_id)] = (
+                    leader.trip.route.id, leader.front_m, leader.plant.speed_mps, leader.plant.applied_accel_mps2,
+                    now)
+
     # ------------------------------------------------------------------ main loop
     def run(self) -> dict[str, Any]:
         from railsim.sumo import SumoBridge, SumoConfig, VTypeSpec
 
+        # SUMO never drives our trains (speedMode 32), but its insertion check uses the vType's braking: a high
+        # decel lets a train be inserted at speed close behind another (experiments that begin in motion)
         vtypes = [VTypeSpec(name, v.length_m, max(v.max_speed_mps * 1.5, 1.0), accel_mps2=1.0,
-                            decel_mps2=v.service_decel_mps2, emergency_decel_mps2=max(v.emergency_decel_mps2, 1.3))
+                            decel_mps2=20.0, emergency_decel_mps2=20.0)
                   for name, v in self.scenario.vehicles.items()]
         outs = tuple(self.scenario.outputs.sumo)
         cfg = SumoConfig(net_file=self.bundle.net_file, additional_files=[self.bundle.stops_file], step_s=self.dt,
@@ -393,14 +417,15 @@ class Simulation:
             self._stop_bookkeeping(t, tr)
             self._formation_bookkeeping(t, tr, ahead[tr.train_id])
             self._interlocking_bookkeeping(t, tr)
-        self._communicate(t, active)
 
+        reports = {tr.train_id: self._report(t, tr) for tr in active}  # the state at t, before the plant step
         speeds = []
         for tr in active:
             v_next = self._control(t, tr, ahead[tr.train_id])
             speeds.append(v_next)
+        self._communicate(t, active, reports)  # state at t plus the plan each train decided at t
         bridge.set_speeds(ids, speeds)
-        self.recorder.step(t, active, ahead)
+        self.recorder.step(t, active, ahead, reports)
         # trains that finished this step leave SUMO now
         for tr in active:
             if tr.status == "arrived":
@@ -641,11 +666,16 @@ class Simulation:
         return end
 
     # ------------------------------------------------------------------ communication
-    def _communicate(self, t: float, active: list[TrainRuntime]) -> None:
+    def _report(self, t: float, tr: TrainRuntime) -> tuple[Any, ...]:
+        """A position report: (route id, front chainage, speed, applied acceleration, time)."""
+        return (tr.trip.route.id, tr.front_m, tr.plant.speed_mps, tr.plant.applied_accel_mps2, t)
+
+    def _communicate(self, t: float, active: list[TrainRuntime], reports: dict[str, tuple[Any, ...]]) -> None:
+        """Send every train's report to the ground (t2g) and to its formation followers (t2t, with its plan)."""
         t2g = self.channels.get("t2g")
         t2t = self.channels.get("t2t")
         for tr in active:
-            report = (tr.trip.route.id, tr.front_m, tr.plant.speed_mps, tr.plant.applied_accel_mps2, t)
+            report = reports[tr.train_id] + (tr.last_plan,)
             if t2g is not None:
                 t2g.send(tr.train_id, "ground", report)
             if t2t is not None:
@@ -664,18 +694,27 @@ class Simulation:
             # stood; the ground knows where each train was inserted (stale and behind the truth: conservative)
             reg = self._registration.get((observer.train_id, other.train_id))
             route_id, pos, v, acc, stamp = reg if reg is not None else (
-                other.trip.route.id, other.depart_chainage_m, 0.0, 0.0, other.inserted_s or 0.0)
+                other.trip.route.id, other.depart_chainage_m, other.trip.start_speed_mps, 0.0,
+                other.inserted_s or 0.0)
+            plan = None
         else:
-            route_id, pos, v, acc, stamp = msg.payload
+            route_id, pos, v, acc, stamp, plan = msg.payload
         veh = other.trip.vehicle
         mapped = observer.view.map_body(other.view, pos, veh.length_m)
         if mapped is None:
             return None
         front, rear = mapped  # only the part of its body on our track (see RouteView.map_body)
+        planned: dict[str, Any] = {}
+        if plan:  # the sender's broadcast plan (its controller defines index 0), moved into our frame
+            shift = front - pos
+            planned = {"planned_position_m": tuple(float(x) + shift for x in plan.get("position_m", ())),
+                       "planned_speed_mps": tuple(float(x) for x in plan.get("speed_mps", ())),
+                       "planned_accel_mps2": tuple(float(x) for x in plan.get("accel_mps2", ())),
+                       "plan_dt_s": float(plan.get("dt_s", 0.0))}
         return PredecessorState(train_id=other.train_id, position_m=front, speed_mps=v, accel_mps2=acc,
                                 length_m=front - rear, stamp_s=stamp, age_s=max(0.0, self.layer.now_s - stamp),
                                 service_decel_mps2=veh.service_decel_mps2,
-                                emergency_decel_mps2=veh.emergency_decel_mps2, source=channel)
+                                emergency_decel_mps2=veh.emergency_decel_mps2, source=channel, **planned)
 
     # ------------------------------------------------------------------ control
     def _control(self, t: float, tr: TrainRuntime, a: Ahead | None) -> float:
@@ -755,7 +794,11 @@ class Simulation:
             log.error("%s: %s controller returned %r; braking", tr.train_id, role, cmd.accel_mps2)
             cmd = Command(-veh.service_decel_mps2, fallback=True)
             tr.fallbacks += 1
-        res = dynamics.step(veh, tr.plant, cmd.accel_mps2, self.dt, grad, cmd.emergency, self.step_method)
+        u = cmd.accel_mps2
+        if self.actuator_sd > 0.0:
+            u += float(self.actuator_rng.normal(0.0, self.actuator_sd))  # the papers' control disturbance
+        tr.last_plan = cmd.info.get("plan") if cmd.info else None
+        res = dynamics.step(veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method)
         jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
         tr.plant = res.state

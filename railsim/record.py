@@ -61,7 +61,11 @@ class Recorder:
         self.min_gap_pair: dict[str, float] = {}
 
     # ------------------------------------------------------------------ during the run
-    def step(self, t: float, active: list[Any], ahead: dict[str, Any]) -> None:
+    def step(self, t: float, active: list[Any], ahead: dict[str, Any],
+             reports: dict[str, tuple[Any, ...]] | None = None) -> None:
+        """One step: coupled-gap statistics every step; a trace sample every ``stride_s`` of the state *at* t
+        (``reports``: route, chainage, speed, applied acceleration, time — taken before the plant step) and the
+        command decided at t."""
         sim = self.sim
         for fid, f in ((f.id, f) for f in sim.scenario.formations):
             if sim.formations.state(fid) != "coupled":
@@ -79,9 +83,11 @@ class Recorder:
         self._next_trace_s = t + self.stride_s
         for tr in active:
             f = sim.formation_of_follower.get(tr.train_id)
+            rep = reports.get(tr.train_id) if reports else None
+            speed, accel = (rep[2], rep[3]) if rep is not None else (tr.plant.speed_mps, tr.plant.applied_accel_mps2)
             self.trace.append({
                 "t_s": t, "train": tr.train_id, "service": tr.trip.service_id, "chainage_m": tr.front_m,
-                "speed_mps": tr.plant.speed_mps, "applied_accel_mps2": tr.plant.applied_accel_mps2,
+                "speed_mps": speed, "applied_accel_mps2": accel,
                 "command_mps2": tr.last_cmd_mps2, "role": tr.last_role,
                 "gap_m": tr.last_gap_m if math.isfinite(tr.last_gap_m) else None,
                 "formation_state": str(sim.formations.state(f.id)) if f is not None else "",

@@ -50,6 +50,8 @@ The schema (every key; ``#`` comments give type, range and default)::
         dwell_s: {default: 30, stations: {lianglukou: 45}}   # or a number; default 30
         skip: []                          # stations not served; default []
         roles: {}                         # per-service role overrides; default {}
+        start: {offset_m: 0, speed_kmh: 0}  # optional: trips start this far beyond the origin's stopping mark,
+                                          #   already at this speed (paper experiments that begin in motion)
       - id: jurenba
         from: yudong
         to: jurenba
@@ -71,6 +73,7 @@ The schema (every key; ``#`` comments give type, range and default)::
               outages: [{start_s: 100, end_s: 130, trains: [airport.000]}]}
         t2g: {delay_s: {dist: uniform, low: 0.1, high: 0.5}, loss_prob: 0.01}
       sensor_noise: {position_sd_m: 0.0, speed_sd_mps: 0.0}
+      actuator_noise: {accel_sd_mps2: 0.0}   # Gaussian noise on every applied acceleration (Paper A)
     outputs:                              # optional
       trace_stride_s: 1.0                 # >= step_s; default max(1.0, step_s)
       sumo: []                            # subset of [tripinfo, stops, fcd, collisions]; default []
@@ -226,6 +229,8 @@ class ServiceSpec:
     dwell_by_station: dict[str, float] = field(default_factory=dict)
     skip: tuple[str, ...] = ()
     roles: dict[str, str] = field(default_factory=dict)
+    start_offset_m: float = 0.0  # trips start this far beyond the origin's stopping mark (paper experiments)
+    start_speed_mps: float = 0.0  # ... at this speed (0: a normal departure from the platform)
 
     def dwell_s(self, station: str) -> float:
         """Scheduled dwell at ``station`` [s]."""
@@ -333,6 +338,13 @@ class SensorNoiseSpec:
     speed_sd_mps: float = 0.0
 
 
+@dataclass(frozen=True)
+class ActuatorNoiseSpec:
+    """Zero-mean Gaussian noise added to every applied acceleration command (Paper A's N(0, σ²) disturbance)."""
+
+    accel_sd_mps2: float = 0.0
+
+
 def _default_channels() -> dict[str, ChannelSpec]:
     return {name: ChannelSpec() for name in COMM_CHANNELS}
 
@@ -343,6 +355,7 @@ class FaultSpec:
 
     comm: dict[str, ChannelSpec] = field(default_factory=_default_channels)
     sensor_noise: SensorNoiseSpec = field(default_factory=SensorNoiseSpec)
+    actuator_noise: ActuatorNoiseSpec = field(default_factory=ActuatorNoiseSpec)
 
 
 @dataclass(frozen=True)
@@ -1006,7 +1019,7 @@ class _Validator:
         roles: Mapping[str, str],
     ) -> tuple[ServiceSpec, dict[str, Any]]:
         m = self.mapping(
-            body, path, ("id", "from", "to", "vehicle", "departures"), ("via", "dwell_s", "skip", "roles")
+            body, path, ("id", "from", "to", "vehicle", "departures"), ("via", "dwell_s", "skip", "roles", "start")
         )
         sid = self.ident(m["id"], f"{path}.id")
         origin = self.string(m["from"], f"{path}.from")
@@ -1027,6 +1040,9 @@ class _Validator:
         departures, dep_raw = self.departures(m["departures"], f"{path}.departures", sim)
         dwell_default, dwell_stations, dwell_raw = self.dwell(m.get("dwell_s", DEFAULT_DWELL_S), f"{path}.dwell_s")
         own_roles, own_raw = self.roles(m.get("roles") or {}, ctrls, f"{path}.roles", required=False)
+        start_in = self.mapping(m.get("start") or {}, f"{path}.start", (), ("offset_m", "speed_kmh"))
+        start_offset = self.number(start_in.get("offset_m", 0.0), f"{path}.start.offset_m", ge=0.0)
+        start_kmh = self.number(start_in.get("speed_kmh", 0.0), f"{path}.start.speed_kmh", ge=0.0)
         width = max(3, len(str(len(departures) - 1)))
         trip_ids = tuple(f"{sid}.{k:0{width}d}" for k in range(len(departures)))
         late = [t for t in departures if t > sim.duration_s]
@@ -1047,11 +1063,15 @@ class _Validator:
             dwell_by_station=dwell_stations,
             skip=tuple(skip),
             roles={**roles, **own_roles},
+            start_offset_m=start_offset,
+            start_speed_mps=start_kmh / 3.6,
         )
         raw = {
             "id": sid, "from": origin, "to": dest, "via": via, "vehicle": vehicle, "departures": dep_raw,
             "dwell_s": dwell_raw, "skip": skip, "roles": own_raw,
         }
+        if start_in:
+            raw["start"] = {"offset_m": start_offset, "speed_kmh": start_kmh}
         return spec, raw
 
     def time_point(self, value: Any, path: str, sim: SimulationSpec) -> float:
@@ -1251,7 +1271,7 @@ class _Validator:
         return DelaySpec(dist, params), {"dist": dist, **params}
 
     def faults(self, value: Any, services: Sequence[ServiceSpec]) -> tuple[FaultSpec, dict[str, Any]]:
-        m = self.mapping(value, "faults", (), ("comm", "sensor_noise"))
+        m = self.mapping(value, "faults", (), ("comm", "sensor_noise", "actuator_noise"))
         comm_in = self.mapping(m.get("comm") or {}, "faults.comm", (), COMM_CHANNELS)
         trips = {t for s in services for t in s.trip_ids}
         service_trips = {s.id: s.trip_ids for s in services}
@@ -1299,11 +1319,15 @@ class _Validator:
             position_sd_m=self.number(noise_in.get("position_sd_m", 0.0), "faults.sensor_noise.position_sd_m", ge=0.0),
             speed_sd_mps=self.number(noise_in.get("speed_sd_mps", 0.0), "faults.sensor_noise.speed_sd_mps", ge=0.0),
         )
+        act_in = self.mapping(m.get("actuator_noise") or {}, "faults.actuator_noise", (), ("accel_sd_mps2",))
+        act = ActuatorNoiseSpec(
+            accel_sd_mps2=self.number(act_in.get("accel_sd_mps2", 0.0), "faults.actuator_noise.accel_sd_mps2", ge=0.0))
         raw = {
             "comm": comm_raw,
             "sensor_noise": {"position_sd_m": noise.position_sd_m, "speed_sd_mps": noise.speed_sd_mps},
+            "actuator_noise": {"accel_sd_mps2": act.accel_sd_mps2},
         }
-        return FaultSpec(comm=channels, sensor_noise=noise), raw
+        return FaultSpec(comm=channels, sensor_noise=noise, actuator_noise=act), raw
 
     def outputs(self, value: Any, sim: SimulationSpec) -> tuple[OutputSpec, dict[str, Any]]:
         m = self.mapping(value, "outputs", (), ("trace_stride_s", "sumo", "formats"))

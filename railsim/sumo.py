@@ -238,11 +238,12 @@ class SumoBridge:
         depart_pos_m: float,
         stops: Sequence[StopSpec] = (),
         controlled: bool = True,
+        depart_speed_mps: float = 0.0,
     ) -> None:
         """Insert a train now (it appears after the next step) with its stops; controlled → speedMode 32."""
         try:
             libsumo.vehicle.add(train_id, route_id, type_id, depart="now", departPos=f"{depart_pos_m:.3f}",
-                                departSpeed="0")
+                                departSpeed=f"{depart_speed_mps:.6f}")
             for stop in stops:
                 libsumo.vehicle.setBusStop(
                     train_id, stop.stop_id,

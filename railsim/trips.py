@@ -53,6 +53,8 @@ class Trip:
     roles: dict[str, str]  # role -> controller instance name
     planned_arrival_s: dict[str, float] = field(default_factory=dict)  # station -> planned arrival
     planned_departure_s: dict[str, float] = field(default_factory=dict)
+    start_offset_m: float = 0.0  # starts this far beyond the origin's mark (experiments that begin in motion)
+    start_speed_mps: float = 0.0
 
     @property
     def origin(self) -> TripStop:
@@ -64,7 +66,7 @@ class Trip:
 
     @property
     def depart_chainage_m(self) -> float:
-        return self.origin.mark_m
+        return self.origin.mark_m + self.start_offset_m
 
 
 def make_stops(route: Any, length_m: float, skip: Sequence[str], dwell_default_s: float,
@@ -101,7 +103,8 @@ def plan_free_run(trip: Trip, controller_factory: Any, dt_s: float, step_method:
     plan is achievable by construction. Returns ``(arrival_by_station, departure_by_station)`` in absolute
     simulation seconds. Cached per (route, vehicle, stops, controller) so 48 identical trips cost one run.
     """
-    key = (trip.route.id, trip.vehicle, trip.stops, dt_s, step_method, trip.roles.get("ato"))
+    key = (trip.route.id, trip.vehicle, trip.stops, dt_s, step_method, trip.roles.get("ato"), trip.start_offset_m,
+           trip.start_speed_mps)
     rel_arr, rel_dep = _free_run_cached(key, trip, controller_factory, dt_s, step_method, max_time_s)
     return ({k: v + trip.depart_s for k, v in rel_arr.items()}, {k: v + trip.depart_s for k, v in rel_dep.items()})
 
@@ -121,7 +124,7 @@ def _free_run_cached(key: Any, trip: Trip, controller_factory: Any, dt_s: float,
     veh = trip.vehicle
     view = route_view(trip.route)
     x = trip.depart_chainage_m
-    state = dynamics.PlantState(speed_mps=0.0)
+    state = dynamics.PlantState(speed_mps=trip.start_speed_mps)
     arrivals: dict[str, float] = {trip.origin.station_id: 0.0}
     departures: dict[str, float] = {trip.origin.station_id: 0.0}
     t = 0.0

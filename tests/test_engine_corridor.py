@@ -1,0 +1,77 @@
+"""Engine features the paper experiments need, in a real SUMO run (child process) on the straight corridor:
+trains that start in motion at given offsets, a leader on a speed-versus-time profile, chained formations
+(train 2 follows 1, train 3 follows 2), actuator noise and ballistic steps. Plus the profile's closed form.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from controllers.speed_profile import make_speed_profile, reference
+from railsim.vehicle import preset
+from tests.helpers import DATA, read_csv, read_summary, run_railsim
+
+SCENARIO = DATA / "scenarios" / "corridor_platoon.yaml"
+
+
+@pytest.fixture(scope="module")
+def corridor(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("corridor")
+    res = run_railsim(["run", str(SCENARIO), "--out", str(out), "--no-progress"],
+                      cache_dir=tmp_path_factory.mktemp("cache"))
+    assert res.returncode == 0, res.stderr[-2000:]
+    return out
+
+
+@pytest.mark.sumo
+def test_trains_start_in_motion_where_the_scenario_puts_them(corridor: Path) -> None:
+    trace = read_csv(corridor / "trace.csv")
+    first = {}
+    for row in trace:
+        first.setdefault(row["train"], row)
+    # the first sample is the state at insertion: the configured offsets and speeds
+    x = {k: float(v["chainage_m"]) for k, v in first.items()}
+    assert x["t1.000"] - x["t2.000"] == pytest.approx(500.0, abs=1e-6)
+    assert x["t2.000"] - x["t3.000"] == pytest.approx(1500.0, abs=1e-6)
+    for train, kmh in (("t1.000", 220), ("t2.000", 200), ("t3.000", 180)):
+        assert float(first[train]["speed_mps"]) == pytest.approx(kmh / 3.6, abs=1e-6)
+    # nobody brakes at the start: before the first radio message the followers use the formation handshake
+    for train in ("t2.000", "t3.000"):
+        assert float(first[train]["command_mps2"]) > -0.5, first[train]
+
+
+@pytest.mark.sumo
+def test_leader_follows_its_profile_and_the_chain_couples_safely(corridor: Path) -> None:
+    s = read_summary(corridor)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0
+    lead = {float(r["t_s"]): float(r["speed_mps"]) for r in read_csv(corridor / "trace.csv") if r["train"] == "t1.000"}
+    assert lead[250.0] == pytest.approx(220 / 3.6, abs=0.15)  # holds 220 km/h (noise 0.01 m/s² on the command)
+    assert lead[420.0] == pytest.approx(180 / 3.6, abs=0.15)  # decelerated at 0.2 m/s² from t = 300 s
+    assert lead[700.0] == pytest.approx(220 / 3.6, abs=0.15)  # back up from t = 455 s
+    forms = {r["formation"]: r for r in read_csv(corridor / "formations.csv")}
+    assert forms["f12"]["final_state"] == "coupled" and forms["f23"]["final_state"] == "coupled"
+    assert int(forms["f23"]["couple_successes"]) == 1  # closed a 1.3 km gap from behind
+    assert float(forms["f12"]["gap_error_p50_m"]) <= 2.0
+
+
+def test_profile_reference_closed_form() -> None:
+    ctl = make_speed_profile({"initial_kmh": 220, "segments": [{"at_s": 100, "to_kmh": 180, "accel_mps2": 0.2},
+                                                             {"at_s": 255, "to_kmh": 220, "accel_mps2": 0.2}]},
+                             preset("hst_203m"))
+    p, v0 = ctl.params, 220 / 3.6
+    ramp = (220 - 180) / 3.6 / 0.2  # 55.56 s
+    assert reference(p, v0, 50.0) == (pytest.approx(v0), 0.0)
+    assert reference(p, v0, 120.0) == (pytest.approx(v0 - 0.2 * 20.0), -0.2)
+    assert reference(p, v0, 100.0 + ramp + 1.0) == (pytest.approx(180 / 3.6), 0.0)
+    assert reference(p, v0, 265.0) == (pytest.approx(180 / 3.6 + 0.2 * 10.0), 0.2)
+    assert reference(p, v0, 400.0) == (pytest.approx(v0), 0.0)
+
+
+@pytest.mark.parametrize("bad, field", [({"segments": [{"at_s": 1, "to_kmh": 10}]}, "segments[0]"),
+                                        ({"segments": [{"at_s": 5, "to_kmh": 10, "accel_mps2": 0}]}, "accel_mps2"),
+                                        ({"k_speed_per_s": -1}, "k_speed_per_s"), ({"speed": 3}, "speed")])
+def test_profile_rejects_bad_params(bad: dict, field: str) -> None:
+    with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
+        make_speed_profile(bad, preset("hst_203m"))
