@@ -108,6 +108,7 @@ class TrainRuntime:
     sumo_stopped_now: bool = False
     vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
     last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
+    sent_speed_mps: float | None = None  # the speed handed to SUMO last step
 
     @property
     def train_id(self) -> str:
@@ -395,7 +396,9 @@ class Simulation:
         for i, tr in enumerate(active):
             tr.front_m = tr.depart_chainage_m + float(truth.odometer_m[i])
             sumo_v = float(truth.speed_mps[i])
-            if abs(sumo_v - tr.plant.speed_mps) > 1e-6:
+            expected_v = tr.plant.speed_mps if tr.sent_speed_mps is None or self.step_method != "forward" \
+                else tr.sent_speed_mps
+            if abs(sumo_v - expected_v) > 1e-6 and tr.sent_speed_mps is not None:
                 # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
                 tr.plant = dynamics.PlantState(speed_mps=sumo_v, applied_accel_mps2=0.0 if sumo_v == 0 else
                                                tr.plant.applied_accel_mps2,
@@ -798,6 +801,7 @@ class Simulation:
         if self.actuator_sd > 0.0:
             u += float(self.actuator_rng.normal(0.0, self.actuator_sd))  # the papers' control disturbance
         tr.last_plan = cmd.info.get("plan") if cmd.info else None
+        v_now = tr.plant.speed_mps
         res = dynamics.step(veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method)
         jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
@@ -807,7 +811,10 @@ class Simulation:
             tr.saturations[s] = tr.saturations.get(s, 0) + 1
         tr.last_role = role
         tr.last_cmd_mps2 = cmd.accel_mps2
-        return res.state.speed_mps
+        # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
+        # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
+        tr.sent_speed_mps = v_now if self.step_method == "forward" else res.state.speed_mps
+        return tr.sent_speed_mps
 
 
 def _trig(trigger: Any, kind: str) -> bool:

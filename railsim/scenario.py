@@ -27,7 +27,7 @@ The schema (every key; ``#`` comments give type, range and default)::
       duration_s: 7200                    # required, > 0: simulated seconds after t = 0
       start_time: "07:30"                 # clock time of t = 0, "HH:MM" or "HH:MM:SS"; default "00:00"
       seed: 42                            # int >= 0; default 0
-      step_method: euler                  # euler | ballistic; default euler
+      step_method: euler                  # euler | ballistic | forward; default euler (forward: x+ = x + v·T)
     vehicles:                             # required, name -> vehicle
       cq6: {preset: cq3_6car}             # a shipped preset (railsim.vehicle.preset_names())...
       cq6_heavy: {preset: cq3_6car, mass_kg: 271000, max_speed_kmh: 70}   # ...with field overrides, or
@@ -135,7 +135,7 @@ log = logging.getLogger(__name__)
 
 ROLES = ("ato", "separation", "coupled")
 REQUIRED_ROLES = ("ato", "separation")
-STEP_METHODS = ("euler", "ballistic")
+STEP_METHODS = ("euler", "ballistic", "forward")
 SUMO_OUTPUTS = ("tripinfo", "stops", "fcd", "collisions")
 OUTPUT_FORMATS = ("csv", "parquet")
 COMM_CHANNELS = ("t2t", "t2g")

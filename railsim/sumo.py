@@ -81,7 +81,7 @@ class SumoConfig:
     additional_files: Sequence[Path] = ()
     step_s: float = 0.5
     seed: int = 42
-    step_method: str = "euler"  # "euler" or "ballistic"
+    step_method: str = "euler"  # "euler", "ballistic", or "forward" (SUMO runs Euler; the engine hands it v_k)
     begin_s: float = 0.0
     vtypes: Sequence[VTypeSpec] = ()
     output_dir: Path | None = None
@@ -150,8 +150,8 @@ class SumoBridge:
         ]
         if cfg.step_method == "ballistic":
             args += ["--step-method.ballistic", "true"]
-        elif cfg.step_method != "euler":
-            raise ValueError(f"step_method must be 'euler' or 'ballistic', got {cfg.step_method!r}")
+        elif cfg.step_method not in ("euler", "forward"):  # forward = SUMO Euler fed the *old* speed (engine)
+            raise ValueError(f"step_method must be 'euler', 'ballistic' or 'forward', got {cfg.step_method!r}")
         additional = [str(p) for p in cfg.additional_files]
         if vtype_file is not None:
             additional.append(str(vtype_file))
