@@ -23,7 +23,8 @@ def _register_builtins() -> None:
     # Imported for their @register side effect; each module is optional while the library grows.
     import importlib
 
-    for mod in ("controllers.ato", "controllers.separation", "controllers.cacc", "controllers.speed_profile"):
+    for mod in ("controllers.ato", "controllers.separation", "controllers.cacc", "controllers.speed_profile",
+                "controllers.paper_a", "controllers.distributed"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:  # pragma: no cover - only while a module is not written yet

@@ -422,11 +422,14 @@ class Simulation:
             self._interlocking_bookkeeping(t, tr)
 
         reports = {tr.train_id: self._report(t, tr) for tr in active}  # the state at t, before the plant step
+        # broadcast the state at t (with the plan decided last step) and deliver what is due now: a zero-delay
+        # channel gives the neighbours' state at t in the same step (the papers' "perfect communication")
+        self._communicate(t, active, reports)
+        self.layer.advance_to(t)
         speeds = []
         for tr in active:
             v_next = self._control(t, tr, ahead[tr.train_id])
             speeds.append(v_next)
-        self._communicate(t, active, reports)  # state at t plus the plan each train decided at t
         bridge.set_speeds(ids, speeds)
         self.recorder.step(t, active, ahead, reports)
         # trains that finished this step leave SUMO now
@@ -674,7 +677,12 @@ class Simulation:
         return (tr.trip.route.id, tr.front_m, tr.plant.speed_mps, tr.plant.applied_accel_mps2, t)
 
     def _communicate(self, t: float, active: list[TrainRuntime], reports: dict[str, tuple[Any, ...]]) -> None:
-        """Send every train's report to the ground (t2g) and to its formation followers (t2t, with its plan)."""
+        """Send every train's report to the ground (t2g) and to its formation followers (t2t).
+
+        A report is the state at ``t`` plus the plan its controller returned at the previous step
+        (``Command.info["plan"]``: ``dt_s``, ``position_m``/``speed_mps``/``accel_mps2`` sequences and optionally
+        ``t0_s``, the time entry 0 refers to) — the DMPC convention of broadcasting the last optimal plan.
+        """
         t2g = self.channels.get("t2g")
         t2t = self.channels.get("t2t")
         for tr in active:
@@ -708,12 +716,16 @@ class Simulation:
             return None
         front, rear = mapped  # only the part of its body on our track (see RouteView.map_body)
         planned: dict[str, Any] = {}
-        if plan:  # the sender's broadcast plan (its controller defines index 0), moved into our frame
+        if plan:  # the sender's last plan, moved into our frame and aligned so that entry 0 is at stamp_s
             shift = front - pos
-            planned = {"planned_position_m": tuple(float(x) + shift for x in plan.get("position_m", ())),
-                       "planned_speed_mps": tuple(float(x) for x in plan.get("speed_mps", ())),
-                       "planned_accel_mps2": tuple(float(x) for x in plan.get("accel_mps2", ())),
-                       "plan_dt_s": float(plan.get("dt_s", 0.0))}
+            dt_plan = float(plan.get("dt_s", 0.0))
+            drop = 0
+            if "t0_s" in plan and dt_plan > 0.0:  # entry 0 refers to t0_s: skip entries before the stamp
+                drop = max(0, int(round((stamp - float(plan["t0_s"])) / dt_plan)))
+            planned = {"planned_position_m": tuple(float(x) + shift for x in plan.get("position_m", ())[drop:]),
+                       "planned_speed_mps": tuple(float(x) for x in plan.get("speed_mps", ())[drop:]),
+                       "planned_accel_mps2": tuple(float(x) for x in plan.get("accel_mps2", ())[drop:]),
+                       "plan_dt_s": dt_plan}
         return PredecessorState(train_id=other.train_id, position_m=front, speed_mps=v, accel_mps2=acc,
                                 length_m=front - rear, stamp_s=stamp, age_s=max(0.0, self.layer.now_s - stamp),
                                 service_decel_mps2=veh.service_decel_mps2,
@@ -800,7 +812,8 @@ class Simulation:
         u = cmd.accel_mps2
         if self.actuator_sd > 0.0:
             u += float(self.actuator_rng.normal(0.0, self.actuator_sd))  # the papers' control disturbance
-        tr.last_plan = cmd.info.get("plan") if cmd.info else None
+        plan = cmd.info.get("plan") if cmd.info else None
+        tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
         v_now = tr.plant.speed_mps
         res = dynamics.step(veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method)
         jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
