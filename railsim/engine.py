@@ -170,11 +170,18 @@ class Simulation:
         self.formation_of_follower: dict[str, Any] = {}
         self.formation_of_leader: dict[str, list[Any]] = {}
         self._build_formations(Formation)
+        self.coop_edges = tuple(scenario.cooperative.edges)
+        self.coop_members = {e.a for e in self.coop_edges} | {e.b for e in self.coop_edges}
+        for tid in self.coop_members:
+            if tid not in self.trains:
+                raise ConfigError(scenario.source, "cooperative.edges", f"no trip {tid!r}")
+        self._coop_graph: Any = None  # the neighbour graph in force (Paper C validator's CommGraph)
         self._schedule_departures()
         self._schedule_timed_events()
 
         # what a train knows of another before any message arrived: (receiver, sender) -> report
         self._registration: dict[tuple[str, str], tuple[str, float, float, float, float]] = {}
+        self._coop_neighbours: dict[str, dict[str, tuple[float, ...]]] = {}
         self.occupancy = Occupancy()
         self.collisions: list[dict[str, Any]] = []
         self._colliding_pairs: set[tuple[str, str]] = set()
@@ -277,7 +284,10 @@ class Simulation:
             if _trig(f.decouple, "at_s"):
                 self.formations.request_decouple(f.id, at_s=float(f.decouple.at_s))
         for ev in self.scenario.events:
-            if ev.type == "couple":
+            if ev.type == "leave":
+                self.layer.at(float(ev.at_s), lambda _t, tid=ev.train: self._leave(self.trains[tid]), "leave_due",
+                              ev.train)
+            elif ev.type == "couple":
                 self.formations.request_couple(ev.formation, at_s=float(ev.at_s))
             elif ev.type == "decouple":
                 self.formations.request_decouple(ev.formation, at_s=float(ev.at_s))
@@ -314,6 +324,15 @@ class Simulation:
         self.events.record(self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id,
                            chainage_m=round(depart_m, 3))
 
+    def _leave(self, tr: TrainRuntime) -> None:
+        """A train leaves the line (to another track, the depot): removed from the world now, logged."""
+        if tr.status not in ("inserting", "running"):
+            return
+        self._release_all_locks(self.layer.now_s, tr)
+        self.bridge.remove(tr.train_id)
+        tr.status = "removed"
+        self.events.record(self.layer.now_s, "train_left", tr.train_id, chainage_m=round(tr.front_m, 3))
+
     def _handshake(self, tr: TrainRuntime) -> None:
         """Formation partners exchange a registration snapshot when both are on the line.
 
@@ -334,14 +353,62 @@ class Simulation:
                     leader.trip.route.id, leader.front_m, leader.plant.speed_mps, leader.plant.applied_accel_mps2,
                     now)
 
+    def _cooperative_graph(self, t: float, active: list[TrainRuntime]) -> dict[str, dict[str, tuple[float, ...]]]:
+        """Active neighbour edges at ``t`` (both ends on the line), oriented per train; validated when they change.
+
+        The first graph is checked against Paper C's Assumptions 2.1–2.4 and condition (13); every change
+        (a join, a leave, an edge added or dropped) re-checks the assumptions and (13) for the new edges
+        (:func:`controllers.distributed.validate.check_event_preconditions`). A violation stops the run with
+        the validator's message (exit code 2): an unsafe topology change is never silently accepted.
+        """
+        from controllers.distributed.graph import CommGraph, Edge, EdgeData
+        from controllers.distributed.validate import PreconditionError, check_event_preconditions, validate
+
+        on_line = {tr.train_id for tr in active}
+        live = [e for e in self.coop_edges if e.from_s <= t < e.until_s and e.a in on_line and e.b in on_line]
+        out: dict[str, dict[str, tuple[float, ...]]] = {}
+        for e in live:
+            out.setdefault(e.a, {})[e.b] = (e.d_m, e.lower_m, e.upper_m)
+            out.setdefault(e.b, {})[e.a] = (-e.d_m, -e.upper_m, -e.lower_m)
+        nodes = sorted(out)
+        graph = CommGraph.build(nodes, [Edge(e.a, e.b, EdgeData(e.d_m, e.lower_m, e.upper_m)) for e in live])
+        if self._coop_graph is not None and graph.edges == self._coop_graph.edges and \
+                graph.nodes == self._coop_graph.nodes:
+            return out
+        params = {}
+        v_ref = None
+        for tid in nodes:
+            ctl_ = self.trains[tid].controllers["ato"]
+            if not hasattr(ctl_, "train_params"):
+                raise ConfigError(self.scenario.source, "cooperative.edges",
+                                  f"trip {tid} is in the cooperative graph but its ato controller is not a graph law")
+            params[tid] = ctl_.train_params
+            v_ref = ctl_.params.v_ref_mps
+        x = {tid: self.trains[tid].front_m for tid in nodes}
+        v = {tid: self.trains[tid].plant.speed_mps for tid in nodes}
+        k = int(round(t / self.dt))
+        if nodes:
+            if self._coop_graph is None:
+                validate(graph, params, self.dt, float(v_ref), x, v, k=k, source=self.scenario.source)
+            else:
+                problems = check_event_preconditions(self._coop_graph, graph, params, self.dt, float(v_ref), x, v)
+                if problems:
+                    raise PreconditionError(self.scenario.source, problems, k=k)
+        self.events.record(t, "graph_changed", "cooperative", nodes=nodes,
+                           edges=sorted(f"{e.a}-{e.b}" for e in live))
+        self._coop_graph = graph
+        return out
+
     # ------------------------------------------------------------------ main loop
     def run(self) -> dict[str, Any]:
         from railsim.sumo import SumoBridge, SumoConfig, VTypeSpec
 
-        # SUMO never drives our trains (speedMode 32), but its insertion check uses the vType's braking: a high
-        # decel lets a train be inserted at speed close behind another (experiments that begin in motion)
+        # SUMO never drives our trains (speedMode 32), but it still checks insertion with the vType's Krauss model:
+        # its safe insertion speed is about gap/tau when decel·tau is large, so a tiny tau and a huge decel let a
+        # train be inserted exactly where and when the scenario says, at speed, close behind another (our
+        # occupancy check, not SUMO, judges safety). Without this SUMO silently delays the insertion.
         vtypes = [VTypeSpec(name, v.length_m, max(v.max_speed_mps * 1.5, 1.0), accel_mps2=1.0,
-                            decel_mps2=20.0, emergency_decel_mps2=20.0)
+                            decel_mps2=1000.0, emergency_decel_mps2=1000.0, tau_s=0.001)
                   for name, v in self.scenario.vehicles.items()]
         outs = tuple(self.scenario.outputs.sumo)
         cfg = SumoConfig(net_file=self.bundle.net_file, additional_files=[self.bundle.stops_file], step_s=self.dt,
@@ -421,6 +488,7 @@ class Simulation:
             self._formation_bookkeeping(t, tr, ahead[tr.train_id])
             self._interlocking_bookkeeping(t, tr)
 
+        self._coop_neighbours = self._cooperative_graph(t, active) if self.coop_edges else {}
         reports = {tr.train_id: self._report(t, tr) for tr in active}  # the state at t, before the plant step
         # broadcast the state at t (with the plan decided last step) and deliver what is due now: a zero-delay
         # channel gives the neighbours' state at t in the same step (the papers' "perfect communication")
@@ -694,6 +762,8 @@ class Simulation:
                     fol = self._trip_ref(f.follower, "formations")
                     if fol.status in ("inserting", "running"):
                         t2t.send(tr.train_id, fol.train_id, report)
+                for other in self._coop_neighbours.get(tr.train_id, {}):  # graph neighbours, both ways
+                    t2t.send(tr.train_id, other, report)
 
     def _known_state(self, observer: TrainRuntime, other: TrainRuntime, channel: str,
                      receiver: str) -> PredecessorState | None:
@@ -766,7 +836,16 @@ class Simulation:
         ato = tr.controllers["ato"]
         if fstate in ("coupling", "coupled") and tr.controllers.get("ato_closing") is not None and not tr.degraded:
             ato = tr.controllers["ato_closing"]
-        commands["ato"] = ato.command(Observation(**base))
+        ato_extras: dict[str, Any] = {}
+        if tr.train_id in self.coop_members:
+            edges = self._coop_neighbours.get(tr.train_id, {})
+            states = []
+            for j in edges:
+                st = self._known_state(tr, self.trains[j], "t2t", tr.train_id)
+                if st is not None:
+                    states.append(st)
+            ato_extras = {"edges": dict(edges), "neighbours": tuple(states), "k": int(round(t / self.dt))}
+        commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
 
         # following: coupled controller on t2t data, or separation on ground data
         used_vc = False

@@ -111,6 +111,16 @@ Readings and conventions (where the schema alone is ambiguous):
 * **Overrides** (:func:`with_overrides`, ``load(path, overrides)``) address values by dotted path with list
   indices, ``{"simulation.seed": 3, "services[0].departures.headway_s": 180}``; they are applied to the raw
   mapping before validation, so an overridden value is checked like any other.
+
+Sections for the papers' experiments (optional):
+
+* ``services[].start: {offset_m, speed_kmh}`` — trips begin in motion, ``offset_m`` beyond the origin's mark.
+* ``faults.actuator_noise: {accel_sd_mps2}`` — Gaussian noise on every applied command (Paper A's disturbance).
+* ``events: [{at_s, type: leave, train}]`` — a train leaves the line (removed; e.g. to another track).
+* ``cooperative: {edges: [{between: [a, b], d_m, lower_m, upper_m, from_s, until_s}]}`` — a graph-coupled
+  group (Paper C): ``x_a − x_b`` (front positions) tends to ``d_m`` within ``[lower_m, upper_m]`` while the edge
+  is active (``from_s <= t < until_s``); ``a``/``b`` are trip ids or one-trip service ids. The engine gives each
+  member its active neighbours in ``Observation.extras`` (``edges``, ``neighbours`` from t2t messages, ``k``).
 """
 
 from __future__ import annotations
@@ -139,7 +149,7 @@ STEP_METHODS = ("euler", "ballistic", "forward")
 SUMO_OUTPUTS = ("tripinfo", "stops", "fcd", "collisions")
 OUTPUT_FORMATS = ("csv", "parquet")
 COMM_CHANNELS = ("t2t", "t2g")
-EVENT_TYPES = ("couple", "decouple")
+EVENT_TYPES = ("couple", "decouple", "leave")
 # Parameters of each delay distribution (all in seconds).
 DELAY_DISTS: dict[str, tuple[str, ...]] = {
     "constant": ("value",),
@@ -276,11 +286,34 @@ class FormationSpec:
 
 @dataclass(frozen=True)
 class EventSpec:
-    """A timed command: ``type`` (couple | decouple) for ``formation`` at simulation time ``at_s``."""
+    """A timed command at simulation time ``at_s``: ``couple``/``decouple`` a ``formation``, or a ``train`` (a trip
+    id, or a service id with one trip) that ``leave``s the line (removed from the world, e.g. to another track)."""
 
     at_s: float
     type: str
-    formation: str
+    formation: str | None = None
+    train: str | None = None
+
+
+@dataclass(frozen=True)
+class CooperativeEdge:
+    """A communication edge of a cooperative (graph-coupled) group: ``x_a − x_b`` should tend to ``d_m`` and stay in
+    ``[lower_m, upper_m]`` (front positions). Active for ``from_s <= t < until_s``."""
+
+    a: str  # trip id
+    b: str
+    d_m: float
+    lower_m: float
+    upper_m: float
+    from_s: float = 0.0
+    until_s: float = math.inf
+
+
+@dataclass(frozen=True)
+class CooperativeSpec:
+    """Trains controlled by a graph law (Paper C): the neighbour graph as edges with activity windows."""
+
+    edges: tuple[CooperativeEdge, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -386,6 +419,7 @@ class Scenario:
     faults: FaultSpec
     outputs: OutputSpec
     raw: dict[str, Any] = field(repr=False)
+    cooperative: CooperativeSpec = field(default_factory=CooperativeSpec)
 
     def service(self, service_id: str) -> ServiceSpec:
         """The service called ``service_id`` (KeyError if none)."""
@@ -638,7 +672,7 @@ def check_against_world(scn: Scenario, stations: Collection[str], switches: Coll
 
 _ID_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-]*$")
 _TOP_REQUIRED = ("name", "world", "simulation", "vehicles", "controllers", "roles", "services")
-_TOP_OPTIONAL = ("description", "formations", "events", "faults", "outputs")
+_TOP_OPTIONAL = ("description", "formations", "events", "faults", "outputs", "cooperative")
 _VEHICLE_FIELDS = {f.name: f for f in dataclasses.fields(VehicleParams) if f.name != "name"}
 # Lower bounds of vehicle fields: ("gt"|"ge", bound). Fields not listed only need the right type.
 _VEHICLE_BOUNDS: dict[str, tuple[str, float]] = {
@@ -823,7 +857,10 @@ class _Validator:
         roles, raw["roles"] = self.roles(top["roles"], ctrls, "roles", need_coupled=bool(formations_in))
         services, raw["services"] = self.services(top["services"], sim, vehicles, ctrls, roles)
         formations, raw["formations"] = self.formations(formations_in, services)
-        events, raw["events"] = self.events(top.get("events") or [], formations)
+        events, raw["events"] = self.events(top.get("events") or [], formations, services)
+        cooperative, coop_raw = self.cooperative(top.get("cooperative") or {}, services)
+        if cooperative.edges:
+            raw["cooperative"] = coop_raw
         faults, raw["faults"] = self.faults(top.get("faults") or {}, services)
         outputs, raw["outputs"] = self.outputs(top.get("outputs") or {}, sim)
         # Last, because it depends on code outside this file (the controller registry).
@@ -844,6 +881,7 @@ class _Validator:
             faults=faults,
             outputs=outputs,
             raw=raw,
+            cooperative=cooperative,
         )
 
     def world(self, value: Any) -> tuple[WorldSpec, Any]:
@@ -1226,7 +1264,53 @@ class _Validator:
             raws.append(raw)
         return tuple(specs), raws
 
-    def events(self, value: Any, formations: Sequence[FormationSpec]) -> tuple[tuple[EventSpec, ...], list[Any]]:
+    def trip_name(self, value: Any, path: str, services: Sequence[ServiceSpec]) -> str:
+        """A trip id, or the id of a service that has exactly one trip (→ that trip's id)."""
+        trips = {t for svc in services for t in svc.trip_ids}
+        if isinstance(value, str) and value in trips:
+            return value
+        for svc in services:
+            if value == svc.id:
+                if len(svc.trip_ids) != 1:
+                    raise self.fail(path, f"expected a trip id; service {svc.id!r} has {len(svc.trip_ids)} trips "
+                                          f"(name one of {svc.trip_ids[0]}…)")
+                return svc.trip_ids[0]
+        names = [svc.id for svc in services]
+        hint = _hint(value, names) if isinstance(value, str) else ""
+        raise self.fail(path, f"expected a trip id or a one-trip service id, got {_short(value)}{hint}")
+
+    def cooperative(self, value: Any, services: Sequence[ServiceSpec]) -> tuple[CooperativeSpec, dict[str, Any]]:
+        m = self.mapping(value, "cooperative", (), ("edges",))
+        edges_in = m.get("edges") or []
+        if not isinstance(edges_in, list):
+            raise self.expect("cooperative.edges", "a list of edges", edges_in)
+        edges, raws = [], []
+        for i, body in enumerate(edges_in):
+            path = f"cooperative.edges[{i}]"
+            e = self.mapping(body, path, ("between", "d_m", "lower_m", "upper_m"), ("from_s", "until_s"))
+            pair = e["between"]
+            if not isinstance(pair, list) or len(pair) != 2:
+                raise self.expect(f"{path}.between", "a list of two trains [a, b] (x_a − x_b is constrained)", pair)
+            a = self.trip_name(pair[0], f"{path}.between[0]", services)
+            b = self.trip_name(pair[1], f"{path}.between[1]", services)
+            if a == b:
+                raise self.fail(f"{path}.between", f"expected two different trains, got {a!r} twice")
+            lower = self.number(e["lower_m"], f"{path}.lower_m")
+            upper = self.number(e["upper_m"], f"{path}.upper_m")
+            d = self.number(e["d_m"], f"{path}.d_m")
+            if not lower < d < upper:
+                raise self.fail(f"{path}.d_m", f"expected lower_m < d_m < upper_m ({lower} < d < {upper}), got {d}")
+            frm = self.number(e.get("from_s", 0.0), f"{path}.from_s", ge=0.0)
+            until = self.number(e["until_s"], f"{path}.until_s", ge=frm) if "until_s" in e else math.inf
+            edges.append(CooperativeEdge(a, b, d, lower, upper, frm, until))
+            r = {"between": [a, b], "d_m": d, "lower_m": lower, "upper_m": upper, "from_s": frm}
+            if math.isfinite(until):
+                r["until_s"] = until
+            raws.append(r)
+        return CooperativeSpec(tuple(edges)), {"edges": raws}
+
+    def events(self, value: Any, formations: Sequence[FormationSpec],
+               services: Sequence[ServiceSpec] = ()) -> tuple[tuple[EventSpec, ...], list[Any]]:
         if not isinstance(value, list):
             raise self.expect("events", "a list of events", value)
         ids = [f.id for f in formations]
@@ -1234,15 +1318,24 @@ class _Validator:
         raws: list[Any] = []
         for i, body in enumerate(value):
             path = f"events[{i}]"
-            m = self.mapping(body, path, ("at_s", "type", "formation"))
+            m = self.mapping(body, path, ("at_s", "type"), ("formation", "train"))
             at_s = self.number(m["at_s"], f"{path}.at_s", ge=0.0)
             etype = self.string(m["type"], f"{path}.type", EVENT_TYPES)
+            if etype == "leave":
+                if "train" not in m:
+                    raise self.fail(f"{path}.train", "missing required key (a leave event names the train)")
+                train = self.trip_name(m["train"], f"{path}.train", services)
+                specs.append(EventSpec(at_s, etype, train=train))
+                raws.append({"at_s": at_s, "type": etype, "train": train})
+                continue
+            if "formation" not in m:
+                raise self.fail(f"{path}.formation", "missing required key")
             fid = m["formation"]
             if not isinstance(fid, str) or fid not in ids:
                 hint = _hint(fid, ids) if isinstance(fid, str) else ""
                 listed = ", ".join(ids) if ids else "none defined"
                 raise self.fail(f"{path}.formation", f"expected a formation id ({listed}), got {_short(fid)}{hint}")
-            specs.append(EventSpec(at_s, etype, fid))
+            specs.append(EventSpec(at_s, etype, formation=fid))
             raws.append({"at_s": at_s, "type": etype, "formation": fid})
         return tuple(specs), raws
 

@@ -62,6 +62,7 @@ class VTypeSpec:
     decel_mps2: float = 1.0
     emergency_decel_mps2: float = 1.3
     vclass: str = "rail_urban"
+    tau_s: float = 1.0  # Krauss reaction time; tiny for controlled trains so insertion checks never bind
 
 
 @dataclass(frozen=True)
@@ -112,7 +113,7 @@ def _write_vtypes(path: Path, vtypes: Iterable[VTypeSpec]) -> None:
         lines.append(
             f"  <vType id={quoteattr(vt.type_id)} vClass={quoteattr(vt.vclass)} length=\"{vt.length_m:.3f}\""
             f" maxSpeed=\"{vt.max_speed_mps:.3f}\" accel=\"{vt.accel_mps2:.3f}\" decel=\"{vt.decel_mps2:.3f}\""
-            f" emergencyDecel=\"{vt.emergency_decel_mps2:.3f}\" minGap=\"0\" sigma=\"0\" tau=\"1\""
+            f" emergencyDecel=\"{vt.emergency_decel_mps2:.3f}\" minGap=\"0\" sigma=\"0\" tau=\"{vt.tau_s:g}\""
             " carFollowModel=\"Krauss\"/>"
         )
     lines.append("</routes>")

@@ -276,7 +276,7 @@ def test_empty_window_raises_or_falls_back() -> None:
 
 
 def test_figures_are_written(logs: dict, tmp_path) -> None:
-    from controllers.distributed.plots import write_figures
+    from railsim.plots.paper002 import write_figures
 
     paths = write_figures(logs["union"], tmp_path / "figs")
     assert [p.name for p in paths] == ["fig3_positions.png", "fig4_position_differences.png", "fig5_speeds.png",
