@@ -75,3 +75,14 @@ def test_a_join_that_violates_condition_13_is_refused(tmp_path: Path) -> None:
     assert "Traceback" not in res.stderr
     line = res.stderr.strip().splitlines()[-1]
     assert "at k = 1001" in line and "edges[" in line and "(13)" in line, line
+
+
+def test_reproduce_command_writes_the_reference_run_and_figures(tmp_path: Path) -> None:
+    res = run_railsim(["reproduce", "paper002", "--out", str(tmp_path)])
+    assert res.returncode == 0, res.stderr
+    assert "0 constraint violations" in res.stdout
+    first = {r["train"]: float(r["u_mps2"]) for r in read_csv(tmp_path / "trains.csv") if r["k"] == "0"}
+    assert first == pytest.approx({"1": 0.193334, "2": -6.817011, "3": 4.179605, "4": -5.820395, "6": 9.163164},
+                                  abs=1e-6)  # spec 002 §7.2 item 10
+    for name in ("fig3_positions", "fig4_position_differences", "fig5_speeds", "fig6_inputs"):
+        assert (tmp_path / f"{name}.png").stat().st_size > 10_000
