@@ -1,0 +1,91 @@
+"""AFSMC — the adaptive fuzzy sliding-mode baseline of Paper B (spec §2.15, §6 A16; design not in the paper).
+
+The paper only cites Guo et al. (IET ITS 17(2), 2023). This is the spec's per-carriage sketch:
+
+* tracking errors ``e_i = x_r,i − x_i``, ``ė_i = v_r − v_i`` with ``x_r,i = x_r − (i−1)·l_d``;
+* sliding surface ``s_i = ė_i + λ e_i``;
+* control ``u_i = m[v̇_r + λ ė_i + a_res,i(v_i) − F_coupler,i/m + f̂_i] + m·k_sw·sat(s_i/φ)`` — feedback
+  linearisation of Eq. (1) (resistance, gradient and the measured coupler force are cancelled) plus a
+  boundary-layer switching term;
+* ``f̂_i = θ_iᵀψ(s_i, ṡ_i)``: a zero-order Takagi–Sugeno system with 5×5 Gaussian memberships on ``s`` and
+  ``ṡ`` (normalised firing strengths ψ), adapted by ``θ̇_i = γ s_i ψ`` (Euler at the control period, with a
+  projection ``|θ| ≤ θ_max`` so the estimate stays bounded) — it learns what the model misses (wind);
+* forces saturated to ``[u_min, u_max]``; **no** force-rate limit (as in the paper's comparison).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from controllers.ato_mpc.core import Situation, reference_window
+from railsim.multipoint import G_MPS2, MultipointParams
+
+
+@dataclass(frozen=True)
+class AfsmcParams:
+    period_s: float = 0.1
+    lambda_per_s: float = 0.5
+    switching_gain_mps2: float = 0.05
+    boundary_layer_mps: float = 0.2
+    adaptation_gain: float = 2.0
+    theta_max_mps2: float = 0.5
+    s_span_mps: float = 1.0  # membership centres on s span ±this
+    sdot_span_mps2: float = 0.5
+
+
+class AfsmcLaw:
+    def __init__(self, params: MultipointParams, settings: AfsmcParams = AfsmcParams(),
+                 reference_mode: str = "distance") -> None:
+        self.p = params
+        self.s = settings
+        self.reference_mode = reference_mode
+        self.centres_s = np.linspace(-settings.s_span_mps, settings.s_span_mps, 5)
+        self.centres_sd = np.linspace(-settings.sdot_span_mps2, settings.sdot_span_mps2, 5)
+        self.reset()
+
+    def reset(self) -> None:
+        self.theta = np.zeros((self.p.n_cars, 25))
+        self.s_prev: np.ndarray | None = None
+
+    def _psi(self, s: np.ndarray, sd: np.ndarray) -> np.ndarray:
+        ws = self.s.s_span_mps / 2.0
+        wd = self.s.sdot_span_mps2 / 2.0
+        mu_s = np.exp(-0.5 * ((s[:, None] - self.centres_s[None, :]) / ws) ** 2)
+        mu_d = np.exp(-0.5 * ((sd[:, None] - self.centres_sd[None, :]) / wd) ** 2)
+        fire = (mu_s[:, :, None] * mu_d[:, None, :]).reshape(s.size, 25)
+        return fire / np.sum(fire, axis=1, keepdims=True)
+
+    def forces(self, sit: Situation, u_prev_n: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
+        p, c = self.p, self.s
+        n = p.n_cars
+        period = c.period_s
+        xr, vr, v0 = reference_window(sit, period, 1, self.reference_mode)
+        x_r_now = float(xr[0] - 0.5 * (v0 + vr[0]) * period)
+        vdot_r = (float(vr[0]) - v0) / period
+        rel = sit.rel_state
+        x = rel[0] + np.concatenate(([0.0], np.cumsum(rel[1:n])))
+        v = rel[n] + np.concatenate(([0.0], np.cumsum(rel[n + 1:])))
+        x_ri = x_r_now - p.coupler_length_m * np.arange(n)
+        e = x_ri - x
+        ed = v0 - v
+        s = ed + c.lambda_per_s * e
+        sd = np.zeros(n) if self.s_prev is None else (s - self.s_prev) / period
+        self.s_prev = s
+        psi = self._psi(s, sd)
+        f_hat = np.sum(self.theta * psi, axis=1)
+        self.theta = np.clip(self.theta + period * c.adaptation_gain * s[:, None] * psi,
+                             -c.theta_max_mps2, c.theta_max_mps2)
+        stretch = x[:-1] - x[1:] - p.coupler_length_m
+        tension = p.coupler_stiffness_n_per_m * stretch
+        coupler = np.zeros(n)
+        coupler[:-1] -= tension
+        coupler[1:] += tension
+        a_res = (p.c0_mps2 + p.c1_per_s * v + p.c2_per_m * v * np.abs(v)
+                 + G_MPS2 * np.asarray(sit.gradient_permille) * 1e-3 + sit.wind_mps2)
+        sat = np.clip(s / c.boundary_layer_mps, -1.0, 1.0)
+        u = p.car_mass_kg * (vdot_r + c.lambda_per_s * ed + a_res + f_hat + c.switching_gain_mps2 * sat) - coupler
+        u = np.clip(u, p.force_min_n, p.force_max_n)
+        return u, {"fallback": False, "f_hat_mps2": float(np.mean(f_hat))}
