@@ -109,6 +109,8 @@ class TrainRuntime:
     vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
     last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
     sent_speed_mps: float | None = None  # the speed handed to SUMO last step
+    mp_params: Any = None  # railsim.multipoint.MultipointParams when the vehicle uses the carriage model
+    mp_state: Any = None  # its MultipointState (carriage 1 = the front SUMO sees)
 
     @property
     def train_id(self) -> str:
@@ -170,6 +172,11 @@ class Simulation:
         self.formation_of_follower: dict[str, Any] = {}
         self.formation_of_leader: dict[str, list[Any]] = {}
         self._build_formations(Formation)
+        for vname, plant in scenario.plants.items():
+            if plant.kind == "multipoint" and self.step_method != "euler":
+                raise ConfigError(scenario.source, "simulation.step_method",
+                                  f"vehicle {vname!r} uses the multipoint plant, which needs step_method euler "
+                                  f"(SUMO is handed the step's mean speed), got {self.step_method!r}")
         self.coop_edges = tuple(scenario.cooperative.edges)
         self.coop_members = {e.a for e in self.coop_edges} | {e.b for e in self.coop_edges}
         for tid in self.coop_members:
@@ -318,6 +325,12 @@ class Simulation:
         tr.status = "inserting"
         tr.front_m = depart_m
         tr.plant = dynamics.PlantState(speed_mps=trip.start_speed_mps)
+        plant = self.scenario.plants.get(trip.vehicle_name)
+        if plant is not None and plant.kind == "multipoint":
+            from railsim import multipoint
+
+            tr.mp_params = multipoint.MultipointParams(**dict(plant.params))
+            tr.mp_state = multipoint.initial_state(tr.mp_params, depart_m, trip.start_speed_mps)
         self._handshake(tr)
         tr.depart_chainage_m = depart_m
         tr.inserted_s = self.layer.now_s
@@ -399,6 +412,36 @@ class Simulation:
         self._coop_graph = graph
         return out
 
+    def _multipoint_step(self, t: float, tr: TrainRuntime, role: str, cmd: Command) -> float:
+        """Advance a carriage-model train one step; return the speed that makes SUMO's position exact.
+
+        The carriage model integrates continuously (RK4 sub-steps), so carriage 1 moves by ``Δx`` that is not
+        ``v_new·dt``. SUMO's Euler update moves a train by the speed it is given times dt, so we hand it
+        ``Δx/dt`` — the step's mean speed — and SUMO's front stays exactly on carriage 1.
+        """
+        from railsim import multipoint
+
+        p, state = tr.mp_params, tr.mp_state
+        forces = _carriage_forces(cmd, p)
+        view = tr.view
+        new = multipoint.step(p, state, forces, self.dt,
+                              lambda xs: np.array([view.gradient_at(float(x)) for x in np.atleast_1d(xs)]), t)
+        advance = float(new.lead_position_m - state.lead_position_m)
+        mass = p.n_cars * p.car_mass_kg
+        applied = float(np.clip(forces, p.force_min_n, p.force_max_n).sum()) / mass
+        mean_v = 0.5 * (np.asarray(state.speeds_mps) + np.asarray(new.speeds_mps))
+        tr.energy_j += float(np.sum(np.maximum(np.clip(forces, p.force_min_n, p.force_max_n), 0.0) * mean_v)) * self.dt
+        jerk = abs(applied - tr.plant.applied_accel_mps2) / self.dt
+        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
+        tr.mp_state = new
+        tr.plant = dynamics.PlantState(speed_mps=float(new.lead_speed_mps), applied_accel_mps2=applied,
+                                       target_accel_mps2=applied)
+        tr.last_role = role
+        tr.last_cmd_mps2 = cmd.accel_mps2
+        tr.last_plan = None
+        tr.sent_speed_mps = max(advance / self.dt, 0.0)
+        return tr.sent_speed_mps
+
     # ------------------------------------------------------------------ main loop
     def run(self) -> dict[str, Any]:
         from railsim.sumo import SumoBridge, SumoConfig, VTypeSpec
@@ -463,9 +506,14 @@ class Simulation:
         for i, tr in enumerate(active):
             tr.front_m = tr.depart_chainage_m + float(truth.odometer_m[i])
             sumo_v = float(truth.speed_mps[i])
-            expected_v = tr.plant.speed_mps if tr.sent_speed_mps is None or self.step_method != "forward" \
-                else tr.sent_speed_mps
+            # SUMO applies exactly the speed we sent (speedMode 32) unless it holds the train at a stop
+            expected_v = tr.sent_speed_mps if tr.sent_speed_mps is not None else tr.plant.speed_mps
             if abs(sumo_v - expected_v) > 1e-6 and tr.sent_speed_mps is not None:
+                if tr.mp_state is not None:
+                    from railsim import multipoint
+
+                    tr.mp_state = multipoint.initial_state(tr.mp_params, tr.depart_chainage_m +
+                                                           float(truth.odometer_m[i]), sumo_v)
                 # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
                 tr.plant = dynamics.PlantState(speed_mps=sumo_v, applied_accel_mps2=0.0 if sumo_v == 0 else
                                                tr.plant.applied_accel_mps2,
@@ -845,6 +893,8 @@ class Simulation:
                 if st is not None:
                     states.append(st)
             ato_extras = {"edges": dict(edges), "neighbours": tuple(states), "k": int(round(t / self.dt))}
+        if tr.mp_state is not None:  # the carriage model's relative state (couplers) for model-based ATOs
+            ato_extras["multipoint_rel_state"] = tr.mp_state.relative()
         commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
 
         # following: coupled controller on t2t data, or separation on ground data
@@ -888,6 +938,8 @@ class Simulation:
             log.error("%s: %s controller returned %r; braking", tr.train_id, role, cmd.accel_mps2)
             cmd = Command(-veh.service_decel_mps2, fallback=True)
             tr.fallbacks += 1
+        if tr.mp_state is not None:
+            return self._multipoint_step(t, tr, role, cmd)
         u = cmd.accel_mps2
         if self.actuator_sd > 0.0:
             u += float(self.actuator_rng.normal(0.0, self.actuator_sd))  # the papers' control disturbance
@@ -907,6 +959,14 @@ class Simulation:
         # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
         tr.sent_speed_mps = v_now if self.step_method == "forward" else res.state.speed_mps
         return tr.sent_speed_mps
+
+
+def _carriage_forces(cmd: Command, p: Any) -> np.ndarray:
+    """Per-carriage forces [N]: the controller's own (``info["forces_n"]``) or its acceleration spread evenly."""
+    forces = cmd.info.get("forces_n") if cmd.info else None
+    if forces is not None and len(forces) == p.n_cars:
+        return np.asarray(forces, dtype=float)
+    return np.full(p.n_cars, float(cmd.accel_mps2) * p.car_mass_kg)
 
 
 def _trig(trigger: Any, kind: str) -> bool:

@@ -295,6 +295,18 @@ class EventSpec:
     train: str | None = None
 
 
+PLANT_KINDS = ("single", "multipoint")
+
+
+@dataclass(frozen=True)
+class PlantSpec:
+    """The train model the engine integrates for a vehicle: ``multipoint`` = Paper B's carriage-by-carriage model
+    (:mod:`railsim.multipoint`) with ``params`` overriding its defaults; absent = the single-mass plant."""
+
+    kind: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+
 @dataclass(frozen=True)
 class CooperativeEdge:
     """A communication edge of a cooperative (graph-coupled) group: ``x_a − x_b`` should tend to ``d_m`` and stay in
@@ -420,6 +432,7 @@ class Scenario:
     outputs: OutputSpec
     raw: dict[str, Any] = field(repr=False)
     cooperative: CooperativeSpec = field(default_factory=CooperativeSpec)
+    plants: dict[str, PlantSpec] = field(default_factory=dict)  # vehicle name -> non-default plant
 
     def service(self, service_id: str) -> ServiceSpec:
         """The service called ``service_id`` (KeyError if none)."""
@@ -734,6 +747,7 @@ class _Validator:
     def __init__(self, source: str, base_dir: Path) -> None:
         self.source = source
         self.base_dir = base_dir
+        self.plants: dict[str, PlantSpec] = {}
 
     # ---- primitives ------------------------------------------------------------------------------------------
 
@@ -882,6 +896,7 @@ class _Validator:
             outputs=outputs,
             raw=raw,
             cooperative=cooperative,
+            plants=dict(self.plants),
         )
 
     def world(self, value: Any) -> tuple[WorldSpec, Any]:
@@ -941,7 +956,11 @@ class _Validator:
         fields = list(_VEHICLE_FIELDS)
         if isinstance(body, dict) and "name" in body:
             raise self.fail(f"{path}.name", "unknown key (a vehicle is named by its key in 'vehicles')")
-        body = self.mapping(body, path, (), ["preset", "max_speed_kmh", *fields])
+        body = self.mapping(body, path, (), ["preset", "max_speed_kmh", "plant", "plant_params", *fields])
+        plant = self.plant(body, path)
+        if plant is not None:
+            self.plants[key] = plant
+        body = {k: v for k, v in body.items() if k not in ("plant", "plant_params")}
         if "max_speed_kmh" in body and "max_speed_mps" in body:
             raise self.fail(f"{path}.max_speed_kmh", "expected either max_speed_kmh or max_speed_mps, got both")
         values: dict[str, Any] = {}
@@ -989,7 +1008,34 @@ class _Validator:
             )
         raw: dict[str, Any] = {"preset": preset_name} if preset_name is not None else {}
         raw.update({f: values[f] for f in fields})
+        if plant is not None:
+            raw["plant"] = plant.kind
+            raw["plant_params"] = dict(plant.params)
         return VehicleParams(name=key, **values), raw
+
+    def plant(self, body: Mapping[str, Any], path: str) -> "PlantSpec | None":
+        """``plant: multipoint`` (+ ``plant_params`` overriding :class:`railsim.multipoint.MultipointParams`)."""
+        if "plant" not in body and "plant_params" not in body:
+            return None
+        kind = self.string(body.get("plant", "single"), f"{path}.plant", PLANT_KINDS)
+        params_in = body.get("plant_params") or {}
+        if kind == "single":
+            if params_in:
+                raise self.fail(f"{path}.plant_params", "only a multipoint plant takes plant_params")
+            return None
+        from railsim.multipoint import MultipointParams
+
+        allowed = tuple(f.name for f in dataclasses.fields(MultipointParams))
+        m = self.mapping(params_in, f"{path}.plant_params", (), allowed)
+        params: dict[str, Any] = {}
+        for name, v in m.items():
+            params[name] = self.integer(v, f"{path}.plant_params.{name}", ge=1) if name == "n_cars" else \
+                self.number(v, f"{path}.plant_params.{name}")
+        try:
+            MultipointParams(**params)
+        except (ValueError, TypeError) as exc:
+            raise self.fail(f"{path}.plant_params", str(exc)) from None
+        return PlantSpec(kind, params)
 
     def controllers(self, value: Any) -> tuple[dict[str, ControllerSpec], dict[str, Any]]:
         m = self.free_mapping(value, "controllers", what="a mapping of instance name -> {type, params}")

@@ -382,7 +382,7 @@ def test_vehicle_without_preset_needs_every_field() -> None:
          "vehicles.cq6.name: unknown key (a vehicle is named by its key in 'vehicles')"),
         ({"vehicles.cq6.mass_kgs": 1},
          "vehicles.cq6.mass_kgs: unknown key (did you mean 'mass_kg'?); allowed keys: " + ", ".join(
-             sorted(["preset", "max_speed_kmh", *S._VEHICLE_FIELDS]))),
+             sorted(["preset", "max_speed_kmh", "plant", "plant_params", *S._VEHICLE_FIELDS]))),
         ({"vehicles.cq6.mass_kg": float("nan")}, "vehicles.cq6.mass_kg: expected a finite number > 0, got nan"),
     ],
 )
