@@ -112,9 +112,10 @@ class TrainRuntime:
     mp_params: Any = None  # railsim.multipoint.MultipointParams when the vehicle uses the carriage model
     mp_state: Any = None  # its MultipointState (carriage 1 = the front SUMO sees)
 
-    @property
-    def train_id(self) -> str:
-        return self.trip.trip_id
+    train_id: str = ""  # = trip.trip_id (a plain field: it is read millions of times per run)
+
+    def __post_init__(self) -> None:
+        self.train_id = self.trip.trip_id
 
 
 class Simulation:
