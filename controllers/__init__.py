@@ -24,7 +24,7 @@ def _register_builtins() -> None:
     import importlib
 
     for mod in ("controllers.ato", "controllers.separation", "controllers.cacc", "controllers.speed_profile",
-                "controllers.paper_a", "controllers.distributed", "controllers.ato_mpc"):
+                "controllers.paper_a", "controllers.distributed", "controllers.ato_mpc", "controllers.monorail"):
         try:
             importlib.import_module(mod)
         except ModuleNotFoundError as exc:  # pragma: no cover - only while a module is not written yet
