@@ -68,6 +68,7 @@ class EngineSettings:
     separation_gap_m: float = 300.0  # formation decoupling completes at this true gap (front-to-rear)
     missed_stop_tolerance_m: float = 0.5
     final_approach_margin_m: float = 50.0  # coupled follower: hand the stop to the ATO this far before braking
+    sensor_range_m: float = 400.0  # a train's own ranging sensor (collision avoidance) sees this far ahead
 
 
 @dataclass
@@ -109,6 +110,7 @@ class TrainRuntime:
     vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
     last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
     sent_speed_mps: float | None = None  # the speed handed to SUMO last step
+    emergency_since_s: float | None = None  # start of the current emergency-braking interval
     mp_params: Any = None  # railsim.multipoint.MultipointParams when the vehicle uses the carriage model
     mp_state: Any = None  # its MultipointState (carriage 1 = the front SUMO sees)
 
@@ -184,6 +186,7 @@ class Simulation:
             if tid not in self.trains:
                 raise ConfigError(scenario.source, "cooperative.edges", f"no trip {tid!r}")
         self._coop_graph: Any = None  # the neighbour graph in force (Paper C validator's CommGraph)
+        self.obstacles: dict[str, tuple[str, float]] = {}  # obstacle id -> (SUMO edge, position on it [m])
         self._schedule_departures()
         self._schedule_timed_events()
 
@@ -244,7 +247,8 @@ class Simulation:
                 arr, depm = plan_free_run(trip, ato_factory, self.dt, self.step_method)
                 trip.planned_arrival_s.update(arr)
                 trip.planned_departure_s.update(depm)
-                ctrls = {role: self._controller(role, trip.roles, vehicle) for role in ("ato", "separation", "coupled")}
+                ctrls = {role: self._controller(role, trip.roles, vehicle)
+                         for role in ("ato", "separation", "coupled", "ca")}
                 ctrls["ato_closing"] = self._closing_ato(trip.roles, vehicle)
                 self.trains[trip_id] = TrainRuntime(trip=trip, view=route_view(route), controllers=ctrls)
                 trips.append(trip)
@@ -291,8 +295,11 @@ class Simulation:
                 self.formations.request_couple(f.id, at_s=float(f.couple.at_s))
             if _trig(f.decouple, "at_s"):
                 self.formations.request_decouple(f.id, at_s=float(f.decouple.at_s))
-        for ev in self.scenario.events:
-            if ev.type == "leave":
+        for n, ev in enumerate(self.scenario.events):
+            if ev.type == "obstacle":
+                self.layer.at(float(ev.at_s), lambda _t, e=ev, k=n: self._place_obstacle(f"obstacle{k}", e),
+                              "obstacle_due", ev.train)
+            elif ev.type == "leave":
                 self.layer.at(float(ev.at_s), lambda _t, tid=ev.train: self._leave(self.trains[tid]), "leave_due",
                               ev.train)
             elif ev.type == "couple":
@@ -337,6 +344,45 @@ class Simulation:
         tr.inserted_s = self.layer.now_s
         self.events.record(self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id,
                            chainage_m=round(depart_m, 3))
+
+    def _place_obstacle(self, oid: str, ev: Any) -> None:
+        """A static obstacle appears ``ahead_m`` ahead of a train's front (on that train's route, fixed to the track)."""
+        tr = self.trains[ev.train]
+        ch = tr.front_m + float(ev.ahead_m)
+        i = tr.view.edge_at(ch)
+        self.obstacles[oid] = (tr.view.edges[i], ch - tr.view.edge_start_m[i])
+        self.events.record(self.layer.now_s, "obstacle_appeared", oid, ahead_of=tr.train_id,
+                           chainage_m=round(ch, 3))
+        if ev.duration_s is not None:
+            def clear(_t: float, oid: str = oid) -> None:
+                self.obstacles.pop(oid, None)
+                self.events.record(self.layer.now_s, "obstacle_cleared", oid)
+
+            self.layer.at(self.layer.now_s + float(ev.duration_s), clear, "obstacle_clear_due", oid)
+
+    def _obstacle_ahead(self, tr: TrainRuntime) -> tuple[str, float] | None:
+        """Nearest obstacle on this train's route ahead of its front: ``(id, gap_m)`` (ground truth)."""
+        best = None
+        for oid, (edge, pos) in self.obstacles.items():
+            j = tr.view.edge_index.get(edge)
+            if j is None:
+                continue
+            gap = tr.view.edge_start_m[j] + pos - tr.front_m
+            if gap > -tr.trip.vehicle.length_m and (best is None or gap < best[1]):
+                best = (oid, gap)
+        return best
+
+    def _sensor(self, tr: TrainRuntime, a: Ahead | None) -> dict[str, Any]:
+        """What the train's own ranging sensor reads: nearest train or obstacle ahead within range (truth-based)."""
+        reading: dict[str, Any] = {"distance_m": INF, "closing_speed_mps": 0.0, "object": "vehicle"}
+        if a is not None and a.gap_m <= self.settings.sensor_range_m:
+            other = self.trains[a.train_id]
+            reading = {"distance_m": a.gap_m, "closing_speed_mps": tr.plant.speed_mps - other.plant.speed_mps,
+                       "object": "vehicle"}
+        obs = self._obstacle_ahead(tr)
+        if obs is not None and obs[1] <= self.settings.sensor_range_m and obs[1] < reading["distance_m"]:
+            reading = {"distance_m": obs[1], "closing_speed_mps": tr.plant.speed_mps, "object": "obstacle"}
+        return reading
 
     def _leave(self, tr: TrainRuntime) -> None:
         """A train leaves the line (to another track, the depot): removed from the world now, logged."""
@@ -557,6 +603,14 @@ class Simulation:
 
     # ------------------------------------------------------------------ truth checks
     def _truth_checks(self, t: float, tr: TrainRuntime, a: Ahead | None) -> None:
+        if self.obstacles:
+            hit = self._obstacle_ahead(tr)
+            if hit is not None and hit[1] < 0.0 and (tr.train_id, hit[0]) not in self._colliding_pairs:
+                self._colliding_pairs.add((tr.train_id, hit[0]))
+                self.collisions.append({"t_s": t, "follower": tr.train_id, "leader": hit[0], "overlap_m": -hit[1],
+                                        "chainage_m": tr.front_m})
+                self.events.record(t, "collision", tr.train_id, leader=hit[0], overlap_m=round(-hit[1], 3))
+                log.error("collision at t=%.1f s: %s hit %s", t, tr.train_id, hit[0])
         if a is None:
             tr.last_gap_m = INF
             return
@@ -931,7 +985,25 @@ class Simulation:
                 tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
                 obs = Observation(**base, predecessor=pred, formation_state=fstate)
                 commands["separation"] = tr.controllers["separation"].command(obs)
+        ca_ctl = tr.controllers.get("ca")
+        if ca_ctl is not None:  # collision avoidance on the train's own sensor: works with the radio down
+            ca_cmd = ca_ctl.command(Observation(**base, extras={"sensor": self._sensor(tr, a)},
+                                                formation_state=fstate))
+            commands["ca"] = ca_cmd
+            event = ca_cmd.info.get("event") if ca_cmd.info else None
+            if event in ("ca_on", "ca_off"):
+                self.events.record(t, "ca_trigger" if event == "ca_on" else "ca_release", tr.train_id,
+                                   gap_m=round(float(ca_cmd.info.get("gap_m", INF)), 3)
+                                   if math.isfinite(float(ca_cmd.info.get("gap_m", INF))) else None,
+                                   trigger_m=ca_cmd.info.get("trigger_m"))
         role, cmd = arbitrate(commands)
+        if cmd.emergency and tr.emergency_since_s is None:
+            tr.emergency_since_s = t
+            self.events.record(t, "emergency_brake_on", tr.train_id, role=role)
+        elif not cmd.emergency and tr.emergency_since_s is not None:
+            self.events.record(t, "emergency_brake_off", tr.train_id, role=role,
+                               duration_s=round(t - tr.emergency_since_s, 3))
+            tr.emergency_since_s = None
         if cmd.fallback:
             tr.fallbacks += 1
         if not math.isfinite(cmd.accel_mps2):

@@ -117,6 +117,9 @@ Sections for the papers' experiments (optional):
 * ``services[].start: {offset_m, speed_kmh}`` — trips begin in motion, ``offset_m`` beyond the origin's mark.
 * ``faults.actuator_noise: {accel_sd_mps2}`` — Gaussian noise on every applied command (Paper A's disturbance).
 * ``events: [{at_s, type: leave, train}]`` — a train leaves the line (removed; e.g. to another track).
+* ``events: [{at_s, type: obstacle, train, ahead_m, duration_s}]`` — a static obstacle appears ``ahead_m`` ahead of
+  the train's front (Paper D); trains sense it with their own sensor (role ``ca``).
+* ``roles.ca`` — an optional collision-avoidance role (e.g. ``monorail_ca``) fed by the train's own sensor.
 * ``cooperative: {edges: [{between: [a, b], d_m, lower_m, upper_m, from_s, until_s}]}`` — a graph-coupled
   group (Paper C): ``x_a − x_b`` (front positions) tends to ``d_m`` within ``[lower_m, upper_m]`` while the edge
   is active (``from_s <= t < until_s``); ``a``/``b`` are trip ids or one-trip service ids. The engine gives each
@@ -143,13 +146,13 @@ from railsim.vehicle import VehicleParams, preset, preset_names
 
 log = logging.getLogger(__name__)
 
-ROLES = ("ato", "separation", "coupled")
+ROLES = ("ato", "separation", "coupled", "ca")  # ca: collision avoidance on the train's own sensor
 REQUIRED_ROLES = ("ato", "separation")
 STEP_METHODS = ("euler", "ballistic", "forward")
 SUMO_OUTPUTS = ("tripinfo", "stops", "fcd", "collisions")
 OUTPUT_FORMATS = ("csv", "parquet")
 COMM_CHANNELS = ("t2t", "t2g")
-EVENT_TYPES = ("couple", "decouple", "leave")
+EVENT_TYPES = ("couple", "decouple", "leave", "obstacle")
 # Parameters of each delay distribution (all in seconds).
 DELAY_DISTS: dict[str, tuple[str, ...]] = {
     "constant": ("value",),
@@ -293,6 +296,8 @@ class EventSpec:
     type: str
     formation: str | None = None
     train: str | None = None
+    ahead_m: float | None = None  # obstacle: appears this far ahead of the named train's front
+    duration_s: float | None = None  # obstacle: removed after this long (None: stays)
 
 
 PLANT_KINDS = ("single", "multipoint")
@@ -1364,9 +1369,22 @@ class _Validator:
         raws: list[Any] = []
         for i, body in enumerate(value):
             path = f"events[{i}]"
-            m = self.mapping(body, path, ("at_s", "type"), ("formation", "train"))
+            m = self.mapping(body, path, ("at_s", "type"), ("formation", "train", "ahead_m", "duration_s"))
             at_s = self.number(m["at_s"], f"{path}.at_s", ge=0.0)
             etype = self.string(m["type"], f"{path}.type", EVENT_TYPES)
+            if etype == "obstacle":
+                for key in ("train", "ahead_m"):
+                    if key not in m:
+                        raise self.fail(f"{path}.{key}", "missing required key (an obstacle appears ahead of a train)")
+                train = self.trip_name(m["train"], f"{path}.train", services)
+                ahead = self.number(m["ahead_m"], f"{path}.ahead_m", gt=0.0)
+                dur = self.number(m["duration_s"], f"{path}.duration_s", gt=0.0) if "duration_s" in m else None
+                specs.append(EventSpec(at_s, etype, train=train, ahead_m=ahead, duration_s=dur))
+                r = {"at_s": at_s, "type": etype, "train": train, "ahead_m": ahead}
+                if dur is not None:
+                    r["duration_s"] = dur
+                raws.append(r)
+                continue
             if etype == "leave":
                 if "train" not in m:
                     raise self.fail(f"{path}.train", "missing required key (a leave event names the train)")

@@ -471,7 +471,7 @@ def test_other_ranges() -> None:
     assert error_of({"services[1].id": "a"}) == "base.yaml: services[1].id: expected a unique service id, got 'a' twice"
     assert error_of({"services[1].skip": ["s5"]}) == "base.yaml: services[1].skip[0]: expected an intermediate station, got the terminal 's5'"
     assert error_of({"services[1].roles": {"folow": "keep"}}) == (
-        "base.yaml: services[1].roles.folow: unknown key; allowed keys: ato, coupled, separation"
+        "base.yaml: services[1].roles.folow: unknown key; allowed keys: ato, ca, coupled, separation"
     )
 
 
