@@ -295,6 +295,10 @@ class Simulation:
                 self.formations.request_couple(f.id, at_s=float(f.couple.at_s))
             if _trig(f.decouple, "at_s"):
                 self.formations.request_decouple(f.id, at_s=float(f.decouple.at_s))
+        for bias in self.scenario.faults.actuator_bias:  # make injected actuator faults visible in events.csv
+            self.layer.at(bias.from_s, lambda _t, b=bias: self.events.record(
+                self.layer.now_s, "actuator_fault", b.train, accel_mps2=b.accel_mps2,
+                until_s=b.until_s if math.isfinite(b.until_s) else None), "actuator_fault_due", bias.train)
         for n, ev in enumerate(self.scenario.events):
             if ev.type == "obstacle":
                 self.layer.at(float(ev.at_s), lambda _t, e=ev, k=n: self._place_obstacle(f"obstacle{k}", e),
@@ -1016,6 +1020,9 @@ class Simulation:
         u = cmd.accel_mps2
         if self.actuator_sd > 0.0:
             u += float(self.actuator_rng.normal(0.0, self.actuator_sd))  # the papers' control disturbance
+        for bias in self.scenario.faults.actuator_bias:  # a faulty actuator (injected fault, logged at start)
+            if bias.train == tr.train_id and bias.from_s <= t < bias.until_s:
+                u += bias.accel_mps2
         plan = cmd.info.get("plan") if cmd.info else None
         tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
         v_now = tr.plant.speed_mps

@@ -116,6 +116,7 @@ Sections for the papers' experiments (optional):
 
 * ``services[].start: {offset_m, speed_kmh}`` — trips begin in motion, ``offset_m`` beyond the origin's mark.
 * ``faults.actuator_noise: {accel_sd_mps2}`` — Gaussian noise on every applied command (Paper A's disturbance).
+* ``faults.actuator_bias: [{train, accel_mps2, from_s, until_s}]`` — a faulty actuator adds a constant error.
 * ``events: [{at_s, type: leave, train}]`` — a train leaves the line (removed; e.g. to another track).
 * ``events: [{at_s, type: obstacle, train, ahead_m, duration_s}]`` — a static obstacle appears ``ahead_m`` ahead of
   the train's front (Paper D); trains sense it with their own sensor (role ``ca``).
@@ -389,6 +390,17 @@ class SensorNoiseSpec:
 
 
 @dataclass(frozen=True)
+class ActuatorBiasSpec:
+    """A faulty actuator: ``train`` (trip id) gets ``accel_mps2`` added to every applied command in
+    ``[from_s, until_s)`` (Paper D's departure case: a follower accelerating 1.2 m/s² instead of 1.0)."""
+
+    train: str
+    accel_mps2: float
+    from_s: float = 0.0
+    until_s: float = math.inf
+
+
+@dataclass(frozen=True)
 class ActuatorNoiseSpec:
     """Zero-mean Gaussian noise added to every applied acceleration command (Paper A's N(0, σ²) disturbance)."""
 
@@ -406,6 +418,7 @@ class FaultSpec:
     comm: dict[str, ChannelSpec] = field(default_factory=_default_channels)
     sensor_noise: SensorNoiseSpec = field(default_factory=SensorNoiseSpec)
     actuator_noise: ActuatorNoiseSpec = field(default_factory=ActuatorNoiseSpec)
+    actuator_bias: tuple[ActuatorBiasSpec, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -1428,7 +1441,7 @@ class _Validator:
         return DelaySpec(dist, params), {"dist": dist, **params}
 
     def faults(self, value: Any, services: Sequence[ServiceSpec]) -> tuple[FaultSpec, dict[str, Any]]:
-        m = self.mapping(value, "faults", (), ("comm", "sensor_noise", "actuator_noise"))
+        m = self.mapping(value, "faults", (), ("comm", "sensor_noise", "actuator_noise", "actuator_bias"))
         comm_in = self.mapping(m.get("comm") or {}, "faults.comm", (), COMM_CHANNELS)
         trips = {t for s in services for t in s.trip_ids}
         service_trips = {s.id: s.trip_ids for s in services}
@@ -1479,12 +1492,30 @@ class _Validator:
         act_in = self.mapping(m.get("actuator_noise") or {}, "faults.actuator_noise", (), ("accel_sd_mps2",))
         act = ActuatorNoiseSpec(
             accel_sd_mps2=self.number(act_in.get("accel_sd_mps2", 0.0), "faults.actuator_noise.accel_sd_mps2", ge=0.0))
+        biases, biases_raw = [], []
+        bias_in = m.get("actuator_bias") or []
+        if not isinstance(bias_in, list):
+            raise self.expect("faults.actuator_bias", "a list of {train, accel_mps2, from_s, until_s}", bias_in)
+        for i, body in enumerate(bias_in):
+            path = f"faults.actuator_bias[{i}]"
+            b = self.mapping(body, path, ("train", "accel_mps2"), ("from_s", "until_s"))
+            train = self.trip_name(b["train"], f"{path}.train", services)
+            acc = self.number(b["accel_mps2"], f"{path}.accel_mps2")
+            frm = self.number(b.get("from_s", 0.0), f"{path}.from_s", ge=0.0)
+            until = self.number(b["until_s"], f"{path}.until_s", ge=frm) if "until_s" in b else math.inf
+            biases.append(ActuatorBiasSpec(train, acc, frm, until))
+            r = {"train": train, "accel_mps2": acc, "from_s": frm}
+            if math.isfinite(until):
+                r["until_s"] = until
+            biases_raw.append(r)
         raw = {
             "comm": comm_raw,
             "sensor_noise": {"position_sd_m": noise.position_sd_m, "speed_sd_mps": noise.speed_sd_mps},
             "actuator_noise": {"accel_sd_mps2": act.accel_sd_mps2},
         }
-        return FaultSpec(comm=channels, sensor_noise=noise, actuator_noise=act), raw
+        if biases_raw:
+            raw["actuator_bias"] = biases_raw
+        return FaultSpec(comm=channels, sensor_noise=noise, actuator_noise=act, actuator_bias=tuple(biases)), raw
 
     def outputs(self, value: Any, sim: SimulationSpec) -> tuple[OutputSpec, dict[str, Any]]:
         m = self.mapping(value, "outputs", (), ("trace_stride_s", "sumo", "formats"))
