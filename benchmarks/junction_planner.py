@@ -1,0 +1,110 @@
+"""Junction planner benchmark (Paper E, spec 004): online (re-)plan wall time and the Table 3 comparison.
+
+Part 1 — planner timing, 3 trains: for each Table 3 scenario and ``--replan-seeds`` seeds, plan at t = 0, then
+execute the plan in the numpy plant and re-plan every ``--period`` seconds (warm start, order frozen past the
+point of no return) until the first train reaches sw2. Every plan's wall time is recorded; the target is
+≤ 100 ms per (re-)plan with the online budget (improved PSO, 200 iterations, 0.09 s wall-time cap).
+
+Part 2 — Table 3 scenarios 1–3 × {improved PSO, plain PSO, naive 1, naive 2} × ``--seeds`` seeds (naive ones
+are deterministic and run once), default PSO budget (300 iterations), every plan executed in the plant at
+Δt = 0.1 s and measured there.
+
+Prints one JSON object.
+
+    .venv/bin/python benchmarks/junction_planner.py [--seeds 30] [--replan-seeds 5] [--period 2]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+from controllers.junction.planner import (  # noqa: E402
+    TrainState, build_problem, plan, replan,
+)
+from controllers.junction.pso import improved_pso_params  # noqa: E402
+from controllers.junction.simulate import compare_table3, simulate_plan, table3_scenario  # noqa: E402
+
+ONLINE = improved_pso_params(max_iterations=200, wall_time_s=0.09)
+
+
+def _state_after(problem, trains, x, t_s):
+    """Train states after running plan ``x`` for ``t_s`` (None once any train is past sw2)."""
+    ts, ss, vs = simulate_plan(problem, x, dt_s=0.1, horizon_s=t_s)
+    out = []
+    for k, (tr, st) in enumerate(zip(problem.trains, trains)):
+        s, v = float(ss[-1, k]), float(vs[-1, k])
+        d_sw = [sw.distance_m for sw in tr.switches]
+        if s >= d_sw[-1]:
+            return None
+        if len(d_sw) == 2 and s >= d_sw[0]:
+            out.append(TrainState(st.train_id, "trunk", d_sw[1] - s, max(v, 0.1)))
+        else:
+            out.append(TrainState(st.train_id, st.track, d_sw[0] - s, max(v, 0.1)))
+    return out
+
+
+def replan_timing(seeds: int, period_s: float) -> dict:
+    times, feasible, frozen = [], [], []
+    for sc in (1, 2, 3):
+        trains0, layout = table3_scenario(sc)
+        for seed in range(seeds):
+            rng = np.random.default_rng(seed)
+            t0 = time.perf_counter()
+            current = plan(trains0, (), layout, pso=ONLINE, rng=rng)
+            times.append(time.perf_counter() - t0)
+            feasible.append(current.feasible)
+            trains = trains0
+            while True:
+                problem = build_problem(trains, (), layout, frozen_order=None)
+                x = np.concatenate([np.array([a for _, _, a in current.train(t.train_id).segments])
+                                    for t in trains])
+                nxt = _state_after(problem, trains, x, period_s)
+                if nxt is None:
+                    break
+                trains = nxt
+                t0 = time.perf_counter()
+                current = replan(current, trains, (), layout, pso=ONLINE, rng=rng)
+                times.append(time.perf_counter() - t0)
+                feasible.append(current.feasible)
+                frozen.append(current.frozen_order)
+    ms = np.array(times) * 1000.0
+    return {"plans": int(ms.size), "median_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95)),
+            "max_ms": float(ms.max()), "target_ms": 100.0, "feasible_rate": float(np.mean(feasible)),
+            "frozen_rate": float(np.mean(frozen)) if frozen else 0.0,
+            "budget": {"max_iterations": ONLINE.max_iterations, "wall_time_s": ONLINE.wall_time_s,
+                       "swarm_size": ONLINE.swarm_size}}
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--seeds", type=int, default=30)
+    ap.add_argument("--replan-seeds", type=int, default=5)
+    ap.add_argument("--period", type=float, default=2.0)
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    timing = replan_timing(args.replan_seeds, args.period)
+    rows = compare_table3(seeds=range(args.seeds))
+    keep = ("scenario", "method", "runs", "coupled_rate", "plan_feasible_rate")
+    table = []
+    for r in rows:
+        row = {k: r[k] for k in keep}
+        for name in ("coupling_time_s", "coupled_speed_mps", "cost", "operation_time_s", "min_separation_m",
+                     "wall_time_s"):
+            row[name] = [round(r[f"{name}_mean"], 3), round(r[f"{name}_std"], 3)]
+        table.append(row)
+    print(json.dumps({"benchmark": "junction_planner", "python": platform.python_version(),
+                      "replan_timing_3_trains": timing, "table3_mean_std": table,
+                      "total_wall_s": round(time.perf_counter() - t0, 1)}, indent=1))
+
+
+if __name__ == "__main__":
+    main()
