@@ -111,6 +111,8 @@ class TrainRuntime:
     last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
     sent_speed_mps: float | None = None  # the speed handed to SUMO last step
     emergency_since_s: float | None = None  # start of the current emergency-braking interval
+    vc_solve_s: float | None = None  # the coupled controller's solve time this step (Command.info["solve_time_s"])
+    vc_objective: float | None = None  # and its objective value (Command.info["J"])
     mp_params: Any = None  # railsim.multipoint.MultipointParams when the vehicle uses the carriage model
     mp_state: Any = None  # its MultipointState (carriage 1 = the front SUMO sees)
 
@@ -238,6 +240,12 @@ class Simulation:
             if len(stops) < 2 or stops[0].station_id != svc.from_station or stops[-1].station_id != svc.to_station:
                 raise ConfigError(scn.source, f"services[{svc.id}]",
                                   f"route from {svc.from_station} to {svc.to_station} does not serve both stations")
+            if svc.start_offset_m > 0.0:  # a trip that starts in motion skips the stops already behind it
+                start_m = stops[0].mark_m + float(svc.start_offset_m)
+                stops = (stops[0],) + tuple(st for st in stops[1:] if st.window_end_m > start_m)
+                if len(stops) < 2:
+                    raise ConfigError(scn.source, f"services[{svc.id}].start.offset_m",
+                                      f"starts beyond its destination {svc.to_station!r}")
             trips = []
             for k, (trip_id, dep) in enumerate(zip(svc.trip_ids, svc.departures_s)):
                 trip = Trip(trip_id=trip_id, service_id=svc.id, index=k, vehicle_name=svc.vehicle, vehicle=vehicle,
@@ -264,8 +272,10 @@ class Simulation:
         for k, f in enumerate(self.scenario.formations):
             leader = self._trip_ref(f.leader, f"formations[{k}].leader")
             follower = self._trip_ref(f.follower, f"formations[{k}].follower")
+            # decoupling completes at this true gap: the engine default, or beyond a large target gap
+            separation = max(self.settings.separation_gap_m, float(f.target_gap_m) + 100.0)
             form = Formation(id=f.id, leader_id=leader.train_id, follower_id=follower.train_id,
-                             target_gap_m=float(f.target_gap_m), separation_gap_m=self.settings.separation_gap_m,
+                             target_gap_m=float(f.target_gap_m), separation_gap_m=separation,
                              coupling_timeout_s=float(f.coupling_timeout_s))
             self.formations.add(form)
             if _trig(f.couple, "on_departure"):
@@ -325,14 +335,17 @@ class Simulation:
             if depart_m < trip.origin.window_start_m:
                 self.events.record(self.layer.now_s, "platform_too_short", tr.train_id,
                                    detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m")
-        edge0_start = tr.view.edge_start_m[0]
         from railsim.sumo import StopSpec
 
         stops = []
         for s in trip.stops[1:]:
             stops.append(StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s))
-        self.bridge.add_route(trip.route.id, trip.route.edges)
-        self.bridge.add_train(tr.train_id, trip.route.id, trip.vehicle_name, depart_m - edge0_start, stops,
+        # SUMO inserts a vehicle on its route's first edge: a train starting further along (a start offset in
+        # motion) gets the route trimmed to begin at the edge that holds its start chainage
+        k = tr.view.edge_at(depart_m)
+        route_id = trip.route.id if k == 0 else f"{trip.route.id}@{k}"
+        self.bridge.add_route(route_id, trip.route.edges[k:])
+        self.bridge.add_train(tr.train_id, route_id, trip.vehicle_name, depart_m - tr.view.edge_start_m[k], stops,
                               controlled=True, depart_speed_mps=trip.start_speed_mps)
         tr.status = "inserting"
         tr.front_m = depart_m
@@ -961,7 +974,10 @@ class Simulation:
         if f is not None and fstate in ("coupling", "coupled") and leader is not None and \
                 leader.status in ("inserting", "running") and tr.controllers.get("coupled") is not None:
             pred = self._known_state(tr, leader, "t2t", tr.train_id)
-            if pred is not None and pred.age_s <= self.settings.max_message_age_s:
+            # hysteresis: degrade when the leader's data is older than max_message_age_s, restore only once it is
+            # at least one step fresher (a delay equal to the limit would otherwise flip the mode every step)
+            age_limit = self.settings.max_message_age_s - (self.dt if tr.degraded else 0.0)
+            if pred is not None and pred.age_s <= age_limit:
                 extras = {}
                 if stop is not None and offset > 0.0 and self._in_final_approach(tr, stop.mark_m - offset):
                     # both units stop at this platform: the ATO stops us exactly behind the leader's mark, the
@@ -971,6 +987,9 @@ class Simulation:
                                   target_gap_m=float(f.target_gap_m), extras=extras)
                 vc_cmd = tr.controllers["coupled"].command(obs)
                 commands["coupled"] = vc_cmd
+                info = vc_cmd.info or {}
+                tr.vc_solve_s = float(info["solve_time_s"]) if info.get("solve_time_s") is not None else None
+                tr.vc_objective = float(info["J"]) if info.get("J") is not None else None
                 tgt = vc_cmd.info.get("target_gap_m") if vc_cmd.info else None
                 tr.vc_target_gap_m = float(tgt) if tgt is not None else None
                 used_vc = True
@@ -1018,7 +1037,8 @@ class Simulation:
         if tr.mp_state is not None:
             return self._multipoint_step(t, tr, role, cmd)
         u = cmd.accel_mps2
-        if self.actuator_sd > 0.0:
+        noise_trains = self.scenario.faults.actuator_noise.trains
+        if self.actuator_sd > 0.0 and (noise_trains is None or tr.train_id in noise_trains):
             u += float(self.actuator_rng.normal(0.0, self.actuator_sd))  # the papers' control disturbance
         for bias in self.scenario.faults.actuator_bias:  # a faulty actuator (injected fault, logged at start)
             if bias.train == tr.train_id and bias.from_s <= t < bias.until_s:

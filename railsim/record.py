@@ -14,7 +14,8 @@ Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.output`):
                     gap-error and speed-error percentiles while coupled
 ``events.csv``      the event log (exact times)
 ``trace.csv``       per-train samples every ``trace_stride_s``: chainage, speed, applied/commanded acceleration,
-                    winning controller role, true gap, believed-data age, formation state
+                    winning controller role, true gap, formation state, and the coupled controller's solve time
+                    and objective (when it reports them: ``Command.info["solve_time_s"]``, ``info["J"]``)
 ``summary.json``    totals (see :meth:`summary`)
 """
 
@@ -39,7 +40,7 @@ FORMATION_COLUMNS = ["formation", "leader", "follower", "couple_requests", "coup
                      "time_to_couple_s", "time_coupled_s", "gap_error_p50_m", "gap_error_p95_m", "gap_error_max_m",
                      "speed_error_p50_mps", "speed_error_p95_mps", "min_gap_m", "final_state"]
 TRACE_COLUMNS = ["t_s", "train", "service", "chainage_m", "speed_mps", "applied_accel_mps2", "command_mps2", "role",
-                 "gap_m", "formation_state"]
+                 "gap_m", "formation_state", "solve_time_s", "objective"]
 EVENT_COLUMNS = ["t_s", "kind", "subject", "detail"]
 
 
@@ -91,6 +92,7 @@ class Recorder:
                 "command_mps2": tr.last_cmd_mps2, "role": tr.last_role,
                 "gap_m": tr.last_gap_m if math.isfinite(tr.last_gap_m) else None,
                 "formation_state": str(sim.formations.state(f.id)) if f is not None else "",
+                "solve_time_s": tr.vc_solve_s, "objective": tr.vc_objective,
             })
 
     def stop_record(self, tr: Any, stop: Any, arrival_s: float | None, departure_s: float | None,

@@ -402,9 +402,11 @@ class ActuatorBiasSpec:
 
 @dataclass(frozen=True)
 class ActuatorNoiseSpec:
-    """Zero-mean Gaussian noise added to every applied acceleration command (Paper A's N(0, σ²) disturbance)."""
+    """Zero-mean Gaussian noise added to the applied acceleration command (Paper A's N(0, σ²) disturbance) of
+    ``trains`` (trip ids; None = every train)."""
 
     accel_sd_mps2: float = 0.0
+    trains: tuple[str, ...] | None = None
 
 
 def _default_channels() -> dict[str, ChannelSpec]:
@@ -1489,9 +1491,16 @@ class _Validator:
             position_sd_m=self.number(noise_in.get("position_sd_m", 0.0), "faults.sensor_noise.position_sd_m", ge=0.0),
             speed_sd_mps=self.number(noise_in.get("speed_sd_mps", 0.0), "faults.sensor_noise.speed_sd_mps", ge=0.0),
         )
-        act_in = self.mapping(m.get("actuator_noise") or {}, "faults.actuator_noise", (), ("accel_sd_mps2",))
+        act_in = self.mapping(m.get("actuator_noise") or {}, "faults.actuator_noise", (), ("accel_sd_mps2", "trains"))
+        noise_trains = None
+        if "trains" in act_in:
+            if not isinstance(act_in["trains"], list):
+                raise self.expect("faults.actuator_noise.trains", "a list of trains", act_in["trains"])
+            noise_trains = tuple(self.trip_name(x, f"faults.actuator_noise.trains[{i}]", services)
+                                 for i, x in enumerate(act_in["trains"]))
         act = ActuatorNoiseSpec(
-            accel_sd_mps2=self.number(act_in.get("accel_sd_mps2", 0.0), "faults.actuator_noise.accel_sd_mps2", ge=0.0))
+            accel_sd_mps2=self.number(act_in.get("accel_sd_mps2", 0.0), "faults.actuator_noise.accel_sd_mps2", ge=0.0),
+            trains=noise_trains)
         biases, biases_raw = [], []
         bias_in = m.get("actuator_bias") or []
         if not isinstance(bias_in, list):
@@ -1511,7 +1520,8 @@ class _Validator:
         raw = {
             "comm": comm_raw,
             "sensor_noise": {"position_sd_m": noise.position_sd_m, "speed_sd_mps": noise.speed_sd_mps},
-            "actuator_noise": {"accel_sd_mps2": act.accel_sd_mps2},
+            "actuator_noise": {"accel_sd_mps2": act.accel_sd_mps2,
+                               **({"trains": list(noise_trains)} if noise_trains is not None else {})},
         }
         if biases_raw:
             raw["actuator_bias"] = biases_raw

@@ -75,3 +75,39 @@ def test_profile_reference_closed_form() -> None:
 def test_profile_rejects_bad_params(bad: dict, field: str) -> None:
     with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
         make_speed_profile(bad, preset("hst_203m"))
+
+
+@pytest.mark.sumo
+def test_a_train_starting_beyond_the_first_edge_is_placed_where_the_scenario_says(tmp_path: Path) -> None:
+    """Regression: SUMO inserts on a route's first edge; a start further along must use a trimmed route.
+
+    Two units start in motion 1.3 and 1.5 km beyond Jiugongli (past Qilong and several SUMO edges), 110 m apart.
+    Misplaced, SUMO's own collision check disagreed with our ground truth; placed right, neither sees a collision,
+    the first trace sample is exactly the start chainage, and both stop at Bagongli (the stop behind them skipped).
+    """
+    import yaml
+
+    raw = {
+        "name": "far_start", "world": "chongqing_line3",
+        "simulation": {"step_s": 0.5, "duration_s": 600, "seed": 1},
+        "vehicles": {"cq6": {"preset": "cq3_6car"}},
+        "controllers": {"ato": {"type": "ato"}, "sep": {"type": "separation", "params": {"margin_m": 20}}},
+        "roles": {"ato": "ato", "separation": "sep"},
+        "services": [
+            {"id": "a", "from": "jiugongli", "to": "bagongli", "vehicle": "cq6", "departures": {"times": [0]},
+             "start": {"offset_m": 1500, "speed_kmh": 30}},
+            {"id": "b", "from": "jiugongli", "to": "bagongli", "vehicle": "cq6", "departures": {"times": [0]},
+             "start": {"offset_m": 1300, "speed_kmh": 30}},
+        ],
+    }
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    assert res.returncode == 0, res.stderr[-2000:]
+    s = read_summary(tmp_path / "o")
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0
+    assert s["n_arrived"] == 2 and s["n_stops_scheduled"] == 2 and s["n_stops_missed"] == 0
+    first = {}
+    for r in read_csv(tmp_path / "o" / "trace.csv"):
+        first.setdefault(r["train"], float(r["chainage_m"]))
+    assert first["a.000"] - first["b.000"] == pytest.approx(200.0, abs=1e-6)

@@ -39,7 +39,7 @@ import numpy as np
 from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
 from controllers.paper_a.cf_models import MODEL_CACC, MODEL_FVD, MODEL_IDM, MODEL_NAMES, THETA_TRAIN2, THETA_TRAIN3
-from controllers.paper_a.cost import CostWeights, dmpc_cost
+from controllers.paper_a.cost import CostWeights, dmpc_cost, sequence_costs
 from controllers.paper_a.dmpc import DmpcQp, shift_controls
 from controllers.paper_a.opo import OpoSettings, opo_step
 from controllers.paper_a.rollout import (
@@ -309,8 +309,9 @@ class McfDmpc(_PaperAController):
 
         def cost(seqs: np.ndarray, thetas: np.ndarray) -> np.ndarray:
             full = expand_sequence(seqs, self.n_steps)
-            traj = rollout_models(full, x0, v0, hz, thetas, self.train, resistance_feedforward=p.resistance_feedforward)
-            return dmpc_cost(traj, hz, u_prev, self.train, self.weights)
+            # = dmpc_cost(rollout_models(...)); fused in plain floats for the optimisers' small batches
+            return sequence_costs(full, x0, v0, hz, thetas, self.train, u_prev, self.weights,
+                                  resistance_feedforward=p.resistance_feedforward)
 
         return cost
 

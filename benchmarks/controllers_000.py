@@ -1,0 +1,115 @@
+"""Solve-time benchmark of Paper A's controllers (spec 000 §7 "Wall-clock solve time per step", Fig. 11, A39).
+
+For each registered controller (``cf_idm``, ``cf_cacc``, ``cf_fvd``, ``dmpc``, ``mcf_dmpc``, ``opo_mcf_dmpc``) it
+runs the S-A…S-D platoon (leader 2000 m at 220 km/h, followers at 1500 m / 200 km/h and 0 m / 180 km/h, Θ_2 and
+Θ_3, Np = 60, τ = 1 s, noise SD 0.01 m/s²) in the pure-numpy closed loop :func:`controllers.paper_a.sim.run_platoon`
+and collects each follower's ``info["solve_time_s"]`` (the wall time of ``command()``: predecessor horizon,
+optimisation, final rollout). The first ``--steps`` steps are the transient (largest errors, hardest problems);
+the MCF variants get ``--mcf-steps`` steps because each solve is ~10³× a CF law.
+
+Reported per controller: median, p95 and mean solve time per train-step, the number of train-steps, and the ratio
+to the paper's MATLAB figures (0.439 s per solve for fmincon DMPC, 0.282 s for OPO-MCF-DMPC; A39: compare ratios,
+not seconds), plus ``paper_speedup_check``: our (t_DMPC − t_OPO)/t_DMPC next to the paper's 35.8 %. Targets (not
+tests): DMPC ≤ 1 ms, OPO-MCF-DMPC ≤ 20 ms per train-step.
+
+With ``--optimizer-seeds N > 0`` it also runs the S-B′ optimiser comparison (MSMFO vs MFO/GA/PSO/SA, best J
+and wall time at an equal budget of 5,000 evaluations) by importing ``benchmarks/optimizers_000.py``'s problem.
+
+    .venv/bin/python benchmarks/controllers_000.py [--steps 60] [--mcf-steps 8] [--optimizer-seeds 5]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import platform
+import sys
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+import controllers  # noqa: E402  (registers the Paper A controllers)
+from controllers.paper_a.sim import run_platoon  # noqa: E402
+from controllers.paper_a.spacing import paper_a_vehicle  # noqa: E402
+
+PAPER_S = {"dmpc": 0.439, "opo_mcf_dmpc": 0.282}
+TARGET_S = {"dmpc": 1e-3, "opo_mcf_dmpc": 20e-3}
+CONTROLLERS = ("cf_idm", "cf_cacc", "cf_fvd", "dmpc", "mcf_dmpc", "opo_mcf_dmpc")
+X0_M, V0_MPS = (2000.0, 1500.0, 0.0), (220 / 3.6, 200 / 3.6, 180 / 3.6)
+
+
+def _followers(name: str) -> list[Any]:
+    veh = paper_a_vehicle()
+    if name == "dmpc":
+        return [controllers.create(name, {}, veh), controllers.create(name, {}, veh)]
+    return [controllers.create(name, {"theta_preset": preset}, veh) for preset in ("train2", "train3")]
+
+
+def time_controller(name: str, steps: int, seed: int = 0) -> dict[str, Any]:
+    run = run_platoon(_followers(name), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed, horizon_steps=60)
+    st = run.solve_time_s[:, 1:].ravel()
+    st = st[np.isfinite(st)]
+    row: dict[str, Any] = {"train_steps": int(st.size), "median_s": float(np.median(st)),
+                           "p95_s": float(np.percentile(st, 95)), "mean_s": float(np.mean(st)),
+                           "fallbacks": int(run.fallback[:, 1:].sum())}
+    if name in PAPER_S:
+        row["paper_s"] = PAPER_S[name]
+        row["ratio_to_paper"] = row["mean_s"] / PAPER_S[name]
+        row["target_s"] = TARGET_S[name]
+        row["meets_target"] = bool(row["median_s"] <= TARGET_S[name])
+    return row
+
+
+def optimizer_comparison(seeds: int, budget: int = 5000) -> dict[str, Any]:
+    """MSMFO vs the baselines on S-B′ at an equal budget (the problem and trace of optimizers_000.py)."""
+    try:
+        import benchmarks.optimizers_000 as ob  # noqa: PLC0415
+        from controllers.paper_a.optim import METHODS, minimize_sequence  # noqa: PLC0415
+    except ImportError as exc:  # the optimiser package or the other benchmark is not there yet
+        return {"skipped": f"not importable: {exc}"}
+    fitness = ob._colleague_fitness()
+    out: dict[str, Any] = {"budget": budget, "seeds": seeds, "methods": {}}
+    for method in METHODS:
+        best, wall = [], []
+        for seed in range(seeds):
+            res = minimize_sequence(fitness, ob.NP, 3, method=method, population=50, iterations=100,
+                                    rng=np.random.default_rng(seed), options={"budget": budget})
+            best.append(res.best_cost)
+            wall.append(res.wall_s)
+        out["methods"][method] = {"best_J_mean": float(np.mean(best)), "best_J_min": float(np.min(best)),
+                                  "wall_s_mean": float(np.mean(wall))}
+    ms = out["methods"].get("msmfo")
+    if ms is not None:
+        out["msmfo_improvement"] = {
+            m: {"best_J": (v["best_J_mean"] - ms["best_J_mean"]) / v["best_J_mean"],
+                "wall_s": (v["wall_s_mean"] - ms["wall_s_mean"]) / v["wall_s_mean"]}
+            for m, v in out["methods"].items() if m != "msmfo"}
+    return out
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--steps", type=int, default=60, help="closed-loop steps for CF and DMPC")
+    parser.add_argument("--mcf-steps", type=int, default=8, help="closed-loop steps for the MCF variants")
+    parser.add_argument("--optimizer-seeds", type=int, default=5, help="0 skips the optimiser comparison")
+    parser.add_argument("--only", nargs="*", default=list(CONTROLLERS), choices=CONTROLLERS)
+    args = parser.parse_args()
+    out: dict[str, Any] = {"benchmark": "controllers_000", "python": platform.python_version(),
+                           "numpy": np.__version__, "horizon_steps": 60, "controllers": {}}
+    for name in args.only:
+        steps = args.mcf_steps if "mcf" in name else args.steps
+        out["controllers"][name] = time_controller(name, steps)
+    c = out["controllers"]
+    if "dmpc" in c and "opo_mcf_dmpc" in c:
+        ours = (c["dmpc"]["mean_s"] - c["opo_mcf_dmpc"]["mean_s"]) / c["dmpc"]["mean_s"]
+        out["paper_speedup_check"] = {"paper": (0.439 - 0.282) / 0.439, "ours": ours}
+    if args.optimizer_seeds > 0:
+        out["optimizers"] = optimizer_comparison(args.optimizer_seeds)
+    print(json.dumps(out, indent=2))
+
+
+if __name__ == "__main__":
+    main()
