@@ -22,7 +22,8 @@ from typing import Callable, Sequence
 from railsim.errors import EXIT_CONFIG_ERROR, EXIT_SIMULATION_ERROR, ConfigError, SimulationError
 
 # Modules that contribute subcommands: each has ``add_commands(subparsers)`` and sets ``func`` on its parsers.
-_COMMAND_MODULES = ("network.cli", "railsim.scenario_cli", "railsim.commands", "railsim.reproduce")
+_COMMAND_MODULES = ("network.cli", "railsim.scenario_cli", "railsim.commands", "railsim.reproduce",
+                    "railsim.plot_command")
 
 
 def build_parser() -> argparse.ArgumentParser:

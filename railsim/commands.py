@@ -35,6 +35,8 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
         ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
         lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
     lines.append(f"  outputs: {out_dir}/ (trips.csv, stops.csv, formations.csv, events.csv, trace.csv, summary.json)")
+    for table in summary.get("analysis_tables", ()):
+        lines.append(table)
     return "\n".join(lines)
 
 

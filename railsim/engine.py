@@ -1096,4 +1096,12 @@ def run(scenario: Any, out_dir: Path | str | None, seed: int | None = None, prog
     summary = sim.run()
     if sim.out_dir is not None:
         sim.recorder.write(sim.out_dir)
+        from railsim import analyses, output
+
+        results, tables = analyses.run(scenario, sim.out_dir)
+        if results:  # the papers' own metrics, from the files just written
+            summary["analyses"] = results
+            summary["analysis_tables"] = tables
+            output.write_json(sim.out_dir / "summary.json", {k: v for k, v in summary.items()
+                                                             if k != "analysis_tables"})
     return summary

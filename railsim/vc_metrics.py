@@ -148,14 +148,26 @@ def _trip_of(raw: Mapping[str, Any], ref: Mapping[str, Any]) -> str:
     return f"{ref['service']}.{int(ref.get('trip', 0)):03d}"
 
 
-def _controller_of(raw: Mapping[str, Any], service_id: str) -> str:
+def _coupled_spec(raw: Mapping[str, Any], service_id: str) -> tuple[str, Mapping[str, Any]]:
+    """``(instance name, controller mapping)`` of a service's ``coupled`` role in the resolved scenario."""
     roles = dict(raw.get("roles", {}))
     for svc in raw.get("services", []):
         if svc.get("id") == service_id:
             roles.update(svc.get("roles") or {})
     inst = roles.get("coupled")
-    ctl = (raw.get("controllers") or {}).get(inst, {}) if inst else {}
+    return str(inst or ""), ((raw.get("controllers") or {}).get(inst, {}) if inst else {})
+
+
+def _controller_of(raw: Mapping[str, Any], service_id: str) -> str:
+    inst, ctl = _coupled_spec(raw, service_id)
     return str(ctl.get("type", inst or ""))
+
+
+def _safety_margin_of(raw: Mapping[str, Any], service_id: str) -> float:
+    """L^(s) the follower's controller used (its ``safety_margin_m`` parameter), else Table I's 1.5·v_m."""
+    _, ctl = _coupled_spec(raw, service_id)
+    value = (ctl.get("params") or {}).get("safety_margin_m")
+    return float(value) if value is not None else TABLE_I.safety_margin_m
 
 
 @dataclass(frozen=True)
@@ -217,7 +229,8 @@ def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str
         keep = np.isfinite(gap)
         lead_veh = service_vehicle[f["leader"]["service"]]
         fol_veh = service_vehicle[f["follower"]["service"]]
-        unit = TrainParamsA(length_m=float(fol_veh["length_m"]), safety_margin_m=TABLE_I.safety_margin_m,
+        unit = TrainParamsA(length_m=float(fol_veh["length_m"]),
+                            safety_margin_m=_safety_margin_of(raw, f["follower"]["service"]),
                             service_decel_mps2=float(fol_veh["service_decel_mps2"]),
                             emergency_decel_mps2=float(fol_veh["emergency_decel_mps2"]))
         lead_len, lead_em = float(lead_veh["length_m"]), float(lead_veh["emergency_decel_mps2"])
