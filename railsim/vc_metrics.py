@@ -187,6 +187,7 @@ class FollowerSeries:
     unit: TrainParamsA
     lead_length_m: float
     lead_emergency_mps2: float
+    objective: np.ndarray | None = None  # the controller's J per sample (NaN where it did not report one)
 
 
 def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str, int], dict[str, Any], bool]:
@@ -212,6 +213,7 @@ def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str
             "v": np.array([float(r["speed_mps"]) for r in rs]),
             "gap": np.array([_float(r["gap_m"]) for r in rs]),
             "solve": np.array([_float(r.get("solve_time_s")) for r in rs]) if has_solve else np.array([]),
+            "objective": np.array([_float(r.get("objective")) for r in rs]),
         }
     fallbacks = {r["trip_id"]: int(float(r["fallbacks"] or 0)) for r in _read_csv(out / "trips.csv")}
     summary_path = out / "summary.json"
@@ -242,6 +244,7 @@ def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str
             desired_m=desired_spacing_m(v_fol, v_lead, unit, lead_len, lead_em),
             safe_m=safe_spacing_m(v_fol, v_lead, unit, lead_len, lead_em),
             solve_time_s=fol["solve"][jf][keep] if has_solve else None,
+            objective=fol["objective"][jf][keep],
             unit=unit, lead_length_m=lead_len, lead_emergency_mps2=lead_em))
     return raw, result, fallbacks, summary, has_solve
 

@@ -34,8 +34,15 @@ KMH_PER_MPS = 3.6
 def figure_run(out_dir: Path | str, title: str = "", late_start_s: float | None = LATE_START_S) -> Figure:
     """Speeds and per-follower tracking errors of one run."""
     series = follower_series(out_dir)
-    fig, axes = plt.subplots(3, 1, figsize=(9, 9), sharex=True)
-    ax_v, ax_dv, ax_e = axes
+    has_j = any(fs.objective is not None and np.isfinite(fs.objective).any() for fs in series)
+    fig, axes = plt.subplots(4 if has_j else 3, 1, figsize=(9, 12 if has_j else 9), sharex=True)
+    ax_v, ax_dv, ax_e = axes[:3]
+    if has_j:  # the MPC objective J_i(t) (Paper A Fig. 5/10)
+        for fs in series:
+            if fs.objective is not None:
+                axes[3].plot(fs.t_s, fs.objective, lw=1.0, label=fs.follower)
+        axes[3].set_ylabel(r"objective $J_i$")
+        axes[3].set_yscale("symlog")
     first = series[0]
     ax_v.plot(first.t_s, first.v_lead_mps * KMH_PER_MPS, lw=1.4, label=f"{first.leader} (leader)")
     for fs in series:
@@ -45,7 +52,7 @@ def figure_run(out_dir: Path | str, title: str = "", late_start_s: float | None 
     ax_v.set_ylabel("speed [km/h]")
     ax_dv.set_ylabel(r"$\Delta v_i = v_{i-1} - v_i$ [m/s]")
     ax_e.set_ylabel(r"$\Delta S_i - D^{(e)}_i$ [m]")
-    ax_e.set_xlabel("time t [s]")
+    axes[-1].set_xlabel("time t [s]")
     for ax in axes:
         ax.grid(alpha=0.3)
         ax.legend(fontsize=8, loc="best")
