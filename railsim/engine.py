@@ -112,6 +112,7 @@ class TrainRuntime:
     sent_speed_mps: float | None = None  # the speed handed to SUMO last step
     emergency_since_s: float | None = None  # start of the current emergency-braking interval
     vc_solve_s: float | None = None  # the coupled controller's solve time this step (Command.info["solve_time_s"])
+    vc_fsm: Any = None  # Paper D follower state machine memory (formations with monorail controllers)
     vc_objective: float | None = None  # and its objective value (Command.info["J"])
     mp_params: Any = None  # railsim.multipoint.MultipointParams when the vehicle uses the carriage model
     mp_state: Any = None  # its MultipointState (carriage 1 = the front SUMO sees)
@@ -764,6 +765,8 @@ class Simulation:
                         if nxt is None or nxt.mark_m > rs.point_m:  # no stop left before the switch
                             self.formations.request_decouple(f.id)
         f = self.formation_of_follower.get(tr.train_id)
+        if f is not None and a is not None and self._uses_monorail_fsm(tr):
+            self._monorail_fsm(t, tr, f, a)
         if f is not None:
             leader = self.trains[self.formations_leader_id(f)]
             if a is not None and a.train_id == leader.train_id:
@@ -777,6 +780,37 @@ class Simulation:
                 self.formations.observe(t, f.id, APART_GAP_M, 0.0)
             if self.formations.state(f.id) == "coupled":
                 tr.coupled_s += self.dt
+
+    def _uses_monorail_fsm(self, tr: TrainRuntime) -> bool:
+        name = tr.trip.roles.get("coupled")
+        return name is not None and self.scenario.controllers[name].type in ("monorail_apf", "monorail_dmpc")
+
+    def _monorail_fsm(self, t: float, tr: TrainRuntime, f: Any, a: Ahead) -> None:
+        """Paper D's follower state machine (spec §3.1/§3.2.4) on the formation: in-operation decoupling.
+
+        Fed the true gap and closing speed every step; it logs every state change (``vc_state``) and turns
+        *passive* (spacing opening past d_max) and *active* (spacing closing below d_min) decoupling into a
+        decouple request to the formation. Collision avoidance stays with the ``ca`` role (``ca_enabled=False``).
+        """
+        from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, transition
+
+        fstate = self.formations.state(f.id)
+        if tr.vc_fsm is None:
+            tr.vc_fsm = (VcMemory(VcState.INDEPENDENT, since_s=t), StateParams(target_gap_m=float(f.target_gap_m)))
+        mem, params = tr.vc_fsm
+        other = self.trains[a.train_id]
+        inp = VcInputs(t_s=t, gap_m=a.gap_m, closing_speed_mps=tr.plant.speed_mps - other.plant.speed_mps,
+                       speed_mps=tr.plant.speed_mps, couple_command=fstate in ("coupling", "coupled"),
+                       ca_enabled=False)
+        new, events = transition(mem, inp, params)
+        tr.vc_fsm = (new, params)
+        for ev in events:
+            state, _, reason = ev.partition(":")
+            self.events.record(t, "vc_state", tr.train_id, state=state, reason=reason or None,
+                               gap_m=round(a.gap_m, 3))
+            if state == "decoupling" and reason in ("passive", "active") and fstate in ("coupling", "coupled"):
+                self.events.record(t, f"{reason}_decoupling", f.id, gap_m=round(a.gap_m, 3))
+                self.formations.request_decouple(f.id)
 
     def _effective_target(self, tr: TrainRuntime, f: Any) -> float:
         """Target gap in force for a follower: its controller's policy value if it reported one."""

@@ -14,7 +14,7 @@ Modules:
 Importing the package registers the three controllers.
 """
 
-from controllers.monorail import collision_avoidance, coupling  # noqa: F401  (registers the controllers)
+from controllers.monorail import collision_avoidance, coupling, policy_separation  # noqa: F401  (registers)
 from controllers.monorail.braking_modes import BrakingPolicy, safety_distance_m  # noqa: F401
 from controllers.monorail.collision_avoidance import CaParams, CollisionAvoidance, sensor_extras  # noqa: F401
 from controllers.monorail.coupling import ApfParams, DmpcParams, MonorailApf, MonorailDmpc  # noqa: F401
