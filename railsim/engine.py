@@ -116,6 +116,8 @@ class TrainRuntime:
     vc_objective: float | None = None  # and its objective value (Command.info["J"])
     mp_params: Any = None  # railsim.multipoint.MultipointParams when the vehicle uses the carriage model
     mp_state: Any = None  # its MultipointState (carriage 1 = the front SUMO sees)
+    mono_params: Any = None  # controllers.monorail.vehicle_model.MonorailParams for a monorail-drive vehicle
+    mono_state: Any = None  # its PlantState
 
     train_id: str = ""  # = trip.trip_id (a plain field: it is read millions of times per run)
 
@@ -179,9 +181,9 @@ class Simulation:
         self.formation_of_leader: dict[str, list[Any]] = {}
         self._build_formations(Formation)
         for vname, plant in scenario.plants.items():
-            if plant.kind == "multipoint" and self.step_method != "euler":
+            if plant.kind in ("multipoint", "monorail") and self.step_method != "euler":
                 raise ConfigError(scenario.source, "simulation.step_method",
-                                  f"vehicle {vname!r} uses the multipoint plant, which needs step_method euler "
+                                  f"vehicle {vname!r} uses the {plant.kind} plant, which needs step_method euler "
                                   f"(SUMO is handed the step's mean speed), got {self.step_method!r}")
         self.coop_edges = tuple(scenario.cooperative.edges)
         self.coop_members = {e.a for e in self.coop_edges} | {e.b for e in self.coop_edges}
@@ -357,6 +359,11 @@ class Simulation:
 
             tr.mp_params = multipoint.MultipointParams(**dict(plant.params))
             tr.mp_state = multipoint.initial_state(tr.mp_params, depart_m, trip.start_speed_mps)
+        elif plant is not None and plant.kind == "monorail":
+            from controllers.monorail import vehicle_model
+
+            tr.mono_params = vehicle_model.MonorailParams(**dict(plant.params))
+            tr.mono_state = vehicle_model.PlantState(t_s=self.layer.now_s, x_m=depart_m, v_mps=trip.start_speed_mps)
         self._handshake(tr)
         tr.depart_chainage_m = depart_m
         tr.inserted_s = self.layer.now_s
@@ -477,6 +484,42 @@ class Simulation:
         self._coop_graph = graph
         return out
 
+    def _monorail_step(self, t: float, tr: TrainRuntime, role: str, cmd: Command, grad: float) -> float:
+        """Advance a monorail-drive train (Paper D §3.4: dead time, lag, efficiency, load-dependent envelope)."""
+        from controllers.monorail import vehicle_model
+
+        u = cmd.accel_mps2
+        for bias in self.scenario.faults.actuator_bias:
+            if bias.train == tr.train_id and bias.from_s <= t < bias.until_s:
+                u += bias.accel_mps2
+        state = tr.mono_state
+        if abs(state.t_s - t) > 1e-6:  # keep the drive's clock on the engine's (e.g. after a hold by SUMO)
+            state = vehicle_model.PlantState(t_s=t, x_m=state.x_m, v_mps=state.v_mps, a_mps2=state.a_mps2,
+                                             active_command_mps2=state.active_command_mps2,
+                                             active_issue_s=state.active_issue_s, pending=state.pending)
+        new = vehicle_model.plant_step(state, u, self.dt, tr.mono_params, tr.trip.vehicle.mass_kg, grad)
+        mean_v = 0.5 * (state.v_mps + new.v_mps)
+        tr.energy_j += max(new.a_mps2, 0.0) * tr.trip.vehicle.mass_kg * mean_v * self.dt
+        tr.mono_state = new
+        return self._exact_plant_finish(tr, role, cmd, new.x_m - state.x_m, new.v_mps, new.a_mps2)
+
+    def _exact_plant_finish(self, tr: TrainRuntime, role: str, cmd: Command, advance_m: float, v_new: float,
+                            applied_mps2: float) -> float:
+        """Common end of a step of an exactly integrated plant: SUMO gets the step's mean speed (``Δx/dt``).
+
+        SUMO's Euler update moves a train by the speed it is given times dt; a plant that integrates within the
+        step moves by ``Δx`` that is not ``v_new·dt``, so handing SUMO ``Δx/dt`` keeps its front on the plant's.
+        """
+        jerk = abs(applied_mps2 - tr.plant.applied_accel_mps2) / self.dt
+        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
+        tr.plant = dynamics.PlantState(speed_mps=float(v_new), applied_accel_mps2=float(applied_mps2),
+                                       target_accel_mps2=float(applied_mps2))
+        tr.last_role = role
+        tr.last_cmd_mps2 = cmd.accel_mps2
+        tr.last_plan = None
+        tr.sent_speed_mps = max(advance_m / self.dt, 0.0)
+        return tr.sent_speed_mps
+
     def _multipoint_step(self, t: float, tr: TrainRuntime, role: str, cmd: Command) -> float:
         """Advance a carriage-model train one step; return the speed that makes SUMO's position exact.
 
@@ -496,16 +539,8 @@ class Simulation:
         applied = float(np.clip(forces, p.force_min_n, p.force_max_n).sum()) / mass
         mean_v = 0.5 * (np.asarray(state.speeds_mps) + np.asarray(new.speeds_mps))
         tr.energy_j += float(np.sum(np.maximum(np.clip(forces, p.force_min_n, p.force_max_n), 0.0) * mean_v)) * self.dt
-        jerk = abs(applied - tr.plant.applied_accel_mps2) / self.dt
-        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
         tr.mp_state = new
-        tr.plant = dynamics.PlantState(speed_mps=float(new.lead_speed_mps), applied_accel_mps2=applied,
-                                       target_accel_mps2=applied)
-        tr.last_role = role
-        tr.last_cmd_mps2 = cmd.accel_mps2
-        tr.last_plan = None
-        tr.sent_speed_mps = max(advance / self.dt, 0.0)
-        return tr.sent_speed_mps
+        return self._exact_plant_finish(tr, role, cmd, advance, float(new.lead_speed_mps), applied)
 
     # ------------------------------------------------------------------ main loop
     def run(self) -> dict[str, Any]:
@@ -579,6 +614,11 @@ class Simulation:
 
                     tr.mp_state = multipoint.initial_state(tr.mp_params, tr.depart_chainage_m +
                                                            float(truth.odometer_m[i]), sumo_v)
+                if tr.mono_state is not None:
+                    from controllers.monorail import vehicle_model
+
+                    tr.mono_state = vehicle_model.PlantState(t_s=t, x_m=tr.depart_chainage_m +
+                                                             float(truth.odometer_m[i]), v_mps=sumo_v)
                 # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
                 tr.plant = dynamics.PlantState(speed_mps=sumo_v, applied_accel_mps2=0.0 if sumo_v == 0 else
                                                tr.plant.applied_accel_mps2,
@@ -1070,6 +1110,8 @@ class Simulation:
             tr.fallbacks += 1
         if tr.mp_state is not None:
             return self._multipoint_step(t, tr, role, cmd)
+        if tr.mono_state is not None:
+            return self._monorail_step(t, tr, role, cmd, grad)
         u = cmd.accel_mps2
         noise_trains = self.scenario.faults.actuator_noise.trains
         if self.actuator_sd > 0.0 and (noise_trains is None or tr.train_id in noise_trains):

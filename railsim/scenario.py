@@ -301,13 +301,15 @@ class EventSpec:
     duration_s: float | None = None  # obstacle: removed after this long (None: stays)
 
 
-PLANT_KINDS = ("single", "multipoint")
+PLANT_KINDS = ("single", "multipoint", "monorail")
 
 
 @dataclass(frozen=True)
 class PlantSpec:
     """The train model the engine integrates for a vehicle: ``multipoint`` = Paper B's carriage-by-carriage model
-    (:mod:`railsim.multipoint`) with ``params`` overriding its defaults; absent = the single-mass plant."""
+    (:mod:`railsim.multipoint`), ``monorail`` = Paper D's monorail drive (dead time, response lag, efficiency,
+    load-dependent limits; :mod:`controllers.monorail.vehicle_model`), with ``params`` overriding the model's
+    defaults; absent = the single-mass plant (:mod:`railsim.dynamics`)."""
 
     kind: str
     params: dict[str, Any] = field(default_factory=dict)
@@ -1043,16 +1045,24 @@ class _Validator:
             if params_in:
                 raise self.fail(f"{path}.plant_params", "only a multipoint plant takes plant_params")
             return None
-        from railsim.multipoint import MultipointParams
+        if kind == "multipoint":
+            from railsim.multipoint import MultipointParams as plant_cls
+        else:
+            from controllers.monorail.vehicle_model import MonorailParams as plant_cls
 
-        allowed = tuple(f.name for f in dataclasses.fields(MultipointParams))
-        m = self.mapping(params_in, f"{path}.plant_params", (), allowed)
+        fields_ = {f.name: f for f in dataclasses.fields(plant_cls)}
+        m = self.mapping(params_in, f"{path}.plant_params", (), tuple(fields_))
         params: dict[str, Any] = {}
         for name, v in m.items():
-            params[name] = self.integer(v, f"{path}.plant_params.{name}", ge=1) if name == "n_cars" else \
-                self.number(v, f"{path}.plant_params.{name}")
+            ftype = str(fields_[name].type)
+            if name == "n_cars":
+                params[name] = self.integer(v, f"{path}.plant_params.{name}", ge=1)
+            elif ftype == "str":
+                params[name] = self.string(v, f"{path}.plant_params.{name}")
+            else:
+                params[name] = self.number(v, f"{path}.plant_params.{name}")
         try:
-            MultipointParams(**params)
+            plant_cls(**params)
         except (ValueError, TypeError) as exc:
             raise self.fail(f"{path}.plant_params", str(exc)) from None
         return PlantSpec(kind, params)

@@ -40,3 +40,23 @@ def test_spacing_opening_past_d_max_triggers_passive_decoupling(tmp_path: Path) 
     requested = [t for t, k, sub, _ in ev if k == "decouple_requested" and sub == "L_F1"]
     assert requested and requested[0] == passive[0][0]
     assert not any(k == "collision" for _, k, _, _ in ev)
+
+
+def test_monorail_drive_plant_applies_dead_time_and_lag_in_sumo(tmp_path: Path) -> None:
+    """``plant: monorail``: a command reaches the drive after the 0.1 s dead time, then a 0.3 s first-order lag."""
+    import math
+
+    raw = yaml.safe_load((ROOT / "scenarios" / "paper003_track_decel.yaml").read_text())
+    raw["simulation"]["step_method"] = "euler"
+    raw["vehicles"]["mc"]["plant"] = "monorail"
+    path = tmp_path / "s.yaml"
+    path.write_text(yaml.safe_dump(raw, sort_keys=False))
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    assert res.returncode == 0, res.stderr[-2000:]
+    rows = {float(r["t_s"]): r for r in read_csv(tmp_path / "o" / "trace.csv") if r["train"] == "F1.000"}
+    cmd0 = float(rows[0.1]["command_mps2"])  # the first command, issued at t = 0.1 s
+    assert float(rows[0.1]["applied_accel_mps2"]) == 0.0 and float(rows[0.2]["applied_accel_mps2"]) == 0.0
+    assert float(rows[0.3]["applied_accel_mps2"]) == pytest.approx(cmd0 * (1 - math.exp(-0.1 / 0.3)), abs=2e-6)
+    forms = read_csv(tmp_path / "o" / "formations.csv")
+    assert all(int(f["couple_successes"]) == 1 for f in forms)
+    assert "collision" not in {e["kind"] for e in read_csv(tmp_path / "o" / "events.csv")}
