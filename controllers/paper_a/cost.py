@@ -24,7 +24,6 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.paper_a import rollout as _rollout
-from controllers.paper_a.cf_models import RATIO_CAP, V_FLOOR_MPS
 from controllers.paper_a.rollout import PredecessorHorizon, Trajectory
 from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m, safe_spacing_m
 
@@ -50,7 +49,6 @@ class CostWeights:
 
 
 TABLE_II = CostWeights()
-FUSED_MAX_ROWS = 8  # sequence_costs: one plain-float pass up to this many rows (see there)
 
 
 def cost_terms(traj: Trajectory, pred: PredecessorHorizon, u_prev_mps2: float, train: TrainParamsA,
@@ -87,86 +85,13 @@ def sequence_costs(seq: np.ndarray, x0_m: float, v0_mps: float, pred: Predecesso
                    resistance_feedforward: bool = False) -> np.ndarray:
     """``dmpc_cost(rollout_models(seq, ...), ...)`` — the optimisers' fitness — shape ``(P,)``.
 
-    For up to :data:`FUSED_MAX_ROWS` rows it runs the rollout and the cost in one
-    plain-float pass (no trajectory stored): the greedy refinement (Eq. 28) scores two sequences per call, a few
-    hundred calls per control step, where any per-call numpy overhead dominates (measured 3.4x faster than
-    rollout + :func:`dmpc_cost` at 2 rows; no gain from ~8 rows on, where numpy's cost over the stored
-    trajectories is cheaper than accumulating in Python). Same arithmetic as the two-pass path; sums are accumulated
-    in step order, so results agree to rounding (~1e-12 relative), not bit for bit.
+    One definition of the laws and of J: :func:`rollout_models` already runs small batches in plain floats (the
+    greedy refinement's 2-row calls), and :func:`dmpc_cost` scores the stored trajectories. A fused one-pass copy
+    of the laws was measured only 1.4× faster at 2 rows (≈3 % of an MCF step) and was removed.
     """
     seq = np.atleast_2d(np.asarray(seq, dtype=np.int64))
-    theta = np.asarray(theta, dtype=float)
-    pop, steps = seq.shape
-    if steps != pred.steps:
-        raise ValueError(f"sequence length {steps} != predecessor horizon {pred.steps}")
-    if pop > FUSED_MAX_ROWS or theta.shape not in ((7,), (pop, 7)):
-        traj = _rollout.rollout_models(seq, x0_m, v0_mps, pred, theta, train,
-                                       resistance_feedforward=resistance_feedforward)
-        return dmpc_cost(traj, pred, u_prev_mps2, train, weights)
-    thetas = np.broadcast_to(theta, (pop, 7)).tolist()
-    tau = train.dt_s
-    half_tau2 = 0.5 * tau * tau
-    u_lo, u_hi = -train.service_decel_mps2, train.max_accel_mps2
-    a_max, v_max = train.max_accel_mps2, train.max_speed_mps
-    c0, c1, c2 = train.davis_c0_mps2, train.davis_c1_per_s, train.davis_c2_per_m
-    k_e = 1.0 / (2.0 * train.service_decel_mps2)  # own term of D^(e), Eq. (5)
-    k_s = 1.0 / (2.0 * train.emergency_decel_mps2)  # own term of D^(s), Eq. (6)
-    xp = pred.position_m.tolist()
-    vp_list = pred.speed_mps.tolist()
-    ap = pred.accel_mps2.tolist()
-    base = [train.safety_margin_m + pred.length_m - v * v / (2.0 * pred.emergency_decel_mps2) for v in vp_list]
-    w = weights
-    out = np.empty(pop)
-    for r, row in enumerate(seq.tolist()):
-        th1, th2, th3, th4, th5, th6, th7 = thetas[r]
-        vj, sj = float(v0_mps), float(x0_m)
-        j_v = j_s = j_u = j_du = viol = 0.0
-        u_last = float(u_prev_mps2)
-        dv = err = 0.0
-        for j, m in enumerate(row):
-            vpj = vp_list[j]
-            spacing = xp[j] - sj
-            vv = vj * vj
-            de = base[j] + vv * k_e
-            if m == 0:  # enhanced IDM, Eq. (8)
-                if spacing > 0.0:
-                    speed_term = ((vj if vj > 0.0 else 0.0) / (vpj if vpj > V_FLOOR_MPS else V_FLOOR_MPS)) ** th1
-                    ratio = (de if de > 0.0 else 0.0) / spacing
-                    a = a_max * (2.0 - speed_term - (ratio if ratio < RATIO_CAP else RATIO_CAP) ** th2)
-                else:
-                    a = -math.inf
-            elif m == 1:  # enhanced CACC, Eq. (10)
-                a = th3 * ap[j] + th4 * (spacing - de) + th5 * (vpj - vj)
-            else:  # enhanced FVD, Eq. (11)-(13)
-                v_star = vpj * (vpj + spacing - de) / (vj if vj > V_FLOOR_MPS else V_FLOOR_MPS)
-                a = th6 * (v_star - vj) + (th7 if spacing <= de else 0.0) * (vpj - vj)
-            av = vj if vj >= 0.0 else -vj
-            omega = c0 + c1 * av + c2 * vv if av != 0.0 else 0.0
-            if resistance_feedforward:  # A9 option: the law gives the net acceleration, saturate u = a + ω
-                a += omega
-            uj = u_lo if a < u_lo else (u_hi if a > u_hi else a)
-            acc = uj - omega
-            sj = sj + tau * vj + half_tau2 * acc
-            vj = vj + tau * acc
-            # cost terms at the new state j + 1 (Eq. 14-17) and the Eq. (20) penalty
-            vpn = vp_list[j + 1]
-            spacing = xp[j + 1] - sj
-            vv = vj * vj
-            dv = vj - vpn
-            err = spacing - (base[j + 1] + vv * k_e)
-            gap_s = base[j + 1] + vv * k_s - spacing
-            j_v += dv * dv
-            j_s += err * err
-            j_u += uj * uj
-            d_u = uj - u_last
-            j_du += d_u * d_u  # j = 0: (u_{-1} - u_0)^2 once (A19); j >= 1: (u_j - u_{j-1})^2
-            u_last = uj
-            if gap_s > 0.0:
-                viol += gap_s
-            if vj < 0.0:
-                viol -= vj
-            elif vj > v_max:
-                viol += vj - v_max
-        term = w.xi_term * (w.xi_v * dv * dv + w.xi_s * err * err)
-        out[r] = w.xi_v * j_v + w.xi_s * j_s + w.xi_u * j_u + w.xi_du * j_du + term + w.penalty * viol
-    return out
+    if seq.shape[1] != pred.steps:
+        raise ValueError(f"sequence length {seq.shape[1]} != predecessor horizon {pred.steps}")
+    traj = _rollout.rollout_models(seq, x0_m, v0_mps, pred, np.asarray(theta, dtype=float), train,
+                                   resistance_feedforward=resistance_feedforward)
+    return dmpc_cost(traj, pred, u_prev_mps2, train, weights)
