@@ -2,6 +2,10 @@
 
     railsim network build NAME|FILE --out DIR [-p KEY=VALUE ...]
     railsim network show  NAME|FILE [-p KEY=VALUE ...]
+    railsim network show  FILE.net.xml [-a stops.add.xml ...] [--signals strip|keep] [--vclass CLASS]
+
+A ``.net.xml`` is an existing SUMO network read as it is (:mod:`network.external`): stations come from the
+trainStops/busStops of the ``-a`` additional files.
 
 ``-p`` sets a parameter of a shipped world (``railsim network show y_junction -p S1=600``); values are read
 as YAML scalars. ConfigError propagates to ``railsim.cli`` (one line, exit code 2).
@@ -46,12 +50,21 @@ def cmd_build(args: argparse.Namespace) -> int:
 
 def summary(bundle: Any) -> str:
     """Readable text summary of a NetworkBundle (stations, switches, routes)."""
-    lines = [f"world {bundle.name}", f"  net:   {bundle.net_file}", f"  stops: {bundle.stops_file}", ""]
-    lines.append(f"stations ({len(bundle.stations)}):")
-    lines.append(f"  {'id':<48} {'line':<10} {'km':>9} {'platform':>9}  turnback")
-    for st in bundle.stations.values():  # main line first, then each branch, by chainage
-        tb = "yes" if st.turnback else ""
-        lines.append(f"  {st.id:<48} {st.line:<10} {st.km:9.3f} {st.platform_length_m:7.0f} m  {tb}")
+    lines = [f"world {bundle.name}", f"  net:   {bundle.net_file}", f"  stops: {bundle.stops_file}"]
+    external = bundle.graph.graph.get("kind") == "external"  # a user's net: no chainage, platforms = trainStops
+    if external:
+        lines.append(f"  rail vClass {bundle.vclass}; rail signals: {bundle.n_rail_signals} ({bundle.signals})")
+    lines += ["", f"stations ({len(bundle.stations)}):"]
+    if external:
+        for st in bundle.stations.values():
+            plats = ", ".join(f"{p.stop_id} on {p.edge} {p.start_pos_m:.0f}-{p.end_pos_m:.0f} m heading {p.direction}"
+                              for p in st.platforms)
+            lines.append(f"  {st.id:<24} {st.name!r:<26} {plats}")
+    else:
+        lines.append(f"  {'id':<48} {'line':<10} {'km':>9} {'platform':>9}  turnback")
+        for st in bundle.stations.values():  # main line first, then each branch, by chainage
+            tb = "yes" if st.turnback else ""
+            lines.append(f"  {st.id:<48} {st.line:<10} {st.km:9.3f} {st.platform_length_m:7.0f} m  {tb}")
     lines.append("")
     lines.append(f"switches ({len(bundle.switches)}):")
     for sw in bundle.switches.values():
@@ -69,6 +82,17 @@ def summary(bundle: Any) -> str:
 def cmd_show(args: argparse.Namespace) -> int:
     from network import build
 
+    if args.world.endswith(".net.xml"):
+        from network.external import load_net
+
+        if args.param:
+            raise ConfigError("<command line>", "-p", "expected no world parameters for a .net.xml")
+        bundle = load_net(args.world, args.additional or (), signals=args.signals, vclass=args.vclass,
+                          where=("<command line>", "--"))
+        print(summary(bundle))
+        return 0
+    if args.additional or args.vclass or args.signals != "strip":
+        raise ConfigError("<command line>", "-a/--signals/--vclass", "expected these only with a .net.xml file")
     print(summary(build(_world_arg(args.world), **_params(args.param))))
     return 0
 
@@ -81,7 +105,12 @@ def add_commands(subparsers: Any) -> None:
     b.add_argument("--out", required=True, metavar="DIR", help="output folder")
     b.add_argument("-p", "--param", action="append", metavar="KEY=VALUE", help="world parameter (repeatable)")
     b.set_defaults(func=cmd_build)
-    s = sub.add_parser("show", help="print a readable summary of a world")
-    s.add_argument("world", metavar="NAME|FILE")
+    s = sub.add_parser("show", help="print a readable summary of a world (or of an existing SUMO .net.xml)")
+    s.add_argument("world", metavar="NAME|FILE", help="a shipped world, a line description or a SUMO .net.xml")
     s.add_argument("-p", "--param", action="append", metavar="KEY=VALUE", help="world parameter (repeatable)")
+    s.add_argument("-a", "--additional", action="append", metavar="FILE",
+                   help=".net.xml only: an additional file with trainStops/busStops (repeatable)")
+    s.add_argument("--signals", choices=("strip", "keep"), default="strip",
+                   help=".net.xml only: strip SUMO's rail signals in railsim's copy (default) or keep them")
+    s.add_argument("--vclass", default=None, help=".net.xml only: rail vClass of railsim's trains (default: auto)")
     s.set_defaults(func=cmd_show)

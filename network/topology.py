@@ -202,6 +202,19 @@ def _gradient_runs(line_grads: Sequence[Sequence[float]], d0: float, d1: float, 
     return runs
 
 
+def _edge_platforms(attrs: dict[str, Any]) -> list[tuple[str, str, float, float]]:
+    """``(station, stop_id, start_pos_m, end_pos_m)`` of the platforms on one track piece, in lane order.
+
+    A generated world has at most one (``station``/``stop_id`` attributes); an external net may have several
+    on one edge (a ``stops`` list, see :mod:`network.external`).
+    """
+    if attrs.get("stops"):
+        return [(s[0], s[1], s[2], s[3]) for s in attrs["stops"]]
+    if attrs.get("stop_id"):
+        return [(attrs["station"], attrs["stop_id"], attrs["stop_start_pos_m"], attrs["stop_end_pos_m"])]
+    return []
+
+
 def make_route(graph: nx.DiGraph, route_id: str, edges: Sequence[str]) -> RouteInfo:
     """Chainage, stops, speed limits, gradients, switches and named points of a path through the graph."""
     starts: list[float] = []
@@ -243,9 +256,8 @@ def make_route(graph: nx.DiGraph, route_id: str, edges: Sequence[str]) -> RouteI
                 r = seg_start + sign * (pm - d0)
                 if not any(p.point_id == pid for p in points):
                     points.append(RoutePoint(pid, r))
-        if a.get("stop_id"):
-            sp, ep = a["stop_start_pos_m"], a["stop_end_pos_m"]
-            stops.append(RouteStop(a["station"], a["stop_id"], e, sp, ep, pos + sp, pos + ep))
+        for station, stop_id, sp, ep in _edge_platforms(a):
+            stops.append(RouteStop(station, stop_id, e, sp, ep, pos + sp, pos + ep))
         pos += length
     grads.sort()
     return RouteInfo(
@@ -273,6 +285,13 @@ class NetworkBundle:
     routes: dict[str, RouteInfo]
     cache_key: str = ""
     build_time_s: float = field(default=0.0, compare=False)
+    # external nets (network.external): every additional file SUMO loads, the rail vClass our trains get,
+    # what a scenario may call a station (name or stop id -> station id), and the rail-signal choice
+    additional_files: tuple[Path, ...] = ()
+    vclass: str = "rail_urban"
+    station_aliases: dict[str, str] = field(default_factory=dict)
+    signals: str = "none"  # generated worlds have none; external: "strip" | "keep"
+    n_rail_signals: int = 0  # rail_signal nodes in the user's net
 
     def route_between(self, from_station: str, to_station: str, via: Sequence[str] = ()) -> RouteInfo:
         """Route for a service from ``from_station`` to ``to_station`` (optionally through ``via`` stations).
@@ -287,24 +306,59 @@ class NetworkBundle:
                                f"known: {', '.join(sorted(self.stations))}")
         if from_station == to_station:
             raise ValueError(f"a route needs two different stations, got {from_station!r} twice")
-        for direction in ("up", "down"):
-            try:
-                chain = [self.stations[s].platform(direction).edge for s in (from_station, *via, to_station)]
-            except KeyError:
-                continue
-            path: list[str] = [chain[0]]
-            try:
-                for a, b in zip(chain, chain[1:]):
-                    path += nx.shortest_path(self.graph, a, b)[1:]
-            except nx.NetworkXNoPath:
-                continue
-            if len(set(path)) != len(path):
-                continue  # via stations out of order would revisit track
-            rid = f"{from_station}->{to_station}" + (f" via {','.join(via)}" if via else "")
-            return make_route(self.graph, rid, path)
+        chain = (from_station, *via, to_station)
+        g = self.graph
+        weight = "cost_m" if g.graph.get("kind") == "external" else None  # metres; generated worlds: hops
+        rid = f"{from_station}->{to_station}" + (f" via {','.join(via)}" if via else "")
+        # stage by stage over the stations named: the best partial route (length_m, edges) ending at each
+        # platform of the current station; a generated world has one platform per direction of travel
+        partial = [(g.nodes[p.edge]["length_m"], [p.edge]) for p in self.stations[from_station].platforms]
+        for sid in chain[1:]:
+            extended: list[tuple[float, list[str]]] = []
+            for plat in self.stations[sid].platforms:
+                best: tuple[float, list[str]] | None = None
+                for length, path in partial:
+                    try:
+                        step = nx.shortest_path(g, path[-1], plat.edge, weight=weight)[1:]
+                    except nx.NetworkXNoPath:
+                        continue
+                    full = path + step
+                    if len(set(full)) != len(full):
+                        continue  # via stations out of order would revisit track
+                    total = length + sum(_step_m(g, a, b) for a, b in zip(full[len(path) - 1:], step))
+                    if best is None or total < best[0] - 1e-9:
+                        best = (total, full)
+                if best is not None:
+                    extended.append(best)
+            partial = extended
+        for _, path in sorted(partial, key=lambda c: c[0]):
+            route = make_route(g, rid, path)
+            if _serves_in_order(route, chain):
+                return route
         via_txt = f" via {', '.join(via)}" if via else ""
+        hint = "end the trip at a turnback instead"
+        if g.graph.get("kind") == "external":
+            hint = "a service that needs a reversal must be split into two services at the reversal station"
         raise ValueError(f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r} "
-                         "(trains do not reverse on the way; end the trip at a turnback instead)")
+                         f"(trains do not reverse on the way; {hint})")
+
+
+def _step_m(g: nx.DiGraph, a: str, b: str) -> float:
+    """Metres run from the end of piece ``a`` to the end of piece ``b`` (internal lanes + ``b``)."""
+    return sum(v[1] for v in g.edges[a, b]["via"]) + g.nodes[b]["length_m"]
+
+
+def _serves_in_order(route: RouteInfo, chain: Sequence[str]) -> bool:
+    """The route's first edge holds the first station, its last edge the last, and all come in order."""
+    chain = [c for i, c in enumerate(chain) if i == 0 or c != chain[i - 1]]  # "via" naming an end is harmless
+    k = 0
+    for rs in route.stops:
+        if k < len(chain) and rs.station_id == chain[k] and (k > 0 or rs.edge == route.edges[0]):
+            k += 1
+    if k < len(chain):
+        return False
+    last = [rs for rs in route.stops if rs.station_id == chain[-1]]
+    return any(rs.edge == route.edges[-1] for rs in last)
 
 
 def bundle_to_json(bundle: NetworkBundle) -> dict[str, Any]:

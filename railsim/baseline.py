@@ -17,11 +17,13 @@ from railsim.trips import make_stops
 
 
 def run_sumo_only(scenario: Any) -> dict[str, Any]:
-    import network
+    from network.external import load_world, sumo_args
+    from railsim import scenario as scn_mod
 
     sim = scenario.simulation
-    name_or_path, params = scenario.world.build_args()
-    bundle = network.build(name_or_path, **params)
+    bundle = load_world(scenario.world, scenario.source)
+    if bundle.station_aliases:  # an external net: stations named by name or stop id -> station ids
+        scenario = scn_mod.with_station_ids(scenario, bundle.station_aliases)
     trips = []
     for svc in scenario.services:
         route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
@@ -34,7 +36,8 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
     vtypes = [VTypeSpec(n, v.length_m, v.max_speed_mps, accel_mps2=0.8, decel_mps2=v.service_decel_mps2,
                         emergency_decel_mps2=max(v.emergency_decel_mps2, 1.3))
               for n, v in scenario.vehicles.items()]
-    cfg = SumoConfig(net_file=bundle.net_file, additional_files=[bundle.stops_file], step_s=float(sim.step_s),
+    cfg = SumoConfig(net_file=bundle.net_file, additional_files=list(bundle.additional_files) or [bundle.stops_file],
+                     step_s=float(sim.step_s), extra_args=sumo_args(bundle),
                      seed=int(sim.seed), step_method=sim.step_method, vtypes=vtypes)
     t0 = time.perf_counter()
     steps = 0

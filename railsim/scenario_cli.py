@@ -32,14 +32,18 @@ def _network_build() -> Callable[..., Any] | None:
 
 def world_check(scn: scenario_mod.Scenario) -> str | None:
     """Build the scenario's world and check station/switch ids. Returns a reason when the check was skipped."""
-    if scn.world.kind == "net":
-        return "world check skipped: a 'net' world has no station list to check against"
     build = _network_build()
     if build is None:
         return "world check skipped: network.build is not available yet"
-    name_or_path, params = scn.world.build_args()
-    bundle = build(name_or_path, **params)
-    scenario_mod.check_against_world(scn, bundle.stations.keys(), bundle.switches.keys())
+    if scn.world.kind == "net":  # a user's .net.xml is read (stations from its trainStops), not built
+        from network.external import load_world
+
+        bundle = load_world(scn.world, scn.source)
+    else:
+        name_or_path, params = scn.world.build_args()
+        bundle = build(name_or_path, **params)
+    scenario_mod.check_against_world(scn, bundle.stations.keys(), bundle.switches.keys(),
+                                     getattr(bundle, "station_aliases", None))
     return None
 
 

@@ -1,0 +1,574 @@
+"""Bring your own SUMO rail network: an existing ``.net.xml`` (+ additional files) read into a NetworkBundle.
+
+Users already have SUMO rail networks: OpenStreetMap imports made with netconvert, networks drawn in netedit,
+inherited studies. :func:`load_net` reads one **read-only** and discovers what the engine needs, in the same
+:class:`~network.topology.NetworkBundle` contract as our generated worlds (see :mod:`network.topology`):
+
+* **Rail edges** are the normal edges with a lane that allows the chosen rail vClass (``vclass``; by default
+  the rail class allowed on the most stop lanes, then on the most edges, preferring ``rail_urban``). Only
+  ``rail, rail_urban, rail_electric, rail_fast, subway, tram`` are train classes railsim drives (SUMO 1.28 has
+  no ``monorail``: OSM monorails import as ``rail_urban``).
+* **The track graph**: nodes = those edges (``length_m``, ``speed_mps`` of the allowed lane, ``bidi`` partner,
+  ``direction`` = compass heading of the edge, ``heading_in``/``heading_out`` = heading [rad] where it ends/
+  starts, ``stops`` = the platforms on it), graph edges = SUMO
+  connections between allowed lanes, with their internal lanes (``via``, so route chainage equals SUMO's
+  odometer). Turnaround connections (``dir="t"``, and any connection onto an edge's own ``bidi`` partner) are
+  left out: **trains do not reverse mid-route**; a service that needs a reversal is split into two services.
+* **Switches** are SUMO nodes where a track *diverges* (one incoming rail edge with connections to two or more
+  outgoing ones) or *merges* (two or more incoming edges connected to one outgoing edge); there is one
+  :class:`~network.topology.SwitchInfo` per direction of travel. The **normal leg** is the straightest one
+  (smallest heading change across the node, ties broken by the higher speed, then by edge id); every other
+  leg is ``reverse``. On ``bidi`` track the diverge in one direction and the merge in the other are the *same
+  physical turnout*: they become **one** switch (one lock), whose id both directions' connections carry, so
+  the interlocking never lets two opposing trains use the points at once. Switch ids are the SUMO node id, or
+  ``<node>/<trunk edge>`` where a node has several switches. Throw time: ``throw_time_s`` (a net has none);
+  diverging and normal speeds come from the connections' internal lanes.
+* **Stations** come from the ``trainStop`` and ``busStop`` elements of the additional files, grouped into
+  stations by their ``name`` (id = the name in lower case with ``-`` for other characters; a stop without a
+  name is a station of its own, id = stop id). A scenario may name a station by that id, by its name or by
+  the id of any of its stops (:attr:`NetworkBundle.station_aliases`). A platform's ``direction`` is the compass
+  heading of travel along it (``"E"``, ``"NW"``...). A ``trainStop`` that is not on a rail edge is an error; a
+  ``busStop`` on a road lane is a bus stop and is skipped.
+* **Routes** (:meth:`NetworkBundle.route_between`) choose, among the platforms of every station named, the
+  combination with a path in the direction of travel and the shortest length (Dijkstra on metres). Routes
+  listed in the bundle (``railsim network show``) are those between every ordered pair of stations (up to
+  :data:`MAX_LISTED_STATIONS` stations). A user net has no design chainage: station ``km`` is 0, there are no
+  gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
+  ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
+* **Not interlocked**: single-track sections *between* switches (the switch locks protect the points, not the
+  line beyond them: opposing trains must cross at loops by timetable; SUMO's collision check reports a head-on)
+  and flat crossings.
+
+**Rail signals** (``signals``). Measured with SUMO 1.28 (``shared/notes/sumo_rail_findings.md``): fixed-block
+signals hold virtually coupled followers back; moving-block arbitration is not platoon-aware (a crossing
+train cut a platoon: a collision); overriding signal states through libsumo segfaults SUMO. So:
+
+* ``strip`` (default): railsim simulates a copy of the net made with ``netconvert -s NET
+  --railway.signals.discard`` (which works on .net.xml input, not on plain XML), stored in the network cache
+  under the hash of the input files; our interlocking takes over every junction. The user's file is never
+  changed.
+* ``keep``: SUMO's signals stay, for trains railsim does not control (vehicles in the user's additional
+  files). railsim's own trains run under ``speedMode 32`` and do **not** see those signals (SUMO lets them
+  pass red silently), and SUMO's trains do not see our interlocking: mixing them is at the user's risk.
+
+The choice is logged. Everything a user can get wrong raises :class:`railsim.errors.ConfigError` naming the
+file and field: an unreadable net (not XML, not a ``<net>``, or a network version newer than this SUMO
+writes — SUMO itself would read it without complaint), no rail edges, an unsupported vClass, a trainStop off
+the rail network, or SUMO refusing the net or the additional files (a short SUMO run checks them once; the
+result is cached).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import itertools
+import logging
+import math
+import re
+import shutil
+import subprocess
+import tempfile
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Sequence
+
+import networkx as nx
+
+from network.build import cache_root
+from network.generator import netconvert_binary, sumo_version
+from network.topology import NetworkBundle, PlatformInfo, StationInfo, SwitchInfo, make_route
+from railsim.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+EXTERNAL_VERSION = "1"  # bump when the way a net is read changes (invalidates the cache)
+RAIL_VCLASSES = ("rail_urban", "subway", "rail", "rail_electric", "rail_fast", "tram")  # auto preference order
+SIGNAL_MODES = ("strip", "keep")
+DEFAULT_THROW_TIME_S = 6.0  # a typical electric point machine (a SUMO net records no throw time)
+MAX_LISTED_STATIONS = 30  # bundle.routes lists every station pair only up to this many stations
+_STOP_TAGS = ("trainStop", "busStop")
+INSERTION_CHECKS = "collision leaderGap followerGap junction stop arrivalSpeed speedLimit pedestrian"
+_COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
+
+Where = tuple[Any, str]  # (source, field prefix) for errors in the options: (scenario, "world") or (cli, "--")
+
+
+def _opt(where: Where, name: str) -> str:
+    """Field name of option ``name`` in an error: ``world.vclass`` in a scenario, ``--vclass`` on the CLI."""
+    return f"--{name}" if where[1] == "--" else f"{where[1]}.{name}"
+
+
+@dataclass(frozen=True)
+class _Stop:
+    """One trainStop/busStop element as written in an additional file."""
+
+    tag: str
+    id: str
+    lane: str
+    start_raw: float | None
+    end_raw: float | None
+    name: str
+    file: Path
+
+
+def _sumo_tool(name: str) -> Path:
+    return netconvert_binary().with_name(name)
+
+
+def _file_hash(path: Path) -> str:
+    h = hashlib.sha256()
+    with open(path, "rb") as fh:
+        for block in iter(lambda: fh.read(1 << 20), b""):
+            h.update(block)
+    return h.hexdigest()
+
+
+def _version_tuple(text: str) -> tuple[int, ...] | None:
+    try:
+        return tuple(int(x) for x in text.strip().split("."))
+    except ValueError:
+        return None
+
+
+def supported_net_version() -> str:
+    """The network version this SUMO's netconvert writes (the newest its SUMO reads), probed once and cached."""
+    root = cache_root()
+    marker = root / f"netversion-{sumo_version()}.txt"
+    try:
+        return marker.read_text(encoding="utf-8").strip()
+    except OSError:
+        pass
+    with tempfile.TemporaryDirectory(prefix="railsim-netversion-") as tmp:
+        t = Path(tmp)
+        (t / "p.nod.xml").write_text('<nodes><node id="a" x="0" y="0"/><node id="b" x="100" y="0"/></nodes>\n')
+        (t / "p.edg.xml").write_text('<edges><edge id="e" from="a" to="b" allow="rail"/></edges>\n')
+        subprocess.run([str(netconvert_binary()), "-n", str(t / "p.nod.xml"), "-e", str(t / "p.edg.xml"),
+                        "-o", str(t / "p.net.xml")], capture_output=True, timeout=120, check=True)
+        version = _net_root(t / "p.net.xml")[1]
+    root.mkdir(parents=True, exist_ok=True)
+    marker.write_text(version + "\n", encoding="utf-8")
+    return version
+
+
+def _net_root(net_file: Path) -> tuple[str, str]:
+    """(root tag, version attribute) of an XML file, reading only its first element."""
+    try:
+        for _, elem in ET.iterparse(str(net_file), events=("start",)):
+            return elem.tag, elem.get("version", "")
+    except ET.ParseError as exc:
+        raise ConfigError(net_file, None, f"not a SUMO network: the file is not XML ({exc})") from None
+    raise ConfigError(net_file, None, "not a SUMO network: the file is empty")  # pragma: no cover
+
+
+def check_net_header(net_file: Path) -> None:
+    """A ``<net>`` root whose ``version`` this SUMO can read (SUMO 1.28 does not refuse newer versions itself)."""
+    tag, version = _net_root(net_file)
+    if tag != "net":
+        raise ConfigError(net_file, None, f"not a SUMO network: expected a <net> root element, got <{tag}>")
+    have = _version_tuple(version)
+    newest = supported_net_version()
+    if have is None:
+        raise ConfigError(net_file, "net.version", f"expected a network version like {newest!r}, got {version!r}")
+    if have > (_version_tuple(newest) or ()):
+        raise ConfigError(net_file, "net.version",
+                          f"network version {version} is newer than this SUMO ({sumo_version()}) reads (up to "
+                          f"{newest}); re-export it with this SUMO's netconvert or install a newer eclipse-sumo")
+
+
+def read_stops(additional: Sequence[Path]) -> list[_Stop]:
+    """Every trainStop/busStop of the additional files, in file order."""
+    out: list[_Stop] = []
+    for path in additional:
+        try:
+            tree = ET.parse(str(path))
+        except ET.ParseError as exc:
+            raise ConfigError(path, None, f"expected an XML additional file, got a parse error ({exc})") from None
+        for elem in tree.getroot().iter():
+            if elem.tag not in _STOP_TAGS:
+                continue
+            sid = elem.get("id")
+            lane = elem.get("lane")
+            where = f"{elem.tag}[id={sid}]"
+            if not sid or not lane:
+                raise ConfigError(path, where, "expected the attributes id and lane")
+            vals = []
+            for key in ("startPos", "endPos"):
+                raw = elem.get(key)
+                try:
+                    vals.append(None if raw is None else float(raw))
+                except ValueError:
+                    raise ConfigError(path, f"{where}.{key}", f"expected a number, got {raw!r}") from None
+            out.append(_Stop(elem.tag, sid, lane, vals[0], vals[1], elem.get("name") or "", path))
+    return out
+
+
+def _slug(text: str) -> str:
+    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+
+
+def _heading(shape: Sequence[tuple[float, ...]], at_end: bool) -> float:
+    """Heading [rad] of a polyline at its end (``at_end``) or its start: the last/first non-zero segment."""
+    pts = list(shape)[::-1] if at_end else list(shape)
+    for (x0, y0, *_), (x1, y1, *_) in zip(pts, pts[1:]):
+        if math.hypot(x1 - x0, y1 - y0) > 1e-6:
+            return math.atan2(y0 - y1, x0 - x1) if at_end else math.atan2(y1 - y0, x1 - x0)
+    return 0.0
+
+
+def _compass(dx: float, dy: float) -> str:
+    """8-point compass label of a travel direction (SUMO's y axis points north)."""
+    bearing = math.degrees(math.atan2(dx, dy)) % 360.0
+    return _COMPASS[int((bearing + 22.5) // 45.0) % 8]
+
+
+def _turn(a: float, b: float) -> float:
+    """Absolute heading change from a to b [rad], in [0, pi]."""
+    return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
+
+
+def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where) -> str:
+    src = where[0]
+    if vclass is not None:
+        if vclass not in RAIL_VCLASSES:
+            raise ConfigError(src, _opt(where, "vclass"),
+                              f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}")
+    edges = net.getEdges(withInternal=False)
+    counts = {vc: sum(1 for e in edges if any(ln.allows(vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
+    if not any(counts.values()):
+        found = sorted({p for e in edges for ln in e.getLanes() for p in ln.getPermissions()})
+        raise ConfigError(net_file, None, "no rail edges: no lane allows any of " + ", ".join(RAIL_VCLASSES) +
+                          f" (the lanes allow: {', '.join(found) if found else 'nothing'})")
+    if vclass is not None:
+        if counts[vclass] == 0:
+            usable = [vc for vc in RAIL_VCLASSES if counts[vc]]
+            raise ConfigError(src, _opt(where, "vclass"), f"no lane of {net_file.name} allows {vclass!r}; its rail "
+                                                        f"edges allow {', '.join(usable)}")
+        return vclass
+    lane_ok: dict[str, int] = dict.fromkeys(RAIL_VCLASSES, 0)
+    for st in stops:
+        ln = _lane(net, st.lane)
+        if ln is not None:
+            for vc in RAIL_VCLASSES:
+                lane_ok[vc] += int(ln.allows(vc))
+    return max(RAIL_VCLASSES, key=lambda vc: (lane_ok[vc], counts[vc], -RAIL_VCLASSES.index(vc)))
+
+
+def _lane(net: Any, lane_id: str) -> Any:
+    """The sumolib lane ``lane_id`` (``<edge>_<index>``), or None if the net has no such lane."""
+    edge_id = lane_id.rsplit("_", 1)[0]
+    if not net.hasEdge(edge_id):
+        return None
+    return next((ln for ln in net.getEdge(edge_id).getLanes() if ln.getID() == lane_id), None)
+
+
+def _via_chain(net: Any, conn: Any) -> list[list[Any]]:
+    """``[internal lane id, length, speed]`` of a connection's internal lanes in travel order."""
+    chain: list[list[Any]] = []
+    via_id = conn.getViaLaneID()
+    while via_id:
+        lane = net.getLane(via_id)
+        chain.append([via_id, lane.getLength(), lane.getSpeed()])
+        nxt = [c.getViaLaneID() for c in lane.getOutgoing() if c.getViaLaneID()]
+        via_id = nxt[0] if nxt else ""
+    return chain
+
+
+def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
+    g = nx.DiGraph(name=name, kind="external", vclass=vclass, gradients={}, points={})
+    for e in net.getEdges(withInternal=False):
+        lanes = [ln for ln in e.getLanes() if ln.allows(vclass)]
+        if not lanes:
+            continue
+        ln = lanes[0]
+        shape = ln.getShape()
+        (x0, y0, *_), (x1, y1, *_) = shape[0], shape[-1]
+        bidi = e.getBidi()
+        g.add_node(e.getID(), line="", direction=_compass(x1 - x0, y1 - y0), length_m=ln.getLength(),
+                   speed_mps=ln.getSpeed(), from_node=e.getFromNode().getID(), to_node=e.getToNode().getID(),
+                   design_start_m=0.0, design_sign=1, station=None, stop_id=None, stop_start_pos_m=None,
+                   stop_end_pos_m=None, stops=[], bidi=bidi.getID() if bidi is not None else None,
+                   heading_in=_heading(shape, True), heading_out=_heading(shape, False))
+    for eid in list(g.nodes):
+        e = net.getEdge(eid)
+        bidi = g.nodes[eid]["bidi"]
+        for to_edge, conns in e.getOutgoing().items():
+            tid = to_edge.getID()
+            if tid not in g or tid == bidi:
+                continue
+            usable = [c for c in conns if c.getDirection() != "t" and c.getFromLane().allows(vclass)
+                      and c.getToLane().allows(vclass)]
+            if not usable:
+                continue
+            via = _via_chain(net, usable[0])
+            cost = sum(v[1] for v in via) + g.nodes[tid]["length_m"]
+            g.add_edge(eid, tid, node=e.getToNode().getID(), via=via, switch=None, leg=None, cost_m=cost)
+    return g
+
+
+def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str]:
+    """Legs ordered normal first: smallest heading change across the node, then higher speed, then id."""
+    def key(leg: str) -> tuple[float, float, str]:
+        if diverge:
+            turn = _turn(g.nodes[trunk]["heading_in"], g.nodes[leg]["heading_out"])
+            via = g.edges[trunk, leg]["via"]
+        else:
+            turn = _turn(g.nodes[leg]["heading_in"], g.nodes[trunk]["heading_out"])
+            via = g.edges[leg, trunk]["via"]
+        speed = min([g.nodes[leg]["speed_mps"]] + [v[2] for v in via])
+        return (round(math.degrees(turn), 1), -round(speed, 3), leg)
+
+    return sorted(legs, key=key)
+
+
+def _leg_speed(g: nx.DiGraph, a: str, b: str) -> float:
+    return float(min([g.nodes[a]["speed_mps"], g.nodes[b]["speed_mps"]] + [v[2] for v in g.edges[a, b]["via"]]))
+
+
+def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
+    """Switches of the track graph (module docstring); sets ``switch``/``leg`` on the graph's connections."""
+    found: list[dict[str, Any]] = []  # kind, node, trunk, legs (normal first)
+    for eid in g.nodes:
+        outs = sorted(g.successors(eid))
+        if len(outs) >= 2:
+            found.append({"kind": "diverge", "node": g.nodes[eid]["to_node"], "trunk": eid,
+                          "legs": _legs(g, eid, outs, True)})
+        ins = sorted(g.predecessors(eid))
+        if len(ins) >= 2:
+            found.append({"kind": "merge", "node": g.nodes[eid]["from_node"], "trunk": eid,
+                          "legs": _legs(g, eid, ins, False)})
+    bidi = {n: a["bidi"] for n, a in g.nodes(data=True)}
+    # the other direction of a turnout on bidi track: a merge onto the trunk's partner from the legs' partners
+    twin_of: dict[int, int] = {}
+    for i, d in enumerate(found):
+        if d["kind"] != "diverge":
+            continue
+        for j, m in enumerate(found):
+            if m["kind"] == "merge" and m["trunk"] == bidi[d["trunk"]] and \
+                    sorted(m["legs"]) == sorted(bidi[x] or "" for x in d["legs"]):
+                twin_of[j] = i
+    primary = [i for i in range(len(found)) if i not in twin_of]
+    per_node: dict[str, int] = {}
+    for i in primary:
+        per_node[found[i]["node"]] = per_node.get(found[i]["node"], 0) + 1
+    ids: dict[int, str] = {}
+    for i in primary:
+        d = found[i]
+        ids[i] = d["node"] if per_node[d["node"]] == 1 else f"{d['node']}/{d['trunk']}"
+    switches: dict[str, SwitchInfo] = {}
+    for i in primary:
+        d = found[i]
+        trunk, legs = d["trunk"], d["legs"]
+        pairs = [(trunk, x) if d["kind"] == "diverge" else (x, trunk) for x in legs]
+        for k, (a, b) in enumerate(pairs):
+            g.edges[a, b]["switch"], g.edges[a, b]["leg"] = ids[i], "normal" if k == 0 else "reverse"
+        switches[ids[i]] = SwitchInfo(
+            id=ids[i], sumo_node=d["node"], kind=d["kind"], normal_edge=legs[0], reverse_edge=legs[1],
+            trunk_edge=trunk, throw_time_s=float(throw_time_s),
+            diverging_speed_mps=min(_leg_speed(g, a, b) for a, b in pairs[1:]),
+            normal_speed_mps=_leg_speed(g, *pairs[0]))
+    for j, i in twin_of.items():
+        m, d = found[j], found[i]
+        for x in m["legs"]:
+            leg = "normal" if bidi[x] == d["legs"][0] else "reverse"
+            g.edges[x, m["trunk"]]["switch"], g.edges[x, m["trunk"]]["leg"] = ids[i], leg
+    return dict(sorted(switches.items()))
+
+
+def _stations(net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str) -> tuple[dict[str, StationInfo],
+                                                                                    dict[str, str]]:
+    """Stations grouped by stop name, their platforms on the graph, and the alias table (name/stop id -> id)."""
+    from sumolib.geomhelper import positionAtShapeOffset
+
+    groups: dict[str, list[tuple[_Stop, PlatformInfo]]] = {}
+    names: dict[str, str] = {}
+    seen: set[str] = set()
+    for st in stops:
+        where = f"{st.tag}[id={st.id}]"
+        if st.id in seen:
+            raise ConfigError(st.file, where, "expected unique stop ids, got a second stop with this id")
+        seen.add(st.id)
+        lane = _lane(net, st.lane)
+        if lane is None:
+            raise ConfigError(st.file, f"{where}.lane", f"expected a lane of the network, got {st.lane!r}")
+        edge_id = lane.getEdge().getID()
+        if edge_id not in g or not lane.allows(vclass):
+            if st.tag == "busStop":
+                log.debug("skipping busStop %s on non-rail lane %s", st.id, st.lane)
+                continue
+            perms = ", ".join(sorted(lane.getPermissions())) or "nothing"
+            raise ConfigError(st.file, f"{where}.lane", f"expected a lane of a rail edge (allowing {vclass}), got "
+                                                        f"{st.lane!r}, which allows {perms}: a station not on any "
+                                                        f"rail edge")
+        length = lane.getLength()
+        start = 0.0 if st.start_raw is None else (st.start_raw if st.start_raw >= 0 else length + st.start_raw)
+        end = length if st.end_raw is None else (st.end_raw if st.end_raw >= 0 else length + st.end_raw)
+        if not (0.0 <= start < end <= length + 1e-6):
+            raise ConfigError(st.file, where, f"expected 0 <= startPos < endPos <= {length:g} (lane length), got "
+                                              f"{start:g}..{end:g}")
+        shape = lane.getShape()
+        x0, y0 = positionAtShapeOffset(shape, start)[:2]
+        x1, y1 = positionAtShapeOffset(shape, end)[:2]
+        plat = PlatformInfo(_compass(x1 - x0, y1 - y0), st.id, edge_id, start, min(end, length))
+        key = st.name or st.id
+        groups.setdefault(key, []).append((st, plat))
+    stations: dict[str, StationInfo] = {}
+    aliases: dict[str, str] = {}
+    for key, members in groups.items():
+        sid = _slug(key) or members[0][0].id
+        base, n = sid, 2
+        while sid in stations:
+            sid, n = f"{base}-{n}", n + 1
+        plats = tuple(p for _, p in members)
+        stations[sid] = StationInfo(sid, key, "", 0.0, max(p.end_pos_m - p.start_pos_m for p in plats), False,
+                                    plats)
+        names[key] = sid
+        for st, p in members:
+            aliases[st.id] = sid
+            g.nodes[p.edge]["stops"].append([sid, p.stop_id, p.start_pos_m, p.end_pos_m])
+    for key, sid in names.items():
+        aliases.setdefault(key, sid)
+    for sid in stations:
+        aliases.setdefault(sid, sid)
+    for n in g.nodes:
+        g.nodes[n]["stops"].sort(key=lambda s: (s[2], s[1]))
+    return stations, aliases
+
+
+def _preflight(net_file: Path, additional: Sequence[Path], folder: Path) -> None:
+    """Let SUMO itself load the net and the additional files for one step (once per cache key)."""
+    marker = folder / "sumo_check.ok"
+    if marker.exists():
+        return
+
+    def run(extra: list[str]) -> list[str]:
+        cmd = [str(_sumo_tool("sumo")), "-n", str(net_file), *extra, "--begin", "0", "--end", "1",
+               "--no-step-log", "true", "--duration-log.disable", "true", "--no-warnings", "true"]
+        try:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+        except (OSError, subprocess.TimeoutExpired) as exc:
+            return [f"SUMO could not run: {exc}"]
+        if proc.returncode == 0:
+            return []
+        lines = [ln for ln in (proc.stderr + proc.stdout).splitlines() if ln.startswith("Error")]
+        return lines or [ln for ln in proc.stderr.splitlines() if ln.strip()][-2:] or ["unknown error"]
+
+    errors = run(["-a", ",".join(str(p) for p in additional)] if additional else [])
+    if errors:
+        if additional and not run([]):
+            raise ConfigError(",".join(str(p) for p in additional), None,
+                              "SUMO cannot load these additional files: " + " | ".join(errors[:3]))
+        raise ConfigError(net_file, None, "SUMO cannot read this network: " + " | ".join(errors[:3]))
+    folder.mkdir(parents=True, exist_ok=True)
+    marker.write_text("ok\n", encoding="utf-8")
+
+
+def _strip_signals(net_file: Path, out: Path) -> None:
+    """railsim's copy of the net without rail signals (``netconvert --railway.signals.discard``)."""
+    tmp = out.with_name(out.name + ".tmp.xml")
+    cmd = [str(netconvert_binary()), "-s", str(net_file), "--railway.signals.discard", "true", "-o", str(tmp)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
+    if proc.returncode != 0 or not tmp.exists():
+        errs = [ln for ln in (proc.stderr + proc.stdout).splitlines() if ln.startswith("Error")]
+        raise ConfigError(net_file, None, "netconvert could not copy it without rail signals: " +
+                          (" | ".join(errs[:3]) or "unknown error"))
+    tmp.replace(out)
+
+
+def _read_net(net_file: Path) -> Any:
+    import sumolib
+
+    try:
+        return sumolib.net.readNet(str(net_file), withInternal=True)
+    except Exception as exc:  # sumolib raises SAX/Key/Value errors on malformed nets
+        raise ConfigError(net_file, None, f"not a SUMO network sumolib can read: {exc}") from None
+
+
+def load_net(net_file: str | Path, additional: Sequence[str | Path] = (), *, signals: str = "strip",
+             vclass: str | None = None, throw_time_s: float = DEFAULT_THROW_TIME_S,
+             where: Where = (None, "world")) -> NetworkBundle:
+    """Read an existing SUMO net (+ additional files with trainStops) into a :class:`NetworkBundle`.
+
+    ``signals`` is ``strip`` or ``keep`` (module docstring), ``vclass`` the rail vClass railsim's trains get
+    (``None``: chosen from the net), ``throw_time_s`` the throw time of every switch. ``where`` names the
+    source and field prefix of these options in error messages (e.g. ``(scenario file, "world")``).
+    """
+    src = where[0]
+    net_file = Path(net_file).resolve()
+    adds = tuple(Path(p).resolve() for p in additional)
+    for i, p in enumerate((net_file, *adds)):
+        if not p.is_file():
+            field = _opt(where, "net") if i == 0 else _opt(where, f"additional[{i - 1}]")
+            raise ConfigError(src, field, f"expected an existing file, got {str(p)!r}")
+    if signals not in SIGNAL_MODES:
+        raise ConfigError(src, _opt(where, "signals"), f"expected one of {', '.join(SIGNAL_MODES)}, got {signals!r}")
+    if not (isinstance(throw_time_s, (int, float)) and math.isfinite(throw_time_s) and throw_time_s >= 0):
+        raise ConfigError(src, _opt(where, "throw_time_s"), f"expected a number >= 0, got {throw_time_s!r}")
+    check_net_header(net_file)
+    stops = read_stops(adds)
+    key_src = "|".join([EXTERNAL_VERSION, sumo_version(), signals, _file_hash(net_file),
+                        *(_file_hash(p) for p in adds)])
+    key = hashlib.sha256(key_src.encode()).hexdigest()[:24]
+    folder = cache_root() / f"external-{key}"
+
+    net = _read_net(net_file)
+    n_signals = sum(1 for n in net.getNodes() if n.getType() == "rail_signal")
+    sim_net = net_file
+    if n_signals and signals == "strip":
+        sim_net = folder / net_file.name
+        if not sim_net.exists():
+            folder.mkdir(parents=True, exist_ok=True)
+            _strip_signals(net_file, sim_net)
+        net = _read_net(sim_net)
+        log.info("%s: %d rail signals stripped in railsim's copy %s (signals: strip); our interlocking takes over",
+                 net_file.name, n_signals, sim_net)
+    elif n_signals:
+        log.warning("%s: keeping %d SUMO rail signals (signals: keep): railsim's trains do not obey them and "
+                    "SUMO-driven trains do not obey railsim's interlocking", net_file.name, n_signals)
+    else:
+        log.info("%s: no rail signals (signals: %s has nothing to do)", net_file.name, signals)
+    chosen = _choose_vclass(net, stops, vclass, net_file, where)
+    name = net_file.name.removesuffix(".xml").removesuffix(".net")
+    graph = _build_graph(net, chosen, name)
+    graph.graph["signals"] = {"mode": signals, "count": n_signals}
+    switches = find_switches(graph, throw_time_s)
+    stations, aliases = _stations(net, graph, stops, chosen)
+    _preflight(sim_net, adds, folder)  # last: our own checks give the more precise messages
+    stops_file = next((p for p in adds if any(s.file == p for s in stops)), adds[0] if adds else net_file)
+    bundle = NetworkBundle(name, sim_net, stops_file, net_file, graph, stations, switches, {}, cache_key=key,
+                           additional_files=adds, vclass=chosen, station_aliases=aliases, signals=signals,
+                           n_rail_signals=n_signals)
+    routes = {}
+    if len(stations) <= MAX_LISTED_STATIONS:
+        for a, b in itertools.permutations(stations, 2):
+            try:
+                r = bundle.route_between(a, b)
+            except ValueError:
+                continue
+            routes[r.id] = r
+    return dataclasses.replace(bundle, routes=routes)
+
+
+def sumo_args(bundle: NetworkBundle) -> tuple[str, ...]:
+    """Extra SUMO options for simulating ``bundle`` (none for generated worlds).
+
+    On an external net SUMO's ``oncomingTrain``/``bidi`` insertion checks are switched off (all the others stay):
+    SUMO otherwise holds a train at its depart platform on a bidi edge for as long as any train whose route
+    uses the partner edge is on the way (75 s in the passing-loop test), which breaks the timetable; railsim's
+    trains are placed where the scenario says and our occupancy and interlocking judge safety.
+    """
+    if bundle.graph.graph.get("kind") != "external":
+        return ()
+    return ("--insertion-checks", INSERTION_CHECKS)
+
+
+def load_world(world: Any, source: Any = None) -> NetworkBundle:
+    """The bundle of a scenario's ``world`` (:class:`railsim.scenario.WorldSpec`): built, or read from a net."""
+    if world.kind != "net":
+        from network.build import build
+
+        name_or_path, params = world.build_args()
+        return build(name_or_path, **params)
+    return load_net(world.net, world.additional, signals=world.signals, vclass=world.vclass,
+                    throw_time_s=world.throw_time_s, where=(source, "world"))
