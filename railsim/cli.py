@@ -23,7 +23,7 @@ from railsim.errors import EXIT_CONFIG_ERROR, EXIT_SIMULATION_ERROR, ConfigError
 
 # Modules that contribute subcommands: each has ``add_commands(subparsers)`` and sets ``func`` on its parsers.
 _COMMAND_MODULES = ("network.cli", "railsim.scenario_cli", "railsim.commands", "railsim.reproduce",
-                    "railsim.plot_command")
+                    "railsim.plot_command", "railsim.sweep", "railsim.export", "railsim.report", "railsim.study")
 
 
 def build_parser() -> argparse.ArgumentParser:

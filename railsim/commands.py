@@ -48,4 +48,4 @@ def cmd_run(args: argparse.Namespace) -> int:
     progress = False if args.no_progress else None
     summary = engine.run(scn, out, seed=args.seed, progress=progress)
     print(format_summary(summary, out))
-    return 0 if summary["collisions"] == 0 else 1
+    return 0 if summary["collisions"] == 0 and summary["sumo_collisions"] == 0 else 1

@@ -19,7 +19,7 @@ from typing import Any, Iterable, Mapping, Sequence
 import yaml
 
 
-def _atomic_write_bytes(path: Path, data: bytes) -> None:
+def write_bytes(path: Path, data: bytes) -> None:
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=str(path.parent))
@@ -53,7 +53,7 @@ def write_csv(path: Path, rows: Iterable[Mapping[str, Any]], columns: Sequence[s
     writer.writerow(columns)
     for row in rows:
         writer.writerow([_fmt(row.get(c)) for c in columns])
-    _atomic_write_bytes(path, buf.getvalue().encode("utf-8"))
+    write_bytes(path, buf.getvalue().encode("utf-8"))
 
 
 def write_parquet(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequence[str]) -> None:
@@ -62,7 +62,7 @@ def write_parquet(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequen
     frame = pd.DataFrame([{c: r.get(c) for c in columns} for r in rows], columns=list(columns))
     buf = io.BytesIO()
     frame.to_parquet(buf, index=False)
-    _atomic_write_bytes(path, buf.getvalue())
+    write_bytes(path, buf.getvalue())
 
 
 def write_table(out_dir: Path, stem: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str],
@@ -102,8 +102,8 @@ def _clean(obj: Any) -> Any:
 
 def write_json(path: Path, data: Any) -> None:
     text = json.dumps(_clean(data), indent=2, sort_keys=True, default=_json_default)
-    _atomic_write_bytes(path, (text + "\n").encode("utf-8"))
+    write_bytes(path, (text + "\n").encode("utf-8"))
 
 
 def write_yaml(path: Path, data: Any) -> None:
-    _atomic_write_bytes(path, yaml.safe_dump(data, sort_keys=False, allow_unicode=True).encode("utf-8"))
+    write_bytes(path, yaml.safe_dump(data, sort_keys=False, allow_unicode=True).encode("utf-8"))

@@ -5,7 +5,10 @@
     railsim plot out/x --kind paper000 --out fig/            # force a kind
 
 ``--kind auto`` (default) reads each folder's ``scenario.resolved.yaml`` and uses the analysis that applies to its
-controllers (:mod:`railsim.analyses`). Line-level kinds (time-distance, headway) come with the line studies.
+controllers (:mod:`railsim.analyses`). Line-level kinds (:mod:`railsim.plots.line`) write PNG and SVG to a file stem:
+
+    railsim plot out/peak --kind time-distance [--out fig/peak_td] [--direction up]   # default stem RUN/<kind>
+    railsim plot out/peak --kind speed|gap|headway
 """
 
 from __future__ import annotations
@@ -16,14 +19,17 @@ from typing import Any
 
 from railsim.errors import ConfigError
 
-KINDS = ("auto", "paper000", "paper003")
+LINE_KINDS = ("time-distance", "speed", "gap", "headway")  # railsim.plots.line.KINDS (not imported: matplotlib)
+KINDS = ("auto", "paper000", "paper003", *LINE_KINDS)
 
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("plot", help="write figures (PNG) for finished run folders")
     p.add_argument("runs", nargs="+", help="run output folders (from railsim run)")
-    p.add_argument("--out", required=True, help="folder for the figures")
+    p.add_argument("--out", default=None, help="folder for the figures; for line kinds a file stem (default "
+                                               "RUN/<kind>; with several runs <stem>-<run name>)")
     p.add_argument("--kind", choices=KINDS, default="auto")
+    p.add_argument("--direction", choices=("up", "down"), default=None, help="line kinds: one direction only")
     p.set_defaults(func=cmd_plot)
 
 
@@ -49,9 +55,21 @@ def cmd_plot(args: argparse.Namespace) -> int:
     for r in runs:
         if not r.is_dir():
             raise ConfigError(r, None, "no such run folder")
+    written: list[Path] = []
+    if args.kind in LINE_KINDS:
+        from railsim.plots.line import write_kind
+
+        for r in runs:
+            stem = (r / args.kind if args.out is None else
+                    Path(args.out) if len(runs) == 1 else Path(f"{args.out}-{r.name}"))
+            written += write_kind(args.kind, r, stem, args.direction)
+        for path in written:
+            print(path)
+        return 0
+    if args.out is None:
+        raise ConfigError(None, "--out", f"a folder for the figures is required with --kind {args.kind}")
     kinds = {r: (_kind_of(r) if args.kind == "auto" else args.kind) for r in runs}
     dest = Path(args.out)
-    written: list[Path] = []
     paper000 = [r for r in runs if kinds[r] == "paper000"]
     if paper000:
         from railsim.plots.paper000 import write_figures
