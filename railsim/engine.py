@@ -27,6 +27,12 @@ leader's messages are older than ``max_message_age_s`` the follower degrades to 
 (logged). Decoupling ``before_switch`` happens when the leader departs the last stop before that switch (or
 ``decouple_distance_m`` before it), after which the units separate with absolute braking distance and each takes
 its own switch lock.
+
+Junctions (scenario ``junction:``, Paper E): :class:`railsim.junction_control.JunctionCoordinator` runs on the
+ground side each step before the controllers — it plans and re-plans the approach of the named trains to point F,
+requests their switch locks in passing order (the distance rule above is off for those), forms the formations in
+that order and hands each train over at F. Until then a planned train's roles are ``junction`` (its plan) plus the
+ATO and a relative-braking-distance guard against the train ahead.
 """
 
 from __future__ import annotations
@@ -69,6 +75,8 @@ class EngineSettings:
     missed_stop_tolerance_m: float = 0.5
     final_approach_margin_m: float = 50.0  # coupled follower: hand the stop to the ATO this far before braking
     sensor_range_m: float = 400.0  # a train's own ranging sensor (collision avoidance) sees this far ahead
+    insertion_margin_m: float = 50.0  # a departure waits unless trains approaching behind can stop this far back
+    departure_retry_s: float = 1.0  # ... and is tried again after this long
 
 
 @dataclass
@@ -130,9 +138,8 @@ class Simulation:
 
     def __init__(self, scenario: Any, out_dir: Path | None, seed: int | None = None,
                  progress: bool | None = None, settings: EngineSettings | None = None) -> None:
-        import network
         from railsim import scenario as scn_mod
-        from railsim.events import (Channel, DelaySpec, EventLayer, FormationManager, Formation, Interlocking,
+        from railsim.events import (Channel, DelaySpec, EventLayer, FormationManager, Interlocking,
                                     Outage, Switch)
 
         self.scenario = scenario
@@ -146,12 +153,14 @@ class Simulation:
         self.progress = sys.stderr.isatty() if progress is None else progress
         self.rng = np.random.default_rng(self.seed)
 
-        world = scenario.world
-        if world.kind == "net":
-            raise ConfigError(scenario.source, "world.net", "running on an existing .net.xml is not supported yet")
-        name_or_path, params = world.build_args()
-        self.bundle = network.build(name_or_path, **params)
-        scn_mod.check_against_world(scenario, self.bundle.stations.keys(), self.bundle.switches.keys())
+        from network.external import load_world, sumo_args
+
+        self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
+        self.sumo_extra_args = sumo_args(self.bundle)  # () for generated worlds
+        scn_mod.check_against_world(scenario, self.bundle.stations.keys(), self.bundle.switches.keys(),
+                                    self.bundle.station_aliases)
+        if self.bundle.station_aliases:  # an external net: stations named by name or stop id -> station ids
+            scenario = self.scenario = scn_mod.with_station_ids(scenario, self.bundle.station_aliases)
 
         # ---- event layer
         self.layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(self.rng.integers(2**63)))
@@ -179,7 +188,7 @@ class Simulation:
         self._build_trips()
         self.formation_of_follower: dict[str, Any] = {}
         self.formation_of_leader: dict[str, list[Any]] = {}
-        self._build_formations(Formation)
+        self._build_formations()
         for vname, plant in scenario.plants.items():
             if plant.kind in ("multipoint", "monorail") and self.step_method != "euler":
                 raise ConfigError(scenario.source, "simulation.step_method",
@@ -191,6 +200,7 @@ class Simulation:
             if tid not in self.trains:
                 raise ConfigError(scenario.source, "cooperative.edges", f"no trip {tid!r}")
         self._coop_graph: Any = None  # the neighbour graph in force (Paper C validator's CommGraph)
+        self._held: set[str] = set()  # trips whose departure the dispatcher held (logged once each)
         self.obstacles: dict[str, tuple[str, float]] = {}  # obstacle id -> (SUMO edge, position on it [m])
         self._schedule_departures()
         self._schedule_timed_events()
@@ -205,6 +215,11 @@ class Simulation:
         from railsim.record import Recorder
 
         self.recorder = Recorder(self, stride_s=float(scenario.outputs.trace_stride_s))
+        self.junction: Any = None  # the online junction planner (scenario ``junction:``), last: it draws a seed
+        if scenario.junction is not None:
+            from railsim.junction_control import JunctionCoordinator
+
+            self.junction = JunctionCoordinator(self, scenario.junction)
         self.steps = 0
         self.wall_s = 0.0
 
@@ -243,8 +258,20 @@ class Simulation:
             if len(stops) < 2 or stops[0].station_id != svc.from_station or stops[-1].station_id != svc.to_station:
                 raise ConfigError(scn.source, f"services[{svc.id}]",
                                   f"route from {svc.from_station} to {svc.to_station} does not serve both stations")
-            if svc.start_offset_m > 0.0:  # a trip that starts in motion skips the stops already behind it
-                start_m = stops[0].mark_m + float(svc.start_offset_m)
+            start_offset = float(svc.start_offset_m)
+            if svc.start_before_switch is not None:  # "the front starts distance_m before switch X"
+                where = f"services[{svc.id}].start.before_switch"
+                points = [rs.point_m for rs in route.switches if rs.switch_id == svc.start_before_switch]
+                if not points:
+                    raise ConfigError(scn.source, where, f"switch {svc.start_before_switch!r} is not on the route "
+                                      f"{route.id} (its switches: {', '.join(rs.switch_id for rs in route.switches)})")
+                start_offset = points[0] - float(svc.start_distance_m) - stops[0].mark_m
+                if start_offset < 0.0:
+                    raise ConfigError(scn.source, f"services[{svc.id}].start.distance_m",
+                                      f"{svc.start_distance_m:g} m before {svc.start_before_switch} lies behind the "
+                                      f"origin's stopping mark (at most {points[0] - stops[0].mark_m:.1f} m)")
+            if start_offset > 0.0:  # a trip that starts in motion skips the stops already behind it
+                start_m = stops[0].mark_m + start_offset
                 stops = (stops[0],) + tuple(st for st in stops[1:] if st.window_end_m > start_m)
                 if len(stops) < 2:
                     raise ConfigError(scn.source, f"services[{svc.id}].start.offset_m",
@@ -253,7 +280,7 @@ class Simulation:
             for k, (trip_id, dep) in enumerate(zip(svc.trip_ids, svc.departures_s)):
                 trip = Trip(trip_id=trip_id, service_id=svc.id, index=k, vehicle_name=svc.vehicle, vehicle=vehicle,
                             route=route, depart_s=float(dep), stops=stops, roles=dict(svc.roles),
-                            start_offset_m=float(svc.start_offset_m), start_speed_mps=float(svc.start_speed_mps))
+                            start_offset_m=start_offset, start_speed_mps=float(svc.start_speed_mps))
                 ato_factory = lambda r=dict(svc.roles), v=vehicle: self._controller("ato", r, v)  # noqa: E731
                 arr, depm = plan_free_run(trip, ato_factory, self.dt, self.step_method)
                 trip.planned_arrival_s.update(arr)
@@ -271,29 +298,36 @@ class Simulation:
             raise ConfigError(self.scenario.source, where, f"no trip {ref.trip} in service {ref.service!r}")
         return self.trains[trips[ref.trip].trip_id]
 
-    def _build_formations(self, Formation: Any) -> None:
+    def _build_formations(self) -> None:
         for k, f in enumerate(self.scenario.formations):
-            leader = self._trip_ref(f.leader, f"formations[{k}].leader")
-            follower = self._trip_ref(f.follower, f"formations[{k}].follower")
-            # decoupling completes at this true gap: the engine default, or beyond a large target gap
-            separation = max(self.settings.separation_gap_m, float(f.target_gap_m) + 100.0)
-            form = Formation(id=f.id, leader_id=leader.train_id, follower_id=follower.train_id,
-                             target_gap_m=float(f.target_gap_m), separation_gap_m=separation,
-                             coupling_timeout_s=float(f.coupling_timeout_s))
-            self.formations.add(form)
-            if _trig(f.couple, "on_departure"):
-                origin = follower.trip.origin.station_id
-                planned = leader.trip.planned_departure_s.get(origin)
-                if planned is None:
-                    raise ConfigError(self.scenario.source, f"formations[{k}].couple",
-                                      f"the leader's trip does not stop at the follower's origin {origin!r}")
-                shift = planned - follower.trip.depart_s
-                follower.trip.depart_s = planned
-                for d in (follower.trip.planned_arrival_s, follower.trip.planned_departure_s):
-                    for key in d:
-                        d[key] += shift
-            self.formation_of_follower[follower.train_id] = f
-            self.formation_of_leader.setdefault(leader.train_id, []).append(f)
+            self.add_formation(f, f"formations[{k}]")
+
+    def add_formation(self, f: Any, where: str = "formations") -> None:
+        """Register formation ``f`` (a :class:`railsim.scenario.FormationSpec`) with the state machine and the
+        engine's leader/follower maps: the scenario's at set-up, the junction planner's at run time."""
+        from railsim.events.formations import Formation
+
+        leader = self._trip_ref(f.leader, f"{where}.leader")
+        follower = self._trip_ref(f.follower, f"{where}.follower")
+        # decoupling completes at this true gap: the engine default, or beyond a large target gap
+        separation = max(self.settings.separation_gap_m, float(f.target_gap_m) + 100.0)
+        form = Formation(id=f.id, leader_id=leader.train_id, follower_id=follower.train_id,
+                         target_gap_m=float(f.target_gap_m), separation_gap_m=separation,
+                         coupling_timeout_s=float(f.coupling_timeout_s))
+        self.formations.add(form)
+        if _trig(f.couple, "on_departure"):
+            origin = follower.trip.origin.station_id
+            planned = leader.trip.planned_departure_s.get(origin)
+            if planned is None:
+                raise ConfigError(self.scenario.source, f"{where}.couple",
+                                  f"the leader's trip does not stop at the follower's origin {origin!r}")
+            shift = planned - follower.trip.depart_s
+            follower.trip.depart_s = planned
+            for d in (follower.trip.planned_arrival_s, follower.trip.planned_departure_s):
+                for key in d:
+                    d[key] += shift
+        self.formation_of_follower[follower.train_id] = f
+        self.formation_of_leader.setdefault(leader.train_id, []).append(f)
 
     def _schedule_departures(self) -> None:
         for tr in self.trains.values():
@@ -338,6 +372,15 @@ class Simulation:
             if depart_m < trip.origin.window_start_m:
                 self.events.record(self.layer.now_s, "platform_too_short", tr.train_id,
                                    detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m")
+        elif trip.start_speed_mps == 0.0 and trip.start_offset_m == 0.0:
+            blocker = self._insertion_blocker(tr, depart_m)
+            if blocker is not None:  # the dispatcher holds the departure: a train approaching could not stop
+                if tr.train_id not in self._held:
+                    self._held.add(tr.train_id)
+                    self.events.record(self.layer.now_s, "departure_held", tr.train_id, approaching=blocker)
+                self.layer.at(self.layer.now_s + self.settings.departure_retry_s, lambda _t, tr=tr: self._insert(tr),
+                              "departure_retry", tr.train_id)
+                return
         from railsim.sumo import StopSpec
 
         stops = []
@@ -369,6 +412,31 @@ class Simulation:
         tr.inserted_s = self.layer.now_s
         self.events.record(self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id,
                            chainage_m=round(depart_m, 3))
+
+    def _insertion_blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
+        """A train on the line that a departure at ``depart_m`` would put in danger, or None.
+
+        A train starting at a platform occupies ``[front - length, front]`` at once. If another train's front is
+        behind that rear (on shared track) by less than its service braking distance plus the separation margin
+        and one second of running, or already overlaps it, it could not stop: the departure waits (DESIGN §3: the
+        dispatcher, not the follower, is responsible for a train appearing on the track).
+        """
+        length = tr.trip.vehicle.length_m
+        for other in self._active():
+            if other is tr:
+                continue
+            mapped = other.view.map_body(tr.view, depart_m, length)
+            if mapped is None:
+                continue
+            front_o, rear_o = mapped
+            if front_o <= other.front_m - other.trip.vehicle.length_m:
+                continue  # it lies behind the other train's rear: the other one is ahead
+            v = other.plant.speed_mps
+            needed = v * v / (2.0 * other.trip.vehicle.service_decel_mps2) + v * 1.0 + \
+                self.settings.insertion_margin_m
+            if rear_o - other.front_m < needed:
+                return other.train_id
+        return None
 
     def _place_obstacle(self, oid: str, ev: Any) -> None:
         """A static obstacle appears ``ahead_m`` ahead of a train's front (on that train's route, fixed to the track)."""
@@ -551,12 +619,14 @@ class Simulation:
         # train be inserted exactly where and when the scenario says, at speed, close behind another (our
         # occupancy check, not SUMO, judges safety). Without this SUMO silently delays the insertion.
         vtypes = [VTypeSpec(name, v.length_m, max(v.max_speed_mps * 1.5, 1.0), accel_mps2=1.0,
-                            decel_mps2=1000.0, emergency_decel_mps2=1000.0, tau_s=0.001)
+                            decel_mps2=1000.0, emergency_decel_mps2=1000.0, tau_s=0.001, vclass=self.bundle.vclass)
                   for name, v in self.scenario.vehicles.items()]
         outs = tuple(self.scenario.outputs.sumo)
-        cfg = SumoConfig(net_file=self.bundle.net_file, additional_files=[self.bundle.stops_file], step_s=self.dt,
+        additional = list(self.bundle.additional_files) or [self.bundle.stops_file]  # an external net: the user's
+        cfg = SumoConfig(net_file=self.bundle.net_file, additional_files=additional, step_s=self.dt,
                          seed=self.seed, step_method=self.step_method, vtypes=vtypes,
-                         output_dir=self.out_dir if outs else None, sumo_outputs=outs)
+                         output_dir=self.out_dir if outs else None, sumo_outputs=outs,
+                         extra_args=self.sumo_extra_args)
         t_wall = _time.perf_counter()
         bar = None
         if self.progress:
@@ -636,6 +706,8 @@ class Simulation:
             self.sumo_collisions.append(c)
             self.events.record(t, "sumo_collision", str(c["collider"]), victim=str(c["victim"]), type=str(c["type"]))
 
+        if self.junction is not None:  # plans, re-plans, lock order, formations, hand-over at F
+            self.junction.update(t)
         for tr in active:
             self._stop_bookkeeping(t, tr)
             self._formation_bookkeeping(t, tr, ahead[tr.train_id])
@@ -695,12 +767,17 @@ class Simulation:
         if state not in ("coupling", "coupled", "decoupling"):
             return 0.0
         leader = self.trains[self.formations_leader_id(f)]
-        if leader.status not in ("running", "inserting"):
+        if leader.status in ("running", "inserting"):
+            lstop = leader.trip.stops[leader.next_stop] if leader.next_stop < len(leader.trip.stops) else None
+        elif leader.arrived_s is not None:
+            # it stands at its destination (SUMO no longer holds it): a platoon keeps its places there
+            lstop = leader.trip.stops[-1]
+        else:
             return 0.0
-        lstop = leader.trip.stops[leader.next_stop] if leader.next_stop < len(leader.trip.stops) else None
         if lstop is None or lstop.station_id != stop.station_id:
             return 0.0
-        return leader.trip.vehicle.length_m + float(f.target_gap_m)
+        # a chain (A <- B <- C) stands one behind the other: behind the leader's own halt position
+        return self._coupled_mark_offset(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
 
     def formations_leader_id(self, f: Any) -> str:
         return self.trains[self.trips_by_service[f.leader.service][f.leader.trip].trip_id].train_id
@@ -883,7 +960,8 @@ class Simulation:
                 continue
             if rs.point_m < tr.trip.depart_chainage_m - length:
                 continue
-            if sid not in tr.locks and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m:
+            if sid not in tr.locks and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m and \
+                    not (self.junction is not None and self.junction.manages_lock(tr.train_id, sid)):
                 holders = self._lock_group(tr, rs)
                 if holders is not None:
                     req = self.interlocking.request(holders, sid, rs.leg)
@@ -1043,6 +1121,9 @@ class Simulation:
             ato_extras["multipoint_rel_state"] = tr.mp_state.relative()
         commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
 
+        if self.junction is not None and self.junction.in_plan_phase(tr.train_id):
+            self._junction_commands(t, tr, a, base, commands, own_pos, own_v, fstate)
+            return self._finish_control(t, tr, commands, grad)
         # following: coupled controller on t2t data, or separation on ground data
         used_vc = False
         if f is not None and fstate in ("coupling", "coupled") and leader is not None and \
@@ -1093,6 +1174,35 @@ class Simulation:
                                    gap_m=round(float(ca_cmd.info.get("gap_m", INF)), 3)
                                    if math.isfinite(float(ca_cmd.info.get("gap_m", INF))) else None,
                                    trigger_m=ca_cmd.info.get("trigger_m"))
+        return self._finish_control(t, tr, commands, grad)
+
+    def _junction_commands(self, t: float, tr: TrainRuntime, a: Ahead | None, base: dict[str, Any],
+                           commands: dict[str, Command], own_pos: float, own_v: float, fstate: str) -> None:
+        """A train under the junction plan: the plan's command, and only a relative-braking-distance safety cap
+        against the train ahead (the coupled controller without gap tracking) — see railsim.junction_control."""
+        u = self.junction.command(t, tr, own_pos, own_v)
+        if u is not None:
+            commands["junction"] = Command(u)
+        if a is None:
+            return
+        other = self.trains[a.train_id]
+        f = self.formation_of_follower.get(tr.train_id)
+        own_leader = f is not None and self.formations_leader_id(f) == other.train_id
+        pred = self._known_state(tr, other, "t2t" if own_leader else "t2g", tr.train_id if own_leader else "ground")
+        guard = tr.controllers.get("coupled")
+        if pred is None:
+            return
+        if guard is None:
+            commands["separation"] = tr.controllers["separation"].command(
+                Observation(**base, predecessor=pred, formation_state=fstate))
+            return
+        target = self.junction.target_gap_m
+        commands["guard"] = guard.command(Observation(**base, predecessor=pred, formation_state="coupling",
+                                                      target_gap_m=target, extras={"vc_tracking": False}))
+
+    def _finish_control(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
+        """Arbitrate the roles' commands (minimum) and advance the plant; returns the speed handed to SUMO."""
+        veh = tr.trip.vehicle
         role, cmd = arbitrate(commands)
         if cmd.emergency and tr.emergency_since_s is None:
             tr.emergency_since_s = t

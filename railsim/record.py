@@ -68,7 +68,7 @@ class Recorder:
         (``reports``: route, chainage, speed, applied acceleration, time — taken before the plant step) and the
         command decided at t."""
         sim = self.sim
-        for fid, f in ((f.id, f) for f in sim.scenario.formations):
+        for fid, f in ((f.id, f) for f in sim.formation_of_follower.values()):
             if sim.formations.state(fid) != "coupled":
                 continue
             fol = sim._trip_ref(f.follower, "formations")
@@ -131,7 +131,7 @@ class Recorder:
     def formation_rows(self) -> list[dict[str, Any]]:
         sim = self.sim
         rows = []
-        for f in sim.scenario.formations:
+        for f in sim.formation_of_follower.values():  # the scenario's, then any formed at run time (junction)
             st = sim.formations.stats(f.id)
             fol = sim._trip_ref(f.follower, "formations")
             lead = sim._trip_ref(f.leader, "formations")
@@ -191,6 +191,7 @@ class Recorder:
             "wall_s": sim.wall_s,
             "steps": sim.steps,
             "step_s": sim.dt,
+            **({"junction": sim.junction.summary()} if getattr(sim, "junction", None) is not None else {}),
         }
 
     # ------------------------------------------------------------------ files

@@ -25,7 +25,9 @@ from railsim import output
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("reproduce", help="re-run a paper experiment in its numpy model and write its figures")
-    p.add_argument("experiment", choices=["paper001", "paper002"], help="which experiment")
+    p.add_argument("experiment", choices=["paper001", "paper002", "paper004"], help="which experiment")
+    p.add_argument("--workers", type=int, default=None, help="paper004: local worker processes (default: cores)")
+    p.add_argument("--dask", default=None, metavar="ADDRESS", help="paper004: run the cases on this Dask scheduler")
     p.add_argument("--out", required=True, help="output folder")
     p.add_argument("--topology", choices=["union", "path"], default="union",
                    help="paper002: reading of the lost Fig. 2 (spec 002 §3.2)")
@@ -89,8 +91,76 @@ def reproduce_paper001(out: Path, scenario: str = "A", controllers: str = "sempc
     return {"experiment": "paper001", "scenario": scenario, "metrics": metrics, "figure": str(figure)}
 
 
+PAPER004_METRICS = ("coupling_time_s", "coupled_speed_mps", "cost", "operation_time_s", "min_separation_m",
+                    "max_gap_error_m", "max_speed_diff_mps", "plan_wall_time_s_mean")
+
+
+def paper004_table(tables: dict[int, Any]) -> Any:
+    """Table 3 comparison from the SUMO sweep tables: one row per (scenario, method), mean ± std over the seeds.
+
+    ``coupled_rate`` is the share of runs coupled at F (spec Eq. 2–3 at the moment the leader reaches F, measured on
+    the SUMO trajectories); the safety columns add up collisions and switch violations over all runs.
+    """
+    import pandas as pd
+
+    rows = []
+    for sc, df in sorted(tables.items()):
+        df = df[df["status"] == "ok"]
+        for method, g in df.groupby("junction.method", sort=False):
+            row: dict[str, Any] = {"scenario": sc, "method": method, "runs": len(g),
+                                   "coupled_rate": float(g["junction.coupled_at_F"].astype(float).mean()),
+                                   "collisions": int(g["collisions"].sum()),
+                                   "switch_violations": int(g["switch_violations"].sum())}
+            for m in PAPER004_METRICS:
+                col = f"junction.{m}"
+                vals = pd.to_numeric(g[col], errors="coerce").dropna() if col in g else pd.Series(dtype=float)
+                row[f"{m}_mean"] = float(vals.mean()) if len(vals) else None
+                row[f"{m}_std"] = float(vals.std(ddof=0)) if len(vals) else None
+            rows.append(row)
+    return pd.DataFrame(rows)
+
+
+def paper004_markdown(table: Any) -> str:
+    def pm(r: Any, m: str, nd: int = 1) -> str:
+        mean, std = r[f"{m}_mean"], r[f"{m}_std"]
+        return "–" if mean is None or mean != mean else f"{mean:.{nd}f} ± {std:.{nd}f}"
+
+    lines = ["| scenario | method | runs | coupled at F | T_c [s] | V_c [m/s] | f_c | operation [s] | "
+             "min head-to-head [m] | max gap error [m] | collisions | switch violations |",
+             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    for _, r in table.iterrows():
+        lines.append(f"| {r['scenario']} | {r['method']} | {r['runs']} | {r['coupled_rate']:.2f} | "
+                     f"{pm(r, 'coupling_time_s')} | {pm(r, 'coupled_speed_mps', 2)} | {pm(r, 'cost')} | "
+                     f"{pm(r, 'operation_time_s')} | {pm(r, 'min_separation_m')} | {pm(r, 'max_gap_error_m')} | "
+                     f"{r['collisions']} | {r['switch_violations']} |")
+    return "\n".join(lines)
+
+
+def reproduce_paper004(out: Path, workers: int | None = None, dask: str | None = None) -> dict[str, Any]:
+    """Paper E Table 3 on SUMO: the sweeps ``scenarios/sweeps/paper004_table3_s{1,2,3}.yaml`` (methods × seeds),
+    resumable in ``out/s1..s3``, then the comparison table (``comparison.csv``/``.md``)."""
+    from railsim import output, sweep
+
+    root = Path(__file__).resolve().parents[1] / "scenarios" / "sweeps"
+    tables = {}
+    for sc in (1, 2, 3):
+        folder = out / f"s{sc}"
+        sweep.run_sweep(root / f"paper004_table3_s{sc}.yaml", folder, workers=workers, dask_address=dask)
+        tables[sc] = sweep.load_table(folder)
+    table = paper004_table(tables)
+    out.mkdir(parents=True, exist_ok=True)
+    output.write_csv(out / "comparison.csv", table.to_dict("records"), list(table.columns))
+    md = paper004_markdown(table)
+    (out / "comparison.md").write_text(md + "\n", encoding="utf-8")
+    return {"experiment": "paper004", "table": md}
+
+
 def cmd_reproduce(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if args.experiment == "paper004":
+        summary = reproduce_paper004(out, args.workers, args.dask)
+        print(summary["table"])
+        return 0
     if args.experiment == "paper001":
         summary = reproduce_paper001(out, args.scenario, args.controllers)
         for name, m in summary["metrics"].items():

@@ -21,7 +21,8 @@ The schema (every key; ``#`` comments give type, range and default)::
     world: chongqing_line3                # required: a shipped world name, or one of the mappings
                                           #   {name: straight_corridor, params: {length_km: 60}}
                                           #   {line: lines/my_line.yaml}            (relative to this file)
-                                          #   {net: my.net.xml, additional: [stops.add.xml]}   (kept for later use)
+                                          #   {net: my.net.xml, additional: [stops.add.xml],   (a SUMO net:
+                                          #    signals: strip, vclass: auto, throw_time_s: 6}   network.external)
     simulation:                           # required
       step_s: 0.5                         # required, 0 < step_s <= 5
       duration_s: 7200                    # required, > 0: simulated seconds after t = 0
@@ -186,6 +187,9 @@ class WorldSpec:
     line: Path | None = None
     net: Path | None = None
     additional: tuple[Path, ...] = ()
+    signals: str = "strip"  # net worlds: strip | keep SUMO's rail signals (network.external)
+    vclass: str | None = None  # net worlds: the rail vClass of our trains (None: chosen from the net)
+    throw_time_s: float = 6.0  # net worlds: throw time of every switch (a SUMO net has none)
 
     @property
     def label(self) -> str:
@@ -245,6 +249,8 @@ class ServiceSpec:
     roles: dict[str, str] = field(default_factory=dict)
     start_offset_m: float = 0.0  # trips start this far beyond the origin's stopping mark (paper experiments)
     start_speed_mps: float = 0.0  # ... at this speed (0: a normal departure from the platform)
+    start_before_switch: str | None = None  # or: the front starts start_distance_m before this switch's point
+    start_distance_m: float = 0.0
 
     def dwell_s(self, station: str) -> float:
         """Scheduled dwell at ``station`` [s]."""
@@ -334,6 +340,28 @@ class CooperativeSpec:
     """Trains controlled by a graph law (Paper C): the neighbour graph as edges with activity windows."""
 
     edges: tuple[CooperativeEdge, ...] = ()
+
+
+JUNCTION_METHODS = ("improved_pso", "plain_pso", "naive1", "naive2")
+
+
+@dataclass(frozen=True)
+class JunctionSpec:
+    """Trains coordinated through a junction by the cooperative-game planner (Paper E, spec 004 §7).
+
+    ``trains`` are trip ids; ``method`` is the planner (improved/plain PSO) or a naive baseline; the ground
+    re-plans every ``replan_s`` seconds; ``target_gap_m`` is the coupled gap handed to the formations after
+    the junction (``None``: the planner's standstill gap ``S_0``); ``params``/``pso``/``replan_pso`` override
+    :class:`controllers.junction.model.JunctionParams` and :class:`controllers.junction.pso.PSOParams` fields.
+    """
+
+    trains: tuple[str, ...]
+    method: str = "improved_pso"
+    replan_s: float = 2.0
+    target_gap_m: float | None = None
+    params: dict[str, Any] = field(default_factory=dict)
+    pso: dict[str, Any] = field(default_factory=dict)
+    replan_pso: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -455,6 +483,7 @@ class Scenario:
     raw: dict[str, Any] = field(repr=False)
     cooperative: CooperativeSpec = field(default_factory=CooperativeSpec)
     plants: dict[str, PlantSpec] = field(default_factory=dict)  # vehicle name -> non-default plant
+    junction: JunctionSpec | None = None
 
     def service(self, service_id: str) -> ServiceSpec:
         """The service called ``service_id`` (KeyError if none)."""
@@ -666,14 +695,39 @@ def with_overrides(scn_raw: Mapping[str, Any], overrides: Mapping[str, Any]) -> 
     return out
 
 
-def check_against_world(scn: Scenario, stations: Collection[str], switches: Collection[str]) -> None:
-    """Check that every station id and switch id the scenario names exists in the built world."""
+def _check_fields(checker: Any, values: Mapping[str, Any], path: str, module: str, cls_name: str) -> None:
+    """Build ``module.cls_name(**values)`` once: unknown fields and rejected values name ``path.field``."""
+    import importlib
+
+    cls = getattr(importlib.import_module(module), cls_name)
+    names = {f.name for f in dataclasses.fields(cls)}
+    for key in values:
+        if key not in names:
+            raise checker.fail(f"{path}.{key}", f"unknown field{_hint(key, sorted(names))}; "
+                                                f"known: {', '.join(sorted(names))}")
+    try:
+        cls(**values)
+    except (TypeError, ValueError) as exc:
+        msg = str(exc)
+        field_name, _, rest = msg.partition(":")
+        if field_name in values:
+            raise checker.fail(f"{path}.{field_name}", rest.strip() or msg) from None
+        raise checker.fail(path, msg) from None
+
+
+def check_against_world(scn: Scenario, stations: Collection[str], switches: Collection[str],
+                        aliases: Mapping[str, str] | None = None) -> None:
+    """Check that every station id and switch id the scenario names exists in the built world.
+
+    ``aliases`` (external nets) are other names a station may go by: its name or a stop id -> station id.
+    """
     source = str(scn.source) if scn.source is not None else "<scenario>"
     world = scn.world.label
     station_set, switch_set = set(stations), set(switches)
+    known = station_set | set(aliases or ())
 
     def station(value: str, path: str) -> None:
-        if value not in station_set:
+        if value not in known:
             hint = _hint(value, station_set)
             raise ConfigError(source, path, f"expected a station id of world {world!r}, got {value!r}{hint}")
 
@@ -701,13 +755,31 @@ def check_against_world(scn: Scenario, stations: Collection[str], switches: Coll
                 )
 
 
+def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
+    """The scenario with every station it names by an alias (a name or stop id of an external net's station)
+    replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario)."""
+    def sid(name: str) -> str:
+        return aliases.get(name, name)
+
+    def trig(t: TriggerSpec | None) -> TriggerSpec | None:
+        return t if t is None or t.station is None else dataclasses.replace(t, station=sid(t.station))
+
+    services = tuple(dataclasses.replace(
+        svc, from_station=sid(svc.from_station), to_station=sid(svc.to_station),
+        via=tuple(sid(v) for v in svc.via), skip=tuple(sid(v) for v in svc.skip),
+        dwell_by_station={sid(k): v for k, v in svc.dwell_by_station.items()}) for svc in scn.services)
+    formations = tuple(dataclasses.replace(f, couple=trig(f.couple), decouple=trig(f.decouple))
+                       for f in scn.formations)
+    return dataclasses.replace(scn, services=services, formations=formations)
+
+
 # --------------------------------------------------------------------------------------------------------------
 # Validation
 # --------------------------------------------------------------------------------------------------------------
 
 _ID_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-]*$")
 _TOP_REQUIRED = ("name", "world", "simulation", "vehicles", "controllers", "roles", "services")
-_TOP_OPTIONAL = ("description", "formations", "events", "faults", "outputs", "cooperative")
+_TOP_OPTIONAL = ("description", "formations", "events", "faults", "outputs", "cooperative", "junction")
 _VEHICLE_FIELDS = {f.name: f for f in dataclasses.fields(VehicleParams) if f.name != "name"}
 # Lower bounds of vehicle fields: ("gt"|"ge", bound). Fields not listed only need the right type.
 _VEHICLE_BOUNDS: dict[str, tuple[str, float]] = {
@@ -899,6 +971,9 @@ class _Validator:
             raw["cooperative"] = coop_raw
         faults, raw["faults"] = self.faults(top.get("faults") or {}, services)
         outputs, raw["outputs"] = self.outputs(top.get("outputs") or {}, sim)
+        junction = None
+        if top.get("junction") is not None:
+            junction, raw["junction"] = self.junction(top["junction"], services, formations)
         # Last, because it depends on code outside this file (the controller registry).
         self.check_controllers(ctrls, services, vehicles)
 
@@ -919,6 +994,7 @@ class _Validator:
             raw=raw,
             cooperative=cooperative,
             plants=dict(self.plants),
+            junction=junction,
         )
 
     def world(self, value: Any) -> tuple[WorldSpec, Any]:
@@ -941,15 +1017,25 @@ class _Validator:
             m = self.mapping(value, "world", ("line",))
             line = self.path_value(m["line"], "world.line")
             return WorldSpec(kind="line", line=line), {"line": str(line)}
-        m = self.mapping(value, "world", ("net",), ("additional",))
+        from network.external import DEFAULT_THROW_TIME_S, RAIL_VCLASSES, SIGNAL_MODES
+
+        m = self.mapping(value, "world", ("net",), ("additional", "signals", "vclass", "throw_time_s"))
         net = self.path_value(m["net"], "world.net")
         extra = m.get("additional") or []
         if not isinstance(extra, list):
             raise self.expect("world.additional", "a list of file paths", extra)
         additional = tuple(self.path_value(v, f"world.additional[{i}]") for i, v in enumerate(extra))
-        return WorldSpec(kind="net", net=net, additional=additional), {
+        signals = self.string(m.get("signals", "strip"), "world.signals", SIGNAL_MODES)
+        vclass = m.get("vclass")
+        vclass = None if vclass in (None, "auto") else self.string(vclass, "world.vclass", RAIL_VCLASSES)
+        throw = self.number(m.get("throw_time_s", DEFAULT_THROW_TIME_S), "world.throw_time_s", ge=0.0)
+        return WorldSpec(kind="net", net=net, additional=additional, signals=signals, vclass=vclass,
+                         throw_time_s=throw), {
             "net": str(net),
             "additional": [str(p) for p in additional],
+            "signals": signals,
+            "vclass": vclass or "auto",
+            "throw_time_s": throw,
         }
 
     def simulation(self, value: Any) -> tuple[SimulationSpec, dict[str, Any]]:
@@ -1154,9 +1240,19 @@ class _Validator:
         departures, dep_raw = self.departures(m["departures"], f"{path}.departures", sim)
         dwell_default, dwell_stations, dwell_raw = self.dwell(m.get("dwell_s", DEFAULT_DWELL_S), f"{path}.dwell_s")
         own_roles, own_raw = self.roles(m.get("roles") or {}, ctrls, f"{path}.roles", required=False)
-        start_in = self.mapping(m.get("start") or {}, f"{path}.start", (), ("offset_m", "speed_kmh"))
+        start_in = self.mapping(m.get("start") or {}, f"{path}.start", (),
+                                ("offset_m", "speed_kmh", "before_switch", "distance_m"))
         start_offset = self.number(start_in.get("offset_m", 0.0), f"{path}.start.offset_m", ge=0.0)
         start_kmh = self.number(start_in.get("speed_kmh", 0.0), f"{path}.start.speed_kmh", ge=0.0)
+        start_switch = None
+        start_distance = 0.0
+        if "before_switch" in start_in or "distance_m" in start_in:
+            if "offset_m" in start_in:
+                raise self.fail(f"{path}.start", "give either offset_m or before_switch + distance_m, not both")
+            if "before_switch" not in start_in or "distance_m" not in start_in:
+                raise self.fail(f"{path}.start", "before_switch and distance_m go together")
+            start_switch = self.string(start_in["before_switch"], f"{path}.start.before_switch")
+            start_distance = self.number(start_in["distance_m"], f"{path}.start.distance_m", gt=0.0)
         width = max(3, len(str(len(departures) - 1)))
         trip_ids = tuple(f"{sid}.{k:0{width}d}" for k in range(len(departures)))
         late = [t for t in departures if t > sim.duration_s]
@@ -1179,12 +1275,16 @@ class _Validator:
             roles={**roles, **own_roles},
             start_offset_m=start_offset,
             start_speed_mps=start_kmh / 3.6,
+            start_before_switch=start_switch,
+            start_distance_m=start_distance,
         )
         raw = {
             "id": sid, "from": origin, "to": dest, "via": via, "vehicle": vehicle, "departures": dep_raw,
             "dwell_s": dwell_raw, "skip": skip, "roles": own_raw,
         }
-        if start_in:
+        if start_in and start_switch is not None:
+            raw["start"] = {"before_switch": start_switch, "distance_m": start_distance, "speed_kmh": start_kmh}
+        elif start_in:
             raw["start"] = {"offset_m": start_offset, "speed_kmh": start_kmh}
         return spec, raw
 
@@ -1354,6 +1454,39 @@ class _Validator:
         names = [svc.id for svc in services]
         hint = _hint(value, names) if isinstance(value, str) else ""
         raise self.fail(path, f"expected a trip id or a one-trip service id, got {_short(value)}{hint}")
+
+    def junction(self, value: Any, services: Sequence[ServiceSpec],
+                 formations: Sequence[FormationSpec]) -> tuple[JunctionSpec, dict[str, Any]]:
+        m = self.mapping(value, "junction", ("trains",),
+                         ("method", "replan_s", "target_gap_m", "params", "pso", "replan_pso"))
+        if not isinstance(m["trains"], list) or not 2 <= len(m["trains"]) <= 8:
+            raise self.expect("junction.trains", "a list of 2 to 8 trains (trip ids or one-trip service ids)",
+                              m["trains"])
+        trains = [self.trip_name(v, f"junction.trains[{i}]", services) for i, v in enumerate(m["trains"])]
+        if len(set(trains)) != len(trains):
+            raise self.fail("junction.trains", f"a train is listed twice: {trains}")
+        for f in formations:
+            for ref in (f.leader, f.follower):
+                tid = next(svc.trip_ids[ref.trip] for svc in services if svc.id == ref.service)
+                if tid in trains:
+                    raise self.fail("junction.trains", f"{tid} is in formation {f.id!r}; the junction planner "
+                                                       "forms the formations of its trains itself (in passing order)")
+        method = self.string(m.get("method", "improved_pso"), "junction.method", JUNCTION_METHODS)
+        replan = self.number(m.get("replan_s", 2.0), "junction.replan_s", gt=0.0)
+        gap = m.get("target_gap_m")
+        gap = None if gap is None else self.number(gap, "junction.target_gap_m", gt=0.0)
+        params = dict(self.free_mapping(m.get("params") or {}, "junction.params"))
+        pso = dict(self.free_mapping(m.get("pso") or {}, "junction.pso"))
+        replan_pso = dict(self.free_mapping(m.get("replan_pso") or {}, "junction.replan_pso"))
+        _check_fields(self, params, "junction.params", "controllers.junction.model", "JunctionParams")
+        _check_fields(self, pso, "junction.pso", "controllers.junction.pso", "PSOParams")
+        _check_fields(self, replan_pso, "junction.replan_pso", "controllers.junction.pso", "PSOParams")
+        spec = JunctionSpec(tuple(trains), method, replan, gap, params, pso, replan_pso)
+        raw = {"trains": trains, "method": method, "replan_s": replan, "params": copy.deepcopy(params),
+               "pso": copy.deepcopy(pso), "replan_pso": copy.deepcopy(replan_pso)}
+        if gap is not None:
+            raw["target_gap_m"] = gap
+        return spec, raw
 
     def cooperative(self, value: Any, services: Sequence[ServiceSpec]) -> tuple[CooperativeSpec, dict[str, Any]]:
         m = self.mapping(value, "cooperative", (), ("edges",))

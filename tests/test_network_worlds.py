@@ -153,7 +153,9 @@ def test_y_junction_names_its_entries_and_switches() -> None:
             assert s.point_m == pytest.approx(2000.0 + dist, abs=0.5)
         (f,) = r.points
         assert f.point_id == "F" and f.point_m - r.switches[-1].point_m == pytest.approx(s5, abs=0.5)
-        assert r.stops[0].start_m > f.point_m
+        # an origin station at the far end of each entry track, the platform beyond F
+        assert r.stops[0].station_id == entry and r.stops[0].end_m < 2000.0
+        assert r.stops[-1].station_id == "platform" and r.stops[-1].start_m > f.point_m
     # legs swap with the parameter
     swapped = network.build("y_junction", sw1_branch_leg="normal", S3=300)
     r = swapped.routes["entry3->platform"]

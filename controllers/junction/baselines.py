@@ -23,7 +23,7 @@ from typing import Literal
 
 import numpy as np
 
-from controllers.junction.model import Problem
+from controllers.junction.model import JunctionParams, Problem
 
 Rule = Literal["naive1", "naive2"]
 
@@ -38,6 +38,22 @@ def priority_order(problem: Problem, rule: Rule) -> list[int]:
     if rule == "naive2":
         return sorted(idx, key=lambda k: (-v0[k], d_first[k], k))
     raise ValueError(f"rule: expected naive1 or naive2, got {rule!r}")
+
+
+def approach_speed_cap(speed_mps: float, distance_m: float, limit_mps: float, dt_s: float,
+                       brake_mps2: float) -> float:
+    """Highest speed [m/s] allowed now so that the train meets ``limit_mps`` at ``distance_m`` ahead.
+
+    The braking curve uses 80 % of ``brake_mps2`` and looks one step ahead, so discrete tracking of the curve
+    never overshoots the switch or its limit (the naive strategies' "run towards the next switch's limit").
+    """
+    look = distance_m - speed_mps * dt_s
+    return float(min(limit_mps, np.sqrt(limit_mps ** 2 + 2.0 * 0.8 * brake_mps2 * max(look, 0.0))))
+
+
+def accel_towards(speed_cap_mps: float, speed_mps: float, dt_s: float, params: JunctionParams) -> float:
+    """Acceleration that reaches ``speed_cap_mps`` in one step, within the planner's ``[a_min, a_max]``."""
+    return float(np.clip((speed_cap_mps - speed_mps) / dt_s, params.accel_min_mps2, params.accel_max_mps2))
 
 
 def run_naive(problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float = 600.0
@@ -69,11 +85,8 @@ def run_naive(problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float 
                 sw = tr.switches[nxt[k]]
                 v_lim = p.limit_speed_mps(sw.leg)
                 d_sw = sw.distance_m - s[k]
-                caps.append(v_lim)
-                # braking curves use 80 % of |a_min| and look one step ahead, so the discrete tracking of the
-                # curve never overshoots the switch or its limit
+                caps.append(approach_speed_cap(float(v[k]), d_sw, v_lim, dt_s, b))
                 look = d_sw - v[k] * dt_s
-                caps.append(np.sqrt(v_lim ** 2 + 2.0 * 0.8 * b * max(look, 0.0)))
                 users = [q for q in range(n) if any(x.switch_id == sw.switch_id for x in trains[q].switches)]
                 ahead = [q for q in users if rank[q] < rank[k]]
                 done = {q for _, q, _ in passed[sw.switch_id]}
@@ -97,8 +110,7 @@ def run_naive(problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float 
                 if st_q > st_k and st_k >= first_common - 1e-9 and st_q >= first_common:
                     gap = st_q - st_k - p.pred_length_m - p.standstill_gap_m - v[k] * dt_s
                     caps.append(np.sqrt(2.0 * 0.8 * b * max(gap, 0.0)))
-            v_cap = min(caps)
-            acc[k] = np.clip((v_cap - v[k]) / dt_s, p.accel_min_mps2, p.accel_max_mps2)
+            acc[k] = accel_towards(min(caps), float(v[k]), dt_s, p)
         s_new = s + np.maximum(v * dt_s + 0.5 * acc * dt_s ** 2, 0.0)
         v_new = np.maximum(v + acc * dt_s, 0.0)
         for k, tr in enumerate(trains):

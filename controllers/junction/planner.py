@@ -433,10 +433,14 @@ def past_point_of_no_return(trains: Sequence[TrainState], params: JunctionParams
 def replan(previous: JunctionPlan, trains: Sequence[TrainState], switches: Sequence[SwitchState] = (),
            layout: YJunctionLayout | None = None, params: JunctionParams | None = None,
            method: Literal["improved_pso", "plain_pso"] = "improved_pso", pso: PSOParams | None = None,
-           rng: np.random.Generator | None = None) -> JunctionPlan:
-    """Receding-horizon re-plan (spec §7 steps 2–4): warm start from ``previous``; order frozen past the PNR."""
+           rng: np.random.Generator | None = None, keep_order: bool = False) -> JunctionPlan:
+    """Receding-horizon re-plan (spec §7 steps 2–4): warm start from ``previous``; order frozen past the PNR.
+
+    ``keep_order`` freezes the order regardless of the current states (a caller that froze it earlier keeps it
+    frozen after the train that triggered the freeze has passed its switch and left the criterion).
+    """
     params = params or JunctionParams()
-    frozen = bool(past_point_of_no_return(trains, params))
+    frozen = keep_order or bool(past_point_of_no_return(trains, params))
     ids = [t.train_id for t in trains]
     if frozen and sorted(previous.order) != sorted(ids):
         raise PlannerError(f"order is frozen ({', '.join(past_point_of_no_return(trains, params))} past the point "

@@ -62,6 +62,9 @@ def _y_junction(S1: float, S2: float, S3: float, S4: float, S5: float, approach_
     f_km = sw2_km + S5 / 1000.0
     platform_km = f_km + (platform_offset_m + platform_length_m / 2) / 1000.0
 
+    def origin(track_start_km: float) -> float:  # platform centre, 50 m clear of the track's end
+        return round(track_start_km + (50.0 + platform_length_m / 2) / 1000.0, 6)
+
     def switch(sid: str) -> dict[str, Any]:
         return {"id": sid, "throw_time_s": throw_time_s, "diverging_speed_kmh": diverging_speed_kmh,
                 "normal_speed_kmh": normal_speed_kmh}
@@ -77,17 +80,24 @@ def _y_junction(S1: float, S2: float, S3: float, S4: float, S5: float, approach_
         "main_line_id": "trunk",
         "start_name": "entry2",
         "from_km": 0.0,
-        "stations": [{"id": "platform", "name": "Platform", "km": platform_km}],
+        # an origin station at the far end of each entry track (trains for the junction start from them,
+        # usually already in motion close to the switches: scenario ``start: {before_switch, distance_m}``)
+        "stations": [{"id": "entry2", "name": "Entry 2 origin", "km": origin(0.0)},
+                     {"id": "platform", "name": "Platform", "km": platform_km}],
         "points": [{"id": "F", "line": "trunk", "km": f_km}],
         "branches": [
             {"id": "entry3", "name": "entry track 3", "joins": "trunk", "at_km": sw1_km, "side": "down",
              "leg": sw1_branch_leg, "turnout_length_m": turnout_length_m,
              "from_km": sw1_km - (S3 + approach_m) / 1000.0,
-             "switches": {"up": switch("sw1"), "down": switch("sw1_down")}},
+             "switches": {"up": switch("sw1"), "down": switch("sw1_down")},
+             "stations": [{"id": "entry3", "name": "Entry 3 origin",
+                           "km": origin(sw1_km - (S3 + approach_m) / 1000.0)}]},
             {"id": "entry1", "name": "entry track 1", "joins": "trunk", "at_km": sw2_km, "side": "down",
              "leg": sw2_branch_leg, "turnout_length_m": turnout_length_m,
              "from_km": sw2_km - (S1 + approach_m) / 1000.0,
-             "switches": {"up": switch("sw2"), "down": switch("sw2_down")}},
+             "switches": {"up": switch("sw2"), "down": switch("sw2_down")},
+             "stations": [{"id": "entry1", "name": "Entry 1 origin",
+                           "km": origin(sw2_km - (S1 + approach_m) / 1000.0)}]},
         ],
     }
 
