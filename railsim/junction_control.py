@@ -133,6 +133,9 @@ class JunctionCoordinator:
         throw_s = max(sim.bundle.switches[sid].throw_time_s for sid in SWITCHES if sid in sim.bundle.switches)
         try:
             probe = JunctionParams(**{"pred_length_m": max(lengths), **spec.params})
+            if "standstill_gap_m" not in spec.params:
+                probe = dataclasses.replace(probe, standstill_gap_m=max(
+                    probe.standstill_gap_m, self._safe_gap_m(probe.normal_speed_mps)))
             self.switch_interval_s = self._switch_interval_s(probe, throw_s, max(lengths))
             self.params = dataclasses.replace(probe, throw_time_s=self.switch_interval_s) \
                 if "throw_time_s" not in spec.params else probe
@@ -194,6 +197,35 @@ class JunctionCoordinator:
         v = p.normal_speed_mps
         sighting = (v * v / (2.0 * abs(p.accel_min_mps2)) + st.protection_margin_m) / v
         return float(release + throw_s + sighting)
+
+    def _safe_gap_m(self, speed_mps: float) -> float:
+        """The gap the followers' own coupled controller holds at ``speed_mps`` behind an equally fast leader.
+
+        *Reading:* the planner's ``S_0`` (standstill part of ``S_m``, spec §6 #5) is raised to this gap, so that the
+        planned slots at F are ones the engine's relative-braking-distance safety cap lets the trains take; with
+        the spec's ``S_0`` = 10 m the guard holds followers ~8 m further back than planned (measured in SUMO) and
+        no platoon meets Eq. 2 (``|D − S_m| ≤ 5 m``). The controller is asked, not re-derived: one ``command`` on a
+        synthetic observation (leader at equal speed, message age = the t2t delay's mean) returns its target.
+        """
+        from controllers.base import Observation, OwnState, PredecessorState
+
+        gaps = [0.0]
+        ch = self.sim.channels.get("t2t")
+        age = float(ch.delay.mean_delay_s) if ch is not None else 0.1
+        for tid in self.members:
+            tr = self.sim.trains[tid]
+            ctl = tr.controllers.get("coupled")
+            if ctl is None:
+                continue
+            veh = tr.trip.vehicle
+            own = OwnState(tid, 1000.0, speed_mps, 0.0, veh.length_m)
+            pred = PredecessorState("leader", 2000.0, speed_mps, 0.0, veh.length_m, 0.0, age,
+                                    veh.service_decel_mps2, veh.emergency_decel_mps2)
+            obs = Observation(t_s=age, dt_s=self.sim.dt, own=own, vehicle=veh, route_length_m=1e6,
+                              predecessor=pred, formation_state="coupled", target_gap_m=1.0)
+            info = ctl.command(obs).info or {}
+            gaps.append(float(info.get("target_gap_m", 0.0)))
+        return max(gaps)
 
     @staticmethod
     def _turnout_start(tr: TrainRuntime, point_m: float) -> float:

@@ -24,3 +24,16 @@ def test_shipped_scenario_validates(path: Path, tmp_path: Path) -> None:
     res = run_railsim(["validate", str(path)], cache_dir=tmp_path)
     assert res.returncode == 0, res.stderr
     assert res.stdout.startswith("ok:"), res.stdout
+
+
+SWEEPS = sorted(p for p in (ROOT / "scenarios" / "sweeps").glob("*.yaml") if "\nbase:" in "\n" + p.read_text())
+
+
+@pytest.mark.parametrize("path", SWEEPS, ids=[p.stem for p in SWEEPS])
+def test_shipped_sweep_validates(path: Path) -> None:
+    """Every case of every shipped sweep file loads and passes the scenario schema (world ids: the scenarios above)."""
+    from railsim import sweep
+
+    spec = sweep.load_sweep(path)
+    assert spec.cases
+    sweep.validate_cases(spec, world_check=False)
