@@ -130,3 +130,33 @@ def test_segment_grid_covers_start_switches_and_F(d1, d2, d3, v):
         assert np.all(np.diff(edges) > 0.0) and np.all(np.diff(edges) <= problem.params.segment_m + 2e-3)
         for sw in tr.switches:
             assert np.min(np.abs(edges - sw.distance_m)) < 1e-6
+
+
+def test_relative_braking_term_matches_closed_form_at_constant_speeds() -> None:
+    """The optional RBD spacing term (``rbd_reaction_s`` > 0): two trains holding their speeds (all accelerations
+    0) on the trunk. The leader's rear is at ``v_l·t − m_l − L`` in merge coordinates, the follower passes shared
+    point ``x`` at ``t = (x + m_f)/v_f``; the term is the worst ``need − gap`` over the shared points."""
+    import numpy as np
+
+    from controllers.junction.model import JunctionParams, rollout
+    from controllers.junction.planner import TrainState, YJunctionLayout, build_problem
+
+    params = JunctionParams(pred_length_m=20.0, rbd_reaction_s=1.0, rbd_decel_mps2=1.5, rbd_margin_m=10.0)
+    trains = [TrainState("lead", "entry2", 100.0, 8.0), TrainState("fol", "entry3", 150.0, 10.0)]
+    problem = build_problem(trains, (), YJunctionLayout(), params)
+    x = np.zeros((1, problem.dimension))
+    r = rollout(problem, x)
+    (i, j, ii, jj), = problem.shared_pairs
+    lead, fol = (i, j) if problem.trains[i].train_id == "lead" else (j, i)
+    jf = jj if fol == j else ii
+    m_l, m_f = problem.merge_distance_m[lead], problem.merge_distance_m[fol]
+    pts = problem.breakpoints_m[fol, jf] - m_f                    # shared points, merge coordinates
+    t_f = (pts + m_f) / 10.0
+    gap = (8.0 * t_f - m_l) - pts - 20.0
+    need = 10.0 * 1.0 + (10.0 ** 2 - 8.0 ** 2) / (2 * 1.5) + 10.0
+    expected = max(float(np.max(need - gap)), 0.0)
+    assert expected > 0.0  # the follower closes in: the spacing is violated somewhere
+    assert r.terms["relative_braking"][0] == pytest.approx(expected, rel=1e-9, abs=1e-9)
+    # off by default (the paper): no such term
+    plain = build_problem(trains, (), YJunctionLayout(), JunctionParams(pred_length_m=20.0))
+    assert "relative_braking" not in rollout(plain, x).terms

@@ -42,6 +42,12 @@ Constraints (Eqs. 37–39 plus the implicit ones of §2.8), each as ``max(g, 0)`
     the coupled state at ``T_c``: ``|D − S_m| ≤ S_th`` and ``|Δv| ≤ V_th`` (Eqs. 2–3), planned inside
     ``planning_tolerance_share`` (0.9) of them so a plan executed at Δt = 0.1 s still couples; trains on shared
     track pass every shared breakpoint at least ``min_time_gap_s`` apart (mass points must not touch).
+
+Extension (off by default, the paper has no such constraint): ``rbd_reaction_s > 0`` adds a
+**relative-braking-distance spacing** on shared track — whenever the follower is at a shared breakpoint the
+leader's rear must be ``v_f·T + (v_f² − v_l²)/(2b) + margin`` ahead (the leader's position at that instant is
+interpolated exactly within its constant-acceleration segment). Eq. 1's margin (closing speed × (T_1 + T_2)) lets a
+plan close at several m/s tens of metres behind its leader, which a relative-braking-distance safety cap refuses.
 """
 
 from __future__ import annotations
@@ -85,6 +91,11 @@ class JunctionParams:
     planning_tolerance_share: float = 0.9  # the planner aims inside S_th, V_th by this share (integration slack)
     min_time_gap_s: float = 0.3           # follower reaches every shared point at least this much later
     paper_literal_margin: bool = False    # Eq. 1 with "− L_k" instead of "+ L_pred + S_0"
+    # relative-braking-distance spacing on shared track (extension; off = the paper): at every shared grid point
+    # the follower's front must stay behind the leader's rear by v_f·T + v_f²/(2b) − v_l²/(2b) + margin
+    rbd_reaction_s: float = 0.0           # T (0: the constraint is off)
+    rbd_decel_mps2: float = 1.2           # b, both trains' emergency braking
+    rbd_margin_m: float = 10.0
 
     def __post_init__(self) -> None:
         require("accel_min_mps2", self.accel_min_mps2 < 0.0, "a number < 0", self.accel_min_mps2)
@@ -101,8 +112,10 @@ class JunctionParams:
         require("planning_tolerance_share", 0.0 < self.planning_tolerance_share <= 1.0, "a share in (0, 1]",
                 self.planning_tolerance_share)
         require("braking_distance_m", self.braking_distance_m > 0.0, "a number > 0", self.braking_distance_m)
+        require("rbd_decel_mps2", self.rbd_decel_mps2 > 0.0, "a number > 0", self.rbd_decel_mps2)
         for name in ("weight_gap", "weight_speed", "weight_speed_diff", "weight_time", "speed_error_mps",
-                     "comm_delay_s", "processing_delay_s", "standstill_gap_m", "pred_length_m"):
+                     "comm_delay_s", "processing_delay_s", "standstill_gap_m", "pred_length_m",
+                     "rbd_reaction_s", "rbd_margin_m"):
             value = getattr(self, name)
             require(name, value >= 0.0, "a number >= 0", value)
 
@@ -402,11 +415,63 @@ def rollout(problem: Problem, X: np.ndarray) -> Rollout:
         tm_ord = np.take_along_axis(t_merge, order, axis=1)
         overtake += np.maximum(tm_ord[:, :-1] - tm_ord[:, 1:], 0.0).sum(axis=1)
     terms["overtaking"] = overtake
+    if p.rbd_reaction_s > 0.0:
+        terms["relative_braking"] = _rbd_violation(problem, t, v_pos, A)
     share = p.planning_tolerance_share
     terms["coupling_gap"] = np.maximum(np.abs(gap - margin) - share * p.gap_tolerance_m, 0.0).sum(axis=1)
     terms["coupling_speed"] = np.maximum(np.abs(dv) - share * p.speed_tolerance_mps, 0.0).sum(axis=1)
     violation = sum(terms.values())
     return Rollout(v_signed, t, A, t_merge, order, T_c, s_tc, v_tc, gap, dv, margin, cost, violation, terms)
+
+
+def _position_at(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray,
+                 tq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Train ``k``'s position along its path and speed at query times ``tq`` (P, Q): exact within a segment
+    (constant acceleration), constant speed beyond F. Vectorised over particles with one ``searchsorted``."""
+    P = t.shape[0]
+    nk = int(problem.n_segments[k])
+    tk = t[:, k, : nk + 1]                                   # (P, nk+1) increasing in each row
+    span = float(max(tk[:, -1].max(), tq.max())) + 1.0
+    rows = np.arange(P)[:, None]
+    idx = np.searchsorted((tk + rows * span).ravel(), (tq + rows * span).ravel(), side="right")
+    idx = idx.reshape(tq.shape) - rows * (nk + 1)            # first boundary strictly after tq
+    seg = np.clip(idx - 1, 0, nk - 1)
+    t0 = np.take_along_axis(tk, seg, axis=1)
+    v0 = np.take_along_axis(v_pos[:, k, : nk + 1], seg, axis=1)
+    a = np.take_along_axis(A[:, k, :nk], seg, axis=1)
+    bp = problem.breakpoints_m[k]
+    tau = np.maximum(tq - t0, 0.0)
+    s_in = np.clip(bp[seg] + v0 * tau + 0.5 * a * tau ** 2, bp[seg], bp[seg + 1])
+    v_in = np.maximum(v0 + a * tau, problem.params.min_speed_mps)
+    done = tq >= tk[:, -1:]
+    v_F = v_pos[:, k, nk][:, None]
+    s = np.where(done, bp[nk] + v_F * (tq - tk[:, -1:]), s_in)
+    v = np.where(done, v_F, v_in)
+    return s, v
+
+
+def _rbd_violation(problem: Problem, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray) -> np.ndarray:
+    """Σ over shared pairs of the worst shortfall of the relative-braking-distance spacing (m), per particle.
+
+    At each shared grid point of the follower (the train that reaches the first shared point later), at the time
+    it is there, the leader's rear must be at least ``v_f·T + v_f²/(2b) − v_l²/(2b) + margin`` ahead.
+    """
+    p = problem.params
+    b = p.rbd_decel_mps2
+    out = np.zeros(t.shape[0])
+    for i, j, ii, jj in problem.shared_pairs:
+        worst = []
+        for lead, fol, il, jf in ((i, j, ii, jj), (j, i, jj, ii)):
+            tq = t[:, fol, jf]
+            s_lead, v_lead = _position_at(problem, lead, t, v_pos, A, tq)
+            v_f = v_pos[:, fol, jf]
+            gap = (s_lead - problem.merge_distance_m[lead]) - (problem.breakpoints_m[fol, jf]
+                                                              - problem.merge_distance_m[fol]) - p.pred_length_m
+            need = v_f * p.rbd_reaction_s + (v_f ** 2 - v_lead ** 2) / (2.0 * b) + p.rbd_margin_m
+            worst.append(np.maximum(need - gap, 0.0).max(axis=1))
+        first_i = t[:, i, ii[0]] <= t[:, j, jj[0]]          # who is ahead at the first shared point
+        out += np.where(first_i, worst[0], worst[1])
+    return out
 
 
 def evaluate(problem: Problem, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
