@@ -66,7 +66,6 @@ import itertools
 import logging
 import math
 import re
-import shutil
 import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
@@ -78,7 +77,7 @@ import networkx as nx
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.topology import NetworkBundle, PlatformInfo, StationInfo, SwitchInfo, make_route
+from network.topology import NetworkBundle, PlatformInfo, StationInfo, SwitchInfo
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)

@@ -297,9 +297,8 @@ def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_
     margin_m, reaction_time_s = _separation_params(frame.scenario)
     step_s = float(frame.scenario.simulation.step_s)
     model = BlockModel(block_length_m, resolution_m, margin_m, reaction_time_s + step_s)
-    trace = read_table(run, "trace").sort_values(["train", "t_s"], kind="mergesort")
     trips = read_table(run, "trips").set_index("trip_id")
-    by_train = {tid: g for tid, g in trace.groupby("train", sort=False)}
+    by_train = frame.trace_by_train()
 
     # per trip: time, front, claim, rear arrays in its route frame (claim uses the path's vehicle)
     cache: dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]] = {}
@@ -399,8 +398,7 @@ def junction_passes(run_dir: str | Path, frame: LineFrame | None = None) -> pd.D
     point (linear between trace samples; NaN if the train never got there)."""
     run = Path(run_dir)
     frame = frame or LineFrame.from_run(run)
-    trace = read_table(run, "trace").sort_values(["train", "t_s"], kind="mergesort")
-    by_train = {tid: g for tid, g in trace.groupby("train", sort=False)}
+    by_train = frame.trace_by_train()
     rows = []
     for tid, svc in read_table(run, "trips")[["trip_id", "service"]].itertuples(index=False):
         sf = frame.services.get(str(svc))

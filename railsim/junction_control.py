@@ -62,7 +62,7 @@ from controllers.junction.model import JunctionParams, SwitchState
 from controllers.junction.planner import (
     JunctionPlan, PlannerError, TrainState, YJunctionLayout, build_problem, plan, replan,
 )
-from controllers.junction.pso import PSOParams, improved_pso_params, plain_pso_params
+from controllers.junction.pso import improved_pso_params, plain_pso_params
 from controllers.junction.simulate import measure
 from railsim.errors import ConfigError
 

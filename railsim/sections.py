@@ -155,6 +155,15 @@ class LineFrame:
     scenario: Any  # railsim.scenario.Scenario
     bundle: Any  # network.NetworkBundle
     services: dict[str, ServiceFrame]
+    _trace_by_train: dict[str, pd.DataFrame] | None = field(default=None, repr=False, compare=False)
+
+    def trace_by_train(self) -> dict[str, pd.DataFrame]:
+        """The run's trace, one time-ordered frame per train; read once per LineFrame (the trace is the
+        largest table of a run and several analyses need it)."""
+        if self._trace_by_train is None:
+            trace = read_table(self.run_dir, "trace").sort_values(["train", "t_s"], kind="mergesort")
+            self._trace_by_train = {str(tid): g for tid, g in trace.groupby("train", sort=False)}
+        return self._trace_by_train
 
     @classmethod
     def from_run(cls, run_dir: str | Path) -> "LineFrame":

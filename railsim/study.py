@@ -50,14 +50,10 @@ from __future__ import annotations
 
 import argparse
 import importlib
-import json
 import math
-import sys
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Sequence
-
-import pandas as pd
 
 from railsim import output
 from railsim.errors import ConfigError

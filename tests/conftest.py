@@ -7,10 +7,26 @@ Hypothesis: no per-example deadline (a loaded 2-core machine makes timing deadli
 from __future__ import annotations
 
 import os
+from pathlib import Path
 
+import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile("local", deadline=None)
 settings.register_profile("ci", deadline=None, derandomize=True, print_blob=True,
                           suppress_health_check=[HealthCheck.too_slow])
 settings.load_profile("ci" if os.environ.get("CI", "").lower() in ("1", "true", "yes") else "local")
+
+
+@pytest.fixture(scope="session")
+def mini_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One SUMO run of ``tests/data/scenarios/mini_line.yaml`` (small Y line, a coupled pair) shared by the tests
+    that analyse a finished run (sections, capacity); read-only for them."""
+    from tests.helpers import DATA, run_railsim
+
+    cache = tmp_path_factory.mktemp("netcache")
+    out = tmp_path_factory.mktemp("mini")
+    res = run_railsim(["run", str(DATA / "scenarios" / "mini_line.yaml"), "--out", str(out), "--no-progress"],
+                      cache_dir=cache)
+    assert res.returncode == 0, res.stderr + res.stdout
+    return out

@@ -20,7 +20,7 @@ from railsim.capacity import (
 )
 from railsim.errors import ConfigError
 from railsim.sections import section_table
-from tests.helpers import DATA, read_csv, run_railsim
+from tests.helpers import DATA, read_csv
 
 MINI = DATA / "scenarios" / "mini_line.yaml"
 DECEL, DELAY, MARGIN, LENGTH = 1.11, 2.5, 50.0, 89.4
@@ -89,15 +89,6 @@ def test_bad_block_model_is_a_config_error() -> None:
 
 
 # ---------------------------------------------------------------------------------------------------- real run
-
-
-@pytest.fixture(scope="module")
-def mini_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    cache = tmp_path_factory.mktemp("netcache")
-    out = tmp_path_factory.mktemp("mini")
-    res = run_railsim(["run", str(MINI), "--out", str(out), "--no-progress"], cache_dir=cache)
-    assert res.returncode == 0, res.stderr + res.stdout
-    return out
 
 
 @pytest.fixture(scope="module")

@@ -15,20 +15,11 @@ import pytest
 
 from railsim.errors import ConfigError
 from railsim.sections import SECTION_COLUMNS, LineFrame, read_table, section_table
-from tests.helpers import DATA, read_csv, run_railsim
+from tests.helpers import DATA, read_csv
 
 pytestmark = pytest.mark.sumo
 
 MINI = DATA / "scenarios" / "mini_line.yaml"
-
-
-@pytest.fixture(scope="module")
-def mini_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    cache = tmp_path_factory.mktemp("netcache")
-    out = tmp_path_factory.mktemp("mini")
-    res = run_railsim(["run", str(MINI), "--out", str(out), "--no-progress"], cache_dir=cache)
-    assert res.returncode == 0, res.stderr + res.stdout
-    return out
 
 
 @pytest.fixture(scope="module")
