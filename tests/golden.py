@@ -1,0 +1,152 @@
+"""Golden outputs: fixed-seed runs whose every output file must stay byte-identical across refactors.
+
+The golden set covers the default demo (Line 3 peak hour), one scenario of every paper family (A–E) and one
+scenario on a SUMO net railsim did not generate (the passing-loop net of ``tests/test_external_net.py``). Each
+case runs ``railsim run`` in a child process; its output folder is *normalised* and hashed file by file:
+
+* wall-clock fields are dropped — JSON keys and CSV columns whose name contains ``wall`` or ``solve_time``
+  (controller solve times, planner wall times, the run's wall time), also inside the JSON ``detail`` column of
+  ``events.csv``;
+* the case's temporary folder is replaced by ``<TMP>`` (an external net's path appears in the resolved scenario).
+
+Everything else — every number in ``trips.csv``, ``stops.csv``, ``formations.csv``, ``events.csv``,
+``trace.csv``, ``summary.json``, ``scenario.resolved.yaml``, ``versions.json`` — is compared as bytes.
+
+The hashes live in ``tests/data/golden.json``. A change that is *meant* to alter outputs regenerates them::
+
+    .venv/bin/python -m tests.golden --update          # rewrites tests/data/golden.json
+    .venv/bin/python -m tests.golden --keep DIR        # also keeps the normalised outputs for a diff
+
+and says why in its commit message (docs/architecture.md, "The golden test").
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import hashlib
+import io
+import json
+import re
+import sys
+import tempfile
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any, Callable
+
+from tests.helpers import ROOT, run_railsim
+
+GOLDEN_FILE = ROOT / "tests" / "data" / "golden.json"
+WALL_CLOCK = re.compile(r"wall|solve_time")
+
+
+@dataclass(frozen=True)
+class Case:
+    """One golden run: a scenario file (or a builder that writes one into a folder) and its seed."""
+
+    name: str
+    scenario: str | Callable[[Path], Path]
+    seed: int = 7
+
+
+def _external_passing_loop(folder: Path) -> Path:
+    from tests.test_external_net import _scenario, build_passing_loop
+
+    net, stops = build_passing_loop(folder)
+    return _scenario(folder, "passing", net, stops)
+
+
+CASES: tuple[Case, ...] = (
+    Case("demo_line3_peak", "scenarios/chongqing_line3_peak.yaml"),
+    Case("paper000_dmpc", "scenarios/paper000_sd_comparison_dmpc.yaml"),
+    Case("paper001_sempc", "scenarios/paper001_single_section.yaml"),
+    Case("paper002_distributed", "scenarios/paper002_topology_switch.yaml"),
+    Case("paper003_monorail", "scenarios/paper003_track_accel.yaml"),
+    Case("paper004_junction", "scenarios/paper004_table3_s1.yaml"),
+    Case("external_passing_loop", _external_passing_loop),
+)
+
+
+def _drop_wall(value: Any) -> Any:
+    if isinstance(value, dict):
+        return {k: _drop_wall(v) for k, v in value.items() if not WALL_CLOCK.search(k)}
+    if isinstance(value, list):
+        return [_drop_wall(v) for v in value]
+    return value
+
+
+def _normalise_csv(text: str) -> str:
+    rows = list(csv.reader(io.StringIO(text)))
+    if not rows:
+        return text
+    keep = [i for i, col in enumerate(rows[0]) if not WALL_CLOCK.search(col)]
+    detail = rows[0].index("detail") if "detail" in rows[0] else -1
+    out = io.StringIO()
+    writer = csv.writer(out, lineterminator="\n")
+    for n, row in enumerate(rows):
+        if n and detail >= 0 and row[detail].startswith("{"):
+            row[detail] = json.dumps(_drop_wall(json.loads(row[detail])), sort_keys=True, separators=(",", ":"))
+        writer.writerow([row[i] for i in keep])
+    return out.getvalue()
+
+
+def normalise(path: Path, tmp_root: Path) -> bytes:
+    """The file's bytes with wall-clock fields removed and the case's temporary folder replaced."""
+    text = path.read_text(encoding="utf-8").replace(str(tmp_root), "<TMP>")
+    if path.suffix == ".json":
+        text = json.dumps(_drop_wall(json.loads(text)), indent=2, sort_keys=True) + "\n"
+    elif path.suffix == ".csv":
+        text = _normalise_csv(text)
+    return text.encode("utf-8")
+
+
+def run_case(case: Case, workdir: Path, keep: Path | None = None) -> dict[str, str]:
+    """Run one case in a child process; return {file name: sha256 of its normalised bytes}."""
+    workdir.mkdir(parents=True, exist_ok=True)
+    scenario = case.scenario(workdir) if callable(case.scenario) else ROOT / case.scenario
+    out = workdir / "out"
+    res = run_railsim(["run", str(scenario), "--out", str(out), "--seed", str(case.seed), "--no-progress"],
+                      cache_dir=workdir / "cache", timeout=900)
+    if res.returncode not in (0, 1):
+        raise RuntimeError(f"golden case {case.name} failed (exit {res.returncode}):\n{res.stderr[-3000:]}")
+    hashes: dict[str, str] = {"exit_code": str(res.returncode)}
+    for path in sorted(p for p in out.iterdir() if p.is_file()):
+        data = normalise(path, workdir)
+        hashes[path.name] = hashlib.sha256(data).hexdigest()
+        if keep is not None:
+            (keep / case.name).mkdir(parents=True, exist_ok=True)
+            (keep / case.name / path.name).write_bytes(data)
+    return hashes
+
+
+def load_golden() -> dict[str, dict[str, str]]:
+    return json.loads(GOLDEN_FILE.read_text(encoding="utf-8"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    parser = argparse.ArgumentParser(description="run the golden cases; compare with or update tests/data/golden.json")
+    parser.add_argument("--update", action="store_true", help="rewrite tests/data/golden.json")
+    parser.add_argument("--keep", type=Path, default=None, help="keep the normalised outputs in this folder")
+    parser.add_argument("--case", action="append", default=None, help="only these cases (repeatable)")
+    args = parser.parse_args(argv)
+    golden = load_golden() if GOLDEN_FILE.exists() else {}
+    differ = 0
+    with tempfile.TemporaryDirectory(prefix="railsim-golden-") as tmp:
+        for case in CASES:
+            if args.case and case.name not in args.case:
+                continue
+            got = run_case(case, Path(tmp) / case.name, args.keep)
+            bad = sorted(k for k in set(got) | set(golden.get(case.name, {}))
+                         if got.get(k) != golden.get(case.name, {}).get(k))
+            print(f"{case.name}: {'same' if not bad else 'DIFFERS in ' + ', '.join(bad)}")
+            differ += bool(bad)
+            golden[case.name] = got
+    if args.update:
+        GOLDEN_FILE.write_text(json.dumps(golden, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+        print(f"wrote {GOLDEN_FILE}")
+        return 0
+    return 1 if differ else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())
