@@ -20,7 +20,8 @@ DEFAULT = Path(__file__).resolve().parents[1] / "scenarios" / "chongqing_line3_p
 
 
 def _railsim(path: str, q: "mp.Queue[dict]") -> None:
-    from railsim import engine, scenario
+    from railsim.engine import loop as engine
+    from railsim import scenario
 
     with tempfile.TemporaryDirectory() as out:
         s = engine.run(scenario.load(path), Path(out), progress=False)
@@ -28,7 +29,8 @@ def _railsim(path: str, q: "mp.Queue[dict]") -> None:
 
 
 def _sumo_only(path: str, q: "mp.Queue[dict]") -> None:
-    from railsim import baseline, scenario
+    from railsim.studies import baseline
+    from railsim import scenario
 
     q.put(baseline.run_sumo_only(scenario.load(path)))
 

@@ -1,7 +1,7 @@
 """Sweep throughput: cases per minute with 1 and 2 local workers on the same case set, and the speed-up.
 
 Runs scenarios/sweeps/corridor_headway.yaml (8 cases of the small corridor, ~1-3 s each) twice into fresh temporary
-folders, first with one worker then with two, through the public API (:func:`railsim.sweep.run_sweep`), and prints
+folders, first with one worker then with two, through the public API (:func:`railsim.studies.sweep.run_sweep`), and prints
 JSON. Each case is a fresh child Python process, so the numbers include interpreter start-up and scenario loading,
 as a user's sweep does. The speed-up is bounded by the free cores (2 on the reference machine) and by start-up
 overhead that does not parallelise (validation of every case before the first run)::
@@ -22,7 +22,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 sys.path.insert(0, str(ROOT))
 
-from railsim import sweep  # noqa: E402
+from railsim.studies import sweep  # noqa: E402
 
 DEFAULT_SWEEP = ROOT / "scenarios" / "sweeps" / "corridor_headway.yaml"
 

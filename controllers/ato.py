@@ -67,7 +67,7 @@ from controllers.braking import (
     required_decel_mps2,
     traction_limit_mps2,
 )
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 # Below this speed the train counts as standing [m/s].
 _STANDING_MPS = 1e-3

@@ -21,7 +21,7 @@ Coordinates
 Acceleration semantics
     :attr:`Command.accel_mps2` is the **applied** specific force: traction (>0) or braking (<0) force divided by
     the effective mass. Running resistance and gradient act on top of it in the plant
-    (:mod:`railsim.dynamics`), exactly as in the papers' models ``dv/dt = u − ω(v)``. A controller that wants a
+    (:mod:`railsim.physics.dynamics`), exactly as in the papers' models ``dv/dt = u − ω(v)``. A controller that wants a
     net acceleration ``a`` asks for ``vehicle.net_to_applied(a, v, gradient)`` (same physics as the plant). The plant clips
     the command to the traction/brake envelope and the jerk limit and logs every saturation.
 
@@ -41,7 +41,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Callable, Mapping, Protocol, runtime_checkable
 
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 @dataclass(frozen=True)
@@ -126,7 +126,7 @@ class Observation:
     next_stop: StopTarget | None = None
     authority_end_m: float | None = None  # the train front must not pass this point (switch not locked, end of route)
     predecessor: PredecessorState | None = None
-    formation_state: str = "free"  # free | coupling | coupled | decoupling (railsim.events.formations)
+    formation_state: str = "free"  # free | coupling | coupled | decoupling (railsim.engine.events.formations)
     target_gap_m: float | None = None  # front-to-rear target gap while coupling/coupled
     extras: Mapping[str, Any] = field(default_factory=dict)  # scenario-specific signals (e.g. junction plan)
 

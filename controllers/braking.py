@@ -1,7 +1,7 @@
 """Braking curves shared by the line controllers (ATO, moving-block separation, CACC).
 
 Two models of "how far does the train run before it stands (or is down to a target speed)" live here, both for
-the plant of :mod:`railsim.dynamics` (a command ``u`` is jerk-limited, then goes through a first-order lag of
+the plant of :mod:`railsim.physics.dynamics` (a command ``u`` is jerk-limited, then goes through a first-order lag of
 time constant τ before it becomes the applied acceleration; resistance and gradient act on top):
 
 1. **Continuous dead-time model** (conservative, cheap, used for supervision: separation, CACC, speed
@@ -39,7 +39,7 @@ time constant τ before it becomes the applied acceleration; resistance and grad
    ATO starts braking early by the ramp's dead time and plans below service braking).
 
 All decelerations here are **net** (what the train really does), positive numbers; callers convert to the
-applied command with :meth:`railsim.vehicle.VehicleParams.net_to_applied`.
+applied command with :meth:`railsim.physics.vehicle.VehicleParams.net_to_applied`.
 """
 
 from __future__ import annotations
@@ -48,8 +48,8 @@ import math
 from dataclasses import fields
 from typing import Any, Mapping
 
-from railsim.dynamics import traction_limit_mps2  # noqa: F401 - re-exported: one definition of the envelope
-from railsim.vehicle import G_MPS2, VehicleParams
+from railsim.physics.dynamics import traction_limit_mps2  # noqa: F401 - re-exported: one definition of the envelope
+from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 # Smallest deceleration the solvers consider [m/s²]: below it a stop is "never" (distance diverges).
 _MIN_DECEL_MPS2 = 1e-4

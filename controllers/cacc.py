@@ -93,7 +93,7 @@ from controllers.braking import (
     stopping_distance_m,
     traction_limit_mps2,
 )
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 @dataclass(frozen=True)

@@ -55,7 +55,7 @@ from controllers.braking import (
     stopping_distance_m,
     traction_limit_mps2,
 )
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 _STANDSTILL_BUFFER_M = 1.0  # aim to halt this far before rear − margin [m]
 _CRAWL_MPS = 0.5  # below this speed and ...

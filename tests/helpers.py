@@ -19,7 +19,7 @@ DATA = Path(__file__).resolve().parent / "data"
 
 
 def railsim_cmd() -> list[str]:
-    return [sys.executable, "-m", "railsim.cli"]
+    return [sys.executable, "-m", "railsim.cli.main"]
 
 
 def run_railsim(args: list[str], cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:

@@ -9,9 +9,9 @@ import controllers.ato_mpc  # noqa: F401  (registers sempc, mpc, afsmc, pid_ato)
 from controllers.ato_mpc.reference import Limit
 from controllers.ato_mpc.sim import run, scenario_a, scenario_b, scenario_c
 from controllers.base import Observation, OwnState, StopTarget, create
-from railsim import dynamics
-from railsim.multipoint import MultipointParams
-from railsim.vehicle import preset
+from railsim.physics import dynamics
+from railsim.physics.multipoint import MultipointParams
+from railsim.physics.vehicle import preset
 
 P = MultipointParams()
 

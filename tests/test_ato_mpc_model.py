@@ -16,7 +16,7 @@ from controllers.ato_mpc.model import (
     prediction_matrices,
 )
 from controllers.ato_mpc.qp import CondensedMpc, MpcSettings, ReferenceWindow, stage_weight, terminal_ingredients
-from railsim.multipoint import G_MPS2, MultipointParams, accelerations_mps2, initial_state, state_from_relative, step
+from railsim.physics.multipoint import G_MPS2, MultipointParams, accelerations_mps2, initial_state, state_from_relative, step
 
 P = MultipointParams()
 M, K, L = P.car_mass_kg, P.coupler_stiffness_n_per_m, P.coupler_length_m

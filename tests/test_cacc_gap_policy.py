@@ -15,7 +15,7 @@ import pytest
 from controllers.base import Observation, OwnState, PredecessorState
 from controllers.braking import net_braking_mps2, stopping_distance_m
 from controllers.cacc import make_cacc
-from railsim.vehicle import preset
+from railsim.physics.vehicle import preset
 
 VEH = preset("cq3_6car")
 DT = 0.5

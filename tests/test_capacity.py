@@ -1,6 +1,6 @@
 """Capacity analyses: UIC 406 compression against closed forms, and invariants on a real run.
 
-Closed forms (module docstring of railsim.capacity): identical trains at constant speed v in moving block have the
+Closed forms (module docstring of railsim.analysis.capacity): identical trains at constant speed v in moving block have the
 minimum headway H = (L + S(v) + margin) / v, S the absolute braking distance, so n of them in a period U occupy
 n·H / U; with fixed blocks of length B it is (B + L + S(v) + margin) / v. A slow train followed by a fast one is
 limited at the section's end, a fast one followed by a slow one at its start — both headways by hand.
@@ -15,11 +15,11 @@ import numpy as np
 import pytest
 
 from controllers.braking import stopping_distance_m
-from railsim.capacity import (
+from railsim.analysis.capacity import (
     BlockModel, CapacityReport, Stairway, analyse_run, claim_m, compress, first_time_at, min_headway_s, stairway,
 )
 from railsim.errors import ConfigError
-from railsim.sections import section_table
+from railsim.analysis.sections import section_table
 from tests.helpers import DATA, read_csv
 
 MINI = DATA / "scenarios" / "mini_line.yaml"

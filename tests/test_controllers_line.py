@@ -1,6 +1,6 @@
 """Closed-loop tests of the line controllers (ATO, moving-block separation, CACC) and their braking curves.
 
-Everything runs in pure Python through the real plant :func:`railsim.dynamics.step` (jerk limit, 0.5 s actuator
+Everything runs in pure Python through the real plant :func:`railsim.physics.dynamics.step` (jerk limit, 0.5 s actuator
 lag, Davis resistance, Euler positions) with the cq3_6car preset; no SUMO. Message staleness is modelled by
 handing a follower the predecessor's state from some steps ago with the matching ``age_s``.
 """
@@ -35,8 +35,8 @@ from controllers.braking import (
     required_decel_mps2,
     stopping_distance_m,
 )
-from railsim.dynamics import PlantState, step
-from railsim.vehicle import preset
+from railsim.physics.dynamics import PlantState, step
+from railsim.physics.vehicle import preset
 
 CQ3 = preset("cq3_6car")
 LINE_SPEED_MPS = 20.0

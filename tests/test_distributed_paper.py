@@ -22,7 +22,7 @@ from controllers.distributed import (CommGraph, ConstraintWindowEmpty, EdgeData,
                                      PreconditionError, TrainController, TrainJoin, check_assumptions,
                                      local_windows, min_sample_time_s, paper_vehicle, simulate, zhang2024_fig1,
                                      zhang2024_train)
-from railsim import dynamics
+from railsim.physics import dynamics
 from railsim.errors import ConfigError
 
 T = 1.0
@@ -212,7 +212,7 @@ def test_registered_controller_matches_control_step(logs: dict) -> None:
 
 
 def test_closed_loop_through_railsim_plant_matches_reference(logs: dict) -> None:
-    """The adapter's command through railsim.dynamics.step (forward Euler) is the paper's closed loop."""
+    """The adapter's command through railsim.physics.dynamics.step (forward Euler) is the paper's closed loop."""
     log = logs["union"]
     s = zhang2024_fig1(horizon_k=1100)
     vehicle = paper_vehicle(zhang2024_train())
@@ -276,7 +276,7 @@ def test_empty_window_raises_or_falls_back() -> None:
 
 
 def test_figures_are_written(logs: dict, tmp_path) -> None:
-    from railsim.plots.paper002 import write_figures
+    from railsim.report.plots.paper002 import write_figures
 
     paths = write_figures(logs["union"], tmp_path / "figs")
     assert [p.name for p in paths] == ["fig3_positions.png", "fig4_position_differences.png", "fig5_speeds.png",

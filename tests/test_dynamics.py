@@ -1,4 +1,4 @@
-"""Tests of the longitudinal plant (railsim.dynamics): closed forms, invariants and property tests.
+"""Tests of the longitudinal plant (railsim.physics.dynamics): closed forms, invariants and property tests.
 
 Closed forms use a "bare" vehicle (no Davis resistance, rotating factor 1, no lag, unbounded jerk) with numbers
 that are exact in binary floating point where a test asserts an exact discrete sum.
@@ -19,7 +19,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 from scipy.optimize import brentq
 
-from railsim.dynamics import (
+from railsim.physics.dynamics import (
     BRAKE_LIMITED,
     JERK_LIMITED,
     JERK_OVERRIDDEN,
@@ -38,7 +38,7 @@ from railsim.dynamics import (
     step_many,
     traction_limit_mps2,
 )
-from railsim.vehicle import G_MPS2, VehicleParams, preset
+from railsim.physics.vehicle import G_MPS2, VehicleParams, preset
 
 UPPER_FLAGS = {TRACTION_LIMITED, POWER_LIMITED, OVERSPEED_CUT}
 
@@ -485,8 +485,8 @@ _SUMO_SCRIPT = textwrap.dedent(
     import sumo
     os.environ["SUMO_HOME"] = sumo.SUMO_HOME
     import libsumo
-    from railsim.dynamics import PlantState, step
-    from railsim.vehicle import preset
+    from railsim.physics.dynamics import PlantState, step
+    from railsim.physics.vehicle import preset
 
     method, dt = sys.argv[1], float(sys.argv[2])
     commands = json.loads(sys.stdin.read())

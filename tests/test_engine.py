@@ -141,9 +141,9 @@ def test_sumo_positions_match_the_numpy_plant(cache: Path) -> None:
     """Euler and ballistic: SUMO's odometer equals the plant's own position integration to 1e-6 m."""
     code = r'''
 import json, numpy as np, network
-from railsim import dynamics
-from railsim.vehicle import preset
-from railsim.sumo import SumoBridge, SumoConfig, VTypeSpec
+from railsim.physics import dynamics
+from railsim.physics.vehicle import preset
+from railsim.engine.sumo import SumoBridge, SumoConfig, VTypeSpec
 veh = preset("cq3_6car")
 b = network.build("straight_corridor")
 route = next(iter(b.routes.values()))

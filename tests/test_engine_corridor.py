@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from controllers.speed_profile import make_speed_profile, reference
-from railsim.vehicle import preset
+from railsim.physics.vehicle import preset
 from tests.helpers import DATA, read_csv, read_summary, run_railsim
 
 SCENARIO = DATA / "scenarios" / "corridor_platoon.yaml"

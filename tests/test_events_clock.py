@@ -10,7 +10,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railsim.events import Dispatcher, EventLayer, EventLog
+from railsim.engine.events import Dispatcher, EventLayer, EventLog
 
 
 def make_layer(t0_s: float = 0.0, seed: int = 0) -> EventLayer:

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from railsim.errors import ConfigError
-from railsim.events import Channel, DelaySpec, EventLayer, Message, Outage
+from railsim.engine.events import Channel, DelaySpec, EventLayer, Message, Outage
 
 
 def make(seed: int = 0, t0_s: float = 0.0) -> EventLayer:

@@ -10,7 +10,7 @@ from hypothesis import given, settings
 from hypothesis import strategies as st
 
 from railsim.errors import ConfigError
-from railsim.events import EventLayer, Interlocking, Switch
+from railsim.engine.events import EventLayer, Interlocking, Switch
 
 
 def setup(*switches: Switch) -> tuple[EventLayer, Interlocking]:

@@ -1,9 +1,9 @@
 """``railsim export``: a run's tables (or a sweep's cases) as CSV, Parquet and JSON, each read by pandas in one line.
 
-Pinned here: every exported table, read back with the documented one-liner (:data:`railsim.export.READERS`),
+Pinned here: every exported table, read back with the documented one-liner (:data:`railsim.report.export.READERS`),
 equals the table the run wrote (same rows, columns and values; JSON up to pandas' dtype inference), row counts
 match ``trips.csv``/``stops.csv`` counted with the csv module, the section table is
-:func:`railsim.sections.section_table`, a run that wrote only Parquet exports the same way, a sweep folder
+:func:`railsim.analysis.sections.section_table`, a run that wrote only Parquet exports the same way, a sweep folder
 exports its cases table, and every bad folder or table ends with exit code 2 and one line naming the file.
 """
 
@@ -16,8 +16,10 @@ import pandas as pd
 import pytest
 import yaml
 
-from railsim import export, output, sections
-from railsim.cli import main as cli_main
+from railsim.report import export
+from railsim.record import output
+from railsim.analysis import sections
+from railsim.cli.main import main as cli_main
 from railsim.errors import ConfigError
 from tests.helpers import DATA, read_csv, run_railsim
 

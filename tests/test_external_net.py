@@ -305,7 +305,8 @@ def _load_error(net: Path, *adds: Path) -> str:
 
 
 def _scenario_error(path: Path) -> str:
-    from railsim import engine, scenario
+    from railsim.engine import loop as engine
+    from railsim import scenario
     from railsim.errors import ConfigError
 
     with pytest.raises(ConfigError) as info:

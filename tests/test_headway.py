@@ -1,4 +1,4 @@
-"""Minimum feasible headway search (railsim.headway): the feasibility rule on rows, the conservative frontier, and a
+"""Minimum feasible headway search (railsim.studies.headway): the feasibility rule on rows, the conservative frontier, and a
 real search on the small corridor checked against an independent scan of every grid headway run directly."""
 
 from __future__ import annotations
@@ -10,7 +10,7 @@ from pathlib import Path
 import pytest
 
 from helpers import ROOT, run_railsim
-from railsim import headway, sweep
+from railsim.studies import headway, sweep
 from railsim.errors import ConfigError
 
 BASE = ROOT / "scenarios" / "sweeps" / "corridor_small.yaml"

@@ -156,8 +156,8 @@ def test_switch_interval_reading_closed_form() -> None:
     from types import SimpleNamespace
 
     from controllers.junction.model import JunctionParams
-    from railsim.engine import EngineSettings
-    from railsim.junction_control import JunctionCoordinator, _Member
+    from railsim.engine.loop import EngineSettings
+    from railsim.engine.extensions.junction import JunctionCoordinator, _Member
 
     coord = JunctionCoordinator.__new__(JunctionCoordinator)
     coord.sim = SimpleNamespace(settings=EngineSettings(clearance_m=10.0, protection_margin_m=20.0))

@@ -18,10 +18,11 @@ import numpy as np
 import pytest
 import yaml
 
-from railsim import plot_command, sections
-from railsim.cli import main as cli_main
+from railsim.cli import plot as plot_command
+from railsim.analysis import sections
+from railsim.cli.main import main as cli_main
 from railsim.errors import ConfigError
-from railsim.plots import line
+from railsim.report.plots import line
 from tests.helpers import DATA, read_csv, run_railsim
 
 pytestmark = pytest.mark.sumo

@@ -14,7 +14,7 @@ from controllers.monorail.braking_modes import (BrakingPolicy, adbm_distance_m, 
 from controllers.monorail.collision_avoidance import sensor_extras
 from controllers.monorail.coupling import incidence, laplacian
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, ca_hysteresis, transition
-from controllers.monorail.vehicle_model import (MonorailParams, PlantState, load_mass_kg, plant_step,
+from railsim.physics.monorail import (MonorailParams, PlantState, load_mass_kg, plant_step,
                                                 step_response_mps2, vehicle_params_for)
 
 

@@ -1,4 +1,4 @@
-"""The multi-point-mass plant (railsim.multipoint): closed forms, conservation laws, standstill logic, inputs."""
+"""The multi-point-mass plant (railsim.physics.multipoint): closed forms, conservation laws, standstill logic, inputs."""
 
 from __future__ import annotations
 
@@ -9,7 +9,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from railsim.multipoint import (
+from railsim.physics.multipoint import (
     G_MPS2,
     MultipointParams,
     MultipointState,

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.sumo
 _CHILD = r"""
 import json, sys
 import network
-from railsim.sumo import SumoBridge, SumoConfig, VTypeSpec
+from railsim.engine.sumo import SumoBridge, SumoConfig, VTypeSpec
 
 world, speed, depart = sys.argv[1], float(sys.argv[2]), float(sys.argv[3])
 pairs = json.loads(sys.argv[4])

@@ -1,4 +1,4 @@
-"""Ground-truth geometry at junctions: who is ahead of whom, in whose frame (railsim.occupancy/routeview).
+"""Ground-truth geometry at junctions: who is ahead of whom, in whose frame (railsim.engine.occupancy/routeview).
 
 Pins the bug found on the Line 3 demo: a train merging from the branch, front already on the trunk and tail
 still on the branch leg, was reported as overlapping the main-line train waiting at the merge switch (a false
@@ -12,8 +12,8 @@ from pathlib import Path
 import pytest
 
 import network
-from railsim.occupancy import Body, Occupancy
-from railsim.routeview import RouteView
+from railsim.engine.occupancy import Body, Occupancy
+from railsim.engine.routeview import RouteView
 
 LINE = Path(__file__).resolve().parent / "data" / "lines" / "mini_y.yaml"
 L = 89.4

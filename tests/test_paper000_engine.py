@@ -1,6 +1,6 @@
 """Paper A (spec 000) experiments through the engine: S-D and S-E scenario files run by ``railsim run`` in a child
-process (SUMO, ballistic steps, actuator noise), scored by :mod:`railsim.vc_metrics`, plotted by
-:mod:`railsim.plots.paper000`; plus the metrics on a synthetic output folder whose answers are known by hand.
+process (SUMO, ballistic steps, actuator noise), scored by :mod:`railsim.analysis.paper000`, plotted by
+:mod:`railsim.report.plots.paper000`; plus the metrics on a synthetic output folder whose answers are known by hand.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ import yaml
 
 from controllers.paper_a.spacing import TABLE_I, desired_spacing_m, safe_spacing_m
 from railsim.errors import ConfigError
-from railsim.vc_metrics import VcCriterion, follower_series, format_table, paper000_metrics, vc_times
+from railsim.analysis.paper000 import VcCriterion, follower_series, format_table, paper000_metrics, vc_times
 from tests.helpers import ROOT, run_railsim
 
 SCEN = ROOT / "scenarios"
@@ -180,7 +180,7 @@ def test_safe_spacing_below_desired_at_equal_speed() -> None:
 
 
 def test_figures_are_written(tmp_path: Path) -> None:
-    from railsim.plots.paper000 import write_figures
+    from railsim.report.plots.paper000 import write_figures
 
     a = _synthetic(tmp_path / "a" if (tmp_path / "a").mkdir() is None else tmp_path)
     files = write_figures({"one": a, "two": a}, tmp_path / "fig")

@@ -2,7 +2,7 @@
 Bagongli), empty and loaded: scenarios/paper003_{in_station,track_accel,track_decel,ca_departure,ca_arrival}[_loaded].yaml
 and the obstacle case (scenarios/paper003_obstacle_ca.yaml with a loaded override).
 
-What must hold in every run (read back with railsim.ca_metrics):
+What must hold in every run (read back with railsim.analysis.paper003):
 
 * no collision (engine truth and the per-pair gap);
 * the gap is never below the follower's CA safety distance (recomputed per sample from the resolved scenario)
@@ -22,7 +22,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from railsim.ca_metrics import metrics
+from railsim.analysis.paper003 import metrics
 from tests.helpers import ROOT, read_csv, read_summary, run_railsim
 
 pytestmark = pytest.mark.sumo

@@ -27,7 +27,7 @@ from controllers.paper_a.rollout import (
     rollout_models,
 )
 from controllers.paper_a.spacing import TABLE_I, desired_spacing_m, paper_a_vehicle, safe_spacing_m
-from railsim.dynamics import PlantState, step
+from railsim.physics.dynamics import PlantState, step
 
 KMH = 1 / 3.6
 

@@ -16,7 +16,7 @@ import yaml
 
 from controllers.base import Observation, OwnState, PredecessorState
 from controllers.monorail.policy_separation import make_policy_separation
-from railsim.vehicle import preset
+from railsim.physics.vehicle import preset
 from tests.helpers import read_summary, run_railsim
 
 VEH = preset("cq3_6car")

@@ -16,8 +16,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from railsim import report
-from railsim.cli import main as cli_main
+from railsim.report import document as report
+from railsim.cli.main import main as cli_main
 from tests.helpers import DATA, ROOT, read_csv, run_railsim
 
 pytestmark = pytest.mark.sumo

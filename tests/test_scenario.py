@@ -27,7 +27,7 @@ import railsim_test_controllers  # noqa: E402,F401  (registers _test_ctrl, _test
 from controllers.base import Command, register  # noqa: E402
 from railsim import scenario as S  # noqa: E402
 from railsim.errors import ConfigError  # noqa: E402
-from railsim.vehicle import preset  # noqa: E402
+from railsim.physics.vehicle import preset  # noqa: E402
 
 VALID = HERE / "data" / "scenario" / "valid.yaml"
 

@@ -28,8 +28,8 @@ PYTHON = REPO / ".venv" / "bin" / "python"
 sys.path.insert(0, str(PLUGINS))
 import railsim_test_controllers  # noqa: E402,F401
 
-from railsim import cli, scenario_cli  # noqa: E402
-from railsim.vehicle import preset_names  # noqa: E402
+from railsim.cli import main as cli, scenario as scenario_cli  # noqa: E402
+from railsim.physics.vehicle import preset_names  # noqa: E402
 
 
 def _env() -> dict[str, str]:

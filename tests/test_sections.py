@@ -14,7 +14,7 @@ import pandas as pd
 import pytest
 
 from railsim.errors import ConfigError
-from railsim.sections import SECTION_COLUMNS, LineFrame, read_table, section_table
+from railsim.analysis.sections import SECTION_COLUMNS, LineFrame, read_table, section_table
 from tests.helpers import DATA, read_csv
 
 pytestmark = pytest.mark.sumo

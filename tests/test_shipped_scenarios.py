@@ -32,7 +32,7 @@ SWEEPS = sorted(p for p in (ROOT / "scenarios" / "sweeps").glob("*.yaml") if "\n
 @pytest.mark.parametrize("path", SWEEPS, ids=[p.stem for p in SWEEPS])
 def test_shipped_sweep_validates(path: Path) -> None:
     """Every case of every shipped sweep file loads and passes the scenario schema (world ids: the scenarios above)."""
-    from railsim import sweep
+    from railsim.studies import sweep
 
     spec = sweep.load_sweep(path)
     assert spec.cases

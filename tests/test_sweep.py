@@ -1,6 +1,6 @@
 """``railsim sweep``: expansion and validation of sweep files, real sweeps (2 local workers, interrupted and resumed,
 a failing case, a Dask LocalCluster) on the small corridor scenario (scenarios/sweeps/corridor_small.yaml, ~1 s a
-case). Every simulation runs in a child process (railsim.sweep.run_case), never in the test process."""
+case). Every simulation runs in a child process (railsim.studies.sweep.run_case), never in the test process."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ import pytest
 import yaml
 
 from helpers import ROOT, railsim_cmd, run_railsim
-from railsim import sweep
+from railsim.studies import sweep
 from railsim.errors import ConfigError
 
 BASE = ROOT / "scenarios" / "sweeps" / "corridor_small.yaml"
@@ -297,7 +297,7 @@ def test_dask_local_cluster_gives_identical_metrics(reference: tuple[Path, Path]
 
 def test_bad_dask_address_is_a_config_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                            capsys: pytest.CaptureFixture[str]) -> None:
-    from railsim import cli
+    from railsim.cli import main as cli
 
     monkeypatch.setattr(sweep, "DASK_CONNECT_TIMEOUT_S", 1.0)
     path = write_sweep(tmp_path, SMALL)

@@ -21,7 +21,7 @@ from typing import Any
 import numpy as np
 
 from controllers.ato_mpc.core import Situation, reference_window
-from railsim.multipoint import G_MPS2, MultipointParams
+from railsim.physics.multipoint import G_MPS2, MultipointParams
 
 
 @dataclass(frozen=True)

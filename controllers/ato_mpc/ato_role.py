@@ -18,7 +18,7 @@ usable there. Per step the adapter
    plant integrates — and ``info["forces_n"]`` (per carriage, for the multi-point plant), ``fallback`` when the
    QP failed. Emergency braking if even service braking cannot stop before the end of authority.
 
-The controller model is derived from the train's :class:`~railsim.vehicle.VehicleParams` by default (effective
+The controller model is derived from the train's :class:`~railsim.physics.vehicle.VehicleParams` by default (effective
 mass split over ``n_cars``, Davis A/B/C per tonne of it, traction/brake/jerk limits split per carriage), so the
 ATO runs on any line; ``paper_train: true`` uses Paper B's Table 1 instead. The control period is the engine's
 step (``period_s: 0``) or a fixed value equal to it.
@@ -41,8 +41,8 @@ from controllers.ato_mpc.reference import Limit, SpeedDistanceProfile
 from controllers.ato_mpc.sempc import MpcLaw, sempc_settings
 from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
-from railsim.multipoint import MultipointParams
-from railsim.vehicle import VehicleParams
+from railsim.physics.multipoint import MultipointParams
+from railsim.physics.vehicle import VehicleParams
 
 
 @dataclass(frozen=True)

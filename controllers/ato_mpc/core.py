@@ -24,7 +24,7 @@ from typing import Any, Protocol
 import numpy as np
 
 from controllers.ato_mpc.reference import SpeedDistanceProfile, TimeReference, distance_window
-from railsim.multipoint import MultipointParams
+from railsim.physics.multipoint import MultipointParams
 
 REFERENCE_MODES = ("distance", "time")
 

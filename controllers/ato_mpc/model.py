@@ -31,7 +31,7 @@ from dataclasses import dataclass
 import numpy as np
 import scipy.linalg
 
-from railsim.multipoint import G_MPS2, MultipointParams
+from railsim.physics.multipoint import G_MPS2, MultipointParams
 
 DISCRETISATIONS = ("euler", "zoh")
 

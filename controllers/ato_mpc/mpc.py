@@ -16,7 +16,7 @@ from typing import Any
 
 from controllers.ato_mpc.qp import MpcSettings
 from controllers.ato_mpc.sempc import MpcLaw
-from railsim.multipoint import MultipointParams
+from railsim.physics.multipoint import MultipointParams
 
 MPC_VARIANTS = ("A", "B")
 

@@ -46,7 +46,7 @@ from controllers.ato_mpc.model import (
     feedforward_forces_n,
     prediction_matrices,
 )
-from railsim.multipoint import MultipointParams
+from railsim.physics.multipoint import MultipointParams
 
 TERMINALS = ("none", "dare", "lyapunov")
 TERMINAL_BLOCKS = ("x", "full")

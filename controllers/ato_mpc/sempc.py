@@ -22,7 +22,7 @@ import numpy as np
 
 from controllers.ato_mpc.core import Situation, reference_window
 from controllers.ato_mpc.qp import CondensedMpc, MpcSettings, ReferenceWindow
-from railsim.multipoint import MultipointParams
+from railsim.physics.multipoint import MultipointParams
 
 
 class MpcLaw:

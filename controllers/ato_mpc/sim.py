@@ -9,7 +9,7 @@ Scenarios (spec §4; the line data are synthetic because the paper publishes non
 * **C** — Scenario A with wind ``ŵ = 0.2`` (``wind="constant"``) or ``0.1 + 0.1 cos t`` (``"harmonic"``), as
   an extra resistance in m/s² acting on the plant only (A14; ``wind_known=True`` feeds it to the model).
 
-The plant is :func:`railsim.multipoint.step` (RK4, ≤ 5 ms sub-steps, ZOH forces, holding brake); the control
+The plant is :func:`railsim.physics.multipoint.step` (RK4, ≤ 5 ms sub-steps, ZOH forces, holding brake); the control
 period ``T`` is 0.1 s (A1). The controllers are the laws of this package behind :class:`AtoDriver`.
 
 Metrics (spec §2.16, A12), per run and per section:
@@ -48,7 +48,7 @@ from controllers.ato_mpc.reference import (
     time_profile,
 )
 from controllers.ato_mpc.sempc import make_sempc_law
-from railsim.multipoint import (
+from railsim.physics.multipoint import (
     MultipointParams,
     WindDisturbance,
     carriage_gradients_permille,

@@ -5,7 +5,7 @@ communication graph keep every neighbour pair's position difference in ``[γ̲_i
 ``[ρ̲_i, ρ̄_i]`` and every input in ``[μ̲_i, μ̄_i]`` at every sample, and converge to the spacings ``d_ij`` and the
 reference speed ``v_r`` — with a law that has no gains, no global information and no leader (eqs. (10)–(11)).
 
-Modules (one concept each, pure numpy / floats, no libsumo, no I/O; the figures are in :mod:`railsim.plots.paper002`):
+Modules (one concept each, pure numpy / floats, no libsumo, no I/O; the figures are in :mod:`railsim.report.plots.paper002`):
 
 * :mod:`.model`     — the per-train parameters (per unit mass) and the constant windows β, η; ``T_min``;
 * :mod:`.graph`     — the dynamic communication graph with oriented edge data and topology events;

@@ -54,7 +54,7 @@ from controllers.braking import params_from_mapping, require
 from controllers.distributed.graph import EdgeData
 from controllers.distributed.model import LocalWindows, TrainParams, local_windows
 from railsim.errors import SimulationError
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 ON_EMPTY_CHOICES = ("raise", "fallback")
 

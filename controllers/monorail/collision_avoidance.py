@@ -39,7 +39,7 @@ from controllers.braking import params_from_mapping, require
 from controllers.monorail.braking_modes import BrakingPolicy, required_gap_m
 from controllers.monorail.mpc import GapTrackingQp, QpWeights, predict_ahead
 from controllers.monorail.states import ca_hysteresis
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
 from controllers.monorail.braking_modes import BrakingPolicy, max_safe_speed_mps
 from controllers.monorail.mpc import GapTrackingQp, QpWeights, predict_ahead
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 def laplacian(adjacency: np.ndarray) -> np.ndarray:

@@ -23,7 +23,7 @@ import numpy as np
 import osqp
 from scipy import sparse
 
-from controllers.monorail.vehicle_model import lag_prediction_matrices
+from railsim.physics.monorail import lag_prediction_matrices
 
 _OK = {"solved", "solved inaccurate"}
 

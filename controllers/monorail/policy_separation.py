@@ -26,7 +26,7 @@ from typing import Any, Mapping
 from controllers.base import Command, Observation, register
 from controllers.braking import require, traction_limit_mps2
 from controllers.monorail.braking_modes import BrakingPolicy, max_safe_speed_mps
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 @dataclass(frozen=True)

@@ -30,7 +30,7 @@ from controllers.base import Observation, OwnState, PredecessorState
 from controllers.monorail.collision_avoidance import CaParams, CollisionAvoidance, sensor_extras
 from controllers.monorail.coupling import ApfParams, DmpcParams, MonorailApf, MonorailDmpc
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, transition
-from controllers.monorail.vehicle_model import MonorailParams, PlantState, load_mass_kg, plant_step, \
+from railsim.physics.monorail import MonorailParams, PlantState, load_mass_kg, plant_step, \
     vehicle_params_for
 
 KMH = 1.0 / 3.6

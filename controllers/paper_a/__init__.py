@@ -4,7 +4,7 @@ Car-Following Models"): its control laws as pure controllers (numpy/osqp, no lib
 Modules, in the order of the paper:
 
 * :mod:`.spacing`    — Table I unit, desired spacing D^(e) (Eq. 5), safe spacing D^(s) (Eq. 6), the unit as
-  :class:`~railsim.vehicle.VehicleParams`;
+  :class:`~railsim.physics.vehicle.VehicleParams`;
 * :mod:`.cf_models`  — enhanced IDM/CACC/FVD (Eq. 8, 10, 11–13) and the originals (Eq. 7, 9), vectorised;
 * :mod:`.rollout`    — predecessor horizon from a broadcast plan, MCF rollout (Eq. 29), Eq. (2) predictions;
 * :mod:`.cost`       — J^(DMPC) (Eq. 14–19) plus the Eq. (20) penalty;

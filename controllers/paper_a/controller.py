@@ -24,7 +24,7 @@ Each controller returns its own plan (``Np + 1`` samples, observer's route frame
 ``info["J"]``, ``info["solve_time_s"]`` and, where relevant, ``info["model_sequence"]`` / ``info["theta"]``.
 The previous control ``u_{−1}`` of Eq. (17) is this controller's own last command (A19: 0 at the first step,
 option ``u_prev_init: resistance`` for ω(v0)). Controllers add no noise and are deterministic given ``seed``.
-The prediction model comes from the train's own :class:`~railsim.vehicle.VehicleParams` (one physics).
+The prediction model comes from the train's own :class:`~railsim.physics.vehicle.VehicleParams` (one physics).
 """
 
 from __future__ import annotations
@@ -51,7 +51,7 @@ from controllers.paper_a.rollout import (
     rollout_models,
 )
 from controllers.paper_a.spacing import TABLE_I, train_params_from_vehicle
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 __all__ = [
     "CfDmpc",

@@ -1,6 +1,6 @@
 """A pure-numpy closed-loop runner for Paper A platoons (spec 000 §4): N trains on a straight, flat line.
 
-Plant: :func:`railsim.dynamics.step_many` with the Table I unit (:func:`~controllers.paper_a.spacing.paper_a_vehicle`)
+Plant: :func:`railsim.physics.dynamics.step_many` with the Table I unit (:func:`~controllers.paper_a.spacing.paper_a_vehicle`)
 and ``step_method="ballistic"`` — with τ = 1 s, no lag and no jerk limit this is exactly Eq. (2)
 ``x+ = x + τv + τ²/2·(u − ω(v))``, ``v+ = v + τ(u − ω(v))`` (plus the plant's envelope clip and v ≥ 0).
 
@@ -26,8 +26,8 @@ import numpy as np
 from controllers.base import Command, Controller, Observation, OwnState, PredecessorState
 from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m, paper_a_vehicle, safe_spacing_m
 from controllers.paper_a.spacing import train_params_from_vehicle
-from railsim.dynamics import FleetParams, step_many
-from railsim.vehicle import VehicleParams
+from railsim.physics.dynamics import FleetParams, step_many
+from railsim.physics.vehicle import VehicleParams
 
 __all__ = ["PlatoonRun", "constant_speed_profile", "run_platoon", "variable_speed_profile"]
 

@@ -11,8 +11,8 @@ signed numbers (−0.8, −1.0); here they are stored as positive magnitudes (``
 control lower bound of Eq. (20) is ``−service_decel_mps2``. At equal speeds ``D^(e) = 348.833 + 0.125·v²`` and
 ``D^(s) = 348.833`` m with Table I.
 
-The unit of Table I is also offered as a :class:`~railsim.vehicle.VehicleParams` (:func:`paper_a_vehicle`) with
-mass 1 kg so that forces read as accelerations: the plant of :mod:`railsim.dynamics` then integrates exactly
+The unit of Table I is also offered as a :class:`~railsim.physics.vehicle.VehicleParams` (:func:`paper_a_vehicle`) with
+mass 1 kg so that forces read as accelerations: the plant of :mod:`railsim.physics.dynamics` then integrates exactly
 ``dv/dt = u − (c0 + c1·v + c2·v²)`` (Eq. 1), and with ``step_method="ballistic"`` and τ = 1 s it reproduces the
 zero-order hold of Eq. (2).
 """
@@ -24,7 +24,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 __all__ = [
     "TABLE_I",

@@ -9,7 +9,7 @@ from __future__ import annotations
 from typing import Any, Mapping
 
 from controllers.base import Command, Observation, register, registered
-from railsim.vehicle import VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 class _Constant:

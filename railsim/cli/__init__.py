@@ -1,0 +1,1 @@
+"""The ``railsim`` command: the only argparse code, one module per command group (see :mod:`.main`)."""

@@ -1,0 +1,51 @@
+"""``railsim run``: run one scenario and write its outputs (a thin layer over :func:`railsim.engine.loop.run`)."""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+
+def add_commands(sub: Any) -> None:
+    p = sub.add_parser("run", help="run a scenario and write trips/stops/formations/events/summary")
+    p.add_argument("scenario", help="scenario YAML file")
+    p.add_argument("--out", required=True, help="output folder (created; files are replaced atomically)")
+    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    p.set_defaults(func=cmd_run)
+
+
+def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
+    lines = [
+        f"scenario {summary['scenario']} (seed {summary['seed']}): simulated {summary['sim_s']:.0f} s in "
+        f"{summary['wall_s']:.1f} s wall ({summary['steps']} steps of {summary['step_s']:g} s)",
+        f"  trains: {summary['n_arrived']}/{summary['n_trains']} arrived; stops served "
+        f"{summary['n_stops_served']}/{summary['n_stops_scheduled']} (missed {summary['n_stops_missed']}); "
+        f"max stopping error {summary['max_stopping_error_m'] if summary['max_stopping_error_m'] is None else round(summary['max_stopping_error_m'], 3)} m",
+        f"  safety: {summary['collisions']} collisions (SUMO: {summary['sumo_collisions']}), "
+        f"{summary['switch_violations']} switch violations, min gap "
+        f"{'n/a' if summary['min_gap_m'] is None else format(summary['min_gap_m'], '.1f')} m, "
+        f"{summary['fallbacks']} controller fallbacks",
+    ]
+    for svc, rt in summary["mean_running_time_s"].items():
+        lines.append(f"  mean running time {svc}: {rt / 60:.1f} min")
+    if summary["formations"]:
+        ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
+        lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
+    lines.append(f"  outputs: {out_dir}/ (trips.csv, stops.csv, formations.csv, events.csv, trace.csv, summary.json)")
+    for table in summary.get("analysis_tables", ()):
+        lines.append(table)
+    return "\n".join(lines)
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from railsim.engine import loop as engine
+    from railsim import scenario
+
+    scn = scenario.load(args.scenario)
+    out = Path(args.out)
+    progress = False if args.no_progress else None
+    summary = engine.run(scn, out, seed=args.seed, progress=progress)
+    print(format_summary(summary, out))
+    return 0 if summary["collisions"] == 0 and summary["sumo_collisions"] == 0 else 1

@@ -1,0 +1,199 @@
+"""The clock of the event layer: a simpy environment that follows SUMO's time.
+
+SUMO advances in fixed steps (dt = 0.1–1 s); the things that happen *between* steps — a message that
+arrives 37 ms after it was sent, a beam switch that finishes throwing 15 s after it started, a departure
+due at 08:00:00 — are simpy events with exact times. The engine owns the step loop (DESIGN.md §3) and, at
+every step k, calls ``layer.advance_to(t_k)``. That runs every event whose time is **≤ t_k**, in time order
+(ties in the order they were scheduled), and leaves ``layer.now_s == t_k``. Then the engine reads the
+results (mailboxes, lock grants, formation states) and acts for the step.
+
+Reading of the boundary: an event due at exactly ``t_k`` has happened when the engine looks at step k
+(plain ``env.run(until=t_k)`` would leave it for the next step, one dt late).
+
+Time is monotonic. ``advance_to(t)`` with ``t`` before ``now_s`` raises :class:`ValueError` (the engine has a
+bug). ``advance_to(now_s)`` does not move time; it only runs events that became due *at* ``now_s`` since the
+last call — e.g. a zero-delay consequence of a request the engine made after advancing. With nothing due it
+does nothing.
+
+Exact times
+-----------
+simpy schedules an event at ``now + delay``, and in floating point no delay may land exactly on a given
+``t`` (from now = 6.144, the sums jump from 28.364999999999995 to 28.365000000000002 and never hit 28.365).
+So the layer's environment is simpy's :class:`~simpy.Environment` with one addition, scheduling at an
+absolute time (:class:`ExactEnvironment`, :class:`TimeoutAt`), and every timer of the layer
+(:meth:`EventLayer.timeout_at`, the clock's own step marker) goes through it: a time written in the log
+equals the time that was asked for, bit for bit, and ``now_s`` after ``advance_to(t)`` is ``t`` itself.
+This reaches into simpy's event queue exactly as ``Environment.schedule`` does (``_queue``, ``_eid``, and
+``_ok``/``_value`` as ``simpy.Timeout`` sets them); the clock tests pin it against the installed simpy.
+Relative timers (a throw lasting ``throw_time_s``, a message delay) stay plain ``env.timeout``: there the
+promised time *is* ``now + delay``.
+
+Randomness
+----------
+The layer holds the scenario's ``numpy.random.Generator``. Modules that draw random numbers ask for their
+own child stream (:meth:`EventLayer.spawn_rng`), so adding draws in one module (say, more messages on a
+channel) does not reshuffle another module's draws. No ``random`` module, no global state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from heapq import heappush
+from typing import Callable, Generator
+
+import numpy as np
+import simpy
+from simpy.events import NORMAL, EventPriority
+
+from railsim.engine.events.log import EventLog
+
+
+class ExactEnvironment(simpy.Environment):
+    """simpy's environment plus :meth:`schedule_at`: put an event in the queue at an absolute time."""
+
+    def schedule_at(self, event: simpy.Event, t_s: float, priority: EventPriority = NORMAL) -> None:
+        """Schedule ``event`` at exactly ``t_s`` (≥ now); same queue and tie-breaking as ``schedule``."""
+        if not t_s >= self._now:
+            raise ValueError(f"time {t_s!r} s is before now ({self._now!r} s)")
+        # The queue entry layout is simpy's own (time, priority, event id, event), as in Environment.schedule.
+        heappush(self._queue, (t_s, priority, next(self._eid), event))
+
+
+class TimeoutAt(simpy.Event):
+    """Like :class:`simpy.Timeout`, but at an absolute time ``t_s`` instead of after a delay."""
+
+    def __init__(self, env: ExactEnvironment, t_s: float, value: object = None) -> None:
+        super().__init__(env)
+        # Triggered at creation, exactly as simpy.Timeout does it; processed when the clock reaches t_s.
+        self._ok = True
+        self._value = value
+        env.schedule_at(self, t_s)
+
+
+@dataclass(eq=False)
+class ScheduledCall:
+    """Handle for a callback scheduled with :meth:`EventLayer.at` or :meth:`EventLayer.every`."""
+
+    t_s: float
+    kind: str | None
+    subject: str
+    fired_count: int = 0
+    cancelled: bool = field(default=False)
+
+    def cancel(self) -> None:
+        """Do not fire (any more). Cancelling twice, or after firing, is harmless."""
+        self.cancelled = True
+
+
+class EventLayer:
+    """Owns the simpy environment, the event log and the random generator of one simulation.
+
+    Args:
+        t0_s: simulated time at which the environment starts (the scenario's start time).
+        rng: the scenario's seeded generator; the only source of randomness of the layer.
+        log: an existing log to append to (a new one by default).
+    """
+
+    def __init__(
+        self, t0_s: float = 0.0, *, rng: np.random.Generator, log: EventLog | None = None
+    ) -> None:
+        t0_s = float(t0_s)
+        if not math.isfinite(t0_s):
+            raise ValueError(f"start time must be finite, got {t0_s!r}")
+        if not isinstance(rng, np.random.Generator):
+            raise TypeError("rng must be a numpy.random.Generator (seeded by the scenario)")
+        self.env = ExactEnvironment(initial_time=t0_s)
+        self.log = log if log is not None else EventLog()
+        self.rng = rng
+
+    @property
+    def now_s(self) -> float:
+        """Current simulated time, seconds."""
+        return float(self.env.now)
+
+    def advance_to(self, t_s: float) -> None:
+        """Run every event due at or before ``t_s``; afterwards ``now_s == t_s``."""
+        t_s = float(t_s)
+        env = self.env
+        if not math.isfinite(t_s):
+            raise ValueError(f"cannot advance to a non-finite time {t_s!r}")
+        if t_s < env.now:
+            raise ValueError(f"time goes forward only: asked to advance to {t_s!r} s, now is {env.now!r} s")
+        if t_s > env.now:
+            # A marker event exactly at t_s guarantees the clock ends on t_s even if nothing else is due.
+            TimeoutAt(env, t_s)
+        while env.peek() <= t_s:
+            env.step()
+
+    def timeout_at(self, t_s: float, value: object = None) -> TimeoutAt:
+        """A simpy event that fires at exactly ``t_s`` (≥ now); ``yield`` it inside a process."""
+        return TimeoutAt(self.env, float(t_s), value)
+
+    def spawn_rng(self) -> np.random.Generator:
+        """An independent child stream of the scenario generator (deterministic in call order)."""
+        return self.rng.spawn(1)[0]
+
+    def at(
+        self, t_s: float, callback: Callable[[float], object], kind: str, subject: str = ""
+    ) -> ScheduledCall:
+        """Call ``callback(t_s)`` at exactly ``t_s``; the firing is logged as ``kind``/``subject``.
+
+        ``t_s`` may equal now (it fires on the next :meth:`advance_to`, stamped ``t_s``); before now raises.
+        The log row is written before the callback runs, so anything the callback logs comes after it.
+        """
+        t_s = float(t_s)
+        if not math.isfinite(t_s) or t_s < self.env.now:
+            raise ValueError(f"cannot schedule {kind} for {subject} at {t_s!r} s (now {self.env.now!r} s)")
+        handle = ScheduledCall(t_s, kind, subject)
+        self.env.process(self._fire_once(handle, callback))
+        return handle
+
+    def _fire_once(
+        self, handle: ScheduledCall, callback: Callable[[float], object]
+    ) -> Generator[simpy.Event, None, None]:
+        yield self.timeout_at(handle.t_s)
+        if handle.cancelled:
+            return
+        handle.fired_count += 1
+        if handle.kind is not None:
+            self.log.record(handle.t_s, handle.kind, handle.subject)
+        callback(handle.t_s)
+
+    def every(
+        self,
+        period_s: float,
+        callback: Callable[[float], object],
+        start_s: float | None = None,
+        kind: str | None = None,
+        subject: str = "",
+    ) -> ScheduledCall:
+        """Call ``callback(t)`` at ``t = start + n·period_s`` for n = 0, 1, 2, … until cancelled.
+
+        Times are computed as ``start + n·period`` (not accumulated) so they do not drift. Periodic ticks
+        are not logged unless ``kind`` is given (they would flood the log). ``start_s`` defaults to now.
+        """
+        period_s = float(period_s)
+        if not (math.isfinite(period_s) and period_s > 0.0):
+            raise ValueError(f"period must be a finite number > 0 s, got {period_s!r}")
+        start = self.now_s if start_s is None else float(start_s)
+        if not math.isfinite(start) or start < self.env.now:
+            raise ValueError(f"periodic call cannot start at {start!r} s (now {self.env.now!r} s)")
+        handle = ScheduledCall(start, kind, subject)
+        self.env.process(self._fire_periodically(handle, period_s, callback))
+        return handle
+
+    def _fire_periodically(
+        self, handle: ScheduledCall, period_s: float, callback: Callable[[float], object]
+    ) -> Generator[simpy.Event, None, None]:
+        n = 0
+        while True:
+            t_s = handle.t_s + n * period_s
+            yield self.timeout_at(t_s)
+            if handle.cancelled:
+                return
+            handle.fired_count += 1
+            if handle.kind is not None:
+                self.log.record(t_s, handle.kind, handle.subject, n=n)
+            callback(t_s)
+            n += 1

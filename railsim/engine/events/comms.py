@@ -1,0 +1,347 @@
+"""Communication channels: radio messages that arrive late, or not at all.
+
+A follower in a virtually coupled formation knows its leader only through messages (spec 003 §3.5: V2V
+between adjacent vehicles, V2I to the ground; link quality enters as latency and packet loss). A
+:class:`Channel` models one such medium — ``'t2t'`` (train-to-train) or ``'t2g'`` (train-to-ground) — and
+is the one place where delay, loss and outages happen, so the controllers see exactly what a receiver knew.
+
+What happens in time
+--------------------
+``send(sender, receiver, payload)`` at time ``t`` (now, or a given ``t_s ≥ now``):
+
+1. the message is **lost** if the sender or the receiver is inside an :class:`Outage` window at ``t``
+   (counted ``lost_outage``), otherwise with probability ``loss_prob`` (``lost_random``);
+2. otherwise a delay ``d`` is drawn from the channel's :class:`DelaySpec` and a simpy timeout delivers the
+   message at exactly ``t + d`` — between SUMO steps if that is when it falls — into the receiver's mailbox.
+
+``latest(receiver, sender)`` is the newest-**sent** message delivered so far. With random delays a message
+can overtake an older one; the older one, arriving later, is counted ``overtaken`` and does not replace the
+newer one (a receiver keeps the freshest information it has). If nothing newer has arrived, the receiver
+keeps acting on the old message: that staleness (``now − sent_s``) is the point of the model.
+
+Readings and choices
+--------------------
+- Outage windows are half-open, ``start_s ≤ t < end_s``, judged at the **send** time; ``trains=None``
+  means every train. A message already in flight when an outage starts is still delivered.
+- Outage start and end are logged (kinds ``outage_start``/``outage_end``, subject = channel name) by simpy
+  processes at their exact times. Individual messages are not logged (about a hundred per step): the
+  channel keeps counters instead (:meth:`Channel.stats`).
+- Common random numbers: every send draws one uniform (loss) and one delay, lost or not, from the
+  channel's own child stream of the scenario generator. Adding an outage, or changing ``loss_prob``,
+  therefore leaves the fate and delay of every other message unchanged — runs differ only where the fault
+  acts.
+- Delays never come out negative. ``normal`` is truncated at 0 by **rejection** (redraw), not by clipping,
+  so there is no spike of zero-delay messages; the realised mean is then above ``mean_s`` when ``std_s`` is
+  not small against it (``mean_s ≥ 0`` is required, so at least half the draws are accepted). The other
+  distributions are non-negative by construction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Generator, Iterable, Literal
+
+import numpy as np
+import simpy
+
+from railsim.errors import ConfigError
+from railsim.engine.events.clock import EventLayer, TimeoutAt
+
+DelayDist = Literal["constant", "uniform", "normal", "lognormal", "exponential"]
+
+# Which parameters each distribution takes (all in seconds).
+_DELAY_PARAMS: dict[str, tuple[str, ...]] = {
+    "constant": ("value_s",),
+    "uniform": ("low_s", "high_s"),
+    "normal": ("mean_s", "std_s"),
+    "lognormal": ("mean_s", "std_s"),
+    "exponential": ("mean_s",),
+}
+
+_MAX_REDRAWS = 64  # P(64 rejections) ≤ 2^-64 because mean_s ≥ 0
+
+
+@dataclass(frozen=True)
+class DelaySpec:
+    """A message delay distribution; every parameter in seconds.
+
+    - ``DelaySpec("constant", value_s=0.05)``
+    - ``DelaySpec("uniform", low_s=0.02, high_s=0.1)``
+    - ``DelaySpec("normal", mean_s=0.1, std_s=0.03)`` — truncated at 0 by rejection
+    - ``DelaySpec("lognormal", mean_s=0.1, std_s=0.05)`` — mean and std *of the delay* (converted to the
+      log-space μ, σ: σ² = ln(1 + std²/mean²), μ = ln mean − σ²/2)
+    - ``DelaySpec("exponential", mean_s=0.05)``
+    """
+
+    dist: DelayDist = "constant"
+    value_s: float | None = None
+    low_s: float | None = None
+    high_s: float | None = None
+    mean_s: float | None = None
+    std_s: float | None = None
+
+    def __post_init__(self) -> None:
+        if self.dist not in _DELAY_PARAMS:
+            raise ConfigError(None, "delay.dist", f"expected one of {sorted(_DELAY_PARAMS)}, got {self.dist!r}")
+        needed = _DELAY_PARAMS[self.dist]
+        for name in ("value_s", "low_s", "high_s", "mean_s", "std_s"):
+            value = getattr(self, name)
+            if name not in needed:
+                if value is not None:
+                    raise ConfigError(None, f"delay.{name}", f"not a parameter of a {self.dist} delay (takes {needed})")
+                continue
+            if value is None:
+                raise ConfigError(None, f"delay.{name}", f"a {self.dist} delay needs {needed}")
+            if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value) or value < 0:
+                raise ConfigError(None, f"delay.{name}", f"expected a finite number >= 0 s, got {value!r}")
+        if self.dist == "uniform" and self.high_s < self.low_s:  # type: ignore[operator]
+            raise ConfigError(None, "delay.high_s", f"expected >= low_s = {self.low_s}, got {self.high_s}")
+        if self.dist == "lognormal" and self.mean_s == 0.0:
+            raise ConfigError(None, "delay.mean_s", "a lognormal delay needs mean_s > 0")
+
+    @classmethod
+    def from_mapping(cls, data: dict[str, Any], source: str | None = None, field_path: str = "delay") -> DelaySpec:
+        """Build from a scenario mapping such as ``{dist: normal, mean_s: 0.1, std_s: 0.02}``."""
+        if not isinstance(data, dict):
+            raise ConfigError(source, field_path, f"expected a mapping with 'dist', got {data!r}")
+        unknown = set(data) - {"dist", "value_s", "low_s", "high_s", "mean_s", "std_s"}
+        if unknown:
+            raise ConfigError(source, f"{field_path}.{sorted(unknown)[0]}", "unknown delay parameter")
+        try:
+            return cls(**data)
+        except ConfigError as err:
+            sub = (err.field or "delay").removeprefix("delay")
+            raise ConfigError(source, f"{field_path}{sub}", err.message) from None
+
+    @property
+    def mean_delay_s(self) -> float:
+        """Mean of the *untruncated* distribution (exact for all but a wide ``normal``)."""
+        if self.dist == "constant":
+            return float(self.value_s)  # type: ignore[arg-type]
+        if self.dist == "uniform":
+            return 0.5 * (self.low_s + self.high_s)  # type: ignore[operator]
+        return float(self.mean_s)  # type: ignore[arg-type]
+
+    def sample(self, rng: np.random.Generator) -> float:
+        """One delay in seconds, never negative."""
+        dist = self.dist
+        if dist == "constant":
+            return float(self.value_s)  # type: ignore[arg-type]
+        if dist == "uniform":
+            return float(rng.uniform(self.low_s, self.high_s))
+        if dist == "exponential":
+            return float(rng.exponential(self.mean_s)) if self.mean_s else 0.0
+        if dist == "lognormal":
+            m, s = self.mean_s, self.std_s
+            sigma2 = math.log1p((s / m) ** 2)  # type: ignore[operator]
+            return float(rng.lognormal(math.log(m) - 0.5 * sigma2, math.sqrt(sigma2)))  # type: ignore[arg-type]
+        # normal, truncated at zero by rejection
+        for _ in range(_MAX_REDRAWS):
+            d = float(rng.normal(self.mean_s, self.std_s))
+            if d >= 0.0:
+                return d
+        return 0.0
+
+
+@dataclass(frozen=True)
+class Outage:
+    """A communication blackout ``start_s ≤ t < end_s`` for ``trains`` (None = all trains)."""
+
+    start_s: float
+    end_s: float
+    trains: frozenset[str] | None = None
+
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.start_s) and math.isfinite(self.end_s) and self.end_s > self.start_s):
+            raise ConfigError(None, "outages", f"expected finite start_s < end_s, got {self.start_s}..{self.end_s}")
+        if self.trains is not None and not isinstance(self.trains, frozenset):
+            if isinstance(self.trains, str):
+                raise ConfigError(None, "outages.trains", f"expected a list of train ids, got {self.trains!r}")
+            object.__setattr__(self, "trains", frozenset(self.trains))
+
+    def covers(self, train_id: str, t_s: float) -> bool:
+        """True if ``train_id`` cannot communicate at ``t_s``."""
+        return self.start_s <= t_s < self.end_s and (self.trains is None or train_id in self.trains)
+
+
+@dataclass(frozen=True, slots=True)
+class Message:
+    """A delivered (or in-flight) message; ``delivered_s = sent_s + drawn delay``, exactly."""
+
+    sender: str
+    receiver: str
+    payload: Any
+    sent_s: float
+    delivered_s: float
+    delay_s: float  # the drawn delay (delivered_s − sent_s up to rounding)
+    seq: int  # send order on its channel; breaks ties between equal sent_s
+    channel: str
+
+
+@dataclass(frozen=True)
+class ChannelStats:
+    """Counters of one channel. Delay statistics (population std) are over delivered messages, overtaken
+    ones included; ``in_flight`` = sent − lost − delivered."""
+
+    name: str
+    sent: int
+    lost_random: int
+    lost_outage: int
+    delivered: int
+    overtaken: int
+    in_flight: int
+    delay_mean_s: float | None
+    delay_std_s: float | None
+    delay_min_s: float | None
+    delay_max_s: float | None
+
+
+@dataclass(eq=False)
+class _DelayAccumulator:
+    # Welford's running mean/variance: no cancellation for near-constant delays.
+    n: int = 0
+    mean: float = 0.0
+    m2: float = 0.0
+    lo: float = math.inf
+    hi: float = -math.inf
+
+    def add(self, d: float) -> None:
+        self.n += 1
+        delta = d - self.mean
+        self.mean += delta / self.n
+        self.m2 += delta * (d - self.mean)
+        if d < self.lo:
+            self.lo = d
+        if d > self.hi:
+            self.hi = d
+
+
+CHANNEL_NAMES = ("t2t", "t2g")
+
+
+class Channel:
+    """One communication medium with a delay distribution, random loss and outage windows."""
+
+    def __init__(
+        self,
+        layer: EventLayer,
+        name: str,
+        delay: DelaySpec,
+        loss_prob: float = 0.0,
+        outages: Iterable[Outage] = (),
+    ) -> None:
+        if name not in CHANNEL_NAMES:
+            raise ConfigError(None, "comms.name", f"expected one of {CHANNEL_NAMES}, got {name!r}")
+        if isinstance(loss_prob, bool) or not isinstance(loss_prob, (int, float)) or not 0.0 <= loss_prob <= 1.0:
+            raise ConfigError(None, f"comms.{name}.loss_prob", f"expected a probability in [0, 1], got {loss_prob!r}")
+        self._layer = layer
+        self._env = layer.env
+        self.name = name
+        self.delay = delay
+        self.loss_prob = float(loss_prob)
+        self.outages: tuple[Outage, ...] = tuple(outages)
+        self._rng = layer.spawn_rng()
+        self._mail: dict[str, dict[str, Message]] = {}
+        self._subscribers: list[Callable[[Message], object]] = []
+        self._active_outages: list[Outage] = []
+        self._delays = _DelayAccumulator()
+        self._seq = 0
+        self.sent = 0
+        self.lost_random = 0
+        self.lost_outage = 0
+        self.delivered = 0
+        self.overtaken = 0
+        for outage in self.outages:
+            if outage.end_s > layer.now_s:
+                self._env.process(self._outage_window(outage))
+
+    # ------------------------------------------------------------------ sending
+    def send(self, sender: str, receiver: str, payload: Any, t_s: float | None = None) -> Message | None:
+        """Send ``payload`` now (or at ``t_s ≥ now``). Returns the in-flight message, or None if lost."""
+        now = self._env.now
+        if t_s is None:
+            t_s = now
+        elif not t_s >= now:  # also rejects NaN
+            raise ValueError(f"channel {self.name}: cannot send at {t_s!r} s, now is {now!r} s")
+        self.sent += 1
+        self._seq += 1
+        u = self._rng.random()
+        delay_s = self.delay.sample(self._rng)
+        if self.outages and self._in_outage(sender, receiver, t_s):
+            self.lost_outage += 1
+            return None
+        if u < self.loss_prob:
+            self.lost_random += 1
+            return None
+        delivered_s = t_s + delay_s
+        msg = Message(sender, receiver, payload, t_s, delivered_s, delay_s, self._seq, self.name)
+        # Sending now, now + delay *is* delivered_s; a later send time needs the absolute-time timer.
+        if t_s == now:
+            event = self._env.timeout(delay_s, msg)
+        else:
+            event = TimeoutAt(self._env, delivered_s, msg)
+        event.callbacks.append(self._on_delivery)
+        return msg
+
+    def _in_outage(self, sender: str, receiver: str, t_s: float) -> bool:
+        for o in self.outages:
+            if o.covers(sender, t_s) or o.covers(receiver, t_s):
+                return True
+        return False
+
+    def _on_delivery(self, event: simpy.Event) -> None:
+        msg: Message = event.value
+        self.delivered += 1
+        self._delays.add(msg.delay_s)
+        box = self._mail.get(msg.receiver)
+        if box is None:
+            box = self._mail[msg.receiver] = {}
+        current = box.get(msg.sender)
+        if current is None or (msg.sent_s, msg.seq) > (current.sent_s, current.seq):
+            box[msg.sender] = msg
+        else:
+            self.overtaken += 1
+        for callback in self._subscribers:
+            callback(msg)
+
+    # ------------------------------------------------------------------ outages
+    def _outage_window(self, outage: Outage) -> Generator[simpy.Event, None, None]:
+        layer = self._layer
+        start_s = max(outage.start_s, layer.now_s)
+        yield layer.timeout_at(start_s)
+        trains = "all" if outage.trains is None else sorted(outage.trains)
+        self._active_outages.append(outage)
+        layer.log.record(start_s, "outage_start", self.name, trains=trains, end_s=outage.end_s)
+        yield layer.timeout_at(outage.end_s)
+        self._active_outages.remove(outage)
+        layer.log.record(outage.end_s, "outage_end", self.name, trains=trains, start_s=outage.start_s)
+
+    def active_outages(self) -> tuple[Outage, ...]:
+        """Outages in force now (as switched by their simpy processes)."""
+        return tuple(self._active_outages)
+
+    # ------------------------------------------------------------------ receiving
+    def latest(self, receiver: str, sender: str) -> Message | None:
+        """Newest-sent message from ``sender`` delivered to ``receiver`` so far, or None."""
+        box = self._mail.get(receiver)
+        return None if box is None else box.get(sender)
+
+    def inbox(self, receiver: str) -> dict[str, Message]:
+        """``latest`` for every sender that has reached ``receiver`` (a copy)."""
+        return dict(self._mail.get(receiver, {}))
+
+    def subscribe(self, callback: Callable[[Message], object]) -> None:
+        """Call ``callback(message)`` at every delivery (overtaken messages included), in delivery order."""
+        self._subscribers.append(callback)
+
+    def stats(self) -> ChannelStats:
+        """Counters and delay statistics so far."""
+        acc = self._delays
+        lost = self.lost_random + self.lost_outage
+        if acc.n:
+            mean_s, std_s, lo, hi = acc.mean, math.sqrt(acc.m2 / acc.n), acc.lo, acc.hi
+        else:
+            mean_s = std_s = lo = hi = None
+        return ChannelStats(self.name, self.sent, self.lost_random, self.lost_outage, self.delivered,
+                            self.overtaken, self.sent - lost - self.delivered, mean_s, std_s, lo, hi)

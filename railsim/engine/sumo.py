@@ -1,0 +1,338 @@
+"""The SUMO bridge: the only module that imports libsumo.
+
+SUMO is the world: it owns the track geometry, moves the trains by the speeds we give it, keeps station dwell
+(``duration``/``until``) once a train halts with its whole length on the platform, writes its own outputs and
+runs an independent collision check. Everything else (physics limits, interlocking, virtual coupling) is ours.
+
+What this module does, and why (numbers in ``shared/notes/sumo_rail_findings.md``):
+
+* **Start/close.** One simulation per process (a second ``libsumo.start`` silently restarts the first), so the
+  bridge refuses to start twice and always closes. SUMO options: ``--railsignal.default-classes tram`` (no
+  block-based insertion on our signal-free nets), collision checks on junctions with ``mingap-factor 0``,
+  ``--time-to-teleport -1`` (a teleport would hide a deadlock), a seed, and the step method the scenario's
+  discrete model needs (Euler: ``x += v_new·dt``; ballistic: ``x += (v_old+v_new)/2·dt``).
+* **Insert.** Trains are added at run time with ``depart="now"``, ``departSpeed="0"`` and their station stops;
+  controlled trains get ``speedMode 32`` immediately (SUMO then applies ``setSpeed`` exactly and enforces
+  nothing — :mod:`railsim.physics.dynamics` does). A train added at step k appears after that step.
+* **Read.** Direct getters (≈3 µs each; subscriptions are slower under libsumo) into numpy arrays. Positions
+  come as the odometer ``getDistance`` (route chainage = depart chainage + odometer), never x/y, and never
+  ``getDrivingDistance`` (it returns −2^30 for points behind).
+* **Guard.** ``--end`` is ignored when we drive the loop; the engine guards on simulated time.
+"""
+
+from __future__ import annotations
+
+import logging
+import os
+import tempfile
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Iterable, Sequence
+from xml.sax.saxutils import quoteattr
+
+import numpy as np
+
+os.environ.setdefault("SUMO_HOME", "")  # silence "SUMO_HOME is not set" (we use the eclipse-sumo wheel)
+if not os.environ["SUMO_HOME"]:
+    try:  # the eclipse-sumo wheel knows its own home; never assume a system SUMO
+        import sumo as _sumo_pkg
+
+        os.environ["SUMO_HOME"] = _sumo_pkg.SUMO_HOME
+    except ImportError:  # pragma: no cover - eclipse-sumo is a hard dependency
+        del os.environ["SUMO_HOME"]
+
+import libsumo  # noqa: E402  (after SUMO_HOME)
+
+from railsim.errors import SimulationError  # noqa: E402
+
+log = logging.getLogger(__name__)
+
+_STOP_BUS_STOP = 0x08  # trainStops are busStops to SUMO's stop logic
+_ACTIVE = {"started": False}
+
+
+@dataclass(frozen=True)
+class VTypeSpec:
+    """A SUMO vehicle type for one of our vehicle presets (kinematics only; physics stays in railsim)."""
+
+    type_id: str
+    length_m: float
+    max_speed_mps: float
+    accel_mps2: float = 1.0
+    decel_mps2: float = 1.0
+    emergency_decel_mps2: float = 1.3
+    vclass: str = "rail_urban"
+    tau_s: float = 1.0  # Krauss reaction time; tiny for controlled trains so insertion checks never bind
+
+
+@dataclass(frozen=True)
+class StopSpec:
+    """A station stop handed to SUMO: trainStop id plus dwell (``duration_s``) and/or departure (``until_s``)."""
+
+    stop_id: str
+    duration_s: float | None = None
+    until_s: float | None = None
+
+
+@dataclass
+class SumoConfig:
+    """How to start SUMO for one run."""
+
+    net_file: Path
+    additional_files: Sequence[Path] = ()
+    step_s: float = 0.5
+    seed: int = 42
+    step_method: str = "euler"  # "euler", "ballistic", or "forward" (SUMO runs Euler; the engine hands it v_k)
+    begin_s: float = 0.0
+    vtypes: Sequence[VTypeSpec] = ()
+    output_dir: Path | None = None
+    sumo_outputs: Sequence[str] = ()  # any of: tripinfo, stops, fcd, collisions
+    extra_args: Sequence[str] = ()
+
+
+@dataclass
+class TrainStates:
+    """A snapshot of the trains present in SUMO (ground truth), aligned arrays indexed like ``ids``."""
+
+    t_s: float
+    ids: list[str]
+    odometer_m: np.ndarray
+    speed_mps: np.ndarray
+    lane_pos_m: np.ndarray
+    edge_ids: list[str]
+    stopped: np.ndarray  # SUMO has registered a stop (dwelling)
+    index: dict[str, int] = field(default_factory=dict)
+
+    def __post_init__(self) -> None:
+        self.index = {vid: i for i, vid in enumerate(self.ids)}
+
+
+def _write_vtypes(path: Path, vtypes: Iterable[VTypeSpec]) -> None:
+    lines = ["<routes>"]
+    for vt in vtypes:
+        lines.append(
+            f"  <vType id={quoteattr(vt.type_id)} vClass={quoteattr(vt.vclass)} length=\"{vt.length_m:.3f}\""
+            f" maxSpeed=\"{vt.max_speed_mps:.3f}\" accel=\"{vt.accel_mps2:.3f}\" decel=\"{vt.decel_mps2:.3f}\""
+            f" emergencyDecel=\"{vt.emergency_decel_mps2:.3f}\" minGap=\"0\" sigma=\"0\" tau=\"{vt.tau_s:g}\""
+            " carFollowModel=\"Krauss\"/>"
+        )
+    lines.append("</routes>")
+    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
+
+
+class SumoBridge:
+    """Owns one libsumo simulation. Use as a context manager so SUMO is always closed."""
+
+    def __init__(self, config: SumoConfig) -> None:
+        self.config = config
+        self._tmp: tempfile.TemporaryDirectory[str] | None = None
+        self._routes: set[str] = set()
+        self._controlled: set[str] = set()
+        self.started = False
+
+    # ---------------------------------------------------------------- lifecycle
+    def command_line(self, vtype_file: Path | None) -> list[str]:
+        cfg = self.config
+        args = [
+            "sumo",
+            "-n", str(cfg.net_file),
+            "--step-length", f"{cfg.step_s:g}",
+            "--begin", f"{cfg.begin_s:g}",
+            "--seed", str(int(cfg.seed)),
+            "--railsignal.default-classes", "tram",
+            "--collision.action", "warn",
+            "--collision.check-junctions", "true",
+            "--collision.mingap-factor", "0",
+            "--time-to-teleport", "-1",
+            "--emergencydecel.warning-threshold", "100",
+            "--no-step-log", "true",
+            "--duration-log.disable", "true",
+            "--no-warnings", "true",
+        ]
+        if cfg.step_method == "ballistic":
+            args += ["--step-method.ballistic", "true"]
+        elif cfg.step_method not in ("euler", "forward"):  # forward = SUMO Euler fed the *old* speed (engine)
+            raise ValueError(f"step_method must be 'euler', 'ballistic' or 'forward', got {cfg.step_method!r}")
+        additional = [str(p) for p in cfg.additional_files]
+        if vtype_file is not None:
+            additional.append(str(vtype_file))
+        if additional:
+            args += ["-a", ",".join(additional)]
+        if cfg.output_dir is not None and cfg.sumo_outputs:
+            out = Path(cfg.output_dir)
+            out.mkdir(parents=True, exist_ok=True)
+            names = {"tripinfo": "--tripinfo-output", "stops": "--stop-output", "fcd": "--fcd-output",
+                     "collisions": "--collision-output"}
+            for key in cfg.sumo_outputs:
+                if key not in names:
+                    raise ValueError(f"unknown SUMO output {key!r}; expected one of {sorted(names)}")
+                args += [names[key], str(out / f"sumo_{key}.xml")]
+            if "fcd" in cfg.sumo_outputs:
+                args += ["--fcd-output.distance", "true"]
+        args += list(cfg.extra_args)
+        return args
+
+    def start(self) -> "SumoBridge":
+        if _ACTIVE["started"]:
+            raise SimulationError("a SUMO simulation is already running in this process (libsumo hosts one)")
+        self._tmp = tempfile.TemporaryDirectory(prefix="railsim-sumo-")
+        vtype_file = None
+        if self.config.vtypes:
+            vtype_file = Path(self._tmp.name) / "vtypes.rou.xml"
+            _write_vtypes(vtype_file, self.config.vtypes)
+        args = self.command_line(vtype_file)
+        log.debug("starting SUMO: %s", " ".join(args))
+        try:
+            libsumo.start(args)
+        except libsumo.TraCIException as exc:  # SUMO refused the inputs: show its message
+            self._cleanup()
+            raise SimulationError(f"SUMO could not start: {exc}") from None
+        except Exception as exc:  # libsumo raises FatalTraCIError for unreadable nets
+            self._cleanup()
+            raise SimulationError(f"SUMO could not start: {exc}") from None
+        _ACTIVE["started"] = True
+        self.started = True
+        return self
+
+    def close(self) -> None:
+        if self.started:
+            try:
+                libsumo.close()
+            finally:
+                self.started = False
+                _ACTIVE["started"] = False
+        self._cleanup()
+
+    def _cleanup(self) -> None:
+        if self._tmp is not None:
+            self._tmp.cleanup()
+            self._tmp = None
+
+    def __enter__(self) -> "SumoBridge":
+        return self.start()
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+    # ---------------------------------------------------------------- world
+    @property
+    def time_s(self) -> float:
+        return float(libsumo.simulation.getTime())
+
+    def step(self) -> None:
+        libsumo.simulationStep()
+
+    def add_route(self, route_id: str, edges: Sequence[str]) -> None:
+        if route_id in self._routes:
+            return
+        try:
+            libsumo.route.add(route_id, list(edges))
+        except libsumo.TraCIException as exc:
+            raise SimulationError(f"SUMO rejected route {route_id!r}: {exc}") from None
+        self._routes.add(route_id)
+
+    def add_train(
+        self,
+        train_id: str,
+        route_id: str,
+        type_id: str,
+        depart_pos_m: float,
+        stops: Sequence[StopSpec] = (),
+        controlled: bool = True,
+        depart_speed_mps: float = 0.0,
+    ) -> None:
+        """Insert a train now (it appears after the next step) with its stops; controlled → speedMode 32."""
+        try:
+            libsumo.vehicle.add(train_id, route_id, type_id, depart="now", departPos=f"{depart_pos_m:.3f}",
+                                departSpeed=f"{depart_speed_mps:.6f}")
+            for stop in stops:
+                libsumo.vehicle.setBusStop(
+                    train_id, stop.stop_id,
+                    duration=-1073741824.0 if stop.duration_s is None else float(stop.duration_s),
+                    until=-1073741824.0 if stop.until_s is None else float(stop.until_s),
+                    flags=_STOP_BUS_STOP,
+                )
+            if controlled:
+                libsumo.vehicle.setSpeedMode(train_id, 32)
+                self._controlled.add(train_id)
+        except libsumo.TraCIException as exc:
+            raise SimulationError(f"SUMO rejected train {train_id!r}: {exc}") from None
+
+    def remove(self, train_id: str) -> None:
+        try:
+            libsumo.vehicle.remove(train_id)
+        except libsumo.TraCIException:
+            pass
+        self._controlled.discard(train_id)
+
+    def set_length(self, train_id: str, length_m: float) -> None:
+        libsumo.vehicle.setLength(train_id, float(length_m))
+
+    def skip_next_stop(self, train_id: str) -> None:
+        """Drop the next pending stop (used when a train overran a platform: logged by the engine)."""
+        try:
+            libsumo.vehicle.replaceStop(train_id, 0, "")
+        except libsumo.TraCIException as exc:
+            log.warning("could not drop next stop of %s: %s", train_id, exc)
+
+    # ---------------------------------------------------------------- state
+    def present_ids(self) -> list[str]:
+        return list(libsumo.vehicle.getIDList())
+
+    def departed_ids(self) -> list[str]:
+        return list(libsumo.simulation.getDepartedIDList())
+
+    def arrived_ids(self) -> list[str]:
+        return list(libsumo.simulation.getArrivedIDList())
+
+    def pending_ids(self) -> list[str]:
+        return list(libsumo.simulation.getPendingVehicles())
+
+    def read(self, ids: Sequence[str] | None = None) -> TrainStates:
+        """Ground truth for ``ids`` (default: every train present) via direct getters."""
+        ids = list(libsumo.vehicle.getIDList()) if ids is None else list(ids)
+        n = len(ids)
+        odo = np.empty(n)
+        spd = np.empty(n)
+        lpos = np.empty(n)
+        stopped = np.zeros(n, dtype=bool)
+        edges: list[str] = []
+        v = libsumo.vehicle
+        for i, vid in enumerate(ids):
+            odo[i] = v.getDistance(vid)
+            spd[i] = v.getSpeed(vid)
+            lpos[i] = v.getLanePosition(vid)
+            edges.append(v.getRoadID(vid))
+            stopped[i] = v.isStopped(vid)
+        return TrainStates(self.time_s, ids, odo, spd, lpos, edges, stopped)
+
+    def set_speeds(self, ids: Sequence[str], speeds_mps: Sequence[float] | np.ndarray) -> None:
+        set_speed = libsumo.vehicle.setSpeed
+        for vid, spd in zip(ids, speeds_mps):
+            set_speed(vid, float(spd))
+
+    def release_speed(self, train_id: str) -> None:
+        """Hand a train back to SUMO's car-following model (``setSpeed(-1)``, default speed mode)."""
+        libsumo.vehicle.setSpeed(train_id, -1)
+        libsumo.vehicle.setSpeedMode(train_id, 31)
+        self._controlled.discard(train_id)
+
+    def collisions(self) -> list[dict[str, object]]:
+        """SUMO's own collision reports of the last step (an independent check of our ground truth)."""
+        out = []
+        for c in libsumo.simulation.getCollisions():
+            out.append({"collider": c.collider, "victim": c.victim, "type": c.type, "lane": c.lane,
+                        "pos_m": c.pos})
+        return out
+
+    def stop_states(self, train_id: str) -> list[tuple[str, float, float]]:
+        """Remaining stops of a train as ``(stop_id, duration_s, until_s)`` (for checks and debugging)."""
+        return [(s.stoppingPlaceID, s.duration, s.until) for s in libsumo.vehicle.getStops(train_id)]
+
+
+def version() -> str:
+    """SUMO version string of the loaded libsumo."""
+    try:
+        return str(libsumo.simulation.getVersion()[1])
+    except Exception:  # not started
+        return getattr(libsumo, "__version__", "unknown")

@@ -1,0 +1,161 @@
+"""Trips: one train running one departure of a service, with its route, stops, dwell times and plan.
+
+A *service* in a scenario (``from: yudong, to: jiangbei-airport-t2, departures: every 150 s``) expands into
+*trips*, one per departure. A trip knows everything that is fixed before the run:
+
+* its :class:`network.RouteInfo` (SUMO edges, route chainage of every edge, platforms, limits, switches);
+* the stops it serves (the origin is where it is inserted, the destination is where its trip ends);
+* the stopping mark of each stop: the train front halts 1 m before the platform end, so the whole train stands
+  on the platform (SUMO accepts a halt with the front in ``[startPos + length, endPos]``);
+* the dwell at each intermediate stop;
+* the **planned** (timetable) times, from a free run of the same train with the same ATO and physics on an
+  empty line (:func:`plan_free_run`). Delay = actual − planned, so delay measures what the other trains, the
+  interlocking and the communication did to this train, not a guessed timetable.
+
+Turnbacks: a trip ends at its destination platform; a return working is a separate trip from the opposite
+platform (the line world has no reversal edges; see ``network/``'s docstring).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Sequence
+
+STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
+
+
+@dataclass(frozen=True)
+class TripStop:
+    """One platform a trip serves, in the trip's route frame (front chainage)."""
+
+    station_id: str
+    stop_id: str
+    mark_m: float  # where the front should halt
+    window_start_m: float  # front positions SUMO accepts: [platform start + train length, platform end]
+    window_end_m: float
+    dwell_s: float
+    is_origin: bool = False
+    is_destination: bool = False
+
+
+@dataclass
+class Trip:
+    """A train's whole journey. Mutable runtime progress lives in :class:`railsim.engine.loop` (TrainRuntime)."""
+
+    trip_id: str
+    service_id: str
+    index: int  # departure index within the service
+    vehicle_name: str
+    vehicle: Any  # VehicleParams
+    route: Any  # network RouteInfo
+    depart_s: float
+    stops: tuple[TripStop, ...]
+    roles: dict[str, str]  # role -> controller instance name
+    planned_arrival_s: dict[str, float] = field(default_factory=dict)  # station -> planned arrival
+    planned_departure_s: dict[str, float] = field(default_factory=dict)
+    start_offset_m: float = 0.0  # starts this far beyond the origin's mark (experiments that begin in motion)
+    start_speed_mps: float = 0.0
+
+    @property
+    def origin(self) -> TripStop:
+        return self.stops[0]
+
+    @property
+    def destination(self) -> TripStop:
+        return self.stops[-1]
+
+    @property
+    def depart_chainage_m(self) -> float:
+        return self.origin.mark_m + self.start_offset_m
+
+
+def make_stops(route: Any, length_m: float, skip: Sequence[str], dwell_default_s: float,
+               dwell_by_station: dict[str, float], from_station: str, to_station: str) -> tuple[TripStop, ...]:
+    """Stops served on ``route`` between ``from_station`` and ``to_station`` (inclusive), skipping ``skip``."""
+    stops: list[TripStop] = []
+    started = False
+    for rs in route.stops:
+        if rs.station_id == from_station:
+            started = True
+        if not started:
+            continue
+        is_origin = rs.station_id == from_station
+        is_dest = rs.station_id == to_station
+        if rs.station_id in skip and not (is_origin or is_dest):
+            continue
+        mark = rs.end_m - STOP_MARK_BEFORE_END_M
+        stops.append(TripStop(
+            station_id=rs.station_id, stop_id=rs.stop_id, mark_m=mark,
+            window_start_m=rs.start_m + length_m, window_end_m=rs.end_m,
+            dwell_s=0.0 if (is_origin or is_dest) else float(dwell_by_station.get(rs.station_id, dwell_default_s)),
+            is_origin=is_origin, is_destination=is_dest,
+        ))
+        if is_dest:
+            break
+    return tuple(stops)
+
+
+def plan_free_run(trip: Trip, controller_factory: Any, dt_s: float, step_method: str = "euler",
+                  max_time_s: float = 6 * 3600.0) -> tuple[dict[str, float], dict[str, float]]:
+    """Planned arrival/departure per station from a free run (no other trains) of the trip's ATO.
+
+    Pure numpy/python: the same controller and plant as the simulation, integrated with the same step, so the
+    plan is achievable by construction. Returns ``(arrival_by_station, departure_by_station)`` in absolute
+    simulation seconds. Cached per (route, vehicle, stops, controller) so 48 identical trips cost one run.
+    """
+    key = (trip.route.id, trip.vehicle, trip.stops, dt_s, step_method, trip.roles.get("ato"), trip.start_offset_m,
+           trip.start_speed_mps)
+    rel_arr, rel_dep = _free_run_cached(key, trip, controller_factory, dt_s, step_method, max_time_s)
+    return ({k: v + trip.depart_s for k, v in rel_arr.items()}, {k: v + trip.depart_s for k, v in rel_dep.items()})
+
+
+_FREE_RUN_CACHE: dict[Any, tuple[dict[str, float], dict[str, float]]] = {}
+
+
+def _free_run_cached(key: Any, trip: Trip, controller_factory: Any, dt_s: float, step_method: str,
+                     max_time_s: float) -> tuple[dict[str, float], dict[str, float]]:
+    if key in _FREE_RUN_CACHE:
+        return _FREE_RUN_CACHE[key]
+    from railsim.engine.routeview import route_view
+    from railsim.physics import dynamics
+    from controllers.base import Observation, OwnState, StopTarget
+
+    ato = controller_factory()
+    veh = trip.vehicle
+    view = route_view(trip.route)
+    x = trip.depart_chainage_m
+    state = dynamics.PlantState(speed_mps=trip.start_speed_mps)
+    arrivals: dict[str, float] = {trip.origin.station_id: 0.0}
+    departures: dict[str, float] = {trip.origin.station_id: 0.0}
+    t = 0.0
+    idx = 1
+    dwell_until: float | None = None
+    while idx < len(trip.stops) and t < max_time_s:
+        stop = trip.stops[idx]
+        dwelling = dwell_until is not None
+        target = StopTarget(stop.station_id, stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling=dwelling)
+        obs = Observation(
+            t_s=t, dt_s=dt_s,
+            own=OwnState(trip.trip_id, x, state.speed_mps, state.applied_accel_mps2, veh.length_m,
+                         view.gradient_at(x)),
+            vehicle=veh, route_length_m=trip.route.length_m,
+            speed_limits=view.limits_ahead(x - veh.length_m, x + 4000.0),
+            line_speed_mps=view.line_speed_mps, next_stop=target,
+        )
+        cmd = ato.command(obs)
+        res = dynamics.step(veh, state, cmd.accel_mps2, dt_s, view.gradient_at(x), cmd.emergency, step_method)
+        state = res.state
+        x += res.advance_m
+        t += dt_s
+        if dwell_until is not None:
+            if t >= dwell_until:
+                departures[stop.station_id] = t
+                dwell_until = None
+                idx += 1
+        elif state.speed_mps == 0.0 and stop.window_start_m <= x <= stop.window_end_m:
+            arrivals[stop.station_id] = t
+            if stop.is_destination:
+                break
+            dwell_until = t + stop.dwell_s + 1.0  # SUMO registers the stop ~1 s after the halt
+    _FREE_RUN_CACHE[key] = (arrivals, departures)
+    return arrivals, departures

@@ -1,0 +1,4 @@
+"""Recording: per-step samples, trip/stop/formation statistics and atomic output files.
+
+Fed snapshots by the engine; imports nothing above it (docs/architecture.md).
+"""

@@ -1,0 +1,1 @@
+"""Reports, exports and plots of finished runs and sweeps (reads run folders through :mod:`railsim.analysis`)."""

@@ -1,0 +1,1 @@
+"""Studies: many runs of one scenario — sweeps, minimum-headway search, VC vs moving block, paper reproductions."""
