@@ -20,7 +20,7 @@ DEFAULT = Path(__file__).resolve().parents[1] / "scenarios" / "chongqing_line3_p
 
 
 def _railsim(path: str, q: "mp.Queue[dict]") -> None:
-    from railsim.engine import loop as engine
+    from railsim import api as engine
     from railsim import scenario
 
     with tempfile.TemporaryDirectory() as out:

@@ -1,4 +1,4 @@
-"""``railsim run``: run one scenario and write its outputs (a thin layer over :func:`railsim.engine.loop.run`)."""
+"""``railsim run``: run one scenario and write its outputs (a thin layer over :func:`railsim.api.run`)."""
 
 from __future__ import annotations
 
@@ -40,7 +40,7 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from railsim.engine import loop as engine
+    from railsim import api as engine
     from railsim import scenario
 
     scn = scenario.load(args.scenario)

@@ -1,6 +1,8 @@
 """The recorder: ground-truth traces, trip/stop/formation statistics and the run summary.
 
-It only *observes* the simulation (DESIGN.md §5). Gaps, collisions and coupling quality are measured on truth;
+It only *observes* the simulation: the engine feeds it samples during the run (:meth:`Recorder.coupled_sample`,
+:meth:`Recorder.trace_row`, :meth:`Recorder.stop_record`) and a :class:`RunSnapshot` at the end; it never sees
+the engine (docs/architecture.md, "Layers"). Gaps, collisions and coupling quality are measured on truth;
 what a train believed (message age) is recorded next to it so a user can see a follower acting on stale data.
 
 Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.record.output`):
@@ -29,6 +31,7 @@ from typing import Any
 import numpy as np
 
 from railsim.record import output
+from railsim.record.snapshot import OUTPUT_FILES, RunSnapshot
 
 TRIP_COLUMNS = ["trip_id", "service", "vehicle", "origin", "destination", "planned_departure_s", "departure_s",
                 "planned_arrival_s", "arrival_s", "travel_time_s", "delay_s", "energy_kwh", "min_gap_m",
@@ -51,9 +54,8 @@ def _pct(values: list[float], q: float) -> float | None:
 class Recorder:
     """Collects during the run; writes at the end."""
 
-    def __init__(self, sim: Any, stride_s: float) -> None:
-        self.sim = sim
-        self.stride_s = max(float(stride_s), sim.dt)
+    def __init__(self, stride_s: float, dt_s: float) -> None:
+        self.stride_s = max(float(stride_s), dt_s)
         self._next_trace_s = 0.0
         self.trace: list[dict[str, Any]] = []
         self.stops: list[dict[str, Any]] = []
@@ -62,53 +64,38 @@ class Recorder:
         self.min_gap_pair: dict[str, float] = {}
 
     # ------------------------------------------------------------------ during the run
-    def step(self, t: float, active: list[Any], ahead: dict[str, Any],
-             reports: dict[str, tuple[Any, ...]] | None = None) -> None:
-        """One step: coupled-gap statistics every step; a trace sample every ``stride_s`` of the state *at* t
-        (``reports``: route, chainage, speed, applied acceleration, time — taken before the plant step) and the
-        command decided at t."""
-        sim = self.sim
-        for fid, f in ((f.id, f) for f in sim.formation_of_follower.values()):
-            if sim.formations.state(fid) != "coupled":
-                continue
-            fol = sim._trip_ref(f.follower, "formations")
-            lead = sim._trip_ref(f.leader, "formations")
-            a = ahead.get(fol.train_id)
-            if a is None or a.train_id != lead.train_id:
-                continue
-            self.gap_err.setdefault(fid, []).append(abs(a.gap_m - sim._effective_target(fol, f)))
-            self.speed_err.setdefault(fid, []).append(abs(fol.plant.speed_mps - lead.plant.speed_mps))
-            self.min_gap_pair[fid] = min(self.min_gap_pair.get(fid, math.inf), a.gap_m)
-        if t + 1e-9 < self._next_trace_s:
-            return
-        self._next_trace_s = t + self.stride_s
-        for tr in active:
-            f = sim.formation_of_follower.get(tr.train_id)
-            rep = reports.get(tr.train_id) if reports else None
-            speed, accel = (rep[2], rep[3]) if rep is not None else (tr.plant.speed_mps, tr.plant.applied_accel_mps2)
-            self.trace.append({
-                "t_s": t, "train": tr.train_id, "service": tr.trip.service_id, "chainage_m": tr.front_m,
-                "speed_mps": speed, "applied_accel_mps2": accel,
-                "command_mps2": tr.last_cmd_mps2, "role": tr.last_role,
-                "gap_m": tr.last_gap_m if math.isfinite(tr.last_gap_m) else None,
-                "formation_state": str(sim.formations.state(f.id)) if f is not None else "",
-                "solve_time_s": tr.vc_solve_s, "objective": tr.vc_objective,
-            })
+    def coupled_sample(self, formation_id: str, gap_error_m: float, speed_error_mps: float, gap_m: float) -> None:
+        """One step of a coupled formation: gap error against the effective target, speed error, true gap."""
+        self.gap_err.setdefault(formation_id, []).append(gap_error_m)
+        self.speed_err.setdefault(formation_id, []).append(speed_error_mps)
+        self.min_gap_pair[formation_id] = min(self.min_gap_pair.get(formation_id, math.inf), gap_m)
 
-    def stop_record(self, tr: Any, stop: Any, arrival_s: float | None, departure_s: float | None,
-                    error_m: float | None, missed: bool = False) -> None:
-        planned = tr.trip.planned_arrival_s.get(stop.station_id)
+    def trace_due(self, t: float) -> bool:
+        """True once every ``stride_s``: the caller then adds one :meth:`trace_row` per train on the line."""
+        if t + 1e-9 < self._next_trace_s:
+            return False
+        self._next_trace_s = t + self.stride_s
+        return True
+
+    def trace_row(self, row: dict[str, Any]) -> None:
+        """One sample (the columns of :data:`TRACE_COLUMNS`)."""
+        self.trace.append(row)
+
+    def stop_record(self, trip_id: str, service: str, station: str, planned_arrival_s: float | None,
+                    arrival_s: float | None, departure_s: float | None, error_m: float | None,
+                    missed: bool = False) -> None:
         self.stops.append({
-            "trip_id": tr.train_id, "service": tr.trip.service_id, "station": stop.station_id,
-            "planned_arrival_s": planned, "arrival_s": arrival_s, "departure_s": departure_s,
+            "trip_id": trip_id, "service": service, "station": station,
+            "planned_arrival_s": planned_arrival_s, "arrival_s": arrival_s, "departure_s": departure_s,
             "dwell_s": (departure_s - arrival_s) if (arrival_s is not None and departure_s is not None) else None,
             "stopping_error_m": error_m, "missed": missed,
         })
 
     # ------------------------------------------------------------------ tables
-    def trip_rows(self) -> list[dict[str, Any]]:
+    @staticmethod
+    def trip_rows(run: RunSnapshot) -> list[dict[str, Any]]:
         rows = []
-        for tr in self.sim.trains.values():
+        for tr in run.trains:
             trip = tr.trip
             dest = trip.destination.station_id
             planned_arr = trip.planned_arrival_s.get(dest)
@@ -128,17 +115,14 @@ class Recorder:
             })
         return rows
 
-    def formation_rows(self) -> list[dict[str, Any]]:
-        sim = self.sim
+    def formation_rows(self, run: RunSnapshot) -> list[dict[str, Any]]:
         rows = []
-        for f in sim.formation_of_follower.values():  # the scenario's, then any formed at run time (junction)
-            st = sim.formations.stats(f.id)
-            fol = sim._trip_ref(f.follower, "formations")
-            lead = sim._trip_ref(f.leader, "formations")
+        for f in run.formations:  # the scenario's, then any formed at run time (junction)
+            st = f.stats
             ge = self.gap_err.get(f.id, [])
             se = self.speed_err.get(f.id, [])
             rows.append({
-                "formation": f.id, "leader": lead.train_id, "follower": fol.train_id,
+                "formation": f.id, "leader": f.leader_id, "follower": f.follower_id,
                 "couple_requests": st.couple_requests, "couple_successes": st.successes,
                 "couple_failures": st.failures + st.aborts,
                 "time_to_couple_s": st.time_to_couple_s[0] if st.time_to_couple_s else None,
@@ -146,38 +130,35 @@ class Recorder:
                 "gap_error_p50_m": _pct(ge, 50), "gap_error_p95_m": _pct(ge, 95),
                 "gap_error_max_m": max(ge) if ge else None,
                 "speed_error_p50_mps": _pct(se, 50), "speed_error_p95_mps": _pct(se, 95),
-                "min_gap_m": self.min_gap_pair.get(f.id), "final_state": sim.formations.state(f.id),
+                "min_gap_m": self.min_gap_pair.get(f.id), "final_state": f.state,
             })
         return rows
 
-    def event_rows(self) -> list[dict[str, Any]]:
+    @staticmethod
+    def event_rows(run: RunSnapshot) -> list[dict[str, Any]]:
         return [{"t_s": r["t_s"], "kind": r["kind"], "subject": r["subject"], "detail": r.get("detail", "")}
-                for r in self.sim.events.rows()]
+                for r in run.events]
 
     # ------------------------------------------------------------------ summary
-    def summary(self) -> dict[str, Any]:
-        sim = self.sim
-        trains = list(sim.trains.values())
+    def summary(self, run: RunSnapshot) -> dict[str, Any]:
+        trains = list(run.trains)
         min_gaps = [tr.min_gap_m for tr in trains if math.isfinite(tr.min_gap_m)]
         running_times: dict[str, list[float]] = {}
         for tr in trains:
             if tr.arrived_s is not None and tr.departed_s is not None:
                 running_times.setdefault(tr.trip.service_id, []).append(tr.arrived_s - tr.departed_s)
-        comm = {}
-        for name, ch in sim.channels.items():
-            comm[name] = dataclasses.asdict(ch.stats())
-        formations = self.formation_rows()
+        formations = self.formation_rows(run)
         return {
-            "scenario": sim.scenario.name,
-            "seed": sim.seed,
+            "scenario": run.scenario_name,
+            "seed": run.seed,
             "n_trains": len(trains),
             "n_inserted": sum(1 for tr in trains if tr.inserted_s is not None),
             "n_arrived": sum(1 for tr in trains if tr.arrived_s is not None),
             "n_stops_served": sum(tr.stops_served for tr in trains),
             "n_stops_scheduled": sum(len(tr.trip.stops) - 1 for tr in trains),
             "n_stops_missed": sum(1 for s in self.stops if s["missed"]),
-            "collisions": len(sim.collisions),
-            "sumo_collisions": len(sim.sumo_collisions),
+            "collisions": run.collisions,
+            "sumo_collisions": run.sumo_collisions,
             "switch_violations": sum(len(tr.violations) for tr in trains),
             "min_gap_m": min(min_gaps) if min_gaps else None,
             "fallbacks": sum(tr.fallbacks for tr in trains),
@@ -186,33 +167,35 @@ class Recorder:
             "mean_running_time_s": {k: float(np.mean(v)) for k, v in sorted(running_times.items())},
             "formations": {r["formation"]: {k: r[k] for k in ("final_state", "couple_successes", "time_to_couple_s",
                                                                "gap_error_p95_m", "min_gap_m")} for r in formations},
-            "comm": comm,
-            "sim_s": getattr(sim, "end_s", 0.0),
-            "wall_s": sim.wall_s,
-            "steps": sim.steps,
-            "step_s": sim.dt,
-            **({"junction": sim.junction.summary()} if getattr(sim, "junction", None) is not None else {}),
+            "comm": {name: dataclasses.asdict(stats) for name, stats in run.channel_stats.items()},
+            "sim_s": run.sim_s,
+            "wall_s": run.wall_s,
+            "steps": run.steps,
+            "step_s": run.step_s,
+            **run.extra_summary,
         }
 
     # ------------------------------------------------------------------ files
-    def write(self, out_dir: Path) -> dict[str, Path]:
+    def write(self, out_dir: Path, run: RunSnapshot) -> dict[str, Path]:
+        """Write every file of :data:`railsim.record.snapshot.OUTPUT_FILES` (tables in the run's formats)."""
         out_dir = Path(out_dir)
         out_dir.mkdir(parents=True, exist_ok=True)
-        formats = tuple(self.sim.scenario.outputs.formats) or ("csv",)
+        formats = tuple(run.formats) or ("csv",)
         files: dict[str, Path] = {}
-        for stem, rows, cols in (("trips", self.trip_rows(), TRIP_COLUMNS), ("stops", self.stops, STOP_COLUMNS),
-                                 ("formations", self.formation_rows(), FORMATION_COLUMNS),
-                                 ("events", self.event_rows(), EVENT_COLUMNS), ("trace", self.trace, TRACE_COLUMNS)):
-            for p in output.write_table(out_dir, stem, rows, cols, formats):
-                files[p.name] = p
-        summary = self.summary()
-        output.write_json(out_dir / "summary.json", summary)
-        files["summary.json"] = out_dir / "summary.json"
-        output.write_yaml(out_dir / "scenario.resolved.yaml", self.sim.scenario.raw)
-        files["scenario.resolved.yaml"] = out_dir / "scenario.resolved.yaml"
-        from railsim import __version__
-        from railsim.engine.sumo import version as sumo_version
-
-        output.write_json(out_dir / "versions.json", {"railsim": __version__, "sumo": sumo_version(),
-                                                      "numpy": np.__version__})
+        tables = {"trips": (self.trip_rows(run), TRIP_COLUMNS), "stops": (self.stops, STOP_COLUMNS),
+                  "formations": (self.formation_rows(run), FORMATION_COLUMNS),
+                  "events": (self.event_rows(run), EVENT_COLUMNS), "trace": (self.trace, TRACE_COLUMNS)}
+        for spec in OUTPUT_FILES:
+            if spec.kind == "table":
+                rows, cols = tables[spec.stem]
+                for p in output.write_table(out_dir, spec.stem, rows, cols, formats):
+                    files[p.name] = p
+            elif spec.stem == "summary":
+                output.write_json(out_dir / spec.file_name, self.summary(run))
+            elif spec.stem == "scenario.resolved":
+                output.write_yaml(out_dir / spec.file_name, run.resolved_scenario)
+            elif spec.stem == "versions":
+                output.write_json(out_dir / spec.file_name, dict(run.versions))
+            if spec.kind != "table":
+                files[spec.file_name] = out_dir / spec.file_name
         return files

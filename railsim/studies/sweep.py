@@ -448,7 +448,7 @@ def _child_main(spec_path: str) -> None:
     threading.Thread(target=_watch_parent, args=(int(spec["parent_pid"]),), daemon=True).start()
     result_path = Path(spec["result"])
     try:
-        from railsim.engine import loop as engine
+        from railsim import api as engine
         from railsim import scenario
 
         scn = scenario.load(spec["scenario"], spec["overrides"])

@@ -53,7 +53,7 @@ import dataclasses
 import logging
 import math
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, Callable
 
 import numpy as np
 
@@ -64,10 +64,12 @@ from controllers.junction.planner import (
 )
 from controllers.junction.pso import improved_pso_params, plain_pso_params
 from controllers.junction.simulate import measure
+from controllers.base import Command, Observation
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
-    from railsim.engine.loop import Simulation, TrainRuntime
+    from railsim.engine.occupancy import Ahead
+    from railsim.engine.train import TrainRuntime
 
 log = logging.getLogger(__name__)
 
@@ -106,18 +108,40 @@ class _Member:
         return "entry1", self.switch_m["sw2"] - front_m
 
 
+@dataclass
+class JunctionPorts:
+    """What the coordinator may use of the engine — nothing else (it never sees the simulation)."""
+
+    source: Any                                   # the scenario file (error messages)
+    trains: dict[str, TrainRuntime]
+    settings: Any                                 # EngineSettings (clearance, protection margin)
+    dt_s: float
+    channels: dict[str, Any]                      # the radio channels (t2g reports, t2t delay)
+    events: Any                                   # EventLog
+    interlocking: Any                             # Interlocking (switch states, lock requests)
+    manager: Any                                  # FormationManager (couple requests, stats)
+    add_formation: Callable[[Any, str], None]     # register a formation formed at run time
+    known_state: Callable[..., Any]               # Knowledge.known_state (what a train knows of another)
+    leader_of: Callable[[Any], TrainRuntime]      # FormationBook.leader_of
+    of_follower: dict[str, Any]                   # FormationBook.of_follower
+    switch_throw_s: dict[str, float]              # throw time per switch of the world
+    seed: int                                     # the planner's own random stream
+
+
 class JunctionCoordinator:
     """The ground-side junction planner of one scenario (see the module docstring)."""
 
-    def __init__(self, sim: Simulation, spec: Any) -> None:
-        self.sim = sim
+    summary_key = "junction"
+
+    def __init__(self, ports: JunctionPorts, spec: Any) -> None:
+        self.ports = ports
         self.spec = spec
         self.method: str = spec.method
-        src = sim.scenario.source
+        src = ports.source
         self.members: dict[str, _Member] = {}
         lengths = []
         for i, tid in enumerate(spec.trains):
-            tr = sim.trains[tid]
+            tr = ports.trains[tid]
             self.members[tid] = self._member(tr, f"junction.trains[{i}]")
             lengths.append(tr.trip.vehicle.length_m)
         legs2 = {m.legs["sw2"] for m in self.members.values() if "sw1" not in m.legs}
@@ -130,7 +154,7 @@ class JunctionCoordinator:
         s4 = (ref.switch_m["sw2"] - ref.switch_m["sw1"]) if ref is not None else 200.0
         s5 = any_m.F_m - any_m.switch_m["sw2"]
         self.layout = YJunctionLayout(S4_m=s4, S5_m=s5, sw1_branch_leg="reverse", sw2_branch_leg=branch2)
-        throw_s = max(sim.bundle.switches[sid].throw_time_s for sid in SWITCHES if sid in sim.bundle.switches)
+        throw_s = max(ports.switch_throw_s[sid] for sid in SWITCHES if sid in ports.switch_throw_s)
         try:
             probe = JunctionParams(**{"pred_length_m": max(lengths), **spec.params})
             if "standstill_gap_m" not in spec.params:
@@ -147,7 +171,7 @@ class JunctionCoordinator:
             raise ConfigError(src, "junction.params", str(exc)) from None
         self.target_gap_m = float(spec.target_gap_m if spec.target_gap_m is not None
                                   else self.params.standstill_gap_m)
-        self.rng = np.random.default_rng(sim.rng.integers(2**63))
+        self.rng = np.random.default_rng(ports.seed)
         self.plan: JunctionPlan | None = None
         self.problem0: Any = None
         self.t0_s: float | None = None
@@ -167,7 +191,7 @@ class JunctionCoordinator:
     # ------------------------------------------------------------------ set-up
     def _member(self, tr: TrainRuntime, where: str) -> _Member:
         route = tr.trip.route
-        src = self.sim.scenario.source
+        src = self.ports.source
         points = {rs.switch_id: rs for rs in route.switches if rs.switch_id in SWITCHES}
         F = [p.point_m for p in route.points if p.point_id == "F"]
         if "sw2" not in points or not F:
@@ -190,7 +214,7 @@ class JunctionCoordinator:
 
             t_ls = (turnout + L + clearance) / v_lsr  +  throw_s  +  (v_lsn² / (2 |a_min|) + protection) / v_lsn
         """
-        st = self.sim.settings
+        st = self.ports.settings
         turnout = max((m.point_m[sid] - m.switch_m[sid] for m in self.members.values() for sid in m.legs),
                       default=0.0)
         release = (turnout + length_m + st.clearance_m) / p.reverse_speed_mps
@@ -210,10 +234,10 @@ class JunctionCoordinator:
         from controllers.base import Observation, OwnState, PredecessorState
 
         gaps = [0.0]
-        ch = self.sim.channels.get("t2t")
+        ch = self.ports.channels.get("t2t")
         age = float(ch.delay.mean_delay_s) if ch is not None else 0.1
         for tid in self.members:
-            tr = self.sim.trains[tid]
+            tr = self.ports.trains[tid]
             ctl = tr.controllers.get("coupled")
             if ctl is None:
                 continue
@@ -221,7 +245,7 @@ class JunctionCoordinator:
             own = OwnState(tid, 1000.0, speed_mps, 0.0, veh.length_m)
             pred = PredecessorState("leader", 2000.0, speed_mps, 0.0, veh.length_m, 0.0, age,
                                     veh.service_decel_mps2, veh.emergency_decel_mps2)
-            obs = Observation(t_s=age, dt_s=self.sim.dt, own=own, vehicle=veh, route_length_m=1e6,
+            obs = Observation(t_s=age, dt_s=self.ports.dt_s, own=own, vehicle=veh, route_length_m=1e6,
                               predecessor=pred, formation_state="coupled", target_gap_m=1.0)
             info = ctl.command(obs).info or {}
             gaps.append(float(info.get("target_gap_m", 0.0)))
@@ -269,17 +293,42 @@ class JunctionCoordinator:
         u = a_ff + K_V_PER_S * (v_ref - own_v_mps) + K_S_PER_S2 * (s_ref - s)
         return float(np.clip(u, p.accel_min_mps2, p.accel_max_mps2))
 
+    def commands(self, t: float, tr: TrainRuntime, a: Ahead | None, base: dict[str, Any],
+                 commands: dict[str, Command], own_pos_m: float, own_v_mps: float, fstate: str) -> None:
+        """A train under the plan: the plan's command, and only a relative-braking-distance safety cap against
+        the train ahead (the coupled controller without gap tracking) — see the module docstring, step 3."""
+        u = self.command(t, tr, own_pos_m, own_v_mps)
+        if u is not None:
+            commands["junction"] = Command(u)
+        if a is None:
+            return
+        other = self.ports.trains[a.train_id]
+        f = self.ports.of_follower.get(tr.train_id)
+        own_leader = f is not None and self.ports.leader_of(f).train_id == other.train_id
+        pred = self.ports.known_state(tr, other, "t2t" if own_leader else "t2g",
+                                      tr.train_id if own_leader else "ground")
+        guard = tr.controllers.get("coupled")
+        if pred is None:
+            return
+        if guard is None:
+            commands["separation"] = tr.controllers["separation"].command(
+                Observation(**base, predecessor=pred, formation_state=fstate))
+            return
+        commands["guard"] = guard.command(Observation(**base, predecessor=pred, formation_state="coupling",
+                                                      target_gap_m=self.target_gap_m,
+                                                      extras={"vc_tracking": False}))
+
     def _naive_command(self, m: _Member, pos_m: float, v: float) -> float:
         p = self.params
         ahead = [(m.switch_m[sid], sid) for sid in m.switch_m if m.point_m[sid] > pos_m]
         if ahead:
             d, sid = min(ahead)
             v_lim = p.limit_speed_mps(m.legs[sid]) - p.switch_speed_margin_mps
-            cap = baselines.approach_speed_cap(v, d - pos_m, v_lim, self.sim.dt, abs(p.accel_min_mps2))
+            cap = baselines.approach_speed_cap(v, d - pos_m, v_lim, self.ports.dt_s, abs(p.accel_min_mps2))
         else:
             last = max(m.point_m, key=lambda k: m.point_m[k])
             cap = p.limit_speed_mps(m.legs[last])
-        return baselines.accel_towards(cap, v, self.sim.dt, p)
+        return baselines.accel_towards(cap, v, self.ports.dt_s, p)
 
     # ------------------------------------------------------------------ reference trajectories
     def _set_reference(self, m: _Member, t: float, front_m: float, v0: float, segments: Any) -> None:
@@ -316,9 +365,13 @@ class JunctionCoordinator:
         return float(np.interp(tau, m.ref_t, m.ref_s)), float(np.interp(tau, m.ref_t, m.ref_v))
 
     # ------------------------------------------------------------------ the per-step update
+    def before_bookkeeping(self, t: float) -> None:
+        """The loop's phase hook: plan, re-plan, lock order, formations, hand-over at F (module docstring)."""
+        self.update(t)
+
     def update(self, t: float) -> None:
         """Plan, re-plan, lock, form, hand over and record (called every step before the controllers run)."""
-        trains = [self.sim.trains[tid] for tid in self.members]
+        trains = [self.ports.trains[tid] for tid in self.members]
         if any(tr.status not in ("running",) for tr in trains) and self.t0_s is None:
             return  # not every planned train is on the line yet
         if self.t0_s is None:
@@ -330,7 +383,7 @@ class JunctionCoordinator:
             if not m.handed_over and tr.front_m >= m.F_m:
                 m.handed_over = True
                 self.handover_s[tr.train_id] = t
-                self.sim.events.record(t, "junction_handover", tr.train_id, at="F",
+                self.ports.events.record(t, "junction_handover", tr.train_id, at="F",
                                        speed_mps=round(tr.plant.speed_mps, 3))
         if not self.formed and (self.frozen or any(tr.front_m >= self.members[tr.train_id].point_m["sw2"]
                                                    for tr in trains)):
@@ -350,7 +403,7 @@ class JunctionCoordinator:
 
     def _ground_states(self, t: float, trains: list[TrainRuntime]) -> tuple[list[TrainState], dict[str, float]]:
         """What the ground knows of each planned train now: last t2g report extrapolated at constant speed."""
-        ch = self.sim.channels.get("t2g")
+        ch = self.ports.channels.get("t2g")
         states, fronts = [], {}
         for tr in trains:
             msg = ch.latest("ground", tr.train_id) if ch is not None else None
@@ -367,7 +420,7 @@ class JunctionCoordinator:
         return states, fronts
 
     def _switch_states(self) -> list[SwitchState]:
-        il = self.sim.interlocking
+        il = self.ports.interlocking
         out = []
         for sid in SWITCHES:
             lock = il.lock(sid)
@@ -397,12 +450,12 @@ class JunctionCoordinator:
                 order = tuple(ids[k] for k in prio)
                 self._apply_order(t, order, naive=True)
                 self.frozen = True
-                self.sim.events.record(t, "junction_plan", "junction", method=self.method, order=list(order))
+                self.ports.events.record(t, "junction_plan", "junction", method=self.method, order=list(order))
                 return
             new = plan(states, self._switch_states(), self.layout, self.params, self.method,  # type: ignore[arg-type]
                        self.pso, self.rng)
         except PlannerError as exc:
-            raise ConfigError(self.sim.scenario.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}"
+            raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}"
                               ) from None
         self._adopt(t, new, trains)
 
@@ -411,7 +464,7 @@ class JunctionCoordinator:
             return
         if any(tr.front_m >= self.members[tr.train_id].point_m["sw2"] for tr in trains):
             self.replanning = False  # the first train is through the merge switch: track the last plan to F
-            self.sim.events.record(t, "junction_replanning_ended", "junction", reason="a train passed sw2")
+            self.ports.events.record(t, "junction_replanning_ended", "junction", reason="a train passed sw2")
             return
         due = t - self.last_plan_s >= self.spec.replan_s - 1e-9
         if not due and t - self.last_plan_s >= MIN_REPLAN_GAP_S:
@@ -420,7 +473,7 @@ class JunctionCoordinator:
                 s_ref, v_ref = self._reference(m, t)
                 if abs(tr.front_m - m.ref_front_m - s_ref) > DEVIATION_M or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS:
                     due = True
-                    self.sim.events.record(t, "junction_deviation", tr.train_id,
+                    self.ports.events.record(t, "junction_deviation", tr.train_id,
                                            ds_m=round(tr.front_m - m.ref_front_m - s_ref, 2),
                                            dv_mps=round(tr.plant.speed_mps - v_ref, 3))
                     break
@@ -433,13 +486,13 @@ class JunctionCoordinator:
             new = replan(self.plan, states, self._switch_states(), self.layout, self.params, self.method,  # type: ignore[arg-type]
                          self.replan_pso, self.rng, keep_order=self.frozen)
         except PlannerError as exc:
-            self.sim.events.record(t, "junction_plan_failed", "junction", error=str(exc))
+            self.ports.events.record(t, "junction_plan_failed", "junction", error=str(exc))
             log.warning("junction re-plan at t=%.1f s failed (%s); keeping the current plan", t, exc)
             self.last_plan_s = t
             return
         if not new.feasible and self.plan.feasible and not new.frozen_order:
             # an infeasible re-plan never replaces a feasible plan (the documented fallback: keep tracking it)
-            self.sim.events.record(t, "junction_plan_rejected", "junction", violation=round(new.violation, 4))
+            self.ports.events.record(t, "junction_plan_rejected", "junction", violation=round(new.violation, 4))
             self.last_plan_s = t
             return
         self._adopt(t, new, trains)
@@ -454,13 +507,13 @@ class JunctionCoordinator:
                            "violation": new.violation, "frozen": new.frozen_order,
                            "wall_time_s": new.wall_time_s, "iterations": new.iterations,
                            "coupling_time_s": t + new.coupling_time_s, "coupled_speed_mps": new.coupled_speed_mps})
-        self.sim.events.record(t, "junction_plan", "junction", method=self.method, order=list(new.order),
+        self.ports.events.record(t, "junction_plan", "junction", method=self.method, order=list(new.order),
                                feasible=new.feasible, cost=round(new.cost, 4), frozen=new.frozen_order,
                                wall_time_s=round(new.wall_time_s, 4),
                                predicted_coupling_s=round(t + new.coupling_time_s, 2))
         if new.frozen_order and not self.frozen:
             self.frozen = True
-            self.sim.events.record(t, "junction_order_frozen", "junction", order=list(new.order))
+            self.ports.events.record(t, "junction_order_frozen", "junction", order=list(new.order))
         self._apply_order(t, tuple(new.order), naive=False)
 
     # ------------------------------------------------------------------ locks and formations
@@ -469,7 +522,7 @@ class JunctionCoordinator:
         if order == self.order:
             return
         self.order = order
-        il = self.sim.interlocking
+        il = self.ports.interlocking
         for sid in SWITCHES:
             users = [tid for tid in order if sid in self.members[tid].legs]
             if not users:
@@ -478,9 +531,9 @@ class JunctionCoordinator:
                 if not il.is_granted(req):
                     il.cancel(req)
                     for h in req.holder_ids:
-                        self.sim.trains[h].locks.pop(sid, None)
+                        self.ports.trains[h].locks.pop(sid, None)
             self.requests[sid] = [r for r in self.requests[sid] if il.is_granted(r)]
-            waiting = [tid for tid in users if sid not in self.sim.trains[tid].locks]
+            waiting = [tid for tid in users if sid not in self.ports.trains[tid].locks]
             groups: list[list[str]] = []
             for tid in waiting:
                 leg = self.members[tid].legs[sid]
@@ -492,7 +545,7 @@ class JunctionCoordinator:
                 req = il.request(tuple(g), sid, self.members[g[0]].legs[sid])
                 self.requests[sid].append(req)
                 for h in g:
-                    self.sim.trains[h].locks[sid] = req
+                    self.ports.trains[h].locks[sid] = req
 
     def _form(self, t: float) -> None:
         """Form the formations in passing order: each train follows the one before it, coupling from now."""
@@ -502,13 +555,13 @@ class JunctionCoordinator:
         self.formed_s = t
         order = self.order or tuple(self.members)
         for lead, fol in zip(order, order[1:]):
-            lt, ft = self.sim.trains[lead].trip, self.sim.trains[fol].trip
+            lt, ft = self.ports.trains[lead].trip, self.ports.trains[fol].trip
             fid = f"junction_{lead}_{fol}"
             spec = FormationSpec(id=fid, leader=TripRef(lt.service_id, lt.index),
                                  follower=TripRef(ft.service_id, ft.index), target_gap_m=self.target_gap_m)
-            self.sim.add_formation(spec, "junction")
-            self.sim.formations.request_couple(fid)
-        self.sim.events.record(t, "junction_formed", "junction", order=list(order))
+            self.ports.add_formation(spec, "junction")
+            self.ports.manager.request_couple(fid)
+        self.ports.events.record(t, "junction_formed", "junction", order=list(order))
 
     # ------------------------------------------------------------------ results
     def summary(self) -> dict[str, Any]:
@@ -536,11 +589,28 @@ class JunctionCoordinator:
             out[k] = val
         if out.get("coupling_time_s") is not None:
             out["coupling_time_s"] = float(out["coupling_time_s"])
-        form = [f for f in self.sim.formations.ids() if f.startswith("junction_")]
-        times = [self.sim.formations.stats(fid).time_to_couple_s for fid in form]
+        form = [f for f in self.ports.manager.ids() if f.startswith("junction_")]
+        times = [self.ports.manager.stats(fid).time_to_couple_s for fid in form]
         out["formations"] = form
         out["formations_coupled"] = sum(1 for c in times if c)
         # every formation locked in (Eq. 2-3 held for the hold time): when the last one did, from the first plan
         out["all_coupled_s"] = (self.formed_s - self.t0_s + max(c[0] for c in times)
                                 if times and all(times) and self.t0_s is not None else None)
         return out
+
+
+def install(ctx: Any) -> JunctionCoordinator | None:
+    """The junction planner online when the scenario has a ``junction:`` section."""
+    spec = ctx.scenario.junction
+    if spec is None:
+        return None
+    ports = JunctionPorts(source=ctx.scenario.source, trains=ctx.fleet.trains, settings=ctx.settings,
+                          dt_s=ctx.dt_s, channels=ctx.channels, events=ctx.events, interlocking=ctx.interlocking,
+                          manager=ctx.formations.manager, add_formation=ctx.formations.add,
+                          known_state=ctx.knowledge.known_state, leader_of=ctx.formations.leader_of,
+                          of_follower=ctx.formations.of_follower, switch_throw_s=ctx.switch_throw_s,
+                          seed=ctx.draw_seed())
+    coordinator = JunctionCoordinator(ports, spec)
+    ctx.control.command_source = coordinator
+    ctx.locks.managed_by = coordinator.manages_lock
+    return coordinator

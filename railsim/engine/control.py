@@ -1,0 +1,265 @@
+"""The control phase: what each train observes, which roles command it, arbitration and the plant step.
+
+Per train and step (docs/architecture.md, "The step loop"):
+
+1. **Observation** — own odometry (with sensor noise if configured), the speed limits ahead (a coupled
+   formation runs as one long train: a restriction holds until its tail clears), the next stop's mark (behind
+   the leader's for a coupled follower), the movement authority from the route locks.
+2. **Roles** — ``ato`` always (the closing ATO without cruise margin for a coupled follower); ``coupled`` on
+   t2t data while the formation couples/is coupled and the leader's data is fresh (else it degrades to
+   ``separation`` on ground data, logged ``vc_degraded``/``vc_restored`` with one step of hysteresis);
+   ``separation`` against any other train ahead; ``ca`` on the train's own sensor. A *command source*
+   extension (the junction planner) may take over a train's roles while it flies a plan.
+3. **Arbitration** — the most restrictive command wins (:func:`controllers.base.arbitrate`); emergency braking
+   intervals and non-finite commands are events.
+4. **Plant** — :func:`railsim.physics.dynamics.step` (envelopes, jerk, lag, resistance, gradient) with
+   actuator noise and injected biases, or an exact plant extension (carriages, monorail drive) whose step's
+   mean speed SUMO is handed. The return value is the speed SUMO applies during the coming step.
+"""
+
+from __future__ import annotations
+
+import logging
+import math
+from dataclasses import dataclass
+from typing import Any, Callable, Protocol
+
+import numpy as np
+
+from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate
+from railsim.engine.coupling import COUPLED_STATES, FormationBook
+from railsim.engine.events.log import EventLog
+from railsim.engine.knowledge import Knowledge
+from railsim.engine.locking import RouteLocks
+from railsim.engine.occupancy import Ahead
+from railsim.engine.safety import SafetyMonitor
+from railsim.engine.settings import INF, EngineSettings
+from railsim.engine.stops import StopBook
+from railsim.engine.train import TrainRuntime
+from railsim.physics import dynamics
+
+log = logging.getLogger(__name__)
+AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
+
+
+class CommandSource(Protocol):
+    """An extension that commands some trains itself for a while (the junction planner)."""
+
+    def in_plan_phase(self, train_id: str) -> bool: ...
+
+    def commands(self, t: float, tr: TrainRuntime, a: Ahead | None, base: dict[str, Any],
+                 commands: dict[str, Command], own_pos_m: float, own_v_mps: float, fstate: str) -> None: ...
+
+
+@dataclass
+class Disturbances:
+    """Sensor and actuator faults of the scenario, with their own random streams."""
+
+    position_sd_m: float
+    speed_sd_mps: float
+    noise_rng: np.random.Generator
+    actuator_sd_mps2: float
+    actuator_rng: np.random.Generator
+    actuator_trains: Any  # None = every train
+    biases: tuple[Any, ...]  # scenario faults.actuator_bias
+
+    def biased(self, t: float, train_id: str, u_mps2: float) -> float:
+        """``u`` plus every injected actuator bias active for this train at ``t``."""
+        for bias in self.biases:
+            if bias.train == train_id and bias.from_s <= t < bias.until_s:
+                u_mps2 += bias.accel_mps2
+        return u_mps2
+
+
+class ControlStage:
+    """Observations → role commands → arbitration → plant step, for one train at a time."""
+
+    def __init__(self, trains: dict[str, TrainRuntime], formations: FormationBook, knowledge: Knowledge,
+                 safety: SafetyMonitor, locks: RouteLocks, stops: StopBook, events: EventLog,
+                 settings: EngineSettings, dt_s: float, step_method: str, disturbances: Disturbances) -> None:
+        self.trains = trains
+        self.formations = formations
+        self.knowledge = knowledge
+        self.safety = safety
+        self.locks = locks
+        self.stops = stops
+        self.events = events
+        self.settings = settings
+        self.dt = dt_s
+        self.step_method = step_method
+        self.dist = disturbances
+        self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
+        self.command_source: CommandSource | None = None
+
+    # ------------------------------------------------------------------ observation
+    def _base(self, t: float, tr: TrainRuntime) -> tuple[dict[str, Any], float, float]:
+        veh = tr.trip.vehicle
+        stop, offset = self.stops.current(tr)
+        target = None
+        if stop is not None:
+            # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
+            target = StopTarget(stop.station_id, stop.mark_m - offset, stop.window_start_m, stop.window_end_m,
+                                dwelling=tr.sumo_stopped or tr.halted_s is not None)
+        own_pos = tr.front_m
+        own_v = tr.plant.speed_mps
+        if self.dist.position_sd_m > 0:
+            own_pos += float(self.dist.noise_rng.normal(0.0, self.dist.position_sd_m))
+        if self.dist.speed_sd_mps > 0:
+            own_v = max(0.0, own_v + float(self.dist.noise_rng.normal(0.0, self.dist.speed_sd_mps)))
+        grad = tr.view.gradient_at(tr.front_m)
+        tail_m = self.formations.tail_m(tr)
+        limits = tr.view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
+        if tail_m > 0.0:
+            # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears
+            limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
+        base = dict(
+            t_s=t, dt_s=self.dt,
+            own=OwnState(tr.train_id, own_pos, own_v, tr.plant.applied_accel_mps2, veh.length_m, grad),
+            vehicle=veh, route_length_m=tr.view.length_m,
+            speed_limits=limits,
+            line_speed_mps=tr.view.line_speed_mps, next_stop=target, authority_end_m=self.locks.authority_end_m(tr),
+        )
+        return base, own_pos, own_v
+
+    # ------------------------------------------------------------------ roles
+    def control(self, t: float, tr: TrainRuntime, a: Ahead | None) -> float:
+        """Decide and apply this train's command; return the speed handed to SUMO for the coming step."""
+        base, own_pos, own_v = self._base(t, tr)
+        grad = base["own"].gradient_permille
+        commands: dict[str, Command] = {}
+        f = self.formations.of_follower.get(tr.train_id)
+        fstate = self.formations.manager.state(f.id) if f is not None else "free"
+        leader = self.formations.leader_of(f) if f is not None else None
+        ato = tr.controllers["ato"]
+        if fstate in COUPLED_STATES and tr.controllers.get("ato_closing") is not None and not tr.degraded:
+            ato = tr.controllers["ato_closing"]
+        ato_extras: dict[str, Any] = {}
+        for extra in self.ato_extras:
+            ato_extras.update(extra(t, tr))
+        commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
+
+        src = self.command_source
+        if src is not None and src.in_plan_phase(tr.train_id):
+            src.commands(t, tr, a, base, commands, own_pos, own_v, fstate)
+            return self._finish(t, tr, commands, grad)
+        used_vc = False
+        if f is not None and fstate in COUPLED_STATES and leader is not None and leader.on_line and \
+                tr.controllers.get("coupled") is not None:
+            used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)
+        if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
+            other = self.trains[a.train_id]
+            pred = self.knowledge.known_state(tr, other, "t2g", "ground")
+            if pred is not None:
+                tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+                obs = Observation(**base, predecessor=pred, formation_state=fstate)
+                commands["separation"] = tr.controllers["separation"].command(obs)
+        ca_ctl = tr.controllers.get("ca")
+        if ca_ctl is not None:  # collision avoidance on the train's own sensor: works with the radio down
+            self._collision_avoidance(t, tr, a, ca_ctl, base, fstate, commands)
+        return self._finish(t, tr, commands, grad)
+
+    def _coupled(self, t: float, tr: TrainRuntime, f: Any, fstate: str, leader: TrainRuntime,
+                 base: dict[str, Any], commands: dict[str, Command]) -> bool:
+        """The coupled controller on t2t data if fresh enough; degrade/restore events. True if it commanded."""
+        pred = self.knowledge.known_state(tr, leader, "t2t", tr.train_id)
+        # hysteresis: degrade when the leader's data is older than max_message_age_s, restore only once it is at
+        # least one step fresher (a delay equal to the limit would otherwise flip the mode every step)
+        age_limit = self.settings.max_message_age_s - (self.dt if tr.degraded else 0.0)
+        if pred is not None and pred.age_s <= age_limit:
+            extras = {}
+            stop, offset = self.stops.current(tr)
+            if stop is not None and offset > 0.0 and self.formations.in_final_approach(tr, stop.mark_m - offset):
+                # both units stop at this platform: the ATO stops us exactly behind the leader's mark, the coupled
+                # controller keeps only its safety cap (its slow gap loop would halt us short)
+                extras["vc_tracking"] = False
+            obs = Observation(**base, predecessor=pred, formation_state=fstate,
+                              target_gap_m=float(f.target_gap_m), extras=extras)
+            vc_cmd = tr.controllers["coupled"].command(obs)
+            commands["coupled"] = vc_cmd
+            info = vc_cmd.info or {}
+            tr.vc_solve_s = float(info["solve_time_s"]) if info.get("solve_time_s") is not None else None
+            tr.vc_objective = float(info["J"]) if info.get("J") is not None else None
+            tgt = vc_cmd.info.get("target_gap_m") if vc_cmd.info else None
+            tr.vc_target_gap_m = float(tgt) if tgt is not None else None
+            tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+            if tr.degraded:
+                tr.degraded = False
+                self.events.record(t, "vc_restored", tr.train_id)
+            return True
+        if not tr.degraded:
+            tr.degraded = True
+            self.events.record(t, "vc_degraded", tr.train_id, age_s=None if pred is None else round(pred.age_s, 3))
+        return False
+
+    def _collision_avoidance(self, t: float, tr: TrainRuntime, a: Ahead | None, ca_ctl: Any,
+                             base: dict[str, Any], fstate: str, commands: dict[str, Command]) -> None:
+        ca_cmd = ca_ctl.command(Observation(**base, extras={"sensor": self.safety.sensor(tr, a)},
+                                            formation_state=fstate))
+        commands["ca"] = ca_cmd
+        event = ca_cmd.info.get("event") if ca_cmd.info else None
+        if event in ("ca_on", "ca_off"):
+            gap = float(ca_cmd.info.get("gap_m", INF))
+            self.events.record(t, "ca_trigger" if event == "ca_on" else "ca_release", tr.train_id,
+                               gap_m=round(gap, 3) if math.isfinite(gap) else None,
+                               trigger_m=ca_cmd.info.get("trigger_m"))
+
+    # ------------------------------------------------------------------ arbitration and plant
+    def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
+        """Arbitrate the roles' commands (minimum) and advance the plant; returns the speed handed to SUMO."""
+        veh = tr.trip.vehicle
+        role, cmd = arbitrate(commands)
+        if cmd.emergency and tr.emergency_since_s is None:
+            tr.emergency_since_s = t
+            self.events.record(t, "emergency_brake_on", tr.train_id, role=role)
+        elif not cmd.emergency and tr.emergency_since_s is not None:
+            self.events.record(t, "emergency_brake_off", tr.train_id, role=role,
+                               duration_s=round(t - tr.emergency_since_s, 3))
+            tr.emergency_since_s = None
+        if cmd.fallback:
+            tr.fallbacks += 1
+        if not math.isfinite(cmd.accel_mps2):
+            self.events.record(t, "controller_nan", tr.train_id, role=role)
+            log.error("%s: %s controller returned %r; braking", tr.train_id, role, cmd.accel_mps2)
+            cmd = Command(-veh.service_decel_mps2, fallback=True)
+            tr.fallbacks += 1
+        if tr.exact_plant is not None:
+            return self._exact_finish(t, tr, role, cmd, grad)
+        u = cmd.accel_mps2
+        noise_trains = self.dist.actuator_trains
+        if self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains):
+            u += float(self.dist.actuator_rng.normal(0.0, self.dist.actuator_sd_mps2))  # the papers' disturbance
+        u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
+        plan = cmd.info.get("plan") if cmd.info else None
+        tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
+        v_now = tr.plant.speed_mps
+        res = dynamics.step(veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method)
+        jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
+        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
+        tr.plant = res.state
+        tr.energy_j += res.traction_energy_j
+        for s in res.saturations:
+            tr.saturations[s] = tr.saturations.get(s, 0) + 1
+        tr.last_role = role
+        tr.last_cmd_mps2 = cmd.accel_mps2
+        # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
+        # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
+        tr.sent_speed_mps = v_now if self.step_method == "forward" else res.state.speed_mps
+        return tr.sent_speed_mps
+
+    def _exact_finish(self, t: float, tr: TrainRuntime, role: str, cmd: Command, grad: float) -> float:
+        """A step of an exactly integrated plant: SUMO gets the step's mean speed (``Δx/dt``).
+
+        SUMO's Euler update moves a train by the speed it is given times dt; a plant that integrates within the
+        step moves by ``Δx`` that is not ``v_new·dt``, so handing SUMO ``Δx/dt`` keeps its front on the plant's.
+        """
+        assert tr.exact_plant is not None
+        advance_m, v_new, applied_mps2 = tr.exact_plant.advance(t, tr, cmd, grad, self.dt)
+        jerk = abs(applied_mps2 - tr.plant.applied_accel_mps2) / self.dt
+        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
+        tr.plant = dynamics.PlantState(speed_mps=float(v_new), applied_accel_mps2=float(applied_mps2),
+                                       target_accel_mps2=float(applied_mps2))
+        tr.last_role = role
+        tr.last_cmd_mps2 = cmd.accel_mps2
+        tr.last_plan = None
+        tr.sent_speed_mps = max(advance_m / self.dt, 0.0)
+        return tr.sent_speed_mps

@@ -1,0 +1,206 @@
+"""Formation bookkeeping: which trains form pairs, when they couple and decouple, and what coupling means for
+stopping, restrictions and the state machine (the engine side of :mod:`railsim.engine.events.formations`).
+
+* **Registration.** :meth:`FormationBook.add` registers a scenario formation (or one the junction planner forms
+  at run time); a follower that couples ``on_departure`` is re-timed to its leader's departure at its origin.
+* **Every step** (:meth:`FormationBook.bookkeeping`): a follower waiting to couple on departure is inserted
+  behind its leader once the leader stands at the follower's origin; a formation whose leader approaches the
+  switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
+  the coupled controller's effective target) and the closing speed; coupled time is counted.
+* **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
+  mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
+  tail clears it (:meth:`tail_m`).
+
+Paper-specific follower logic (Paper D's state machine) plugs in through ``follower_hooks``: callables
+``hook(t, tr, formation_spec, ahead)`` run before the state machine is fed.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+from railsim.engine.events.formations import Formation, FormationManager
+from railsim.engine.fleet import Fleet
+from railsim.engine.occupancy import Ahead
+from railsim.engine.settings import APART_GAP_M, EngineSettings
+from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import TripStop
+from railsim.errors import ConfigError
+
+FollowerHook = Callable[[float, TrainRuntime, Any, Ahead], None]
+COUPLED_STATES = ("coupling", "coupled")
+
+
+def trig(trigger: Any, kind: str) -> bool:
+    """True if a formation trigger (``couple``/``decouple``, possibly None) is of ``kind``."""
+    return trigger is not None and trigger.kind == kind
+
+
+class FormationBook:
+    """The engine's view of formations: leader/follower maps over the formation state machine."""
+
+    def __init__(self, fleet: Fleet, manager: FormationManager, settings: EngineSettings, dt_s: float) -> None:
+        self.fleet = fleet
+        self.manager = manager
+        self.settings = settings
+        self.dt_s = dt_s
+        self.of_follower: dict[str, Any] = {}  # follower id -> FormationSpec
+        self.of_leader: dict[str, list[Any]] = {}  # leader id -> [FormationSpec]
+        self.follower_hooks: list[FollowerHook] = []
+        # wired by the loop: insert a train behind another (the dispatcher), a train's current stop (stops)
+        self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], None] = _unwired
+        self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = _unwired
+
+    # ------------------------------------------------------------------ registration
+    def add(self, f: Any, where: str = "formations") -> None:
+        """Register formation ``f`` (a :class:`railsim.scenario.FormationSpec`) with the state machine and the
+        leader/follower maps: the scenario's at set-up, the junction planner's at run time."""
+        leader = self.fleet.trip_ref(f.leader, f"{where}.leader")
+        follower = self.fleet.trip_ref(f.follower, f"{where}.follower")
+        # decoupling completes at this true gap: the engine default, or beyond a large target gap
+        separation = max(self.settings.separation_gap_m, float(f.target_gap_m) + 100.0)
+        form = Formation(id=f.id, leader_id=leader.train_id, follower_id=follower.train_id,
+                         target_gap_m=float(f.target_gap_m), separation_gap_m=separation,
+                         coupling_timeout_s=float(f.coupling_timeout_s))
+        self.manager.add(form)
+        if trig(f.couple, "on_departure"):
+            origin = follower.trip.origin.station_id
+            planned = leader.trip.planned_departure_s.get(origin)
+            if planned is None:
+                raise ConfigError(self.fleet.source, f"{where}.couple",
+                                  f"the leader's trip does not stop at the follower's origin {origin!r}")
+            shift = planned - follower.trip.depart_s
+            follower.trip.depart_s = planned
+            for d in (follower.trip.planned_arrival_s, follower.trip.planned_departure_s):
+                for key in d:
+                    d[key] += shift
+        self.of_follower[follower.train_id] = f
+        self.of_leader.setdefault(leader.train_id, []).append(f)
+
+    def schedule_commands(self, formations: Any) -> None:
+        """Timed couple/decouple triggers of the scenario's formations (``at_s``)."""
+        for f in formations:
+            if trig(f.couple, "at_s"):
+                self.manager.request_couple(f.id, at_s=float(f.couple.at_s))
+            if trig(f.decouple, "at_s"):
+                self.manager.request_decouple(f.id, at_s=float(f.decouple.at_s))
+
+    def couples_on_departure(self, train_id: str) -> bool:
+        f = self.of_follower.get(train_id)
+        return f is not None and trig(f.couple, "on_departure")
+
+    # ------------------------------------------------------------------ queries
+    def state(self, train_id: str) -> str:
+        """Formation state of a follower (``free`` if it follows no one)."""
+        f = self.of_follower.get(train_id)
+        return self.manager.state(f.id) if f is not None else "free"
+
+    def leader_of(self, f: Any) -> TrainRuntime:
+        return self.fleet.trains[self.fleet.trips_by_service[f.leader.service][f.leader.trip].trip_id]
+
+    def follower_of(self, f: Any) -> TrainRuntime:
+        return self.fleet.trip_ref(f.follower, "formations")
+
+    def effective_target_m(self, tr: TrainRuntime, f: Any) -> float:
+        """Target gap in force for a follower: its controller's policy value if it reported one."""
+        return tr.vc_target_gap_m if tr.vc_target_gap_m is not None else float(f.target_gap_m)
+
+    def tail_m(self, tr: TrainRuntime) -> float:
+        """Length behind a formation leader's rear that belongs to its coupled formation (gap + follower), or 0."""
+        tail = 0.0
+        for f in self.of_leader.get(tr.train_id, ()):  # usually one follower
+            if self.manager.state(f.id) not in COUPLED_STATES:
+                continue
+            fol = self.follower_of(f)
+            if fol.status == "running":
+                tail = max(tail, self.effective_target_m(fol, f) + fol.trip.vehicle.length_m + self.tail_m(fol))
+        return tail
+
+    def in_final_approach(self, tr: TrainRuntime, mark_m: float) -> bool:
+        """Close enough to ``mark_m`` that station braking is (about to be) under way."""
+        v = tr.plant.speed_mps
+        plan_decel = 0.5 * tr.trip.vehicle.service_decel_mps2  # gentler than the ATO's: starts the hand-over early
+        return mark_m - tr.front_m <= v * v / (2.0 * plan_decel) + self.settings.final_approach_margin_m
+
+    def mark_offset_m(self, tr: TrainRuntime, stop: TripStop) -> float:
+        """How far behind the platform mark a coupled follower halts (leader length + target gap), or 0."""
+        f = self.of_follower.get(tr.train_id)
+        if f is None:
+            return 0.0
+        if self.manager.state(f.id) not in ("coupling", "coupled", "decoupling"):
+            return 0.0
+        leader = self.leader_of(f)
+        if leader.status in ("running", "inserting"):
+            lstop = leader.trip.stops[leader.next_stop] if leader.next_stop < len(leader.trip.stops) else None
+        elif leader.arrived_s is not None:
+            # it stands at its destination (SUMO no longer holds it): a platoon keeps its places there
+            lstop = leader.trip.stops[-1]
+        else:
+            return 0.0
+        if lstop is None or lstop.station_id != stop.station_id:
+            return 0.0
+        # a chain (A <- B <- C) stands one behind the other: behind the leader's own halt position
+        return self.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
+
+    # ------------------------------------------------------------------ events from the other ports
+    def on_departed_station(self, tr: TrainRuntime, stop: TripStop) -> None:
+        """A train left a station: decouple triggers of its formations, couple triggers of its own."""
+        for f in self.of_leader.get(tr.train_id, ()):  # decouple when the leader departs X
+            if self.manager.state(f.id) in COUPLED_STATES:
+                if (trig(f.decouple, "at_station") and f.decouple.station == stop.station_id) or \
+                        self._last_stop_before_switch(tr, stop, f):
+                    self.manager.request_decouple(f.id)
+        f = self.of_follower.get(tr.train_id)
+        if f is not None and trig(f.couple, "at_station") and f.couple.station == stop.station_id:
+            self.manager.request_couple(f.id)
+
+    def _last_stop_before_switch(self, leader: TrainRuntime, stop: TripStop, f: Any) -> bool:
+        if not trig(f.decouple, "before_switch"):
+            return False
+        sw_id = f.decouple.switch
+        later_marks = [s.mark_m for s in leader.trip.stops if s.mark_m > stop.mark_m]
+        for rs in leader.trip.route.switches:
+            if rs.switch_id == sw_id and 0.0 <= rs.point_m - stop.mark_m <= self.settings.decouple_distance_m:
+                # only the last stop before the switch: no other stop of the leader lies in between
+                return not any(m < rs.point_m for m in later_marks)
+        return False
+
+    # ------------------------------------------------------------------ every step
+    def bookkeeping(self, t: float, tr: TrainRuntime, a: Ahead | None) -> None:
+        """See the module docstring (insert waiting followers, decouple before switches, feed the state machine)."""
+        for f in self.of_leader.get(tr.train_id, ()):  # tr is a leader
+            follower = self.follower_of(f)
+            if follower.status == "scheduled" and trig(f.couple, "on_departure"):
+                stop, _ = self.current_stop(tr)
+                if stop is not None and tr.sumo_stopped and stop.station_id == follower.trip.origin.station_id:
+                    self.insert_behind(follower, tr, float(f.target_gap_m))
+                    self.manager.request_couple(f.id)
+            if trig(f.decouple, "before_switch") and self.manager.state(f.id) in COUPLED_STATES:
+                for rs in tr.trip.route.switches:
+                    if rs.switch_id == f.decouple.switch and \
+                            rs.point_m - tr.front_m <= self.settings.decouple_distance_m and tr.front_m < rs.point_m:
+                        nxt, _ = self.current_stop(tr)
+                        if nxt is None or nxt.mark_m > rs.point_m:  # no stop left before the switch
+                            self.manager.request_decouple(f.id)
+        f = self.of_follower.get(tr.train_id)
+        if f is None:
+            return
+        if a is not None:
+            for hook in self.follower_hooks:
+                hook(t, tr, f, a)
+        leader = self.leader_of(f)
+        if a is not None and a.train_id == leader.train_id:
+            # the state machine judges the error against the controller's effective target (gap policy: larger
+            # than the standstill target at speed), expressed around the formation's own target
+            gap_for_fsm = a.gap_m - (self.effective_target_m(tr, f) - float(f.target_gap_m))
+            self.manager.observe(t, f.id, gap_for_fsm, tr.plant.speed_mps - leader.plant.speed_mps)
+        elif self.manager.state(f.id) == "decoupling":
+            # the leader is no longer ahead on our track (it took the other leg, or left the line): the units
+            # are apart, which completes decoupling
+            self.manager.observe(t, f.id, APART_GAP_M, 0.0)
+        if self.manager.state(f.id) == "coupled":
+            tr.coupled_s += self.dt_s
+
+
+def _unwired(*_args: Any) -> Any:
+    raise RuntimeError("FormationBook used before the loop wired it")

@@ -1,0 +1,123 @@
+"""The fleet: every trip of the scenario as a :class:`~railsim.engine.train.TrainRuntime`, built once at set-up.
+
+Building a trip resolves its route in the world, its stops and stopping marks, a start in motion (offset or
+"distance before a switch"), its free-run timetable (the planned times delays are measured against) and one
+controller per role. Afterwards the fleet answers the loop's and the ports' questions: which trains are on the
+line, which train a scenario ``TripRef`` names, and whether every trip has finished.
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable
+
+import controllers as ctl
+from railsim.engine.routeview import route_view
+from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import Trip, make_stops, plan_free_run
+from railsim.errors import ConfigError
+
+ROLES = ("ato", "separation", "coupled", "ca")
+
+
+class Fleet:
+    """All trips of a run, by trip id (insertion order = scenario order) and by service."""
+
+    def __init__(self, source: Any) -> None:
+        self.source = source  # the scenario file, for error messages
+        self.trains: dict[str, TrainRuntime] = {}
+        self.trips_by_service: dict[str, list[Trip]] = {}
+
+    # ------------------------------------------------------------------ queries
+    def trip_ref(self, ref: Any, where: str) -> TrainRuntime:
+        """The train a scenario ``TripRef`` (service + trip index) names; ConfigError naming ``where`` if none."""
+        trips = self.trips_by_service.get(ref.service)
+        if not trips or not (0 <= ref.trip < len(trips)):
+            raise ConfigError(self.source, where, f"no trip {ref.trip} in service {ref.service!r}")
+        return self.trains[trips[ref.trip].trip_id]
+
+    def active(self) -> list[TrainRuntime]:
+        """Trains on the line (inserted, not yet arrived or removed), in scenario order."""
+        return [tr for tr in self.trains.values() if tr.status in ("inserting", "running")]
+
+    def all_done(self) -> bool:
+        return all(tr.status in ("arrived", "removed") for tr in self.trains.values())
+
+    # ------------------------------------------------------------------ set-up
+    def build(self, scenario: Any, bundle: Any, dt_s: float, step_method: str) -> None:
+        """Create every trip of every service (see the module docstring)."""
+        for svc in scenario.services:
+            try:
+                route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+            except (KeyError, ValueError) as exc:
+                raise ConfigError(self.source, f"services[{svc.id}]", f"no route: {exc}") from None
+            vehicle = scenario.vehicles[svc.vehicle]
+            stops = make_stops(route, vehicle.length_m, tuple(svc.skip), svc.dwell_default_s,
+                               dict(svc.dwell_by_station), svc.from_station, svc.to_station)
+            if len(stops) < 2 or stops[0].station_id != svc.from_station or stops[-1].station_id != svc.to_station:
+                raise ConfigError(self.source, f"services[{svc.id}]",
+                                  f"route from {svc.from_station} to {svc.to_station} does not serve both stations")
+            start_offset = self._start_offset(svc, route, stops)
+            if start_offset > 0.0:  # a trip that starts in motion skips the stops already behind it
+                start_m = stops[0].mark_m + start_offset
+                stops = (stops[0],) + tuple(st for st in stops[1:] if st.window_end_m > start_m)
+                if len(stops) < 2:
+                    raise ConfigError(self.source, f"services[{svc.id}].start.offset_m",
+                                      f"starts beyond its destination {svc.to_station!r}")
+            trips = []
+            for k, (trip_id, dep) in enumerate(zip(svc.trip_ids, svc.departures_s)):
+                trip = Trip(trip_id=trip_id, service_id=svc.id, index=k, vehicle_name=svc.vehicle, vehicle=vehicle,
+                            route=route, depart_s=float(dep), stops=stops, roles=dict(svc.roles),
+                            start_offset_m=start_offset, start_speed_mps=float(svc.start_speed_mps))
+                factory = _ato_factory(scenario, dict(svc.roles), vehicle)
+                arr, depm = plan_free_run(trip, factory, dt_s, step_method)
+                trip.planned_arrival_s.update(arr)
+                trip.planned_departure_s.update(depm)
+                ctrls = {role: _controller(scenario, role, trip.roles, vehicle) for role in ROLES}
+                ctrls["ato_closing"] = _closing_ato(scenario, trip.roles, vehicle)
+                self.trains[trip_id] = TrainRuntime(trip=trip, view=route_view(route), controllers=ctrls)
+                trips.append(trip)
+            self.trips_by_service[svc.id] = trips
+
+    def _start_offset(self, svc: Any, route: Any, stops: tuple[Any, ...]) -> float:
+        """How far beyond the origin's stopping mark the trip starts (0 for a start at the platform)."""
+        start_offset = float(svc.start_offset_m)
+        if svc.start_before_switch is None:
+            return start_offset
+        where = f"services[{svc.id}].start.before_switch"  # "the front starts distance_m before switch X"
+        points = [rs.point_m for rs in route.switches if rs.switch_id == svc.start_before_switch]
+        if not points:
+            raise ConfigError(self.source, where, f"switch {svc.start_before_switch!r} is not on the route "
+                              f"{route.id} (its switches: {', '.join(rs.switch_id for rs in route.switches)})")
+        start_offset = points[0] - float(svc.start_distance_m) - stops[0].mark_m
+        if start_offset < 0.0:
+            raise ConfigError(self.source, f"services[{svc.id}].start.distance_m",
+                              f"{svc.start_distance_m:g} m before {svc.start_before_switch} lies behind the "
+                              f"origin's stopping mark (at most {points[0] - stops[0].mark_m:.1f} m)")
+        return start_offset
+
+
+def _controller(scenario: Any, role: str, trip_roles: dict[str, str], vehicle: Any) -> Any:
+    name = trip_roles.get(role)
+    if name is None:
+        return None
+    spec = scenario.controllers[name]
+    return ctl.create(spec.type, dict(spec.params or {}), vehicle)
+
+
+def _ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any) -> Callable[[], Any]:
+    return lambda: _controller(scenario, "ato", roles, vehicle)
+
+
+def _closing_ato(scenario: Any, trip_roles: dict[str, str], vehicle: Any) -> Any:
+    """The follower's ATO while coupled: the same ATO without its cruise margin below the line speed.
+
+    Both units of a formation otherwise cruise at the same speed (line speed − margin) and a follower that fell
+    back while accelerating could never close up; without the margin it closes at up to that margin and still
+    never exceeds the line speed or a restriction. ATOs without a ``speed_margin_mps`` parameter are used as
+    they are.
+    """
+    spec = scenario.controllers[trip_roles["ato"]]
+    try:
+        return ctl.create(spec.type, {**dict(spec.params or {}), "speed_margin_mps": 0.0}, vehicle)
+    except (ValueError, TypeError):
+        return None

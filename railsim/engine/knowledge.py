@@ -1,0 +1,120 @@
+"""What trains know of each other: position reports over the radio channels, and registration snapshots.
+
+Truth vs knowledge (docs/architecture.md): a controller never sees another train's true state. Every step each
+train sends a *report* — ``(route id, front chainage, speed, applied acceleration, time)`` plus the plan its
+controller returned at the previous step — to the ground (``t2g``) and, as a formation leader, to its followers
+(``t2t``; an extension may add receivers, e.g. Paper C's graph neighbours). :meth:`Knowledge.known_state` turns
+the latest delivered report into a :class:`controllers.base.PredecessorState` in the observer's route frame
+(stale when late; only the part of the body on the observer's track).
+
+Before any message has arrived a train falls back on a *registration*: a follower knows where its leader stood
+when the pair registered (:meth:`handshake`), the ground knows where each train was inserted (behind the truth:
+conservative).
+"""
+
+from __future__ import annotations
+
+from typing import Any, Callable, Iterable
+
+from controllers.base import PredecessorState
+from railsim.engine.coupling import FormationBook
+from railsim.engine.events.clock import EventLayer
+from railsim.engine.train import TrainRuntime
+
+Report = tuple[Any, ...]
+
+
+class Knowledge:
+    """Sends reports and answers "what does train A know of train B" from delivered messages."""
+
+    def __init__(self, layer: EventLayer, channels: dict[str, Any], formations: FormationBook) -> None:
+        self.layer = layer
+        self.channels = channels
+        self.formations = formations
+        # what a train knows of another before any message arrived: (receiver, sender) -> report
+        self.registration: dict[tuple[str, str], Report] = {}
+        self.extra_receivers: Callable[[str], Iterable[str]] = lambda _train: ()
+
+    @staticmethod
+    def report(t: float, tr: TrainRuntime) -> Report:
+        """A position report: (route id, front chainage, speed, applied acceleration, time)."""
+        return (tr.trip.route.id, tr.front_m, tr.plant.speed_mps, tr.plant.applied_accel_mps2, t)
+
+    def communicate(self, active: list[TrainRuntime], reports: dict[str, Report]) -> None:
+        """Send every train's report to the ground (t2g) and to its formation followers (t2t).
+
+        A report is the state at ``t`` plus the plan its controller returned at the previous step
+        (``Command.info["plan"]``: ``dt_s``, ``position_m``/``speed_mps``/``accel_mps2`` sequences and optionally
+        ``t0_s``, the time entry 0 refers to) — the DMPC convention of broadcasting the last optimal plan.
+        """
+        t2g = self.channels.get("t2g")
+        t2t = self.channels.get("t2t")
+        for tr in active:
+            report = reports[tr.train_id] + (tr.last_plan,)
+            if t2g is not None:
+                t2g.send(tr.train_id, "ground", report)
+            if t2t is not None:
+                for f in self.formations.of_leader.get(tr.train_id, ()):  # leaders talk to their followers
+                    fol = self.formations.follower_of(f)
+                    if fol.status in ("inserting", "running"):
+                        t2t.send(tr.train_id, fol.train_id, report)
+                for other in self.extra_receivers(tr.train_id):
+                    t2t.send(tr.train_id, other, report)
+
+    def handshake(self, tr: TrainRuntime) -> None:
+        """Formation partners exchange a registration snapshot when both are on the line.
+
+        Before the first radio message arrives, a follower knows where its leader was at this moment (it was
+        placed behind it, or the pair registered together); without it a follower starting in motion would fall
+        back to separation on ground data and brake for no reason.
+        """
+        now = self.layer.now_s
+        pairs = []
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is not None:
+            pairs.append((tr, self.formations.leader_of(f)))
+        for f2 in self.formations.of_leader.get(tr.train_id, ()):
+            pairs.append((self.formations.follower_of(f2), tr))
+        for follower, leader in pairs:
+            if follower.on_line and leader.on_line:
+                self.registration[(follower.train_id, leader.train_id)] = (
+                    leader.trip.route.id, leader.front_m, leader.plant.speed_mps, leader.plant.applied_accel_mps2,
+                    now)
+
+    def known_state(self, observer: TrainRuntime, other: TrainRuntime, channel: str,
+                    receiver: str) -> PredecessorState | None:
+        """What ``observer`` knows of ``other`` via ``channel`` (mapped into the observer's frame)."""
+        ch = self.channels.get(channel)
+        msg = ch.latest(receiver, other.train_id) if ch is not None else None
+        if msg is None:
+            # no message yet: a registration report — a follower placed behind its leader knows where the leader
+            # stood; the ground knows where each train was inserted (stale and behind the truth: conservative)
+            reg = self.registration.get((observer.train_id, other.train_id))
+            route_id, pos, v, acc, stamp = reg if reg is not None else (
+                other.trip.route.id, other.depart_chainage_m, other.trip.start_speed_mps, 0.0,
+                other.inserted_s or 0.0)
+            plan = None
+        else:
+            route_id, pos, v, acc, stamp, plan = msg.payload
+        veh = other.trip.vehicle
+        mapped = observer.view.map_body(other.view, pos, veh.length_m)
+        if mapped is None:
+            return None
+        front, rear = mapped  # only the part of its body on our track (see RouteView.map_body)
+        planned = _plan_in_frame(plan, front - pos, stamp) if plan else {}
+        return PredecessorState(train_id=other.train_id, position_m=front, speed_mps=v, accel_mps2=acc,
+                                length_m=front - rear, stamp_s=stamp, age_s=max(0.0, self.layer.now_s - stamp),
+                                service_decel_mps2=veh.service_decel_mps2,
+                                emergency_decel_mps2=veh.emergency_decel_mps2, source=channel, **planned)
+
+
+def _plan_in_frame(plan: dict[str, Any], shift_m: float, stamp_s: float) -> dict[str, Any]:
+    """The sender's last plan, moved into our frame and aligned so that entry 0 is at ``stamp_s``."""
+    dt_plan = float(plan.get("dt_s", 0.0))
+    drop = 0
+    if "t0_s" in plan and dt_plan > 0.0:  # entry 0 refers to t0_s: skip entries before the stamp
+        drop = max(0, int(round((stamp_s - float(plan["t0_s"])) / dt_plan)))
+    return {"planned_position_m": tuple(float(x) + shift_m for x in plan.get("position_m", ())[drop:]),
+            "planned_speed_mps": tuple(float(x) for x in plan.get("speed_mps", ())[drop:]),
+            "planned_accel_mps2": tuple(float(x) for x in plan.get("accel_mps2", ())[drop:]),
+            "plan_dt_s": dt_plan}

@@ -1,0 +1,39 @@
+"""The engine's operating rules (not any one controller's): distances and times the loop and its ports use.
+
+A scenario's ``engine:`` section may override :class:`EngineSettings`; the named constants below are rules that
+are not (yet) scenario knobs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+INF = float("inf")
+APART_GAP_M = 1.0e9  # "gap" reported to a formation whose units are on different tracks
+INSERTION_REACTION_S = 1.0  # a train approaching a departure needs this long to react before it brakes
+DWELL_REGISTRATION_S = 1.0  # SUMO dwell given to a destination stop (the trip ends when SUMO registers it)
+# SUMO never drives our trains (speedMode 32), but it still checks insertion with the vType's Krauss model: its
+# safe insertion speed is about gap/tau when decel·tau is large, so a tiny tau and a huge decel let a train be
+# inserted exactly where and when the scenario says, at speed, close behind another (our occupancy check, not
+# SUMO, judges safety). Without this SUMO silently delays the insertion.
+PERMISSIVE_TAU_S = 0.001
+PERMISSIVE_DECEL_MPS2 = 1000.0
+PERMISSIVE_SPEED_FACTOR = 1.5  # the vType's max speed: above the vehicle's, so SUMO never caps our speed
+
+
+@dataclass(frozen=True)
+class EngineSettings:
+    """Operating rules of the engine (not of any one controller); scenario ``engine:`` may override."""
+
+    lock_request_distance_m: float = 1500.0
+    protection_margin_m: float = 20.0
+    clearance_m: float = 10.0
+    max_message_age_s: float = 2.0
+    decouple_distance_m: float = 2000.0
+    lookahead_m: float = 5000.0
+    separation_gap_m: float = 300.0  # formation decoupling completes at this true gap (front-to-rear)
+    missed_stop_tolerance_m: float = 0.5
+    final_approach_margin_m: float = 50.0  # coupled follower: hand the stop to the ATO this far before braking
+    sensor_range_m: float = 400.0  # a train's own ranging sensor (collision avoidance) sees this far ahead
+    insertion_margin_m: float = 50.0  # a departure waits unless trains approaching behind can stop this far back
+    departure_retry_s: float = 1.0  # ... and is tried again after this long

@@ -1,0 +1,109 @@
+"""Station stops on the train side: halts, SUMO's stop registration, dwell end, arrival and missed stops.
+
+A controller brakes the train to a halt inside the platform window; SUMO registers the stop (~1 s later) and
+keeps the dwell. This port watches both: the halt (our plant at 0 inside the window) gives the stopping error
+(front − mark; a coupled follower's mark is behind its leader's, see :meth:`FormationBook.mark_offset_m`);
+SUMO's registration counts the stop served (and ends the trip at the destination); SUMO releasing the train
+ends the dwell (departure); a front beyond the window's end by more than the tolerance is a missed stop. SUMO
+registering a *moving* train as stopped is logged as an error event (``stop_registered_moving``).
+"""
+
+from __future__ import annotations
+
+import logging
+from typing import Callable
+
+from railsim.engine.coupling import FormationBook
+from railsim.engine.events.log import EventLog
+from railsim.engine.settings import EngineSettings
+from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import TripStop
+
+log = logging.getLogger(__name__)
+MOVING_REGISTRATION_MPS = 0.1  # SUMO registering a stop above this speed is an error event
+
+
+class StopBook:
+    """Per-train stop progress (``next_stop``, halt, dwell) and the stop records."""
+
+    def __init__(self, formations: FormationBook, events: EventLog, settings: EngineSettings,
+                 record_stop: Callable[..., None], release_locks: Callable[[TrainRuntime], None]) -> None:
+        self.formations = formations
+        self.events = events
+        self.settings = settings
+        self.record_stop = record_stop
+        self.release_locks = release_locks
+        self.skip_next_stop: Callable[[str], None] = lambda _train: None  # the SUMO bridge's, wired at run
+
+    def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
+        """The stop the train is heading for or standing at, and how far behind its mark it halts."""
+        if tr.next_stop >= len(tr.trip.stops):
+            return None, 0.0
+        stop = tr.trip.stops[tr.next_stop]
+        return stop, self.formations.mark_offset_m(tr, stop)
+
+    def bookkeeping(self, t: float, tr: TrainRuntime) -> None:
+        stop, offset = self.current(tr)
+        if stop is None:
+            return
+        stopped_now = tr.sumo_stopped_now
+        v = tr.plant.speed_mps
+        mark = stop.mark_m - offset
+        if stopped_now and not tr.sumo_stopped:
+            self._registered(t, tr, stop, mark, v)
+            return
+        if tr.sumo_stopped and not stopped_now:  # dwell over: departure
+            tr.sumo_stopped = False
+            self._record(tr, stop, tr.halted_s, t, tr.halt_error_m)
+            self.events.record(t, "stop_departed", tr.train_id, station=stop.station_id)
+            self.formations.on_departed_station(tr, stop)
+            tr.next_stop += 1
+            tr.halted_s = None
+            tr.halt_error_m = None
+            return
+        if not tr.sumo_stopped and tr.halted_s is None and v == 0.0 and \
+                stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6:
+            tr.halted_s = t
+            tr.halt_error_m = tr.front_m - mark
+        if not tr.sumo_stopped and tr.front_m > stop.window_end_m + self.settings.missed_stop_tolerance_m:
+            self._missed(t, tr, stop)
+
+    def _registered(self, t: float, tr: TrainRuntime, stop: TripStop, mark: float, v: float) -> None:
+        tr.sumo_stopped = True
+        tr.dwell_started_s = t
+        if v > MOVING_REGISTRATION_MPS:
+            self.events.record(t, "stop_registered_moving", tr.train_id, station=stop.station_id, speed_mps=v)
+            log.error("SUMO registered %s as stopped at %s while moving at %.2f m/s", tr.train_id,
+                      stop.station_id, v)
+        if tr.halted_s is None:  # SUMO saw the halt before we did (same step)
+            tr.halted_s = t
+            tr.halt_error_m = tr.front_m - mark
+        tr.stops_served += 1
+        self.events.record(t, "stop_registered", tr.train_id, station=stop.station_id)
+        if stop.is_destination:
+            tr.arrived_s = tr.halted_s
+            tr.status = "arrived"
+            self._record(tr, stop, tr.halted_s, None, tr.halt_error_m)
+            self.events.record(t, "train_arrived", tr.train_id, station=stop.station_id)
+            self.release_locks(tr)
+
+    def _missed(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
+        self.events.record(t, "stop_missed", tr.train_id, station=stop.station_id,
+                           overrun_m=round(tr.front_m - stop.window_end_m, 3))
+        log.warning("%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id,
+                    tr.front_m - stop.window_end_m)
+        self._record(tr, stop, None, None, None, missed=True)
+        self.skip_next_stop(tr.train_id)
+        tr.next_stop += 1
+        tr.halted_s = None
+        if stop.is_destination:
+            tr.status = "arrived"
+            tr.arrived_s = t
+
+    def _record(self, tr: TrainRuntime, stop: TripStop, arrival_s: float | None, departure_s: float | None,
+                error_m: float | None, missed: bool = False) -> None:
+        self.record_stop(trip_id=tr.train_id, service=tr.trip.service_id, station=stop.station_id,
+                         planned_arrival_s=tr.trip.planned_arrival_s.get(stop.station_id), arrival_s=arrival_s,
+                         departure_s=departure_s, error_m=error_m, missed=missed)
+
+

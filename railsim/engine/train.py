@@ -1,0 +1,82 @@
+"""One trip's run-time state (:class:`TrainRuntime`): what changes about a train while the loop runs.
+
+Fields are general to every train; what one paper family needs per train (a carriage model, a state machine)
+lives in that family's extension (:mod:`railsim.engine.extensions`), reachable through :attr:`exact_plant` only
+where the loop itself must call it.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Protocol
+
+from railsim.engine.routeview import RouteView
+from railsim.engine.settings import INF
+from railsim.engine.trips import Trip
+from railsim.physics import dynamics
+
+
+class ExactPlant(Protocol):
+    """A plant integrated inside the step (Paper B carriages, Paper D monorail drive) instead of
+    :func:`railsim.physics.dynamics.step`; SUMO then gets the step's mean speed (see :mod:`.control`)."""
+
+    def advance(self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float,
+                dt_s: float) -> tuple[float, float, float]:
+        """Advance one step; return ``(advance_m, new_speed_mps, applied_accel_mps2)``."""
+
+    def resync(self, t: float, chainage_m: float, speed_mps: float) -> None:
+        """Adopt SUMO's position and speed (after SUMO held the train at a stop)."""
+
+
+@dataclass
+class TrainRuntime:
+    """Everything that changes about one trip during the run."""
+
+    trip: Trip
+    view: RouteView
+    controllers: dict[str, Any]
+    plant: dynamics.PlantState = field(default_factory=lambda: dynamics.PlantState(speed_mps=0.0))
+    status: str = "scheduled"  # scheduled | inserting | running | arrived | removed
+    inserted_s: float | None = None
+    departed_s: float | None = None
+    arrived_s: float | None = None
+    next_stop: int = 1
+    front_m: float = 0.0
+    halted_s: float | None = None
+    halt_error_m: float | None = None
+    sumo_stopped: bool = False
+    dwell_started_s: float | None = None
+    energy_j: float = 0.0
+    min_gap_m: float = INF
+    coupled_s: float = 0.0
+    max_jerk_mps3: float = 0.0
+    fallbacks: int = 0
+    saturations: dict[str, int] = field(default_factory=dict)
+    locks: dict[str, Any] = field(default_factory=dict)  # switch id -> LockRequest (own or group)
+    released: set[str] = field(default_factory=set)
+    violations: set[str] = field(default_factory=set)
+    last_role: str = "ato"
+    last_cmd_mps2: float = 0.0
+    last_gap_m: float = INF
+    stale_max_s: float = 0.0
+    degraded: bool = False
+    stops_served: int = 0
+    depart_chainage_m: float = 0.0
+    sumo_stopped_now: bool = False
+    vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
+    last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
+    sent_speed_mps: float | None = None  # the speed handed to SUMO last step
+    emergency_since_s: float | None = None  # start of the current emergency-braking interval
+    vc_solve_s: float | None = None  # the coupled controller's solve time this step (Command.info["solve_time_s"])
+    vc_objective: float | None = None  # and its objective value (Command.info["J"])
+    exact_plant: ExactPlant | None = None  # set by a plant extension (multipoint, monorail) at insertion
+
+    train_id: str = ""  # = trip.trip_id (a plain field: it is read millions of times per run)
+
+    def __post_init__(self) -> None:
+        self.train_id = self.trip.trip_id
+
+    @property
+    def on_line(self) -> bool:
+        """Inserted and not yet arrived or removed."""
+        return self.status in ("inserting", "running")
