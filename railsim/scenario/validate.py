@@ -1,0 +1,223 @@
+"""Validation primitives: how a scenario value is checked and how a failure is worded.
+
+Every check in the scenario layer goes through a :class:`Checker`. It knows the file being validated
+(``source``) and the directory relative paths resolve against (``base_dir``); each primitive takes the
+value and its *field path* (``services[2].departures.headway_s``) and either returns the value, converted
+(``int`` → ``float``, a relative path → an absolute one), or raises :class:`railsim.errors.ConfigError`
+worded the same way everywhere::
+
+    scenarios/peak.yaml: services[2].departures.headway_s: expected a number > 0, got -150
+    scenarios/peak.yaml: roles.separaton: unknown key (did you mean 'separation'?); allowed keys: ...
+
+The "did you mean" suffix comes from :func:`did_you_mean` (``difflib`` close matches); values in messages
+are shortened by :func:`short_repr`. The section validators (``validate_*.py``, :mod:`.events`) are plain
+functions ``section(ck, value, ...) -> (spec, raw)`` built from these primitives: ``spec`` is the frozen
+dataclass of :mod:`railsim.scenario.model`, ``raw`` the resolved mapping written back to
+``scenario.resolved.yaml``.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import difflib
+import importlib
+import math
+import re
+from pathlib import Path
+from typing import Any, Iterable, Mapping, Sequence
+
+from railsim.errors import ConfigError
+from railsim.scenario.clock import CLOCK_WHAT, parse_clock
+
+_ID_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-]*$")
+
+
+# ---- wording ---------------------------------------------------------------------------------------------------
+
+
+def join_path(path: str, key: Any) -> str:
+    """``path.key`` (just ``key`` at the top level)."""
+    return f"{path}.{key}" if path else str(key)
+
+
+def short_repr(value: Any, limit: int = 60) -> str:
+    """``repr(value)``, cut to ``limit`` characters for messages."""
+    text = repr(value)
+    return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+def did_you_mean(value: str, choices: Iterable[str]) -> str:
+    """`` (did you mean 'x'?)`` for the closest of ``choices``, or ``""`` when none is close."""
+    close = difflib.get_close_matches(str(value), [str(c) for c in choices], n=1)
+    return f" (did you mean {close[0]!r}?)" if close else ""
+
+
+def _num(x: float) -> str:
+    return f"{x:g}"
+
+
+def bound_text(gt: float | None, ge: float | None, le: float | None) -> str:
+    """``"> 0"``, ``">= 1"``, ``"in [0, 1]"``, ``"<= 5"`` or ``""``: the range part of "expected a number ..."."""
+    lo = f"> {_num(gt)}" if gt is not None else f">= {_num(ge)}" if ge is not None else None
+    if lo and le is not None:
+        return f"in ({_num(gt)}, {_num(le)}]" if gt is not None else f"in [{_num(ge)}, {_num(le)}]"
+    if lo:
+        return lo
+    return f"<= {_num(le)}" if le is not None else ""
+
+
+def require_top_mapping(data: Any, source: str) -> None:
+    """A scenario file must hold a mapping (an empty file parses to ``None``)."""
+    if data is None:
+        raise ConfigError(source, None, "expected a scenario mapping, got an empty file")
+    if not isinstance(data, dict):
+        raise ConfigError(source, None, f"expected a mapping at the top level, got {short_repr(data)}")
+
+
+# ---- the checker -----------------------------------------------------------------------------------------------
+
+
+class Checker:
+    """Checks values of one scenario file; every failure becomes a :class:`ConfigError` naming ``source``."""
+
+    def __init__(self, source: str, base_dir: Path) -> None:
+        self.source = source
+        self.base_dir = base_dir
+
+    def fail(self, path: str | None, message: str) -> ConfigError:
+        """The error for ``path`` (``None``/``""``: the file as a whole); raise it."""
+        return ConfigError(self.source, path or None, message)
+
+    def expect(self, path: str, what: str, got: Any) -> ConfigError:
+        """``expected <what>, got <value>``."""
+        return self.fail(path, f"expected {what}, got {short_repr(got)}")
+
+    def mapping(
+        self, value: Any, path: str, required: Sequence[str] = (), optional: Sequence[str] = (), what: str = "a mapping"
+    ) -> dict[str, Any]:
+        """Check a mapping with a fixed key set; returns it. ``required``/``optional`` empty = free keys."""
+        if not isinstance(value, dict):
+            raise self.expect(path, what, value)
+        allowed = list(required) + list(optional)
+        if allowed:
+            for key in value:
+                if key not in allowed:
+                    hint = did_you_mean(str(key), allowed)
+                    raise self.fail(
+                        join_path(path, key), f"unknown key{hint}; allowed keys: {', '.join(sorted(allowed))}"
+                    )
+            for key in required:
+                if key not in value:
+                    raise self.fail(join_path(path, key), "missing required key")
+        return value
+
+    def free_mapping(self, value: Any, path: str, what: str = "a mapping") -> dict[str, Any]:
+        """A mapping with any string keys."""
+        if not isinstance(value, dict):
+            raise self.expect(path, what, value)
+        for key in value:
+            if not isinstance(key, str):
+                raise self.expect(join_path(path, key), "string keys", key)
+        return value
+
+    def number(
+        self, value: Any, path: str, gt: float | None = None, ge: float | None = None, le: float | None = None
+    ) -> float:
+        """A finite int or float (not a bool) within the given bounds, as a float."""
+        bound = bound_text(gt, ge, le)
+        what = f"a number {bound}".rstrip()
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise self.expect(path, what, value)
+        x = float(value)
+        if not math.isfinite(x):
+            raise self.expect(path, f"a finite number {bound}".rstrip(), value)
+        if (gt is not None and not x > gt) or (ge is not None and not x >= ge) or (le is not None and not x <= le):
+            raise self.expect(path, what, value)
+        return x
+
+    def integer(self, value: Any, path: str, ge: int | None = None) -> int:
+        """An int (not a bool), at least ``ge``."""
+        what = f"an integer >= {ge}" if ge is not None else "an integer"
+        if isinstance(value, bool) or not isinstance(value, int) or (ge is not None and value < ge):
+            raise self.expect(path, what, value)
+        return int(value)
+
+    def string(self, value: Any, path: str, choices: Sequence[str] | None = None, what: str = "a non-empty string") -> str:
+        """A non-blank string, or one of ``choices`` (with a "did you mean")."""
+        if choices is not None:
+            if not isinstance(value, str) or value not in choices:
+                hint = did_you_mean(value, choices) if isinstance(value, str) else ""
+                raise self.fail(path, f"expected one of {', '.join(choices)}, got {short_repr(value)}{hint}")
+            return value
+        if not isinstance(value, str) or not value.strip():
+            raise self.expect(path, what, value)
+        return value
+
+    def ident(self, value: Any, path: str) -> str:
+        """An id usable in trip names and file names: letters, digits, ``_``, ``-``."""
+        if not isinstance(value, str) or not _ID_RE.match(value):
+            raise self.expect(path, "an id of letters, digits, '_' or '-'", value)
+        return value
+
+    def string_list(self, value: Any, path: str) -> list[str]:
+        """A list of non-blank strings."""
+        if not isinstance(value, list):
+            raise self.expect(path, "a list of strings", value)
+        return [self.string(v, f"{path}[{i}]") for i, v in enumerate(value)]
+
+    def subset(self, value: Any, path: str, choices: Sequence[str]) -> list[str]:
+        """A list of distinct members of ``choices``."""
+        if not isinstance(value, list):
+            raise self.expect(path, f"a list, a subset of [{', '.join(choices)}]", value)
+        out: list[str] = []
+        for i, v in enumerate(value):
+            item = self.string(v, f"{path}[{i}]", choices)
+            if item in out:
+                raise self.fail(f"{path}[{i}]", f"expected distinct values, got {item!r} twice")
+            out.append(item)
+        return out
+
+    def window(self, m: Mapping[str, Any], path: str) -> tuple[float, float]:
+        """The activity window ``from_s <= t < until_s`` of ``m`` (``from_s`` default 0, ``until_s`` default ∞)."""
+        from_s = self.number(m.get("from_s", 0.0), f"{path}.from_s", ge=0.0)
+        until_s = self.number(m["until_s"], f"{path}.until_s", ge=from_s) if "until_s" in m else math.inf
+        return from_s, until_s
+
+    def clock(self, value: Any, path: str) -> float:
+        """A clock time string → seconds after midnight."""
+        try:
+            return parse_clock(value)
+        except ValueError:
+            raise self.expect(path, CLOCK_WHAT, value) from None
+
+    def path_value(self, value: Any, path: str) -> Path:
+        """An existing file, relative to ``base_dir`` unless absolute; returned resolved."""
+        text = self.string(value, path, what="a file path")
+        p = Path(text).expanduser()
+        p = p if p.is_absolute() else (self.base_dir / p)
+        p = p.resolve()
+        if not p.is_file():
+            raise self.fail(path, f"expected an existing file, got {text!r} (looked for {p})")
+        return p
+
+    def dataclass_fields(self, values: Mapping[str, Any], path: str, module: str, cls_name: str) -> None:
+        """Build ``module.cls_name(**values)`` once: unknown fields and rejected values name ``path.field``.
+
+        For parameter blocks handed to another layer's dataclass (``junction.params`` →
+        ``controllers.junction.model.JunctionParams``); a ``ValueError("field: reason")`` from the dataclass
+        becomes an error at ``path.field``. The module is imported only when such a block is validated.
+        """
+        cls = getattr(importlib.import_module(module), cls_name)
+        names = {f.name for f in dataclasses.fields(cls)}
+        for key in values:
+            if key not in names:
+                raise self.fail(f"{path}.{key}", f"unknown field{did_you_mean(key, sorted(names))}; "
+                                                 f"known: {', '.join(sorted(names))}")
+        try:
+            cls(**values)
+        except (TypeError, ValueError) as exc:
+            msg = str(exc)
+            field_name, _, rest = msg.partition(":")
+            if field_name in values:
+                raise self.fail(f"{path}.{field_name}", rest.strip() or msg) from None
+            raise self.fail(path, msg) from None

@@ -1,0 +1,85 @@
+"""Validating the frame of a run: which ``world``, how long and how finely (``simulation``), what to record
+(``outputs``).
+
+A world is a shipped world name (optionally ``{name, params}``), a line description file (``{line}``) or a
+ready SUMO net (``{net, additional, signals, vclass, throw_time_s}``, see :mod:`network.external`). File
+paths resolve against the scenario file's directory and are written to the resolved scenario as absolute
+paths, so a resolved copy loads from anywhere. Whether the stations and switches a scenario names exist is
+a question for the *built* world: :mod:`railsim.scenario.world`.
+"""
+
+from __future__ import annotations
+
+import copy
+from typing import Any
+
+from railsim.scenario.model import (MAX_STEP_S, OUTPUT_FORMATS, STEP_METHODS, SUMO_OUTPUTS, OutputSpec,
+                                    SimulationSpec, WorldSpec)
+from railsim.scenario.validate import Checker, short_repr
+
+
+def world(ck: Checker, value: Any) -> tuple[WorldSpec, Any]:
+    """``world:`` → a :class:`WorldSpec`; a net world's defaults come from :mod:`network.external`."""
+    what = "a world name or a mapping {name, params} | {line} | {net, additional}"
+    if isinstance(value, str):
+        return WorldSpec(kind="shipped", name=ck.string(value, "world")), value
+    if not isinstance(value, dict):
+        raise ck.expect("world", what, value)
+    forms = [k for k in ("name", "line", "net") if k in value]
+    if len(forms) != 1:
+        ck.mapping(value, "world", (), ("name", "params", "line", "net", "additional"))  # unknown keys first
+        raise ck.fail("world", f"expected exactly one of name, line, net, got {short_repr(value)}")
+    form = forms[0]
+    if form == "name":
+        m = ck.mapping(value, "world", ("name",), ("params",))
+        name = ck.string(m["name"], "world.name")
+        params = dict(ck.free_mapping(m.get("params") or {}, "world.params"))
+        return WorldSpec(kind="shipped", name=name, params=params), {"name": name, "params": copy.deepcopy(params)}
+    if form == "line":
+        m = ck.mapping(value, "world", ("line",))
+        line = ck.path_value(m["line"], "world.line")
+        return WorldSpec(kind="line", line=line), {"line": str(line)}
+    from network.external import DEFAULT_THROW_TIME_S, RAIL_VCLASSES, SIGNAL_MODES
+
+    m = ck.mapping(value, "world", ("net",), ("additional", "signals", "vclass", "throw_time_s"))
+    net = ck.path_value(m["net"], "world.net")
+    extra = m.get("additional") or []
+    if not isinstance(extra, list):
+        raise ck.expect("world.additional", "a list of file paths", extra)
+    additional = tuple(ck.path_value(v, f"world.additional[{i}]") for i, v in enumerate(extra))
+    signals = ck.string(m.get("signals", "strip"), "world.signals", SIGNAL_MODES)
+    vclass = m.get("vclass")
+    vclass = None if vclass in (None, "auto") else ck.string(vclass, "world.vclass", RAIL_VCLASSES)
+    throw = ck.number(m.get("throw_time_s", DEFAULT_THROW_TIME_S), "world.throw_time_s", ge=0.0)
+    return WorldSpec(kind="net", net=net, additional=additional, signals=signals, vclass=vclass,
+                     throw_time_s=throw), {
+        "net": str(net),
+        "additional": [str(p) for p in additional],
+        "signals": signals,
+        "vclass": vclass or "auto",
+        "throw_time_s": throw,
+    }
+
+
+def simulation(ck: Checker, value: Any) -> tuple[SimulationSpec, dict[str, Any]]:
+    """``simulation:`` → a :class:`SimulationSpec`; the raw keeps ``start_time`` as written."""
+    m = ck.mapping(value, "simulation", ("step_s", "duration_s"), ("start_time", "seed", "step_method"))
+    step_s = ck.number(m["step_s"], "simulation.step_s", gt=0.0, le=MAX_STEP_S)
+    duration_s = ck.number(m["duration_s"], "simulation.duration_s", gt=0.0)
+    start_text = m.get("start_time", "00:00")
+    start_s = ck.clock(start_text, "simulation.start_time")
+    seed = ck.integer(m.get("seed", 0), "simulation.seed", ge=0)
+    method = ck.string(m.get("step_method", "euler"), "simulation.step_method", STEP_METHODS)
+    spec = SimulationSpec(step_s=step_s, duration_s=duration_s, start_time_s=start_s, seed=seed, step_method=method)
+    raw = {"step_s": step_s, "duration_s": duration_s, "start_time": start_text, "seed": seed, "step_method": method}
+    return spec, raw
+
+
+def outputs(ck: Checker, value: Any, sim: SimulationSpec) -> tuple[OutputSpec, dict[str, Any]]:
+    """``outputs:`` → an :class:`OutputSpec`; the trace stride defaults to ``max(1 s, step_s)``."""
+    m = ck.mapping(value, "outputs", (), ("trace_stride_s", "sumo", "formats"))
+    stride = ck.number(m.get("trace_stride_s", max(1.0, sim.step_s)), "outputs.trace_stride_s", ge=sim.step_s)
+    sumo = ck.subset(m.get("sumo", []), "outputs.sumo", SUMO_OUTPUTS)
+    formats = ck.subset(m.get("formats", ["csv"]), "outputs.formats", OUTPUT_FORMATS)
+    spec = OutputSpec(trace_stride_s=stride, sumo=tuple(sumo), formats=tuple(formats))
+    return spec, {"trace_stride_s": stride, "sumo": sumo, "formats": formats}

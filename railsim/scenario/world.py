@@ -1,0 +1,78 @@
+"""Checks against the built world: do the stations and switches a scenario names exist?
+
+Schema validation (:func:`railsim.scenario.load`) cannot know a world's station ids: building a world runs
+netconvert, and an external SUMO net names its stations however its author did. So the world checks are
+separate and run once the world is built (``railsim validate`` and the engine do both):
+
+* :func:`check_against_world` — every station id (``from``, ``to``, ``via``, ``skip``, dwell overrides,
+  ``at_station`` triggers) and switch id (``before_switch`` triggers) must exist, else a ``ConfigError`` at
+  that field with a "did you mean";
+* :func:`with_station_ids` — on an external net a station may also go by its name or a stop id (an
+  *alias*); this returns the scenario with every alias replaced by the station id, leaving ``raw`` as the
+  user wrote it.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from typing import Collection, Mapping
+
+from railsim.errors import ConfigError
+from railsim.scenario.model import Scenario, TriggerSpec
+from railsim.scenario.validate import did_you_mean
+
+
+def check_against_world(scn: Scenario, stations: Collection[str], switches: Collection[str],
+                        aliases: Mapping[str, str] | None = None) -> None:
+    """Check that every station id and switch id the scenario names exists in the built world.
+
+    ``aliases`` (external nets) are other names a station may go by: its name or a stop id -> station id.
+    """
+    source = str(scn.source) if scn.source is not None else "<scenario>"
+    world = scn.world.label
+    station_set, switch_set = set(stations), set(switches)
+    known = station_set | set(aliases or ())
+
+    def station(value: str, path: str) -> None:
+        if value not in known:
+            hint = did_you_mean(value, station_set)
+            raise ConfigError(source, path, f"expected a station id of world {world!r}, got {value!r}{hint}")
+
+    for i, svc in enumerate(scn.services):
+        base = f"services[{i}]"
+        station(svc.from_station, f"{base}.from")
+        station(svc.to_station, f"{base}.to")
+        for j, st in enumerate(svc.via):
+            station(st, f"{base}.via[{j}]")
+        for j, st in enumerate(svc.skip):
+            station(st, f"{base}.skip[{j}]")
+        for st in svc.dwell_by_station:
+            station(st, f"{base}.dwell_s.stations.{st}")
+    for i, fm in enumerate(scn.formations):
+        for key, trig in (("couple", fm.couple), ("decouple", fm.decouple)):
+            if trig is None:
+                continue
+            if trig.kind == "at_station":
+                station(str(trig.station), f"formations[{i}].{key}.at_station")
+            elif trig.kind == "before_switch" and trig.switch not in switch_set:
+                hint = did_you_mean(str(trig.switch), switch_set)
+                raise ConfigError(source, f"formations[{i}].{key}.before_switch",
+                                  f"expected a switch id of world {world!r}, got {trig.switch!r}{hint}")
+
+
+def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
+    """The scenario with every station it names by an alias (a name or stop id of an external net's station)
+    replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario)."""
+    def sid(name: str) -> str:
+        return aliases.get(name, name)
+
+    def trig(t: TriggerSpec | None) -> TriggerSpec | None:
+        return t if t is None or t.station is None else dataclasses.replace(t, station=sid(t.station))
+
+    services = tuple(dataclasses.replace(
+        svc, from_station=sid(svc.from_station), to_station=sid(svc.to_station),
+        via=tuple(sid(v) for v in svc.via), skip=tuple(sid(v) for v in svc.skip),
+        dwell_by_station={sid(k): v for k, v in svc.dwell_by_station.items()}) for svc in scn.services)
+    formations = tuple(dataclasses.replace(f, couple=trig(f.couple), decouple=trig(f.decouple))
+                       for f in scn.formations)
+    return dataclasses.replace(scn, services=services, formations=formations)
