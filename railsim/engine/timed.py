@@ -1,8 +1,8 @@
 """Timed scenario events (``events:``) and injected faults, scheduled on the simpy clock at set-up.
 
-**One table per kind:** :data:`EVENT_HANDLERS` maps each event kind of the scenario schema to the function that
-schedules it; adding a kind is one entry here and its spec in :mod:`railsim.scenario` (a test checks the two
-tables name the same kinds). Each handler gets the ports it acts on (:class:`TimedPorts`), the event's index
+**One table per kind:** each event kind is one entry of :data:`railsim.scenario.events.EVENT_KINDS` (its
+fields and validation) and one entry here, :data:`EVENT_HANDLERS`, under the kind's ``handler_key`` (the
+function that schedules it); ``tests/test_engine_ports.py`` checks the two tables name the same kinds. Each handler gets the ports it acts on (:class:`TimedPorts`), the event's index
 and the event.
 """
 
@@ -18,6 +18,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.fleet import Fleet
 from railsim.engine.insertion import Dispatcher
 from railsim.engine.safety import SafetyMonitor
+from railsim.scenario.events import event_kind
 
 
 @dataclass
@@ -62,4 +63,4 @@ def schedule(p: TimedPorts, scenario: Any) -> None:
             p.layer.now_s, "actuator_fault", b.train, accel_mps2=b.accel_mps2,
             until_s=b.until_s if math.isfinite(b.until_s) else None), "actuator_fault_due", bias.train)
     for n, ev in enumerate(scenario.events):
-        EVENT_HANDLERS[ev.type](p, n, ev)
+        EVENT_HANDLERS[event_kind(ev.type).handler_key](p, n, ev)
