@@ -114,7 +114,8 @@ def event_kind(type_name: str) -> EventKind:
 
 
 def event_keys() -> tuple[str, ...]:
-    """Every key an event may have: ``at_s``, ``type`` and the fields of every kind (first use first)."""
+    """The keys the kinds add to ``at_s`` and ``type``: every kind's fields, first use first. An event may carry
+    any of them (a field of another kind is accepted and ignored, as it always was)."""
     keys = dict.fromkeys(f.key for kind in EVENT_KINDS.values() for f in kind.fields)
     return tuple(keys)
 
@@ -135,7 +136,7 @@ def _train(ck: Checker, value: Any, path: str, ctx: EventContext) -> str:
     return trip_name(ck, value, path, ctx.services)
 
 
-def _positive_m_or_s(ck: Checker, value: Any, path: str, ctx: EventContext) -> float:
+def _positive(ck: Checker, value: Any, path: str, ctx: EventContext) -> float:
     return ck.number(value, path, gt=0.0)
 
 
@@ -151,8 +152,8 @@ register_event_kind(EventKind(
     why_required="a leave event names the train"))
 register_event_kind(EventKind(
     "obstacle",
-    (EventField("train", _train), EventField("ahead_m", _positive_m_or_s),
-     EventField("duration_s", _positive_m_or_s, required=False)),
+    (EventField("train", _train), EventField("ahead_m", _positive),
+     EventField("duration_s", _positive, required=False)),
     "a static obstacle appears ahead_m ahead of the train's front; removed after duration_s (absent: stays)",
     why_required="an obstacle appears ahead of a train"))
 

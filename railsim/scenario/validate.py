@@ -142,7 +142,9 @@ class Checker:
             raise self.expect(path, what, value)
         return int(value)
 
-    def string(self, value: Any, path: str, choices: Sequence[str] | None = None, what: str = "a non-empty string") -> str:
+    def string(
+        self, value: Any, path: str, choices: Sequence[str] | None = None, what: str = "a non-empty string"
+    ) -> str:
         """A non-blank string, or one of ``choices`` (with a "did you mean")."""
         if choices is not None:
             if not isinstance(value, str) or value not in choices:

@@ -228,7 +228,7 @@ def trip_name(ck: Checker, value: Any, path: str, services: Sequence[ServiceSpec
         if value == svc.id:
             if len(svc.trip_ids) != 1:
                 raise ck.fail(path, f"expected a trip id; service {svc.id!r} has {len(svc.trip_ids)} trips "
-                                      f"(name one of {svc.trip_ids[0]}…)")
+                                    f"(name one of {svc.trip_ids[0]}…)")
             return svc.trip_ids[0]
     names = [svc.id for svc in services]
     hint = did_you_mean(value, names) if isinstance(value, str) else ""

@@ -207,10 +207,9 @@ def check_controllers(
     for name, spec in ctrls.items():
         if spec.type not in registry:
             known = ", ".join(sorted(registry)) or "none registered"
-            raise ck.fail(
-                f"controllers.{name}.type",
-                f"expected a registered controller type ({known}), got {spec.type!r}{did_you_mean(spec.type, registry)}",
-            )
+            hint = did_you_mean(spec.type, registry)
+            raise ck.fail(f"controllers.{name}.type",
+                          f"expected a registered controller type ({known}), got {spec.type!r}{hint}")
     for name, spec in ctrls.items():
         users = [vehicles[s.vehicle] for s in services if name in s.roles.values()]
         for params in {v.name: v for v in (users or vehicles.values())}.values():
