@@ -142,7 +142,7 @@ def reproduce_paper004(out: Path, workers: int | None = None, dask: str | None =
     from railsim.record import output
     from railsim.studies import sweep
 
-    root = Path(__file__).resolve().parents[1] / "scenarios" / "sweeps"
+    root = Path(__file__).resolve().parents[2] / "scenarios" / "sweeps"
     tables = {}
     for sc in (1, 2, 3):
         folder = out / f"s{sc}"

@@ -58,7 +58,7 @@ from typing import Any, Sequence
 from railsim.record import output
 from railsim.errors import ConfigError
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]  # the repository (railsim/studies/<this file>)
 DEFAULT_MB = ROOT / "scenarios" / "chongqing_line3_peak_mb.yaml"
 DEFAULT_VC = ROOT / "scenarios" / "chongqing_line3_peak.yaml"
 DEFAULT_SERVICES = ("airport_up", "airport_down")
