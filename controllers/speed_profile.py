@@ -99,9 +99,11 @@ def make_speed_profile(params: Mapping[str, Any], vehicle: VehicleParams) -> Spe
                 "a number >= 0", initial)
     k = params.get("k_speed_per_s", 1.0)
     require("k_speed_per_s", isinstance(k, (int, float)) and not isinstance(k, bool) and k > 0, "a number > 0", k)
+    segments = params.get("segments") or []
+    require("segments", isinstance(segments, (list, tuple)), "a list of {at_s, to_kmh, accel_mps2}", segments)
     segs = []
     last_t = -math.inf
-    for i, raw in enumerate(params.get("segments") or []):
+    for i, raw in enumerate(segments):
         if not isinstance(raw, Mapping) or set(raw) != {"at_s", "to_kmh", "accel_mps2"}:
             raise ValueError(f"segments[{i}]: expected a mapping with at_s, to_kmh, accel_mps2, got {raw!r}")
         at, to, acc = raw["at_s"], raw["to_kmh"], raw["accel_mps2"]

@@ -3,7 +3,7 @@
 The broken files live in tests/data/broken/ (one mistake each). They run through the installed entry point
 ``.venv/bin/railsim`` in a subprocess, with tests/data/plugins on PYTHONPATH so that its ``sitecustomize``
 registers the test-only controllers ``_test_ctrl`` and ``_test_follow`` (the real library is not needed).
-The world check is exercised in-process with a fake ``network.build``.
+The world check (:mod:`railsim.studies.world`) is exercised in-process with a fake ``network.build``.
 """
 
 from __future__ import annotations
@@ -28,7 +28,8 @@ PYTHON = REPO / ".venv" / "bin" / "python"
 sys.path.insert(0, str(PLUGINS))
 import railsim_test_controllers  # noqa: E402,F401
 
-from railsim.cli import main as cli, scenario as scenario_cli  # noqa: E402
+from railsim.cli import main as cli  # noqa: E402
+from railsim.studies import world  # noqa: E402  (the world check behind `railsim validate`)
 from railsim.physics.vehicle import preset_names  # noqa: E402
 
 
@@ -142,7 +143,7 @@ def _fake_build(stations: list[str], switches: list[str], calls: list[Any]) -> A
 
 def test_world_check_passes(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     calls: list[Any] = []
-    monkeypatch.setattr(scenario_cli, "_network_build", lambda: _fake_build(STATIONS, ["bijin_up"], calls))
+    monkeypatch.setattr(world, "_network_build", lambda: _fake_build(STATIONS, ["bijin_up"], calls))
     assert cli.main(["validate", str(REPO / VALID)]) == 0
     assert calls == [("chongqing_line3", {})]
     assert capsys.readouterr().out == "ok: cq3_peak_test: 2 services, 53 trips, 2 formations\n"
@@ -151,7 +152,7 @@ def test_world_check_passes(monkeypatch: pytest.MonkeyPatch, capsys: pytest.Capt
 def test_world_check_rejects_unknown_station(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     calls: list[Any] = []
     stations = [s for s in STATIONS if s != "liugongli"] + ["liugongli-east"]
-    monkeypatch.setattr(scenario_cli, "_network_build", lambda: _fake_build(stations, ["bijin_up"], calls))
+    monkeypatch.setattr(world, "_network_build", lambda: _fake_build(stations, ["bijin_up"], calls))
     assert cli.main(["validate", str(REPO / VALID)]) == 2
     err = capsys.readouterr().err
     assert err == (
@@ -161,11 +162,11 @@ def test_world_check_rejects_unknown_station(monkeypatch: pytest.MonkeyPatch, ca
 
 
 def test_world_check_skipped_with_a_warning(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
-    monkeypatch.setattr(scenario_cli, "_network_build", lambda: None)
+    monkeypatch.setattr(world, "_network_build", lambda: None)
     assert cli.main(["validate", str(REPO / VALID)]) == 0
     out = capsys.readouterr()
     assert out.err == "railsim: warning: world check skipped: network.build is not available yet\n"
     assert out.out.startswith("ok: cq3_peak_test:")
     # --no-world-check does not even try
-    monkeypatch.setattr(scenario_cli, "_network_build", lambda: pytest.fail("world built despite --no-world-check"))
+    monkeypatch.setattr(world, "_network_build", lambda: pytest.fail("world built despite --no-world-check"))
     assert cli.main(["validate", str(REPO / VALID), "--no-world-check"]) == 0

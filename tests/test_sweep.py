@@ -298,8 +298,9 @@ def test_dask_local_cluster_gives_identical_metrics(reference: tuple[Path, Path]
 def test_bad_dask_address_is_a_config_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
                                            capsys: pytest.CaptureFixture[str]) -> None:
     from railsim.cli import main as cli
+    from railsim.studies.sweep import parallel
 
-    monkeypatch.setattr(sweep, "DASK_CONNECT_TIMEOUT_S", 1.0)
+    monkeypatch.setattr(parallel, "DASK_CONNECT_TIMEOUT_S", 1.0)
     path = write_sweep(tmp_path, SMALL)
     code = cli.main(["sweep", str(path), "--out", str(tmp_path / "o"), "--dask", "tcp://127.0.0.1:9"])
     err = capsys.readouterr().err

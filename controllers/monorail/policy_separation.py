@@ -83,5 +83,6 @@ def make_policy_separation(params: Mapping[str, Any], vehicle: VehicleParams) ->
         value = getattr(p, name)
         require(name, isinstance(value, (int, float)) and not isinstance(value, bool) and value >= 0, "a number >= 0",
                 value)
-    require("k_speed_per_s", p.k_speed_per_s > 0, "a number > 0", p.k_speed_per_s)
+    k = p.k_speed_per_s
+    require("k_speed_per_s", isinstance(k, (int, float)) and not isinstance(k, bool) and k > 0, "a number > 0", k)
     return PolicySeparation(p, vehicle)

@@ -124,7 +124,8 @@ class CfParams(CommonParams):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        require("theta_preset", self.theta_preset in _THETA_PRESETS, "'train2' or 'train3'", self.theta_preset)
+        require("theta_preset", isinstance(self.theta_preset, str) and self.theta_preset in _THETA_PRESETS,
+                "'train2' or 'train3'", self.theta_preset)
         require("cacc_feedforward", self.cacc_feedforward in ("net", "applied"), "'net' or 'applied'",
                 self.cacc_feedforward)
         theta = self.theta()

@@ -1,11 +1,22 @@
 """The ``railsim`` command: a thin layer over the Python API.
 
-Subcommands (each a function over the public API, so a notebook can do the same)::
+Subcommands, one module of :mod:`railsim.cli` per command group (each a function over the public API, so a
+notebook can do the same)::
 
-    railsim network build NAME|FILE --out DIR   build a world (net.xml, stops.add.xml, topology.json)
-    railsim network show NAME|FILE              readable summary of a world
-    railsim validate SCENARIO                   check a scenario file without running it
-    railsim run SCENARIO --out DIR [--seed N]   run one simulation and write its outputs
+    railsim network build NAME|FILE --out DIR   build a world (net.xml, stops.add.xml, topology.json)   cli.network
+    railsim network show NAME|FILE              readable summary of a world                              cli.network
+    railsim validate SCENARIO                   check a scenario file without running it                 cli.scenario
+    railsim run SCENARIO --out DIR [--seed N]   run one simulation and write its outputs                 cli.run
+    railsim reproduce EXPERIMENT --out DIR      re-run a paper experiment and draw its figures           cli.reproduce
+    railsim plot RUN... [--kind K] [--out DIR]  figures of finished runs                                 cli.plot
+    railsim sweep SWEEP --out DIR               many overridden runs of one scenario, one table          cli.sweep
+    railsim min-headway SCENARIO --path P ...   minimum feasible headway of a service pattern            cli.headway
+    railsim export DIR [--format F]             a run's (or sweep's) tables as CSV/Parquet/JSON          cli.export
+    railsim report DIR [--format md|html]       one-page report of a run or a sweep                      cli.report
+    railsim study vc-vs-mb --out DIR            line studies                                             cli.study
+
+:data:`COMMAND_GROUPS` lists those modules explicitly, in the order ``railsim --help`` shows them: each has
+``add_commands(subparsers)`` and sets ``func`` on its parsers. A missing or misspelt module fails at import.
 
 User mistakes (:class:`railsim.errors.ConfigError`) print one line ``railsim: error: <file>: <field>: <message>``
 and exit with code 2; a simulation that cannot continue exits with code 3. Never a traceback for those.
@@ -14,30 +25,25 @@ and exit with code 2; a simulation that cannot continue exits with code 3. Never
 from __future__ import annotations
 
 import argparse
-import importlib
 import logging
 import sys
+from types import ModuleType
 from typing import Callable, Sequence
 
+from railsim.cli import export, headway, network, plot, report, reproduce, run, scenario, study, sweep
 from railsim.errors import EXIT_CONFIG_ERROR, EXIT_SIMULATION_ERROR, ConfigError, SimulationError
 
-# Modules that contribute subcommands: each has ``add_commands(subparsers)`` and sets ``func`` on its parsers.
-_COMMAND_MODULES = ("railsim.cli.network", "railsim.cli.scenario", "railsim.cli.run", "railsim.studies.reproduce",
-                    "railsim.cli.plot", "railsim.studies.sweep", "railsim.report.export", "railsim.report.document", "railsim.studies.vc_vs_mb")
+# The command groups, in help order; each module has ``add_commands(subparsers)``.
+COMMAND_GROUPS: tuple[ModuleType, ...] = (network, scenario, run, reproduce, plot, sweep, headway, export, report,
+                                          study)
 
 
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog="railsim", description="Virtually coupled trains on SUMO rail networks.")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
-    for mod_name in _COMMAND_MODULES:
-        try:
-            mod = importlib.import_module(mod_name)
-        except ModuleNotFoundError as exc:
-            if exc.name == mod_name:
-                continue  # that part of the product is not built yet
-            raise
-        mod.add_commands(sub)
+    for group in COMMAND_GROUPS:
+        group.add_commands(sub)
     return parser
 
 

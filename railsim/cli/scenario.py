@@ -3,7 +3,7 @@
 Two levels, both on by default:
 
 1. the schema (:func:`railsim.scenario.load`): keys, types, ranges, references, controller parameters;
-2. the world (:func:`railsim.scenario.check_against_world`): the world is built with ``network.build`` (cached
+2. the world (:func:`railsim.studies.world.world_check`): the world is built with ``network.build`` (cached
    by content hash, so only the first build runs netconvert) and every station and switch id the scenario
    names must exist in it. ``--no-world-check`` skips this level (fast, no netconvert).
 
@@ -14,37 +14,10 @@ exit code 2 (the error handling lives in :mod:`railsim.cli.main`).
 from __future__ import annotations
 
 import argparse
-import importlib
 import sys
-from typing import Any, Callable
 
 from railsim import scenario as scenario_mod
-
-
-def _network_build() -> Callable[..., Any] | None:
-    """``network.build`` if that part of the product exists yet, else ``None``."""
-    try:
-        network = importlib.import_module("network")
-    except ModuleNotFoundError:
-        return None
-    return getattr(network, "build", None)
-
-
-def world_check(scn: scenario_mod.Scenario) -> str | None:
-    """Build the scenario's world and check station/switch ids. Returns a reason when the check was skipped."""
-    build = _network_build()
-    if build is None:
-        return "world check skipped: network.build is not available yet"
-    if scn.world.kind == "net":  # a user's .net.xml is read (stations from its trainStops), not built
-        from network.external import load_world
-
-        bundle = load_world(scn.world, scn.source)
-    else:
-        name_or_path, params = scn.world.build_args()
-        bundle = build(name_or_path, **params)
-    scenario_mod.check_against_world(scn, bundle.stations.keys(), bundle.switches.keys(),
-                                     getattr(bundle, "station_aliases", None))
-    return None
+from railsim.studies.world import world_check
 
 
 def validate(args: argparse.Namespace) -> int:

@@ -27,7 +27,6 @@ with every PNG embedded as base64, so the file can be mailed on its own.
 
 from __future__ import annotations
 
-import argparse
 import base64
 import html
 import math
@@ -464,16 +463,3 @@ def write_report(folder: Path | str, fmt: str = "md") -> Path:
         text = markdown_to_html(markdown, folder, title)
     output.write_bytes(path, text.encode("utf-8"))
     return path
-
-
-def add_commands(sub: Any) -> None:
-    p = sub.add_parser("report", help="write a one-page Markdown or HTML report of a run or a sweep folder")
-    p.add_argument("folder", help="run folder (railsim run) or sweep folder (railsim sweep)")
-    p.add_argument("--format", choices=FORMATS, default="md", dest="fmt",
-                   help="md: report.md with figures linked from report_figures/; html: one self-contained file")
-    p.set_defaults(func=cmd_report)
-
-
-def cmd_report(args: argparse.Namespace) -> int:
-    print(write_report(args.folder, args.fmt))
-    return 0

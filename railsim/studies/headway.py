@@ -32,15 +32,14 @@ losses); if a confirmation fails, that headway counts as infeasible and the sear
 from the origin and destination stations' km), the sum over services of ``3600 · (n − 1) / (last − first)``
 of their planned departures in the scenario at the minimum headway (a service with one departure adds 0).
 
-``railsim min-headway SCENARIO --path P [--path P2 ...] --lo S --hi S [--tol S] [--max-delay S]`` prints the probe
-table and the answer; ``--out DIR`` writes ``headway.json``, ``probes.csv`` and keeps every probe as a resumable
-sweep row (``DIR/rows/``; with ``--keep-runs`` its full run under ``DIR/runs/<case_id>``). Exit 0 when a feasible
-headway was found, 1 when none in the range is, 2 on bad input.
+``railsim min-headway SCENARIO --path P [--path P2 ...] --lo S --hi S [--tol S] [--max-delay S]``
+(:mod:`railsim.cli.headway`) prints the probe table and the answer; ``--out DIR`` writes ``headway.json``,
+``probes.csv`` and keeps every probe as a resumable sweep row (``DIR/rows/``; with ``--keep-runs`` its full run
+under ``DIR/runs/<case_id>``). Exit 0 when a feasible headway was found, 1 when none in the range is, 2 on bad input.
 """
 
 from __future__ import annotations
 
-import argparse
 import math
 import sys
 from dataclasses import asdict, dataclass, field
@@ -49,7 +48,7 @@ from typing import Any, Mapping, Sequence
 
 from railsim.record import output
 from railsim.errors import ConfigError
-from railsim.studies.sweep import Case, CaseTask, case_id, execute, read_rows
+from railsim.studies.sweep import Case, CaseTask, case_id, execute, read_rows, write_row
 
 DELAY_STATS = ("max", "p95")
 
@@ -264,7 +263,7 @@ def find_min_headway(scenario_path: str | Path, headway_paths: Sequence[str], lo
         results = list(cached)
         for task, row in execute(tasks, workers=workers, dask_address=dask_address):
             if out is not None:
-                output.write_json(out / "rows" / f"{task.case.case_id}.json", row)
+                write_row(out, task.case.case_id, row)
             results.append((index_of[task.case.case_id], task.case, row))
             if bar is not None:
                 bar.update(1)
@@ -320,61 +319,3 @@ def find_min_headway(scenario_path: str | Path, headway_paths: Sequence[str], lo
         table = result.probe_table()
         output.write_csv(out / "probes.csv", table.to_dict("records"), list(table.columns))
     return result
-
-
-# --------------------------------------------------------------------------------------------------------------
-# CLI
-# --------------------------------------------------------------------------------------------------------------
-
-
-def _parse_set(items: Sequence[str]) -> dict[str, Any]:
-    import yaml
-
-    out: dict[str, Any] = {}
-    for item in items:
-        path, sep, text = item.partition("=")
-        if not sep or not path:
-            raise ConfigError(None, "--set", f"expected PATH=VALUE, got {item!r}")
-        try:
-            out[path] = yaml.safe_load(text)
-        except yaml.YAMLError:
-            raise ConfigError(None, "--set", f"{path}: the value is not valid YAML: {text!r}") from None
-    return out
-
-
-def cmd_min_headway(args: argparse.Namespace) -> int:
-    if args.workers is not None and args.dask is not None:
-        raise ConfigError(None, "--workers", "give either --workers (local processes) or --dask (a cluster)")
-    result = find_min_headway(
-        args.scenario, args.path, args.lo, args.hi, tol_s=args.tol, max_delay_s=args.max_delay,
-        delay_stat=args.delay_stat, overrides=_parse_set(args.set), seed=args.seed,
-        confirm_seeds=args.confirm_seed, workers=args.workers or 1, dask_address=args.dask, timeout_s=args.timeout,
-        out_dir=args.out, keep_runs=args.keep_runs, progress=False if args.no_progress else None)
-    print(result.to_markdown())
-    return 0 if result.feasible else 1
-
-
-def add_commands(sub: Any) -> None:
-    p = sub.add_parser("min-headway", help="search the minimum feasible headway of a service pattern",
-                       description="Find the smallest headway in [lo, hi] at which a scenario runs without "
-                       "collision, with every stop served, every trip arrived and the arrival delay below a threshold.")
-    p.add_argument("scenario", metavar="SCENARIO", help="base scenario YAML file")
-    p.add_argument("--path", action="append", required=True, metavar="PATH",
-                   help="override path set to the headway, e.g. services[0].departures.headway_s (repeatable)")
-    p.add_argument("--lo", type=float, required=True, help="shortest headway to consider [s]")
-    p.add_argument("--hi", type=float, required=True, help="longest headway to consider [s]")
-    p.add_argument("--tol", type=float, default=5.0, help="resolution of the answer [s] (default 5)")
-    p.add_argument("--max-delay", type=float, default=120.0, help="arrival delay threshold [s] (default 120)")
-    p.add_argument("--delay-stat", choices=DELAY_STATS, default="max", help="delay statistic (default max)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the search probes (default: the scenario's)")
-    p.add_argument("--confirm-seed", type=int, action="append", default=None, metavar="N",
-                   help="seed(s) that confirm the answer (default: seed + 1; repeatable)")
-    p.add_argument("--set", action="append", default=[], metavar="PATH=VALUE",
-                   help="extra override applied to every probe (value in YAML), repeatable")
-    p.add_argument("--workers", type=int, default=None, help="probes run in parallel (local processes, default 1)")
-    p.add_argument("--dask", default=None, metavar="ADDRESS", help="run the probes on this Dask scheduler")
-    p.add_argument("--timeout", type=float, default=None, metavar="S", help="wall-clock limit per probe [s]")
-    p.add_argument("--out", default=None, help="folder for headway.json, probes.csv and the probe rows (resumable)")
-    p.add_argument("--keep-runs", action="store_true", help="keep every probe's run outputs under OUT/runs/")
-    p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
-    p.set_defaults(func=cmd_min_headway)

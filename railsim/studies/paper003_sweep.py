@@ -26,7 +26,7 @@ import yaml
 
 from railsim.analysis import paper003 as ca_metrics
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]  # the repository (railsim/studies/<this file>)
 DELAYS_S = (0.1, 0.5, 1.0, 2.0)
 LOADS = ("empty", "loaded")
 SCENARIOS = ("track_accel", "track_decel")

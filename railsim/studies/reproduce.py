@@ -1,7 +1,9 @@
-"""``railsim reproduce``: re-run a paper's numerical experiment in its own (pure numpy) model and draw its figures.
+"""Paper reproductions: re-run a paper's numerical experiment in its own (pure numpy) model and draw its figures.
 
-The engine runs the same experiments in SUMO from ``scenarios/paper*.yaml``; this command is the reference side of
-that comparison, for users who want the paper's figures without a world:
+The engine runs the same experiments in SUMO from ``scenarios/paper*.yaml``; :func:`reproduce_paper002` and
+:func:`reproduce_paper001` are the reference side of that comparison, for users who want the paper's figures
+without a world; :func:`reproduce_paper004` runs Paper E's Table 3 sweeps on SUMO. The command
+(:mod:`railsim.cli.reproduce`):
 
     railsim reproduce paper002 --out out/paper002 [--topology union|path]
     railsim reproduce paper001 --out out/paper001 [--scenario A|B|C-constant|C-harmonic] [--controllers sempc,mpc,afsmc]
@@ -15,26 +17,11 @@ violations per controller) and ``scenario_<X>.png``.
 
 from __future__ import annotations
 
-import argparse
 import math
 from pathlib import Path
 from typing import Any
 
 from railsim.record import output
-
-
-def add_commands(sub: Any) -> None:
-    p = sub.add_parser("reproduce", help="re-run a paper experiment in its numpy model and write its figures")
-    p.add_argument("experiment", choices=["paper001", "paper002", "paper004"], help="which experiment")
-    p.add_argument("--workers", type=int, default=None, help="paper004: local worker processes (default: cores)")
-    p.add_argument("--dask", default=None, metavar="ADDRESS", help="paper004: run the cases on this Dask scheduler")
-    p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--topology", choices=["union", "path"], default="union",
-                   help="paper002: reading of the lost Fig. 2 (spec 002 §3.2)")
-    p.add_argument("--scenario", choices=["A", "B", "C-constant", "C-harmonic"], default="A",
-                   help="paper001: single section, multi-section, constant wind, harmonic gust")
-    p.add_argument("--controllers", default="sempc,mpc,afsmc", help="paper001: comma-separated controllers")
-    p.set_defaults(func=cmd_reproduce)
 
 
 def _num(x: float) -> float | None:
@@ -142,7 +129,7 @@ def reproduce_paper004(out: Path, workers: int | None = None, dask: str | None =
     from railsim.record import output
     from railsim.studies import sweep
 
-    root = Path(__file__).resolve().parents[1] / "scenarios" / "sweeps"
+    root = Path(__file__).resolve().parents[2] / "scenarios" / "sweeps"
     tables = {}
     for sc in (1, 2, 3):
         folder = out / f"s{sc}"
@@ -154,21 +141,3 @@ def reproduce_paper004(out: Path, workers: int | None = None, dask: str | None =
     md = paper004_markdown(table)
     (out / "comparison.md").write_text(md + "\n", encoding="utf-8")
     return {"experiment": "paper004", "table": md}
-
-
-def cmd_reproduce(args: argparse.Namespace) -> int:
-    out = Path(args.out)
-    if args.experiment == "paper004":
-        summary = reproduce_paper004(out, args.workers, args.dask)
-        print(summary["table"])
-        return 0
-    if args.experiment == "paper001":
-        summary = reproduce_paper001(out, args.scenario, args.controllers)
-        for name, m in summary["metrics"].items():
-            print(f"{name:8s} " + ", ".join(f"{k}={v:.4g}" for k, v in m.items() if isinstance(v, (int, float))))
-        print(f"figure and metrics.json in {out}/")
-        return 0
-    summary = reproduce_paper002(out, args.topology)
-    print(f"{summary['experiment']} ({summary['topology']}): {summary['steps']} steps, "
-          f"{summary['violations']} constraint violations; figures and CSV in {out}/")
-    return 0 if summary["violations"] == 0 else 1

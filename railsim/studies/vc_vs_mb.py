@@ -33,7 +33,7 @@ For each regime the study
    hour of the busiest section, UIC 406 occupancy), running time per service, traction energy (``trips.csv``
    ``energy_kwh``), gap statistics (the smallest true gap per trip; the coupled gap error of the formations);
 3. writes ``DIR/vc_vs_mb.md`` with the two columns, the probe tables and the time-distance graphs
-   (:func:`railsim.report.plots.line.time_distance`, when that module is installed), and ``DIR/vc_vs_mb.json``.
+   (:func:`railsim.report.plots.line.time_distance`), and ``DIR/vc_vs_mb.json``.
 
 ``headway_s`` skips the search and runs both regimes at that headway (a quick look; the report says so).
 
@@ -48,8 +48,6 @@ not.
 
 from __future__ import annotations
 
-import argparse
-import importlib
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -58,7 +56,7 @@ from typing import Any, Sequence
 from railsim.record import output
 from railsim.errors import ConfigError
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]  # the repository (railsim/studies/<this file>)
 DEFAULT_MB = ROOT / "scenarios" / "chongqing_line3_peak_mb.yaml"
 DEFAULT_VC = ROOT / "scenarios" / "chongqing_line3_peak.yaml"
 DEFAULT_SERVICES = ("airport_up", "airport_down")
@@ -150,11 +148,9 @@ def run_metrics(run_dir: Path) -> tuple[dict[str, Any], str]:
 
 
 def _time_distance(run_dir: Path, stem: Path) -> list[Path]:
-    """Time-distance graphs per direction, if the line plots are installed (else none)."""
-    try:
-        line = importlib.import_module("railsim.report.plots.line")
-    except ModuleNotFoundError:
-        return []
+    """Time-distance graphs per direction (PNG and SVG files)."""
+    from railsim.report.plots import line  # imported late: it loads matplotlib
+
     files: list[Path] = []
     for direction in ("up", "down"):
         files += [Path(p) for p in line.time_distance(run_dir, Path(f"{stem}_{direction}"), direction=direction)]
@@ -286,54 +282,3 @@ def write_report(out: Path, results: dict[str, RegimeResult], services: Sequence
                        "metrics": r.metrics, "search": r.search.to_dict() if r.search is not None else None,
                        "run_dir": str(r.run_dir) if r.run_dir else None} for r in cols})
     return md
-
-
-# --------------------------------------------------------------------------------------------------------------
-# CLI
-# --------------------------------------------------------------------------------------------------------------
-
-
-def add_commands(sub: Any) -> None:
-    p = sub.add_parser("study", help="line studies (vc-vs-mb: virtual coupling vs moving block)")
-    studies = p.add_subparsers(dest="study", metavar="STUDY")
-    q = studies.add_parser("vc-vs-mb", help="minimum headway, capacity, running time, energy and gaps of moving "
-                                            "block vs virtual coupling, side by side (DIR/vc_vs_mb.md)")
-    q.add_argument("--out", required=True, help="output folder (probes are kept and reused on a re-run)")
-    q.add_argument("--workers", type=int, default=1, help="probes run in parallel (default 1)")
-    q.add_argument("--mb", default=str(DEFAULT_MB), help="moving-block scenario (default: %(default)s)")
-    q.add_argument("--vc", default=str(DEFAULT_VC), help="virtual-coupling scenario (default: %(default)s)")
-    q.add_argument("--services", default=",".join(DEFAULT_SERVICES),
-                   help="services whose headway is searched, comma-separated (default: %(default)s)")
-    q.add_argument("--lo", type=float, default=60.0, help="lower end of the headway search [s] (default 60)")
-    q.add_argument("--mb-hi", type=float, default=240.0, help="upper end for moving block [s] (default 240)")
-    q.add_argument("--vc-hi", type=float, default=150.0, help="upper end for virtual coupling [s] (default 150)")
-    q.add_argument("--tol", type=float, default=10.0, help="search tolerance [s] (default 10)")
-    q.add_argument("--max-delay", type=float, default=120.0, help="feasible: max arrival delay [s] (default 120)")
-    q.add_argument("--headway", type=float, default=None, help="skip the search: run both regimes at this headway")
-    q.add_argument("--no-confirm", action="store_true", help="no confirmation probe with a second seed")
-    q.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
-    q.set_defaults(func=cmd_vc_vs_mb)
-    p.set_defaults(func=lambda args: (p.print_help(), 0)[1])
-
-
-def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
-    for name in ("mb", "vc"):
-        if not Path(getattr(args, name)).is_file():
-            raise ConfigError(getattr(args, name), None, f"expected a scenario file for --{name}, found none")
-    if args.workers < 1:
-        raise ConfigError("<command line>", "--workers", f"expected an integer >= 1, got {args.workers}")
-    services = [s.strip() for s in args.services.split(",") if s.strip()]
-    if not services:
-        raise ConfigError("<command line>", "--services", "expected at least one service id")
-    results = vc_vs_mb(args.out, mb_scenario=args.mb, vc_scenario=args.vc, services=services, lo_s=args.lo,
-                       mb_hi_s=args.mb_hi, vc_hi_s=args.vc_hi, tol_s=args.tol, max_delay_s=args.max_delay,
-                       workers=args.workers, headway_s=args.headway, confirm=not args.no_confirm,
-                       progress=False if args.no_progress else None)
-    for r in results.values():
-        h = "none feasible" if r.headway_s is None else f"{r.headway_s:g} s"
-        up = r.metrics.get("up.pax_per_h")
-        print(f"{r.regime.label}: minimum headway {h}"
-              + (f"; up {r.metrics['up.trains_per_h']:.0f} trains/h on {r.metrics['up.paths_per_h']:.0f} paths, "
-                 f"{up:,.0f} passengers/h" if up is not None else ""))
-    print(f"report: {Path(args.out) / 'vc_vs_mb.md'}")
-    return 0 if all(r.headway_s is not None for r in results.values()) else 1
