@@ -122,7 +122,7 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
         gap = a["x"] - a["length_m"] - f["x"]
         pairs[f"{ahead}-{fol}"] = _pair_row(times, gap, f["v"], a["v"], _ca_params(raw, f["service"]), f["b_e"],
                                            ca[fol], step_s)
-    for k, ev in enumerate(e for e in events if e["kind"] == "obstacle_appeared"):
+    for _k, ev in enumerate(e for e in events if e["kind"] == "obstacle_appeared"):
         detail = json.loads(ev["detail"] or "{}")
         tid, ch = detail.get("ahead_of"), detail.get("chainage_m")
         if tid not in series or ch is None:
