@@ -37,8 +37,8 @@ test-fast: lint
 
 # One-shot formatting pass (see [tool.ruff] in pyproject.toml); not part of `make test` yet.
 format: $(STAMP)
-	$(BIN)/ruff format .
 	$(BIN)/ruff check --fix --select I,UP035,UP037 .
+	$(BIN)/ruff format .
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py
