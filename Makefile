@@ -5,8 +5,10 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 SCENARIO ?= scenarios/chongqing_line3_peak.yaml
 OUT     ?= out/demo
+# pytest-xdist workers for `make test`: the machines have 2 cores (`make test WORKERS=0` runs in one process)
+WORKERS ?= 2
 
-.PHONY: venv demo test test-fast bench clean
+.PHONY: venv demo lint test test-fast format bench clean
 
 $(STAMP): pyproject.toml
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -21,11 +23,22 @@ demo: $(STAMP)
 	$(BIN)/railsim network build chongqing_line3 --out $(OUT)/network
 	$(BIN)/railsim run $(SCENARIO) --out $(OUT)
 
-test: $(STAMP)
-	$(BIN)/python -m pytest -q
+# Static checks, cheapest first (config in pyproject.toml: [tool.ruff], [tool.mypy], [tool.importlinter]).
+lint: $(STAMP)
+	$(BIN)/ruff check .
+	$(BIN)/mypy
+	$(BIN)/lint-imports --no-cache
 
-test-fast: $(STAMP)
-	$(BIN)/python -m pytest -q -m "not slow"
+test: lint
+	$(BIN)/python -m pytest -q -n $(WORKERS)
+
+test-fast: lint
+	$(BIN)/python -m pytest -q -n $(WORKERS) -m "not slow"
+
+# One-shot formatting pass (see [tool.ruff] in pyproject.toml); not part of `make test` yet.
+format: $(STAMP)
+	$(BIN)/ruff check --fix --select I,UP035,UP037 .
+	$(BIN)/ruff format .
 
 bench: $(STAMP)
 	$(BIN)/python benchmarks/engine.py

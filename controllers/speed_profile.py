@@ -107,7 +107,7 @@ def make_speed_profile(params: Mapping[str, Any], vehicle: VehicleParams) -> Spe
         if not isinstance(raw, Mapping) or set(raw) != {"at_s", "to_kmh", "accel_mps2"}:
             raise ValueError(f"segments[{i}]: expected a mapping with at_s, to_kmh, accel_mps2, got {raw!r}")
         at, to, acc = raw["at_s"], raw["to_kmh"], raw["accel_mps2"]
-        for name, val, ok in (("at_s", at, True), ("to_kmh", to, True), ("accel_mps2", acc, True)):
+        for name, val, _ok in (("at_s", at, True), ("to_kmh", to, True), ("accel_mps2", acc, True)):
             if isinstance(val, bool) or not isinstance(val, (int, float)) or not math.isfinite(val):
                 raise ValueError(f"segments[{i}].{name}: expected a number, got {val!r}")
         require(f"segments[{i}].at_s", at > last_t, "strictly increasing start times", at)

@@ -187,7 +187,7 @@ class _Plan:
                 if nid is None:
                     nid = f"{line}_n{k}"
                     y = y_of[line]
-                    b = self._branch(line)
+                    b = self._branch(line)  # type: ignore[assignment]
                     if b is not None:
                         # ease the branch away from its parent over its first pieces (drawing only)
                         dist = abs(x - b.at_km * 1000.0)
@@ -423,7 +423,7 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
             pair = (s.trunk_edge, leg_edge) if s.kind == "diverge" else (leg_edge, s.trunk_edge)
             sw_by_conn[pair] = (s.spec.id, leg)
     for a, b, node, _ in plan.connections():
-        sw, leg = sw_by_conn.get((a, b), (None, None))
+        sw, leg = sw_by_conn.get((a, b), (None, None))  # type: ignore[assignment]
         graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
     graph.graph["gradients"] = {
         line: [[g.from_km * 1000.0, g.to_km * 1000.0, g.permille] for g in desc.gradients if g.line == line]

@@ -9,7 +9,6 @@ import scipy.optimize
 from controllers.ato_mpc.model import (
     affine_map,
     affine_term,
-    augment,
     build_model,
     continuous_model,
     discretise,

@@ -51,9 +51,9 @@ def _package_yaml() -> dict:
 def test_line3_has_45_stations_with_a_stop_per_direction(cq: network.NetworkBundle) -> None:
     assert len(cq.stations) == 45
     stop_ids = set()
-    for st in cq.stations.values():
-        assert sorted(p.direction for p in st.platforms) == ["down", "up"]
-        for p in st.platforms:
+    for station in cq.stations.values():
+        assert sorted(p.direction for p in station.platforms) == ["down", "up"]
+        for p in station.platforms:
             assert p.end_pos_m - p.start_pos_m == pytest.approx(220.0)
             stop_ids.add(p.stop_id)
     assert len(stop_ids) == 90

@@ -406,7 +406,7 @@ def test_controller_params_are_checked_with_the_vehicles_that_use_them() -> None
 
 def test_controller_registry_is_read_at_validation_time() -> None:
     late = f"_test_late_{uuid.uuid4().hex[:8]}"
-    assert error_of({"controllers.drive.type": late}).startswith(f"base.yaml: controllers.drive.type: expected a registered")
+    assert error_of({"controllers.drive.type": late}).startswith("base.yaml: controllers.drive.type: expected a registered")
 
     @register(late)
     def _factory(params: Any, vehicle: Any) -> Any:

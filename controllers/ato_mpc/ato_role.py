@@ -27,7 +27,7 @@ step (``period_s: 0``) or a fixed value equal to it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from typing import Any, Mapping
 
 import numpy as np
@@ -36,7 +36,6 @@ from controllers.ato_mpc.afsmc import AfsmcLaw, AfsmcParams
 from controllers.ato_mpc.core import REFERENCE_MODES, AtoDriver, CarriageLaw, Situation
 from controllers.ato_mpc.mpc import mpc_settings
 from controllers.ato_mpc.pid import PidLaw, PidParams
-from controllers.ato_mpc.qp import MpcSettings
 from controllers.ato_mpc.reference import Limit, SpeedDistanceProfile
 from controllers.ato_mpc.sempc import MpcLaw, sempc_settings
 from controllers.base import Command, Observation, register

@@ -165,7 +165,6 @@ def terminal_ingredients(
     k_h = -np.linalg.solve(r_h + b_h.T @ p_h @ b_h, b_h.T @ p_h @ a_h)
     pd = p_h / np.outer(s_vec, s_vec)
     k = force_scale_n * k_h / s_vec[None, :]
-    acl = at + bt @ k
     rho = float(np.max(np.abs(np.linalg.eigvals(a_h + b_h @ k_h))))
     if not rho < 1.0:
         raise ValueError(f"terminal: no stabilising feedback found (spectral radius {rho:.9f} >= 1)")

@@ -164,12 +164,12 @@ def distance_window(
     ``x_r(k) = x_1``. Returns ``(x_ref[1..N], v_ref[1..N], v_r(k))``. The acceleration clamp keeps the
     reference reachable at departure and after a hold; the cap makes the train ride the braking curve.
     """
-    v0 = float(min(profile.cap_mps(x1_m), max(v1_mps, 0.0)))
+    v0 = float(min(profile.cap_mps(x1_m), max(v1_mps, 0.0)))  # type: ignore[arg-type]
     xr = np.empty(n_p)
     vr = np.empty(n_p)
     s, v = x1_m, v0
     for i in range(n_p):
-        v_next = float(min(profile.cap_mps(s + v * period_s), max(v1_mps, 0.0) + profile.accel_mps2 * (i + 1) * period_s))
+        v_next = float(min(profile.cap_mps(s + v * period_s), max(v1_mps, 0.0) + profile.accel_mps2 * (i + 1) * period_s))  # type: ignore[arg-type]
         s = min(s + 0.5 * (v + v_next) * period_s, max(profile.stop_m, x1_m))
         v = v_next
         xr[i], vr[i] = s, v

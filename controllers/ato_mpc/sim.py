@@ -141,7 +141,6 @@ def run(sc: Scenario, controller: str, p: MultipointParams = MultipointParams(),
     law = make_law(controller, p, period, sc.weights, reference_mode, **(law_overrides or {}))
     driver = AtoDriver(law, p, period)
     state = initial_state(p, 0.0)
-    n = p.n_cars
     t = 0.0
     section = 0
     profile = _profile(sc, sc.stops_m[0])

@@ -234,7 +234,7 @@ def simulate(
                     controllers[e.train_id] = TrainController(e.train_id, e.params, t, v_r, on_empty)
                 elif kind == "leave":
                     for table in (x, v, controllers):
-                        table.pop(e.train_id, None)
+                        table.pop(e.train_id, None)  # type: ignore[union-attr]
                 ev_pos += 1
             bad = check_event_preconditions(old_graph, graph, params, t, v_r, x, v)
             if bad:

@@ -100,7 +100,7 @@ def run_naive(problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float 
             else:
                 caps.append(p.limit_speed_mps(tr.switches[-1].leg))
             # absolute braking cap behind trains ahead on shared track (common coordinate)
-            for i, j, ii, jj in problem.shared_pairs:
+            for i, j, ii, _jj in problem.shared_pairs:
                 if k not in (i, j):
                     continue
                 q = j if k == i else i

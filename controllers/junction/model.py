@@ -461,7 +461,7 @@ def _rbd_violation(problem: Problem, t: np.ndarray, v_pos: np.ndarray, A: np.nda
     out = np.zeros(t.shape[0])
     for i, j, ii, jj in problem.shared_pairs:
         worst = []
-        for lead, fol, il, jf in ((i, j, ii, jj), (j, i, jj, ii)):
+        for lead, fol, _il, jf in ((i, j, ii, jj), (j, i, jj, ii)):
             tq = t[:, fol, jf]
             s_lead, v_lead = _position_at(problem, lead, t, v_pos, A, tq)
             v_f = v_pos[:, fol, jf]

@@ -162,7 +162,7 @@ class DmpcQp:
         status, admm, it = "unsolved", 0, 0
         u_sol = u_nom
         ok = False
-        for it in range(1, self.sqp_iterations + 1):
+        for _it in range(1, self.sqp_iterations + 1):
             nominal = rollout_controls(u_nom, 0.0, v0_mps, tr)
             px, q, ax, lo, hi = self._qp_data(v0_mps, u_prev_mps2, pred, sp_rel, nominal)
             if self._solver is None:

@@ -278,7 +278,7 @@ def paper000_metrics(out_dir: Path | str, criterion: VcCriterion | None = None) 
 def format_table(metrics: Mapping[str, Any] | Mapping[str, Mapping[str, Any]]) -> str:
     """Plain-text Table III/IV: one line per (run, follower). Accepts one :func:`paper000_metrics` result or a
     mapping ``label -> result`` (e.g. the three S-D methods)."""
-    runs = {str(metrics.get("scenario", "run")): metrics} if "followers" in metrics else dict(metrics)
+    runs: dict[str, Any] = {str(metrics.get("scenario", "run")): metrics} if "followers" in metrics else dict(metrics)
     head = (f"{'run':<16}{'train':>8}{'ctl':>14}{'|dv|':>9}{'|e|':>9}{'late|dv|':>10}{'late|e|':>9}"
             f"{'VC1st':>7}{'VC30':>7}{'minSafe':>9}{'e_end':>8}{'t_ms':>9}{'p95_ms':>9}{'wall_ms':>9}{'fb':>4}")
     lines = [head]

@@ -62,7 +62,7 @@ def _intervals(starts: list[float], ends: list[float]) -> list[tuple[float, floa
 
 def _ca_params(raw: Mapping[str, Any], service_id: str) -> CaParams | None:
     """The CaParams of the service's ``ca`` role (service override first), or None without a monorail_ca role."""
-    svc = next((s for s in raw.get("services", []) if s.get("id") == service_id), {})
+    svc: Mapping[str, Any] = next((s for s in raw.get("services", []) if s.get("id") == service_id), {})
     name = (svc.get("roles") or {}).get("ca") or (raw.get("roles") or {}).get("ca")
     if not name:
         return None
@@ -74,7 +74,7 @@ def _ca_params(raw: Mapping[str, Any], service_id: str) -> CaParams | None:
 
 
 def _vehicle_of(raw: Mapping[str, Any], service_id: str) -> Mapping[str, Any]:
-    svc = next((s for s in raw.get("services", []) if s.get("id") == service_id), {})
+    svc: Mapping[str, Any] = next((s for s in raw.get("services", []) if s.get("id") == service_id), {})
     return (raw.get("vehicles") or {}).get(svc.get("vehicle"), {})
 
 
@@ -95,7 +95,7 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
         d["v"].append(float(r["speed_mps"]))
         d["a"].append(float(r["applied_accel_mps2"]))
     times = np.unique(np.array([float(r["t_s"]) for r in rows])) if rows else np.zeros(0)
-    series: dict[str, dict[str, np.ndarray]] = {}
+    series: dict[str, dict[str, Any]] = {}
     for tid, d in trains.items():
         t = np.asarray(d["t"])
         idx = np.searchsorted(times, t)
@@ -122,7 +122,7 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
         gap = a["x"] - a["length_m"] - f["x"]
         pairs[f"{ahead}-{fol}"] = _pair_row(times, gap, f["v"], a["v"], _ca_params(raw, f["service"]), f["b_e"],
                                            ca[fol], step_s)
-    for k, ev in enumerate(e for e in events if e["kind"] == "obstacle_appeared"):
+    for _k, ev in enumerate(e for e in events if e["kind"] == "obstacle_appeared"):
         detail = json.loads(ev["detail"] or "{}")
         tid, ch = detail.get("ahead_of"), detail.get("chainage_m")
         if tid not in series or ch is None:

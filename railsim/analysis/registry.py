@@ -50,7 +50,7 @@ def run(scenario: Any, out_dir: Path) -> tuple[dict[str, Any], list[str]]:
     """Compute every applicable analysis of a finished run: ``({name: metrics}, [printable tables])``."""
     results: dict[str, Any] = {}
     tables: list[str] = []
-    for name, wanted, func in _ANALYSES:
+    for name, _wanted, func in _ANALYSES:
         if name in applicable(scenario):
             metrics, table = func(Path(out_dir))
             results[name] = metrics

@@ -344,7 +344,7 @@ def step(
                 continue
 
         def f(xx: np.ndarray, vv: np.ndarray) -> np.ndarray:
-            return accelerations_mps2(params, xx, vv, u, grad, w)
+            return accelerations_mps2(params, xx, vv, u, grad, w)  # noqa: B023 - called in this iteration only
 
         k1v = f(x, v)
         k1x = v

@@ -46,7 +46,7 @@ def _bounds(ax, log: SimulationLog, lo_name: str, hi_name: str, label: str) -> N
         ax.axhline(lo[0], color="red", ls="--", lw=1.2, label=f"{label} bounds")
         ax.axhline(hi[0], color="red", ls="--", lw=1.2)
     else:
-        for n, i in enumerate(log.train_ids):
+        for n, _i in enumerate(log.train_ids):
             ax.axhline(lo[n], color=f"C{n}", ls=":", lw=1.0)
             ax.axhline(hi[n], color=f"C{n}", ls=":", lw=1.0)
 
