@@ -50,6 +50,7 @@ from typing import Any, Mapping
 
 from railsim.physics.dynamics import traction_limit_mps2  # noqa: F401 - re-exported: one definition of the envelope
 from railsim.physics.vehicle import G_MPS2, VehicleParams
+from railsim.errors import require  # noqa: F401 - re-exported: controllers check parameters with it
 
 # Smallest deceleration the solvers consider [m/s²]: below it a stop is "never" (distance diverges).
 _MIN_DECEL_MPS2 = 1e-4
@@ -315,8 +316,3 @@ def params_from_mapping(cls: type, params: Mapping[str, Any] | None, ignore: tup
         values[key] = value
     return cls(**values)
 
-
-def require(name: str, ok: bool, expectation: str, value: Any) -> None:
-    """Raise ``ValueError("<name>: expected <expectation>, got <value>")`` unless ``ok``."""
-    if not ok:
-        raise ValueError(f"{name}: expected {expectation}, got {value!r}")

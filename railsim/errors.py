@@ -11,6 +11,7 @@ and never a traceback. Internal bugs stay ordinary exceptions (they deserve a tr
 from __future__ import annotations
 
 from pathlib import Path
+from typing import Any
 
 
 class ConfigError(Exception):
@@ -43,3 +44,13 @@ class SimulationError(Exception):
 
 EXIT_CONFIG_ERROR = 2
 EXIT_SIMULATION_ERROR = 3
+
+
+def require(name: str, ok: bool, expectation: str, value: Any) -> None:
+    """Raise ``ValueError("<name>: expected <expectation>, got <value>")`` unless ``ok``.
+
+    The parameter check of physics and controllers (factories raise ValueError; the scenario layer turns it into
+    a message naming the file and field).
+    """
+    if not ok:
+        raise ValueError(f"{name}: expected {expectation}, got {value!r}")

@@ -45,7 +45,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.braking import require
+from railsim.errors import require
 from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 # ---- Chongqing Line 3 data pack (vehicle section), see module docstring
