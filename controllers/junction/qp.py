@@ -310,7 +310,8 @@ class _OrderQP:
             # inside one segment, which it cannot
             reach = self.v0[k] + 0.5 * p.accel_max_mps2 * dt * np.arange(1, N + 1)
             floor = np.maximum(np.minimum(qp.speed_floor_mps, reach), p.min_speed_mps + 0.05)
-            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor, np.full(N, p.line_speed_mps))
+            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor, 
+                           np.full(N, p.line_speed_mps - qp.speed_margin_mps))
             rows.add_block(U[k, :, None], np.ones((N, 1)), np.full(N, p.accel_min_mps2), np.full(N, p.accel_max_mps2))
             if N > 1:
                 rows.add_block(np.stack([U[k, 1:], U[k, :-1]], axis=1), np.tile([1.0, -1.0], (N - 1, 1)),
@@ -416,7 +417,7 @@ class _OrderQP:
         z[U.ravel()] = tr.u.ravel()
         z[n_state:] = 0.0
         solver.warm_start(x=z)
-        res = solver.solve()
+        res = solver.solve(raise_error=False)
         if res.x is None or not np.all(np.isfinite(res.x)):
             return tr, math.inf, math.inf
         zx = res.x
