@@ -111,7 +111,6 @@ def main() -> None:
     rows = compare_table3(seeds=range(args.seeds))
     rows_corrected = compare_table3(seeds=range(args.seeds), methods=("improved_pso", "qp_order"),
                                     params=models["corrected"])
-    keep = ("scenario", "method", "runs", "coupled_rate", "plan_feasible_rate")
     print(json.dumps({"benchmark": "junction_planner", "python": platform.python_version(),
                       "replan_timing_3_trains": timing, "table3_mean_std": _table(rows),
                       "table3_corrected_model_mean_std": _table(rows_corrected),
