@@ -5,9 +5,13 @@ execute the plan in the numpy plant and re-plan every ``--period`` seconds (warm
 point of no return) until the first train reaches sw2. Every plan's wall time is recorded; the target is
 ≤ 100 ms per (re-)plan with the online budget (improved PSO, 200 iterations, 0.09 s wall-time cap).
 
-Part 2 — Table 3 scenarios 1–3 × {improved PSO, plain PSO, naive 1, naive 2} × ``--seeds`` seeds (naive ones
-are deterministic and run once), default PSO budget (300 iterations), every plan executed in the plant at
-Δt = 0.1 s and measured there.
+Timing runs for every optimiser (improved PSO, plain PSO, ``qp_order``) under the paper model and under the
+corrected model SUMO flies (:func:`controllers.junction.model.sumo_corrected_params`: t_ls 21.6 s, RBD guard,
+20 m trains); median/p95 per method and the ratios to the improved PSO measured in the same run.
+
+Part 2 — Table 3 scenarios 1–3 × {improved PSO, plain PSO, qp_order, naive 1, naive 2} × ``--seeds`` seeds
+(deterministic methods run once), default PSO budget (300 iterations), every plan executed in the plant at
+Δt = 0.1 s and measured there; and improved PSO vs qp_order under the corrected model.
 
 Prints one JSON object.
 
@@ -30,10 +34,13 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from controllers.junction.planner import (  # noqa: E402
     TrainState, build_problem, plan, replan,
 )
-from controllers.junction.pso import improved_pso_params  # noqa: E402
+from controllers.junction.model import sumo_corrected_params  # noqa: E402
+from controllers.junction.pso import improved_pso_params, plain_pso_params  # noqa: E402
 from controllers.junction.simulate import compare_table3, simulate_plan, table3_scenario  # noqa: E402
 
 ONLINE = improved_pso_params(max_iterations=200, wall_time_s=0.09)
+ONLINE_PLAIN = plain_pso_params(max_iterations=200, wall_time_s=0.09)
+TIMED_METHODS = ("improved_pso", "plain_pso", "qp_order")
 
 
 def _state_after(problem, trains, x, t_s):
@@ -52,19 +59,21 @@ def _state_after(problem, trains, x, t_s):
     return out
 
 
-def replan_timing(seeds: int, period_s: float) -> dict:
+def replan_timing(seeds: int, period_s: float, method: str = "improved_pso", params=None) -> dict:
+    """Plan, then re-plan every ``period_s`` along the executed plan; wall time of every (re-)plan."""
     times, feasible, frozen = [], [], []
+    pso = ONLINE if method == "improved_pso" else ONLINE_PLAIN
     for sc in (1, 2, 3):
         trains0, layout = table3_scenario(sc)
-        for seed in range(seeds):
+        for seed in range(1 if method == "qp_order" else seeds):
             rng = np.random.default_rng(seed)
             t0 = time.perf_counter()
-            current = plan(trains0, (), layout, pso=ONLINE, rng=rng)
+            current = plan(trains0, (), layout, params, method, pso=pso, rng=rng)
             times.append(time.perf_counter() - t0)
             feasible.append(current.feasible)
             trains = trains0
             while True:
-                problem = build_problem(trains, (), layout, frozen_order=None)
+                problem = build_problem(trains, (), layout, params, frozen_order=None)
                 x = np.concatenate([np.array([a for _, _, a in current.train(t.train_id).segments])
                                     for t in trains])
                 nxt = _state_after(problem, trains, x, period_s)
@@ -72,7 +81,7 @@ def replan_timing(seeds: int, period_s: float) -> dict:
                     break
                 trains = nxt
                 t0 = time.perf_counter()
-                current = replan(current, trains, (), layout, pso=ONLINE, rng=rng)
+                current = replan(current, trains, (), layout, params, method, pso=pso, rng=rng)
                 times.append(time.perf_counter() - t0)
                 feasible.append(current.feasible)
                 frozen.append(current.frozen_order)
@@ -80,8 +89,8 @@ def replan_timing(seeds: int, period_s: float) -> dict:
     return {"plans": int(ms.size), "median_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95)),
             "max_ms": float(ms.max()), "target_ms": 100.0, "feasible_rate": float(np.mean(feasible)),
             "frozen_rate": float(np.mean(frozen)) if frozen else 0.0,
-            "budget": {"max_iterations": ONLINE.max_iterations, "wall_time_s": ONLINE.wall_time_s,
-                       "swarm_size": ONLINE.swarm_size}}
+            "budget": ({"max_iterations": pso.max_iterations, "wall_time_s": pso.wall_time_s,
+                        "swarm_size": pso.swarm_size} if method != "qp_order" else "deterministic")}
 
 
 def main() -> None:
@@ -91,8 +100,24 @@ def main() -> None:
     ap.add_argument("--period", type=float, default=2.0)
     args = ap.parse_args()
     t0 = time.perf_counter()
-    timing = replan_timing(args.replan_seeds, args.period)
+    models = {"paper": None, "corrected": sumo_corrected_params()}
+    timing: dict = {}
+    for name, params in models.items():
+        timing[name] = {m: replan_timing(args.replan_seeds, args.period, m, params) for m in TIMED_METHODS}
+        base = timing[name]["improved_pso"]
+        for m, row in timing[name].items():   # ratios against the improved PSO measured in this run
+            row["median_ratio_to_improved_pso"] = row["median_ms"] / base["median_ms"]
+            row["p95_ratio_to_improved_pso"] = row["p95_ms"] / base["p95_ms"]
     rows = compare_table3(seeds=range(args.seeds))
+    rows_corrected = compare_table3(seeds=range(args.seeds), methods=("improved_pso", "qp_order"),
+                                    params=models["corrected"])
+    print(json.dumps({"benchmark": "junction_planner", "python": platform.python_version(),
+                      "replan_timing_3_trains": timing, "table3_mean_std": _table(rows),
+                      "table3_corrected_model_mean_std": _table(rows_corrected),
+                      "total_wall_s": round(time.perf_counter() - t0, 1)}, indent=1))
+
+
+def _table(rows: list[dict]) -> list[dict]:
     keep = ("scenario", "method", "runs", "coupled_rate", "plan_feasible_rate")
     table = []
     for r in rows:
@@ -101,9 +126,7 @@ def main() -> None:
                      "wall_time_s"):
             row[name] = [round(r[f"{name}_mean"], 3), round(r[f"{name}_std"], 3)]
         table.append(row)
-    print(json.dumps({"benchmark": "junction_planner", "python": platform.python_version(),
-                      "replan_timing_3_trains": timing, "table3_mean_std": table,
-                      "total_wall_s": round(time.perf_counter() - t0, 1)}, indent=1))
+    return table
 
 
 if __name__ == "__main__":

@@ -48,9 +48,11 @@ import math
 from dataclasses import fields
 from typing import Any, Mapping
 
+import numpy as np
+
+from railsim.errors import require  # noqa: F401 - re-exported: controllers check parameters with it
 from railsim.physics.dynamics import traction_limit_mps2  # noqa: F401 - re-exported: one definition of the envelope
 from railsim.physics.vehicle import G_MPS2, VehicleParams
-from railsim.errors import require  # noqa: F401 - re-exported: controllers check parameters with it
 
 # Smallest deceleration the solvers consider [m/s²]: below it a stop is "never" (distance diverges).
 _MIN_DECEL_MPS2 = 1e-4
@@ -316,3 +318,42 @@ def params_from_mapping(cls: type, params: Mapping[str, Any] | None, ignore: tup
         values[key] = value
     return cls(**values)
 
+
+
+# ------------------------------------------------------------------------------- relative braking distance
+
+
+def relative_braking_distance_m(
+    follower_speed_mps: Any,
+    leader_speed_mps: Any,
+    follower_decel_mps2: Any,
+    leader_decel_mps2: Any,
+    delay_s: Any,
+    follower_accel_mps2: Any = 0.0,
+    margin_m: Any = 0.0,
+) -> Any:
+    """The coupled follower's safety spacing, front-to-rear [m]: the **one** definition of the RBD guard.
+
+    Relative braking distance (spec 004 Eqs. 4–5 with the dead-time model of this module): if the leader starts
+    an emergency stop at ``b_l`` now, the follower — which keeps its present acceleration ``a0`` for the dead time
+    ``T`` and then brakes at ``b_f`` — must still stop ``margin`` behind the leader's rear::
+
+        RBD = S_f − v_l²/(2·b_l) + margin,      S_f = v_f·T + a0·T²/2 + (v_f + a0·T)²/(2·b_f)
+
+    ``S_f`` is :func:`stopping_distance_m` (to standstill; a follower already braking so hard that it stands within
+    the dead time stops after ``v_f/−a0``). The guard of :class:`controllers.cacc.Cacc` holds ``gap ≥ RBD`` (it
+    passes the worst-case extrapolated leader speed as ``leader_speed_mps``); the junction planner
+    (:mod:`controllers.junction.model`, :mod:`controllers.junction.qp`) requires it along its plans, so a plan
+    the guard would cap is infeasible. Accepts floats or numpy arrays (broadcast); returns a float for floats.
+    """
+    v = np.maximum(np.asarray(follower_speed_mps, dtype=float), 0.0)
+    a0 = np.asarray(follower_accel_mps2, dtype=float)
+    t = np.maximum(np.asarray(delay_s, dtype=float), 0.0)
+    # a follower braking hard enough to stand within the dead time: the dead time ends when it stands
+    stands = (a0 < 0.0) & (v + a0 * t < 0.0)
+    t = np.where(stands, v / np.where(a0 < 0.0, -a0, 1.0), t)
+    v_after = np.maximum(v + a0 * t, 0.0)
+    own_stop = v * t + 0.5 * a0 * t * t + v_after * v_after / (2.0 * np.asarray(follower_decel_mps2, dtype=float))
+    v_l = np.maximum(np.asarray(leader_speed_mps, dtype=float), 0.0)
+    out = own_stop - v_l * v_l / (2.0 * np.asarray(leader_decel_mps2, dtype=float)) + margin_m
+    return float(out) if np.ndim(out) == 0 else out

@@ -41,6 +41,9 @@ message age under worst-case emergency braking (``v_pw``, ``rear_w``)::
     RBD = S_f(v) − v_pw²/(2·b_p) + margin,     S_f(v) = v·T + a0·T²/2 + (v + a0·T)²/(2·b_f)
     h   = (rear_w − x) − RBD ≥ 0
 
+(:func:`controllers.braking.relative_braking_distance_m` is this ``RBD``, the one definition shared with the
+junction planner, which keeps its plans outside the guard's cap.)
+
 ``b_f`` is this train's emergency deceleration (net: gradient and the constant Davis term, i.e. the resistance at
 a crawl, the least it gets during a stop), ``b_p`` the predecessor's emergency deceleration plus its running
 resistance at its present speed (estimated with this train's Davis coefficients; a predecessor that stops sooner
@@ -89,8 +92,8 @@ from controllers.base import Command, Observation, PredecessorState, register
 from controllers.braking import (
     net_braking_mps2,
     params_from_mapping,
+    relative_braking_distance_m,
     require,
-    stopping_distance_m,
     traction_limit_mps2,
 )
 from railsim.physics.vehicle import VehicleParams
@@ -192,8 +195,7 @@ class Cacc:
             # steady cruise at v: the applied acceleration is the resistance feed-forward, which keeps acting
             # through the braking delay (the barrier below uses the same a0)
             a_cruise = veh.resistance_n(v, grade) / m_eff
-            steady_m = stopping_distance_m(v, b_f, delay_s, a_cruise) - v * v / (2.0 * b_p) + p.safety_margin_m \
-                + v * age_s
+            steady_m = relative_braking_distance_m(v, v, b_f, b_p, delay_s, a_cruise, p.safety_margin_m) + v * age_s
             target_m = max(target_m, steady_m + p.gap_buffer_m)
         gap_m = pred.rear_position_m + v_p * age_s - own.position_m
         error_m = gap_m - target_m
@@ -203,7 +205,7 @@ class Cacc:
         track_net = p.k_speed_per_s * (v_p + v_close - v) + p.k_ff * (a_p_applied - rho_p)
         if obs.extras.get("vc_tracking") is False:
             track_net = math.inf  # stopping behind a standing leader: the ATO stops us, we only guard safety
-        rbd_m = stopping_distance_m(v, b_f, delay_s, a0) - v_pw * v_pw / (2.0 * b_p) + p.safety_margin_m
+        rbd_m = relative_braking_distance_m(v, v_pw, b_f, b_p, delay_s, a0, p.safety_margin_m)
         h = rear_w - own.position_m - rbd_m
         a_p_net = max(pred.accel_mps2 - rho_p, -b_p) if v_pw > 0.0 else 0.0
         slope_s = delay_s + max(v + a0 * delay_s, 0.0) / b_f

@@ -43,11 +43,20 @@ Constraints (Eqs. 37–39 plus the implicit ones of §2.8), each as ``max(g, 0)`
     ``planning_tolerance_share`` (0.9) of them so a plan executed at Δt = 0.1 s still couples; trains on shared
     track pass every shared breakpoint at least ``min_time_gap_s`` apart (mass points must not touch).
 
-Extension (off by default, the paper has no such constraint): ``rbd_reaction_s > 0`` adds a
-**relative-braking-distance spacing** on shared track — whenever the follower is at a shared breakpoint the
-leader's rear must be ``v_f·T + (v_f² − v_l²)/(2b) + margin`` ahead (the leader's position at that instant is
-interpolated exactly within its constant-acceleration segment). Eq. 1's margin (closing speed × (T_1 + T_2)) lets a
-plan close at several m/s tens of metres behind its leader, which a relative-braking-distance safety cap refuses.
+Extension (off by default, the paper has no such constraint): ``rbd_reaction_s > 0`` adds the
+**relative-braking-distance spacing** of the engine's coupled-follower guard on shared track: at every instant at
+which the follower is on track it shares with the leader, the leader's rear must be at least
+:func:`controllers.braking.relative_braking_distance_m` ahead — ``v_f·T + a_f·T²/2 + (v_f + a_f·T)²/(2b) −
+v_l²/(2b) + margin`` with the follower's planned acceleration ``a_f``, ``T = rbd_reaction_s``, ``b =
+rbd_decel_mps2`` for both trains — the guard's own function, so a plan the guard would cap is infeasible. It is
+checked at the follower's shared breakpoints and at ``rbd_samples_per_segment − 1`` interior instants of every
+segment (the leader's position there is exact: constant acceleration within its segment). Eq. 1's margin
+(closing speed × (T_1 + T_2)) lets a plan close at several m/s tens of metres behind its leader, which the guard
+refuses.
+
+The model that SUMO actually flies (issue 18) is :func:`sumo_corrected_params`: switch interval 21.6 s (the
+interlocking's release + throw + approach, README "Junction planner online"), 20 m trains, ``S_0`` = 15 m and
+the guard on (T = 0.2 s, b = 1.5 m/s², margin 10 m).
 """
 
 from __future__ import annotations
@@ -57,7 +66,7 @@ from typing import Literal
 
 import numpy as np
 
-from controllers.braking import require
+from controllers.braking import relative_braking_distance_m, require
 
 Leg = Literal["normal", "reverse"]
 
@@ -91,11 +100,12 @@ class JunctionParams:
     planning_tolerance_share: float = 0.9  # the planner aims inside S_th, V_th by this share (integration slack)
     min_time_gap_s: float = 0.3           # follower reaches every shared point at least this much later
     paper_literal_margin: bool = False    # Eq. 1 with "− L_k" instead of "+ L_pred + S_0"
-    # relative-braking-distance spacing on shared track (extension; off = the paper): at every shared grid point
-    # the follower's front must stay behind the leader's rear by v_f·T + v_f²/(2b) − v_l²/(2b) + margin
-    rbd_reaction_s: float = 0.0           # T (0: the constraint is off)
+    # relative-braking-distance spacing on shared track (extension; off = the paper): at every instant the
+    # follower's front must stay behind the leader's rear by controllers.braking.relative_braking_distance_m
+    rbd_reaction_s: float = 0.0           # T, the guard's dead time (0: the constraint is off)
     rbd_decel_mps2: float = 1.2           # b, both trains' emergency braking
     rbd_margin_m: float = 10.0
+    rbd_samples_per_segment: int = 4      # instants checked per follower segment (its start + interior ones)
 
     def __post_init__(self) -> None:
         require("accel_min_mps2", self.accel_min_mps2 < 0.0, "a number < 0", self.accel_min_mps2)
@@ -113,6 +123,8 @@ class JunctionParams:
                 self.planning_tolerance_share)
         require("braking_distance_m", self.braking_distance_m > 0.0, "a number > 0", self.braking_distance_m)
         require("rbd_decel_mps2", self.rbd_decel_mps2 > 0.0, "a number > 0", self.rbd_decel_mps2)
+        require("rbd_samples_per_segment", int(self.rbd_samples_per_segment) == self.rbd_samples_per_segment
+                and self.rbd_samples_per_segment >= 1, "an integer >= 1", self.rbd_samples_per_segment)
         for name in ("weight_gap", "weight_speed", "weight_speed_diff", "weight_time", "speed_error_mps",
                      "comm_delay_s", "processing_delay_s", "standstill_gap_m", "pred_length_m",
                      "rbd_reaction_s", "rbd_margin_m"):
@@ -132,6 +144,23 @@ def safety_margin_m(leader_speed_mps: np.ndarray | float, follower_speed_mps: np
     if params.paper_literal_margin:
         return closing * delay_s - params.pred_length_m
     return np.maximum(closing, 0.0) * delay_s + params.pred_length_m + params.standstill_gap_m
+
+
+SUMO_SWITCH_INTERVAL_S = 21.6   # t_ls of the SUMO Table 3 runs (README "Junction planner online")
+
+
+def sumo_corrected_params(**overrides: float | bool) -> JunctionParams:
+    """The planner model the engine can fly (issue 18): the Table 3 SUMO runs' numbers instead of the paper's.
+
+    ``throw_time_s`` = 21.6 s (the interlocking releases a switch when the first train's 20 m body has cleared it,
+    throws for 10 s and must grant the next lock before the second train's braking point: README), trains of
+    ``pred_length_m`` = 20 m, ``S_0`` = 15 m (the gap the followers' CACC holds at 15 m/s) and the
+    relative-braking-distance guard (T = 0.2 s, b = 1.5 m/s², margin 10 m). Keyword overrides win.
+    """
+    values: dict = {"throw_time_s": SUMO_SWITCH_INTERVAL_S, "pred_length_m": 20.0, "standstill_gap_m": 15.0,
+                    "rbd_reaction_s": 0.2, "rbd_decel_mps2": 1.5, "rbd_margin_m": 10.0}
+    values.update(overrides)
+    return JunctionParams(**values)
 
 
 @dataclass(frozen=True)
@@ -450,24 +479,48 @@ def _position_at(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: 
     return s, v
 
 
+def _follower_samples(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray,
+                      boundaries: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Instants at which train ``k`` is checked along the segments starting at ``boundaries`` (plus the last one):
+    each segment's start and ``rbd_samples_per_segment − 1`` equally spaced interior instants. Returns
+    ``(time, position along own path, speed, acceleration)``, each (P, Q); exact kinematics within a segment."""
+    K = int(problem.params.rbd_samples_per_segment)
+    seg = boundaries[:-1]
+    frac = np.arange(K) / K
+    t0 = t[:, k, seg][:, :, None]
+    dur = (t[:, k, seg + 1] - t[:, k, seg])[:, :, None]
+    tau = (dur * frac).reshape(t.shape[0], -1)
+    segs = np.repeat(seg, K)
+    v0 = v_pos[:, k, segs]
+    a = A[:, k, segs]
+    tq = t0.repeat(K, axis=2).reshape(t.shape[0], -1) + tau
+    s = problem.breakpoints_m[k, segs][None, :] + v0 * tau + 0.5 * a * tau ** 2
+    v = np.maximum(v0 + a * tau, problem.params.min_speed_mps)
+    last = boundaries[-1]
+    tq = np.concatenate([tq, t[:, k, last][:, None]], axis=1)
+    s = np.concatenate([s, np.broadcast_to(problem.breakpoints_m[k, last], (t.shape[0], 1))], axis=1)
+    v = np.concatenate([v, v_pos[:, k, last][:, None]], axis=1)
+    a = np.concatenate([a, np.zeros((t.shape[0], 1))], axis=1)     # at F the follower holds its speed
+    return tq, s, v, a
+
+
 def _rbd_violation(problem: Problem, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray) -> np.ndarray:
     """Σ over shared pairs of the worst shortfall of the relative-braking-distance spacing (m), per particle.
 
-    At each shared grid point of the follower (the train that reaches the first shared point later), at the time
-    it is there, the leader's rear must be at least ``v_f·T + v_f²/(2b) − v_l²/(2b) + margin`` ahead.
+    The follower is the train that reaches the first shared point later; at every sampled instant of its run on
+    the shared track (:func:`_follower_samples`) the leader's rear must be at least the guard's
+    :func:`controllers.braking.relative_braking_distance_m` ahead.
     """
     p = problem.params
-    b = p.rbd_decel_mps2
     out = np.zeros(t.shape[0])
     for i, j, ii, jj in problem.shared_pairs:
         worst = []
-        for lead, fol, _il, jf in ((i, j, ii, jj), (j, i, jj, ii)):
-            tq = t[:, fol, jf]
+        for lead, fol, jf in ((i, j, jj), (j, i, ii)):
+            tq, s_f, v_f, a_f = _follower_samples(problem, fol, t, v_pos, A, jf)
             s_lead, v_lead = _position_at(problem, lead, t, v_pos, A, tq)
-            v_f = v_pos[:, fol, jf]
-            gap = (s_lead - problem.merge_distance_m[lead]) - (problem.breakpoints_m[fol, jf]
-                                                              - problem.merge_distance_m[fol]) - p.pred_length_m
-            need = v_f * p.rbd_reaction_s + (v_f ** 2 - v_lead ** 2) / (2.0 * b) + p.rbd_margin_m
+            gap = (s_lead - problem.merge_distance_m[lead]) - (s_f - problem.merge_distance_m[fol]) - p.pred_length_m
+            need = relative_braking_distance_m(v_f, v_lead, p.rbd_decel_mps2, p.rbd_decel_mps2, p.rbd_reaction_s,
+                                               a_f, p.rbd_margin_m)
             worst.append(np.maximum(need - gap, 0.0).max(axis=1))
         first_i = t[:, i, ii[0]] <= t[:, j, jj[0]]          # who is ahead at the first shared point
         out += np.where(first_i, worst[0], worst[1])

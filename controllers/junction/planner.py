@@ -16,7 +16,9 @@ Times are relative to the plan instant.
 
 Method: improved PSO (default) or plain PSO over the acceleration encoding of :mod:`.model`; the initial swarm
 mixes uniform particles with smooth "speed-waypoint" profiles (spec §6 #23) and, on a re-plan, the previous
-plan shifted by the distance each train has run (warm start, §7).
+plan shifted by the distance each train has run (warm start, §7). ``qp_order`` (:mod:`.qp`) is deterministic:
+it enumerates the passing orders and solves each as a sequence of convex QPs, warm-started from the same shifted
+previous plan; its result is decoded into the same :class:`JunctionPlan`.
 
 Re-planning and the point of no return (documented criterion)
     :func:`replan` freezes the passing order at sw2 to the previous plan's order as soon as **any** train is
@@ -50,8 +52,11 @@ from controllers.junction.model import (
     profile_from_speed_waypoints, rollout,
 )
 from controllers.junction.pso import PSOParams, improved_pso_params, plain_pso_params, run_pso
+from controllers.junction.qp import QpOrderParams, solve_qp_order
 
 Track = Literal["entry1", "entry2", "entry3", "trunk"]
+Method = Literal["improved_pso", "plain_pso", "qp_order"]
+OPTIMISERS: tuple[str, ...] = ("improved_pso", "plain_pso", "qp_order")
 MERGE_SWITCH = "sw2"
 
 
@@ -344,14 +349,21 @@ def _warm_start(problem: Problem, previous: JunctionPlan) -> np.ndarray | None:
     return x
 
 
-def solve(problem: Problem, method: Literal["improved_pso", "plain_pso"] = "improved_pso",
+def solve(problem: Problem, method: Method = "improved_pso",
           pso: PSOParams | None = None, rng: np.random.Generator | None = None,
-          warm: np.ndarray | None = None):
-    """Run the chosen PSO on a compiled problem; returns the :class:`~controllers.junction.pso.PSOResult`."""
+          warm: np.ndarray | None = None, qp: QpOrderParams | None = None):
+    """Run the chosen optimiser on a compiled problem.
+
+    Returns a :class:`~controllers.junction.pso.PSOResult` (PSO methods) or a
+    :class:`~controllers.junction.qp.QpOrderResult` (``qp_order``, which ignores ``pso`` and ``rng``); both carry
+    ``x``, ``feasible``, ``iterations`` and ``wall_time_s``.
+    """
+    if method not in OPTIMISERS:
+        raise PlannerError(f"method {method!r}: expected one of {', '.join(OPTIMISERS)}")
+    if method == "qp_order":
+        return solve_qp_order(problem, qp, warm)
     if pso is None:
         pso = improved_pso_params() if method == "improved_pso" else plain_pso_params()
-    if method not in ("improved_pso", "plain_pso"):
-        raise PlannerError(f"method {method!r}: expected improved_pso or plain_pso")
     rng = rng if rng is not None else np.random.default_rng(0)
     n_seed = int(round(pso.seed_fraction * pso.swarm_size))
     n_timed = n_seed // 2
@@ -415,11 +427,12 @@ def decode(problem: Problem, x: np.ndarray, method: str = "", iterations: int = 
 
 
 def plan(trains: Sequence[TrainState], switches: Sequence[SwitchState] = (), layout: YJunctionLayout | None = None,
-         params: JunctionParams | None = None, method: Literal["improved_pso", "plain_pso"] = "improved_pso",
-         pso: PSOParams | None = None, rng: np.random.Generator | None = None) -> JunctionPlan:
+         params: JunctionParams | None = None, method: Method = "improved_pso",
+         pso: PSOParams | None = None, rng: np.random.Generator | None = None,
+         qp: QpOrderParams | None = None) -> JunctionPlan:
     """Initial plan at the coupling opportunity (spec §7 step 1)."""
     problem = build_problem(trains, switches, layout, params)
-    res = solve(problem, method, pso, rng)
+    res = solve(problem, method, pso, rng, qp=qp)
     return decode(problem, res.x, method, res.iterations, res.wall_time_s)
 
 
@@ -432,8 +445,9 @@ def past_point_of_no_return(trains: Sequence[TrainState], params: JunctionParams
 
 def replan(previous: JunctionPlan, trains: Sequence[TrainState], switches: Sequence[SwitchState] = (),
            layout: YJunctionLayout | None = None, params: JunctionParams | None = None,
-           method: Literal["improved_pso", "plain_pso"] = "improved_pso", pso: PSOParams | None = None,
-           rng: np.random.Generator | None = None, keep_order: bool = False) -> JunctionPlan:
+           method: Method = "improved_pso", pso: PSOParams | None = None,
+           rng: np.random.Generator | None = None, keep_order: bool = False,
+           qp: QpOrderParams | None = None) -> JunctionPlan:
     """Receding-horizon re-plan (spec §7 steps 2–4): warm start from ``previous``; order frozen past the PNR.
 
     ``keep_order`` freezes the order regardless of the current states (a caller that froze it earlier keeps it
@@ -447,5 +461,5 @@ def replan(previous: JunctionPlan, trains: Sequence[TrainState], switches: Seque
                            f"of no return) but the trains changed: {list(previous.order)} -> {ids}")
     problem = build_problem(trains, switches, layout, params, previous.order if frozen else None)
     warm = _warm_start(problem, previous)
-    res = solve(problem, method, pso, rng, warm)
+    res = solve(problem, method, pso, rng, warm, qp)
     return decode(problem, res.x, method, res.iterations, res.wall_time_s, frozen)
