@@ -136,8 +136,11 @@ def test_ca_works_without_communication_and_latches_for_obstacles() -> None:
     assert cmd.emergency and cmd.accel_mps2 < 0.0
     ca2 = create("monorail_ca", {"law": "mpc"}, vehicle_params_for("empty"))
     c = ca2.command(_obs(8.0, sensor_extras(27.0, 3.0, "vehicle")))
+    assert c.info["ca"] == "idle"  # shallow (1 m < band), not braking: debounced for trigger_dwell_s (0.3 s)
+    for t in (0.1, 0.2, 0.3):
+        c = ca2.command(_obs(8.0, sensor_extras(27.0, 3.0, "vehicle"), t=t))
     assert c.info["ca"] == "active" and c.accel_mps2 < 0.0 and not c.fallback
-    c = ca2.command(_obs(5.0, sensor_extras(29.0, -1.0, "vehicle"), t=0.5))
+    c = ca2.command(_obs(5.0, sensor_extras(29.0, -1.0, "vehicle"), t=0.5))  # > 28 + release margin 0.5
     assert c.info["ca"] == "idle" and c.info.get("event") == "ca_off"
 
 
@@ -148,3 +151,40 @@ def test_bad_parameters_are_value_errors() -> None:
         create("monorail_apf", {"k_x_per_s2": -1}, vehicle_params_for("empty"))
     with pytest.raises(ValueError, match="unknown|bogus"):
         create("monorail_apf", {"bogus": 1.0}, vehicle_params_for("empty"))
+
+
+# --- issue #19: CA trigger debounce and the additive braking of Eq. (A27) ------------------------------------------
+
+def test_ca_should_fire_debounce_rules() -> None:
+    from controllers.monorail.states import ca_should_fire
+
+    trig = 28.0
+    assert not ca_should_fire(28.01, trig, 5.0, None, -1e9, 0.3, 0.5, 1.0)  # above the trigger: never
+    assert ca_should_fire(27.4, trig, 5.0, 5.0, -1e9, 0.3, 0.5, 1.0)  # deeper than the band: at once
+    assert ca_should_fire(27.9, trig, 5.0, 5.0, -1e9, 0.3, 0.5, 1.0, urgent_object=True)  # obstacle: at once
+    assert not ca_should_fire(27.9, trig, 5.1, 5.0, -1e9, 0.3, 0.5, 1.0)  # shallow, 0.1 s < dwell
+    assert ca_should_fire(27.9, trig, 5.3, 5.0, -1e9, 0.3, 0.5, 1.0)  # shallow for the whole dwell
+    assert not ca_should_fire(27.9, trig, 5.3, 5.0, 4.5, 0.3, 0.5, 1.0)  # released 0.8 s ago: not re-armed
+    assert not ca_should_fire(27.9, trig, 5.3, 5.0, -1e9, 0.3, 0.5, 1.0, braking_suffices=True)
+    assert ca_should_fire(27.0, trig, 5.0, 5.0, -1e9, 0.3, 0.5, 1.0, braking_suffices=True)  # deep beats it
+    assert ca_should_fire(27.99, trig, 0.0, 0.0, -1e9, 0.0, 0.0, 0.0)  # all zero: the paper's bare trigger
+
+
+def test_braking_suffices_closed_form() -> None:
+    from controllers.monorail.states import braking_suffices
+
+    # v_c = 2 m/s, braking 0.5 m/s²: the closing ends after v_c²/(2a) = 4 m
+    assert braking_suffices(9.01, 2.0, -0.5, 5.0) and not braking_suffices(8.99, 2.0, -0.5, 5.0)
+    assert not braking_suffices(100.0, 0.1, 0.0, 5.0)  # closing without braking never suffices
+    assert braking_suffices(6.0, -1.0, 0.3, 5.0) and not braking_suffices(4.0, -1.0, 0.3, 5.0)  # opening gap
+
+
+@pytest.mark.parametrize("service, ca, expected", [(-0.3, -0.5, -0.8), (-0.3, 0.4, -0.3), (-0.8, -0.9, -1.2),
+                                                   (0.2, -0.1, 0.1)])
+def test_additive_ca_braking_eq_a27(service: float, ca: float, expected: float) -> None:
+    from controllers.monorail.states import additive_ca_accel_mps2
+
+    assert additive_ca_accel_mps2(service, ca, 1.2) == pytest.approx(expected)
+    assert additive_ca_accel_mps2(service, ca, 1.2) >= -1.2  # never beyond the brake envelope
+    with pytest.raises(ValueError):
+        additive_ca_accel_mps2(service, ca, -1.0)

@@ -12,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.ato_mpc.core import Situation, reference_window
+from controllers.ato_mpc.core import Situation, limit_forces, reference_window
 from railsim.physics.multipoint import G_MPS2, MultipointParams
 
 
@@ -49,6 +49,5 @@ class PidLaw:
                  + G_MPS2 * np.asarray(sit.gradient_permille) * 1e-3 + sit.wind_mps2)
         u = p.car_mass_kg * (a + a_res)
         if c.rate_limited:
-            u = u_prev_n + np.clip(u - u_prev_n, p.force_rate_min_n_per_s * c.period_s,
-                                   p.force_rate_max_n_per_s * c.period_s)
+            return limit_forces(u, u_prev_n, p, c.period_s), {"fallback": False}
         return np.clip(u, p.force_min_n, p.force_max_n), {"fallback": False}

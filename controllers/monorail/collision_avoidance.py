@@ -13,7 +13,11 @@ own odometry and its own ranging sensor, never ``obs.predecessor``:
     ``service_accel_mps2`` optional: the service command another role is applying, for additive braking (A27).
 
 Trigger and release (A10): on at ``gap ≤ S_trig`` (fixed 28 m, or the ADBM/RDBM distance of
-:mod:`.braking_modes`), off at ``gap > S_trig + release_margin_m`` after ``min_on_s`` (:func:`.states.ca_hysteresis`);
+:mod:`.braking_modes`) — debounced (issue #19, :func:`.states.ca_should_fire`): a shallow intrusion
+(``gap > S_trig − trigger_band_m``) is ignored while the own present braking already ends the closing above
+``s_min_m`` (:func:`.states.braking_suffices`), otherwise it must last ``trigger_dwell_s`` and may not re-fire
+within ``rearm_s`` of a release; a deep one or an obstacle fires at once; set the three to 0 for the paper's bare trigger —
+off at ``gap > S_trig + release_margin_m`` after ``min_on_s`` (:func:`.states.ca_hysteresis`);
 ``latch = "obstacle"`` (default) holds the brake to standstill for obstacles, ``"always"``/``"never"`` force it.
 
 While active the command is the first move of the QP of :mod:`.mpc` (Eqs 17–22): track ``d_ref`` = release
@@ -38,7 +42,7 @@ from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
 from controllers.monorail.braking_modes import BrakingPolicy, required_gap_m
 from controllers.monorail.mpc import GapTrackingQp, QpWeights, predict_ahead
-from controllers.monorail.states import ca_hysteresis
+from controllers.monorail.states import additive_ca_accel_mps2, braking_suffices, ca_hysteresis, ca_should_fire
 from railsim.physics.vehicle import VehicleParams
 
 
@@ -50,8 +54,12 @@ class CaParams:
     margin_m: float = 5.0
     assumed_own_decel_mps2: float = 0.0  # 0: use the vehicle's own (load-aware) emergency deceleration
     assumed_object_decel_mps2: float = 0.0  # 0: same as the own value (RDBM credit for the object ahead)
-    release_margin_m: float = 0.0  # h of A10 (0 = paper reproduction, 0.5 robust)
+    release_margin_m: float = 0.5  # h of A10 (0 = paper reproduction, 0.5 robust)
     min_on_s: float = 0.1
+    # Trigger debounce (issue #19, :func:`.states.ca_should_fire`): all 0 = the paper's bare trigger.
+    trigger_dwell_s: float = 0.3  # a shallow intrusion must persist this long
+    trigger_band_m: float = 2.5  # deeper than this below the trigger fires at once (whatever the own braking)
+    rearm_s: float = 1.0  # after a release, shallow intrusions do not re-fire for this long
     latch: str = "obstacle"  # obstacle | always | never
     law: str = "mpc"  # mpc | bang_bang
     latched_law: str = "bang_bang"
@@ -77,7 +85,8 @@ class CaParams:
             require(name, getattr(self, name) in ("mpc", "bang_bang"), "'mpc' or 'bang_bang'", getattr(self, name))
         require("post_release", self.post_release in ("none", "hold_speed"), "'none' or 'hold_speed'",
                 self.post_release)
-        for name in ("release_margin_m", "min_on_s", "assumed_own_decel_mps2", "assumed_object_decel_mps2",
+        for name in ("release_margin_m", "min_on_s", "trigger_dwell_s", "trigger_band_m", "rearm_s",
+                     "assumed_own_decel_mps2", "assumed_object_decel_mps2",
                      "ref_offset_m", "s_min_m", "standstill_mps"):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("horizon_steps", self.horizon_steps >= self.control_horizon_steps >= 1,
@@ -124,6 +133,8 @@ class CollisionAvoidance:
         self.active = False
         self.latched = False
         self.on_since_s = -math.inf
+        self.off_since_s = -math.inf
+        self.below_since_s: float | None = None
         self.hold = False
         self._u_prev = 0.0
 
@@ -147,8 +158,17 @@ class CollisionAvoidance:
         gap = reading.distance_m if reading is not None else math.inf
         trig, release = self.thresholds_m(obs, reading) if reading is not None else (0.0, 0.0)
         was = self.active
-        self.active = ca_hysteresis(was, self.on_since_s, obs.t_s, gap, trig, release, p.min_on_s, self.latched, v,
-                                    p.standstill_mps)
+        self.below_since_s = (self.below_since_s if self.below_since_s is not None else obs.t_s) \
+            if gap <= trig else None
+        if was:
+            self.active = ca_hysteresis(True, self.on_since_s, obs.t_s, gap, trig, release, p.min_on_s, self.latched,
+                                        v, p.standstill_mps)
+        else:
+            urgent = reading is not None and reading.object == "obstacle"
+            enough = reading is not None and braking_suffices(gap, reading.closing_speed_mps, obs.own.accel_mps2,
+                                                              p.s_min_m)
+            self.active = ca_should_fire(gap, trig, obs.t_s, self.below_since_s, self.off_since_s,
+                                         p.trigger_dwell_s, p.trigger_band_m, p.rearm_s, urgent, enough)
         info: dict[str, Any] = {"ca": "active" if self.active else "idle", "gap_m": gap, "trigger_m": trig}
         if self.active and not was:
             self.on_since_s = obs.t_s
@@ -158,6 +178,7 @@ class CollisionAvoidance:
         if not self.active:
             if was:
                 info["event"] = "ca_off"
+                self.off_since_s = obs.t_s
                 self.hold = p.post_release == "hold_speed" and not self.latched
                 self.latched = False
             return self._idle(a_t, info)
@@ -177,7 +198,7 @@ class CollisionAvoidance:
                 u = float(sol[0])
             if p.additive and reading.service_accel_mps2 is not None:
                 # A27: the CA's braking comes on top of the ongoing service braking
-                u = max(reading.service_accel_mps2 + min(u, 0.0), -b_e)
+                u = additive_ca_accel_mps2(reading.service_accel_mps2, u, b_e)
         self._u_prev = u
         emergency = self.latched or u < -b_s + 1e-9
         return Command(u, emergency=emergency, fallback=bool(info.get("fallback")), info=info)

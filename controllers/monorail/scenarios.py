@@ -269,15 +269,20 @@ def _metrics(cfg: ScenarioConfig, res: ScenarioResult, coupled_at: list[float | 
             continue
         label = f"obstacle-{names[0]}" if i == 0 else f"{names[i - 1]}-{names[i]}"
         k = int(np.argmin(g))
-        # Steps where the gap is below the trigger in force and the CA is not (yet) braking: the invariant
-        # "below the safety distance only while CA acts" (one step of detection latency allowed).
-        below = np.where(g[:-1] < np.nan_to_num(res.trigger_m[:, i], nan=-np.inf))[0]
-        unguarded = [int(j) for j in below if not (res.ca_active[j, i] or (j > 0 and res.ca_active[j - 1, i]))]
+        # Steps where the gap is deeper below the trigger in force than the CA's debounce band (issue #19,
+        # states.ca_should_fire) and the CA is not (yet) braking: the invariant "deep below the safety distance
+        # only while CA acts" (one step of detection latency allowed; band 0 = the bare trigger).
+        trig = np.nan_to_num(res.trigger_m[:, i], nan=-np.inf)
+        band = (cfg.lead_ca if i == 0 else cfg.ca).trigger_band_m
+        below = np.where(g[:-1] < trig)[0]
+        deep = np.where(g[:-1] < trig - band)[0]
+        unguarded = [int(j) for j in deep if not (res.ca_active[j, i] or (j > 0 and res.ca_active[j - 1, i]))]
         pairs[label] = {
             "min_gap_m": float(g[k]), "min_gap_t_s": float(res.t_s[k]), "collision": bool(g.min() <= 0.0),
             "final_gap_m": float(g[-1]),
             "final_speed_diff_mps": float(res.v_mps[-1, i] - (res.v_mps[-1, i - 1] if i > 0 else 0.0)),
             "time_below_trigger_s": float(len(below) * cfg.dt_s), "unguarded_steps": len(unguarded),
+            "ca_triggers": int(np.sum(np.diff(np.r_[0, res.ca_active[:, i].astype(int)]) == 1)),
         }
     return {
         "pairs": pairs,

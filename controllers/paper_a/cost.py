@@ -23,6 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from controllers.paper_a import kernels as _kernels
 from controllers.paper_a import rollout as _rollout
 from controllers.paper_a.rollout import PredecessorHorizon, Trajectory
 from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m, safe_spacing_m
@@ -85,13 +86,24 @@ def sequence_costs(seq: np.ndarray, x0_m: float, v0_mps: float, pred: Predecesso
                    resistance_feedforward: bool = False) -> np.ndarray:
     """``dmpc_cost(rollout_models(seq, ...), ...)`` — the optimisers' fitness — shape ``(P,)``.
 
-    One definition of the laws and of J: :func:`rollout_models` already runs small batches in plain floats (the
-    greedy refinement's 2-row calls), and :func:`dmpc_cost` scores the stored trajectories. A fused one-pass copy
-    of the laws was measured only 1.4× faster at 2 rows (≈3 % of an MCF step) and was removed.
+    With numba available the rollout and the cost run fused in the compiled kernel of
+    :mod:`controllers.paper_a.kernels` (the optimisers' hot path: ~9,000 rows per MCF step); otherwise
+    :func:`rollout_models` (plain floats for small batches, numpy for large) and :func:`dmpc_cost` score them.
+    Both give the same costs to rounding (``tests/test_paper_a_kernels.py``).
     """
     seq = np.atleast_2d(np.asarray(seq, dtype=np.int64))
     if seq.shape[1] != pred.steps:
         raise ValueError(f"sequence length {seq.shape[1]} != predecessor horizon {pred.steps}")
-    traj = _rollout.rollout_models(seq, x0_m, v0_mps, pred, np.asarray(theta, dtype=float), train,
+    theta = np.asarray(theta, dtype=float)
+    if _kernels.NUMBA_AVAILABLE and theta.shape in ((7,), (seq.shape[0], 7)):
+        # compiled fused rollout + cost (same arithmetic, pinned to the scalar path in test_paper_a_kernels)
+        thetas = np.ascontiguousarray(np.broadcast_to(theta, (seq.shape[0], 7)))
+        return _kernels.population_costs(
+            np.ascontiguousarray(seq), thetas, float(x0_m), float(v0_mps), np.ascontiguousarray(pred.position_m,
+                                                                                               dtype=float),
+            np.ascontiguousarray(pred.speed_mps, dtype=float), np.ascontiguousarray(pred.accel_mps2, dtype=float),
+            float(pred.length_m), float(pred.emergency_decel_mps2), _kernels.train_vector(train),
+            _kernels.weight_vector(weights), float(u_prev_mps2), bool(resistance_feedforward))
+    traj = _rollout.rollout_models(seq, x0_m, v0_mps, pred, theta, train,
                                    resistance_feedforward=resistance_feedforward)
     return dmpc_cost(traj, pred, u_prev_mps2, train, weights)

@@ -40,9 +40,14 @@ def cyclic_round(x: ArrayLike, lb: int, ub: int) -> np.ndarray:
     xf = np.asarray(x, dtype=float)
     if not np.all(np.isfinite(xf)):
         raise ValueError("cyclic_round: non-finite position")
-    # floor() yields integer-valued floats, so fmod/mod are exact and the result lies in [0, period) exactly.
     period = ub - lb + 1
-    return (np.mod(np.floor(xf) - lb, period) + lb).astype(np.int64)
+    fl = np.floor(xf)
+    if fl.size and float(np.max(np.abs(fl))) < 2.0**52:
+        # Integer arithmetic after the floor: exact, non-negative modulo and ~5x cheaper than a float np.mod
+        # (this runs on every moth move of MSMFO); spiral positions stay within a few box widths.
+        return (fl.astype(np.int64) - lb) % period + lb
+    # floor() yields integer-valued floats, so fmod/mod are exact and the result lies in [0, period) exactly.
+    return (np.mod(fl - lb, period) + lb).astype(np.int64)
 
 
 def clamp_round(x: ArrayLike, lb: int, ub: int) -> np.ndarray:

@@ -1,0 +1,69 @@
+"""The compiled MCF rollout/cost of :mod:`controllers.paper_a.kernels` equals the scalar reference (issue #19).
+
+The reference is the plain-float rollout ``rollout._rollout_scalar`` (itself pinned to the numpy laws of
+:mod:`controllers.paper_a.cf_models` in test_paper_a_models) scored by ``cost.cost_terms``. Random states, plans,
+sequences and per-row Θ inside and outside the A29 box, including predecessors placed behind the follower
+(ΔS ≤ 0: the IDM guard) and predicted speeds that go negative (penalty terms non-zero).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from controllers.paper_a import kernels
+from controllers.paper_a.cf_models import THETA_BOUNDS
+from controllers.paper_a.cost import TABLE_II, CostWeights, cost_terms, sequence_costs
+from controllers.paper_a.rollout import PredecessorHorizon, _rollout_scalar
+from controllers.paper_a.spacing import TABLE_I
+
+RTOL = 1e-12
+
+
+def _random_case(rng: np.random.Generator, steps: int, pop: int) -> tuple:
+    vp0 = rng.uniform(0.0, 97.0)
+    ap = rng.uniform(-0.8, 1.0, steps)
+    vp = np.concatenate([[vp0], vp0 + np.cumsum(ap)])
+    xp = np.concatenate([[0.0], np.cumsum(0.5 * (vp[:-1] + vp[1:]))]) + rng.uniform(-50.0, 3000.0)
+    hz = PredecessorHorizon(xp, vp, ap, float(rng.uniform(100.0, 300.0)), float(rng.uniform(0.5, 1.5)))
+    seq = rng.integers(0, 3, size=(pop, steps))
+    lo, hi = THETA_BOUNDS.T
+    thetas = lo + rng.random((pop, 7)) * (hi - lo) * 1.5  # some rows beyond the box: the laws must not care
+    return hz, seq, thetas, rng.uniform(-10.0, 10.0), rng.uniform(0.0, 97.0), rng.uniform(-0.8, 1.0)
+
+
+@pytest.mark.parametrize("feedforward", [False, True])
+def test_kernel_rollout_and_cost_equal_scalar_reference(feedforward: bool) -> None:
+    rng = np.random.default_rng(19)
+    weights = CostWeights(1.0, 0.05, 200.0, 400.0, 10.0, 1e6)
+    hit_penalty = False
+    for _ in range(40):
+        steps = int(rng.integers(1, 61))
+        hz, seq, thetas, x0, v0, u_prev = _random_case(rng, steps, int(rng.integers(1, 9)))
+        ref = _rollout_scalar(seq, x0, v0, hz, thetas, TABLE_I, feedforward)
+        u, v, s = kernels.rollout_rows(seq, thetas, x0, v0, hz.position_m, hz.speed_mps, hz.accel_mps2, hz.length_m,
+                                       hz.emergency_decel_mps2, kernels.train_vector(TABLE_I), feedforward)
+        np.testing.assert_allclose(u, ref.u, rtol=RTOL, atol=1e-12)
+        np.testing.assert_allclose(v, ref.v, rtol=RTOL, atol=1e-12)
+        np.testing.assert_allclose(s, ref.s, rtol=RTOL, atol=1e-9)  # positions ~1e3 m: 1e-12 relative
+        terms = cost_terms(ref, hz, u_prev, TABLE_I, weights)
+        got = kernels.population_costs(seq, thetas, x0, v0, hz.position_m, hz.speed_mps, hz.accel_mps2, hz.length_m,
+                                       hz.emergency_decel_mps2, kernels.train_vector(TABLE_I),
+                                       kernels.weight_vector(weights), u_prev, feedforward)
+        np.testing.assert_allclose(got, terms["J"], rtol=RTOL)
+        hit_penalty |= bool(np.any(terms["penalty"] > 0.0))
+    assert hit_penalty  # the random cases reach the constraint penalty, so that part is compared too
+
+
+def test_sequence_costs_uses_kernel_and_agrees_with_numpy_path() -> None:
+    """The optimisers' fitness (``sequence_costs``) against the large-batch numpy rollout (> SCALAR_MAX_ROWS)."""
+    rng = np.random.default_rng(7)
+    hz, _, _, x0, v0, u_prev = _random_case(rng, 60, 1)
+    seq = rng.integers(0, 3, size=(80, 60))
+    theta = np.array([1.2, 12.1, 0.0, 0.011, 0.013, 0.012, 4.2e-4])
+    got = sequence_costs(seq, x0, v0, hz, theta, TABLE_I, u_prev, TABLE_II)
+    from controllers.paper_a.rollout import rollout_models  # numpy path for 80 rows
+
+    ref = cost_terms(rollout_models(seq, x0, v0, hz, theta, TABLE_I), hz, u_prev, TABLE_I, TABLE_II)["J"]
+    np.testing.assert_allclose(got, ref, rtol=1e-9)  # numpy's vectorised pow may differ in the last bits
+    assert kernels.NUMBA_AVAILABLE  # the project declares numba; without it this path would be ~100x slower
