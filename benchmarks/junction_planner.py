@@ -105,7 +105,7 @@ def main() -> None:
     for name, params in models.items():
         timing[name] = {m: replan_timing(args.replan_seeds, args.period, m, params) for m in TIMED_METHODS}
         base = timing[name]["improved_pso"]
-        for m, row in timing[name].items():   # ratios against the improved PSO measured in this run
+        for row in timing[name].values():   # ratios against the improved PSO measured in this run
             row["median_ratio_to_improved_pso"] = row["median_ms"] / base["median_ms"]
             row["p95_ratio_to_improved_pso"] = row["p95_ms"] / base["p95_ms"]
     rows = compare_table3(seeds=range(args.seeds))

@@ -261,7 +261,7 @@ def test_default_filled_raw_has_every_section() -> None:
     ]
     assert raw["simulation"] == {"step_s": 0.5, "duration_s": 3600.0, "start_time": "00:00", "seed": 0, "step_method": "euler"}
     assert raw["faults"]["comm"]["t2g"] == {"delay_s": {"dist": "constant", "value": 0.0}, "loss_prob": 0.0, "outages": []}
-    assert set(raw["vehicles"]["cq6"]) == {"preset"} | set(S._VEHICLE_FIELDS)
+    assert set(raw["vehicles"]["cq6"]) == {"preset"} | set(S.VEHICLE_FIELDS)
 
 
 # ---- overrides ----------------------------------------------------------------------------------------------------
@@ -360,7 +360,7 @@ def test_world_forms(tmp_path: Path) -> None:
 
 
 def test_vehicle_without_preset_needs_every_field() -> None:
-    fields = {f: getattr(preset("cq3_8car"), f) for f in S._VEHICLE_FIELDS}
+    fields = {f: getattr(preset("cq3_8car"), f) for f in S.VEHICLE_FIELDS}
     scn = build({"vehicles.cq6": fields})
     assert scn.vehicles["cq6"] == preset("cq3_8car").with_overrides(name="cq6")
     partial = {k: v for k, v in fields.items() if k not in ("davis_a_n", "capacity_pax")}
@@ -382,7 +382,7 @@ def test_vehicle_without_preset_needs_every_field() -> None:
          "vehicles.cq6.name: unknown key (a vehicle is named by its key in 'vehicles')"),
         ({"vehicles.cq6.mass_kgs": 1},
          "vehicles.cq6.mass_kgs: unknown key (did you mean 'mass_kg'?); allowed keys: " + ", ".join(
-             sorted(["preset", "max_speed_kmh", "plant", "plant_params", *S._VEHICLE_FIELDS]))),
+             sorted(["preset", "max_speed_kmh", "plant", "plant_params", *S.VEHICLE_FIELDS]))),
         ({"vehicles.cq6.mass_kg": float("nan")}, "vehicles.cq6.mass_kg: expected a finite number > 0, got nan"),
     ],
 )

@@ -286,7 +286,7 @@ class _OrderQP:
 
     def solve(self, tr: _Traj) -> tuple[_Traj, float, float]:
         """One QP linearised at ``tr`` (N = its steps). Returns the new trajectory, the total slack, the f_c model."""
-        pb, qp, p = self.pb, self.qp, self.pb.params
+        qp, p = self.qp, self.pb.params
         n, dt, N = self.n, qp.step_s, tr.steps
         S, V, U = self._idx(N)
         n_state = n * (3 * N + 2)
@@ -310,7 +310,7 @@ class _OrderQP:
             # inside one segment, which it cannot
             reach = self.v0[k] + 0.5 * p.accel_max_mps2 * dt * np.arange(1, N + 1)
             floor = np.maximum(np.minimum(qp.speed_floor_mps, reach), p.min_speed_mps + 0.05)
-            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor, 
+            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor,
                            np.full(N, p.line_speed_mps - qp.speed_margin_mps))
             rows.add_block(U[k, :, None], np.ones((N, 1)), np.full(N, p.accel_min_mps2), np.full(N, p.accel_max_mps2))
             if N > 1:
@@ -333,7 +333,7 @@ class _OrderQP:
             rows.add(cb + ca + [slack("switch_headway")], vb + [-c for c in va] + [1.0], need - constb + consta, inf)
         for k, x, ready in self.switch_first:
             c, vals, const, _, _ = self._lin_point(tr, k, x, N, S, V, U)
-            rows.add(c + [slack("switch_state")], vals + [1.0], ready - const, inf)
+            rows.add(c + [slack("switch_state")], vals + [1.0], ready - const, inf)  # type: ignore[operator]  # `c` is an int earlier in this function
         # the guard's relative braking distance on shared track (linearised at the iterate)
         T, b = p.rbd_reaction_s, p.rbd_decel_mps2
         if T > 0.0:
@@ -394,7 +394,7 @@ class _OrderQP:
         c2 = p.weight_speed * 2.0 * p.braking_distance_m
         for k in range(n):
             vb = max(tr.v[k, N] - p.speed_error_mps, 0.3)
-            g1, g2 = -c2 / vb ** 2, 2.0 * c2 / vb ** 3
+            g1, g2 = -c2 / vb ** 2, 2.0 * c2 / vb ** 3  # type: ignore[operator]  # vb is a float here
             Pd[V[k, N]] += g2
             q[V[k, N]] += g1 - g2 * tr.v[k, N]
         vl = max(tr.v[lead0, N], 0.3)

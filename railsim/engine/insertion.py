@@ -48,7 +48,13 @@ class Dispatcher:
         for tr in self.fleet.trains.values():
             if self.formations.couples_on_departure(tr.train_id):
                 continue  # inserted behind its leader when the leader stands at the follower's origin
-            self.layer.at(tr.trip.depart_s, lambda _t, tr=tr: self.insert(tr), "departure_due", tr.train_id)
+            self.layer.at(tr.trip.depart_s, self._inserter(tr), "departure_due", tr.train_id)
+
+    def _inserter(self, tr: TrainRuntime) -> Callable[[float], None]:
+        """A clock callback that inserts ``tr`` (or holds it again)."""
+        def call(_t: float) -> None:
+            self.insert(tr)
+        return call
 
     def insert_behind(self, tr: TrainRuntime, behind: TrainRuntime, gap_m: float) -> None:
         self.insert(tr, behind, gap_m)
@@ -72,7 +78,7 @@ class Dispatcher:
                 if tr.train_id not in self._held:
                     self._held.add(tr.train_id)
                     self.events.record(self.layer.now_s, "departure_held", tr.train_id, approaching=blocker)
-                self.layer.at(self.layer.now_s + self.settings.departure_retry_s, lambda _t, tr=tr: self.insert(tr),
+                self.layer.at(self.layer.now_s + self.settings.departure_retry_s, self._inserter(tr),
                               "departure_retry", tr.train_id)
                 return
         from railsim.engine.sumo import StopSpec

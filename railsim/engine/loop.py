@@ -280,7 +280,7 @@ def _delay_mapping(delay: Any) -> dict[str, Any]:
     """Scenario delay spec (``dist`` + ``value|low,high|mean,sd`` in seconds) → the comms layer's field names."""
     out: dict[str, Any] = {"dist": delay.dist}
     for key, value in dict(delay.params).items():
-        out[_DELAY_KEYS.get(key, key)] = value
+        out[_DELAY_KEYS.get(str(key), str(key))] = value
     return out
 
 

@@ -55,12 +55,17 @@ EVENT_HANDLERS: dict[str, Callable[[TimedPorts, int, Any], None]] = {
 }
 
 
+def _fault_logger(p: TimedPorts, bias: Any) -> Callable[[float], None]:
+    def call(_t: float) -> None:
+        p.events.record(p.layer.now_s, "actuator_fault", bias.train, accel_mps2=bias.accel_mps2,
+                        until_s=bias.until_s if math.isfinite(bias.until_s) else None)
+    return call
+
+
 def schedule(p: TimedPorts, scenario: Any) -> None:
     """Formation triggers at fixed times, injected actuator faults (made visible in events.csv), timed events."""
     p.formations.schedule_commands(scenario.formations)
     for bias in scenario.faults.actuator_bias:
-        p.layer.at(bias.from_s, lambda _t, b=bias: p.events.record(
-            p.layer.now_s, "actuator_fault", b.train, accel_mps2=b.accel_mps2,
-            until_s=b.until_s if math.isfinite(b.until_s) else None), "actuator_fault_due", bias.train)
+        p.layer.at(bias.from_s, _fault_logger(p, bias), "actuator_fault_due", bias.train)
     for n, ev in enumerate(scenario.events):
         EVENT_HANDLERS[event_kind(ev.type).handler_key](p, n, ev)

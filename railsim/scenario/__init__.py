@@ -152,7 +152,7 @@ from __future__ import annotations
 from railsim.scenario.clock import format_clock, parse_clock
 from railsim.scenario.events import (EVENT_KINDS, EVENT_TYPES, EventContext, EventField, EventKind, event_kind,
                                      register_event_kind)
-from railsim.scenario.loading import _parse_yaml, _read_text, from_mapping, load, loads, resolved_yaml
+from railsim.scenario.loading import parse_yaml, read_text, from_mapping, load, loads, resolved_yaml
 from railsim.scenario.model import (COMM_CHANNELS, DEFAULT_COUPLING_TIMEOUT_S, DEFAULT_DWELL_S, DELAY_DISTS,
                                     JUNCTION_METHODS, MAX_STEP_S, MAX_TRIPS_PER_SERVICE, OUTPUT_FORMATS,
                                     PLANT_KINDS, REQUIRED_ROLES, ROLES, STEP_METHODS, SUMO_OUTPUTS,
@@ -160,8 +160,8 @@ from railsim.scenario.model import (COMM_CHANNELS, DEFAULT_COUPLING_TIMEOUT_S, D
                                     CooperativeEdge, CooperativeSpec, DelaySpec, EventSpec, FaultSpec,
                                     FormationSpec, JunctionSpec, OutageSpec, OutputSpec, PlantSpec, Scenario,
                                     SensorNoiseSpec, ServiceSpec, SimulationSpec, TriggerSpec, TripRef, WorldSpec)
-from railsim.scenario.overrides import _PATH_RE, with_overrides
-from railsim.scenario.validate_vehicles import _VEHICLE_FIELDS
+from railsim.scenario.overrides import OVERRIDE_PATH_RE, with_overrides
+from railsim.scenario.validate_vehicles import VEHICLE_FIELDS
 from railsim.scenario.world import check_against_world, with_station_ids
 
 __all__ = [
@@ -182,6 +182,6 @@ __all__ = [
     "DEFAULT_COUPLING_TIMEOUT_S",
     # event kinds
     "EVENT_KINDS", "EVENT_TYPES", "EventKind", "EventField", "EventContext", "event_kind", "register_event_kind",
+    # building blocks of other readers (sweep files read YAML the same way and check override paths)
+    "OVERRIDE_PATH_RE", "parse_yaml", "read_text", "VEHICLE_FIELDS",
 ]
-# Private names other modules and tests import from here (kept reachable, not part of __all__):
-# _PATH_RE, _parse_yaml, _read_text (railsim.studies.sweep), _VEHICLE_FIELDS (tests/test_scenario.py).

@@ -88,7 +88,7 @@ def _construct_mapping_no_duplicates(loader: _Loader, node: yaml.MappingNode) ->
 _Loader.add_constructor("tag:yaml.org,2002:map", _construct_mapping_no_duplicates)
 
 
-def _parse_yaml(text: str, source: str) -> Any:
+def parse_yaml(text: str, source: str) -> Any:
     """Parse YAML ``text`` with the strict loader; a syntax error becomes a ``ConfigError`` at line/column."""
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
@@ -105,7 +105,7 @@ def _parse_yaml(text: str, source: str) -> Any:
         raise ConfigError(source, None, f"YAML syntax error: {exc}") from None
 
 
-def _read_text(path: Path, source: str) -> str:
+def read_text(path: Path, source: str) -> str:
     """The UTF-8 text of ``path``; a missing, unreadable or binary file becomes a ``ConfigError``."""
     try:
         return path.read_text(encoding="utf-8")
@@ -126,7 +126,7 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
     """Read, override (dotted paths, see :func:`with_overrides`) and validate a scenario file."""
     source = str(path)
     p = Path(path)
-    data = _parse_yaml(_read_text(p, source), source)
+    data = parse_yaml(read_text(p, source), source)
     if overrides:
         require_top_mapping(data, source)
         data = with_overrides(data, overrides)
@@ -136,7 +136,7 @@ def load(path: str | Path, overrides: Mapping[str, Any] | None = None) -> Scenar
 def loads(text: str, source: str = _STRING_SOURCE, base_dir: str | Path | None = None) -> Scenario:
     """Validate a scenario given as YAML text. Relative world paths resolve against ``base_dir`` (default: the
     directory of ``source`` if it is a path, else the working directory)."""
-    data = _parse_yaml(text, source)
+    data = parse_yaml(text, source)
     is_path = not source.startswith("<")
     if base_dir is None:
         base_dir = Path(source).resolve().parent if is_path else Path.cwd()

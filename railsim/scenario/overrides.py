@@ -9,7 +9,7 @@ applies such paths to a deep copy of the raw mapping: missing mapping keys on th
 ``faults.comm.t2t.loss_prob`` works on a file without ``faults``), list indices must exist. Overrides are
 applied *before* validation, so an overridden value is checked like any other; a malformed path, or one
 that walks into a value of the wrong shape, is a ``ConfigError`` of source ``<overrides>``.
-:data:`_PATH_RE` is the syntax of one path (``railsim.studies.sweep`` checks sweep axes with it).
+:data:`OVERRIDE_PATH_RE` is the syntax of one path (``railsim.studies.sweep`` checks sweep axes with it).
 """
 
 from __future__ import annotations
@@ -21,13 +21,13 @@ from typing import Any, Mapping
 from railsim.errors import ConfigError
 from railsim.scenario.validate import join_path, short_repr
 
-_PATH_RE = re.compile(r"^[^.\[\]]+(?:\[\d+\])*(?:\.[^.\[\]]+(?:\[\d+\])*)*$")
+OVERRIDE_PATH_RE = re.compile(r"^[^.\[\]]+(?:\[\d+\])*(?:\.[^.\[\]]+(?:\[\d+\])*)*$")
 _TOKEN_RE = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 _SOURCE = "<overrides>"
 
 
 def path_tokens(dotted: str) -> list[str | int]:
-    """``"a.b[0].c"`` → ``["a", "b", 0, "c"]`` (the path must match :data:`_PATH_RE`)."""
+    """``"a.b[0].c"`` → ``["a", "b", 0, "c"]`` (the path must match :data:`OVERRIDE_PATH_RE`)."""
     return [name if name else int(index) for name, index in _TOKEN_RE.findall(dotted)]
 
 
@@ -39,7 +39,7 @@ def with_overrides(scn_raw: Mapping[str, Any], overrides: Mapping[str, Any]) -> 
     """
     out: dict[str, Any] = copy.deepcopy(dict(scn_raw))
     for dotted, value in overrides.items():
-        if not isinstance(dotted, str) or not _PATH_RE.match(dotted):
+        if not isinstance(dotted, str) or not OVERRIDE_PATH_RE.match(dotted):
             raise ConfigError(_SOURCE, str(dotted), 'expected a path like "a.b[0].c"')
         tokens = path_tokens(dotted)
         node: Any = out

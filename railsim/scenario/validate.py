@@ -60,7 +60,7 @@ def bound_text(gt: float | None, ge: float | None, le: float | None) -> str:
     """``"> 0"``, ``">= 1"``, ``"in [0, 1]"``, ``"<= 5"`` or ``""``: the range part of "expected a number ..."."""
     lo = f"> {_num(gt)}" if gt is not None else f">= {_num(ge)}" if ge is not None else None
     if lo and le is not None:
-        return f"in ({_num(gt)}, {_num(le)}]" if gt is not None else f"in [{_num(ge)}, {_num(le)}]"
+        return f"in ({_num(gt)}, {_num(le)}]" if gt is not None else f"in [{_num(ge)}, {_num(le)}]"  # type: ignore[arg-type]
     if lo:
         return lo
     return f"<= {_num(le)}" if le is not None else ""

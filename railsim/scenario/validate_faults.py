@@ -56,7 +56,7 @@ def faults(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple[Fa
                            **({"trains": list(noise_trains)} if noise_trains is not None else {})},
     }
     if biases_raw:
-        raw["actuator_bias"] = biases_raw
+        raw["actuator_bias"] = biases_raw  # type: ignore[assignment]
     return FaultSpec(comm=channels, sensor_noise=noise, actuator_noise=act, actuator_bias=biases), raw
 
 

@@ -183,8 +183,8 @@ def departure_times(
         raise ck.fail(
             path, f"expected at most {MAX_TRIPS_PER_SERVICE} departures, got {n} (from first to last every headway_s)"
         )
-    times = tuple(first + k * headway for k in range(n))
-    return times, {"first": m["first"], "last": m["last"], "headway_s": headway}
+    times = tuple(first + k * headway for k in range(n))  # type: ignore[assignment]
+    return times, {"first": m["first"], "last": m["last"], "headway_s": headway}  # type: ignore[return-value]
 
 
 def dwell(ck: Checker, value: Any, path: str) -> tuple[float, dict[str, float], Any]:

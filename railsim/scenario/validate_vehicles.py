@@ -23,7 +23,7 @@ from railsim.physics.vehicle import VehicleParams, preset, preset_names
 from railsim.scenario.model import PLANT_KINDS, REQUIRED_ROLES, ROLES, ControllerSpec, PlantSpec, ServiceSpec
 from railsim.scenario.validate import Checker, did_you_mean, short_repr
 
-_VEHICLE_FIELDS = {f.name: f for f in dataclasses.fields(VehicleParams) if f.name != "name"}
+VEHICLE_FIELDS = {f.name: f for f in dataclasses.fields(VehicleParams) if f.name != "name"}
 # Lower bounds of vehicle fields: ("gt"|"ge", bound). Fields not listed only need the right type.
 _VEHICLE_BOUNDS: dict[str, tuple[str, float]] = {
     "length_m": ("gt", 0.0),
@@ -61,7 +61,7 @@ def vehicles(ck: Checker, value: Any) -> tuple[dict[str, VehicleParams], dict[st
 
 def vehicle(ck: Checker, key: str, body: Any, path: str) -> tuple[VehicleParams, dict[str, Any], PlantSpec | None]:
     """One vehicle: a preset with field overrides, or every :class:`VehicleParams` field; and its plant."""
-    fields = list(_VEHICLE_FIELDS)
+    fields = list(VEHICLE_FIELDS)
     if isinstance(body, dict) and "name" in body:
         raise ck.fail(f"{path}.name", "unknown key (a vehicle is named by its key in 'vehicles')")
     body = ck.mapping(body, path, (), ["preset", "max_speed_kmh", "plant", "plant_params", *fields])
@@ -80,7 +80,7 @@ def vehicle(ck: Checker, key: str, body: Any, path: str) -> tuple[VehicleParams,
             )
         base = preset(preset_name)
         # Presets are our data, but coerce anyway: PyYAML reads "1.0e9" as a string.
-        for fname, f in _VEHICLE_FIELDS.items():
+        for fname, f in VEHICLE_FIELDS.items():
             v = getattr(base, fname)
             values[fname] = int(v) if f.type == "int" else float(v) if f.type == "float" else v
     else:
@@ -98,7 +98,7 @@ def vehicle(ck: Checker, key: str, body: Any, path: str) -> tuple[VehicleParams,
             values["max_speed_mps"] = ck.number(v, fpath, gt=0.0) / _KMH_PER_MPS
             continue
         kind, bound = _VEHICLE_BOUNDS.get(fname, ("", 0.0))
-        ftype = _VEHICLE_FIELDS[fname].type
+        ftype = VEHICLE_FIELDS[fname].type
         if ftype == "int":
             values[fname] = ck.integer(v, fpath, ge=int(bound) if kind == "ge" else None)
         elif ftype == "float":
@@ -133,7 +133,7 @@ def vehicle_plant(ck: Checker, body: Mapping[str, Any], path: str) -> PlantSpec 
     if kind == "multipoint":
         from railsim.physics.multipoint import MultipointParams as plant_cls
     else:
-        from railsim.physics.monorail import MonorailParams as plant_cls
+        from railsim.physics.monorail import MonorailParams as plant_cls  # type: ignore[assignment]
 
     fields_ = {f.name: f for f in dataclasses.fields(plant_cls)}
     m = ck.mapping(params_in, f"{path}.plant_params", (), tuple(fields_))

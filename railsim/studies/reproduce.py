@@ -44,7 +44,7 @@ def reproduce_paper002(out: Path, topology: str = "union") -> dict[str, Any]:
                            "s_m": _num(log.s_m[n, j]) if n < len(log.s_m) else None})
     edges = []
     for n, k in enumerate(log.k):
-        for e, (i, j) in enumerate(log.edge_ids):
+        for e, (i, j) in enumerate(log.edge_ids):  # type: ignore[assignment]
             if log.edge_active[n, e]:
                 edges.append({"k": int(k), "edge": f"{i}-{j}", "x_rel_m": _num(log.x_rel_m[n, e]),
                               "d_m": _num(log.edge_d_m[n, e]), "gamma_lo_m": _num(log.edge_gamma_lo_m[n, e]),

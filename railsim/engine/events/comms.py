@@ -129,7 +129,7 @@ class DelaySpec:
         if dist == "constant":
             return float(self.value_s)  # type: ignore[arg-type]
         if dist == "uniform":
-            return float(rng.uniform(self.low_s, self.high_s))
+            return float(rng.uniform(self.low_s, self.high_s))  # type: ignore[arg-type]
         if dist == "exponential":
             return float(rng.exponential(self.mean_s)) if self.mean_s else 0.0
         if dist == "lognormal":
@@ -138,7 +138,7 @@ class DelaySpec:
             return float(rng.lognormal(math.log(m) - 0.5 * sigma2, math.sqrt(sigma2)))  # type: ignore[arg-type]
         # normal, truncated at zero by rejection
         for _ in range(_MAX_REDRAWS):
-            d = float(rng.normal(self.mean_s, self.std_s))
+            d = float(rng.normal(self.mean_s, self.std_s))  # type: ignore[arg-type]
             if d >= 0.0:
                 return d
         return 0.0
@@ -280,7 +280,7 @@ class Channel:
         if t_s == now:
             event = self._env.timeout(delay_s, msg)
         else:
-            event = TimeoutAt(self._env, delivered_s, msg)
+            event = TimeoutAt(self._env, delivered_s, msg)  # type: ignore[assignment]
         event.callbacks.append(self._on_delivery)
         return msg
 
@@ -291,7 +291,7 @@ class Channel:
         return False
 
     def _on_delivery(self, event: simpy.Event) -> None:
-        msg: Message = event.value
+        msg: Message = event.value  # type: ignore[assignment]
         self.delivered += 1
         self._delays.add(msg.delay_s)
         box = self._mail.get(msg.receiver)
@@ -342,6 +342,6 @@ class Channel:
         if acc.n:
             mean_s, std_s, lo, hi = acc.mean, math.sqrt(acc.m2 / acc.n), acc.lo, acc.hi
         else:
-            mean_s = std_s = lo = hi = None
+            mean_s = std_s = lo = hi = None  # type: ignore[assignment]
         return ChannelStats(self.name, self.sent, self.lost_random, self.lost_outage, self.delivered,
                             self.overtaken, self.sent - lost - self.delivered, mean_s, std_s, lo, hi)

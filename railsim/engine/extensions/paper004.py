@@ -153,7 +153,7 @@ class JunctionCoordinator:
         any_m = next(iter(self.members.values()))
         s4 = (ref.switch_m["sw2"] - ref.switch_m["sw1"]) if ref is not None else 200.0
         s5 = any_m.F_m - any_m.switch_m["sw2"]
-        self.layout = YJunctionLayout(S4_m=s4, S5_m=s5, sw1_branch_leg="reverse", sw2_branch_leg=branch2)
+        self.layout = YJunctionLayout(S4_m=s4, S5_m=s5, sw1_branch_leg="reverse", sw2_branch_leg=branch2)  # type: ignore[arg-type]
         throw_s = max(ports.switch_throw_s[sid] for sid in SWITCHES if sid in ports.switch_throw_s)
         try:
             probe = JunctionParams(**{"pred_length_m": max(lengths), **spec.params})
@@ -323,11 +323,11 @@ class JunctionCoordinator:
         ahead = [(m.switch_m[sid], sid) for sid in m.switch_m if m.point_m[sid] > pos_m]
         if ahead:
             d, sid = min(ahead)
-            v_lim = p.limit_speed_mps(m.legs[sid]) - p.switch_speed_margin_mps
+            v_lim = p.limit_speed_mps(m.legs[sid]) - p.switch_speed_margin_mps  # type: ignore[arg-type]
             cap = baselines.approach_speed_cap(v, d - pos_m, v_lim, self.ports.dt_s, abs(p.accel_min_mps2))
         else:
             last = max(m.point_m, key=lambda k: m.point_m[k])
-            cap = p.limit_speed_mps(m.legs[last])
+            cap = p.limit_speed_mps(m.legs[last])  # type: ignore[arg-type]
         return baselines.accel_towards(cap, v, self.ports.dt_s, p)
 
     # ------------------------------------------------------------------ reference trajectories
@@ -397,7 +397,7 @@ class JunctionCoordinator:
                                for tr in trains):
             return  # every planned train is past F: the junction process is over
         self.traj_t.append(t - self.t0_s)
-        self.traj_s.append([(tr.front_m - self.members[tr.train_id].s0_m) if tr.status in ("running",)
+        self.traj_s.append([(tr.front_m - self.members[tr.train_id].s0_m) if tr.status in ("running",)  # type: ignore[operator]
                             else math.nan for tr in trains])
         self.traj_v.append([tr.plant.speed_mps for tr in trains])
 

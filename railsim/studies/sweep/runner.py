@@ -123,7 +123,7 @@ def run_sweep(sweep: str | Path | SweepSpec, out_dir: str | Path, workers: int |
                     if bar is not None:
                         bar.update(1)
             finally:
-                gen.close()
+                gen.close()  # type: ignore[attr-defined]
     except KeyboardInterrupt:
         interrupted = True
         raise

@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any, Mapping
 
 from railsim.errors import ConfigError
-from railsim.scenario import _PATH_RE, _parse_yaml, _read_text
+from railsim.scenario import OVERRIDE_PATH_RE, parse_yaml, read_text
 
 SWEEP_KEYS = ("name", "description", "base", "grid", "link", "cases", "seeds", "timeout_s")
 RESERVED_COLUMNS = ("case_id", "status", "error", "seed", "wall_s")
@@ -99,7 +99,7 @@ class _SweepValidator:
         return ConfigError(self.source, where, message)
 
     def path(self, value: Any, where: str) -> str:
-        if not isinstance(value, str) or not _PATH_RE.match(value):
+        if not isinstance(value, str) or not OVERRIDE_PATH_RE.match(value):
             raise self.fail(where, f'expected an override path like "services[0].departures.headway_s", got {value!r}')
         return value
 
@@ -122,7 +122,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
     """Read and validate a sweep file (its structure only; :func:`validate_cases` checks every case's scenario)."""
     src = Path(path)
     v = _SweepValidator(src)
-    data = _parse_yaml(_read_text(src, str(src)), str(src))
+    data = parse_yaml(read_text(src, str(src)), str(src))
     if not isinstance(data, Mapping):
         raise v.fail(None, f"expected a mapping with keys {', '.join(SWEEP_KEYS)}, got {_compact(data)}")
     for key in data:
