@@ -26,6 +26,7 @@ demo: $(STAMP)
 # Static checks, cheapest first (config in pyproject.toml: [tool.ruff], [tool.mypy], [tool.importlinter]).
 lint: $(STAMP)
 	$(BIN)/ruff check .
+	$(BIN)/ruff format --check .
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 
@@ -35,7 +36,7 @@ test: lint
 test-fast: lint
 	$(BIN)/python -m pytest -q -n $(WORKERS) -m "not slow"
 
-# One-shot formatting pass (see [tool.ruff] in pyproject.toml); not part of `make test` yet.
+# Format the tree (`make test` checks it is formatted).
 format: $(STAMP)
 	$(BIN)/ruff check --fix --select I,UP035,UP037 .
 	$(BIN)/ruff format .

@@ -52,17 +52,23 @@ def _followers(name: str, mcf_iterations: int = 100) -> list[Any]:
 
 
 def time_controller(name: str, steps: int, seed: int = 0, mcf_iterations: int = 100) -> dict[str, Any]:
-    run = run_platoon(_followers(name, mcf_iterations), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed,
-                      horizon_steps=60)
+    run = run_platoon(
+        _followers(name, mcf_iterations), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed, horizon_steps=60
+    )
     st = run.solve_time_s[:, 1:].ravel()
     # The first train-step of each follower includes numba's JIT compilation (or its on-disk cache load):
     # report it apart from the steady-state figures.
     first = run.solve_time_s[0, 1:]
     st = run.solve_time_s[1:, 1:].ravel() if steps > 1 else st
     st = st[np.isfinite(st)]
-    row: dict[str, Any] = {"train_steps": int(st.size), "median_s": float(np.median(st)),
-                           "p95_s": float(np.percentile(st, 95)), "mean_s": float(np.mean(st)),
-                           "first_step_s": float(np.nanmax(first)), "fallbacks": int(run.fallback[:, 1:].sum())}
+    row: dict[str, Any] = {
+        "train_steps": int(st.size),
+        "median_s": float(np.median(st)),
+        "p95_s": float(np.percentile(st, 95)),
+        "mean_s": float(np.mean(st)),
+        "first_step_s": float(np.nanmax(first)),
+        "fallbacks": int(run.fallback[:, 1:].sum()),
+    }
     if "mcf" in name:
         row["msmfo_iterations"] = mcf_iterations
     if name in PAPER_S:
@@ -85,18 +91,33 @@ def optimizer_comparison(seeds: int, budget: int = 5000) -> dict[str, Any]:
     for method in METHODS:
         best, wall = [], []
         for seed in range(seeds):
-            res = minimize_sequence(fitness, ob.NP, 3, method=method, population=50, iterations=100,
-                                    rng=np.random.default_rng(seed), options={"budget": budget})
+            res = minimize_sequence(
+                fitness,
+                ob.NP,
+                3,
+                method=method,
+                population=50,
+                iterations=100,
+                rng=np.random.default_rng(seed),
+                options={"budget": budget},
+            )
             best.append(res.best_cost)
             wall.append(res.wall_s)
-        out["methods"][method] = {"best_J_mean": float(np.mean(best)), "best_J_min": float(np.min(best)),
-                                  "wall_s_mean": float(np.mean(wall))}
+        out["methods"][method] = {
+            "best_J_mean": float(np.mean(best)),
+            "best_J_min": float(np.min(best)),
+            "wall_s_mean": float(np.mean(wall)),
+        }
     ms = out["methods"].get("msmfo")
     if ms is not None:
         out["msmfo_improvement"] = {
-            m: {"best_J": (v["best_J_mean"] - ms["best_J_mean"]) / v["best_J_mean"],
-                "wall_s": (v["wall_s_mean"] - ms["wall_s_mean"]) / v["wall_s_mean"]}
-            for m, v in out["methods"].items() if m != "msmfo"}
+            m: {
+                "best_J": (v["best_J_mean"] - ms["best_J_mean"]) / v["best_J_mean"],
+                "wall_s": (v["wall_s_mean"] - ms["wall_s_mean"]) / v["wall_s_mean"],
+            }
+            for m, v in out["methods"].items()
+            if m != "msmfo"
+        }
     return out
 
 
@@ -105,12 +126,21 @@ def main() -> None:
     parser.add_argument("--steps", type=int, default=60, help="closed-loop steps for CF and DMPC")
     parser.add_argument("--mcf-steps", type=int, default=8, help="closed-loop steps for the MCF variants")
     parser.add_argument("--optimizer-seeds", type=int, default=5, help="0 skips the optimiser comparison")
-    parser.add_argument("--mcf-iterations", type=int, default=100,
-                        help="MSMFO iterations K (Table II: 100); lower to see what budget a time target buys")
+    parser.add_argument(
+        "--mcf-iterations",
+        type=int,
+        default=100,
+        help="MSMFO iterations K (Table II: 100); lower to see what budget a time target buys",
+    )
     parser.add_argument("--only", nargs="*", default=list(CONTROLLERS), choices=CONTROLLERS)
     args = parser.parse_args()
-    out: dict[str, Any] = {"benchmark": "controllers_000", "python": platform.python_version(),
-                           "numpy": np.__version__, "horizon_steps": 60, "controllers": {}}
+    out: dict[str, Any] = {
+        "benchmark": "controllers_000",
+        "python": platform.python_version(),
+        "numpy": np.__version__,
+        "horizon_steps": 60,
+        "controllers": {},
+    }
     for name in args.only:
         steps = args.mcf_steps if "mcf" in name else args.steps
         out["controllers"][name] = time_controller(name, steps, mcf_iterations=args.mcf_iterations)

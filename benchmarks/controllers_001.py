@@ -23,8 +23,14 @@ from controllers.ato_mpc.sim import run, scenario_a
 def main() -> None:
     length_m = float(sys.argv[1]) if len(sys.argv) > 1 else 5000.0
     sc = scenario_a(length_m)
-    out: dict = {"scenario": f"A ({length_m:.0f} m)", "period_s": sc.period_s, "horizon": 3, "n_cars": 6,
-                 "python": platform.python_version(), "machine": platform.machine()}
+    out: dict = {
+        "scenario": f"A ({length_m:.0f} m)",
+        "period_s": sc.period_s,
+        "horizon": 3,
+        "n_cars": 6,
+        "python": platform.python_version(),
+        "machine": platform.machine(),
+    }
     for name in ("sempc", "mpc"):
         t0 = time.perf_counter()
         r = run(sc, name)

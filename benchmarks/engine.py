@@ -19,18 +19,17 @@ from pathlib import Path
 DEFAULT = Path(__file__).resolve().parents[1] / "scenarios" / "chongqing_line3_peak.yaml"
 
 
-def _railsim(path: str, q: "mp.Queue[dict]") -> None:
-    from railsim import api as engine
-    from railsim import scenario
+def _railsim(path: str, q: mp.Queue[dict]) -> None:
+    from railsim import api as engine, scenario
 
     with tempfile.TemporaryDirectory() as out:
         s = engine.run(scenario.load(path), Path(out), progress=False)
     q.put({k: s[k] for k in ("wall_s", "sim_s", "steps", "n_trains", "n_arrived", "collisions")})
 
 
-def _sumo_only(path: str, q: "mp.Queue[dict]") -> None:
-    from railsim.studies import baseline
+def _sumo_only(path: str, q: mp.Queue[dict]) -> None:
     from railsim import scenario
+    from railsim.studies import baseline
 
     q.put(baseline.run_sumo_only(scenario.load(path)))
 
@@ -50,15 +49,23 @@ def main() -> None:
     _in_process(_sumo_only, path)  # warm the network cache so neither side pays for netconvert
     sumo = _in_process(_sumo_only, path)
     ours = _in_process(_railsim, path)
-    print(json.dumps({
-        "benchmark": "engine",
-        "scenario": Path(path).name,
-        "python": platform.python_version(),
-        "railsim": {**ours, "sim_s_per_wall_s": ours["sim_s"] / ours["wall_s"]},
-        "sumo_only": {**sumo, "sim_s_per_wall_s": sumo["sim_s"] / sumo["wall_s"]},
-        "overhead_ratio": ours["wall_s"] / sumo["wall_s"],
-        "per_step_ms": {"railsim": 1000 * ours["wall_s"] / ours["steps"], "sumo_only": 1000 * sumo["wall_s"] / sumo["steps"]},
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "benchmark": "engine",
+                "scenario": Path(path).name,
+                "python": platform.python_version(),
+                "railsim": {**ours, "sim_s_per_wall_s": ours["sim_s"] / ours["wall_s"]},
+                "sumo_only": {**sumo, "sim_s_per_wall_s": sumo["sim_s"] / sumo["wall_s"]},
+                "overhead_ratio": ours["wall_s"] / sumo["wall_s"],
+                "per_step_ms": {
+                    "railsim": 1000 * ours["wall_s"] / ours["steps"],
+                    "sumo_only": 1000 * sumo["wall_s"] / sumo["steps"],
+                },
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

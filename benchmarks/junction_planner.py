@@ -31,10 +31,13 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from controllers.junction.planner import (  # noqa: E402
-    TrainState, build_problem, plan, replan,
-)
 from controllers.junction.model import sumo_corrected_params  # noqa: E402
+from controllers.junction.planner import (  # noqa: E402
+    TrainState,
+    build_problem,
+    plan,
+    replan,
+)
 from controllers.junction.pso import improved_pso_params, plain_pso_params  # noqa: E402
 from controllers.junction.simulate import compare_table3, simulate_plan, table3_scenario  # noqa: E402
 
@@ -74,8 +77,7 @@ def replan_timing(seeds: int, period_s: float, method: str = "improved_pso", par
             trains = trains0
             while True:
                 problem = build_problem(trains, (), layout, params, frozen_order=None)
-                x = np.concatenate([np.array([a for _, _, a in current.train(t.train_id).segments])
-                                    for t in trains])
+                x = np.concatenate([np.array([a for _, _, a in current.train(t.train_id).segments]) for t in trains])
                 nxt = _state_after(problem, trains, x, period_s)
                 if nxt is None:
                     break
@@ -86,11 +88,20 @@ def replan_timing(seeds: int, period_s: float, method: str = "improved_pso", par
                 feasible.append(current.feasible)
                 frozen.append(current.frozen_order)
     ms = np.array(times) * 1000.0
-    return {"plans": int(ms.size), "median_ms": float(np.median(ms)), "p95_ms": float(np.percentile(ms, 95)),
-            "max_ms": float(ms.max()), "target_ms": 100.0, "feasible_rate": float(np.mean(feasible)),
-            "frozen_rate": float(np.mean(frozen)) if frozen else 0.0,
-            "budget": ({"max_iterations": pso.max_iterations, "wall_time_s": pso.wall_time_s,
-                        "swarm_size": pso.swarm_size} if method != "qp_order" else "deterministic")}
+    return {
+        "plans": int(ms.size),
+        "median_ms": float(np.median(ms)),
+        "p95_ms": float(np.percentile(ms, 95)),
+        "max_ms": float(ms.max()),
+        "target_ms": 100.0,
+        "feasible_rate": float(np.mean(feasible)),
+        "frozen_rate": float(np.mean(frozen)) if frozen else 0.0,
+        "budget": (
+            {"max_iterations": pso.max_iterations, "wall_time_s": pso.wall_time_s, "swarm_size": pso.swarm_size}
+            if method != "qp_order"
+            else "deterministic"
+        ),
+    }
 
 
 def main() -> None:
@@ -105,16 +116,26 @@ def main() -> None:
     for name, params in models.items():
         timing[name] = {m: replan_timing(args.replan_seeds, args.period, m, params) for m in TIMED_METHODS}
         base = timing[name]["improved_pso"]
-        for row in timing[name].values():   # ratios against the improved PSO measured in this run
+        for row in timing[name].values():  # ratios against the improved PSO measured in this run
             row["median_ratio_to_improved_pso"] = row["median_ms"] / base["median_ms"]
             row["p95_ratio_to_improved_pso"] = row["p95_ms"] / base["p95_ms"]
     rows = compare_table3(seeds=range(args.seeds))
-    rows_corrected = compare_table3(seeds=range(args.seeds), methods=("improved_pso", "qp_order"),
-                                    params=models["corrected"])
-    print(json.dumps({"benchmark": "junction_planner", "python": platform.python_version(),
-                      "replan_timing_3_trains": timing, "table3_mean_std": _table(rows),
-                      "table3_corrected_model_mean_std": _table(rows_corrected),
-                      "total_wall_s": round(time.perf_counter() - t0, 1)}, indent=1))
+    rows_corrected = compare_table3(
+        seeds=range(args.seeds), methods=("improved_pso", "qp_order"), params=models["corrected"]
+    )
+    print(
+        json.dumps(
+            {
+                "benchmark": "junction_planner",
+                "python": platform.python_version(),
+                "replan_timing_3_trains": timing,
+                "table3_mean_std": _table(rows),
+                "table3_corrected_model_mean_std": _table(rows_corrected),
+                "total_wall_s": round(time.perf_counter() - t0, 1),
+            },
+            indent=1,
+        )
+    )
 
 
 def _table(rows: list[dict]) -> list[dict]:
@@ -122,8 +143,14 @@ def _table(rows: list[dict]) -> list[dict]:
     table = []
     for r in rows:
         row = {k: r[k] for k in keep}
-        for name in ("coupling_time_s", "coupled_speed_mps", "cost", "operation_time_s", "min_separation_m",
-                     "wall_time_s"):
+        for name in (
+            "coupling_time_s",
+            "coupled_speed_mps",
+            "cost",
+            "operation_time_s",
+            "min_separation_m",
+            "wall_time_s",
+        ):
             row[name] = [round(r[f"{name}_mean"], 3), round(r[f"{name}_std"], 3)]
         table.append(row)
     return table

@@ -20,8 +20,8 @@ import argparse
 import json
 import platform
 import sys
+from collections.abc import Callable
 from pathlib import Path
-from typing import Callable
 
 import numpy as np
 
@@ -40,8 +40,9 @@ def _colleague_fitness() -> Callable[[np.ndarray], np.ndarray]:
     from controllers.paper_a.rollout import constant_speed_horizon, rollout_models
     from controllers.paper_a.spacing import TABLE_I
 
-    pred = constant_speed_horizon(LEADER_POSITION_M, LEADER_SPEED_MPS, NP, TABLE_I.dt_s, TABLE_I.length_m,
-                                  TABLE_I.emergency_decel_mps2)
+    pred = constant_speed_horizon(
+        LEADER_POSITION_M, LEADER_SPEED_MPS, NP, TABLE_I.dt_s, TABLE_I.length_m, TABLE_I.emergency_decel_mps2
+    )
     theta = THETA_TRAIN2.as_array()
 
     def fitness(seq: np.ndarray) -> np.ndarray:
@@ -72,7 +73,9 @@ def _standin_fitness() -> Callable[[np.ndarray], np.ndarray]:
             gap, de = sp[j] - s, d_e(v, vp[j])
             idm = a_m * (2 - (v / vp[j]) ** th[0] - np.minimum(de / np.maximum(gap, 1e-3), 1e3) ** th[1])
             cacc = th[3] * (gap - de) + th[4] * (vp[j] - v)
-            fvd = th[5] * (vp[j] * (vp[j] + gap - de) / np.maximum(v, 0.1) - v) + np.where(gap <= de, th[6], 0) * (vp[j] - v)
+            fvd = th[5] * (vp[j] * (vp[j] + gap - de) / np.maximum(v, 0.1) - v) + np.where(gap <= de, th[6], 0) * (
+                vp[j] - v
+            )
             u = np.clip(np.choose(seq[:, j], (idm, cacc, fvd)), -b_c, a_m)
             a = u - omega(v)
             s, v = s + v + 0.5 * a, v + a
@@ -82,8 +85,14 @@ def _standin_fitness() -> Callable[[np.ndarray], np.ndarray]:
             us.append(u), vs.append(v - vp[j + 1]), es.append(gap - de)
         u, dv, e = np.array(us).T, np.array(vs).T, np.array(es).T
         du = np.diff(u, axis=1)
-        return ((dv ** 2).sum(1) + 0.05 * (e ** 2).sum(1) + 200 * (u ** 2).sum(1)
-                + 400 * ((du ** 2).sum(1) + u[:, 0] ** 2) + 10 * (dv[:, -1] ** 2 + 0.05 * e[:, -1] ** 2) + 1e6 * viol)
+        return (
+            (dv**2).sum(1)
+            + 0.05 * (e**2).sum(1)
+            + 200 * (u**2).sum(1)
+            + 400 * ((du**2).sum(1) + u[:, 0] ** 2)
+            + 10 * (dv[:, -1] ** 2 + 0.05 * e[:, -1] ** 2)
+            + 1e6 * viol
+        )
 
     return fitness
 
@@ -128,17 +137,30 @@ def main() -> None:
     for seed in range(args.seeds):
         for method in METHODS:
             trace = _Trace(fitness)
-            res = minimize_sequence(trace, NP, 3, method=method, population=50, iterations=100,
-                                    rng=np.random.default_rng(seed), options={"budget": args.budget})
+            res = minimize_sequence(
+                trace,
+                NP,
+                3,
+                method=method,
+                population=50,
+                iterations=100,
+                rng=np.random.default_rng(seed),
+                options={"budget": args.budget},
+            )
             runs[method].append(res)
             curves[method].append(trace.best_at(checkpoints))
 
     # A31: normalise by the worst initial best (best of the first 50 evaluations) over all runs.
     j_ref = max(float(trace_curve[0]) for cs in curves.values() for trace_curve in cs)
     out: dict[str, object] = {
-        "benchmark": "optimizers_000", "problem": "Paper A S-B' (train 2, t = 0, Np = 60, D = 60, 3 models)",
-        "fitness_source": source, "python": platform.python_version(), "seeds": args.seeds,
-        "budget": args.budget, "population": 50, "iterations": 100,
+        "benchmark": "optimizers_000",
+        "problem": "Paper A S-B' (train 2, t = 0, Np = 60, D = 60, 3 models)",
+        "fitness_source": source,
+        "python": platform.python_version(),
+        "seeds": args.seeds,
+        "budget": args.budget,
+        "population": 50,
+        "iterations": 100,
         "single_model_J": {"idm": float(single[0]), "cacc": float(single[1]), "fvd": float(single[2])},
         "methods": {},
     }
@@ -147,17 +169,22 @@ def main() -> None:
         wall = np.array([r.wall_s for r in rs])
         curve = np.mean([100.0 * c[1:] / j_ref for c in curves[method]], axis=0)
         out["methods"][method] = {
-            "best_J_mean": float(best.mean()), "best_J_std": float(best.std(ddof=1)) if len(rs) > 1 else 0.0,
-            "best_J_min": float(best.min()), "wall_s_mean": float(wall.mean()),
+            "best_J_mean": float(best.mean()),
+            "best_J_std": float(best.std(ddof=1)) if len(rs) > 1 else 0.0,
+            "best_J_min": float(best.min()),
+            "wall_s_mean": float(wall.mean()),
             "wall_s_std": float(wall.std(ddof=1)) if len(rs) > 1 else 0.0,
             "evaluations_mean": float(np.mean([r.evaluations for r in rs])),
             "normalised_best_every_5pct_budget": [round(float(x), 3) for x in curve],
         }
     ms = out["methods"]["msmfo"]
     out["msmfo_improvement"] = {
-        m: {"best_J": (v["best_J_mean"] - ms["best_J_mean"]) / v["best_J_mean"],
-            "wall_s": (v["wall_s_mean"] - ms["wall_s_mean"]) / v["wall_s_mean"]}
-        for m, v in out["methods"].items() if m != "msmfo"
+        m: {
+            "best_J": (v["best_J_mean"] - ms["best_J_mean"]) / v["best_J_mean"],
+            "wall_s": (v["wall_s_mean"] - ms["wall_s_mean"]) / v["wall_s_mean"],
+        }
+        for m, v in out["methods"].items()
+        if m != "msmfo"
     }
     print(json.dumps(out, indent=2))
 

@@ -27,14 +27,20 @@ from controllers.paper_a.spacing import desired_spacing_m, paper_a_vehicle  # no
 
 METHODS = ("mcf_dmpc", "opo_mcf_dmpc")
 SETTINGS = {
-    "S-D": {"presets": ("train2", "train3"), "x0": (2000.0, 1500.0, 0.0), "v0": (220 * KMH, 200 * KMH, 180 * KMH),
-            "steps": 500, "late": (300.0, 500.0)},
+    "S-D": {
+        "presets": ("train2", "train3"),
+        "x0": (2000.0, 1500.0, 0.0),
+        "v0": (220 * KMH, 200 * KMH, 180 * KMH),
+        "steps": 500,
+        "late": (300.0, 500.0),
+    },
     "S-E": {"presets": ("train2",), "steps": 380, "late": (228.0, 380.0)},
 }
 
 
-def run_case(setting: str, method: str, seed: int, iterations: int, extra: dict[str, Any] | None = None,
-             steps: int | None = None) -> list[dict[str, float]]:
+def run_case(
+    setting: str, method: str, seed: int, iterations: int, extra: dict[str, Any] | None = None, steps: int | None = None
+) -> list[dict[str, float]]:
     cfg = SETTINGS[setting]
     veh = paper_a_vehicle()
     params = {"iterations": iterations, "seed": seed, **(extra or {})}
@@ -42,14 +48,28 @@ def run_case(setting: str, method: str, seed: int, iterations: int, extra: dict[
     n = steps or cfg["steps"]
     if setting == "S-E":
         d0 = float(desired_spacing_m(220 * KMH, 220 * KMH))
-        run = run_platoon(followers, (d0, 0.0), (220 * KMH, 220 * KMH), n, seed=seed,
-                          leader_speed=variable_speed_profile(), leader_future_known=True)
+        run = run_platoon(
+            followers,
+            (d0, 0.0),
+            (220 * KMH, 220 * KMH),
+            n,
+            seed=seed,
+            leader_speed=variable_speed_profile(),
+            leader_future_known=True,
+        )
     else:
         run = run_platoon(followers, cfg["x0"], cfg["v0"], n, seed=seed)
     lo, hi = cfg["late"]
-    return [{"train": m.train, "late_abs_e_m": m.late_mean_abs_spacing_error_m, "late_abs_dv_mps": m.late_mean_abs_dv_mps,
-             "abs_e_m": m.mean_abs_spacing_error_m, "min_safety_margin_m": m.min_safety_margin_m}
-            for m in follower_metrics(run, lo, hi)]
+    return [
+        {
+            "train": m.train,
+            "late_abs_e_m": m.late_mean_abs_spacing_error_m,
+            "late_abs_dv_mps": m.late_mean_abs_dv_mps,
+            "abs_e_m": m.mean_abs_spacing_error_m,
+            "min_safety_margin_m": m.min_safety_margin_m,
+        }
+        for m in follower_metrics(run, lo, hi)
+    ]
 
 
 def _job(args: tuple) -> tuple:
@@ -75,8 +95,10 @@ def main() -> None:
             per_train = {}
             for k, tr in enumerate(rows[0]):
                 vals = {key: np.array([r[k][key] for r in rows]) for key in tr if key != "train"}
-                per_train[f"train{tr['train']}"] = {key: {"mean": float(v.mean()), "sd": float(v.std(ddof=1))
-                                                          if v.size > 1 else 0.0} for key, v in vals.items()}
+                per_train[f"train{tr['train']}"] = {
+                    key: {"mean": float(v.mean()), "sd": float(v.std(ddof=1)) if v.size > 1 else 0.0}
+                    for key, v in vals.items()
+                }
             table[m] = per_train
         out["settings"][s] = table
     print(json.dumps(out, indent=1))

@@ -20,10 +20,23 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from controllers.ato_mpc.sim import run, scenario_a, scenario_b, scenario_c  # noqa: E402
 
-SCENARIOS = {"A": scenario_a, "B": scenario_b, "C-constant": lambda: scenario_c("constant"),
-             "C-harmonic": lambda: scenario_c("harmonic")}
-KEYS = ("e_x_m", "e_p_m", "e_v_mps", "e_u_1e12", "rate_violations", "force_violations", "max_force_rate_n_per_s",
-        "fallbacks", "stop_errors_m")
+SCENARIOS = {
+    "A": scenario_a,
+    "B": scenario_b,
+    "C-constant": lambda: scenario_c("constant"),
+    "C-harmonic": lambda: scenario_c("harmonic"),
+}
+KEYS = (
+    "e_x_m",
+    "e_p_m",
+    "e_v_mps",
+    "e_u_1e12",
+    "rate_violations",
+    "force_violations",
+    "max_force_rate_n_per_s",
+    "fallbacks",
+    "stop_errors_m",
+)
 
 
 def _job(args: tuple[str, str]) -> tuple[tuple[str, str], dict[str, Any]]:

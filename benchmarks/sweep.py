@@ -47,14 +47,19 @@ def main() -> None:
     for workers in (1, 2):
         best = min((measure(args.sweep, workers) for _ in range(args.repeat)), key=lambda m: m["wall_s"])
         runs[f"workers_{workers}"] = best
-    print(json.dumps({
-        "benchmark": "sweep_throughput",
-        "sweep": str(args.sweep.relative_to(ROOT) if args.sweep.is_relative_to(ROOT) else args.sweep),
-        "cores": os.cpu_count(),
-        "load_avg_1min": round(os.getloadavg()[0], 2),
-        **runs,
-        "speedup_2_vs_1": round(runs["workers_1"]["wall_s"] / runs["workers_2"]["wall_s"], 2),
-    }, indent=2))
+    print(
+        json.dumps(
+            {
+                "benchmark": "sweep_throughput",
+                "sweep": str(args.sweep.relative_to(ROOT) if args.sweep.is_relative_to(ROOT) else args.sweep),
+                "cores": os.cpu_count(),
+                "load_avg_1min": round(os.getloadavg()[0], 2),
+                **runs,
+                "speedup_2_vs_1": round(runs["workers_1"]["wall_s"] / runs["workers_2"]["wall_s"], 2),
+            },
+            indent=2,
+        )
+    )
 
 
 if __name__ == "__main__":

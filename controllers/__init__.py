@@ -4,6 +4,10 @@ No libsumo, no file I/O. Importing this package registers the built-in controlle
 refer to them (``controllers: {ato: {type: ato}}``).
 """
 
+# The built-in controller families, imported for their ``@register`` side effect, in this order (the registry
+# keeps it). An explicit list: a misspelt or missing module fails here, at import, instead of leaving its
+# controller types silently unknown to every scenario.
+from controllers import ato, ato_mpc, cacc, distributed, monorail, paper_a, separation, speed_profile  # noqa: E402,F401  # noqa: E402,F401
 from controllers.base import (  # noqa: F401  (re-exported API)
     Command,
     Controller,
@@ -17,10 +21,3 @@ from controllers.base import (  # noqa: F401  (re-exported API)
     register,
     registered,
 )
-
-
-# The built-in controller families, imported for their ``@register`` side effect, in this order (the registry
-# keeps it). An explicit list: a misspelt or missing module fails here, at import, instead of leaving its
-# controller types silently unknown to every scenario.
-from controllers import ato, separation, cacc, speed_profile  # noqa: E402,F401
-from controllers import paper_a, distributed, ato_mpc, monorail  # noqa: E402,F401

@@ -53,8 +53,9 @@ braking (``emergency=True``).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from controllers.base import Command, Observation, register
 from controllers.braking import (

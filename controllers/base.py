@@ -38,8 +38,9 @@ The engine does this arbitration (:func:`arbitrate`), so a research controller o
 
 from __future__ import annotations
 
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Callable, Mapping, Protocol, runtime_checkable
+from typing import Any, Protocol, runtime_checkable
 
 from railsim.physics.vehicle import VehicleParams
 

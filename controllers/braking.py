@@ -45,8 +45,9 @@ applied command with :meth:`railsim.physics.vehicle.VehicleParams.net_to_applied
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import fields
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -317,7 +318,6 @@ def params_from_mapping(cls: type, params: Mapping[str, Any] | None, ignore: tup
             value = float(value)
         values[key] = value
     return cls(**values)
-
 
 
 # ------------------------------------------------------------------------------- relative braking distance

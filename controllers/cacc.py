@@ -85,8 +85,9 @@ so the engine's ``min()`` leaves ATO in charge.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from controllers.base import Command, Observation, PredecessorState, register
 from controllers.braking import (
@@ -216,8 +217,13 @@ class Cacc:
         numer = (v_p - v) + v_pw / b_p * a_p_net + gamma * h
         cap_net = numer / slope_s if slope_s > 0.0 else (math.inf if numer >= 0.0 else -math.inf)
 
-        info: dict[str, Any] = {"phase": "track", "gap_m": gap_m, "gap_error_m": error_m, "rbd_margin_m": h,
-                                "target_gap_m": target_m}
+        info: dict[str, Any] = {
+            "phase": "track",
+            "gap_m": gap_m,
+            "gap_error_m": error_m,
+            "rbd_margin_m": h,
+            "target_gap_m": target_m,
+        }
         service_net = net_braking_mps2(veh, veh.service_decel_mps2, grade, davis_speed_mps=v)
         if cap_net < -service_net and v > 0.0:
             info["phase"] = "emergency"

@@ -19,8 +19,9 @@ time of the ramp in simulation seconds, target speed, ramp rate > 0), ``k_speed_
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from controllers.base import Command, Observation, register
 from controllers.braking import require, traction_limit_mps2
@@ -95,8 +96,12 @@ def make_speed_profile(params: Mapping[str, Any], vehicle: VehicleParams) -> Spe
         raise ValueError(f"{sorted(unknown)[0]}: unknown parameter; expected initial_kmh, segments, k_speed_per_s")
     initial = params.get("initial_kmh")
     if initial is not None:
-        require("initial_kmh", isinstance(initial, (int, float)) and not isinstance(initial, bool) and initial >= 0,
-                "a number >= 0", initial)
+        require(
+            "initial_kmh",
+            isinstance(initial, (int, float)) and not isinstance(initial, bool) and initial >= 0,
+            "a number >= 0",
+            initial,
+        )
     k = params.get("k_speed_per_s", 1.0)
     require("k_speed_per_s", isinstance(k, (int, float)) and not isinstance(k, bool) and k > 0, "a number > 0", k)
     segments = params.get("segments") or []
@@ -115,5 +120,6 @@ def make_speed_profile(params: Mapping[str, Any], vehicle: VehicleParams) -> Spe
         require(f"segments[{i}].accel_mps2", acc > 0, "a number > 0", acc)
         segs.append(Segment(float(at), float(to) / 3.6, float(acc)))
         last_t = at
-    return SpeedProfile(SpeedProfileParams(None if initial is None else float(initial) / 3.6, tuple(segs), float(k)),
-                        vehicle)
+    return SpeedProfile(
+        SpeedProfileParams(None if initial is None else float(initial) / 3.6, tuple(segs), float(k)), vehicle
+    )

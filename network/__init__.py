@@ -13,12 +13,31 @@ chainage matches SUMO's odometer), :mod:`network.topology` (the bundle, routes, 
 from network.build import build, cache_root
 from network.line import LineDescription, load_description, parse_description
 from network.topology import (
-    NetworkBundle, PlatformInfo, RoutePoint, RouteInfo, RouteStop, RouteSwitch, StationInfo, SwitchInfo,
+    NetworkBundle,
+    PlatformInfo,
+    RouteInfo,
+    RoutePoint,
+    RouteStop,
+    RouteSwitch,
+    StationInfo,
+    SwitchInfo,
 )
 from network.worlds import shipped_worlds, world_params
 
 __all__ = [
-    "build", "cache_root", "shipped_worlds", "world_params", "load_description", "parse_description",
-    "LineDescription", "NetworkBundle", "PlatformInfo", "RouteInfo", "RoutePoint", "RouteStop", "RouteSwitch",
-    "StationInfo", "SwitchInfo",
+    "build",
+    "cache_root",
+    "shipped_worlds",
+    "world_params",
+    "load_description",
+    "parse_description",
+    "LineDescription",
+    "NetworkBundle",
+    "PlatformInfo",
+    "RouteInfo",
+    "RoutePoint",
+    "RouteStop",
+    "RouteSwitch",
+    "StationInfo",
+    "SwitchInfo",
 ]

@@ -41,11 +41,18 @@ def resolve(name_or_path: str | Path, **params: Any) -> LineDescription:
     path = Path(name_or_path)
     if path.suffix in (".yaml", ".yml") or path.exists():
         if params:
-            raise ConfigError(path, "params", f"expected no parameters for a description file (parameters "
-                                              f"apply to shipped worlds), got {', '.join(params)}")
+            raise ConfigError(
+                path,
+                "params",
+                f"expected no parameters for a description file (parameters "
+                f"apply to shipped worlds), got {', '.join(params)}",
+            )
         return load_description(path)[0]
-    raise ConfigError(None, None, f"unknown world {text!r}: expected a line-description file (.yaml) or one "
-                                  f"of {', '.join(shipped_worlds())}")
+    raise ConfigError(
+        None,
+        None,
+        f"unknown world {text!r}: expected a line-description file (.yaml) or one of {', '.join(shipped_worlds())}",
+    )
 
 
 def _key(desc: LineDescription) -> str:
@@ -97,7 +104,10 @@ def build(name_or_path: str | Path, out_dir: Path | None = None, **params: Any) 
         out.mkdir(parents=True, exist_ok=True)
         for src in (bundle.net_file, bundle.stops_file, bundle.topology_file):
             shutil.copyfile(src, out / src.name)
-        bundle = dataclasses.replace(bundle, net_file=out / bundle.net_file.name,
-                                     stops_file=out / bundle.stops_file.name,
-                                     topology_file=out / bundle.topology_file.name)
+        bundle = dataclasses.replace(
+            bundle,
+            net_file=out / bundle.net_file.name,
+            stops_file=out / bundle.stops_file.name,
+            topology_file=out / bundle.topology_file.name,
+        )
     return dataclasses.replace(bundle, build_time_s=time.perf_counter() - t0)

@@ -69,9 +69,10 @@ import re
 import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import networkx as nx
 
@@ -143,8 +144,20 @@ def supported_net_version() -> str:
         t = Path(tmp)
         (t / "p.nod.xml").write_text('<nodes><node id="a" x="0" y="0"/><node id="b" x="100" y="0"/></nodes>\n')
         (t / "p.edg.xml").write_text('<edges><edge id="e" from="a" to="b" allow="rail"/></edges>\n')
-        subprocess.run([str(netconvert_binary()), "-n", str(t / "p.nod.xml"), "-e", str(t / "p.edg.xml"),
-                        "-o", str(t / "p.net.xml")], capture_output=True, timeout=120, check=True)
+        subprocess.run(
+            [
+                str(netconvert_binary()),
+                "-n",
+                str(t / "p.nod.xml"),
+                "-e",
+                str(t / "p.edg.xml"),
+                "-o",
+                str(t / "p.net.xml"),
+            ],
+            capture_output=True,
+            timeout=120,
+            check=True,
+        )
         version = _net_root(t / "p.net.xml")[1]
     root.mkdir(parents=True, exist_ok=True)
     marker.write_text(version + "\n", encoding="utf-8")
@@ -171,9 +184,12 @@ def check_net_header(net_file: Path) -> None:
     if have is None:
         raise ConfigError(net_file, "net.version", f"expected a network version like {newest!r}, got {version!r}")
     if have > (_version_tuple(newest) or ()):
-        raise ConfigError(net_file, "net.version",
-                          f"network version {version} is newer than this SUMO ({sumo_version()}) reads (up to "
-                          f"{newest}); re-export it with this SUMO's netconvert or install a newer eclipse-sumo")
+        raise ConfigError(
+            net_file,
+            "net.version",
+            f"network version {version} is newer than this SUMO ({sumo_version()}) reads (up to "
+            f"{newest}); re-export it with this SUMO's netconvert or install a newer eclipse-sumo",
+        )
 
 
 def read_stops(additional: Sequence[Path]) -> list[_Stop]:
@@ -231,19 +247,30 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
     src = where[0]
     if vclass is not None:
         if vclass not in RAIL_VCLASSES:
-            raise ConfigError(src, _opt(where, "vclass"),
-                              f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}")
+            raise ConfigError(
+                src,
+                _opt(where, "vclass"),
+                f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}",
+            )
     edges = net.getEdges(withInternal=False)
     counts = {vc: sum(1 for e in edges if any(ln.allows(vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
     if not any(counts.values()):
         found = sorted({p for e in edges for ln in e.getLanes() for p in ln.getPermissions()})
-        raise ConfigError(net_file, None, "no rail edges: no lane allows any of " + ", ".join(RAIL_VCLASSES) +
-                          f" (the lanes allow: {', '.join(found) if found else 'nothing'})")
+        raise ConfigError(
+            net_file,
+            None,
+            "no rail edges: no lane allows any of "
+            + ", ".join(RAIL_VCLASSES)
+            + f" (the lanes allow: {', '.join(found) if found else 'nothing'})",
+        )
     if vclass is not None:
         if counts[vclass] == 0:
             usable = [vc for vc in RAIL_VCLASSES if counts[vc]]
-            raise ConfigError(src, _opt(where, "vclass"), f"no lane of {net_file.name} allows {vclass!r}; its rail "
-                                                        f"edges allow {', '.join(usable)}")
+            raise ConfigError(
+                src,
+                _opt(where, "vclass"),
+                f"no lane of {net_file.name} allows {vclass!r}; its rail edges allow {', '.join(usable)}",
+            )
         return vclass
     lane_ok: dict[str, int] = dict.fromkeys(RAIL_VCLASSES, 0)
     for st in stops:
@@ -284,11 +311,25 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
         shape = ln.getShape()
         (x0, y0, *_), (x1, y1, *_) = shape[0], shape[-1]
         bidi = e.getBidi()
-        g.add_node(e.getID(), line="", direction=_compass(x1 - x0, y1 - y0), length_m=ln.getLength(),
-                   speed_mps=ln.getSpeed(), from_node=e.getFromNode().getID(), to_node=e.getToNode().getID(),
-                   design_start_m=0.0, design_sign=1, station=None, stop_id=None, stop_start_pos_m=None,
-                   stop_end_pos_m=None, stops=[], bidi=bidi.getID() if bidi is not None else None,
-                   heading_in=_heading(shape, True), heading_out=_heading(shape, False))
+        g.add_node(
+            e.getID(),
+            line="",
+            direction=_compass(x1 - x0, y1 - y0),
+            length_m=ln.getLength(),
+            speed_mps=ln.getSpeed(),
+            from_node=e.getFromNode().getID(),
+            to_node=e.getToNode().getID(),
+            design_start_m=0.0,
+            design_sign=1,
+            station=None,
+            stop_id=None,
+            stop_start_pos_m=None,
+            stop_end_pos_m=None,
+            stops=[],
+            bidi=bidi.getID() if bidi is not None else None,
+            heading_in=_heading(shape, True),
+            heading_out=_heading(shape, False),
+        )
     for eid in list(g.nodes):
         e = net.getEdge(eid)
         bidi = g.nodes[eid]["bidi"]
@@ -296,8 +337,11 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             tid = to_edge.getID()
             if tid not in g or tid == bidi:
                 continue
-            usable = [c for c in conns if c.getDirection() != "t" and c.getFromLane().allows(vclass)
-                      and c.getToLane().allows(vclass)]
+            usable = [
+                c
+                for c in conns
+                if c.getDirection() != "t" and c.getFromLane().allows(vclass) and c.getToLane().allows(vclass)
+            ]
             if not usable:
                 continue
             via = _via_chain(net, usable[0])
@@ -308,6 +352,7 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
 
 def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str]:
     """Legs ordered normal first: smallest heading change across the node, then higher speed, then id."""
+
     def key(leg: str) -> tuple[float, float, str]:
         if diverge:
             turn = _turn(g.nodes[trunk]["heading_in"], g.nodes[leg]["heading_out"])
@@ -331,12 +376,14 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
     for eid in g.nodes:
         outs = sorted(g.successors(eid))
         if len(outs) >= 2:
-            found.append({"kind": "diverge", "node": g.nodes[eid]["to_node"], "trunk": eid,
-                          "legs": _legs(g, eid, outs, True)})
+            found.append(
+                {"kind": "diverge", "node": g.nodes[eid]["to_node"], "trunk": eid, "legs": _legs(g, eid, outs, True)}
+            )
         ins = sorted(g.predecessors(eid))
         if len(ins) >= 2:
-            found.append({"kind": "merge", "node": g.nodes[eid]["from_node"], "trunk": eid,
-                          "legs": _legs(g, eid, ins, False)})
+            found.append(
+                {"kind": "merge", "node": g.nodes[eid]["from_node"], "trunk": eid, "legs": _legs(g, eid, ins, False)}
+            )
     bidi = {n: a["bidi"] for n, a in g.nodes(data=True)}
     # the other direction of a turnout on bidi track: a merge onto the trunk's partner from the legs' partners
     twin_of: dict[int, int] = {}
@@ -344,8 +391,11 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
         if d["kind"] != "diverge":
             continue
         for j, m in enumerate(found):
-            if m["kind"] == "merge" and m["trunk"] == bidi[d["trunk"]] and \
-                    sorted(m["legs"]) == sorted(bidi[x] or "" for x in d["legs"]):
+            if (
+                m["kind"] == "merge"
+                and m["trunk"] == bidi[d["trunk"]]
+                and sorted(m["legs"]) == sorted(bidi[x] or "" for x in d["legs"])
+            ):
                 twin_of[j] = i
     primary = [i for i in range(len(found)) if i not in twin_of]
     per_node: dict[str, int] = {}
@@ -363,10 +413,16 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
         for k, (a, b) in enumerate(pairs):
             g.edges[a, b]["switch"], g.edges[a, b]["leg"] = ids[i], "normal" if k == 0 else "reverse"
         switches[ids[i]] = SwitchInfo(
-            id=ids[i], sumo_node=d["node"], kind=d["kind"], normal_edge=legs[0], reverse_edge=legs[1],
-            trunk_edge=trunk, throw_time_s=float(throw_time_s),
+            id=ids[i],
+            sumo_node=d["node"],
+            kind=d["kind"],
+            normal_edge=legs[0],
+            reverse_edge=legs[1],
+            trunk_edge=trunk,
+            throw_time_s=float(throw_time_s),
             diverging_speed_mps=min(_leg_speed(g, a, b) for a, b in pairs[1:]),
-            normal_speed_mps=_leg_speed(g, *pairs[0]))
+            normal_speed_mps=_leg_speed(g, *pairs[0]),
+        )
     for j, i in twin_of.items():
         m, d = found[j], found[i]
         for x in m["legs"]:
@@ -375,8 +431,9 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
     return dict(sorted(switches.items()))
 
 
-def _stations(net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str) -> tuple[dict[str, StationInfo],
-                                                                                    dict[str, str]]:
+def _stations(
+    net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str
+) -> tuple[dict[str, StationInfo], dict[str, str]]:
     """Stations grouped by stop name, their platforms on the graph, and the alias table (name/stop id -> id)."""
     from sumolib.geomhelper import positionAtShapeOffset
 
@@ -397,15 +454,20 @@ def _stations(net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str) -> tuple
                 log.debug("skipping busStop %s on non-rail lane %s", st.id, st.lane)
                 continue
             perms = ", ".join(sorted(lane.getPermissions())) or "nothing"
-            raise ConfigError(st.file, f"{where}.lane", f"expected a lane of a rail edge (allowing {vclass}), got "
-                                                        f"{st.lane!r}, which allows {perms}: a station not on any "
-                                                        f"rail edge")
+            raise ConfigError(
+                st.file,
+                f"{where}.lane",
+                f"expected a lane of a rail edge (allowing {vclass}), got "
+                f"{st.lane!r}, which allows {perms}: a station not on any "
+                f"rail edge",
+            )
         length = lane.getLength()
         start = 0.0 if st.start_raw is None else (st.start_raw if st.start_raw >= 0 else length + st.start_raw)
         end = length if st.end_raw is None else (st.end_raw if st.end_raw >= 0 else length + st.end_raw)
         if not (0.0 <= start < end <= length + 1e-6):
-            raise ConfigError(st.file, where, f"expected 0 <= startPos < endPos <= {length:g} (lane length), got "
-                                              f"{start:g}..{end:g}")
+            raise ConfigError(
+                st.file, where, f"expected 0 <= startPos < endPos <= {length:g} (lane length), got {start:g}..{end:g}"
+            )
         shape = lane.getShape()
         x0, y0 = positionAtShapeOffset(shape, start)[:2]
         x1, y1 = positionAtShapeOffset(shape, end)[:2]
@@ -420,8 +482,7 @@ def _stations(net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str) -> tuple
         while sid in stations:
             sid, n = f"{base}-{n}", n + 1
         plats = tuple(p for _, p in members)
-        stations[sid] = StationInfo(sid, key, "", 0.0, max(p.end_pos_m - p.start_pos_m for p in plats), False,
-                                    plats)
+        stations[sid] = StationInfo(sid, key, "", 0.0, max(p.end_pos_m - p.start_pos_m for p in plats), False, plats)
         names[key] = sid
         for st, p in members:
             aliases[st.id] = sid
@@ -442,8 +503,22 @@ def _preflight(net_file: Path, additional: Sequence[Path], folder: Path) -> None
         return
 
     def run(extra: list[str]) -> list[str]:
-        cmd = [str(_sumo_tool("sumo")), "-n", str(net_file), *extra, "--begin", "0", "--end", "1",
-               "--no-step-log", "true", "--duration-log.disable", "true", "--no-warnings", "true"]
+        cmd = [
+            str(_sumo_tool("sumo")),
+            "-n",
+            str(net_file),
+            *extra,
+            "--begin",
+            "0",
+            "--end",
+            "1",
+            "--no-step-log",
+            "true",
+            "--duration-log.disable",
+            "true",
+            "--no-warnings",
+            "true",
+        ]
         try:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
         except (OSError, subprocess.TimeoutExpired) as exc:
@@ -456,8 +531,11 @@ def _preflight(net_file: Path, additional: Sequence[Path], folder: Path) -> None
     errors = run(["-a", ",".join(str(p) for p in additional)] if additional else [])
     if errors:
         if additional and not run([]):
-            raise ConfigError(",".join(str(p) for p in additional), None,
-                              "SUMO cannot load these additional files: " + " | ".join(errors[:3]))
+            raise ConfigError(
+                ",".join(str(p) for p in additional),
+                None,
+                "SUMO cannot load these additional files: " + " | ".join(errors[:3]),
+            )
         raise ConfigError(net_file, None, "SUMO cannot read this network: " + " | ".join(errors[:3]))
     folder.mkdir(parents=True, exist_ok=True)
     marker.write_text("ok\n", encoding="utf-8")
@@ -470,8 +548,11 @@ def _strip_signals(net_file: Path, out: Path) -> None:
     proc = subprocess.run(cmd, capture_output=True, text=True, timeout=600)
     if proc.returncode != 0 or not tmp.exists():
         errs = [ln for ln in (proc.stderr + proc.stdout).splitlines() if ln.startswith("Error")]
-        raise ConfigError(net_file, None, "netconvert could not copy it without rail signals: " +
-                          (" | ".join(errs[:3]) or "unknown error"))
+        raise ConfigError(
+            net_file,
+            None,
+            "netconvert could not copy it without rail signals: " + (" | ".join(errs[:3]) or "unknown error"),
+        )
     tmp.replace(out)
 
 
@@ -484,9 +565,15 @@ def _read_net(net_file: Path) -> Any:
         raise ConfigError(net_file, None, f"not a SUMO network sumolib can read: {exc}") from None
 
 
-def load_net(net_file: str | Path, additional: Sequence[str | Path] = (), *, signals: str = "strip",
-             vclass: str | None = None, throw_time_s: float = DEFAULT_THROW_TIME_S,
-             where: Where = (None, "world")) -> NetworkBundle:
+def load_net(
+    net_file: str | Path,
+    additional: Sequence[str | Path] = (),
+    *,
+    signals: str = "strip",
+    vclass: str | None = None,
+    throw_time_s: float = DEFAULT_THROW_TIME_S,
+    where: Where = (None, "world"),
+) -> NetworkBundle:
     """Read an existing SUMO net (+ additional files with trainStops) into a :class:`NetworkBundle`.
 
     ``signals`` is ``strip`` or ``keep`` (module docstring), ``vclass`` the rail vClass railsim's trains get
@@ -506,8 +593,9 @@ def load_net(net_file: str | Path, additional: Sequence[str | Path] = (), *, sig
         raise ConfigError(src, _opt(where, "throw_time_s"), f"expected a number >= 0, got {throw_time_s!r}")
     check_net_header(net_file)
     stops = read_stops(adds)
-    key_src = "|".join([EXTERNAL_VERSION, sumo_version(), signals, _file_hash(net_file),
-                        *(_file_hash(p) for p in adds)])
+    key_src = "|".join(
+        [EXTERNAL_VERSION, sumo_version(), signals, _file_hash(net_file), *(_file_hash(p) for p in adds)]
+    )
     key = hashlib.sha256(key_src.encode()).hexdigest()[:24]
     folder = cache_root() / f"external-{key}"
 
@@ -520,11 +608,19 @@ def load_net(net_file: str | Path, additional: Sequence[str | Path] = (), *, sig
             folder.mkdir(parents=True, exist_ok=True)
             _strip_signals(net_file, sim_net)
         net = _read_net(sim_net)
-        log.info("%s: %d rail signals stripped in railsim's copy %s (signals: strip); our interlocking takes over",
-                 net_file.name, n_signals, sim_net)
+        log.info(
+            "%s: %d rail signals stripped in railsim's copy %s (signals: strip); our interlocking takes over",
+            net_file.name,
+            n_signals,
+            sim_net,
+        )
     elif n_signals:
-        log.warning("%s: keeping %d SUMO rail signals (signals: keep): railsim's trains do not obey them and "
-                    "SUMO-driven trains do not obey railsim's interlocking", net_file.name, n_signals)
+        log.warning(
+            "%s: keeping %d SUMO rail signals (signals: keep): railsim's trains do not obey them and "
+            "SUMO-driven trains do not obey railsim's interlocking",
+            net_file.name,
+            n_signals,
+        )
     else:
         log.info("%s: no rail signals (signals: %s has nothing to do)", net_file.name, signals)
     chosen = _choose_vclass(net, stops, vclass, net_file, where)
@@ -535,9 +631,22 @@ def load_net(net_file: str | Path, additional: Sequence[str | Path] = (), *, sig
     stations, aliases = _stations(net, graph, stops, chosen)
     _preflight(sim_net, adds, folder)  # last: our own checks give the more precise messages
     stops_file = next((p for p in adds if any(s.file == p for s in stops)), adds[0] if adds else net_file)
-    bundle = NetworkBundle(name, sim_net, stops_file, net_file, graph, stations, switches, {}, cache_key=key,
-                           additional_files=adds, vclass=chosen, station_aliases=aliases, signals=signals,
-                           n_rail_signals=n_signals)
+    bundle = NetworkBundle(
+        name,
+        sim_net,
+        stops_file,
+        net_file,
+        graph,
+        stations,
+        switches,
+        {},
+        cache_key=key,
+        additional_files=adds,
+        vclass=chosen,
+        station_aliases=aliases,
+        signals=signals,
+        n_rail_signals=n_signals,
+    )
     routes = {}
     if len(stations) <= MAX_LISTED_STATIONS:
         for a, b in itertools.permutations(stations, 2):
@@ -569,5 +678,11 @@ def load_world(world: Any, source: Any = None) -> NetworkBundle:
 
         name_or_path, params = world.build_args()
         return build(name_or_path, **params)
-    return load_net(world.net, world.additional, signals=world.signals, vclass=world.vclass,
-                    throw_time_s=world.throw_time_s, where=(source, "world"))
+    return load_net(
+        world.net,
+        world.additional,
+        signals=world.signals,
+        vclass=world.vclass,
+        throw_time_s=world.throw_time_s,
+        where=(source, "world"),
+    )

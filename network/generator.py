@@ -41,7 +41,12 @@ import networkx as nx
 
 from network.line import PLATFORM_CLEARANCE_M, Branch, LineDescription, Station, SwitchSpec
 from network.topology import (
-    NetworkBundle, PlatformInfo, StationInfo, SwitchInfo, bundle_to_json, make_route,
+    NetworkBundle,
+    PlatformInfo,
+    StationInfo,
+    SwitchInfo,
+    bundle_to_json,
+    make_route,
 )
 from railsim.errors import ConfigError
 
@@ -162,9 +167,12 @@ class _Plan:
             for s in stations:
                 half = s.platform_length_m / 2 + PLATFORM_CLEARANCE_M
                 if abs(x - s.km * 1000.0) < half and origin != "gap":
-                    raise ConfigError(d.source, origin,
-                                      f"expected an edge break outside the platform of {s.id} "
-                                      f"(km {s.km:g} +/- {s.platform_length_m / 2:g} m), got km {x / 1000:g}")
+                    raise ConfigError(
+                        d.source,
+                        origin,
+                        f"expected an edge break outside the platform of {s.id} "
+                        f"(km {s.km:g} +/- {s.platform_length_m / 2:g} m), got km {x / 1000:g}",
+                    )
         pts.sort()
         merged: list[tuple[float, str]] = []
         for x, origin in pts:
@@ -213,8 +221,11 @@ class _Plan:
                 for direction in DIRECTIONS:
                     v = self.line_speed_mps
                     for sl in d.speed_limits:
-                        if sl.line == line and sl.direction in (direction, "both") \
-                                and sl.from_km * 1000.0 <= mid <= sl.to_km * 1000.0:
+                        if (
+                            sl.line == line
+                            and sl.direction in (direction, "both")
+                            and sl.from_km * 1000.0 <= mid <= sl.to_km * 1000.0
+                        ):
                             v = min(v, sl.speed_kmh / 3.6)
                     for zl, za, zb, zdir, b, leg in zones:
                         if zl == line and zdir == direction and za <= mid <= zb:
@@ -246,12 +257,23 @@ class _Plan:
             for direction, spec in (("up", b.switch_up), ("down", b.switch_down)):
                 # up trains move towards higher chainage: a side-up branch is ahead of them (diverge)
                 kind = "diverge" if (direction == "up") == (b.side == "up") else "merge"
-                legs = {b.leg: branch_piece.edge_id(direction),
-                        ("normal" if b.leg == "reverse" else "reverse"): parent_piece.edge_id(direction)}
+                legs = {
+                    b.leg: branch_piece.edge_id(direction),
+                    ("normal" if b.leg == "reverse" else "reverse"): parent_piece.edge_id(direction),
+                }
                 normal_piece = branch_piece if b.leg == "normal" else parent_piece
-                self.switches.append(_Switch(
-                    spec, direction, node, kind, legs["normal"], legs["reverse"], trunk_piece.edge_id(direction),
-                    normal_piece.speed_mps[direction]))
+                self.switches.append(
+                    _Switch(
+                        spec,
+                        direction,
+                        node,
+                        kind,
+                        legs["normal"],
+                        legs["reverse"],
+                        trunk_piece.edge_id(direction),
+                        normal_piece.speed_mps[direction],
+                    )
+                )
 
     # -- edges and connections in travel order --------------------------------------------------------------
     def edges(self) -> list[tuple[str, _Piece, str, str, str]]:
@@ -295,14 +317,17 @@ def write_plain_xml(plan: _Plan, folder: Path) -> tuple[Path, Path, Path]:
         edg.append(
             f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
             f'speed="{p.speed_mps[direction]:.6f}" allow="{ALLOW}" spreadType="{spread}" '
-            f'width="{TRACK_WIDTH_M}" length="{_fmt(length)}"/>')
+            f'width="{TRACK_WIDTH_M}" length="{_fmt(length)}"/>'
+        )
     edg.append("</edges>")
     speed_of = {eid: p.speed_mps[direction] for eid, p, direction, _, _ in plan.edges()}
     con = ["<connections>"]
     for e_in, e_out, _, _ in plan.connections():
         v = min(speed_of[e_in], speed_of[e_out])
-        con.append(f'  <connection from={quoteattr(e_in)} to={quoteattr(e_out)} fromLane="0" toLane="0" '
-                   f'length="{INTERNAL_LANE_M}" speed="{v:.6f}"/>')
+        con.append(
+            f'  <connection from={quoteattr(e_in)} to={quoteattr(e_out)} fromLane="0" toLane="0" '
+            f'length="{INTERNAL_LANE_M}" speed="{v:.6f}"/>'
+        )
     con.append("</connections>")
     paths = (folder / "plain.nod.xml", folder / "plain.edg.xml", folder / "plain.con.xml")
     for path, lines in zip(paths, (nod, edg, con)):
@@ -312,10 +337,25 @@ def write_plain_xml(plan: _Plan, folder: Path) -> tuple[Path, Path, Path]:
 
 def run_netconvert(nod: Path, edg: Path, con: Path, net: Path, source: str) -> None:
     cmd = [
-        str(netconvert_binary()), "--node-files", str(nod), "--edge-files", str(edg),
-        "--connection-files", str(con), "--output-file", str(net),
-        "--no-turnarounds", "true", "--offset.disable-normalization", "true",
-        "--geometry.remove", "false", "--junctions.join", "false", "--precision", "6",
+        str(netconvert_binary()),
+        "--node-files",
+        str(nod),
+        "--edge-files",
+        str(edg),
+        "--connection-files",
+        str(con),
+        "--output-file",
+        str(net),
+        "--no-turnarounds",
+        "true",
+        "--offset.disable-normalization",
+        "true",
+        "--geometry.remove",
+        "false",
+        "--junctions.join",
+        "false",
+        "--precision",
+        "6",
     ]
     try:
         proc = subprocess.run(cmd, capture_output=True, text=True, timeout=300)
@@ -350,16 +390,17 @@ def write_stops(plan: _Plan, path: Path) -> dict[str, list[PlatformInfo]]:
             if start < -1e-6 or end > length + 1e-6:  # pragma: no cover - break points keep platforms whole
                 raise AssertionError(f"platform of {station.id} does not fit on {eid}")
             stop_id = f"{station.id}.{direction}"
-            lines.append(f'  <trainStop id={quoteattr(stop_id)} lane={quoteattr(eid + "_0")} '
-                         f'startPos="{_fmt(start)}" endPos="{_fmt(end)}" name={quoteattr(station.name)}/>')
+            lines.append(
+                f"  <trainStop id={quoteattr(stop_id)} lane={quoteattr(eid + '_0')} "
+                f'startPos="{_fmt(start)}" endPos="{_fmt(end)}" name={quoteattr(station.name)}/>'
+            )
             platforms.setdefault(station.id, []).append(PlatformInfo(direction, stop_id, eid, start, end))
     lines.append("</additional>")
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return platforms
 
 
-def read_net(net_file: Path) -> tuple[dict[str, tuple[float, float]], dict[tuple[str, str], list[list]],
-                                      list[str]]:
+def read_net(net_file: Path) -> tuple[dict[str, tuple[float, float]], dict[tuple[str, str], list[list]], list[str]]:
     """Lane length/speed of every normal edge, internal lanes of every connection, rail_signal node ids."""
     import sumolib
 
@@ -406,19 +447,34 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
         lead = INTERNAL_LANE_M
         sid, plat = plat_by_edge.get(eid, (None, None))
         graph.add_node(
-            eid, line=piece.line, direction=direction, length_m=length, speed_mps=speed, from_node=fn, to_node=tn,
+            eid,
+            line=piece.line,
+            direction=direction,
+            length_m=length,
+            speed_mps=speed,
+            from_node=fn,
+            to_node=tn,
             design_start_m=piece.a_m + lead if direction == "up" else piece.b_m - lead,
             design_sign=1 if direction == "up" else -1,
-            station=sid, stop_id=plat.stop_id if plat else None,
-            stop_start_pos_m=plat.start_pos_m if plat else None, stop_end_pos_m=plat.end_pos_m if plat else None,
+            station=sid,
+            stop_id=plat.stop_id if plat else None,
+            stop_start_pos_m=plat.start_pos_m if plat else None,
+            stop_end_pos_m=plat.end_pos_m if plat else None,
         )
     sw_by_conn: dict[tuple[str, str], tuple[str, str]] = {}
     switches: dict[str, SwitchInfo] = {}
     for s in plan.switches:
         switches[s.spec.id] = SwitchInfo(
-            id=s.spec.id, sumo_node=s.node, kind=s.kind, normal_edge=s.normal_edge, reverse_edge=s.reverse_edge,
-            trunk_edge=s.trunk_edge, throw_time_s=s.spec.throw_time_s,
-            diverging_speed_mps=s.spec.diverging_speed_kmh / 3.6, normal_speed_mps=s.normal_speed_mps)
+            id=s.spec.id,
+            sumo_node=s.node,
+            kind=s.kind,
+            normal_edge=s.normal_edge,
+            reverse_edge=s.reverse_edge,
+            trunk_edge=s.trunk_edge,
+            throw_time_s=s.spec.throw_time_s,
+            diverging_speed_mps=s.spec.diverging_speed_kmh / 3.6,
+            normal_speed_mps=s.normal_speed_mps,
+        )
         for leg, leg_edge in (("normal", s.normal_edge), ("reverse", s.reverse_edge)):
             pair = (s.trunk_edge, leg_edge) if s.kind == "diverge" else (leg_edge, s.trunk_edge)
             sw_by_conn[pair] = (s.spec.id, leg)
@@ -433,8 +489,9 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
 
     xo_speed = {x.station: x.speed_kmh / 3.6 for x in desc.crossovers}
     stations = {
-        st.id: StationInfo(st.id, st.name, line, st.km, st.platform_length_m, st.turnback,
-                           tuple(platforms[st.id]), xo_speed.get(st.id))
+        st.id: StationInfo(
+            st.id, st.name, line, st.km, st.platform_length_m, st.turnback, tuple(platforms[st.id]), xo_speed.get(st.id)
+        )
         for line, st in desc.all_stations()
     }
     routes = {}
@@ -450,11 +507,26 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
                     rid = f"{end_names[graph.nodes[src]['from_node']]}->{end_names[graph.nodes[dst]['to_node']]}"
                     routes[rid] = make_route(graph, rid, nx.shortest_path(graph, src, dst))
     topology_file = folder / f"{desc.name}.topology.json"
-    bundle = NetworkBundle(desc.name, net_file, stops_file, topology_file, graph, stations, switches, routes,
-                           cache_key=cache_key, build_time_s=time.perf_counter() - t0)
+    bundle = NetworkBundle(
+        desc.name,
+        net_file,
+        stops_file,
+        topology_file,
+        graph,
+        stations,
+        switches,
+        routes,
+        cache_key=cache_key,
+        build_time_s=time.perf_counter() - t0,
+    )
     payload = bundle_to_json(bundle)
-    payload["description"] = {"name": desc.name, "description": desc.description, "track": desc.track,
-                              "line_speed_kmh": desc.line_speed_kmh, "source": desc.source}
+    payload["description"] = {
+        "name": desc.name,
+        "description": desc.description,
+        "track": desc.track,
+        "line_speed_kmh": desc.line_speed_kmh,
+        "source": desc.source,
+    }
     topology_file.write_text(json.dumps(payload, indent=1, ensure_ascii=False), encoding="utf-8")
     for tmp in (nod, edg, con):
         tmp.unlink()

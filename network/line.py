@@ -68,9 +68,10 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import yaml
 
@@ -206,8 +207,9 @@ class _Reader:
             raise ConfigError(source, path or None, f"expected a mapping, got {_describe(data)}")
         for key in data:
             if key not in allowed:
-                raise ConfigError(source, _join(path, str(key)),
-                                  f"expected one of {', '.join(allowed)}, got unknown key {str(key)!r}")
+                raise ConfigError(
+                    source, _join(path, str(key)), f"expected one of {', '.join(allowed)}, got unknown key {str(key)!r}"
+                )
         self.data = data
 
     def field(self, key: str) -> str:
@@ -224,8 +226,9 @@ class _Reader:
             return default
         return value
 
-    def number(self, key: str, default: Any = _MISSING, *, minimum: float | None = None,
-               positive: bool = False) -> float:
+    def number(
+        self, key: str, default: Any = _MISSING, *, minimum: float | None = None, positive: bool = False
+    ) -> float:
         what = "a number > 0" if positive else (f"a number >= {minimum:g}" if minimum is not None else "a number")
         value = self.get(key, default, what)
         if value is default and default is not _MISSING:
@@ -282,11 +285,42 @@ def _describe(value: Any) -> str:
 
 _STATION_KEYS = ("id", "name", "km", "platform_length_m", "turnback", "basis", "name_zh")
 _SWITCH_KEYS = ("id", "throw_time_s", "diverging_speed_kmh", "normal_speed_kmh", "basis")
-_BRANCH_KEYS = ("id", "name", "joins", "at_km", "side", "leg", "turnout_length_m", "switches", "end_name",
-                "from_km", "to_km", "stations", "basis")
-_TOP_KEYS = ("name", "description", "track", "line_speed_kmh", "platform_length_m", "overrun_m",
-             "main_line_id", "start_name", "end_name", "from_km", "to_km", "stations", "speed_limits",
-             "gradients", "crossovers", "points", "branches", "basis", "sources")
+_BRANCH_KEYS = (
+    "id",
+    "name",
+    "joins",
+    "at_km",
+    "side",
+    "leg",
+    "turnout_length_m",
+    "switches",
+    "end_name",
+    "from_km",
+    "to_km",
+    "stations",
+    "basis",
+)
+_TOP_KEYS = (
+    "name",
+    "description",
+    "track",
+    "line_speed_kmh",
+    "platform_length_m",
+    "overrun_m",
+    "main_line_id",
+    "start_name",
+    "end_name",
+    "from_km",
+    "to_km",
+    "stations",
+    "speed_limits",
+    "gradients",
+    "crossovers",
+    "points",
+    "branches",
+    "basis",
+    "sources",
+)
 
 
 def _stations(r: _Reader, key: str, default_platform_m: float, used_ids: dict[str, str]) -> tuple[Station, ...]:
@@ -300,16 +334,20 @@ def _stations(r: _Reader, key: str, default_platform_m: float, used_ids: dict[st
         used_ids[sid] = path
         km = s.number("km")
         if out and km <= out[-1].km:
-            raise s.error("km", f"expected a chainage greater than {r.field(key)}[{i - 1}].km "
-                                f"({out[-1].km:g}), got {km!r}")
+            raise s.error(
+                "km", f"expected a chainage greater than {r.field(key)}[{i - 1}].km ({out[-1].km:g}), got {km!r}"
+            )
         plat = s.number("platform_length_m", default_platform_m, positive=True)
         st = Station(sid, str(s.get("name", sid)), km, plat, s.boolean("turnback", False), path)
         if out:
             prev = out[-1]
             gap_m = (st.km - prev.km) * 1000.0 - (st.platform_length_m + prev.platform_length_m) / 2.0
             if gap_m < 2 * PLATFORM_CLEARANCE_M:
-                raise s.error("km", f"expected platforms not to overlap: {sid} starts {-gap_m:.1f} m before "
-                                    f"the end of {prev.id}'s platform, got km {km!r}")
+                raise s.error(
+                    "km",
+                    f"expected platforms not to overlap: {sid} starts {-gap_m:.1f} m before "
+                    f"the end of {prev.id}'s platform, got km {km!r}",
+                )
         out.append(st)
     return tuple(out)
 
@@ -326,8 +364,14 @@ def _switch(source: str, raw: Any, path: str) -> SwitchSpec:
     )
 
 
-def _extent(r: _Reader, stations: tuple[Station, ...], overrun_m: float, lo_default: float | None,
-            hi_default: float | None, what: str) -> tuple[float, float]:
+def _extent(
+    r: _Reader,
+    stations: tuple[Station, ...],
+    overrun_m: float,
+    lo_default: float | None,
+    hi_default: float | None,
+    what: str,
+) -> tuple[float, float]:
     """Extent of a line: explicit ``from_km``/``to_km`` or the outer platforms +/- the overrun tail."""
     lo = r.get("from_km", None)
     hi = r.get("to_km", None)
@@ -337,8 +381,7 @@ def _extent(r: _Reader, stations: tuple[Station, ...], overrun_m: float, lo_defa
         elif stations:
             lo = stations[0].km - (stations[0].platform_length_m / 2 + overrun_m) / 1000.0
         else:
-            raise r.error("from_km", f"expected a number (the {what} has no stations to derive it from), "
-                                     "got nothing")
+            raise r.error("from_km", f"expected a number (the {what} has no stations to derive it from), got nothing")
     else:
         lo = r.number("from_km")
     if hi is None:
@@ -347,8 +390,7 @@ def _extent(r: _Reader, stations: tuple[Station, ...], overrun_m: float, lo_defa
         elif stations:
             hi = stations[-1].km + (stations[-1].platform_length_m / 2 + overrun_m) / 1000.0
         else:
-            raise r.error("to_km", f"expected a number (the {what} has no stations to derive it from), "
-                                   "got nothing")
+            raise r.error("to_km", f"expected a number (the {what} has no stations to derive it from), got nothing")
     else:
         hi = r.number("to_km")
     if hi <= lo:
@@ -357,9 +399,12 @@ def _extent(r: _Reader, stations: tuple[Station, ...], overrun_m: float, lo_defa
         a = st.km - st.platform_length_m / 2000.0
         b = st.km + st.platform_length_m / 2000.0
         if a < lo or b > hi:
-            raise ConfigError(r.source, f"{st.path}.km",
-                              f"expected the platform to lie within the line extent [{lo:g}, {hi:g}] km, "
-                              f"got km {st.km:g} with a {st.platform_length_m:g} m platform")
+            raise ConfigError(
+                r.source,
+                f"{st.path}.km",
+                f"expected the platform to lie within the line extent [{lo:g}, {hi:g}] km, "
+                f"got km {st.km:g} with a {st.platform_length_m:g} m platform",
+            )
     return float(lo), float(hi)
 
 
@@ -393,8 +438,10 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         if joins not in line_ids:
             raise b.error("joins", f"expected one of {', '.join(line_ids)}, got {_describe(joins)}")
         if track == "single":
-            raise b.error("joins", "expected no branches on a single-track line (not supported yet), "
-                                   f"got a branch joining {joins!r}")
+            raise b.error(
+                "joins",
+                f"expected no branches on a single-track line (not supported yet), got a branch joining {joins!r}",
+            )
         at_km = b.number("at_km")
         side = b.choice("side", ("up", "down"))
         leg = b.choice("leg", ("normal", "reverse"), "reverse")
@@ -402,47 +449,75 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         lo, hi = extents[joins]
         margin_km = (turnout_m + PLATFORM_CLEARANCE_M) / 1000.0
         if not lo + margin_km < at_km < hi - margin_km:
-            raise b.error("at_km", f"expected a chainage inside line {joins!r} ({lo + margin_km:g} < km < "
-                                   f"{hi - margin_km:g}), got {at_km!r}")
+            raise b.error(
+                "at_km",
+                f"expected a chainage inside line {joins!r} ({lo + margin_km:g} < km < "
+                f"{hi - margin_km:g}), got {at_km!r}",
+            )
         sw = b.get("switches", what="a mapping with 'up' and 'down' switches")
         sw_r = _Reader(source, sw, b.field("switches"), ("up", "down"))
         sw_up = _switch(source, sw_r.get("up", what="a switch mapping"), sw_r.field("up"))
         sw_down = _switch(source, sw_r.get("down", what="a switch mapping"), sw_r.field("down"))
         for spec in (sw_up, sw_down):
             if spec.id in switch_ids:
-                raise ConfigError(source, f"{spec.path}.id",
-                                  f"expected a unique switch id, got {spec.id!r} (already used at "
-                                  f"{switch_ids[spec.id]})")
+                raise ConfigError(
+                    source,
+                    f"{spec.path}.id",
+                    f"expected a unique switch id, got {spec.id!r} (already used at {switch_ids[spec.id]})",
+                )
             switch_ids[spec.id] = spec.path
         bstations = _stations(b, "stations", platform_m, used)
         if side == "up":
             blo, bhi = _extent(b, bstations, overrun_m, at_km, None, "branch")
             if b.get("from_km", None) is not None:
-                raise b.error("from_km", "expected no from_km on a side-up branch (it starts at at_km), "
-                                         f"got {b.get('from_km')!r}")
+                raise b.error(
+                    "from_km", f"expected no from_km on a side-up branch (it starts at at_km), got {b.get('from_km')!r}"
+                )
         else:
             blo, bhi = _extent(b, bstations, overrun_m, None, at_km, "branch")
             if b.get("to_km", None) is not None:
-                raise b.error("to_km", "expected no to_km on a side-down branch (it ends at at_km), "
-                                       f"got {b.get('to_km')!r}")
+                raise b.error(
+                    "to_km", f"expected no to_km on a side-down branch (it ends at at_km), got {b.get('to_km')!r}"
+                )
         if bhi - blo <= margin_km:
-            raise b.error("stations", f"expected the branch to be longer than its turnout "
-                                      f"({turnout_m:g} m), got {1000 * (bhi - blo):.1f} m")
+            raise b.error(
+                "stations",
+                f"expected the branch to be longer than its turnout ({turnout_m:g} m), got {1000 * (bhi - blo):.1f} m",
+            )
         default_end = (bstations[-1].id if side == "up" else bstations[0].id) if bstations else bid
-        branches.append(Branch(
-            id=bid, name=str(b.get("name", bid)), joins=str(joins), at_km=at_km, side=side, leg=leg,
-            turnout_length_m=turnout_m, switch_up=sw_up, switch_down=sw_down,
-            end_name=b.ident("end_name", default_end), from_km=blo, to_km=bhi, stations=bstations, path=path,
-        ))
+        branches.append(
+            Branch(
+                id=bid,
+                name=str(b.get("name", bid)),
+                joins=str(joins),
+                at_km=at_km,
+                side=side,
+                leg=leg,
+                turnout_length_m=turnout_m,
+                switch_up=sw_up,
+                switch_down=sw_down,
+                end_name=b.ident("end_name", default_end),
+                from_km=blo,
+                to_km=bhi,
+                stations=bstations,
+                path=path,
+            )
+        )
         line_ids.append(bid)
         extents[bid] = (blo, bhi)
     # Two junctions on one line must leave room for both turnouts.
     for i, b1 in enumerate(branches):
         for b2 in branches[:i]:
-            if b1.joins == b2.joins and abs(b1.at_km - b2.at_km) * 1000.0 < b1.turnout_length_m + b2.turnout_length_m + 2:
-                raise ConfigError(source, f"{b1.path}.at_km",
-                                  f"expected a junction at least {b1.turnout_length_m + b2.turnout_length_m + 2:g} m "
-                                  f"from {b2.path} (km {b2.at_km:g}), got km {b1.at_km:g}")
+            if (
+                b1.joins == b2.joins
+                and abs(b1.at_km - b2.at_km) * 1000.0 < b1.turnout_length_m + b2.turnout_length_m + 2
+            ):
+                raise ConfigError(
+                    source,
+                    f"{b1.path}.at_km",
+                    f"expected a junction at least {b1.turnout_length_m + b2.turnout_length_m + 2:g} m "
+                    f"from {b2.path} (km {b2.at_km:g}), got km {b1.at_km:g}",
+                )
 
     def line_field(rr: _Reader) -> str:
         line = rr.get("line", main_id)
@@ -457,8 +532,10 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
             raise rr.error("to_km", f"expected a chainage greater than from_km ({a:g}), got {z!r}")
         lo, hi = extents[line]
         if a < lo - 1e-9 or z > hi + 1e-9:
-            raise rr.error("from_km" if a < lo - 1e-9 else "to_km",
-                           f"expected a stretch within line {line!r} [{lo:g}, {hi:g}] km, got [{a:g}, {z:g}]")
+            raise rr.error(
+                "from_km" if a < lo - 1e-9 else "to_km",
+                f"expected a stretch within line {line!r} [{lo:g}, {hi:g}] km, got [{a:g}, {z:g}]",
+            )
         return a, z
 
     limits = []
@@ -466,8 +543,16 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         rr = _Reader(source, raw, f"speed_limits[{i}]", ("line", "from_km", "to_km", "speed_kmh", "direction", "basis"))
         line = line_field(rr)
         a, z = span(rr, line)
-        limits.append(SpeedLimit(line, a, z, rr.number("speed_kmh", positive=True),
-                                 rr.choice("direction", ("up", "down", "both"), "both"), rr.path))
+        limits.append(
+            SpeedLimit(
+                line,
+                a,
+                z,
+                rr.number("speed_kmh", positive=True),
+                rr.choice("direction", ("up", "down", "both"), "both"),
+                rr.path,
+            )
+        )
     gradients = []
     for i, raw in enumerate(r.seq("gradients")):
         rr = _Reader(source, raw, f"gradients[{i}]", ("line", "from_km", "to_km", "permille", "basis"))
@@ -481,8 +566,11 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         own = sorted((g for g in gradients if g.line == line), key=lambda g: g.from_km)
         for g1, g2 in zip(own, own[1:]):
             if g2.from_km < g1.to_km - 1e-9:
-                raise ConfigError(source, f"{g2.path}.from_km",
-                                  f"expected no overlap with {g1.path} (ends at km {g1.to_km:g}), got {g2.from_km:g}")
+                raise ConfigError(
+                    source,
+                    f"{g2.path}.from_km",
+                    f"expected no overlap with {g1.path} (ends at km {g1.to_km:g}), got {g2.from_km:g}",
+                )
     crossovers = []
     for i, raw in enumerate(r.seq("crossovers")):
         rr = _Reader(source, raw, f"crossovers[{i}]", ("id", "station", "speed_kmh", "basis"))
@@ -501,11 +589,24 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         points.append(Point(rr.ident("id"), line, km, rr.path))
 
     return LineDescription(
-        name=name, description=str(r.get("description", "")).strip(), track=track, line_speed_kmh=line_speed,
-        platform_length_m=platform_m, overrun_m=overrun_m, main_line_id=main_id, start_name=start_name,
-        end_name=end_name, from_km=from_km, to_km=to_km, stations=stations, speed_limits=tuple(limits),
-        gradients=tuple(gradients), crossovers=tuple(crossovers), points=tuple(points),
-        branches=tuple(branches), source=source,
+        name=name,
+        description=str(r.get("description", "")).strip(),
+        track=track,
+        line_speed_kmh=line_speed,
+        platform_length_m=platform_m,
+        overrun_m=overrun_m,
+        main_line_id=main_id,
+        start_name=start_name,
+        end_name=end_name,
+        from_km=from_km,
+        to_km=to_km,
+        stations=stations,
+        speed_limits=tuple(limits),
+        gradients=tuple(gradients),
+        crossovers=tuple(crossovers),
+        points=tuple(points),
+        branches=tuple(branches),
+        source=source,
     )
 
 
@@ -521,6 +622,7 @@ def load_description(path: str | Path) -> tuple[LineDescription, Any]:
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""
-        raise ConfigError(path, None, f"expected valid YAML, got a syntax error{where}: "
-                                      f"{getattr(exc, 'problem', exc)}") from None
+        raise ConfigError(
+            path, None, f"expected valid YAML, got a syntax error{where}: {getattr(exc, 'problem', exc)}"
+        ) from None
     return parse_description(data, path), data

@@ -25,9 +25,10 @@ route's first edge and **includes the internal junction lanes**, which is what S
 from __future__ import annotations
 
 import functools
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Iterable, Sequence
+from typing import Any
 
 import networkx as nx
 
@@ -145,7 +146,9 @@ class RouteInfo:
 
     def to_json(self) -> dict[str, Any]:
         return {
-            "id": self.id, "edges": list(self.edges), "edge_start_m": list(self.edge_start_m),
+            "id": self.id,
+            "edges": list(self.edges),
+            "edge_start_m": list(self.edge_start_m),
             "length_m": self.length_m,
             "stops": [vars(s) for s in self.stops],
             "speed_limits": [list(x) for x in self.speed_limits],
@@ -156,9 +159,12 @@ class RouteInfo:
         }
 
     @staticmethod
-    def from_json(d: dict[str, Any]) -> "RouteInfo":
+    def from_json(d: dict[str, Any]) -> RouteInfo:
         return RouteInfo(
-            id=d["id"], edges=tuple(d["edges"]), edge_start_m=tuple(d["edge_start_m"]), length_m=d["length_m"],
+            id=d["id"],
+            edges=tuple(d["edges"]),
+            edge_start_m=tuple(d["edge_start_m"]),
+            length_m=d["length_m"],
             stops=tuple(RouteStop(**s) for s in d["stops"]),
             speed_limits=tuple(tuple(x) for x in d["speed_limits"]),  # type: ignore[misc]
             gradients=tuple(tuple(x) for x in d["gradients"]),  # type: ignore[misc]
@@ -181,8 +187,9 @@ def _merge_runs(runs: Iterable[tuple[float, float, float]]) -> tuple[tuple[float
     return tuple((a, b, v) for a, b, v in out)
 
 
-def _gradient_runs(line_grads: Sequence[Sequence[float]], d0: float, d1: float, r0: float,
-                   sign: int) -> list[tuple[float, float, float]]:
+def _gradient_runs(
+    line_grads: Sequence[Sequence[float]], d0: float, d1: float, r0: float, sign: int
+) -> list[tuple[float, float, float]]:
     """Gradient runs over route chainage [r0, r0 + |d1 - d0|] where design position runs d0 -> d1."""
     lo, hi = min(d0, d1), max(d0, d1)
     cuts = {lo, hi}
@@ -261,9 +268,16 @@ def make_route(graph: nx.DiGraph, route_id: str, edges: Sequence[str]) -> RouteI
         pos += length
     grads.sort()
     return RouteInfo(
-        id=route_id, edges=tuple(edges), edge_start_m=tuple(starts), length_m=pos, stops=tuple(stops),
-        speed_limits=_merge_runs(speeds), gradients=_merge_runs(grads), switches=tuple(switches),
-        points=tuple(points), internal_start_m=tuple(internal),
+        id=route_id,
+        edges=tuple(edges),
+        edge_start_m=tuple(starts),
+        length_m=pos,
+        stops=tuple(stops),
+        speed_limits=_merge_runs(speeds),
+        gradients=_merge_runs(grads),
+        switches=tuple(switches),
+        points=tuple(points),
+        internal_start_m=tuple(internal),
     )
 
 
@@ -302,8 +316,9 @@ class NetworkBundle:
         """
         for sid in (from_station, to_station, *via):
             if sid not in self.stations:
-                raise KeyError(f"unknown station {sid!r} in world {self.name!r}; "
-                               f"known: {', '.join(sorted(self.stations))}")
+                raise KeyError(
+                    f"unknown station {sid!r} in world {self.name!r}; known: {', '.join(sorted(self.stations))}"
+                )
         if from_station == to_station:
             raise ValueError(f"a route needs two different stations, got {from_station!r} twice")
         chain = (from_station, *via, to_station)
@@ -325,7 +340,7 @@ class NetworkBundle:
                     full = path + step
                     if len(set(full)) != len(full):
                         continue  # via stations out of order would revisit track
-                    total = length + sum(_step_m(g, a, b) for a, b in zip(full[len(path) - 1:], step))
+                    total = length + sum(_step_m(g, a, b) for a, b in zip(full[len(path) - 1 :], step))
                     if best is None or total < best[0] - 1e-9:
                         best = (total, full)
                 if best is not None:
@@ -339,8 +354,10 @@ class NetworkBundle:
         hint = "end the trip at a turnback instead"
         if g.graph.get("kind") == "external":
             hint = "a service that needs a reversal must be split into two services at the reversal station"
-        raise ValueError(f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r} "
-                         f"(trains do not reverse on the way; {hint})")
+        raise ValueError(
+            f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r} "
+            f"(trains do not reverse on the way; {hint})"
+        )
 
 
 def _step_m(g: nx.DiGraph, a: str, b: str) -> float:
@@ -368,9 +385,16 @@ def bundle_to_json(bundle: NetworkBundle) -> dict[str, Any]:
         "cache_key": bundle.cache_key,
         "net_file": bundle.net_file.name,
         "stops_file": bundle.stops_file.name,
-        "stations": {k: {**{f: getattr(v, f) for f in ("id", "name", "line", "km", "platform_length_m",
-                                                       "turnback", "crossover_speed_mps")},
-                         "platforms": [vars(p) for p in v.platforms]} for k, v in bundle.stations.items()},
+        "stations": {
+            k: {
+                **{
+                    f: getattr(v, f)
+                    for f in ("id", "name", "line", "km", "platform_length_m", "turnback", "crossover_speed_mps")
+                },
+                "platforms": [vars(p) for p in v.platforms],
+            }
+            for k, v in bundle.stations.items()
+        },
         "switches": {k: vars(v) for k, v in bundle.switches.items()},
         "routes": {k: v.to_json() for k, v in bundle.routes.items()},
         "graph": nx.node_link_data(g, edges="links"),
@@ -384,8 +408,13 @@ def bundle_from_json(d: dict[str, Any], folder: Path, topology_file: Path) -> Ne
         plats = tuple(PlatformInfo(**p) for p in v.pop("platforms"))
         stations[k] = StationInfo(**v, platforms=plats)
     return NetworkBundle(
-        name=d["name"], net_file=folder / d["net_file"], stops_file=folder / d["stops_file"],
-        topology_file=topology_file, graph=graph, stations=stations,
+        name=d["name"],
+        net_file=folder / d["net_file"],
+        stops_file=folder / d["stops_file"],
+        topology_file=topology_file,
+        graph=graph,
+        stations=stations,
         switches={k: SwitchInfo(**v) for k, v in d["switches"].items()},
-        routes={k: RouteInfo.from_json(v) for k, v in d["routes"].items()}, cache_key=d.get("cache_key", ""),
+        routes={k: RouteInfo.from_json(v) for k, v in d["routes"].items()},
+        cache_key=d.get("cache_key", ""),
     )

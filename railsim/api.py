@@ -20,8 +20,13 @@ from railsim.analysis import registry
 from railsim.record import output
 
 
-def run(scenario: Any, out_dir: Path | str | None, seed: int | None = None, progress: bool | None = None,
-        settings: engine.EngineSettings | None = None) -> dict[str, Any]:
+def run(
+    scenario: Any,
+    out_dir: Path | str | None,
+    seed: int | None = None,
+    progress: bool | None = None,
+    settings: engine.EngineSettings | None = None,
+) -> dict[str, Any]:
     """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any)."""
     summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings)
     if out_dir is not None:
@@ -29,6 +34,7 @@ def run(scenario: Any, out_dir: Path | str | None, seed: int | None = None, prog
         if results:  # the papers' own metrics, from the files just written
             summary["analyses"] = results
             summary["analysis_tables"] = tables
-            output.write_json(Path(out_dir) / "summary.json", {k: v for k, v in summary.items()
-                                                               if k != "analysis_tables"})
+            output.write_json(
+                Path(out_dir) / "summary.json", {k: v for k, v in summary.items() if k != "analysis_tables"}
+            )
     return summary

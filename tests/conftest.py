@@ -13,8 +13,9 @@ import pytest
 from hypothesis import HealthCheck, settings
 
 settings.register_profile("local", deadline=None)
-settings.register_profile("ci", deadline=None, derandomize=True, print_blob=True,
-                          suppress_health_check=[HealthCheck.too_slow])
+settings.register_profile(
+    "ci", deadline=None, derandomize=True, print_blob=True, suppress_health_check=[HealthCheck.too_slow]
+)
 settings.load_profile("ci" if os.environ.get("CI", "").lower() in ("1", "true", "yes") else "local")
 
 
@@ -26,7 +27,8 @@ def mini_run(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
     cache = tmp_path_factory.mktemp("netcache")
     out = tmp_path_factory.mktemp("mini")
-    res = run_railsim(["run", str(DATA / "scenarios" / "mini_line.yaml"), "--out", str(out), "--no-progress"],
-                      cache_dir=cache)
+    res = run_railsim(
+        ["run", str(DATA / "scenarios" / "mini_line.yaml"), "--out", str(out), "--no-progress"], cache_dir=cache
+    )
     assert res.returncode == 0, res.stderr + res.stdout
     return out

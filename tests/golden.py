@@ -30,9 +30,10 @@ import json
 import re
 import sys
 import tempfile
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from tests.helpers import ROOT, run_railsim
 
@@ -105,8 +106,11 @@ def run_case(case: Case, workdir: Path, keep: Path | None = None) -> dict[str, s
     workdir.mkdir(parents=True, exist_ok=True)
     scenario = case.scenario(workdir) if callable(case.scenario) else ROOT / case.scenario
     out = workdir / "out"
-    res = run_railsim(["run", str(scenario), "--out", str(out), "--seed", str(case.seed), "--no-progress"],
-                      cache_dir=workdir / "cache", timeout=900)
+    res = run_railsim(
+        ["run", str(scenario), "--out", str(out), "--seed", str(case.seed), "--no-progress"],
+        cache_dir=workdir / "cache",
+        timeout=900,
+    )
     if res.returncode not in (0, 1):
         raise RuntimeError(f"golden case {case.name} failed (exit {res.returncode}):\n{res.stderr[-3000:]}")
     hashes: dict[str, str] = {"exit_code": str(res.returncode)}
@@ -136,8 +140,9 @@ def main(argv: list[str] | None = None) -> int:
             if args.case and case.name not in args.case:
                 continue
             got = run_case(case, Path(tmp) / case.name, args.keep)
-            bad = sorted(k for k in set(got) | set(golden.get(case.name, {}))
-                         if got.get(k) != golden.get(case.name, {}).get(k))
+            bad = sorted(
+                k for k in set(got) | set(golden.get(case.name, {})) if got.get(k) != golden.get(case.name, {}).get(k)
+            )
             print(f"{case.name}: {'same' if not bad else 'DIFFERS in ' + ', '.join(bad)}")
             differ += bool(bad)
             golden[case.name] = got

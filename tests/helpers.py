@@ -33,8 +33,9 @@ def run_python(code: str, cache_dir: Path | None = None, timeout: float = 600) -
     env = dict(os.environ)
     if cache_dir is not None:
         env["RAILSIM_CACHE"] = str(cache_dir)
-    return subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, env=env,
-                          cwd=ROOT)
+    return subprocess.run(
+        [sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT
+    )
 
 
 def read_csv(path: Path) -> list[dict[str, str]]:

@@ -24,11 +24,15 @@ def _limits_hold(r) -> None:
     assert r.metrics["rate_violations"] == 0 and r.metrics["force_violations"] == 0
 
 
-@pytest.mark.parametrize("make", [
-    lambda: scenario_a(1500.0),
-    lambda: scenario_c("constant", 1500.0),
-    lambda: scenario_c("harmonic", 1500.0),
-], ids=["A", "C-constant", "C-harmonic"])
+@pytest.mark.parametrize(
+    "make",
+    [
+        lambda: scenario_a(1500.0),
+        lambda: scenario_c("constant", 1500.0),
+        lambda: scenario_c("harmonic", 1500.0),
+    ],
+    ids=["A", "C-constant", "C-harmonic"],
+)
 def test_sempc_respects_limits_and_stops_on_the_mark(make):
     sc = make()
     r = run(sc, "sempc")
@@ -41,8 +45,13 @@ def test_sempc_respects_limits_and_stops_on_the_mark(make):
 def test_sempc_multi_section_limits_and_stops():
     """Scenario B's structure (three sections, restrictions, dwell) on a compressed line to keep the test short."""
     sc = scenario_b(dwell_s=3.0, line_speed_mps=25.0)
-    sc = type(sc)(**{**sc.__dict__, "stops_m": (800.0, 1500.0, 2100.0),
-                     "limits": (Limit(300.0, 500.0, 12.0), Limit(1700.0, 1850.0, 10.0))})
+    sc = type(sc)(
+        **{
+            **sc.__dict__,
+            "stops_m": (800.0, 1500.0, 2100.0),
+            "limits": (Limit(300.0, 500.0, 12.0), Limit(1700.0, 1850.0, 10.0)),
+        }
+    )
     r = run(sc, "sempc")
     _limits_hold(r)
     assert len(r.stop_errors_m) == 3 and max(r.stop_errors_m) <= 0.3

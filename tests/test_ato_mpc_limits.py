@@ -11,12 +11,21 @@ from controllers.ato_mpc.sim import run, scenario_a, scenario_b, scenario_c
 
 def _b_short():
     sc = scenario_b(dwell_s=3.0, line_speed_mps=25.0)
-    return type(sc)(**{**sc.__dict__, "stops_m": (800.0, 1500.0, 2100.0),
-                       "limits": (Limit(300.0, 500.0, 12.0), Limit(1700.0, 1850.0, 10.0))})
+    return type(sc)(
+        **{
+            **sc.__dict__,
+            "stops_m": (800.0, 1500.0, 2100.0),
+            "limits": (Limit(300.0, 500.0, 12.0), Limit(1700.0, 1850.0, 10.0)),
+        }
+    )
 
 
-SCEN = {"A": lambda: scenario_a(1500.0), "B": _b_short, "C-constant": lambda: scenario_c("constant", 1500.0),
-        "C-harmonic": lambda: scenario_c("harmonic", 1500.0)}
+SCEN = {
+    "A": lambda: scenario_a(1500.0),
+    "B": _b_short,
+    "C-constant": lambda: scenario_c("constant", 1500.0),
+    "C-harmonic": lambda: scenario_c("harmonic", 1500.0),
+}
 
 
 @pytest.mark.parametrize("scenario", list(SCEN))

@@ -15,7 +15,14 @@ from controllers.ato_mpc.model import (
     prediction_matrices,
 )
 from controllers.ato_mpc.qp import CondensedMpc, MpcSettings, ReferenceWindow, stage_weight, terminal_ingredients
-from railsim.physics.multipoint import G_MPS2, MultipointParams, accelerations_mps2, initial_state, state_from_relative, step
+from railsim.physics.multipoint import (
+    G_MPS2,
+    MultipointParams,
+    accelerations_mps2,
+    initial_state,
+    state_from_relative,
+    step,
+)
 
 P = MultipointParams()
 M, K, L = P.car_mass_kg, P.coupler_stiffness_n_per_m, P.coupler_length_m
@@ -27,8 +34,21 @@ def test_matrices_match_the_spec_for_six_carriages():
     a, b, d = continuous_model(P, vr, w)
     n = 6
     assert np.allclose(a[:n, :n], 0.0) and np.allclose(a[:n, n:], np.eye(n))
-    a21 = np.array([[0, 1, 0, 0, 0, 0], [0, -2, 1, 0, 0, 0], [0, 1, -2, 1, 0, 0], [0, 0, 1, -2, 1, 0],
-                    [0, 0, 0, 1, -2, 1], [0, 0, 0, 0, 1, -2]], dtype=float) * K / M
+    a21 = (
+        np.array(
+            [
+                [0, 1, 0, 0, 0, 0],
+                [0, -2, 1, 0, 0, 0],
+                [0, 1, -2, 1, 0, 0],
+                [0, 0, 1, -2, 1, 0],
+                [0, 0, 0, 1, -2, 1],
+                [0, 0, 0, 0, 1, -2],
+            ],
+            dtype=float,
+        )
+        * K
+        / M
+    )
     assert np.allclose(a[n:, :n], a21, rtol=1e-12, atol=1e-9)
     assert np.allclose(a[n:, n:], -(P.c1_per_s + 2 * P.c2_per_m * vr) * np.eye(n), atol=1e-15)
     lower = (np.eye(n) - np.eye(n, k=-1)) / M
@@ -37,7 +57,7 @@ def test_matrices_match_the_spec_for_six_carriages():
     expect = np.zeros(2 * n)
     expect[n] = -P.c0_mps2 + P.c2_per_m * vr**2 + K * L / M - wi[0]
     expect[n + 1] = wi[0] - wi[1] - K * L / M
-    expect[n + 2:2 * n - 1] = wi[1:n - 2] - wi[2:n - 1]  # the corrected middle rows: no spring constant
+    expect[n + 2 : 2 * n - 1] = wi[1 : n - 2] - wi[2 : n - 1]  # the corrected middle rows: no spring constant
     expect[2 * n - 1] = wi[n - 2] - wi[n - 1] - K * L / M
     assert np.allclose(d, expect, rtol=1e-12, atol=1e-9)
     assert np.allclose(affine_term(P, vr, w), d, atol=1e-9)
@@ -50,7 +70,7 @@ def test_spring_equilibrium_gives_zero_relative_acceleration():
     a, b, d = continuous_model(P, vr, np.zeros(n))
     x = np.concatenate(([123.0], np.full(n - 1, -L), [vr], np.zeros(n - 1)))
     xdot = a @ x + d
-    assert np.allclose(xdot[n + 1:], 0.0, atol=1e-9)  # no relative acceleration
+    assert np.allclose(xdot[n + 1 :], 0.0, atol=1e-9)  # no relative acceleration
     assert xdot[n] == pytest.approx(-(P.c0_mps2 + P.c1_per_s * vr + P.c2_per_m * vr**2), rel=1e-9)
 
 
@@ -109,9 +129,9 @@ def test_prediction_matrices_vs_brute_force_simulation(n_p, n_c):
     pred = f @ xi + g @ du + dvec
     x = xi.copy()
     for i in range(n_p):
-        step_du = du[6 * i:6 * i + 6] if i < n_c else np.zeros(6)
+        step_du = du[6 * i : 6 * i + 6] if i < n_c else np.zeros(6)
         x = mdl.at @ x + mdl.bt @ step_du + mdl.dt
-        assert np.allclose(pred[18 * i:18 * i + 18], x, rtol=1e-10, atol=1e-6)
+        assert np.allclose(pred[18 * i : 18 * i + 18], x, rtol=1e-10, atol=1e-6)
 
 
 def _window(x0: float, v0: float, dv: float = 0.0) -> ReferenceWindow:
@@ -127,10 +147,10 @@ def _brute_cost(mpc: CondensedMpc, rel, u_prev, ref, du):
     x = np.concatenate([rel, u_prev])
     total = 0.0
     for i in range(mpc.s.horizon_p):
-        d_i = du[6 * i:6 * i + 6]
+        d_i = du[6 * i : 6 * i + 6]
         x = mdl.at @ x + mdl.bt @ d_i + mdl.dt
         e = x - refs[i]
-        w = mpc.q_bar[18 * i:18 * i + 18, 18 * i:18 * i + 18]
+        w = mpc.q_bar[18 * i : 18 * i + 18, 18 * i : 18 * i + 18]
         total += e @ w @ e + d_i @ mpc.r_step @ d_i
     return total
 
@@ -175,9 +195,14 @@ def test_osqp_matches_scipy_on_a_box_constrained_step(terminal):
     dp = mpc.dense_problem(rel, u_prev, ref)
     h, g = dp["h"] * sc * sc, dp["g"] * sc
     norm = np.max(np.abs(h))
-    res = scipy.optimize.minimize(lambda z: (0.5 * z @ h @ z + g @ z) / norm, np.zeros(18),
-                                  jac=lambda z: (h @ z + g) / norm, bounds=[(-1.0, 1.0)] * 18, method="L-BFGS-B",
-                                  options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 5000})
+    res = scipy.optimize.minimize(
+        lambda z: (0.5 * z @ h @ z + g @ z) / norm,
+        np.zeros(18),
+        jac=lambda z: (h @ z + g) / norm,
+        bounds=[(-1.0, 1.0)] * 18,
+        method="L-BFGS-B",
+        options={"ftol": 1e-15, "gtol": 1e-12, "maxiter": 5000},
+    )
     assert np.allclose((u - u_prev) / sc, res.x[:6], atol=2e-3)
     assert np.any(np.isclose(np.abs(u - u_prev), sc))  # a bound is active
 
@@ -216,8 +241,9 @@ def test_terminal_cost_decreases_along_the_closed_loop():
         for k in range(60):
             xr = vr * period * (k + np.arange(1, 4))
             ref = ReferenceWindow(xr, np.full(3, vr), vr, 1e6, 45.8, np.zeros(6))
-            e = np.concatenate([rel, u_prev]) - np.concatenate(([vr * period * k], np.full(5, -L), [vr], np.zeros(5),
-                                                                 u_ff))
+            e = np.concatenate([rel, u_prev]) - np.concatenate(
+                ([vr * period * k], np.full(5, -L), [vr], np.zeros(5), u_ff)
+            )
             values.append(e @ pm @ e)
             u, info = mpc.solve(rel, u_prev, ref)
             assert not info.fallback and np.all(np.abs(u - u_prev) < 0.5 * 6000.0)

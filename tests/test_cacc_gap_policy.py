@@ -24,11 +24,27 @@ DT = 0.5
 def _obs(v: float, gap_m: float, age_s: float, target: float = 30.0) -> Observation:
     cruise = VEH.resistance_n(v) / VEH.effective_mass_kg  # applied acceleration that holds speed v
     own = OwnState("f", 1000.0, v, cruise, VEH.length_m)
-    pred = PredecessorState("l", 1000.0 + gap_m + VEH.length_m - v * age_s, v, cruise, VEH.length_m,
-                            stamp_s=100.0 - age_s, age_s=age_s, service_decel_mps2=VEH.service_decel_mps2,
-                            emergency_decel_mps2=VEH.emergency_decel_mps2)
-    return Observation(t_s=100.0, dt_s=DT, own=own, vehicle=VEH, route_length_m=1e5, predecessor=pred,
-                       formation_state="coupled", target_gap_m=target)
+    pred = PredecessorState(
+        "l",
+        1000.0 + gap_m + VEH.length_m - v * age_s,
+        v,
+        cruise,
+        VEH.length_m,
+        stamp_s=100.0 - age_s,
+        age_s=age_s,
+        service_decel_mps2=VEH.service_decel_mps2,
+        emergency_decel_mps2=VEH.emergency_decel_mps2,
+    )
+    return Observation(
+        t_s=100.0,
+        dt_s=DT,
+        own=own,
+        vehicle=VEH,
+        route_length_m=1e5,
+        predecessor=pred,
+        formation_state="coupled",
+        target_gap_m=target,
+    )
 
 
 def _steady_gap(v: float, age_s: float, margin: float = 10.0) -> float:

@@ -16,10 +16,18 @@ import pytest
 
 from controllers.braking import stopping_distance_m
 from railsim.analysis.capacity import (
-    BlockModel, CapacityReport, Stairway, analyse_run, claim_m, compress, first_time_at, min_headway_s, stairway,
+    BlockModel,
+    CapacityReport,
+    Stairway,
+    analyse_run,
+    claim_m,
+    compress,
+    first_time_at,
+    min_headway_s,
+    stairway,
 )
-from railsim.errors import ConfigError
 from railsim.analysis.sections import section_table
+from railsim.errors import ConfigError
 from tests.helpers import DATA, read_csv
 
 MINI = DATA / "scenarios" / "mini_line.yaml"
@@ -108,8 +116,9 @@ def test_throughput_counts_units_and_paths(mini_run: Path, report: CapacityRepor
 
 
 @pytest.mark.sumo
-def test_uic406_occupancy_is_compressed_time_over_period_with_no_negative_buffer(mini_run: Path,
-                                                                                report: CapacityReport) -> None:
+def test_uic406_occupancy_is_compressed_time_over_period_with_no_negative_buffer(
+    mini_run: Path, report: CapacityReport
+) -> None:
     uic = report.tables["uic406"]
     assert (uic["occupancy"] == uic["compressed_s"] / 600.0).all()
     assert ((uic["occupancy"] > 0) & (uic["occupancy"] < 1)).all()

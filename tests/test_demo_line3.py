@@ -23,8 +23,11 @@ SCENARIO = ROOT / "scenarios" / "chongqing_line3_peak.yaml"
 @pytest.fixture(scope="module")
 def demo(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("demo")
-    res = run_railsim(["run", str(SCENARIO), "--out", str(out), "--no-progress"],
-                      cache_dir=tmp_path_factory.mktemp("cache"), timeout=900)
+    res = run_railsim(
+        ["run", str(SCENARIO), "--out", str(out), "--no-progress"],
+        cache_dir=tmp_path_factory.mktemp("cache"),
+        timeout=900,
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     assert "Traceback" not in res.stderr
     return out
@@ -52,12 +55,21 @@ def test_coupled_pairs_hold_their_gap_and_decouple_at_bijin_with_own_locks(demo:
     assert len(forms) == 7
     events = read_csv(demo / "events.csv")
     trips = {r["trip_id"]: r for r in read_csv(demo / "trips.csv")}
-    grants = [(float(e["t_s"]), json.loads(e["detail"])) for e in events
-              if e["kind"] == "lock_granted" and e["subject"] == "bijin_up"]
-    releases = {json.loads(e["detail"])["request"]: float(e["t_s"]) for e in events
-                if e["kind"] == "lock_released" and e["subject"] == "bijin_up"}
-    departed_bijin = {e["subject"]: float(e["t_s"]) for e in events
-                      if e["kind"] == "stop_departed" and json.loads(e["detail"])["station"] == "bijin"}
+    grants = [
+        (float(e["t_s"]), json.loads(e["detail"]))
+        for e in events
+        if e["kind"] == "lock_granted" and e["subject"] == "bijin_up"
+    ]
+    releases = {
+        json.loads(e["detail"])["request"]: float(e["t_s"])
+        for e in events
+        if e["kind"] == "lock_released" and e["subject"] == "bijin_up"
+    }
+    departed_bijin = {
+        e["subject"]: float(e["t_s"])
+        for e in events
+        if e["kind"] == "stop_departed" and json.loads(e["detail"])["station"] == "bijin"
+    }
     for f in forms:
         leader, follower = f["leader"], f["follower"]
         assert int(f["couple_successes"]) == 1 and f["final_state"] == "free"

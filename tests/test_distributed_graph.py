@@ -6,9 +6,21 @@ from dataclasses import replace
 
 import pytest
 
-from controllers.distributed import (CommGraph, Edge, EdgeAdd, EdgeData, EdgeRemove, PreconditionError, TrainJoin,
-                                     TrainLeave, apply_event, check_assumptions, simulate, zhang2024_fig1,
-                                     zhang2024_train)
+from controllers.distributed import (
+    CommGraph,
+    Edge,
+    EdgeAdd,
+    EdgeData,
+    EdgeRemove,
+    PreconditionError,
+    TrainJoin,
+    TrainLeave,
+    apply_event,
+    check_assumptions,
+    simulate,
+    zhang2024_fig1,
+    zhang2024_train,
+)
 from controllers.distributed.graph import sort_events
 
 E = EdgeData(5000.0, 100.0, 10000.0)
@@ -33,7 +45,9 @@ def test_d_consistency_around_cycles() -> None:
     ok = CommGraph.build("abc", [Edge("a", "b", E), Edge("b", "c", E), Edge("a", "c", EdgeData(1e4, 5100.0, 15000.0))])
     offsets, mismatches = ok.node_offsets()
     assert mismatches == [] and offsets["a"] - offsets["c"] == 1e4
-    bad = CommGraph.build("abc", [Edge("a", "b", E), Edge("b", "c", E), Edge("c", "a", EdgeData(-9990.0, -15000.0, -5100.0))])
+    bad = CommGraph.build(
+        "abc", [Edge("a", "b", E), Edge("b", "c", E), Edge("c", "a", EdgeData(-9990.0, -15000.0, -5100.0))]
+    )
     _, mismatches = bad.node_offsets()
     assert len(mismatches) == 1 and abs(mismatches[0][2]) == 10.0
     p = zhang2024_train()
@@ -45,8 +59,14 @@ def test_d_consistency_around_cycles() -> None:
 def test_events_apply_in_a_fixed_order() -> None:
     p = zhang2024_train()
     g = CommGraph.build("abc", [Edge("a", "b", E), Edge("b", "c", E)])
-    events = sort_events([EdgeAdd(3, Edge("a", "c", EdgeData(1e4, 5100.0, 15000.0))), TrainLeave(3, "b"),
-                          TrainJoin(5, "d", 0.0, 80.0, p, (Edge("c", "d", E),)), EdgeRemove(7, "c", "d")])
+    events = sort_events(
+        [
+            EdgeAdd(3, Edge("a", "c", EdgeData(1e4, 5100.0, 15000.0))),
+            TrainLeave(3, "b"),
+            TrainJoin(5, "d", 0.0, 80.0, p, (Edge("c", "d", E),)),
+            EdgeRemove(7, "c", "d"),
+        ]
+    )
     assert [type(e).__name__ for e in events] == ["TrainLeave", "EdgeAdd", "TrainJoin", "EdgeRemove"]
     for e in events[:2]:
         g = apply_event(g, e)
@@ -66,6 +86,8 @@ def test_a_leave_that_disconnects_the_graph_is_rejected_before_running() -> None
     with pytest.raises(PreconditionError) as err:
         simulate(replace(s, events=events))
     v = err.value.violations[0]
-    assert v.assumption == "Assumption 2.1" and "after the events of k = 1000" in v.message and "1 | 3,4,5,6" in v.message
+    assert (
+        v.assumption == "Assumption 2.1" and "after the events of k = 1000" in v.message and "1 | 3,4,5,6" in v.message
+    )
     log = simulate(replace(s, events=events, horizon_k=999))  # never reached: the run is fine
     assert log.violations() == []

@@ -18,12 +18,24 @@ import pytest
 
 import controllers
 from controllers.base import Observation, OwnState, PredecessorState
-from controllers.distributed import (CommGraph, ConstraintWindowEmpty, EdgeData, NeighbourMessage,
-                                     PreconditionError, TrainController, TrainJoin, check_assumptions,
-                                     local_windows, min_sample_time_s, paper_vehicle, simulate, zhang2024_fig1,
-                                     zhang2024_train)
-from railsim.physics import dynamics
+from controllers.distributed import (
+    CommGraph,
+    ConstraintWindowEmpty,
+    EdgeData,
+    NeighbourMessage,
+    PreconditionError,
+    TrainController,
+    TrainJoin,
+    check_assumptions,
+    local_windows,
+    min_sample_time_s,
+    paper_vehicle,
+    simulate,
+    zhang2024_fig1,
+    zhang2024_train,
+)
 from railsim.errors import ConfigError
+from railsim.physics import dynamics
 
 T = 1.0
 V_R = 80.0
@@ -91,8 +103,9 @@ def test_initial_state_violating_13_is_rejected() -> None:
     # x_34(0) = 95 m violates O1 at k = 0 although (13) holds (x_34(1) = 105 m): erratum A8
     with pytest.raises(PreconditionError) as err:
         simulate(_with_train_3_4(95.0, 85.0, 75.0))
-    assert [(v.assumption, v.field) for v in err.value.violations] == [("objective O1 at the check step (A8)",
-                                                                        "edges[3-4]")]
+    assert [(v.assumption, v.field) for v in err.value.violations] == [
+        ("objective O1 at the check step (A8)", "edges[3-4]")
+    ]
     # both just inside: accepted, and the run keeps the pair inside its band
     log = simulate(replace(_with_train_3_4(105.0, 80.0, 85.0), horizon_k=50))
     c, _ = log.edge_col("3", "4")
@@ -181,11 +194,26 @@ def _observation(log, k: int, i: str, graph: CommGraph, vehicle, age_s: float = 
     neighbours = []
     for j in graph.neighbours(i):
         x_j, v_j = state(j)
-        neighbours.append(PredecessorState(train_id=j, position_m=x_j - v_j * age_s, speed_mps=v_j, accel_mps2=0.0,
-                                           length_m=50.0, stamp_s=k * T - age_s, age_s=age_s))
+        neighbours.append(
+            PredecessorState(
+                train_id=j,
+                position_m=x_j - v_j * age_s,
+                speed_mps=v_j,
+                accel_mps2=0.0,
+                length_m=50.0,
+                stamp_s=k * T - age_s,
+                age_s=age_s,
+            )
+        )
     edges = {j: graph.oriented(i, j).as_tuple() for j in graph.neighbours(i)}
-    return Observation(t_s=k * T, dt_s=T, own=OwnState(i, x_i, v_i, 0.0, 50.0), vehicle=vehicle,
-                       route_length_m=3e5, extras={"neighbours": tuple(neighbours), "edges": edges, "k": k})
+    return Observation(
+        t_s=k * T,
+        dt_s=T,
+        own=OwnState(i, x_i, v_i, 0.0, 50.0),
+        vehicle=vehicle,
+        route_length_m=3e5,
+        extras={"neighbours": tuple(neighbours), "edges": edges, "k": k},
+    )
 
 
 def test_registered_controller_matches_control_step(logs: dict) -> None:
@@ -196,6 +224,7 @@ def test_registered_controller_matches_control_step(logs: dict) -> None:
     s = zhang2024_fig1()
     graphs = {0: s.graph}
     from controllers.distributed import apply_event
+
     g = s.graph
     for e in s.events:
         g = apply_event(g, e)
@@ -220,6 +249,7 @@ def test_closed_loop_through_railsim_plant_matches_reference(logs: dict) -> None
     graph = s.graph
     x, v = dict(s.initial_positions_m), dict(s.initial_speeds_mps)
     from controllers.distributed import apply_event
+
     for k in range(s.horizon_k + 1):
         for e in [e for e in s.events if e.k == k]:
             graph = apply_event(graph, e)
@@ -232,8 +262,14 @@ def test_closed_loop_through_railsim_plant_matches_reference(logs: dict) -> None
             ctl = ctls.setdefault(i, controllers.create("distributed_constrained", {}, vehicle))
             own = OwnState(i, x[i], v[i], 0.0, 50.0)
             nb = tuple(PredecessorState(j, x[j], v[j], 0.0, 50.0, k * T, 0.0) for j in graph.neighbours(i))
-            obs = Observation(t_s=k * T, dt_s=T, own=own, vehicle=vehicle, route_length_m=3e5,
-                              extras={"neighbours": nb, "edges": {j: graph.oriented(i, j) for j in graph.neighbours(i)}})
+            obs = Observation(
+                t_s=k * T,
+                dt_s=T,
+                own=own,
+                vehicle=vehicle,
+                route_length_m=3e5,
+                extras={"neighbours": nb, "edges": {j: graph.oriented(i, j) for j in graph.neighbours(i)}},
+            )
             cmds[i] = ctl.command(obs).accel_mps2
         for i in graph.nodes:
             r = dynamics.step(vehicle, dynamics.PlantState(v[i]), cmds[i], T, step_method="forward")
@@ -251,11 +287,18 @@ def test_engine_adapter_contract_errors() -> None:
         controllers.create("distributed_constrained", {"gain": 1.0}, vehicle)
     ctl = controllers.create("distributed_constrained", {}, vehicle)
     own = OwnState("1", 0.0, 80.0, 0.0, 50.0)
-    obs = Observation(t_s=0.0, dt_s=T, own=own, vehicle=vehicle, route_length_m=1e5,
-                      extras={"neighbours": (), "edges": {"2": (5000.0, 100.0, 10000.0)}})
+    obs = Observation(
+        t_s=0.0,
+        dt_s=T,
+        own=own,
+        vehicle=vehicle,
+        route_length_m=1e5,
+        extras={"neighbours": (), "edges": {"2": (5000.0, 100.0, 10000.0)}},
+    )
     with pytest.raises(KeyError, match="neighbour '2'"):
         ctl.command(obs)
     from railsim.errors import SimulationError
+
     with pytest.raises(SimulationError, match="0.5 s"):
         ctl.command(replace(obs, dt_s=0.5, extras={"edges": {}}))
     # isolated train (A9): runs to v_r in one step
@@ -279,7 +322,11 @@ def test_figures_are_written(logs: dict, tmp_path) -> None:
     from railsim.report.plots.paper002 import write_figures
 
     paths = write_figures(logs["union"], tmp_path / "figs")
-    assert [p.name for p in paths] == ["fig3_positions.png", "fig4_position_differences.png", "fig5_speeds.png",
-                                       "fig6_inputs.png"]
+    assert [p.name for p in paths] == [
+        "fig3_positions.png",
+        "fig4_position_differences.png",
+        "fig5_speeds.png",
+        "fig6_inputs.png",
+    ]
     for p in paths:
         assert p.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n" and p.stat().st_size > 10_000

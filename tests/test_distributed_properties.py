@@ -20,11 +20,20 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
-from controllers.distributed import (CommGraph, Edge, EdgeData, PreconditionError, Scenario, TrainController,
-                                     TrainJoin, TrainParams, local_windows, simulate)
+from controllers.distributed import (
+    CommGraph,
+    Edge,
+    EdgeData,
+    PreconditionError,
+    Scenario,
+    TrainController,
+    TrainJoin,
+    TrainParams,
+    local_windows,
+    simulate,
+)
 from controllers.distributed.reference import network_controls
 
 TOL = 1e-9
@@ -36,8 +45,15 @@ class Instance:
     offsets_m: dict[str, float]  # d_i
 
 
-def _instance(seed: int, n: int, sample_time_s: float, extra_edges: int, horizon_k: int = 150,
-              min_input_slack: float = 0.01, spreads: tuple[float, ...] = (5.0, 50.0, 500.0)) -> Instance:
+def _instance(
+    seed: int,
+    n: int,
+    sample_time_s: float,
+    extra_edges: int,
+    horizon_k: int = 150,
+    min_input_slack: float = 0.01,
+    spreads: tuple[float, ...] = (5.0, 50.0, 500.0),
+) -> Instance:
     rng = random.Random(seed)
     t = sample_time_s
     ids = [f"t{k}" for k in range(n)]
@@ -87,8 +103,11 @@ instances = st.builds(
 
 
 def _scale(inst: Instance) -> float:
-    return 1.0 + max(abs(x) for x in inst.scenario.initial_positions_m.values()) + inst.scenario.v_ref_mps * \
-        inst.scenario.sample_time_s * inst.scenario.horizon_k
+    return (
+        1.0
+        + max(abs(x) for x in inst.scenario.initial_positions_m.values())
+        + inst.scenario.v_ref_mps * inst.scenario.sample_time_s * inst.scenario.horizon_k
+    )
 
 
 def _ybar(log, inst: Instance) -> np.ndarray:
@@ -198,14 +217,21 @@ def test_locality_translation_and_relabelling(inst: Instance, seed: int) -> None
     # Translation invariance: a common shift of all positions changes nothing (up to rounding).
     shift = rng.uniform(-1e5, 1e5)
     u_shift = _controls(s, {i: xi + shift for i, xi in x.items()}, v)
-    tol = 1e-9 * (1 + abs(shift) + max(abs(xi) for xi in x.values())) / s.sample_time_s ** 2
+    tol = 1e-9 * (1 + abs(shift) + max(abs(xi) for xi in x.values())) / s.sample_time_s**2
     assert all(abs(u_shift[i] - u[i]) <= tol for i in u)
     # Equivariance: relabelling the trains relabels the inputs.
     ids = sorted(s.graph.nodes)
     perm = dict(zip(ids, rng.sample(ids, len(ids))))
-    g2 = CommGraph.build([perm[i] for i in ids], [Edge(perm[i], perm[j], data) for i, j, data in s.graph.oriented_edges()])
-    u_perm = _controls(s, {perm[i]: x[i] for i in ids}, {perm[i]: v[i] for i in ids}, graph=g2,
-                       params={perm[i]: s.trains[i] for i in ids})
+    g2 = CommGraph.build(
+        [perm[i] for i in ids], [Edge(perm[i], perm[j], data) for i, j, data in s.graph.oriented_edges()]
+    )
+    u_perm = _controls(
+        s,
+        {perm[i]: x[i] for i in ids},
+        {perm[i]: v[i] for i in ids},
+        graph=g2,
+        params={perm[i]: s.trains[i] for i in ids},
+    )
     assert all(abs(u_perm[perm[i]] - u[i]) <= tol for i in ids)
 
 
@@ -215,6 +241,7 @@ def test_neighbour_order_does_not_matter(inst: Instance, seed: int) -> None:
     s = inst.scenario
     ctl = {i: TrainController(i, s.trains[i], s.sample_time_s, s.v_ref_mps) for i in s.graph.nodes}
     from controllers.distributed import NeighbourMessage
+
     for i in s.graph.nodes:
         xh = {j: s.initial_positions_m[j] + s.sample_time_s * s.initial_speeds_mps[j] for j in s.graph.nodes}
         msgs = [NeighbourMessage(j, xh[i] - xh[j], s.graph.oriented(i, j)) for j in s.graph.neighbours(i)]
@@ -222,7 +249,7 @@ def test_neighbour_order_does_not_matter(inst: Instance, seed: int) -> None:
         random.Random(seed).shuffle(msgs)
         b = ctl[i].control(s.initial_speeds_mps[i], msgs)
         assert b.delta_lo_m == a.delta_lo_m and b.delta_hi_m == a.delta_hi_m
-        assert abs(b.u_mps2 - a.u_mps2) <= 1e-9 * (1 + _scale(inst)) / s.sample_time_s ** 2
+        assert abs(b.u_mps2 - a.u_mps2) <= 1e-9 * (1 + _scale(inst)) / s.sample_time_s**2
 
 
 # ------------------------------------------------------------------------------------------------------ item 8
@@ -247,8 +274,17 @@ def test_edge_antisymmetry_and_orientation_independence(inst: Instance) -> None:
 # ---------------------------------------------------------------------------------------------- items 9 and 12
 
 
-BREAKS = ("gamma_order", "v_ref_outside", "mu_lo_above_f", "t_below_t_min", "d_cycle", "disconnected", "cond13",
-          "o1_at_0", "speed_at_0")
+BREAKS = (
+    "gamma_order",
+    "v_ref_outside",
+    "mu_lo_above_f",
+    "t_below_t_min",
+    "d_cycle",
+    "disconnected",
+    "cond13",
+    "o1_at_0",
+    "speed_at_0",
+)
 
 
 @settings(max_examples=120)
@@ -259,11 +295,25 @@ def test_infeasible_instances_are_rejected_before_running(inst: Instance, how: s
     i = rng.choice(sorted(s.graph.nodes))
     ei, ej, data = rng.choice(list(s.graph.oriented_edges()))
     p = s.trains[i]
-    g, trains, x0, v0, t, v_r = s.graph, dict(s.trains), dict(s.initial_positions_m), dict(s.initial_speeds_mps), \
-        s.sample_time_s, s.v_ref_mps
-    expect = {"gamma_order": "Assumption 2.2", "v_ref_outside": "Assumption 2.3", "mu_lo_above_f": "Assumption 2.4",
-              "t_below_t_min": "Assumption 2.4", "d_cycle": "Assumption 2.2", "disconnected": "Assumption 2.1",
-              "cond13": "condition (13)", "o1_at_0": "objective O1", "speed_at_0": "condition (13)"}[how]
+    g, trains, x0, v0, t, v_r = (
+        s.graph,
+        dict(s.trains),
+        dict(s.initial_positions_m),
+        dict(s.initial_speeds_mps),
+        s.sample_time_s,
+        s.v_ref_mps,
+    )
+    expect = {
+        "gamma_order": "Assumption 2.2",
+        "v_ref_outside": "Assumption 2.3",
+        "mu_lo_above_f": "Assumption 2.4",
+        "t_below_t_min": "Assumption 2.4",
+        "d_cycle": "Assumption 2.2",
+        "disconnected": "Assumption 2.1",
+        "cond13": "condition (13)",
+        "o1_at_0": "objective O1",
+        "speed_at_0": "condition (13)",
+    }[how]
 
     def rebuilt(new_data: EdgeData | None) -> CommGraph:
         keep = [Edge(a, b, dd) for a, b, dd in g.oriented_edges() if (a, b) != (ei, ej)]
@@ -277,13 +327,17 @@ def test_infeasible_instances_are_rejected_before_running(inst: Instance, how: s
         trains[i] = replace(p, input_min_mps2=p.resistance_bounds_mps2()[0] + 0.01)
     elif how == "t_below_t_min":
         from controllers.distributed import min_sample_time_s
+
         t = min(min_sample_time_s(q, v_r) for q in trains.values()) * rng.uniform(0.2, 0.99)
     elif how == "d_cycle":
         # a second path between the edge's ends with a different d closes an inconsistent cycle
         mid = "extra"
         trains[mid] = p
-        g = CommGraph.build(g.nodes | {mid}, [Edge(a, b, dd) for a, b, dd in g.oriented_edges()]
-                            + [Edge(ei, mid, EdgeData(0.0, -1e4, 1e4)), Edge(mid, ej, EdgeData(data.d_m + 5.0, -1e5, 1e5))])
+        g = CommGraph.build(
+            g.nodes | {mid},
+            [Edge(a, b, dd) for a, b, dd in g.oriented_edges()]
+            + [Edge(ei, mid, EdgeData(0.0, -1e4, 1e4)), Edge(mid, ej, EdgeData(data.d_m + 5.0, -1e5, 1e5))],
+        )
         x0[mid], v0[mid] = x0[ei], v0[ei]
     elif how == "disconnected":
         g = CommGraph.build(g.nodes | {"lonely"}, [Edge(a, b, dd) for a, b, dd in g.oriented_edges()])
@@ -295,10 +349,15 @@ def test_infeasible_instances_are_rejected_before_running(inst: Instance, how: s
         dv = gap / t
         v0[ei] = v0[ej] + dv
         for n in (ei, ej):
-            trains[n] = replace(trains[n], speed_min_mps=min(v0[n], trains[n].speed_min_mps),
-                                speed_max_mps=max(v0[n] + 1.0, trains[n].speed_max_mps))
-        trains = {n: replace(q, input_min_mps2=q.input_min_mps2 - 1e4, input_max_mps2=q.input_max_mps2 + 1e4)
-                  for n, q in trains.items()}  # keep Assumption 2.4 with the wider speed bounds
+            trains[n] = replace(
+                trains[n],
+                speed_min_mps=min(v0[n], trains[n].speed_min_mps),
+                speed_max_mps=max(v0[n] + 1.0, trains[n].speed_max_mps),
+            )
+        trains = {
+            n: replace(q, input_min_mps2=q.input_min_mps2 - 1e4, input_max_mps2=q.input_max_mps2 + 1e4)
+            for n, q in trains.items()
+        }  # keep Assumption 2.4 with the wider speed bounds
     elif how == "o1_at_0":
         x0[ei] = x0[ej] + data.gamma_lo_m - 1.0
     elif how == "speed_at_0":

@@ -15,8 +15,7 @@ import textwrap
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 from scipy.optimize import brentq
 
 from railsim.physics.dynamics import (
@@ -445,8 +444,19 @@ def test_step_many_rejects_nan_command() -> None:
 
 # hst_203m's YAML power "1.0e9" loads as a string (YAML 1.1 floats need "1.0e+9"): coerce until the preset is fixed.
 HST = preset("hst_203m").with_overrides(traction_max_power_w=float(preset("hst_203m").traction_max_power_w))
-VEHICLE_POOL = [CQ3, preset("cq3_8car"), HST, bare(), bare(actuator_time_constant_s=0.7,
-                jerk_limit_mps3=0.5, davis_c_n_per_mps2=3.0, max_speed_mps=15.0, traction_max_power_w=8.0e3)]
+VEHICLE_POOL = [
+    CQ3,
+    preset("cq3_8car"),
+    HST,
+    bare(),
+    bare(
+        actuator_time_constant_s=0.7,
+        jerk_limit_mps3=0.5,
+        davis_c_n_per_mps2=3.0,
+        max_speed_mps=15.0,
+        traction_max_power_w=8.0e3,
+    ),
+]
 
 
 @settings(max_examples=150, deadline=None)
@@ -470,9 +480,15 @@ def test_step_many_identical_to_step(data: st.DataObject, n: int, dt: float, met
         for i, veh in enumerate(vehicles):
             one = step(veh, PlantState(v[i], a_prev[i], u_prev[i]), u_cmd[i], dt, grad[i], bool(emerg[i]), method)
             assert (many.speed_mps[i], many.applied_accel_mps2[i], many.target_accel_mps2[i]) == (
-                one.state.speed_mps, one.state.applied_accel_mps2, one.state.target_accel_mps2)
+                one.state.speed_mps,
+                one.state.applied_accel_mps2,
+                one.state.target_accel_mps2,
+            )
             assert (many.net_accel_mps2[i], many.advance_m[i], many.traction_energy_j[i]) == (
-                one.net_accel_mps2, one.advance_m, one.traction_energy_j)
+                one.net_accel_mps2,
+                one.advance_m,
+                one.traction_energy_j,
+            )
             assert many.saturations(i) == one.saturations
         v, a_prev, u_prev = many.speed_mps, many.applied_accel_mps2, many.target_accel_mps2
 
@@ -533,8 +549,9 @@ def _command_profile(dt: float) -> list[float]:
 
 @pytest.mark.sumo
 @pytest.mark.timeout(120)
-@pytest.mark.parametrize("method, dt", [("euler", 0.2), ("ballistic", 0.2), ("euler", 0.7), ("ballistic", 0.7),
-                                        ("ballistic", 0.3)])
+@pytest.mark.parametrize(
+    "method, dt", [("euler", 0.2), ("ballistic", 0.2), ("euler", 0.7), ("ballistic", 0.7), ("ballistic", 0.3)]
+)
 def test_numpy_positions_reproduce_sumo_exactly(method: str, dt: float) -> None:
     """SUMO (speedMode 32) moves the train by the speeds our plant computes; simulate() must give the same
     positions to the last bit under the matching step method. (The plant's ballistic advance uses SUMO's
@@ -543,8 +560,12 @@ def test_numpy_positions_reproduce_sumo_exactly(method: str, dt: float) -> None:
     test does not pin the order by itself.)"""
     commands = _command_profile(dt)
     proc = subprocess.run(
-        [sys.executable, "-c", _SUMO_SCRIPT, method, repr(dt)], input=json.dumps(commands),
-        capture_output=True, text=True, timeout=110, env={**os.environ},
+        [sys.executable, "-c", _SUMO_SCRIPT, method, repr(dt)],
+        input=json.dumps(commands),
+        capture_output=True,
+        text=True,
+        timeout=110,
+        env={**os.environ},
     )
     assert proc.returncode == 0, proc.stderr[-2000:]
     sumo = json.loads(proc.stdout.strip().splitlines()[-1])

@@ -83,14 +83,22 @@ def test_pair_couples_then_decouples_and_takes_own_switch_lock(mini_run: Path) -
     assert float(f["min_gap_m"]) >= 30.0 - 0.1  # never closer than the standstill target
     events = read_csv(mini_run / "events.csv")
     leader, follower = f["leader"], f["follower"]
-    grants = [(float(e["t_s"]), json.loads(e["detail"])) for e in events
-              if e["kind"] == "lock_granted" and e["subject"] == "c_up"]
+    grants = [
+        (float(e["t_s"]), json.loads(e["detail"]))
+        for e in events
+        if e["kind"] == "lock_granted" and e["subject"] == "c_up"
+    ]
     lead_grant = [g for g in grants if g[1]["holders"] == [leader]]
     fol_grant = [g for g in grants if g[1]["holders"] == [follower]]
     assert len(lead_grant) == 1 and len(fol_grant) == 1, grants  # decoupled: each unit locks its own leg
     assert lead_grant[0][1]["leg"] != fol_grant[0][1]["leg"]
-    released = [float(e["t_s"]) for e in events if e["kind"] == "lock_released" and e["subject"] == "c_up"
-                and json.loads(e["detail"])["request"] == lead_grant[0][1]["request"]]
+    released = [
+        float(e["t_s"])
+        for e in events
+        if e["kind"] == "lock_released"
+        and e["subject"] == "c_up"
+        and json.loads(e["detail"])["request"] == lead_grant[0][1]["request"]
+    ]
     # the follower's lock comes after the leader's tail cleared and the switch was thrown (15 s)
     assert released and fol_grant[0][0] >= released[0] + 15.0 - 1e-6
     trips = {r["trip_id"]: r for r in read_csv(mini_run / "trips.csv")}
@@ -100,9 +108,13 @@ def test_pair_couples_then_decouples_and_takes_own_switch_lock(mini_run: Path) -
 
 
 def test_same_seed_gives_byte_identical_trips(tmp_path: Path, cache: Path) -> None:
-    faults = {"comm": {"t2t": {"delay_s": {"dist": "lognormal", "mean": 0.3, "sd": 0.1}, "loss_prob": 0.05},
-                       "t2g": {"delay_s": {"dist": "uniform", "low": 0.1, "high": 0.6}, "loss_prob": 0.05}},
-              "sensor_noise": {"position_sd_m": 0.05, "speed_sd_mps": 0.01}}
+    faults = {
+        "comm": {
+            "t2t": {"delay_s": {"dist": "lognormal", "mean": 0.3, "sd": 0.1}, "loss_prob": 0.05},
+            "t2g": {"delay_s": {"dist": "uniform", "low": 0.1, "high": 0.6}, "loss_prob": 0.05},
+        },
+        "sensor_noise": {"position_sd_m": 0.05, "speed_sd_mps": 0.01},
+    }
     path = _variant(tmp_path, "noisy", faults=faults)
     outs = []
     for k in range(2):
@@ -117,9 +129,16 @@ def test_same_seed_gives_byte_identical_trips(tmp_path: Path, cache: Path) -> No
 
 def test_late_and_lost_messages_leave_the_follower_on_stale_data(tmp_path: Path, cache: Path) -> None:
     # t2t messages arrive 1.5 s late, and the follower hears nothing for 20 s while coupled on the run
-    faults = {"comm": {"t2t": {"delay_s": {"dist": "constant", "value": 1.5}, "loss_prob": 0.0,
-                               "outages": [{"start_s": 250.0, "end_s": 270.0}]},
-                       "t2g": {"delay_s": {"dist": "constant", "value": 0.3}, "loss_prob": 0.0}}}
+    faults = {
+        "comm": {
+            "t2t": {
+                "delay_s": {"dist": "constant", "value": 1.5},
+                "loss_prob": 0.0,
+                "outages": [{"start_s": 250.0, "end_s": 270.0}],
+            },
+            "t2g": {"delay_s": {"dist": "constant", "value": 0.3}, "loss_prob": 0.0},
+        }
+    }
     path = _variant(tmp_path, "stale", faults=faults)
     out = tmp_path / "out"
     res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"], cache_dir=cache)
@@ -139,7 +158,7 @@ def test_late_and_lost_messages_leave_the_follower_on_stale_data(tmp_path: Path,
 
 def test_sumo_positions_match_the_numpy_plant(cache: Path) -> None:
     """Euler and ballistic: SUMO's odometer equals the plant's own position integration to 1e-6 m."""
-    code = r'''
+    code = r"""
 import json, numpy as np, network
 from railsim.physics import dynamics
 from railsim.physics.vehicle import preset
@@ -166,7 +185,7 @@ for method in ("euler", "ballistic"):
             err = max(err, abs(odo - x))
         out[method] = {"err": err, "x": x}
 print(json.dumps(out))
-'''
+"""
     res = run_python(code, cache_dir=cache)
     assert res.returncode == 0, res.stderr
     import json

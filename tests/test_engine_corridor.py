@@ -19,8 +19,9 @@ SCENARIO = DATA / "scenarios" / "corridor_platoon.yaml"
 @pytest.fixture(scope="module")
 def corridor(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("corridor")
-    res = run_railsim(["run", str(SCENARIO), "--out", str(out), "--no-progress"],
-                      cache_dir=tmp_path_factory.mktemp("cache"))
+    res = run_railsim(
+        ["run", str(SCENARIO), "--out", str(out), "--no-progress"], cache_dir=tmp_path_factory.mktemp("cache")
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     return out
 
@@ -57,9 +58,16 @@ def test_leader_follows_its_profile_and_the_chain_couples_safely(corridor: Path)
 
 
 def test_profile_reference_closed_form() -> None:
-    ctl = make_speed_profile({"initial_kmh": 220, "segments": [{"at_s": 100, "to_kmh": 180, "accel_mps2": 0.2},
-                                                             {"at_s": 255, "to_kmh": 220, "accel_mps2": 0.2}]},
-                             preset("hst_203m"))
+    ctl = make_speed_profile(
+        {
+            "initial_kmh": 220,
+            "segments": [
+                {"at_s": 100, "to_kmh": 180, "accel_mps2": 0.2},
+                {"at_s": 255, "to_kmh": 220, "accel_mps2": 0.2},
+            ],
+        },
+        preset("hst_203m"),
+    )
     p, v0 = ctl.params, 220 / 3.6
     ramp = (220 - 180) / 3.6 / 0.2  # 55.56 s
     assert reference(p, v0, 50.0) == (pytest.approx(v0), 0.0)
@@ -69,9 +77,15 @@ def test_profile_reference_closed_form() -> None:
     assert reference(p, v0, 400.0) == (pytest.approx(v0), 0.0)
 
 
-@pytest.mark.parametrize("bad, field", [({"segments": [{"at_s": 1, "to_kmh": 10}]}, "segments[0]"),
-                                        ({"segments": [{"at_s": 5, "to_kmh": 10, "accel_mps2": 0}]}, "accel_mps2"),
-                                        ({"k_speed_per_s": -1}, "k_speed_per_s"), ({"speed": 3}, "speed")])
+@pytest.mark.parametrize(
+    "bad, field",
+    [
+        ({"segments": [{"at_s": 1, "to_kmh": 10}]}, "segments[0]"),
+        ({"segments": [{"at_s": 5, "to_kmh": 10, "accel_mps2": 0}]}, "accel_mps2"),
+        ({"k_speed_per_s": -1}, "k_speed_per_s"),
+        ({"speed": 3}, "speed"),
+    ],
+)
 def test_profile_rejects_bad_params(bad: dict, field: str) -> None:
     with pytest.raises(ValueError, match=field.replace("[", r"\[").replace("]", r"\]")):
         make_speed_profile(bad, preset("hst_203m"))
@@ -88,16 +102,29 @@ def test_a_train_starting_beyond_the_first_edge_is_placed_where_the_scenario_say
     import yaml
 
     raw = {
-        "name": "far_start", "world": "chongqing_line3",
+        "name": "far_start",
+        "world": "chongqing_line3",
         "simulation": {"step_s": 0.5, "duration_s": 600, "seed": 1},
         "vehicles": {"cq6": {"preset": "cq3_6car"}},
         "controllers": {"ato": {"type": "ato"}, "sep": {"type": "separation", "params": {"margin_m": 20}}},
         "roles": {"ato": "ato", "separation": "sep"},
         "services": [
-            {"id": "a", "from": "jiugongli", "to": "bagongli", "vehicle": "cq6", "departures": {"times": [0]},
-             "start": {"offset_m": 1500, "speed_kmh": 30}},
-            {"id": "b", "from": "jiugongli", "to": "bagongli", "vehicle": "cq6", "departures": {"times": [0]},
-             "start": {"offset_m": 1300, "speed_kmh": 30}},
+            {
+                "id": "a",
+                "from": "jiugongli",
+                "to": "bagongli",
+                "vehicle": "cq6",
+                "departures": {"times": [0]},
+                "start": {"offset_m": 1500, "speed_kmh": 30},
+            },
+            {
+                "id": "b",
+                "from": "jiugongli",
+                "to": "bagongli",
+                "vehicle": "cq6",
+                "departures": {"times": [0]},
+                "start": {"offset_m": 1300, "speed_kmh": 30},
+            },
         ],
     }
     path = tmp_path / "s.yaml"

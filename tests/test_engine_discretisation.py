@@ -24,13 +24,31 @@ SCENARIO = {
     "world": "straight_corridor",
     "simulation": {"step_s": 1.0, "duration_s": 120, "seed": 1},
     "vehicles": {"hst": {"preset": "hst_203m"}},
-    "controllers": {"prof": {"type": "speed_profile", "params": {
-        "initial_kmh": 100, "segments": [{"at_s": 10, "to_kmh": 250, "accel_mps2": 0.9},
-                                         {"at_s": 80, "to_kmh": 150, "accel_mps2": 0.7}]}},
-                    "sep": {"type": "separation"}},
+    "controllers": {
+        "prof": {
+            "type": "speed_profile",
+            "params": {
+                "initial_kmh": 100,
+                "segments": [
+                    {"at_s": 10, "to_kmh": 250, "accel_mps2": 0.9},
+                    {"at_s": 80, "to_kmh": 150, "accel_mps2": 0.7},
+                ],
+            },
+        },
+        "sep": {"type": "separation"},
+    },
     "roles": {"ato": "prof", "separation": "sep"},
-    "services": [{"id": "x", "from": "s1", "to": "s3", "skip": ["s2"], "vehicle": "hst",
-                  "departures": {"times": [0]}, "start": {"offset_m": 100, "speed_kmh": 100}}],
+    "services": [
+        {
+            "id": "x",
+            "from": "s1",
+            "to": "s3",
+            "skip": ["s2"],
+            "vehicle": "hst",
+            "departures": {"times": [0]},
+            "start": {"offset_m": 100, "speed_kmh": 100},
+        }
+    ],
     "faults": {"actuator_noise": {"accel_sd_mps2": 0.05}},
     "outputs": {"trace_stride_s": 1.0},
 }
@@ -41,8 +59,7 @@ def test_positions_follow_the_named_discrete_model(tmp_path: Path, method: str) 
     raw = {**SCENARIO, "simulation": {**SCENARIO["simulation"], "step_method": method}}
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "out"), "--no-progress"],
-                      cache_dir=tmp_path / "cache")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "out"), "--no-progress"], cache_dir=tmp_path / "cache")
     assert res.returncode == 0, res.stderr[-2000:]
     rows = read_csv(tmp_path / "out" / "trace.csv")
     x = [float(r["chainage_m"]) for r in rows]

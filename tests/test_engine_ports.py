@@ -19,8 +19,9 @@ def test_every_scenario_event_kind_has_an_engine_handler_and_back() -> None:
 def test_loop_module_names_no_paper_family() -> None:
     """Paper-specific behaviour lives in extensions: the loop's code names no paper module or controller type."""
     tree = ast.parse((ROOT / "railsim/engine/loop.py").read_text(encoding="utf-8"))
-    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)} | \
-        {n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)}
+    names = {n.id for n in ast.walk(tree) if isinstance(n, ast.Name)} | {
+        n.attr for n in ast.walk(tree) if isinstance(n, ast.Attribute)
+    }
     strings = {n.value for n in ast.walk(tree) if isinstance(n, ast.Constant) and isinstance(n.value, str)}
     for word in ("monorail", "multipoint", "junction", "cooperative", "paper"):
         assert not any(word in x.lower() for x in names), word
@@ -29,8 +30,10 @@ def test_loop_module_names_no_paper_family() -> None:
 
 def test_module_sizes_stay_readable() -> None:
     """No railsim module over ~600 lines; the loop under 400."""
-    sizes = {p.relative_to(ROOT).as_posix(): len(p.read_text(encoding="utf-8").splitlines())
-             for p in (ROOT / "railsim").rglob("*.py")}
+    sizes = {
+        p.relative_to(ROOT).as_posix(): len(p.read_text(encoding="utf-8").splitlines())
+        for p in (ROOT / "railsim").rglob("*.py")
+    }
     assert sizes["railsim/engine/loop.py"] < 400
     too_long = {k: v for k, v in sizes.items() if v > 650}
     assert not too_long, too_long

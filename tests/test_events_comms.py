@@ -7,8 +7,8 @@ import math
 import numpy as np
 import pytest
 
-from railsim.errors import ConfigError
 from railsim.engine.events import Channel, DelaySpec, EventLayer, Message, Outage
+from railsim.errors import ConfigError
 
 
 def make(seed: int = 0, t0_s: float = 0.0) -> EventLayer:
@@ -218,8 +218,9 @@ def test_bad_specs_are_config_errors() -> None:
         DelaySpec("uniform", low_s=0.0, high_s=1.0, value_s=3.0)
     with pytest.raises(ConfigError, match="high_s"):
         DelaySpec("uniform", low_s=1.0, high_s=0.5)
-    err = pytest.raises(ConfigError, DelaySpec.from_mapping, {"dist": "normal", "mean_s": 0.1}, "s.yaml",
-                        "comms.t2t.delay")
+    err = pytest.raises(
+        ConfigError, DelaySpec.from_mapping, {"dist": "normal", "mean_s": 0.1}, "s.yaml", "comms.t2t.delay"
+    )
     assert str(err.value).startswith("s.yaml: comms.t2t.delay.std_s: ")
     assert DelaySpec.from_mapping({"dist": "constant", "value_s": 0.1}) == DelaySpec("constant", value_s=0.1)
     layer = make()

@@ -6,11 +6,10 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
-from railsim.errors import ConfigError
 from railsim.engine.events import EventLayer, Formation, FormationManager
+from railsim.errors import ConfigError
 
 DT = 0.5
 
@@ -47,7 +46,7 @@ def test_couple_after_hold_with_exact_time_to_couple() -> None:
     # Gap closes linearly from 80 m at 2 m/s; enters the band (≤ 22 m) at t = 39.0 s, a step time.
     run(layer, manager, 60.0, gap_of=lambda t: max(20.0, 80.0 - 2.0 * (t - 10.0)))
     assert manager.state("F1") == "coupled"
-    (t_c, d), = details(layer, "coupled")
+    ((t_c, d),) = details(layer, "coupled")
     assert t_c == 39.0 + 5.0
     assert d["time_to_couple_s"] == 44.0 - 10.0
     stats = manager.stats("F1")
@@ -59,7 +58,7 @@ def test_lock_in_happens_between_steps_at_exactly_entry_plus_hold() -> None:
     layer, manager, _ = setup(hold_s=2.3)
     manager.request_couple("F1")
     run(layer, manager, 10.0, gap_of=lambda t: 21.0)  # in band from the first observation, t = 0.5
-    (t_c, d), = details(layer, "coupled")
+    ((t_c, d),) = details(layer, "coupled")
     assert t_c == 0.5 + 2.3 and d["time_to_couple_s"] == 0.5 + 2.3
 
 
@@ -68,7 +67,7 @@ def test_leaving_the_band_restarts_the_hold() -> None:
     manager.request_couple("F1")
     # In band on [0.5, 3.0], a speed excursion at 3.5, in band again from 4.0.
     run(layer, manager, 20.0, gap_of=lambda t: 20.0, dv_of=lambda t: 1.0 if t == 3.5 else 0.0)
-    (t_c, _), = details(layer, "coupled")
+    ((t_c, _),) = details(layer, "coupled")
     assert t_c == 4.0 + 5.0
 
 
@@ -78,7 +77,7 @@ def test_timeout_fails_and_returns_to_free() -> None:
     manager.request_couple("F1")
     run(layer, manager, 50.0, gap_of=lambda t: 60.0)  # never closes the gap
     assert manager.state("F1") == "free"
-    (t_f, d), = details(layer, "coupling_failed")
+    ((t_f, d),) = details(layer, "coupling_failed")
     assert t_f == 35.0 and d["reason"] == "timeout" and d["last_gap_m"] == 60.0
     stats = manager.stats("F1")
     assert (stats.successes, stats.failures, stats.time_to_couple_s) == (0, 1, ())
@@ -108,7 +107,7 @@ def test_decouple_completes_when_separated() -> None:
     # The gap opens at 4 m/s from 20 m; reaches 100 m at t = 25 s.
     run(layer, manager, 40.0, gap_of=lambda t: 20.0 + 4.0 * max(0.0, t - 5.0))
     assert manager.state("F1") == "free"
-    (t_d, d), = details(layer, "decoupled")
+    ((t_d, d),) = details(layer, "decoupled")
     assert t_d == 25.0 and d["gap_m"] == 100.0
     assert manager.stats("F1").coupled_time_s == pytest.approx(5.0 - 1.5)
 
@@ -141,7 +140,10 @@ def test_invalid_transitions_are_logged_and_ignored() -> None:
     assert manager.state("F1") == "decoupling"
     invalid = details(layer, "invalid_request")
     assert [(d["request"], d["state"]) for _, d in invalid] == [
-        ("decouple", "free"), ("couple", "coupling"), ("couple", "coupled"), ("decouple", "decoupling"),
+        ("decouple", "free"),
+        ("couple", "coupling"),
+        ("couple", "coupled"),
+        ("decouple", "decoupling"),
     ]
     stats = manager.stats("F1")
     assert stats.invalid_requests == 4 and stats.couple_requests == 3 and stats.decouple_requests == 3

@@ -6,11 +6,10 @@ import json
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
-from railsim.errors import ConfigError
 from railsim.engine.events import EventLayer, Interlocking, Switch
+from railsim.errors import ConfigError
 
 
 def setup(*switches: Switch) -> tuple[EventLayer, Interlocking]:
@@ -113,8 +112,12 @@ def test_random_arrivals_fifo_exclusive_no_starvation(requests, throw_times, ste
         assert (req.granted_s, req.released_s) == expected[req.seq]
     for s in switch_ids:
         order = [d["request"] for d in (json.loads(r["detail"]) for r in layer.log.rows("lock_granted", s))]
-        fifo = [r.seq for r, _ in sorted(((r, 0) for r, _ in handles if r.switch_id == s),
-                                         key=lambda x: (x[0].requested_s, x[0].seq))]
+        fifo = [
+            r.seq
+            for r, _ in sorted(
+                ((r, 0) for r, _ in handles if r.switch_id == s), key=lambda x: (x[0].requested_s, x[0].seq)
+            )
+        ]
         assert order == fifo
         assert ilk.holder(s) is None
     check_log_invariants(layer, throw)

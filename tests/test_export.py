@@ -16,11 +16,11 @@ import pandas as pd
 import pytest
 import yaml
 
-from railsim.report import export
-from railsim.record import output
 from railsim.analysis import sections
 from railsim.cli.main import main as cli_main
 from railsim.errors import ConfigError
+from railsim.record import output
+from railsim.report import export
 from tests.helpers import DATA, read_csv, run_railsim
 
 pytestmark = pytest.mark.sumo
@@ -110,10 +110,28 @@ def test_default_out_folder_and_cli(csv_run: Path, tmp_path: Path, capsys: pytes
 
 def test_sweep_folder_exports_its_cases(tmp_path: Path) -> None:
     sweep = tmp_path / "sweep"
-    rows = [{"case_id": "a1", "status": "ok", "error": "", "seed": 1, "services[0].departures.headway_s": 60.0,
-             "wall_s": 2.5, "collisions": 0, "min_gap_m": 21.5},
-            {"case_id": "b2", "status": "failed", "error": "boom", "seed": 1, "services[0].departures.headway_s": 45.0,
-             "wall_s": 0.5, "collisions": None, "min_gap_m": None}]
+    rows = [
+        {
+            "case_id": "a1",
+            "status": "ok",
+            "error": "",
+            "seed": 1,
+            "services[0].departures.headway_s": 60.0,
+            "wall_s": 2.5,
+            "collisions": 0,
+            "min_gap_m": 21.5,
+        },
+        {
+            "case_id": "b2",
+            "status": "failed",
+            "error": "boom",
+            "seed": 1,
+            "services[0].departures.headway_s": 45.0,
+            "wall_s": 0.5,
+            "collisions": None,
+            "min_gap_m": None,
+        },
+    ]
     columns = list(rows[0])
     output.write_csv(sweep / "cases.csv", rows, columns)
     output.write_parquet(sweep / "cases.parquet", rows, columns)
@@ -146,8 +164,9 @@ def test_folder_without_tables_exits_2(tmp_path: Path, capsys: pytest.CaptureFix
 
 
 @pytest.mark.parametrize("damage", ["empty_csv", "foreign_csv", "garbage_parquet"])
-def test_corrupt_table_exits_2_naming_the_file(csv_run: Path, tmp_path: Path, damage: str,
-                                               capsys: pytest.CaptureFixture[str]) -> None:
+def test_corrupt_table_exits_2_naming_the_file(
+    csv_run: Path, tmp_path: Path, damage: str, capsys: pytest.CaptureFixture[str]
+) -> None:
     broken = tmp_path / "broken"
     broken.mkdir()
     for f in csv_run.iterdir():

@@ -36,33 +36,42 @@ def _netconvert(folder: Path, name: str, nodes: str, edges: str) -> Path:
     nod = _write(folder, f"{name}.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
     edg = _write(folder, f"{name}.edg.xml", f"<edges>\n{edges}\n</edges>")
     net = folder / f"{name}.net.xml"
-    proc = subprocess.run([str(netconvert()), "-n", str(nod), "-e", str(edg), "-o", str(net)],
-                          capture_output=True, text=True, timeout=120)
+    proc = subprocess.run(
+        [str(netconvert()), "-n", str(nod), "-e", str(edg), "-o", str(net)], capture_output=True, text=True, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     return net
 
 
-def _edge(eid: str, a: str, b: str, speed: float = 22.0, spread: str = "center", shape: str = "",
-          allow: str = "rail_urban") -> str:
+def _edge(
+    eid: str, a: str, b: str, speed: float = 22.0, spread: str = "center", shape: str = "", allow: str = "rail_urban"
+) -> str:
     shp = f' shape="{shape}"' if shape else ""
-    return (f'<edge id="{eid}" from="{a}" to="{b}" numLanes="1" speed="{speed}" allow="{allow}" '
-            f'spreadType="{spread}"{shp}/>')
+    return (
+        f'<edge id="{eid}" from="{a}" to="{b}" numLanes="1" speed="{speed}" allow="{allow}" '
+        f'spreadType="{spread}"{shp}/>'
+    )
 
 
 def _stops(folder: Path, name: str, stops: list[tuple[str, str, float, float, str]]) -> Path:
-    body = "\n".join(f'  <trainStop id="{s}" lane="{lane}" startPos="{a}" endPos="{b}" name="{n}"/>'
-                     for s, lane, a, b, n in stops)
+    body = "\n".join(
+        f'  <trainStop id="{s}" lane="{lane}" startPos="{a}" endPos="{b}" name="{n}"/>' for s, lane, a, b, n in stops
+    )
     return _write(folder, f"{name}.stops.add.xml", f"<additional>\n{body}\n</additional>")
 
 
 def build_ring(folder: Path) -> tuple[Path, Path]:
     r = 800.0
-    nodes = "\n".join(f'<node id="R{k}" x="{r * math.cos(k * math.pi / 2):.3f}" '
-                      f'y="{r * math.sin(k * math.pi / 2):.3f}"/>' for k in range(4))
+    nodes = "\n".join(
+        f'<node id="R{k}" x="{r * math.cos(k * math.pi / 2):.3f}" y="{r * math.sin(k * math.pi / 2):.3f}"/>'
+        for k in range(4)
+    )
     edges = []
     for k in range(4):  # counter-clockwise quarter arcs, shape points every 5 degrees
-        pts = " ".join(f"{r * math.cos(math.radians(90 * k + d)):.3f},{r * math.sin(math.radians(90 * k + d)):.3f}"
-                       for d in range(0, 91, 5))
+        pts = " ".join(
+            f"{r * math.cos(math.radians(90 * k + d)):.3f},{r * math.sin(math.radians(90 * k + d)):.3f}"
+            for d in range(0, 91, 5)
+        )
         edges.append(_edge(f"q{k}", f"R{k}", f"R{(k + 1) % 4}", spread="right", shape=pts))
     net = _netconvert(folder, "ring", nodes, "\n".join(edges))
     stops = _stops(folder, "ring", [(f"s{k}", f"q{k}_0", 500.0, 800.0, f"Ring {k}") for k in range(4)])
@@ -75,16 +84,31 @@ def build_passing_loop(folder: Path) -> tuple[Path, Path]:
 <node id="E" x="4200" y="0" type="rail_signal"/>
 <node id="B" x="6200" y="0"/>"""
     loop = "3000,0 3200,-40 4000,-40 4200,0"
-    edges = [_edge("AW", "A", "W"), _edge("-AW", "W", "A"), _edge("L1", "W", "E"), _edge("-L1", "E", "W"),
-             _edge("L2", "W", "E", 16.0, shape=loop),
-             _edge("-L2", "E", "W", 16.0, shape=" ".join(reversed(loop.split()))),
-             _edge("EB", "E", "B"), _edge("-EB", "B", "E")]
+    edges = [
+        _edge("AW", "A", "W"),
+        _edge("-AW", "W", "A"),
+        _edge("L1", "W", "E"),
+        _edge("-L1", "E", "W"),
+        _edge("L2", "W", "E", 16.0, shape=loop),
+        _edge("-L2", "E", "W", 16.0, shape=" ".join(reversed(loop.split()))),
+        _edge("EB", "E", "B"),
+        _edge("-EB", "B", "E"),
+    ]
     net = _netconvert(folder, "passing", nodes, "\n".join(edges))
-    stops = _stops(folder, "passing", [
-        ("portal_e", "AW_0", 100, 400, "Portal"), ("alpha_e", "AW_0", 1000, 1300, "Alpha"),
-        ("alpha_w", "-AW_0", 1700, 2000, "Alpha"), ("portal_w", "-AW_0", 2600, 2900, "Portal"),
-        ("mid_1", "L1_0", 400, 700, "Mid"), ("mid_2", "-L2_0", 400, 700, "Mid"),
-        ("bravo_e", "EB_0", 1600, 1900, "Bravo"), ("bravo_w", "-EB_0", 100, 400, "Bravo")])
+    stops = _stops(
+        folder,
+        "passing",
+        [
+            ("portal_e", "AW_0", 100, 400, "Portal"),
+            ("alpha_e", "AW_0", 1000, 1300, "Alpha"),
+            ("alpha_w", "-AW_0", 1700, 2000, "Alpha"),
+            ("portal_w", "-AW_0", 2600, 2900, "Portal"),
+            ("mid_1", "L1_0", 400, 700, "Mid"),
+            ("mid_2", "-L2_0", 400, 700, "Mid"),
+            ("bravo_e", "EB_0", 1600, 1900, "Bravo"),
+            ("bravo_w", "-EB_0", 100, 400, "Bravo"),
+        ],
+    )
     return net, stops
 
 
@@ -94,16 +118,28 @@ def build_junction(folder: Path) -> tuple[Path, Path]:
 <node id="Y" x="8500" y="0"/>
 <node id="Z" x="8300" y="900"/>"""
     branch = "6000,0 6600,150 8300,900"
-    edges = [_edge("U1", "X", "J", spread="right"), _edge("D1", "J", "X", spread="right"),
-             _edge("U2", "J", "Y", spread="right"), _edge("D2", "Y", "J", spread="right"),
-             _edge("Z1", "J", "Z", 16.0, shape=branch),
-             _edge("-Z1", "Z", "J", 16.0, shape=" ".join(reversed(branch.split())))]
+    edges = [
+        _edge("U1", "X", "J", spread="right"),
+        _edge("D1", "J", "X", spread="right"),
+        _edge("U2", "J", "Y", spread="right"),
+        _edge("D2", "Y", "J", spread="right"),
+        _edge("Z1", "J", "Z", 16.0, shape=branch),
+        _edge("-Z1", "Z", "J", 16.0, shape=" ".join(reversed(branch.split()))),
+    ]
     net = _netconvert(folder, "junction", nodes, "\n".join(edges))
-    stops = _stops(folder, "junction", [
-        ("x1_up", "U1_0", 200, 500, "X1"), ("x2_up", "U1_0", 1500, 1800, "X2"),
-        ("y1_up", "U2_0", 1900, 2200, "Y1"), ("zed_in", "Z1_0", 2000, 2300, "Zed"),
-        ("zed_out", "-Z1_0", 100, 400, "Zed"), ("x2_down", "D1_0", 4200, 4500, "X2"),
-        ("x1_down", "D1_0", 5500, 5800, "X1")])
+    stops = _stops(
+        folder,
+        "junction",
+        [
+            ("x1_up", "U1_0", 200, 500, "X1"),
+            ("x2_up", "U1_0", 1500, 1800, "X2"),
+            ("y1_up", "U2_0", 1900, 2200, "Y1"),
+            ("zed_in", "Z1_0", 2000, 2300, "Zed"),
+            ("zed_out", "-Z1_0", 100, 400, "Zed"),
+            ("x2_down", "D1_0", 4200, 4500, "X2"),
+            ("x1_down", "D1_0", 5500, 5800, "X1"),
+        ],
+    )
     return net, stops
 
 
@@ -149,15 +185,20 @@ def test_passing_loop_topology_and_stripped_signals(nets: dict, use_cache: Path)
     assert not b.graph.has_edge("AW", "-AW")  # no reversal
     # a route chooses the platforms with a path: westbound through Mid takes the loop's other track
     east = b.route_between("portal", "bravo")
-    assert east.edges == ("AW", "L1", "EB") and [s.stop_id for s in east.stops] == \
-        ["portal_e", "alpha_e", "mid_1", "bravo_e"]
+    assert east.edges == ("AW", "L1", "EB") and [s.stop_id for s in east.stops] == [
+        "portal_e",
+        "alpha_e",
+        "mid_1",
+        "bravo_e",
+    ]
     west = b.route_between("bravo", "portal", via=("mid",))
     assert west.edges == ("-EB", "-L2", "-AW")
     assert [(s.switch_id, s.leg) for s in west.switches] == [("E", "reverse"), ("W", "reverse")]
     # chainage = lane lengths plus the internal junction lanes (SUMO's odometer)
     g = b.graph
-    expect = sum(g.nodes[e]["length_m"] for e in east.edges) + \
-        sum(v[1] for a, c in zip(east.edges, east.edges[1:]) for v in g.edges[a, c]["via"])
+    expect = sum(g.nodes[e]["length_m"] for e in east.edges) + sum(
+        v[1] for a, c in zip(east.edges, east.edges[1:]) for v in g.edges[a, c]["via"]
+    )
     assert east.length_m == pytest.approx(expect)
     assert east.stop("bravo").end_m == pytest.approx(east.edge_start_m[2] + 1900.0)
     with pytest.raises(ValueError, match="do not reverse"):
@@ -203,11 +244,18 @@ def test_ring_routes_wrap_around_the_loop(nets: dict, use_cache: Path) -> None:
 _COMMON = {
     "simulation": {"step_s": 0.5, "duration_s": 1500, "seed": 5},
     "vehicles": {"cq6": {"preset": "cq3_6car"}},
-    "controllers": {"ato": {"type": "ato"}, "sep": {"type": "separation", "params": {"margin_m": 50}},
-                    "vc": {"type": "cacc"}},
+    "controllers": {
+        "ato": {"type": "ato"},
+        "sep": {"type": "separation", "params": {"margin_m": 50}},
+        "vc": {"type": "cacc"},
+    },
     "roles": {"ato": "ato", "separation": "sep", "coupled": "vc"},
-    "faults": {"comm": {"t2t": {"delay_s": {"dist": "constant", "value": 0.2}},
-                        "t2g": {"delay_s": {"dist": "constant", "value": 0.3}}}},
+    "faults": {
+        "comm": {
+            "t2t": {"delay_s": {"dist": "constant", "value": 0.2}},
+            "t2g": {"delay_s": {"dist": "constant", "value": 0.3}},
+        }
+    },
 }
 
 
@@ -216,8 +264,13 @@ def _service(sid: str, a: str, b: str, t: float, **extra: object) -> dict:
 
 
 def _pair(decouple: dict | None = None) -> list[dict]:
-    f = {"id": "pair", "leader": {"service": "lead", "trip": 0}, "follower": {"service": "follow", "trip": 0},
-         "target_gap_m": 30, "couple": {"on_departure": True}}
+    f = {
+        "id": "pair",
+        "leader": {"service": "lead", "trip": 0},
+        "follower": {"service": "follow", "trip": 0},
+        "target_gap_m": 30,
+        "couple": {"on_departure": True},
+    }
     if decouple:
         f["decouple"] = decouple
     return [f]
@@ -225,19 +278,38 @@ def _pair(decouple: dict | None = None) -> list[dict]:
 
 SCENARIOS = {
     # stations named by id, by name and by stop id
-    "ring": ([_service("lead", "ring-0", "ring-3", 0), _service("follow", "s1", "Ring 3", 0),
-              _service("ato", "ring-2", "ring-1", 0)], _pair()),
-    "passing": ([_service("lead", "portal", "bravo", 0), _service("follow", "alpha_e", "Bravo", 0),
-                 _service("ato", "bravo_w", "Portal", 100, via=["Mid"])], _pair()),
-    "junction": ([_service("lead", "x1", "y1", 30), _service("follow", "X2", "zed", 30),
-                  _service("ato", "zed", "x1", 0)], _pair({"before_switch": "J/U1"})),
+    "ring": (
+        [
+            _service("lead", "ring-0", "ring-3", 0),
+            _service("follow", "s1", "Ring 3", 0),
+            _service("ato", "ring-2", "ring-1", 0),
+        ],
+        _pair(),
+    ),
+    "passing": (
+        [
+            _service("lead", "portal", "bravo", 0),
+            _service("follow", "alpha_e", "Bravo", 0),
+            _service("ato", "bravo_w", "Portal", 100, via=["Mid"]),
+        ],
+        _pair(),
+    ),
+    "junction": (
+        [_service("lead", "x1", "y1", 30), _service("follow", "X2", "zed", 30), _service("ato", "zed", "x1", 0)],
+        _pair({"before_switch": "J/U1"}),
+    ),
 }
 
 
 def _scenario(folder: Path, name: str, net: Path, stops: Path) -> Path:
     services, formations = SCENARIOS[name]
-    raw = {"name": f"ext_{name}", "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON,
-           "services": services, "formations": formations}
+    raw = {
+        "name": f"ext_{name}",
+        "world": {"net": str(net), "additional": [str(stops)]},
+        **_COMMON,
+        "services": services,
+        "formations": formations,
+    }
     return _write(folder, f"{name}.yaml", yaml.safe_dump(raw, sort_keys=False))
 
 
@@ -263,8 +335,7 @@ def test_ato_and_coupled_pair_run_end_to_end(name: str, nets: dict, cache: Path,
         grants = [e for e in read_csv(out / "events.csv") if e["kind"] == "lock_granted" and e["subject"] == "J/U1"]
         assert len(grants) == 2 and grants[0]["detail"] != grants[1]["detail"]
     if name == "passing":  # opposing trains crossed at Mid: both stood there at the same time
-        mid = {r["service"]: (float(r["arrival_s"]), float(r["departure_s"])) for r in stops
-               if r["station"] == "mid"}
+        mid = {r["service"]: (float(r["arrival_s"]), float(r["departure_s"])) for r in stops if r["station"] == "mid"}
         assert set(mid) == {"lead", "follow", "ato"}
         assert max(mid["lead"][0], mid["ato"][0]) < min(mid["lead"][1], mid["ato"][1])
 
@@ -305,8 +376,8 @@ def _load_error(net: Path, *adds: Path) -> str:
 
 
 def _scenario_error(path: Path) -> str:
-    from railsim.engine import loop as engine
     from railsim import scenario
+    from railsim.engine import loop as engine
     from railsim.errors import ConfigError
 
     with pytest.raises(ConfigError) as info:
@@ -316,8 +387,12 @@ def _scenario_error(path: Path) -> str:
 
 def test_errors_name_the_file_and_field(nets: dict, use_cache: Path, tmp_path: Path) -> None:
     net, stops = nets["passing"]
-    road = _netconvert(tmp_path, "road", '<node id="a" x="0" y="0"/><node id="b" x="500" y="0"/>',
-                       _edge("r", "a", "b", allow="passenger bus"))
+    road = _netconvert(
+        tmp_path,
+        "road",
+        '<node id="a" x="0" y="0"/><node id="b" x="500" y="0"/>',
+        _edge("r", "a", "b", allow="passenger bus"),
+    )
     assert _load_error(road).startswith(f"{road}: no rail edges: no lane allows any of rail_urban")
     garbage = _write(tmp_path, "garbage.net.xml", "this is not xml <")
     assert _load_error(garbage).startswith(f"{garbage}: not a SUMO network")
@@ -325,31 +400,48 @@ def test_errors_name_the_file_and_field(nets: dict, use_cache: Path, tmp_path: P
     future.write_text(net.read_text().replace('<net version="', '<net version="99.', 1))
     msg = _load_error(future)
     assert msg.startswith(f"{future}: net.version: network version 99.") and "newer than this SUMO" in msg
-    off = _write(tmp_path, "off.add.xml", '<additional><trainStop id="x" lane="AW_0" startPos="10" endPos="50"/>'
-                 '<trainStop id="bad" lane="nope_0" startPos="1" endPos="9"/></additional>')
+    off = _write(
+        tmp_path,
+        "off.add.xml",
+        '<additional><trainStop id="x" lane="AW_0" startPos="10" endPos="50"/>'
+        '<trainStop id="bad" lane="nope_0" startPos="1" endPos="9"/></additional>',
+    )
     assert _load_error(net, off).startswith(f"{off}: trainStop[id=bad].lane: expected a lane of the network")
-    mixed = _netconvert(tmp_path, "mixed", '<node id="a" x="0" y="0"/><node id="b" x="900" y="0"/>',
-                        _edge("t", "a", "b") + "\n" + _edge("r", "a", "b", allow="passenger", spread="right"))
-    road_stop = _write(tmp_path, "road.add.xml",
-                       '<additional><trainStop id="st" lane="r_0" startPos="10" endPos="300"/></additional>')
+    mixed = _netconvert(
+        tmp_path,
+        "mixed",
+        '<node id="a" x="0" y="0"/><node id="b" x="900" y="0"/>',
+        _edge("t", "a", "b") + "\n" + _edge("r", "a", "b", allow="passenger", spread="right"),
+    )
+    road_stop = _write(
+        tmp_path, "road.add.xml", '<additional><trainStop id="st" lane="r_0" startPos="10" endPos="300"/></additional>'
+    )
     msg = _load_error(mixed, road_stop)
     assert msg.startswith(f"{road_stop}: trainStop[id=st].lane:") and "not on any rail edge" in msg
     # scenario-level: unsupported vClass, a vClass the net does not allow, an unknown station, an unreachable
     # service (the Y1 platform is on the up track only: going back to X1 needs a reversal)
     base = yaml.safe_load(_scenario(tmp_path, "passing", net, stops).read_text())
     for vclass, expect in (("bus", "world.vclass: expected one of"), ("tram", "world.vclass: no lane of")):
-        path = _write(tmp_path, f"v_{vclass}.yaml", yaml.safe_dump({**base, "world": {**base["world"],
-                                                                                     "vclass": vclass}}))
+        path = _write(
+            tmp_path, f"v_{vclass}.yaml", yaml.safe_dump({**base, "world": {**base["world"], "vclass": vclass}})
+        )
         assert _scenario_error(path).startswith(f"{path}: {expect}")
-    path = _write(tmp_path, "ghost.yaml", yaml.safe_dump(
-        {**base, "services": base["services"] + [_service("ghost", "nowhere", "alpha", 0)]}))
+    path = _write(
+        tmp_path,
+        "ghost.yaml",
+        yaml.safe_dump({**base, "services": base["services"] + [_service("ghost", "nowhere", "alpha", 0)]}),
+    )
     assert _scenario_error(path).startswith(f"{path}: services[3].from: expected a station id")
     jbase = yaml.safe_load(_scenario(tmp_path, "junction", *nets["junction"]).read_text())
-    path = _write(tmp_path, "unreachable.yaml", yaml.safe_dump(
-        {**jbase, "services": jbase["services"] + [_service("back", "y1", "x1", 0)]}))
+    path = _write(
+        tmp_path,
+        "unreachable.yaml",
+        yaml.safe_dump({**jbase, "services": jbase["services"] + [_service("back", "y1", "x1", 0)]}),
+    )
     msg = _scenario_error(path)
     assert msg.startswith(f"{path}: services[back]: no route") and "reversal" in msg
     # and the CLI turns them into one line and exit code 2
     assert _error(["network", "show", str(future)], use_cache).startswith(f"railsim: error: {future}: net.version")
     assert _error(["run", str(path), "--out", str(tmp_path / "o")], use_cache).startswith(
-        f"railsim: error: {path}: services[back]: no route")
+        f"railsim: error: {path}: services[back]: no route"
+    )

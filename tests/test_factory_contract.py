@@ -16,12 +16,15 @@ from railsim.physics.vehicle import preset, preset_names
 VEHICLE = preset(preset_names()[0])
 
 
-@pytest.mark.parametrize("name, params, field", [
-    ("cf_cacc", {"theta_preset": []}, "theta_preset"),
-    ("mcf_dmpc", {"theta_preset": {}}, "theta_preset"),
-    ("policy_separation", {"k_speed_per_s": "x"}, "k_speed_per_s"),
-    ("speed_profile", {"segments": -1}, "segments"),
-])
+@pytest.mark.parametrize(
+    "name, params, field",
+    [
+        ("cf_cacc", {"theta_preset": []}, "theta_preset"),
+        ("mcf_dmpc", {"theta_preset": {}}, "theta_preset"),
+        ("policy_separation", {"k_speed_per_s": "x"}, "k_speed_per_s"),
+        ("speed_profile", {"segments": -1}, "segments"),
+    ],
+)
 def test_bad_parameter_types_raise_value_error(name: str, params: dict[str, Any], field: str) -> None:
     with pytest.raises(ValueError, match=rf"^{field}: expected "):
         controllers.create(name, params, VEHICLE)

@@ -21,5 +21,7 @@ def test_outputs_are_byte_identical_to_golden(case, tmp_path: Path) -> None:
     expected = load_golden()[case.name]
     got = run_case(case, tmp_path)
     differ = sorted(k for k in set(got) | set(expected) if got.get(k) != expected.get(k))
-    assert not differ, (f"{case.name}: outputs differ from tests/data/golden.json in {differ}; "
-                        "if the change is intended, run `python -m tests.golden --update` and say why")
+    assert not differ, (
+        f"{case.name}: outputs differ from tests/data/golden.json in {differ}; "
+        "if the change is intended, run `python -m tests.golden --update` and say why"
+    )

@@ -116,8 +116,10 @@ def test_same_seed_same_outcome(improved: Path, tmp_path: Path) -> None:
 
 
 @pytest.mark.slow
-@pytest.mark.parametrize("method,order", [("naive1", ["train3.000", "train2.000", "train1.000"]),
-                                          ("naive2", ["train1.000", "train3.000", "train2.000"])])
+@pytest.mark.parametrize(
+    "method,order",
+    [("naive1", ["train3.000", "train2.000", "train1.000"]), ("naive2", ["train1.000", "train3.000", "train2.000"])],
+)
 def test_naive_baselines_pass_in_their_priority_order(tmp_path: Path, method: str, order: list[str]) -> None:
     s = _run(_variant(tmp_path, method, method=method), tmp_path / method)
     assert s["collisions"] == 0 and s["switch_violations"] == 0 and s["n_arrived"] == 3
@@ -125,13 +127,16 @@ def test_naive_baselines_pass_in_their_priority_order(tmp_path: Path, method: st
     assert s["junction"]["plans"] == 0
 
 
-@pytest.mark.parametrize("junction,field,message", [
-    ({"method": "genetic"}, "junction.method", "expected one of improved_pso, plain_pso, naive1, naive2"),
-    ({"trains": ["train1", "nobody"]}, "junction.trains[1]", "expected a trip id or a one-trip service id"),
-    ({"params": {"segment_lenght_m": 10}}, "junction.params.segment_lenght_m", "unknown field"),
-    ({"params": {"accel_max_mps2": -1}}, "junction.params.accel_max_mps2", "expected a number > 0"),
-    ({"replan_s": 0}, "junction.replan_s", "expected a number > 0"),
-])
+@pytest.mark.parametrize(
+    "junction,field,message",
+    [
+        ({"method": "genetic"}, "junction.method", "expected one of improved_pso, plain_pso, naive1, naive2"),
+        ({"trains": ["train1", "nobody"]}, "junction.trains[1]", "expected a trip id or a one-trip service id"),
+        ({"params": {"segment_lenght_m": 10}}, "junction.params.segment_lenght_m", "unknown field"),
+        ({"params": {"accel_max_mps2": -1}}, "junction.params.accel_max_mps2", "expected a number > 0"),
+        ({"replan_s": 0}, "junction.replan_s", "expected a number > 0"),
+    ],
+)
 def test_bad_junction_input_names_file_and_field(tmp_path: Path, junction: dict, field: str, message: str) -> None:
     path = _variant(tmp_path, "bad", **junction)
     res = run_railsim(["validate", str(path)])
@@ -156,8 +161,8 @@ def test_switch_interval_reading_closed_form() -> None:
     from types import SimpleNamespace
 
     from controllers.junction.model import JunctionParams
-    from railsim.engine.loop import EngineSettings
     from railsim.engine.extensions.junction import JunctionCoordinator, _Member
+    from railsim.engine.loop import EngineSettings
 
     coord = JunctionCoordinator.__new__(JunctionCoordinator)
     coord.sim = SimpleNamespace(settings=EngineSettings(clearance_m=10.0, protection_margin_m=20.0))
@@ -165,5 +170,5 @@ def test_switch_interval_reading_closed_form() -> None:
     p = JunctionParams()
     got = coord._switch_interval_s(p, throw_s=10.0, length_m=20.0)
     release = (10.0 + 20.0 + 10.0) / 10.0
-    sighting = (15.0 ** 2 / (2 * 1.2) + 20.0) / 15.0
+    sighting = (15.0**2 / (2 * 1.2) + 20.0) / 15.0
     assert got == pytest.approx(release + 10.0 + sighting)

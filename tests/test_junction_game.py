@@ -6,11 +6,15 @@ import itertools
 import math
 
 import numpy as np
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from controllers.junction.game import (
-    PlayerTerms, additive_game, closed_form_shapley, is_queue, paper_coalition_cost, shapley_by_orderings,
+    PlayerTerms,
+    additive_game,
+    closed_form_shapley,
+    is_queue,
+    paper_coalition_cost,
+    shapley_by_orderings,
     shapley_by_subsets,
 )
 from controllers.junction.model import JunctionParams
@@ -44,8 +48,17 @@ def platoons(draw):
         if k == 0:
             out.append(PlayerTerms(f"T{k}", t1, t2, v))
         else:
-            out.append(PlayerTerms(f"T{k}", t1, t2, v, draw(st.floats(0.0, 300.0)), out[-1].coupled_speed_mps - v,
-                                   out[-1].coupled_speed_mps))
+            out.append(
+                PlayerTerms(
+                    f"T{k}",
+                    t1,
+                    t2,
+                    v,
+                    draw(st.floats(0.0, 300.0)),
+                    out[-1].coupled_speed_mps - v,
+                    out[-1].coupled_speed_mps,
+                )
+            )
     return out
 
 
@@ -101,10 +114,10 @@ def test_paper_characteristic_function_queue_shape(players):
     game = additive_game(players, PARAMS)
     assert paper_coalition_cost([], players, PARAMS) == math.inf
     assert paper_coalition_cost(ids[:1], players, PARAMS) == math.inf
-    for m in range(2, len(ids) + 1):          # queue prefixes: finite and equal to the finite extension
+    for m in range(2, len(ids) + 1):  # queue prefixes: finite and equal to the finite extension
         assert is_queue(ids[:m], ids)
         assert math.isclose(paper_coalition_cost(ids[:m], players, PARAMS), game(frozenset(ids[:m])), rel_tol=1e-9)
-    if len(ids) >= 3:                          # skipping a predecessor is not a queue
+    if len(ids) >= 3:  # skipping a predecessor is not a queue
         skip = [ids[0], ids[2]]
         assert not is_queue(skip, ids)
         assert paper_coalition_cost(skip, players, PARAMS) == math.inf
@@ -113,15 +126,16 @@ def test_paper_characteristic_function_queue_shape(players):
 def test_shapley_weights_sum_to_one():
     # the identity behind Φ_k = f_cm(k): Σ_θ C(n−1,θ) θ!(n−θ−1)!/n! = 1
     for n in range(1, 9):
-        total = sum(math.comb(n - 1, th) * math.factorial(th) * math.factorial(n - th - 1) / math.factorial(n)
-                    for th in range(n))
+        total = sum(
+            math.comb(n - 1, th) * math.factorial(th) * math.factorial(n - th - 1) / math.factorial(n)
+            for th in range(n)
+        )
         assert math.isclose(total, 1.0)
 
 
 def test_leader_bears_no_pair_terms_and_gap_error_costs_the_follower():
     lead = PlayerTerms("A", 10.0, 20.0, 10.0)
-    exact = PlayerTerms("B", 20.0, 10.0, 10.0, gap_to_pred_m=10.0, speed_diff_to_pred_mps=0.0,
-                        pred_speed_mps=10.0)
+    exact = PlayerTerms("B", 20.0, 10.0, 10.0, gap_to_pred_m=10.0, speed_diff_to_pred_mps=0.0, pred_speed_mps=10.0)
     far = PlayerTerms("B", 20.0, 10.0, 10.0, gap_to_pred_m=60.0, speed_diff_to_pred_mps=0.0, pred_speed_mps=10.0)
     base = closed_form_shapley([lead, exact], PARAMS)
     worse = closed_form_shapley([lead, far], PARAMS)

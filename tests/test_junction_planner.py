@@ -6,12 +6,19 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from controllers.junction.model import JunctionParams, SwitchState, rollout
 from controllers.junction.planner import (
-    PlannerError, TrainState, YJunctionLayout, build_problem, decode, past_point_of_no_return, plan, replan, solve,
+    PlannerError,
+    TrainState,
+    YJunctionLayout,
+    build_problem,
+    decode,
+    past_point_of_no_return,
+    plan,
+    replan,
+    solve,
 )
 from controllers.junction.pso import improved_pso_params
 from controllers.junction.simulate import measure, simulate_plan, table3_scenario
@@ -96,8 +103,7 @@ def test_replan_freezes_order_past_point_of_no_return():
     trains, layout = table3_scenario(1)
     first = plan(trains, (), layout, pso=FAST, rng=np.random.default_rng(1))
     # 2 s later, every train has run on at its initial speed; train1 (20 m/s, 360 m) is not yet at its PNR
-    later = [TrainState(t.train_id, t.track, t.distance_to_switch_m - 2.0 * t.speed_mps, t.speed_mps)
-             for t in trains]
+    later = [TrainState(t.train_id, t.track, t.distance_to_switch_m - 2.0 * t.speed_mps, t.speed_mps) for t in trains]
     assert past_point_of_no_return(later) == []
     free = replan(first, later, (), layout, pso=FAST, rng=np.random.default_rng(2))
     assert not free.frozen_order
@@ -146,14 +152,14 @@ def test_relative_braking_term_matches_closed_form_at_constant_speeds() -> None:
     problem = build_problem(trains, (), YJunctionLayout(), params)
     x = np.zeros((1, problem.dimension))
     r = rollout(problem, x)
-    (i, j, ii, jj), = problem.shared_pairs
+    ((i, j, ii, jj),) = problem.shared_pairs
     lead, fol = (i, j) if problem.trains[i].train_id == "lead" else (j, i)
     jf = jj if fol == j else ii
     m_l, m_f = problem.merge_distance_m[lead], problem.merge_distance_m[fol]
-    pts = problem.breakpoints_m[fol, jf] - m_f                    # shared points, merge coordinates
+    pts = problem.breakpoints_m[fol, jf] - m_f  # shared points, merge coordinates
     t_f = (pts + m_f) / 10.0
     gap = (8.0 * t_f - m_l) - pts - 20.0
-    need = 10.0 * 1.0 + (10.0 ** 2 - 8.0 ** 2) / (2 * 1.5) + 10.0
+    need = 10.0 * 1.0 + (10.0**2 - 8.0**2) / (2 * 1.5) + 10.0
     expected = max(float(np.max(need - gap)), 0.0)
     assert expected > 0.0  # the follower closes in: the spacing is violated somewhere
     assert r.terms["relative_braking"][0] == pytest.approx(expected, rel=1e-9, abs=1e-9)

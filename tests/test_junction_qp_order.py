@@ -26,8 +26,9 @@ def _x(problem, p):
     return np.concatenate([np.array([a for _, _, a in p.train(t.train_id).segments]) for t in problem.trains])
 
 
-@pytest.mark.parametrize("v_f, v_l, a0, T", [(15.0, 10.0, 0.0, 0.2), (8.0, 12.0, 0.5, 1.0), (3.0, 0.0, -1.0, 5.0),
-                                              (0.0, 4.0, 0.3, 0.7)])
+@pytest.mark.parametrize(
+    "v_f, v_l, a0, T", [(15.0, 10.0, 0.0, 0.2), (8.0, 12.0, 0.5, 1.0), (3.0, 0.0, -1.0, 5.0), (0.0, 4.0, 0.3, 0.7)]
+)
 def test_guard_formula_is_the_dead_time_stop_minus_the_leaders_stop(v_f, v_l, a0, T):
     b_f, b_l, margin = 1.5, 1.2, 10.0
     expected = stopping_distance_m(v_f, b_f, T, a0) - v_l * v_l / (2.0 * b_l) + margin
@@ -48,10 +49,10 @@ def test_two_trains_paper_model_feasible_order_interval_and_coupling_hold_in_sim
     problem = build_problem(trains, (), LAYOUT, params)
     out = measure(problem, *simulate_plan(problem, _x(problem, p), dt_s=0.05))
     assert out.order == ("a", "b")
-    assert out.headway_shortfall_s <= 1e-6                 # ≥ t_ls between the two legs at sw2
+    assert out.headway_shortfall_s <= 1e-6  # ≥ t_ls between the two legs at sw2
     assert out.switch_speed_excess_mps <= 1e-6
     assert out.min_separation_m > 0.0
-    assert out.coupled_at_F, out                           # Eqs. 2-3 at the leader's arrival at F
+    assert out.coupled_at_F, out  # Eqs. 2-3 at the leader's arrival at F
     assert sum(p.shapley.values()) == pytest.approx(p.cost, rel=1e-9)
 
 

@@ -43,5 +43,5 @@ def test_improved_pso_couples_more_reliably_than_plain_pso():
     for n in (1, 2, 3):
         assert rate[(n, "improved_pso")] >= 0.6
     assert sum(rate[(n, "improved_pso")] for n in (1, 2, 3)) > sum(rate[(n, "plain_pso")] for n in (1, 2, 3))
-    for r in rows:      # coupled runs keep the trains apart
+    for r in rows:  # coupled runs keep the trains apart
         assert np.isnan(r["min_separation_m_mean"]) or r["min_separation_m_mean"] > 0.0

@@ -33,8 +33,11 @@ def test_dmpc_drives_the_coupled_unit_on_line3(tmp_path: Path) -> None:
     forms = read_csv(tmp_path / "o" / "formations.csv")
     assert int(forms[0]["couple_successes"]) == 1 and float(forms[0]["min_gap_m"]) > 0.0
     follower = forms[0]["follower"]
-    coupled_rows = [r for r in read_csv(tmp_path / "o" / "trace.csv")
-                    if r["train"] == follower and r["formation_state"] == "coupled"]
+    coupled_rows = [
+        r
+        for r in read_csv(tmp_path / "o" / "trace.csv")
+        if r["train"] == follower and r["formation_state"] == "coupled"
+    ]
     assert coupled_rows and all(r["solve_time_s"] for r in coupled_rows)  # the DMPC ran every coupled step
     assert follower in str(s["analyses"]["paper000"])  # Paper A's metrics for this follower are in the summary
     figs = run_railsim(["plot", str(tmp_path / "o"), "--out", str(tmp_path / "fig")])

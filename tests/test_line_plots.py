@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 import yaml
 
-from railsim.cli import plot as plot_command
 from railsim.analysis import sections
+from railsim.cli import plot as plot_command
 from railsim.cli.main import main as cli_main
 from railsim.errors import ConfigError
 from railsim.report.plots import line
@@ -68,8 +68,10 @@ def stations() -> dict[str, tuple[str, float]]:
 @pytest.fixture(scope="module")
 def directions(run_dir: Path, stations: dict[str, tuple[str, float]]) -> dict[str, str]:
     """trip id -> up/down, from the km of its origin and destination."""
-    return {t["trip_id"]: ("up" if stations[t["destination"]][1] > stations[t["origin"]][1] else "down")
-            for t in read_csv(run_dir / "trips.csv")}
+    return {
+        t["trip_id"]: ("up" if stations[t["destination"]][1] > stations[t["origin"]][1] else "down")
+        for t in read_csv(run_dir / "trips.csv")
+    }
 
 
 def _train_lines(ax: object) -> dict[str, object]:
@@ -101,15 +103,19 @@ def test_station_names_on_the_distance_axis(loaded: line.LineRun, stations: dict
             for name, km in stations.values():
                 assert any(name in t and f"{km:.1f}" in t for t in texts), name
             # grid line of every station at its km
-            ys = {round(float(ln.get_ydata()[0]), 6) for ln in ax.get_lines()
-                  if not ln.get_gid() and len(set(ln.get_ydata())) == 1}
+            ys = {
+                round(float(ln.get_ydata()[0]), 6)
+                for ln in ax.get_lines()
+                if not ln.get_gid() and len(set(ln.get_ydata())) == 1
+            }
             assert {round(km, 6) for _, km in stations.values()} <= ys
     finally:
         plt.close(fig)
 
 
-def test_dwells_sit_on_their_station_and_time_is_clock_time(loaded: line.LineRun, run_dir: Path,
-                                                            stations: dict[str, tuple[str, float]]) -> None:
+def test_dwells_sit_on_their_station_and_time_is_clock_time(
+    loaded: line.LineRun, run_dir: Path, stations: dict[str, tuple[str, float]]
+) -> None:
     fig = line.time_distance_figure(loaded)
     try:
         lines = {}
@@ -170,8 +176,9 @@ def test_time_distance_writes_png_and_svg(run_dir: Path, tmp_path: Path, directi
 
 
 # ---------------------------------------------------------------------------------------------------- other kinds
-def test_speed_one_line_per_trip_below_the_line_speed(loaded: line.LineRun, directions: dict[str, str],
-                                                      tmp_path: Path) -> None:
+def test_speed_one_line_per_trip_below_the_line_speed(
+    loaded: line.LineRun, directions: dict[str, str], tmp_path: Path
+) -> None:
     fig = line.speed_figure(loaded)
     try:
         for d, ax in _axes(fig).items():
@@ -223,8 +230,9 @@ def test_spread_labels_keeps_order_and_spacing() -> None:
     assert all(b - a >= 0.3 - 1e-12 for a, b in zip(ys, ys[1:]))
     assert ys[-1] <= 10.0 and ys[3] == 3.0
     assert line.station_label("Yudong (鱼洞)") == "Yudong"
-    assert line.station_label("Chongqing North Station South Square (重庆北站南广场)") == \
-        "Chongqing North Stn. South Sq."
+    assert (
+        line.station_label("Chongqing North Station South Square (重庆北站南广场)") == "Chongqing North Stn. South Sq."
+    )
     long = line.station_label("Chongqing Technology and Business University")
     assert len(long) == line.NAME_CHARS and long.startswith("Chongqing Tech. & Business") and long.endswith("…")
 
@@ -240,8 +248,9 @@ def test_cli_writes_each_kind(run_dir: Path, tmp_path: Path, capsys: pytest.Capt
     assert str(tmp_path / "speed.svg") in printed
 
 
-def test_cli_mistakes_exit_2(run_dir: Path, tmp_path_factory: pytest.TempPathFactory,
-                             capsys: pytest.CaptureFixture[str]) -> None:
+def test_cli_mistakes_exit_2(
+    run_dir: Path, tmp_path_factory: pytest.TempPathFactory, capsys: pytest.CaptureFixture[str]
+) -> None:
     lonely = _run(tmp_path_factory.mktemp("plots"), "no_formations", formations=[])
     assert cli_main(["plot", str(lonely), "--kind", "gap", "--out", str(lonely / "g")]) == 2
     assert "no virtually coupled formation" in capsys.readouterr().err

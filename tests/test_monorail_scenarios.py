@@ -30,9 +30,9 @@ def test_scenario_safe_and_guarded(name: str, load: str) -> None:
         assert m["ca_intervals"]["F1"], "the scenario is designed to cross F1's trigger"
     if name == "ca_obstacle":  # latched to standstill: one interval per vehicle, emergency throughout
         for i, veh in enumerate(("L", "F1", "F2")):
-            (on, off), = m["ca_intervals"][veh]
+            ((on, off),) = m["ca_intervals"][veh]
             k_on = int(round(on / 0.1))
-            assert res.emergency[k_on:, i].all() and np.all(np.diff(res.v_mps[k_on + 1:, i]) <= 1e-12)
+            assert res.emergency[k_on:, i].all() and np.all(np.diff(res.v_mps[k_on + 1 :, i]) <= 1e-12)
             assert res.v_mps[-1, i] == 0.0
 
 
@@ -63,9 +63,17 @@ def test_rdbm_collides_where_adbm_does_not() -> None:
     over-estimated braking is not absorbed; ADBM keeps the lead's whole braking distance as slack."""
     out = {}
     for mode in ("rdbm", "adbm"):
-        ca = CaParams(threshold_mode=mode, assumed_own_decel_mps2=1.5, assumed_object_decel_mps2=1.0,
-                      law="bang_bang", latch="never", release_margin_m=0.0, trigger_dwell_s=0.0,
-                      trigger_band_m=0.0, rearm_s=0.0)  # the paper's bare trigger: compares the modes only
+        ca = CaParams(
+            threshold_mode=mode,
+            assumed_own_decel_mps2=1.5,
+            assumed_object_decel_mps2=1.0,
+            law="bang_bang",
+            latch="never",
+            release_margin_m=0.0,
+            trigger_dwell_s=0.0,
+            trigger_band_m=0.0,
+            rearm_s=0.0,
+        )  # the paper's bare trigger: compares the modes only
         out[mode] = run_scenario(build_scenario("ca_obstacle", "loaded", ca=ca)).metrics
     assert out["rdbm"]["collision"] and out["rdbm"]["pairs"]["L-F1"]["collision"]
     assert not out["adbm"]["collision"]

@@ -2,20 +2,31 @@
 
 from __future__ import annotations
 
-
 import numpy as np
 import pytest
 
 from controllers.base import Observation, OwnState, create
 from controllers.monorail import collision_avoidance  # noqa: F401  (registers)
-from controllers.monorail.braking_modes import (BrakingPolicy, adbm_distance_m, average_emergency_decel_mps2,
-                                                max_safe_speed_mps, rdbm_distance_m, required_gap_m,
-                                                safety_distance_m)
+from controllers.monorail.braking_modes import (
+    BrakingPolicy,
+    adbm_distance_m,
+    average_emergency_decel_mps2,
+    max_safe_speed_mps,
+    rdbm_distance_m,
+    required_gap_m,
+    safety_distance_m,
+)
 from controllers.monorail.collision_avoidance import sensor_extras
 from controllers.monorail.coupling import incidence, laplacian
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, ca_hysteresis, transition
-from railsim.physics.monorail import (MonorailParams, PlantState, load_mass_kg, plant_step,
-                                                step_response_mps2, vehicle_params_for)
+from railsim.physics.monorail import (
+    MonorailParams,
+    PlantState,
+    load_mass_kg,
+    plant_step,
+    step_response_mps2,
+    vehicle_params_for,
+)
 
 
 def test_safety_distance_hand_values() -> None:
@@ -63,23 +74,29 @@ def test_state_machine_coupling_decoupling_and_ca() -> None:
     states = _run_states(ok, p, VcState.COUPLING)
     assert states[9] is VcState.COUPLING and states[10] is VcState.COUPLED  # held exactly 1 s
     # passive: gap > d_max + band (= 26 m) and opening; active: gap < d_min − band (= 4 m) and closing
-    assert _run_states([VcInputs(0, 26.5, -0.5, 8.0, ca_trigger_m=0.0)], p, VcState.COUPLED)[0] \
-        is VcState.DECOUPLING
+    assert _run_states([VcInputs(0, 26.5, -0.5, 8.0, ca_trigger_m=0.0)], p, VcState.COUPLED)[0] is VcState.DECOUPLING
     assert _run_states([VcInputs(0, 26.5, +0.5, 8.0, ca_trigger_m=0.0)], p, VcState.COUPLED)[0] is VcState.COUPLED
     assert _run_states([VcInputs(0, 3.9, 0.5, 8.0, ca_trigger_m=0.0)], p, VcState.COUPLED)[0] is VcState.DECOUPLING
     assert _run_states([VcInputs(0, 4.5, 0.5, 8.0, ca_trigger_m=0.0)], p, VcState.COUPLED)[0] is VcState.COUPLED
     # CA pre-empts, releases to independent (re-coupling needs a command); latched ends stopped
-    seq = [VcInputs(0.0, 27.0, 1.0, 8.0, ca_release_m=28.5), VcInputs(0.5, 28.2, -1.0, 6.0, ca_release_m=28.5),
-           VcInputs(1.0, 29.0, -1.0, 5.0, ca_release_m=28.5)]
+    seq = [
+        VcInputs(0.0, 27.0, 1.0, 8.0, ca_release_m=28.5),
+        VcInputs(0.5, 28.2, -1.0, 6.0, ca_release_m=28.5),
+        VcInputs(1.0, 29.0, -1.0, 5.0, ca_release_m=28.5),
+    ]
     assert _run_states(seq, p, VcState.COUPLED) == [VcState.CA_ACTIVE, VcState.CA_ACTIVE, VcState.INDEPENDENT]
-    seq = [VcInputs(0.0, 27.0, 1.0, 8.0, ca_latch_to_standstill=True), VcInputs(1.0, 40.0, -1.0, 3.0),
-           VcInputs(2.0, 40.0, 0.0, 0.0)]
+    seq = [
+        VcInputs(0.0, 27.0, 1.0, 8.0, ca_latch_to_standstill=True),
+        VcInputs(1.0, 40.0, -1.0, 3.0),
+        VcInputs(2.0, 40.0, 0.0, 0.0),
+    ]
     assert _run_states(seq, p, VcState.INDEPENDENT) == [VcState.CA_ACTIVE, VcState.CA_ACTIVE, VcState.STOPPED]
 
 
 def test_delayed_command_takes_effect_exactly_after_delay() -> None:
-    mp = MonorailParams(traction_delay_s=0.3, traction_response_s=0.0, traction_efficiency=0.9,
-                        brake_delay_s=0.5, brake_response_s=0.0)
+    mp = MonorailParams(
+        traction_delay_s=0.3, traction_response_s=0.0, traction_efficiency=0.9, brake_delay_s=0.5, brake_response_s=0.0
+    )
     m = load_mass_kg("empty")
     s = PlantState(v_mps=5.0)
     accel = []
@@ -155,6 +172,7 @@ def test_bad_parameters_are_value_errors() -> None:
 
 # --- issue #19: CA trigger debounce and the additive braking of Eq. (A27) ------------------------------------------
 
+
 def test_ca_should_fire_debounce_rules() -> None:
     from controllers.monorail.states import ca_should_fire
 
@@ -179,8 +197,9 @@ def test_braking_suffices_closed_form() -> None:
     assert braking_suffices(6.0, -1.0, 0.3, 5.0) and not braking_suffices(4.0, -1.0, 0.3, 5.0)  # opening gap
 
 
-@pytest.mark.parametrize("service, ca, expected", [(-0.3, -0.5, -0.8), (-0.3, 0.4, -0.3), (-0.8, -0.9, -1.2),
-                                                   (0.2, -0.1, 0.1)])
+@pytest.mark.parametrize(
+    "service, ca, expected", [(-0.3, -0.5, -0.8), (-0.3, 0.4, -0.3), (-0.8, -0.9, -1.2), (0.2, -0.1, 0.1)]
+)
 def test_additive_ca_braking_eq_a27(service: float, ca: float, expected: float) -> None:
     from controllers.monorail.states import additive_ca_accel_mps2
 

@@ -6,8 +6,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from railsim.physics.multipoint import (
     G_MPS2,
@@ -65,7 +64,8 @@ def test_free_oscillation_conserves_momentum_and_energy():
     def energy(st_: MultipointState) -> float:
         stretch = st_.positions_m[:-1] - st_.positions_m[1:] - p.coupler_length_m
         return 0.5 * p.car_mass_kg * float(np.sum(st_.speeds_mps**2)) + 0.5 * p.coupler_stiffness_n_per_m * float(
-            np.sum(stretch**2))
+            np.sum(stretch**2)
+        )
 
     e0, m0 = energy(s), float(np.sum(s.speeds_mps))
     for _ in range(100):  # 10 s: ~40 periods of the fastest coupler mode

@@ -28,10 +28,17 @@ GOOD: dict[str, Any] = {
         {"id": "d", "km": 4.2, "turnback": True},
     ],
     "branches": [
-        {"id": "spur", "joins": "main", "at_km": 3.4, "side": "up",
-         "switches": {"up": {"id": "j_up", "throw_time_s": 8, "diverging_speed_kmh": 30},
-                      "down": {"id": "j_down", "throw_time_s": 8, "diverging_speed_kmh": 30}},
-         "stations": [{"id": "e", "km": 5.0}]},
+        {
+            "id": "spur",
+            "joins": "main",
+            "at_km": 3.4,
+            "side": "up",
+            "switches": {
+                "up": {"id": "j_up", "throw_time_s": 8, "diverging_speed_kmh": 30},
+                "down": {"id": "j_down", "throw_time_s": 8, "diverging_speed_kmh": 30},
+            },
+            "stations": [{"id": "e", "km": 5.0}],
+        },
     ],
 }
 
@@ -44,30 +51,73 @@ def _bad(mutate) -> dict[str, Any]:
 
 # (name, mutation, field, message)
 BAD_CASES = [
-    ("missing_station_id", lambda d: d["stations"][3].pop("id"), "stations[3].id",
-     "expected an id of letters, digits, '_' or '-', got nothing (required key is missing)"),
-    ("decreasing_chainage", lambda d: d["stations"][2].update(km=1.2), "stations[2].km",
-     "expected a chainage greater than stations[1].km (1.5), got 1.2"),
-    ("unknown_branch_target", lambda d: d["branches"][0].update(joins="mian"), "branches[0].joins",
-     "expected one of main, got 'mian'"),
-    ("negative_length", lambda d: d["stations"][1].update(platform_length_m=-150), "stations[1].platform_length_m",
-     "expected a number > 0, got -150"),
-    ("unknown_key", lambda d: d["stations"][0].update(colour="red"), "stations[0].colour",
-     "expected one of id, name, km, platform_length_m, turnback, basis, name_zh, got unknown key 'colour'"),
-    ("wrong_type", lambda d: d.update(line_speed_kmh="fast"), "line_speed_kmh",
-     "expected a number > 0, got 'fast'"),
-    ("bool_is_not_a_number", lambda d: d["stations"][0].update(km=True), "stations[0].km",
-     "expected a number, got True"),
-    ("overlapping_platforms", lambda d: d["stations"][1].update(km=0.1), "stations[1].km",
-     "expected platforms not to overlap: b starts 50.0 m before the end of a's platform, got km 0.1"),
-    ("duplicate_station", lambda d: d["branches"][0]["stations"][0].update(id="b"), "branches[0].stations[0].id",
-     "expected a unique station id, got 'b' (already used at stations[1])"),
-    ("junction_outside_line", lambda d: d["branches"][0].update(at_km=9.0), "branches[0].at_km",
-     "expected a chainage inside line 'main' (-0.224 < km < 4.424), got 9.0"),
-    ("missing_switch", lambda d: d["branches"][0]["switches"].pop("down"), "branches[0].switches.down",
-     "expected a switch mapping, got nothing (required key is missing)"),
-    ("bad_side", lambda d: d["branches"][0].update(side="left"), "branches[0].side",
-     "expected one of up, down, got 'left'"),
+    (
+        "missing_station_id",
+        lambda d: d["stations"][3].pop("id"),
+        "stations[3].id",
+        "expected an id of letters, digits, '_' or '-', got nothing (required key is missing)",
+    ),
+    (
+        "decreasing_chainage",
+        lambda d: d["stations"][2].update(km=1.2),
+        "stations[2].km",
+        "expected a chainage greater than stations[1].km (1.5), got 1.2",
+    ),
+    (
+        "unknown_branch_target",
+        lambda d: d["branches"][0].update(joins="mian"),
+        "branches[0].joins",
+        "expected one of main, got 'mian'",
+    ),
+    (
+        "negative_length",
+        lambda d: d["stations"][1].update(platform_length_m=-150),
+        "stations[1].platform_length_m",
+        "expected a number > 0, got -150",
+    ),
+    (
+        "unknown_key",
+        lambda d: d["stations"][0].update(colour="red"),
+        "stations[0].colour",
+        "expected one of id, name, km, platform_length_m, turnback, basis, name_zh, got unknown key 'colour'",
+    ),
+    ("wrong_type", lambda d: d.update(line_speed_kmh="fast"), "line_speed_kmh", "expected a number > 0, got 'fast'"),
+    (
+        "bool_is_not_a_number",
+        lambda d: d["stations"][0].update(km=True),
+        "stations[0].km",
+        "expected a number, got True",
+    ),
+    (
+        "overlapping_platforms",
+        lambda d: d["stations"][1].update(km=0.1),
+        "stations[1].km",
+        "expected platforms not to overlap: b starts 50.0 m before the end of a's platform, got km 0.1",
+    ),
+    (
+        "duplicate_station",
+        lambda d: d["branches"][0]["stations"][0].update(id="b"),
+        "branches[0].stations[0].id",
+        "expected a unique station id, got 'b' (already used at stations[1])",
+    ),
+    (
+        "junction_outside_line",
+        lambda d: d["branches"][0].update(at_km=9.0),
+        "branches[0].at_km",
+        "expected a chainage inside line 'main' (-0.224 < km < 4.424), got 9.0",
+    ),
+    (
+        "missing_switch",
+        lambda d: d["branches"][0]["switches"].pop("down"),
+        "branches[0].switches.down",
+        "expected a switch mapping, got nothing (required key is missing)",
+    ),
+    (
+        "bad_side",
+        lambda d: d["branches"][0].update(side="left"),
+        "branches[0].side",
+        "expected one of up, down, got 'left'",
+    ),
 ]
 
 
@@ -97,12 +147,25 @@ def test_speed_limit_boundary_inside_platform_is_rejected(tmp_path: Path) -> Non
     path.write_text(yaml.safe_dump(desc))
     with pytest.raises(ConfigError) as info:
         network.build(path)
-    assert str(info.value) == (f"{path}: speed_limits[0].from_km: expected an edge break outside the platform "
-                               "of b (km 1.5 +/- 75 m), got km 1.45")
+    assert str(info.value) == (
+        f"{path}: speed_limits[0].from_km: expected an edge break outside the platform "
+        "of b (km 1.5 +/- 75 m), got km 1.45"
+    )
 
 
-CLI_CASES = [c for c in BAD_CASES if c[0] in ("missing_station_id", "decreasing_chainage", "unknown_branch_target",
-                                              "negative_length", "unknown_key", "wrong_type")]
+CLI_CASES = [
+    c
+    for c in BAD_CASES
+    if c[0]
+    in (
+        "missing_station_id",
+        "decreasing_chainage",
+        "unknown_branch_target",
+        "negative_length",
+        "unknown_key",
+        "wrong_type",
+    )
+]
 
 
 @pytest.mark.parametrize("name,mutate,field,message", CLI_CASES, ids=[c[0] for c in CLI_CASES])
@@ -110,8 +173,13 @@ def test_cli_reports_bad_file_in_one_line_with_exit_code_2(tmp_path: Path, name,
     bad = tmp_path / f"{name}.yaml"
     bad.write_text(yaml.safe_dump(_bad(mutate), sort_keys=False))
     env = dict(os.environ, RAILSIM_CACHE=str(tmp_path / "cache"))
-    proc = subprocess.run([str(RAILSIM), "network", "build", str(bad), "--out", str(tmp_path / "out")],
-                          capture_output=True, text=True, env=env, timeout=120)
+    proc = subprocess.run(
+        [str(RAILSIM), "network", "build", str(bad), "--out", str(tmp_path / "out")],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert proc.returncode == 2
     assert "Traceback" not in proc.stderr + proc.stdout
     assert proc.stderr.strip().splitlines() == [f"railsim: error: {bad}: {field}: {message}"]
@@ -122,17 +190,30 @@ def test_cli_yaml_syntax_error_and_unknown_world(tmp_path: Path) -> None:
     bad = tmp_path / "broken.yaml"
     bad.write_text("name: x\nstations: [\n")
     env = dict(os.environ, RAILSIM_CACHE=str(tmp_path / "cache"))
-    proc = subprocess.run([str(RAILSIM), "network", "build", str(bad), "--out", str(tmp_path)],
-                          capture_output=True, text=True, env=env, timeout=120)
+    proc = subprocess.run(
+        [str(RAILSIM), "network", "build", str(bad), "--out", str(tmp_path)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert proc.returncode == 2 and "Traceback" not in proc.stderr
     assert proc.stderr.startswith(f"railsim: error: {bad}: expected valid YAML, got a syntax error (line 3")
-    proc = subprocess.run([str(RAILSIM), "network", "show", "atlantis"], capture_output=True, text=True, env=env,
-                          timeout=120)
+    proc = subprocess.run(
+        [str(RAILSIM), "network", "show", "atlantis"], capture_output=True, text=True, env=env, timeout=120
+    )
     assert proc.returncode == 2
-    assert proc.stderr.strip() == ("railsim: error: unknown world 'atlantis': expected a line-description file "
-                                   "(.yaml) or one of chongqing_line3, straight_corridor, y_junction")
-    proc = subprocess.run([str(RAILSIM), "network", "show", "y_junction", "-p", "S1=-4"], capture_output=True,
-                          text=True, env=env, timeout=120)
+    assert proc.stderr.strip() == (
+        "railsim: error: unknown world 'atlantis': expected a line-description file "
+        "(.yaml) or one of chongqing_line3, straight_corridor, y_junction"
+    )
+    proc = subprocess.run(
+        [str(RAILSIM), "network", "show", "y_junction", "-p", "S1=-4"],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert proc.returncode == 2
     assert proc.stderr.strip() == "railsim: error: world y_junction: params.S1: expected a number > 0, got -4"
 

@@ -64,8 +64,13 @@ def _cache(tmp_path_factory: pytest.TempPathFactory):
 
 
 def _run(world: str, pairs: list[tuple[str, str | None]], speed_mps: float, depart_m: float) -> list[dict]:
-    proc = subprocess.run([sys.executable, "-c", _CHILD, world, str(speed_mps), str(depart_m), json.dumps(pairs)],
-                          capture_output=True, text=True, timeout=600, env=dict(os.environ))
+    proc = subprocess.run(
+        [sys.executable, "-c", _CHILD, world, str(speed_mps), str(depart_m), json.dumps(pairs)],
+        capture_output=True,
+        text=True,
+        timeout=600,
+        env=dict(os.environ),
+    )
     assert proc.returncode == 0, proc.stderr[-3000:]
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
@@ -85,7 +90,7 @@ def _check_run(route: network.RouteInfo, run: dict, speed_mps: float, depart_m: 
     assert route.length_m - speed_mps * step_s - 1.0 <= last_chainage <= route.length_m
     # the train passed every edge of the route in order
     seen = [e for e in dict.fromkeys(s[1] for s in samples) if not e.startswith(":")]
-    assert seen == list(route.edges[route.edges.index(seen[0]):])
+    assert seen == list(route.edges[route.edges.index(seen[0]) :])
 
 
 @pytest.mark.parametrize("world", network.shipped_worlds())
@@ -100,8 +105,14 @@ def test_generated_nets_have_no_rail_signals(world: str) -> None:
 
 def test_y_junction_trains_run_through_both_switches_both_directions() -> None:
     bundle = network.build("y_junction")
-    ids = ["entry1->platform", "entry2->platform", "entry3->platform",
-           "platform->entry1", "platform->entry2", "platform->entry3"]
+    ids = [
+        "entry1->platform",
+        "entry2->platform",
+        "entry3->platform",
+        "platform->entry1",
+        "platform->entry2",
+        "platform->entry3",
+    ]
     runs = _run("y_junction", [(r, None) for r in ids], speed_mps=17.0, depart_m=150.0)
     for rid, run in zip(ids, runs):
         route = bundle.routes[rid]
@@ -114,8 +125,12 @@ def test_y_junction_trains_run_through_both_switches_both_directions() -> None:
 
 def test_chongqing_bijin_junction_both_directions() -> None:
     bundle = network.build("chongqing_line3")
-    pairs = [("shuanglong", "shuangfengqiao"), ("shuangfengqiao", "shuanglong"),
-             ("shuanglong", "jiangbei-airport-t2"), ("jiangbei-airport-t2", "shuanglong")]
+    pairs = [
+        ("shuanglong", "shuangfengqiao"),
+        ("shuangfengqiao", "shuanglong"),
+        ("shuanglong", "jiangbei-airport-t2"),
+        ("jiangbei-airport-t2", "shuanglong"),
+    ]
     runs = _run("chongqing_line3", pairs, speed_mps=19.0, depart_m=180.0)
     for (a, z), run in zip(pairs, runs):
         route = bundle.route_between(a, z)

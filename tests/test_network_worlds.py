@@ -12,8 +12,7 @@ from pathlib import Path
 import networkx as nx
 import pytest
 import yaml
-from hypothesis import HealthCheck, given, settings
-from hypothesis import strategies as st
+from hypothesis import HealthCheck, given, settings, strategies as st
 
 import network
 from network.topology import make_route
@@ -80,8 +79,14 @@ def test_line3_main_stations_match_dataset_chainage_in_both_directions(cq: netwo
 
 
 def test_line3_branch_stations_at_bijin_plus_km_from_bijin(cq: network.NetworkBundle) -> None:
-    km_from_bijin = {"shuangfengqiao": 2.037, "konggang-square": 2.969, "gaobaohu": 4.985,
-                     "guanyue-road": 6.647, "lianhua": 8.308, "jurenba": 9.970}  # dataset branch_konggang
+    km_from_bijin = {
+        "shuangfengqiao": 2.037,
+        "konggang-square": 2.969,
+        "gaobaohu": 4.985,
+        "guanyue-road": 6.647,
+        "lianhua": 8.308,
+        "jurenba": 9.970,
+    }  # dataset branch_konggang
     bijin_km = 52.668
     for rid in ("yudong->jurenba", "jurenba->yudong"):
         route = cq.routes[rid]
@@ -90,8 +95,7 @@ def test_line3_branch_stations_at_bijin_plus_km_from_bijin(cq: network.NetworkBu
         for sid, d_km in km_from_bijin.items():
             assert sign * (_centre(route.stop(sid)) - bijin) == pytest.approx(d_km * 1000.0, abs=1.0)
         yudong = _centre(route.stop("yudong"))
-        assert sign * (_centre(route.stop("jurenba")) - yudong) == pytest.approx((bijin_km + 9.970) * 1000.0,
-                                                                                  abs=1.0)
+        assert sign * (_centre(route.stop("jurenba")) - yudong) == pytest.approx((bijin_km + 9.970) * 1000.0, abs=1.0)
     assert {s.station_id for s in cq.routes["yudong->jurenba"].stops} >= set(km_from_bijin)
     assert "jiangbei-airport-t2" not in {s.station_id for s in cq.routes["yudong->jurenba"].stops}
 
@@ -144,8 +148,11 @@ def test_y_junction_names_its_entries_and_switches() -> None:
     assert len(first_edges) == 3  # three distinct entry tracks
     # spec 004 Table 3 scenario 1 distances along each route: start of the approach is 2 km upstream
     s1, s2, s3, s4, s5 = 400.0, 200.0, 160.0, 200.0, 200.0
-    expect = {"entry1": (("sw2", s1, "reverse"),), "entry2": (("sw1", s2, "normal"), ("sw2", s2 + s4, "normal")),
-              "entry3": (("sw1", s3, "reverse"), ("sw2", s3 + s4, "normal"))}
+    expect = {
+        "entry1": (("sw2", s1, "reverse"),),
+        "entry2": (("sw1", s2, "normal"), ("sw2", s2 + s4, "normal")),
+        "entry3": (("sw1", s3, "reverse"), ("sw2", s3 + s4, "normal")),
+    }
     for entry, sws in expect.items():
         r = y.routes[f"{entry}->platform"]
         assert [(s.switch_id, s.leg) for s in r.switches] == [(a, leg) for a, _, leg in sws]
@@ -204,10 +211,15 @@ def test_route_tables_cover_the_route(world: str) -> None:
 
 def test_gradients_and_speed_limits_by_chainage(tmp_path: Path) -> None:
     desc = {
-        "name": "hilly", "line_speed_kmh": 90, "platform_length_m": 100, "overrun_m": 100,
+        "name": "hilly",
+        "line_speed_kmh": 90,
+        "platform_length_m": 100,
+        "overrun_m": 100,
         "stations": [{"id": "a", "km": 0.0}, {"id": "b", "km": 3.0}],
-        "gradients": [{"from_km": 1.0, "to_km": 1.5, "permille": 20.0},
-                      {"from_km": 1.5, "to_km": 2.0, "permille": -5.0}],
+        "gradients": [
+            {"from_km": 1.0, "to_km": 1.5, "permille": 20.0},
+            {"from_km": 1.5, "to_km": 2.0, "permille": -5.0},
+        ],
         "speed_limits": [{"from_km": 0.5, "to_km": 0.8, "speed_kmh": 36, "direction": "up"}],
     }
     path = tmp_path / "hilly.yaml"
@@ -226,15 +238,19 @@ def test_gradients_and_speed_limits_by_chainage(tmp_path: Path) -> None:
 
 
 @settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
-@given(gaps_m=st.lists(st.floats(300.0, 5000.0), min_size=1, max_size=6),
-       platforms_m=st.lists(st.floats(40.0, 280.0), min_size=7, max_size=7))
+@given(
+    gaps_m=st.lists(st.floats(300.0, 5000.0), min_size=1, max_size=6),
+    platforms_m=st.lists(st.floats(40.0, 280.0), min_size=7, max_size=7),
+)
 def test_any_valid_line_puts_stops_at_design_chainage(gaps_m: list[float], platforms_m: list[float]) -> None:
     kms, km = [], 0.0
     for g in [0.0] + gaps_m:
         km += g / 1000.0
         kms.append(km)
-    stations = [{"id": f"s{i}", "km": round(k, 4), "platform_length_m": round(p, 2)}
-                for i, (k, p) in enumerate(zip(kms, platforms_m))]
+    stations = [
+        {"id": f"s{i}", "km": round(k, 4), "platform_length_m": round(p, 2)}
+        for i, (k, p) in enumerate(zip(kms, platforms_m))
+    ]
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "prop.yaml"
         path.write_text(yaml.safe_dump({"name": "prop", "line_speed_kmh": 80, "stations": stations}))
@@ -264,16 +280,22 @@ def test_cache_hit_returns_identical_bundle_without_netconvert(tmp_path: Path) -
     other = network.build("straight_corridor", length_km=20.0, stations=4)
     assert other.cache_key != network.build("straight_corridor").cache_key
     assert len(other.stations) == 4
-    assert other.routes["s1->s4"].stop("s4").start_m - other.routes["s1->s4"].stop("s1").start_m == \
-        pytest.approx(20000.0, abs=1e-6)
+    assert other.routes["s1->s4"].stop("s4").start_m - other.routes["s1->s4"].stop("s1").start_m == pytest.approx(
+        20000.0, abs=1e-6
+    )
 
 
 def test_cli_build_writes_files_and_show_prints_summary(tmp_path: Path) -> None:
     env = dict(os.environ, RAILSIM_CACHE=str(tmp_path / "cache"))
     railsim = str(REPO / ".venv" / "bin" / "railsim")
     out = tmp_path / "out"
-    proc = subprocess.run([railsim, "network", "build", "chongqing_line3", "--out", str(out)],
-                          capture_output=True, text=True, env=env, timeout=120)
+    proc = subprocess.run(
+        [railsim, "network", "build", "chongqing_line3", "--out", str(out)],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+    )
     assert proc.returncode == 0, proc.stderr
     for suffix in (".net.xml", ".stops.add.xml", ".topology.json"):
         assert (out / f"chongqing_line3{suffix}").is_file()
@@ -281,16 +303,22 @@ def test_cli_build_writes_files_and_show_prints_summary(tmp_path: Path) -> None:
     assert len(topo["stations"]) == 45 and set(topo["switches"]) == {"bijin_up", "bijin_down"}
     assert topo["stations"]["bijin"]["km"] == 52.668
     assert topo["routes"]["yudong->jurenba"]["switches"][0]["leg"] == "reverse"
-    proc = subprocess.run([railsim, "network", "show", "y_junction"], capture_output=True, text=True, env=env,
-                          timeout=120)
+    proc = subprocess.run(
+        [railsim, "network", "show", "y_junction"], capture_output=True, text=True, env=env, timeout=120
+    )
     assert proc.returncode == 0, proc.stderr
     for word in ("sw1", "sw2", "entry1->platform", "entry3->platform", "platform->entry2"):
         assert word in proc.stdout
 
 
 def test_single_track_builds_bidi_edges_with_exact_chainage(tmp_path: Path) -> None:
-    desc = {"name": "single", "track": "single", "line_speed_kmh": 60, "platform_length_m": 120,
-            "stations": [{"id": "a", "km": 0.0}, {"id": "b", "km": 1.234}, {"id": "c", "km": 2.5}]}
+    desc = {
+        "name": "single",
+        "track": "single",
+        "line_speed_kmh": 60,
+        "platform_length_m": 120,
+        "stations": [{"id": "a", "km": 0.0}, {"id": "b", "km": 1.234}, {"id": "c", "km": 2.5}],
+    }
     path = tmp_path / "single.yaml"
     path.write_text(yaml.safe_dump(desc))
     b = network.build(path)

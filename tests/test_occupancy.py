@@ -65,7 +65,11 @@ def test_trains_on_different_legs_beyond_the_switch_do_not_see_each_other(bundle
     to_e = RouteView(bundle.route_between("a", "e"))
     to_g = RouteView(bundle.route_between("a", "g"))
     occ = Occupancy()
-    occ.update([Body("lead", to_e, _switch_point(to_e.route, "c_up") + 500.0, L),
-                Body("fol", to_g, _switch_point(to_g.route, "c_up") + 100.0, L)])
+    occ.update(
+        [
+            Body("lead", to_e, _switch_point(to_e.route, "c_up") + 500.0, L),
+            Body("fol", to_g, _switch_point(to_g.route, "c_up") + 100.0, L),
+        ]
+    )
     assert occ.ahead("fol") is None
     assert occ.ahead("lead") is None

@@ -15,8 +15,8 @@ import pytest
 import yaml
 
 from controllers.paper_a.spacing import TABLE_I, desired_spacing_m, safe_spacing_m
-from railsim.errors import ConfigError
 from railsim.analysis.paper000 import VcCriterion, follower_series, format_table, paper000_metrics, vc_times
+from railsim.errors import ConfigError
 from tests.helpers import ROOT, run_railsim
 
 SCEN = ROOT / "scenarios"
@@ -32,8 +32,10 @@ def _run(tmp: pytest.TempPathFactory, scenario: Path, name: str) -> Path:
 @pytest.fixture(scope="module")
 def sd_runs(tmp_path_factory: pytest.TempPathFactory) -> dict[str, Path]:
     """S-D initial conditions, 500 s: the DMPC baseline and the single-model IDM (S-A) — the fast methods."""
-    return {"dmpc": _run(tmp_path_factory, SCEN / "paper000_sd_comparison_dmpc.yaml", "sd_dmpc"),
-            "cf_idm": _run(tmp_path_factory, SCEN / "paper000_sa_cf_idm.yaml", "sa_idm")}
+    return {
+        "dmpc": _run(tmp_path_factory, SCEN / "paper000_sd_comparison_dmpc.yaml", "sd_dmpc"),
+        "cf_idm": _run(tmp_path_factory, SCEN / "paper000_sa_cf_idm.yaml", "sa_idm"),
+    }
 
 
 @pytest.mark.sumo
@@ -105,8 +107,18 @@ def _synthetic(tmp: Path, with_solve: bool = False) -> Path:
         "formations": [{"id": "f", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0}}],
     }
     (tmp / "scenario.resolved.yaml").write_text(yaml.safe_dump(raw), encoding="utf-8")
-    cols = ["t_s", "train", "service", "chainage_m", "speed_mps", "applied_accel_mps2", "command_mps2", "role",
-            "gap_m", "formation_state"] + (["solve_time_s"] if with_solve else [])
+    cols = [
+        "t_s",
+        "train",
+        "service",
+        "chainage_m",
+        "speed_mps",
+        "applied_accel_mps2",
+        "command_mps2",
+        "role",
+        "gap_m",
+        "formation_state",
+    ] + (["solve_time_s"] if with_solve else [])
     with open(tmp / "trace.csv", "w", newline="", encoding="utf-8") as fh:
         w = csv.writer(fh)
         w.writerow(cols)
@@ -116,8 +128,10 @@ def _synthetic(tmp: Path, with_solve: bool = False) -> Path:
             spacing = float(desired_spacing_m(v_f, 60.0, TABLE_I)) + e
             solve = [""] if with_solve else []
             w.writerow([k + 1.0, "a.000", "a", 1e4, 60.0, 0, 0, "ato", ""] + [""] + solve)
-            w.writerow([k + 1.0, "b.000", "b", 1e4 - spacing, v_f, 0, 0, "coupled", spacing - 203.0, "coupling"]
-                       + ([0.001 * (k % 100 + 1)] if with_solve else []))
+            w.writerow(
+                [k + 1.0, "b.000", "b", 1e4 - spacing, v_f, 0, 0, "coupled", spacing - 203.0, "coupling"]
+                + ([0.001 * (k % 100 + 1)] if with_solve else [])
+            )
     with open(tmp / "trips.csv", "w", newline="", encoding="utf-8") as fh:
         fh.write("trip_id,fallbacks\na.000,0\nb.000,3\n")
     (tmp / "summary.json").write_text(json.dumps({"steps": 500, "wall_s": 2.0, "collisions": 0}), encoding="utf-8")
@@ -134,7 +148,7 @@ def test_metrics_of_a_synthetic_run_match_the_hand_computation(tmp_path: Path) -
     assert r["late_mean_abs_dv_mps"] == pytest.approx(0.0, abs=1e-12)
     assert r["vc_first_s"] == 150.0 and r["vc_sustained_s"] == 150.0
     # D^(e) − D^(s) = v_f²/(2·0.8) − v_f²/(2·1.0) = 0.125·v_f²; the smallest with e = 5 m is at v_f = 59.98
-    assert r["min_safety_margin_m"] == pytest.approx(0.125 * 59.98 ** 2 + 5.0)
+    assert r["min_safety_margin_m"] == pytest.approx(0.125 * 59.98**2 + 5.0)
     assert r["final_spacing_error_m"] == pytest.approx(5.0)
     assert r["fallbacks"] == 3 and math.isnan(r["solve_time_mean_s"]) and not m["solve_times_recorded"]
     assert m["wall_per_train_step_s"] == pytest.approx(2.0 / 500)
@@ -150,8 +164,9 @@ def test_solve_time_column_is_used_when_recorded(tmp_path: Path) -> None:
 
 def test_late_phase_and_criterion_are_configurable(tmp_path: Path) -> None:
     out = _synthetic(tmp_path)
-    (r,) = paper000_metrics(out, VcCriterion(spacing_tol_m=25.0, speed_tol_mps=0.05, late_start_s=50.0,
-                                             late_end_s=150.0))["followers"]
+    (r,) = paper000_metrics(
+        out, VcCriterion(spacing_tol_m=25.0, speed_tol_mps=0.05, late_start_s=50.0, late_end_s=150.0)
+    )["followers"]
     assert r["vc_first_s"] == 0.0  # the wider band holds from the start
     assert r["late_mean_abs_spacing_error_m"] == pytest.approx((50 * 20 + 50 * 5) / 100)
 
@@ -200,11 +215,14 @@ def test_plain_float_rollout_and_fused_cost_equal_the_numpy_path(monkeypatch: py
     rng = np.random.default_rng(7)
     for trial in range(60):
         base = R.constant_speed_horizon(rng.uniform(200, 3000), rng.uniform(30, 80), 60, 1.0, 203.0, 1.0)
-        hz = R.PredecessorHorizon(base.position_m, base.speed_mps + rng.normal(0, 0.5, 61), rng.normal(0, 0.1, 60),
-                                  203.0, 1.0)
+        hz = R.PredecessorHorizon(
+            base.position_m, base.speed_mps + rng.normal(0, 0.5, 61), rng.normal(0, 0.1, 60), 203.0, 1.0
+        )
         pop = int(rng.integers(1, 12))
         seq = rng.integers(0, 3, (pop, 60))
-        theta = THETA_TRAIN3.as_array() if trial % 2 else np.abs(THETA_TRAIN3.as_array() + rng.normal(0, .05, (pop, 7)))
+        theta = (
+            THETA_TRAIN3.as_array() if trial % 2 else np.abs(THETA_TRAIN3.as_array() + rng.normal(0, 0.05, (pop, 7)))
+        )
         x0, v0, u_prev = rng.uniform(-800, 1500), rng.uniform(0, 100), rng.uniform(-0.8, 1.0)
         ff = trial % 3 == 0  # the A9 resistance feed-forward option too
         fast_traj = R.rollout_models(seq, x0, v0, hz, theta, TABLE_I, resistance_feedforward=ff)

@@ -27,8 +27,9 @@ SCENARIO = ROOT / "scenarios" / "paper002_topology_switch.yaml"
 @pytest.fixture(scope="module")
 def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("p2")
-    res = run_railsim(["run", str(SCENARIO), "--out", str(out), "--no-progress"],
-                      cache_dir=tmp_path_factory.mktemp("cache"))
+    res = run_railsim(
+        ["run", str(SCENARIO), "--out", str(out), "--no-progress"], cache_dir=tmp_path_factory.mktemp("cache")
+    )
     assert res.returncode == 0, res.stderr[-2000:]
     return out
 
@@ -69,8 +70,7 @@ def test_a_join_that_violates_condition_13_is_refused(tmp_path: Path) -> None:
             svc["start"]["offset_m"] = 90925.0  # 60.7 m behind train 4 (50 m long): x_45 + T·v_45 < 100 m
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"],
-                      cache_dir=tmp_path / "cache")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "cache")
     assert res.returncode == 2, res.stderr[-2000:]
     assert "Traceback" not in res.stderr
     line = res.stderr.strip().splitlines()[-1]
@@ -82,7 +82,8 @@ def test_reproduce_command_writes_the_reference_run_and_figures(tmp_path: Path) 
     assert res.returncode == 0, res.stderr
     assert "0 constraint violations" in res.stdout
     first = {r["train"]: float(r["u_mps2"]) for r in read_csv(tmp_path / "trains.csv") if r["k"] == "0"}
-    assert first == pytest.approx({"1": 0.193334, "2": -6.817011, "3": 4.179605, "4": -5.820395, "6": 9.163164},
-                                  abs=1e-6)  # spec 002 §7.2 item 10
+    assert first == pytest.approx(
+        {"1": 0.193334, "2": -6.817011, "3": 4.179605, "4": -5.820395, "6": 9.163164}, abs=1e-6
+    )  # spec 002 §7.2 item 10
     for name in ("fig3_positions", "fig4_position_differences", "fig5_speeds", "fig6_inputs"):
         assert (tmp_path / f"{name}.png").stat().st_size > 10_000

@@ -31,8 +31,10 @@ def test_spacing_opening_past_d_max_triggers_passive_decoupling(tmp_path: Path) 
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
     res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
     assert res.returncode == 0, res.stderr[-2000:]
-    ev = [(float(e["t_s"]), e["kind"], e["subject"], json.loads(e["detail"])) for e in read_csv(tmp_path / "o" /
-                                                                                               "events.csv")]
+    ev = [
+        (float(e["t_s"]), e["kind"], e["subject"], json.loads(e["detail"]))
+        for e in read_csv(tmp_path / "o" / "events.csv")
+    ]
     coupled = [t for t, k, sub, d in ev if k == "vc_state" and sub == "F1.000" and d["state"] == "coupled"]
     passive = [(t, d) for t, k, sub, d in ev if k == "passive_decoupling" and sub == "L_F1"]
     assert coupled and coupled[0] < 30.0

@@ -45,8 +45,10 @@ def _run(tmp_path: Path, path: Path, raw: dict | None = None) -> Path:
 
 
 def _events(out: Path) -> list[tuple[float, str, str, dict]]:
-    return [(float(e["t_s"]), e["kind"], e["subject"], json.loads(e["detail"] or "{}"))
-            for e in read_csv(out / "events.csv")]
+    return [
+        (float(e["t_s"]), e["kind"], e["subject"], json.loads(e["detail"] or "{}"))
+        for e in read_csv(out / "events.csv")
+    ]
 
 
 def _common_safety(m: dict) -> None:
@@ -109,8 +111,11 @@ def test_obstacle_loaded_stops_before_the_obstacle(tmp_path: Path) -> None:
 
 def test_comm_fault_through_faults_comm(tmp_path: Path) -> None:
     raw = yaml.safe_load((SCEN / "paper003_track_accel.yaml").read_text())
-    raw["faults"]["comm"]["t2t"] = {"delay_s": {"dist": "constant", "value": 1.0}, "loss_prob": 0.1,
-                                    "outages": [{"start_s": 20.0, "end_s": 23.0, "trains": ["F1.000"]}]}
+    raw["faults"]["comm"]["t2t"] = {
+        "delay_s": {"dist": "constant", "value": 1.0},
+        "loss_prob": 0.1,
+        "outages": [{"start_s": 20.0, "end_s": 23.0, "trains": ["F1.000"]}],
+    }
     out = _run(tmp_path, SCEN / "unused.yaml", raw)
     t2t = read_summary(out)["comm"]["t2t"]
     assert t2t["delay_mean_s"] == pytest.approx(1.0) and t2t["lost_random"] > 0 and t2t["lost_outage"] > 0

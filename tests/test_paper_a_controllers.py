@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 import controllers.paper_a  # noqa: F401  (registers)
 from controllers.base import Observation, OwnState, PredecessorState, create
@@ -29,6 +28,7 @@ def _obs(x=1500.0, v=200 * KMH, xp=2000.0, vp=220 * KMH):
 
 def _greedy_standin(fitness, dim, n_values, *, method, population, iterations, rng, init=None):
     """Tiny stand-in optimiser (coordinate descent from the seeds) for tests independent of the optim package."""
+
     class R:  # noqa: D401
         pass
 
@@ -49,19 +49,22 @@ def _greedy_standin(fitness, dim, n_values, *, method, population, iterations, r
     return r
 
 
-@pytest.mark.parametrize("name,params,field", [
-    ("cf_idm", {"horizon_steps": 0}, "horizon_steps"),
-    ("cf_idm", {"horizon_steps": 2.5}, "horizon_steps"),
-    ("cf_cacc", {"theta_preset": "train9"}, "theta_preset"),
-    ("cf_fvd", {"theta2": -1.0}, "theta2"),
-    ("cf_fvd", {"nonsense": 1.0}, "nonsense"),
-    ("mcf_dmpc", {"optimizer": "tabu"}, "optimizer"),
-    ("mcf_dmpc", {"decision_dim": 61}, "decision_dim"),
-    ("opo_mcf_dmpc", {"theta4_max": 1e-4}, "theta4_max"),
-    ("dmpc", {"sqp_iterations": 0}, "sqp_iterations"),
-    ("dmpc", {"xi_u": -1.0}, "xi_u"),
-    ("dmpc", {"cacc_feedforward": "net"}, "cacc_feedforward"),
-])
+@pytest.mark.parametrize(
+    "name,params,field",
+    [
+        ("cf_idm", {"horizon_steps": 0}, "horizon_steps"),
+        ("cf_idm", {"horizon_steps": 2.5}, "horizon_steps"),
+        ("cf_cacc", {"theta_preset": "train9"}, "theta_preset"),
+        ("cf_fvd", {"theta2": -1.0}, "theta2"),
+        ("cf_fvd", {"nonsense": 1.0}, "nonsense"),
+        ("mcf_dmpc", {"optimizer": "tabu"}, "optimizer"),
+        ("mcf_dmpc", {"decision_dim": 61}, "decision_dim"),
+        ("opo_mcf_dmpc", {"theta4_max": 1e-4}, "theta4_max"),
+        ("dmpc", {"sqp_iterations": 0}, "sqp_iterations"),
+        ("dmpc", {"xi_u": -1.0}, "xi_u"),
+        ("dmpc", {"cacc_feedforward": "net"}, "cacc_feedforward"),
+    ],
+)
 def test_invalid_params_name_the_param(name, params, field):
     with pytest.raises(ValueError) as exc:
         create(name, params, VEH)
@@ -88,8 +91,12 @@ def test_no_predecessor_leaves_ato_in_charge():
     assert create("dmpc", {}, VEH).command(obs).accel_mps2 == 1.0
 
 
-@given(theta=st.lists(st.floats(-100.0, 100.0), min_size=7, max_size=7), v=st.floats(30.0, 90.0),
-       gap=st.floats(360.0, 3000.0), vp=st.floats(30.0, 90.0))
+@given(
+    theta=st.lists(st.floats(-100.0, 100.0), min_size=7, max_size=7),
+    v=st.floats(30.0, 90.0),
+    gap=st.floats(360.0, 3000.0),
+    vp=st.floats(30.0, 90.0),
+)
 @settings(max_examples=25, deadline=None)
 def test_opo_keeps_theta_in_bounds_and_never_worsens(theta, v, gap, vp):
     n = 20
@@ -131,18 +138,27 @@ def test_registered_mcf_and_opo_deterministic_with_real_optimizer():
             assert np.all(np.array(r1.info["theta"]) >= lo) and np.all(np.array(r1.info["theta"]) <= hi)
 
 
-@pytest.mark.parametrize("name,theta,ff,expected", [
-    ("cf_idm", "train2", "net", lambda w, de: de * ((1 - w) ** (-1 / 12.1) - 1)),
-    ("cf_idm", "train3", "net", lambda w, de: de * ((1 - w) ** (-1 / 16.7) - 1)),
-    ("cf_cacc", "train2", "net", lambda w, de: w / 0.011),
-    ("cf_fvd", "train2", "net", lambda w, de: w / 0.012),
-])
+@pytest.mark.parametrize(
+    "name,theta,ff,expected",
+    [
+        ("cf_idm", "train2", "net", lambda w, de: de * ((1 - w) ** (-1 / 12.1) - 1)),
+        ("cf_idm", "train3", "net", lambda w, de: de * ((1 - w) ** (-1 / 16.7) - 1)),
+        ("cf_cacc", "train2", "net", lambda w, de: w / 0.011),
+        ("cf_fvd", "train2", "net", lambda w, de: w / 0.012),
+    ],
+)
 def test_steady_state_offset_under_resistance(name, theta, ff, expected):
     """A9 reading: the law's output is u, so at equilibrium it must equal ω(v) -> a closed-form spacing offset."""
     v0 = 220 * KMH
     de = float(desired_spacing_m(v0, v0))
-    run = run_platoon([create(name, {"theta_preset": theta, "cacc_feedforward": ff}, VEH)], [de, 0.0], [v0, v0],
-                      1200, noise_sd_mps2=0.0, horizon_steps=60)
+    run = run_platoon(
+        [create(name, {"theta_preset": theta, "cacc_feedforward": ff}, VEH)],
+        [de, 0.0],
+        [v0, v0],
+        1200,
+        noise_sd_mps2=0.0,
+        horizon_steps=60,
+    )
     err = run.spacing_m[-1, 0] - run.desired_m[-1, 0]
     omega = float(TABLE_I.resistance_mps2(v0))
     assert abs(run.speed_error_mps[-1, 0]) < 1e-3
@@ -164,8 +180,10 @@ def test_cacc_feedforward_reading_changes_offset_train3():
 
 @pytest.mark.parametrize("name", ["cf_idm", "dmpc"])
 def test_scenario_sd_establishes_vc_safely(name):
-    f = [create(name, {} if name == "dmpc" else {"theta_preset": "train2"}, VEH),
-         create(name, {} if name == "dmpc" else {"theta_preset": "train3"}, VEH)]
+    f = [
+        create(name, {} if name == "dmpc" else {"theta_preset": "train2"}, VEH),
+        create(name, {} if name == "dmpc" else {"theta_preset": "train3"}, VEH),
+    ]
     run = run_platoon(f, [2000.0, 1500.0, 0.0], [220 * KMH, 200 * KMH, 180 * KMH], 500, seed=1)
     for m in follower_metrics(run):
         assert m.min_safety_margin_m >= 0.0
@@ -177,8 +195,15 @@ def test_scenario_sd_establishes_vc_safely(name):
 def test_scenario_se_tracks_variable_speed_safely(name):
     v0 = 220 * KMH
     de = float(desired_spacing_m(v0, v0))
-    run = run_platoon([create(name, {}, VEH)], [de, 0.0], [v0, v0], 380, seed=1,
-                      leader_speed=variable_speed_profile(), leader_future_known=True)
+    run = run_platoon(
+        [create(name, {}, VEH)],
+        [de, 0.0],
+        [v0, v0],
+        380,
+        seed=1,
+        leader_speed=variable_speed_profile(),
+        leader_future_known=True,
+    )
     m = follower_metrics(run, late_start_s=0.0, late_end_s=1e9)[0]
     assert m.min_safety_margin_m >= 0.0 and m.fallbacks == 0
     assert m.mean_abs_spacing_error_m < 20.0

@@ -37,8 +37,14 @@ def _slsqp_reference(x0, v0, u_prev, hz, n, starts, weights):
 
     best = None
     for u_start in starts:
-        r = minimize(f, u_start, method="SLSQP", bounds=[(-0.8, 1.0)] * n,
-                     constraints=[{"type": "ineq", "fun": g}], options={"ftol": 1e-12, "maxiter": 500})
+        r = minimize(
+            f,
+            u_start,
+            method="SLSQP",
+            bounds=[(-0.8, 1.0)] * n,
+            constraints=[{"type": "ineq", "fun": g}],
+            options={"ftol": 1e-12, "maxiter": 500},
+        )
         if r.success and np.min(g(r.x)) > -1e-6 and (best is None or r.fun < best.fun):
             best = r
     assert best is not None
@@ -54,8 +60,9 @@ def test_qp_matches_brute_force_nlp(case):
         # The predecessor brakes 3 m outside D^(s); without the spacing term the control weight ξ_u would rather
         # brake gently, so only the hard constraint ΔS ≥ D^(s) (exact, nonlinear in SLSQP) makes it brake enough.
         x0, v0, hz, w = 0.0, 60.0, _braking_predecessor(352.0, 60.0, n, 0.5), CostWeights(xi_s=0.0)
-    qp = DmpcQp(n, TABLE_I, w, eps_abs=1e-9, eps_rel=1e-9, max_iter=100000, sqp_iterations=30, sqp_tol_m=1e-10,
-                polish=True)
+    qp = DmpcQp(
+        n, TABLE_I, w, eps_abs=1e-9, eps_rel=1e-9, max_iter=100000, sqp_iterations=30, sqp_tol_m=1e-10, polish=True
+    )
     sol = qp.solve(x0, v0, 0.02, hz)
     assert sol.ok
     starts = [np.zeros(n), np.full(n, -0.8), np.full(n, 0.5), sol.u]

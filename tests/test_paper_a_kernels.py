@@ -41,15 +41,38 @@ def test_kernel_rollout_and_cost_equal_scalar_reference(feedforward: bool) -> No
         steps = int(rng.integers(1, 61))
         hz, seq, thetas, x0, v0, u_prev = _random_case(rng, steps, int(rng.integers(1, 9)))
         ref = _rollout_scalar(seq, x0, v0, hz, thetas, TABLE_I, feedforward)
-        u, v, s = kernels.rollout_rows(seq, thetas, x0, v0, hz.position_m, hz.speed_mps, hz.accel_mps2, hz.length_m,
-                                       hz.emergency_decel_mps2, kernels.train_vector(TABLE_I), feedforward)
+        u, v, s = kernels.rollout_rows(
+            seq,
+            thetas,
+            x0,
+            v0,
+            hz.position_m,
+            hz.speed_mps,
+            hz.accel_mps2,
+            hz.length_m,
+            hz.emergency_decel_mps2,
+            kernels.train_vector(TABLE_I),
+            feedforward,
+        )
         np.testing.assert_allclose(u, ref.u, rtol=RTOL, atol=1e-12)
         np.testing.assert_allclose(v, ref.v, rtol=RTOL, atol=1e-12)
         np.testing.assert_allclose(s, ref.s, rtol=RTOL, atol=1e-9)  # positions ~1e3 m: 1e-12 relative
         terms = cost_terms(ref, hz, u_prev, TABLE_I, weights)
-        got = kernels.population_costs(seq, thetas, x0, v0, hz.position_m, hz.speed_mps, hz.accel_mps2, hz.length_m,
-                                       hz.emergency_decel_mps2, kernels.train_vector(TABLE_I),
-                                       kernels.weight_vector(weights), u_prev, feedforward)
+        got = kernels.population_costs(
+            seq,
+            thetas,
+            x0,
+            v0,
+            hz.position_m,
+            hz.speed_mps,
+            hz.accel_mps2,
+            hz.length_m,
+            hz.emergency_decel_mps2,
+            kernels.train_vector(TABLE_I),
+            kernels.weight_vector(weights),
+            u_prev,
+            feedforward,
+        )
         np.testing.assert_allclose(got, terms["J"], rtol=RTOL)
         hit_penalty |= bool(np.any(terms["penalty"] > 0.0))
     assert hit_penalty  # the random cases reach the constraint penalty, so that part is compared too

@@ -4,8 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from controllers.base import PredecessorState
 from controllers.paper_a.cf_models import (
@@ -77,14 +76,18 @@ def test_enhanced_laws_vanish_at_equilibrium(v, theta):
     assert original_idm(v, v, de, de, a_max=1.0, u_min=None) == pytest.approx(-1.0, abs=1e-12)
 
 
-@given(v=st.floats(0.0, 97.0), vp=st.floats(0.0, 97.0), gap=st.floats(-50.0, 5000.0), theta=THETAS,
-       ap=st.floats(-1.0, 1.0))
+@given(
+    v=st.floats(0.0, 97.0), vp=st.floats(0.0, 97.0), gap=st.floats(-50.0, 5000.0), theta=THETAS, ap=st.floats(-1.0, 1.0)
+)
 @settings(max_examples=200, deadline=None)
 def test_laws_saturated_and_finite(v, vp, gap, theta, ap):
     de = desired_spacing_m(v, vp)
     t1, t2, t3, t4, t5, t6, t7 = theta
-    for a in (enhanced_idm(v, vp, gap, de, t1, t2), enhanced_cacc(v, vp, gap, de, ap, t3, t4, t5),
-              enhanced_fvd(v, vp, gap, de, t6, t7)):
+    for a in (
+        enhanced_idm(v, vp, gap, de, t1, t2),
+        enhanced_cacc(v, vp, gap, de, ap, t3, t4, t5),
+        enhanced_fvd(v, vp, gap, de, t6, t7),
+    ):
         assert np.isfinite(a) and -0.8 <= a <= 1.0
 
 
@@ -93,8 +96,11 @@ def test_law_signs_follow_errors():
     de = float(desired_spacing_m(v, v))
     th = THETA_TRAIN2
     # too far behind -> accelerate; too close -> brake
-    assert enhanced_idm(v, v, de + 50, de, th.theta1, th.theta2) > 0 > enhanced_idm(v, v, de - 50, de, th.theta1,
-                                                                                    th.theta2)
+    assert (
+        enhanced_idm(v, v, de + 50, de, th.theta1, th.theta2)
+        > 0
+        > enhanced_idm(v, v, de - 50, de, th.theta1, th.theta2)
+    )
     assert enhanced_cacc(v, v, de + 50, de, 0, th.theta3, th.theta4, th.theta5) == pytest.approx(50 * th.theta4)
     # FVD close-range term (Eq. 12) only acts when ΔS <= D^(e)
     far = enhanced_fvd(v, v + 1, de + 1, de, 0.0, 0.01, u_min=None)
@@ -109,8 +115,11 @@ def test_vectorised_rollout_matches_scalar_laws():
     traj = rollout_models(seqs, 1500.0, 55.0, hz, theta, TABLE_I)
     de = desired_spacing_m(55.0, 61.1)
     t = theta
-    first = [enhanced_idm(55.0, 61.1, 500.0, de, t[0], t[1]), enhanced_cacc(55.0, 61.1, 500.0, de, 0.0, *t[2:5]),
-             enhanced_fvd(55.0, 61.1, 500.0, de, t[5], t[6])]
+    first = [
+        enhanced_idm(55.0, 61.1, 500.0, de, t[0], t[1]),
+        enhanced_cacc(55.0, 61.1, 500.0, de, 0.0, *t[2:5]),
+        enhanced_fvd(55.0, 61.1, 500.0, de, t[5], t[6]),
+    ]
     assert np.allclose(traj.u[:3, 0], first)
     # each row is its own closed loop: re-simulating its controls reproduces its states
     again = rollout_controls(traj.u, 1500.0, 55.0, TABLE_I)
@@ -119,8 +128,7 @@ def test_vectorised_rollout_matches_scalar_laws():
     j = 4
     de_j = desired_spacing_m(traj.v[3, j], hz.speed_mps[j])
     gap_j = hz.position_m[j] - traj.s[3, j]
-    assert traj.u[3, j] == pytest.approx(float(enhanced_cacc(traj.v[3, j], hz.speed_mps[j], gap_j, de_j, 0.0,
-                                                             *t[2:5])))
+    assert traj.u[3, j] == pytest.approx(float(enhanced_cacc(traj.v[3, j], hz.speed_mps[j], gap_j, de_j, 0.0, *t[2:5])))
 
 
 def test_cost_terms_closed_form():
@@ -133,9 +141,13 @@ def test_cost_terms_closed_form():
     v, s = traj.v[0, 1:], traj.s[0, 1:]
     e = hz.position_m[1:] - s - desired_spacing_m(v, 50.0)
     w = TABLE_II
-    expect = (w.xi_v * np.sum((v - 50) ** 2) + w.xi_s * np.sum(e ** 2) + w.xi_u * np.sum(u ** 2)
-              + w.xi_du * ((0.1 - 0.05) ** 2 + 0.1 ** 2 + 0.3 ** 2)
-              + w.xi_term * (w.xi_v * (v[-1] - 50) ** 2 + w.xi_s * e[-1] ** 2))
+    expect = (
+        w.xi_v * np.sum((v - 50) ** 2)
+        + w.xi_s * np.sum(e**2)
+        + w.xi_u * np.sum(u**2)
+        + w.xi_du * ((0.1 - 0.05) ** 2 + 0.1**2 + 0.3**2)
+        + w.xi_term * (w.xi_v * (v[-1] - 50) ** 2 + w.xi_s * e[-1] ** 2)
+    )
     assert terms["penalty"][0] == 0.0
     assert terms["J"][0] == pytest.approx(expect, rel=1e-12)
     # a trajectory that runs into the safe spacing is penalised per metre of violation
@@ -148,9 +160,19 @@ def test_cost_terms_closed_form():
 def test_predecessor_horizon_shifts_plan_by_age():
     plan_x = tuple(100.0 + 50.0 * j + 0.1 * j * j for j in range(6))
     plan_v = tuple(50.0 + 0.2 * j for j in range(6))
-    pred = PredecessorState("T1", plan_x[0], plan_v[0], 0.2, 203.0, stamp_s=10.0, age_s=1.0,
-                            planned_position_m=plan_x, planned_speed_mps=plan_v, planned_accel_mps2=(0.3,) * 6,
-                            plan_dt_s=1.0)
+    pred = PredecessorState(
+        "T1",
+        plan_x[0],
+        plan_v[0],
+        0.2,
+        203.0,
+        stamp_s=10.0,
+        age_s=1.0,
+        planned_position_m=plan_x,
+        planned_speed_mps=plan_v,
+        planned_accel_mps2=(0.3,) * 6,
+        plan_dt_s=1.0,
+    )
     hz = predecessor_horizon(pred, 6, 1.0)
     assert np.allclose(hz.position_m[:5], plan_x[1:])
     assert np.allclose(hz.speed_mps[:5], plan_v[1:])

@@ -20,8 +20,15 @@ def _late_error(method: str, seed: int) -> float:
     veh = paper_a_vehicle()
     f = controllers.create(method, {"theta_preset": "train2", "population": 20, "iterations": 10, "seed": seed}, veh)
     d0 = float(desired_spacing_m(220 * KMH, 220 * KMH))
-    run = run_platoon([f], (d0, 0.0), (220 * KMH, 220 * KMH), 300, seed=seed, leader_speed=variable_speed_profile(),
-                      leader_future_known=True)
+    run = run_platoon(
+        [f],
+        (d0, 0.0),
+        (220 * KMH, 220 * KMH),
+        300,
+        seed=seed,
+        leader_speed=variable_speed_profile(),
+        leader_future_known=True,
+    )
     (m,) = follower_metrics(run, 150.0, 300.0)
     assert m.min_safety_margin_m > 0.0
     return m.late_mean_abs_spacing_error_m

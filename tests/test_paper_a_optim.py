@@ -7,8 +7,7 @@ import math
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 from controllers.paper_a.optim import (
     METHODS,
@@ -63,9 +62,17 @@ class Spy:
 
 
 MSMFO_VARIANTS = [
-    ("rounding", "clamp"), ("chaotic_init", "literal"), ("chaotic_init", "off"), ("eobl", "init"), ("eobl", "off"),
-    ("flame_count", "literal"), ("flame_count", "linear"), ("mutation", "literal"), ("mutation", "off"),
-    ("spiral", "standard"), ("greedy", False),
+    ("rounding", "clamp"),
+    ("chaotic_init", "literal"),
+    ("chaotic_init", "off"),
+    ("eobl", "init"),
+    ("eobl", "off"),
+    ("flame_count", "literal"),
+    ("flame_count", "linear"),
+    ("mutation", "literal"),
+    ("mutation", "off"),
+    ("spiral", "standard"),
+    ("greedy", False),
 ]
 
 
@@ -78,8 +85,11 @@ def test_cyclic_round_examples_of_eq21():
 
 
 @settings(max_examples=200)
-@given(values=st.lists(st.floats(-1e300, 1e300, allow_nan=False), min_size=1, max_size=40),
-       lb=st.integers(-5, 5), n_values=st.integers(1, 9))
+@given(
+    values=st.lists(st.floats(-1e300, 1e300, allow_nan=False), min_size=1, max_size=40),
+    lb=st.integers(-5, 5),
+    n_values=st.integers(1, 9),
+)
 def test_rounding_keeps_every_index_in_range(values, lb, n_values):
     ub = lb + n_values - 1
     for fn in (cyclic_round, clamp_round):
@@ -89,8 +99,11 @@ def test_rounding_keeps_every_index_in_range(values, lb, n_values):
 
 
 @settings(max_examples=100)
-@given(whole=st.lists(st.integers(-10**6, 10**6), min_size=1, max_size=20),
-       frac=st.sampled_from([0.0, 0.25, 0.5, 0.75]), n_values=st.integers(1, 9))
+@given(
+    whole=st.lists(st.integers(-(10**6), 10**6), min_size=1, max_size=20),
+    frac=st.sampled_from([0.0, 0.25, 0.5, 0.75]),
+    n_values=st.integers(1, 9),
+)
 def test_cyclic_round_is_periodic_and_identity_in_range(whole, frac, n_values):
     x = np.array(whole) + frac  # exactly representable, so x + n is exact and periodicity is testable
     assert np.array_equal(cyclic_round(x + n_values, 0, n_values - 1), cyclic_round(x, 0, n_values - 1))
@@ -115,8 +128,13 @@ def test_logistic_tent_stays_in_its_domain(c, r1):
 
 
 @settings(max_examples=60)
-@given(population=st.integers(1, 60), dim=st.integers(1, 30), n_values=st.integers(1, 6),
-       seed=st.integers(0, 2**32 - 1), variant=st.sampled_from(["suggested", "literal"]))
+@given(
+    population=st.integers(1, 60),
+    dim=st.integers(1, 30),
+    n_values=st.integers(1, 6),
+    seed=st.integers(0, 2**32 - 1),
+    variant=st.sampled_from(["suggested", "literal"]),
+)
 def test_chaotic_initialisation_stays_in_range(population, dim, n_values, seed, variant):
     pos = chaotic_positions(population, dim, n_values, np.random.default_rng(seed), variant)
     assert pos.shape == (population, dim)
@@ -240,8 +258,12 @@ def test_natural_evaluation_counts(method):
     P, K, dim = 20, 30, 6
     spy = Spy(separable(dim, 3, 2)[0], 3)
     res = minimize_sequence(spy, dim, 3, method=method, population=P, iterations=K, rng=np.random.default_rng(1))
-    natural = {"mfo": P * (K + 1), "pso": P * (K + 1), "sa": P * K,
-               "ga": P + K * (P - math.ceil(GaSettings().elite_fraction * P))}
+    natural = {
+        "mfo": P * (K + 1),
+        "pso": P * (K + 1),
+        "sa": P * K,
+        "ga": P + K * (P - math.ceil(GaSettings().elite_fraction * P)),
+    }
     if method == "msmfo":
         # init + EOBL, then per iteration P moths + ⌈0.4P⌉ opposites + up to N_f mutants, plus greedy passes
         base = (P + math.ceil(0.4 * P)) * (K + 1)
@@ -257,8 +279,9 @@ def test_natural_evaluation_counts(method):
 def test_every_msmfo_component_can_be_switched(field, value):
     dim, n = 12, 4
     spy = Spy(quadratic(dim, n, 2), n)
-    res = minimize_sequence(spy, dim, n, rng=np.random.default_rng(0), population=20, iterations=30,
-                            options={field: value})
+    res = minimize_sequence(
+        spy, dim, n, rng=np.random.default_rng(0), population=20, iterations=30, options={field: value}
+    )
     assert res.method == "msmfo" and res.best.shape == (dim,) and res.best.dtype == np.int64
     assert res.best.min() >= 0 and res.best.max() < n
     assert res.best_cost == pytest.approx(spy.f(res.best[None])[0])
@@ -267,23 +290,36 @@ def test_every_msmfo_component_can_be_switched(field, value):
 
 
 def test_all_components_off_at_once_is_plain_mfo_like():
-    off = {"rounding": "clamp", "chaotic_init": "off", "eobl": "off", "flame_count": "linear", "mutation": "off",
-           "spiral": "standard", "greedy": False}
+    off = {
+        "rounding": "clamp",
+        "chaotic_init": "off",
+        "eobl": "off",
+        "flame_count": "linear",
+        "mutation": "off",
+        "spiral": "standard",
+        "greedy": False,
+    }
     a = minimize_sequence(quadratic(10, 3, 1), 10, 3, rng=np.random.default_rng(9), options=off)
     b = minimize_sequence(quadratic(10, 3, 1), 10, 3, method="mfo", rng=np.random.default_rng(9))
     assert np.array_equal(a.best, b.best) and np.array_equal(a.history, b.history)
 
 
 @settings(max_examples=40)
-@given(dim=st.integers(1, 12), n_values=st.integers(1, 5), seed=st.integers(0, 10_000),
-       method=st.sampled_from(METHODS), variant=st.sampled_from([None] + MSMFO_VARIANTS))
+@given(
+    dim=st.integers(1, 12),
+    n_values=st.integers(1, 5),
+    seed=st.integers(0, 10_000),
+    method=st.sampled_from(METHODS),
+    variant=st.sampled_from([None] + MSMFO_VARIANTS),
+)
 def test_every_evaluated_sequence_is_in_range(dim, n_values, seed, method, variant):
     spy = Spy(quadratic(dim, n_values, seed % 7), n_values)
     options: dict = {"budget": 300}
     if variant is not None and method in ("msmfo", "mfo"):
         options[variant[0]] = variant[1]
-    res = minimize_sequence(spy, dim, n_values, method=method, population=10, rng=np.random.default_rng(seed),
-                            options=options)
+    res = minimize_sequence(
+        spy, dim, n_values, method=method, population=10, rng=np.random.default_rng(seed), options=options
+    )
     assert 0 <= res.best.min() and res.best.max() < n_values and res.evaluations == spy.rows
 
 
@@ -292,22 +328,26 @@ def test_every_evaluated_sequence_is_in_range(dim, n_values, seed, method, varia
 def test_warm_start_is_evaluated_first(method):
     f, target = separable(10, 3, 4)
     other = (target + 1) % 3
-    res = minimize_sequence(f, 10, 3, method=method, rng=np.random.default_rng(0), init=np.stack([other, target]),
-                            options={"budget": 2})
+    res = minimize_sequence(
+        f, 10, 3, method=method, rng=np.random.default_rng(0), init=np.stack([other, target]), options={"budget": 2}
+    )
     assert np.array_equal(res.best, target) and res.best_cost == 0.0
 
 
-@pytest.mark.parametrize("kwargs,field", [
-    ({"method": "de"}, "method"),
-    ({"options": {"spiral": "log"}}, "options.spiral"),
-    ({"options": {"swarm": 3}}, "options.swarm"),
-    ({"options": {"budget": 0}}, "options.budget"),
-    ({"options": {"elite_fraction": 1.5}}, "options.elite_fraction"),
-    ({"population": 1}, "population"),
-    ({"init": np.zeros(5, dtype=int)}, "init"),
-    ({"init": np.full(8, 3)}, "init"),
-    ({"init": np.full(8, 0.5)}, "init"),
-])
+@pytest.mark.parametrize(
+    "kwargs,field",
+    [
+        ({"method": "de"}, "method"),
+        ({"options": {"spiral": "log"}}, "options.spiral"),
+        ({"options": {"swarm": 3}}, "options.swarm"),
+        ({"options": {"budget": 0}}, "options.budget"),
+        ({"options": {"elite_fraction": 1.5}}, "options.elite_fraction"),
+        ({"population": 1}, "population"),
+        ({"init": np.zeros(5, dtype=int)}, "init"),
+        ({"init": np.full(8, 3)}, "init"),
+        ({"init": np.full(8, 0.5)}, "init"),
+    ],
+)
 def test_bad_arguments_raise_config_errors(kwargs, field):
     f, _ = separable(8, 3, 0)
     with pytest.raises(ConfigError) as err:
@@ -339,5 +379,12 @@ def test_single_value_problem_has_one_answer():
 def test_defaults_are_the_paper_reading():
     s = MSMFO_SETTINGS
     assert (s.rounding, s.chaotic_init, s.eobl, s.flame_count, s.mutation, s.spiral, s.greedy) == (
-        "cyclic", "suggested", "init+iter", "suggested", "suggested", "modified", True)
+        "cyclic",
+        "suggested",
+        "init+iter",
+        "suggested",
+        "suggested",
+        "modified",
+        True,
+    )
     assert (s.alpha, s.beta, s.elite_fraction) == (0.5, 4.0, 0.4)

@@ -27,14 +27,20 @@ def test_standin_fitness_equals_the_mcf_rollout_cost():
     pytest.importorskip("controllers.paper_a.rollout")
     pytest.importorskip("controllers.paper_a.cost")
     bench = _load()
-    seqs = np.vstack([np.random.default_rng(0).integers(0, 3, (40, bench.NP)),
-                      np.repeat(np.arange(3)[:, None], bench.NP, axis=1)])
+    seqs = np.vstack(
+        [np.random.default_rng(0).integers(0, 3, (40, bench.NP)), np.repeat(np.arange(3)[:, None], bench.NP, axis=1)]
+    )
     np.testing.assert_allclose(bench._standin_fitness()(seqs), bench._colleague_fitness()(seqs), rtol=1e-12)
 
 
 def test_small_benchmark_run_reports_equal_budgets():
-    out = subprocess.run([sys.executable, str(SCRIPT), "--seeds", "2", "--budget", "300"], capture_output=True,
-                         text=True, timeout=300, cwd=ROOT)
+    out = subprocess.run(
+        [sys.executable, str(SCRIPT), "--seeds", "2", "--budget", "300"],
+        capture_output=True,
+        text=True,
+        timeout=300,
+        cwd=ROOT,
+    )
     assert out.returncode == 0, out.stderr
     report = json.loads(out.stdout)
     methods = report["methods"]

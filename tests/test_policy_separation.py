@@ -34,7 +34,7 @@ def test_caps_follow_the_closed_forms() -> None:
     b, t, margin, gap = VEH.emergency_decel_mps2, 1.0, 5.0, 120.0
     v_adbm = -b * t + math.sqrt((b * t) ** 2 + 2 * b * (gap - margin))
     assert _cap("adbm", gap, 15.0) == pytest.approx(v_adbm, rel=1e-9)
-    room = gap - margin + 15.0 ** 2 / (2 * b)
+    room = gap - margin + 15.0**2 / (2 * b)
     assert _cap("rdbm", gap, 15.0) == pytest.approx(-b * t + math.sqrt((b * t) ** 2 + 2 * b * room), rel=1e-9)
     assert _cap("rdbm", gap, 15.0) > _cap("adbm", gap, 15.0)
     assert _cap("rdbm", gap, 0.0) == pytest.approx(_cap("adbm", gap, 0.0))  # a standing leader: the same
@@ -44,14 +44,27 @@ def test_caps_follow_the_closed_forms() -> None:
 def test_rdbm_runs_closer_than_adbm_on_line3(tmp_path: Path) -> None:
     running = {}
     for mode in ("adbm", "rdbm"):
-        raw = {"name": f"sep_{mode}", "world": "chongqing_line3",
-               "simulation": {"step_s": 0.5, "duration_s": 900, "seed": 2},
-               "vehicles": {"cq6": {"preset": "cq3_6car"}},
-               "controllers": {"ato": {"type": "ato"},
-                               "sep": {"type": "policy_separation", "params": {"mode": mode, "margin_m": 10}}},
-               "roles": {"ato": "ato", "separation": "sep"},
-               "services": [{"id": "x", "from": "jiugongli", "to": "bagongli", "vehicle": "cq6",
-                             "departures": {"times": [0, 20]}, "dwell_s": 20}]}
+        raw = {
+            "name": f"sep_{mode}",
+            "world": "chongqing_line3",
+            "simulation": {"step_s": 0.5, "duration_s": 900, "seed": 2},
+            "vehicles": {"cq6": {"preset": "cq3_6car"}},
+            "controllers": {
+                "ato": {"type": "ato"},
+                "sep": {"type": "policy_separation", "params": {"mode": mode, "margin_m": 10}},
+            },
+            "roles": {"ato": "ato", "separation": "sep"},
+            "services": [
+                {
+                    "id": "x",
+                    "from": "jiugongli",
+                    "to": "bagongli",
+                    "vehicle": "cq6",
+                    "departures": {"times": [0, 20]},
+                    "dwell_s": 20,
+                }
+            ],
+        }
         path = tmp_path / f"{mode}.yaml"
         path.write_text(yaml.safe_dump(raw, sort_keys=False))
         res = run_railsim(["run", str(path), "--out", str(tmp_path / mode), "--no-progress"], cache_dir=tmp_path / "c")

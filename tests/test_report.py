@@ -16,8 +16,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from railsim.report import document as report
 from railsim.cli.main import main as cli_main
+from railsim.report import document as report
 from tests.helpers import DATA, ROOT, read_csv, run_railsim
 
 pytestmark = pytest.mark.sumo
@@ -45,10 +45,14 @@ def run_md(run_dir: Path) -> str:
 @pytest.fixture(scope="module")
 def sweep_dir(tmp_path_factory: pytest.TempPathFactory) -> Path:
     tmp = tmp_path_factory.mktemp("report_sweep")
-    spec = {"name": "report_test", "description": "two headways on the small corridor", "base": str(CORRIDOR),
-            "cases": [{"services[0].departures.last": 240, "services[1].departures.last": 240}],  # short runs
-            "grid": {"services[0].departures.headway_s": [60, 120]},
-            "link": {"services[1].departures.headway_s": "services[0].departures.headway_s"}}
+    spec = {
+        "name": "report_test",
+        "description": "two headways on the small corridor",
+        "base": str(CORRIDOR),
+        "cases": [{"services[0].departures.last": 240, "services[1].departures.last": 240}],  # short runs
+        "grid": {"services[0].departures.headway_s": [60, 120]},
+        "link": {"services[1].departures.headway_s": "services[0].departures.headway_s"},
+    }
     (tmp / "sweep.yaml").write_text(yaml.safe_dump(spec, sort_keys=False))
     out = tmp / "out"
     res = run_railsim(["sweep", str(tmp / "sweep.yaml"), "--out", str(out), "--workers", "1"])
@@ -67,9 +71,16 @@ def _rows(table_md: str) -> list[list[str]]:
 
 
 def test_run_report_has_the_key_tables(run_md: str, run_dir: Path) -> None:
-    for heading in ("# Run report: mini_line", "## Summary", "## Running times per service", "## Stops",
-                    "## Formations (virtual coupling)", "## Figures", "## Capacity",
-                    "### UIC 406 occupancy per section"):
+    for heading in (
+        "# Run report: mini_line",
+        "## Summary",
+        "## Running times per service",
+        "## Stops",
+        "## Formations (virtual coupling)",
+        "## Figures",
+        "## Capacity",
+        "### UIC 406 occupancy per section",
+    ):
         assert f"\n{heading}\n" in f"\n{run_md}"
     trips = read_csv(run_dir / "trips.csv")
     rows = {r[0]: r for r in _rows(_section(run_md, "## Running times per service"))}
@@ -82,8 +93,9 @@ def test_run_report_has_the_key_tables(run_md: str, run_dir: Path) -> None:
     summary = _section(run_md, "## Summary")
     assert "| 7 / 7 / 7 |" in summary and "| collisions (SUMO's own check) | 0 (0) |" in summary
     formations = _rows(_section(run_md, "## Formations (virtual coupling)"))
-    assert [r[:3] for r in formations] == [[f["formation"], f["leader"], f["follower"]]
-                                           for f in read_csv(run_dir / "formations.csv")]
+    assert [r[:3] for r in formations] == [
+        [f["formation"], f["leader"], f["follower"]] for f in read_csv(run_dir / "formations.csv")
+    ]
     stops = _rows(_section(run_md, "## Stops").split("Per station (line order):")[1])
     assert [r[0] for r in stops] == ["A", "B", "C", "F", "D", "G", "E"]  # line km order, branch included
     assert sum(int(r[2]) for r in stops) == len(read_csv(run_dir / "stops.csv"))
@@ -126,8 +138,11 @@ def test_sweep_report(sweep_dir: Path) -> None:
     assert len(figures) == 1 and "headway_s" in figures[0]
     assert (sweep_dir / figures[0]).read_bytes()[:4] == b"\x89PNG"
     assert report.parameter_columns(pd.read_csv(sweep_dir / "cases.csv")) == [
-        "services[0].departures.last", "services[1].departures.last", "services[0].departures.headway_s",
-        "services[1].departures.headway_s"]
+        "services[0].departures.last",
+        "services[1].departures.last",
+        "services[0].departures.headway_s",
+        "services[1].departures.headway_s",
+    ]
 
 
 def test_report_mistakes_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

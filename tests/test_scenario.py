@@ -17,8 +17,7 @@ from typing import Any
 import numpy as np
 import pytest
 import yaml
-from hypothesis import given, settings
-from hypothesis import strategies as st
+from hypothesis import given, settings, strategies as st
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE / "data" / "plugins"))
@@ -40,7 +39,13 @@ BASE: dict[str, Any] = {
     "controllers": {"drive": {"type": "_test_ctrl"}, "keep": {"type": "_test_follow", "params": {"margin_m": 50}}},
     "roles": {"ato": "drive", "separation": "keep", "coupled": "keep"},
     "services": [
-        {"id": "a", "from": "s0", "to": "s9", "vehicle": "cq6", "departures": {"first": 0, "last": 600, "headway_s": 300}},
+        {
+            "id": "a",
+            "from": "s0",
+            "to": "s9",
+            "vehicle": "cq6",
+            "departures": {"first": 0, "last": 600, "headway_s": 300},
+        },
         {"id": "b", "from": "s0", "to": "s5", "vehicle": "cq6", "departures": {"times": [60, 420]}},
     ],
 }
@@ -109,7 +114,9 @@ def test_valid_example_loads() -> None:
 def test_defaults_are_filled_in() -> None:
     scn = build()
     assert scn.description == ""
-    assert scn.simulation == S.SimulationSpec(step_s=0.5, duration_s=3600.0, start_time_s=0.0, seed=0, step_method="euler")
+    assert scn.simulation == S.SimulationSpec(
+        step_s=0.5, duration_s=3600.0, start_time_s=0.0, seed=0, step_method="euler"
+    )
     assert scn.faults == S.FaultSpec()
     assert set(scn.faults.comm) == {"t2t", "t2g"}
     assert scn.outputs == S.OutputSpec(trace_stride_s=1.0, sumo=(), formats=("csv",))
@@ -158,7 +165,9 @@ def test_clock_strings_are_relative_to_start_time() -> None:
 
 
 def test_more_than_a_thousand_trips_keep_ids_sortable() -> None:
-    svc = build({"simulation.step_s": 0.1, "services[0].departures": {"first": 0, "last": 1000, "headway_s": 1}}).services[0]
+    svc = build(
+        {"simulation.step_s": 0.1, "services[0].departures": {"first": 0, "last": 1000, "headway_s": 1}}
+    ).services[0]
     assert svc.trip_ids[0] == "a.0000" and svc.trip_ids[-1] == "a.1000"
     assert list(svc.trip_ids) == sorted(svc.trip_ids)
 
@@ -166,15 +175,26 @@ def test_more_than_a_thousand_trips_keep_ids_sortable() -> None:
 @pytest.mark.parametrize(
     "departures, message",
     [
-        ({"times": [60, 120, 60.0]}, "services[1].departures.times[2]: expected distinct departure times, got 60.0 twice"),
+        (
+            {"times": [60, 120, 60.0]},
+            "services[1].departures.times[2]: expected distinct departure times, got 60.0 twice",
+        ),
         ({"times": []}, "services[1].departures.times: expected a non-empty list of departure times, got []"),
-        ({"first": 600, "last": 0, "headway_s": 60}, "services[1].departures.last: expected a time at or after first (600), got 0"),
+        (
+            {"first": 600, "last": 0, "headway_s": 60},
+            "services[1].departures.last: expected a time at or after first (600), got 0",
+        ),
         ({"first": 0, "last": 60, "headway_s": 0}, "services[1].departures.headway_s: expected a number > 0, got 0"),
         ({"first": 0, "last": 60}, "services[1].departures.headway_s: missing required key"),
-        ({"first": 0, "last": 1e6, "headway_s": 10},
-         "services[1].departures: expected at most 10000 departures, got 100001 (from first to last every headway_s)"),
+        (
+            {"first": 0, "last": 1e6, "headway_s": 10},
+            "services[1].departures: expected at most 10000 departures, got 100001 (from first to last every headway_s)",
+        ),
         ({"times": [-5]}, "services[1].departures.times[0]: expected a number >= 0, got -5"),
-        ({"times": ["25:61"]}, 'services[1].departures.times[0]: expected a clock time "HH:MM" or "HH:MM:SS", got \'25:61\''),
+        (
+            {"times": ["25:61"]},
+            'services[1].departures.times[0]: expected a clock time "HH:MM" or "HH:MM:SS", got \'25:61\'',
+        ),
     ],
 )
 def test_bad_departures(departures: dict[str, Any], message: str) -> None:
@@ -200,10 +220,12 @@ def test_clock_parsing() -> None:
 
 
 def test_yaml_numbers_and_clock_times() -> None:
-    text = (VALID.read_text()
-            .replace("start_time: 07:30 ", "start_time: 17:30 ")
-            .replace('first: "07:30", last: "09:30"', "first: 17:30, last: 17:40")
-            .replace('times: ["07:36:30", "07:31",', 'times: [17:36:30, 17:31,'))
+    text = (
+        VALID.read_text()
+        .replace("start_time: 07:30 ", "start_time: 17:30 ")
+        .replace('first: "07:30", last: "09:30"', "first: 17:30, last: 17:40")
+        .replace('times: ["07:36:30", "07:31",', "times: [17:36:30, 17:31,")
+    )
     scn = S.loads(text)
     assert scn.simulation.start_time_s == 17.5 * 3600  # YAML 1.1 would read 1050
     assert scn.services[0].departures_s == (0.0, 150.0, 300.0, 450.0, 600.0)
@@ -256,11 +278,31 @@ def test_round_trip_keeps_relative_world_paths_working(tmp_path: Path) -> None:
 def test_default_filled_raw_has_every_section() -> None:
     raw = build().raw
     assert list(raw) == [
-        "name", "description", "world", "simulation", "vehicles", "controllers", "roles",
-        "services", "formations", "events", "faults", "outputs",
+        "name",
+        "description",
+        "world",
+        "simulation",
+        "vehicles",
+        "controllers",
+        "roles",
+        "services",
+        "formations",
+        "events",
+        "faults",
+        "outputs",
     ]
-    assert raw["simulation"] == {"step_s": 0.5, "duration_s": 3600.0, "start_time": "00:00", "seed": 0, "step_method": "euler"}
-    assert raw["faults"]["comm"]["t2g"] == {"delay_s": {"dist": "constant", "value": 0.0}, "loss_prob": 0.0, "outages": []}
+    assert raw["simulation"] == {
+        "step_s": 0.5,
+        "duration_s": 3600.0,
+        "start_time": "00:00",
+        "seed": 0,
+        "step_method": "euler",
+    }
+    assert raw["faults"]["comm"]["t2g"] == {
+        "delay_s": {"dist": "constant", "value": 0.0},
+        "loss_prob": 0.0,
+        "outages": [],
+    }
     assert set(raw["vehicles"]["cq6"]) == {"preset"} | set(S.VEHICLE_FIELDS)
 
 
@@ -287,7 +329,10 @@ def test_with_overrides_copies_and_creates_missing_mappings() -> None:
     [
         ("services[5].id", "<overrides>: services[5].id: index 5 out of range (services has 2 items)"),
         ("name.first", "<overrides>: name.first: name is not a mapping, got 'base'"),
-        ("simulation[0]", "<overrides>: simulation[0]: simulation is not a list, got {'step_s': 0.5, 'duration_s': 3600}"),
+        (
+            "simulation[0]",
+            "<overrides>: simulation[0]: simulation is not a list, got {'step_s': 0.5, 'duration_s': 3600}",
+        ),
         ("simulation..seed", '<overrides>: simulation..seed: expected a path like "a.b[0].c"'),
     ],
 )
@@ -310,8 +355,14 @@ def test_check_against_world() -> None:
             "services[0].via": ["s3"],
             "services[0].dwell_s": {"stations": {"s4": 40}},
             "formations": [
-                {"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0},
-                 "target_gap_m": 20, "couple": {"at_station": "s1"}, "decouple": {"before_switch": "sw_2"}},
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 20,
+                    "couple": {"at_station": "s1"},
+                    "decouple": {"before_switch": "sw_2"},
+                },
             ],
         }
     )
@@ -320,7 +371,9 @@ def test_check_against_world() -> None:
 
     with pytest.raises(ConfigError) as info:
         S.check_against_world(scn, [s for s in stations if s != "s3"], ["sw_1", "sw_2"])
-    assert str(info.value) == "base.yaml: services[0].via[0]: expected a station id of world 'straight_corridor', got 's3'"
+    assert (
+        str(info.value) == "base.yaml: services[0].via[0]: expected a station id of world 'straight_corridor', got 's3'"
+    )
     with pytest.raises(ConfigError) as info:
         S.check_against_world(scn, [s for s in stations if s != "s4"] + ["s44"], ["sw_2"])
     assert str(info.value) == (
@@ -343,7 +396,8 @@ def test_world_forms(tmp_path: Path) -> None:
     )
     assert scn.world.kind == "net" and scn.world.additional == ((tmp_path / "stops.add.xml").resolve(),)
     assert build({"world": {"name": "straight_corridor", "params": {"length_km": 60}}}).world.build_args() == (
-        "straight_corridor", {"length_km": 60},
+        "straight_corridor",
+        {"length_km": 60},
     )
     assert error_of({"world": {"name": "a", "line": "b"}}) == (
         "base.yaml: world: expected exactly one of name, line, net, got {'name': 'a', 'line': 'b'}"
@@ -373,16 +427,21 @@ def test_vehicle_without_preset_needs_every_field() -> None:
 @pytest.mark.parametrize(
     "override, message",
     [
-        ({"vehicles.cq6.max_speed_kmh": 70, "vehicles.cq6.max_speed_mps": 19.0},
-         "vehicles.cq6.max_speed_kmh: expected either max_speed_kmh or max_speed_mps, got both"),
-        ({"vehicles.cq6.emergency_decel_mps2": 1.0},
-         "vehicles.cq6.emergency_decel_mps2: expected a number >= service_decel_mps2 (1.11), got 1.0"),
+        (
+            {"vehicles.cq6.max_speed_kmh": 70, "vehicles.cq6.max_speed_mps": 19.0},
+            "vehicles.cq6.max_speed_kmh: expected either max_speed_kmh or max_speed_mps, got both",
+        ),
+        (
+            {"vehicles.cq6.emergency_decel_mps2": 1.0},
+            "vehicles.cq6.emergency_decel_mps2: expected a number >= service_decel_mps2 (1.11), got 1.0",
+        ),
         ({"vehicles.cq6.capacity_pax": 12.5}, "vehicles.cq6.capacity_pax: expected an integer >= 0, got 12.5"),
-        ({"vehicles.cq6.name": "x"},
-         "vehicles.cq6.name: unknown key (a vehicle is named by its key in 'vehicles')"),
-        ({"vehicles.cq6.mass_kgs": 1},
-         "vehicles.cq6.mass_kgs: unknown key (did you mean 'mass_kg'?); allowed keys: " + ", ".join(
-             sorted(["preset", "max_speed_kmh", "plant", "plant_params", *S.VEHICLE_FIELDS]))),
+        ({"vehicles.cq6.name": "x"}, "vehicles.cq6.name: unknown key (a vehicle is named by its key in 'vehicles')"),
+        (
+            {"vehicles.cq6.mass_kgs": 1},
+            "vehicles.cq6.mass_kgs: unknown key (did you mean 'mass_kg'?); allowed keys: "
+            + ", ".join(sorted(["preset", "max_speed_kmh", "plant", "plant_params", *S.VEHICLE_FIELDS])),
+        ),
         ({"vehicles.cq6.mass_kg": float("nan")}, "vehicles.cq6.mass_kg: expected a finite number > 0, got nan"),
     ],
 )
@@ -400,13 +459,26 @@ def test_controller_params_are_checked_with_the_vehicles_that_use_them() -> None
         "base.yaml: controllers.keep.params.brake_mps2: expected at most the emergency deceleration of soft (1.1), got 1.2"
     )
     # a per-service role override makes the check follow the controller actually used
-    assert build({**strict, "controllers.other": {"type": "_test_follow"}, "services[1].vehicle": "soft",
-                  "services[1].roles": {"separation": "other", "coupled": "other"}}).services[1].roles["separation"] == "other"
+    assert (
+        build(
+            {
+                **strict,
+                "controllers.other": {"type": "_test_follow"},
+                "services[1].vehicle": "soft",
+                "services[1].roles": {"separation": "other", "coupled": "other"},
+            }
+        )
+        .services[1]
+        .roles["separation"]
+        == "other"
+    )
 
 
 def test_controller_registry_is_read_at_validation_time() -> None:
     late = f"_test_late_{uuid.uuid4().hex[:8]}"
-    assert error_of({"controllers.drive.type": late}).startswith("base.yaml: controllers.drive.type: expected a registered")
+    assert error_of({"controllers.drive.type": late}).startswith(
+        "base.yaml: controllers.drive.type: expected a registered"
+    )
 
     @register(late)
     def _factory(params: Any, vehicle: Any) -> Any:
@@ -418,25 +490,93 @@ def test_controller_registry_is_read_at_validation_time() -> None:
 @pytest.mark.parametrize(
     "formations, message",
     [
-        ([{"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "a", "trip": 0}, "target_gap_m": 9}],
-         "formations[0].follower: expected a train other than the leader, got a.000"),
-        ([{"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0}, "target_gap_m": 9},
-          {"id": "q", "leader": {"service": "b", "trip": 0}, "follower": {"service": "a", "trip": 0}, "target_gap_m": 9}],
-         "formations[1].follower: expected formations without a cycle, got a.000 following itself"),
-        ([{"id": "p", "leader": {"service": "c", "trip": 0}, "follower": {"service": "b", "trip": 0}, "target_gap_m": 9}],
-         "formations[0].leader.service: expected a service id (a, b), got 'c'"),
-        ([{"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0}, "target_gap_m": 9,
-           "couple": {"at_s": 5, "on_departure": True}}],
-         "formations[0].couple: expected exactly one of at_s, at_station, on_departure, got {'at_s': 5, 'on_departure': True}"),
-        ([{"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0}, "target_gap_m": 9,
-           "couple": {"on_departure": False}}],
-         "formations[0].couple.on_departure: expected true, got False"),
-        ([{"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0}, "target_gap_m": 0}],
-         "formations[0].target_gap_m: expected a number > 0, got 0"),
-        ([{"id": "p", "leader": {"service": "a", "trip": 0}, "follower": {"service": "b", "trip": 0}, "target_gap_m": 9,
-           "decouple": {"before_swtich": "x"}}],
-         "formations[0].decouple.before_swtich: unknown key (did you mean 'before_switch'?); "
-         "allowed keys: at_s, at_station, before_switch"),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "a", "trip": 0},
+                    "target_gap_m": 9,
+                }
+            ],
+            "formations[0].follower: expected a train other than the leader, got a.000",
+        ),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 9,
+                },
+                {
+                    "id": "q",
+                    "leader": {"service": "b", "trip": 0},
+                    "follower": {"service": "a", "trip": 0},
+                    "target_gap_m": 9,
+                },
+            ],
+            "formations[1].follower: expected formations without a cycle, got a.000 following itself",
+        ),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "c", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 9,
+                }
+            ],
+            "formations[0].leader.service: expected a service id (a, b), got 'c'",
+        ),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 9,
+                    "couple": {"at_s": 5, "on_departure": True},
+                }
+            ],
+            "formations[0].couple: expected exactly one of at_s, at_station, on_departure, got {'at_s': 5, 'on_departure': True}",
+        ),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 9,
+                    "couple": {"on_departure": False},
+                }
+            ],
+            "formations[0].couple.on_departure: expected true, got False",
+        ),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 0,
+                }
+            ],
+            "formations[0].target_gap_m: expected a number > 0, got 0",
+        ),
+        (
+            [
+                {
+                    "id": "p",
+                    "leader": {"service": "a", "trip": 0},
+                    "follower": {"service": "b", "trip": 0},
+                    "target_gap_m": 9,
+                    "decouple": {"before_swtich": "x"},
+                }
+            ],
+            "formations[0].decouple.before_swtich: unknown key (did you mean 'before_switch'?); "
+            "allowed keys: at_s, at_station, before_switch",
+        ),
     ],
 )
 def test_bad_formations(formations: list[Any], message: str) -> None:
@@ -453,12 +593,21 @@ def test_chained_formations_are_allowed() -> None:
 
 
 def test_other_ranges() -> None:
-    assert error_of({"outputs.trace_stride_s": 0.25}) == "base.yaml: outputs.trace_stride_s: expected a number >= 0.5, got 0.25"
-    assert error_of({"outputs.formats": ["csv", "csv"]}) == "base.yaml: outputs.formats[1]: expected distinct values, got 'csv' twice"
+    assert (
+        error_of({"outputs.trace_stride_s": 0.25})
+        == "base.yaml: outputs.trace_stride_s: expected a number >= 0.5, got 0.25"
+    )
+    assert (
+        error_of({"outputs.formats": ["csv", "csv"]})
+        == "base.yaml: outputs.formats[1]: expected distinct values, got 'csv' twice"
+    )
     assert error_of({"outputs.sumo": ["fdc"]}) == (
         "base.yaml: outputs.sumo[0]: expected one of tripinfo, stops, fcd, collisions, got 'fdc' (did you mean 'fcd'?)"
     )
-    assert error_of({"faults.comm.t2t.loss_prob": 1.5}) == "base.yaml: faults.comm.t2t.loss_prob: expected a number in [0, 1], got 1.5"
+    assert (
+        error_of({"faults.comm.t2t.loss_prob": 1.5})
+        == "base.yaml: faults.comm.t2t.loss_prob: expected a number in [0, 1], got 1.5"
+    )
     assert error_of({"faults.comm.t2t.delay_s": {"dist": "uniform", "low": 0.5, "high": 0.1}}) == (
         "base.yaml: faults.comm.t2t.delay_s.high: expected a number >= 0.5, got 0.1"
     )
@@ -469,7 +618,10 @@ def test_other_ranges() -> None:
         "base.yaml: faults.comm.t2t.outages[0].end_s: expected a number > 50, got 50"
     )
     assert error_of({"services[1].id": "a"}) == "base.yaml: services[1].id: expected a unique service id, got 'a' twice"
-    assert error_of({"services[1].skip": ["s5"]}) == "base.yaml: services[1].skip[0]: expected an intermediate station, got the terminal 's5'"
+    assert (
+        error_of({"services[1].skip": ["s5"]})
+        == "base.yaml: services[1].skip[0]: expected an intermediate station, got the terminal 's5'"
+    )
     assert error_of({"services[1].roles": {"folow": "keep"}}) == (
         "base.yaml: services[1].roles.folow: unknown key; allowed keys: ato, ca, coupled, separation"
     )
@@ -500,7 +652,9 @@ def test_delay_sampling_matches_the_documented_parametrisation() -> None:
 
 def _leaf_paths(node: Any, prefix: str = "") -> list[str]:
     if isinstance(node, dict):
-        return [p for k, v in node.items() for p in _leaf_paths(v, f"{prefix}.{k}" if prefix else k)] + ([prefix] if prefix else [])
+        return [p for k, v in node.items() for p in _leaf_paths(v, f"{prefix}.{k}" if prefix else k)] + (
+            [prefix] if prefix else []
+        )
     if isinstance(node, list):
         return [p for i, v in enumerate(node) for p in _leaf_paths(v, f"{prefix}[{i}]")] + [prefix]
     return [prefix]
@@ -509,8 +663,13 @@ def _leaf_paths(node: Any, prefix: str = "") -> list[str]:
 _FULL = S.load(VALID).raw
 _LEAVES = sorted(set(_leaf_paths(_FULL)))
 _JUNK = st.one_of(
-    st.none(), st.booleans(), st.integers(-10**6, 10**6), st.floats(allow_nan=True, allow_infinity=True),
-    st.text(max_size=8), st.lists(st.integers(), max_size=3), st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
+    st.none(),
+    st.booleans(),
+    st.integers(-(10**6), 10**6),
+    st.floats(allow_nan=True, allow_infinity=True),
+    st.text(max_size=8),
+    st.lists(st.integers(), max_size=3),
+    st.dictionaries(st.text(max_size=4), st.integers(), max_size=2),
 )
 
 

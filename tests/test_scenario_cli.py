@@ -29,8 +29,8 @@ sys.path.insert(0, str(PLUGINS))
 import railsim_test_controllers  # noqa: E402,F401
 
 from railsim.cli import main as cli  # noqa: E402
-from railsim.studies import world  # noqa: E402  (the world check behind `railsim validate`)
 from railsim.physics.vehicle import preset_names  # noqa: E402
+from railsim.studies import world  # noqa: E402  (the world check behind `railsim validate`)
 
 
 def _env() -> dict[str, str]:
@@ -40,9 +40,7 @@ def _env() -> dict[str, str]:
 
 
 def _run(*args: str) -> subprocess.CompletedProcess[str]:
-    return subprocess.run(
-        [str(RAILSIM), *args], cwd=REPO, env=_env(), capture_output=True, text=True, timeout=120
-    )
+    return subprocess.run([str(RAILSIM), *args], cwd=REPO, env=_env(), capture_output=True, text=True, timeout=120)
 
 
 @pytest.fixture(scope="module")
@@ -50,7 +48,12 @@ def registered_in_subprocess() -> str:
     """The controller names a fresh `railsim` process knows (built-ins, whatever exists of them, + test ones)."""
     out = subprocess.run(
         [str(PYTHON), "-c", "import json, controllers; print(json.dumps(sorted(controllers.registered())))"],
-        cwd=REPO, env=_env(), capture_output=True, text=True, timeout=120, check=True,
+        cwd=REPO,
+        env=_env(),
+        capture_output=True,
+        text=True,
+        timeout=120,
+        check=True,
     )
     names = json.loads(out.stdout)
     assert {"_test_ctrl", "_test_follow"} <= set(names)
@@ -149,7 +152,9 @@ def test_world_check_passes(monkeypatch: pytest.MonkeyPatch, capsys: pytest.Capt
     assert capsys.readouterr().out == "ok: cq3_peak_test: 2 services, 53 trips, 2 formations\n"
 
 
-def test_world_check_rejects_unknown_station(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+def test_world_check_rejects_unknown_station(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     calls: list[Any] = []
     stations = [s for s in STATIONS if s != "liugongli"] + ["liugongli-east"]
     monkeypatch.setattr(world, "_network_build", lambda: _fake_build(stations, ["bijin_up"], calls))
@@ -161,7 +166,9 @@ def test_world_check_rejects_unknown_station(monkeypatch: pytest.MonkeyPatch, ca
     )
 
 
-def test_world_check_skipped_with_a_warning(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
+def test_world_check_skipped_with_a_warning(
+    monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     monkeypatch.setattr(world, "_network_build", lambda: None)
     assert cli.main(["validate", str(REPO / VALID)]) == 0
     out = capsys.readouterr()

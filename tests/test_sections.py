@@ -13,8 +13,8 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from railsim.errors import ConfigError
 from railsim.analysis.sections import SECTION_COLUMNS, LineFrame, read_table, section_table
+from railsim.errors import ConfigError
 from tests.helpers import DATA, read_csv
 
 pytestmark = pytest.mark.sumo

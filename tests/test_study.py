@@ -43,9 +43,30 @@ def _scenarios(tmp: Path) -> tuple[Path, Path]:
 def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     mb, vc = _scenarios(tmp_path)
     out = tmp_path / "study"
-    args = ["study", "vc-vs-mb", "--out", str(out), "--mb", str(mb), "--vc", str(vc), "--services",
-            "main_up,main_down", "--lo", "60", "--mb-hi", "120", "--vc-hi", "120", "--tol", "30", "--no-confirm",
-            "--workers", "2", "--no-progress"]
+    args = [
+        "study",
+        "vc-vs-mb",
+        "--out",
+        str(out),
+        "--mb",
+        str(mb),
+        "--vc",
+        str(vc),
+        "--services",
+        "main_up,main_down",
+        "--lo",
+        "60",
+        "--mb-hi",
+        "120",
+        "--vc-hi",
+        "120",
+        "--tol",
+        "30",
+        "--no-confirm",
+        "--workers",
+        "2",
+        "--no-progress",
+    ]
     res = run_railsim(args, cache_dir=tmp_path / "cache", timeout=900)
     assert res.returncode == 0, res.stderr + res.stdout
     assert "Traceback" not in res.stderr
@@ -68,8 +89,9 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     assert data["mb"]["metrics"]["formations_coupled"] == "0/0"
     # the Markdown table shows the JSON's numbers
     row = next(line for line in md.splitlines() if line.startswith("| minimum feasible headway"))
-    assert row == (f"| minimum feasible headway [s] | {data['mb']['headway_s']:,.1f} | "
-                   f"{data['vc']['headway_s']:,.1f} |")
+    assert row == (
+        f"| minimum feasible headway [s] | {data['mb']['headway_s']:,.1f} | {data['vc']['headway_s']:,.1f} |"
+    )
     assert "UIC 406 occupancy per section" in md
     # a re-run finds every probe already done and gives the same answer
     again = run_railsim(args, cache_dir=tmp_path / "cache", timeout=900)
@@ -77,12 +99,15 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     assert json.loads((out / "vc_vs_mb.json").read_text())["vc"]["headway_s"] == data["vc"]["headway_s"]
 
 
-@pytest.mark.parametrize("extra, needle", [
-    (["--mb", "no_such.yaml"], "no_such.yaml: expected a scenario file for --mb"),
-    (["--services", "nope"], "services: expected a service 'nope'"),
-    (["--workers", "0"], "--workers: expected an integer >= 1"),
-    (["--headway", "-5"], "headway_s: expected a number of seconds > 0"),
-])
+@pytest.mark.parametrize(
+    "extra, needle",
+    [
+        (["--mb", "no_such.yaml"], "no_such.yaml: expected a scenario file for --mb"),
+        (["--services", "nope"], "services: expected a service 'nope'"),
+        (["--workers", "0"], "--workers: expected an integer >= 1"),
+        (["--headway", "-5"], "headway_s: expected a number of seconds > 0"),
+    ],
+)
 def test_bad_input_exits_2_with_one_line(tmp_path: Path, extra: list[str], needle: str) -> None:
     mb, vc = _scenarios(tmp_path)
     args = ["study", "vc-vs-mb", "--out", str(tmp_path / "o"), "--mb", str(mb), "--vc", str(vc)] + extra

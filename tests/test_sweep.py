@@ -14,10 +14,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 import yaml
-
 from helpers import ROOT, railsim_cmd, run_railsim
-from railsim.studies import sweep
+
 from railsim.errors import ConfigError
+from railsim.studies import sweep
 
 BASE = ROOT / "scenarios" / "sweeps" / "corridor_small.yaml"
 UP_HW = "services[0].departures.headway_s"
@@ -50,12 +50,15 @@ def metric_frame(out: Path) -> pd.DataFrame:
 
 
 def test_expansion_is_cases_times_grid_times_seeds_with_links_and_labels(tmp_path: Path) -> None:
-    path = write_sweep(tmp_path, {
-        "cases": [{"label": "base"}, {"label": "wide", "controllers.sep.params.margin_m": 80}],
-        "grid": {UP_HW: [60, 90, 120], "simulation.step_s": [0.5, 0.25]},
-        "link": {DOWN_HW: UP_HW},
-        "seeds": [1, 2],
-    })
+    path = write_sweep(
+        tmp_path,
+        {
+            "cases": [{"label": "base"}, {"label": "wide", "controllers.sep.params.margin_m": 80}],
+            "grid": {UP_HW: [60, 90, 120], "simulation.step_s": [0.5, 0.25]},
+            "link": {DOWN_HW: UP_HW},
+            "seeds": [1, 2],
+        },
+    )
     spec = sweep.load_sweep(path)
     assert len(spec.cases) == 2 * 3 * 2 * 2
     assert spec.label_columns == ("label",)
@@ -63,8 +66,12 @@ def test_expansion_is_cases_times_grid_times_seeds_with_links_and_labels(tmp_pat
     first, last = spec.cases[0], spec.cases[-1]
     assert first.overrides == {UP_HW: 60, "simulation.step_s": 0.5, DOWN_HW: 60} and first.seed == 1
     assert first.labels == {"label": "base"}
-    assert last.overrides == {"controllers.sep.params.margin_m": 80, UP_HW: 120, "simulation.step_s": 0.25,
-                              DOWN_HW: 120}
+    assert last.overrides == {
+        "controllers.sep.params.margin_m": 80,
+        UP_HW: 120,
+        "simulation.step_s": 0.25,
+        DOWN_HW: 120,
+    }
     assert last.seed == 2 and last.labels == {"label": "wide"}
     ids = [c.case_id for c in spec.cases]
     assert len(set(ids)) == len(ids) and all(len(i) == sweep.CASE_ID_HEX for i in ids)
@@ -79,18 +86,21 @@ def test_default_seed_is_the_base_scenarios_and_an_empty_sweep_is_one_case(tmp_p
     assert [(c.overrides, c.seed) for c in spec.cases] == [({}, 3)]  # corridor_small has simulation.seed 3
 
 
-@pytest.mark.parametrize(("body", "field", "words"), [
-    ({"grid": {UP_HW: 90}}, f"grid.{UP_HW}", "non-empty list"),
-    ({"grid": {"services[0.headway": [1]}}, "grid.services[0.headway", "override path"),
-    ({"colour": "red"}, "colour", "unknown key"),
-    ({"seeds": [1, -2]}, "seeds[1]", "integer >= 0"),
-    ({"seeds": [1, 1]}, "seeds[1]", "listed twice"),
-    ({"link": {DOWN_HW: "services[7].x"}}, f"link.{DOWN_HW}", "grid or case path"),
-    ({"grid": {UP_HW: [60]}, "cases": [{UP_HW: 90}]}, f"cases[0].{UP_HW}", "also a grid axis"),
-    ({"cases": [{"label": {"seed": 1}}]}, "cases[0].label.seed", "column name"),
-    ({"cases": [{}, {}]}, "cases[1]", "duplicates case 0"),
-    ({"timeout_s": 0}, "timeout_s", "> 0"),
-])
+@pytest.mark.parametrize(
+    ("body", "field", "words"),
+    [
+        ({"grid": {UP_HW: 90}}, f"grid.{UP_HW}", "non-empty list"),
+        ({"grid": {"services[0.headway": [1]}}, "grid.services[0.headway", "override path"),
+        ({"colour": "red"}, "colour", "unknown key"),
+        ({"seeds": [1, -2]}, "seeds[1]", "integer >= 0"),
+        ({"seeds": [1, 1]}, "seeds[1]", "listed twice"),
+        ({"link": {DOWN_HW: "services[7].x"}}, f"link.{DOWN_HW}", "grid or case path"),
+        ({"grid": {UP_HW: [60]}, "cases": [{UP_HW: 90}]}, f"cases[0].{UP_HW}", "also a grid axis"),
+        ({"cases": [{"label": {"seed": 1}}]}, "cases[0].label.seed", "column name"),
+        ({"cases": [{}, {}]}, "cases[1]", "duplicates case 0"),
+        ({"timeout_s": 0}, "timeout_s", "> 0"),
+    ],
+)
 def test_bad_sweep_files_name_file_and_field(tmp_path: Path, body: dict, field: str, words: str) -> None:
     path = write_sweep(tmp_path, body)
     with pytest.raises(ConfigError) as info:
@@ -106,12 +116,15 @@ def test_missing_base_is_named(tmp_path: Path) -> None:
     assert info.value.field == "base" and "not found" in info.value.message
 
 
-@pytest.mark.parametrize(("body", "words"), [
-    # a case whose scenario is invalid: found before anything runs, naming the case and the scenario field
-    ({"grid": {UP_HW: [90, -5]}}, ["case 1 (", f"{UP_HW}=-5", f"{UP_HW}: expected a number > 0"]),
-    ({"cases": [{}, {"services[5].dwell_s": 20}]}, ["case 1 (", "services[5].dwell_s", "out of range"]),
-    ({"cases": [{"services[0].to": "s9"}]}, ["case 0 (", "services[0].to", "expected a station id"]),
-])
+@pytest.mark.parametrize(
+    ("body", "words"),
+    [
+        # a case whose scenario is invalid: found before anything runs, naming the case and the scenario field
+        ({"grid": {UP_HW: [90, -5]}}, ["case 1 (", f"{UP_HW}=-5", f"{UP_HW}: expected a number > 0"]),
+        ({"cases": [{}, {"services[5].dwell_s": 20}]}, ["case 1 (", "services[5].dwell_s", "out of range"]),
+        ({"cases": [{"services[0].to": "s9"}]}, ["case 0 (", "services[0].to", "expected a station id"]),
+    ],
+)
 def test_cli_validates_every_case_before_running_exit_2(tmp_path: Path, body: dict, words: list[str]) -> None:
     path = write_sweep(tmp_path, body)
     res = run_railsim(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "2"], timeout=120)
@@ -131,8 +144,7 @@ def reference(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, Path]:
     """The SMALL sweep run once, uninterrupted, with 2 local workers and --keep-runs: (sweep file, folder)."""
     folder = tmp_path_factory.mktemp("sweep_ref")
     path = write_sweep(folder, SMALL)
-    res = run_railsim(["sweep", str(path), "--out", str(folder / "out"), "--workers", "2", "--keep-runs"],
-                      timeout=300)
+    res = run_railsim(["sweep", str(path), "--out", str(folder / "out"), "--workers", "2", "--keep-runs"], timeout=300)
     assert res.returncode == 0, res.stderr
     assert "4 cases, 4 ok, 0 failed (4 run now, 0 already done)" in res.stdout
     return path, folder / "out"
@@ -145,8 +157,16 @@ def test_two_worker_sweep_gives_one_tidy_row_per_case(reference: tuple[Path, Pat
     table = pd.read_parquet(out / "cases.parquet")
     csv_table = pd.read_csv(out / "cases.csv", dtype={"case_id": str})
     assert list(table["case_id"]) == [c.case_id for c in spec.cases] == list(csv_table["case_id"])
-    assert list(table.columns[:8]) == ["case_id", "status", "error", "seed", "margin",
-                                       "controllers.sep.params.margin_m", UP_HW, DOWN_HW]
+    assert list(table.columns[:8]) == [
+        "case_id",
+        "status",
+        "error",
+        "seed",
+        "margin",
+        "controllers.sep.params.margin_m",
+        UP_HW,
+        DOWN_HW,
+    ]
     assert set(table["status"]) == {"ok"} and set(table["error"].fillna("")) == {""}
     assert list(table["margin"]) == ["wide", "wide", "narrow", "narrow"]
     for _, row in table.iterrows():
@@ -219,8 +239,9 @@ def _wait_for_rows(out: Path, n: int, proc: subprocess.Popen, limit_s: float = 1
 
 @pytest.mark.sumo
 @pytest.mark.slow
-def test_interrupted_sweeps_resume_without_lost_or_duplicated_rows(reference: tuple[Path, Path],
-                                                                   tmp_path: Path) -> None:
+def test_interrupted_sweeps_resume_without_lost_or_duplicated_rows(
+    reference: tuple[Path, Path], tmp_path: Path
+) -> None:
     path, ref_out = reference
     out = tmp_path / "out"
     cmd = railsim_cmd() + ["sweep", str(path), "--out", str(out), "--workers", "1"]
@@ -257,9 +278,20 @@ def test_interrupted_sweeps_resume_without_lost_or_duplicated_rows(reference: tu
 @pytest.mark.sumo
 def test_a_failing_case_is_recorded_and_the_sweep_goes_on(tmp_path: Path) -> None:
     # valid for the schema, impossible for the engine: the leader (up) never departs from the follower's origin s4
-    bad = {"label": "bad", "controllers.vc": {"type": "cacc"}, "roles.coupled": "vc",
-           "formations": [{"id": "f", "leader": {"service": "up", "trip": 0}, "follower": {"service": "down", "trip": 0},
-                           "target_gap_m": 30, "couple": {"on_departure": True}}]}
+    bad = {
+        "label": "bad",
+        "controllers.vc": {"type": "cacc"},
+        "roles.coupled": "vc",
+        "formations": [
+            {
+                "id": "f",
+                "leader": {"service": "up", "trip": 0},
+                "follower": {"service": "down", "trip": 0},
+                "target_gap_m": 30,
+                "couple": {"on_departure": True},
+            }
+        ],
+    }
     path = write_sweep(tmp_path, {"cases": [{"label": "good"}, bad], "grid": {UP_HW: [150]}, "link": {DOWN_HW: UP_HW}})
     res = run_railsim(["sweep", str(path), "--out", str(tmp_path / "out"), "--workers", "2"], timeout=300)
     assert res.returncode == 1, res.stderr
@@ -295,8 +327,9 @@ def test_dask_local_cluster_gives_identical_metrics(reference: tuple[Path, Path]
     pd.testing.assert_frame_equal(metric_frame(tmp_path / "dask"), metric_frame(ref_out))
 
 
-def test_bad_dask_address_is_a_config_error(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                           capsys: pytest.CaptureFixture[str]) -> None:
+def test_bad_dask_address_is_a_config_error(
+    tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]
+) -> None:
     from railsim.cli import main as cli
     from railsim.studies.sweep import parallel
 

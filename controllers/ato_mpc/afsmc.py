@@ -48,8 +48,9 @@ class AfsmcParams:
 
 
 class AfsmcLaw:
-    def __init__(self, params: MultipointParams, settings: AfsmcParams = AfsmcParams(),
-                 reference_mode: str = "distance") -> None:
+    def __init__(
+        self, params: MultipointParams, settings: AfsmcParams = AfsmcParams(), reference_mode: str = "distance"
+    ) -> None:
         self.p = params
         self.s = settings
         self.reference_mode = reference_mode
@@ -78,7 +79,7 @@ class AfsmcLaw:
         vdot_r = (float(vr[0]) - v0) / period
         rel = sit.rel_state
         x = rel[0] + np.concatenate(([0.0], np.cumsum(rel[1:n])))
-        v = rel[n] + np.concatenate(([0.0], np.cumsum(rel[n + 1:])))
+        v = rel[n] + np.concatenate(([0.0], np.cumsum(rel[n + 1 :])))
         x_ri = x_r_now - p.coupler_length_m * np.arange(n)
         e = x_ri - x
         ed = v0 - v
@@ -92,11 +93,15 @@ class AfsmcLaw:
         coupler = np.zeros(n)
         coupler[:-1] -= tension
         coupler[1:] += tension
-        a_res = (p.c0_mps2 + p.c1_per_s * v + p.c2_per_m * v * np.abs(v)
-                 + G_MPS2 * np.asarray(sit.gradient_permille) * 1e-3 + sit.wind_mps2)
+        a_res = (
+            p.c0_mps2
+            + p.c1_per_s * v
+            + p.c2_per_m * v * np.abs(v)
+            + G_MPS2 * np.asarray(sit.gradient_permille) * 1e-3
+            + sit.wind_mps2
+        )
         sat = np.clip(s / c.boundary_layer_mps, -1.0, 1.0)
-        u_des = p.car_mass_kg * (vdot_r + c.lambda_per_s * ed + a_res + f_hat + c.switching_gain_mps2 * sat) \
-            - coupler
+        u_des = p.car_mass_kg * (vdot_r + c.lambda_per_s * ed + a_res + f_hat + c.switching_gain_mps2 * sat) - coupler
         if c.rate_limited:
             u = limit_forces(u_des, u_prev_n, p, period)
         else:

@@ -27,8 +27,9 @@ step (``period_s: 0``) or a fixed value equal to it.
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -72,8 +73,7 @@ class MpcAtoParams:
         require("n_cars", self.n_cars >= 1 and float(self.n_cars).is_integer(), "an integer >= 1", self.n_cars)
         require("horizon", self.horizon >= 1 and float(self.horizon).is_integer(), "an integer >= 1", self.horizon)
         require("period_s", self.period_s >= 0.0, "a number >= 0", self.period_s)
-        require("reference_mode", self.reference_mode in REFERENCE_MODES, "one of distance, time",
-                self.reference_mode)
+        require("reference_mode", self.reference_mode in REFERENCE_MODES, "one of distance, time", self.reference_mode)
         require("variant", self.variant in ("A", "B"), "A or B", self.variant)
         require("terminal", self.terminal in ("dare", "lyapunov"), "dare or lyapunov", self.terminal)
         require("discretisation", self.discretisation in ("euler", "zoh"), "euler or zoh", self.discretisation)
@@ -117,8 +117,17 @@ class MpcAto:
     def _law(self, period_s: float) -> CarriageLaw:
         pr = self.params
         n_h = int(pr.horizon)
-        common = dict(period_s=period_s, q_x1=pr.q_x1, q_v1=pr.q_v1, q_rel_x=pr.q_rel_x, q_rel_v=pr.q_rel_v,
-                      r_du=pr.r_du, horizon_p=n_h, horizon_c=n_h, discretisation=pr.discretisation)
+        common = dict(
+            period_s=period_s,
+            q_x1=pr.q_x1,
+            q_v1=pr.q_v1,
+            q_rel_x=pr.q_rel_x,
+            q_rel_v=pr.q_rel_v,
+            r_du=pr.r_du,
+            horizon_p=n_h,
+            horizon_c=n_h,
+            discretisation=pr.discretisation,
+        )
         if self.kind == "sempc":
             return MpcLaw(self.model, sempc_settings(terminal=pr.terminal, **common), pr.reference_mode)
         if self.kind == "mpc":
@@ -140,16 +149,25 @@ class MpcAto:
         if stop is not None:
             lo = stop.window_start_m + pr.stop_tolerance_m
             hi = stop.window_end_m - pr.stop_tolerance_m
-            points.append(min(max(stop.mark_m, lo), hi) if lo <= hi else 0.5 * (stop.window_start_m + stop.window_end_m))
+            points.append(
+                min(max(stop.mark_m, lo), hi) if lo <= hi else 0.5 * (stop.window_start_m + stop.window_end_m)
+            )
         if obs.authority_end_m is not None:
             points.append(obs.authority_end_m - pr.authority_margin_m)
         limits = tuple(Limit(lim.start_m, lim.end_m + own.length_m, lim.speed_mps) for lim in obs.speed_limits)
         profile = SpeedDistanceProfile(
-            stop_m=min(points), line_speed_mps=max(obs.line_speed_mps, 1e-3),
-            design_speed_mps=self.vehicle.max_speed_mps, limits=limits, margin_mps=pr.margin_mps,
-            brake_mps2=pr.brake_mps2, accel_mps2=pr.accel_mps2)
-        in_window = stop is not None and stop.window_start_m - pr.stop_tolerance_m <= own.position_m \
-            <= stop.window_end_m + pr.stop_tolerance_m
+            stop_m=min(points),
+            line_speed_mps=max(obs.line_speed_mps, 1e-3),
+            design_speed_mps=self.vehicle.max_speed_mps,
+            limits=limits,
+            margin_mps=pr.margin_mps,
+            brake_mps2=pr.brake_mps2,
+            accel_mps2=pr.accel_mps2,
+        )
+        in_window = (
+            stop is not None
+            and stop.window_start_m - pr.stop_tolerance_m <= own.position_m <= stop.window_end_m + pr.stop_tolerance_m
+        )
         return profile, in_window
 
     def command(self, obs: Observation) -> Command:
@@ -183,7 +201,9 @@ class MpcAto:
         if obs.authority_end_m is not None and v > 0.0:
             room = obs.authority_end_m - own.position_m
             if v * v / (2.0 * self.vehicle.service_decel_mps2) > max(room, 0.0):
-                return Command(-self.vehicle.emergency_decel_mps2, emergency=True, info={**out_info, "phase": "emergency"})
+                return Command(
+                    -self.vehicle.emergency_decel_mps2, emergency=True, info={**out_info, "phase": "emergency"}
+                )
         return Command(accel, fallback=bool(info.get("fallback", False)), info=out_info)
 
 

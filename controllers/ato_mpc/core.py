@@ -62,8 +62,7 @@ def reference_window(sit: Situation, period_s: float, n_p: int, mode: str) -> tu
     return distance_window(sit.profile, sit.x1_m, sit.v1_mps, period_s, n_p)
 
 
-def limit_forces(u_des_n: np.ndarray, u_prev_n: np.ndarray, params: MultipointParams,
-                 period_s: float) -> np.ndarray:
+def limit_forces(u_des_n: np.ndarray, u_prev_n: np.ndarray, params: MultipointParams, period_s: float) -> np.ndarray:
     """Actuator envelope shared by every law (spec §2.10, Eq. 14–15; Table 1): first the force-rate limit
     ``Δu_min·T ≤ u − u_prev ≤ Δu_max·T`` (±60 kN/s × T), then the force box ``[u_min, u_max]``.
 
@@ -71,8 +70,11 @@ def limit_forces(u_des_n: np.ndarray, u_prev_n: np.ndarray, params: MultipointPa
     clip only ever moves ``u`` back towards ``u_prev``: the result satisfies *both* limits.
     """
     prev = np.asarray(u_prev_n, dtype=float)
-    step = np.clip(np.asarray(u_des_n, dtype=float) - prev, params.force_rate_min_n_per_s * period_s,
-                   params.force_rate_max_n_per_s * period_s)
+    step = np.clip(
+        np.asarray(u_des_n, dtype=float) - prev,
+        params.force_rate_min_n_per_s * period_s,
+        params.force_rate_max_n_per_s * period_s,
+    )
     return np.clip(prev + step, params.force_min_n, params.force_max_n)
 
 

@@ -71,8 +71,7 @@ def absolute_linear_model(
         # k(x_{i−1} − x_i − l) − k(x_i − x_{i+1} − l): the natural length enters the end carriages only.
         spring_const[0] = k * p.coupler_length_m / m
         spring_const[-1] = -k * p.coupler_length_m / m
-    d[n:] = (-p.c0_mps2 + p.c2_per_m * v_ref_mps**2 + spring_const
-             - G_MPS2 * grad * 1e-3 - wind_mps2)
+    d[n:] = -p.c0_mps2 + p.c2_per_m * v_ref_mps**2 + spring_const - G_MPS2 * grad * 1e-3 - wind_mps2
     return a, b, d
 
 
@@ -95,7 +94,7 @@ def affine_term(
     n = p.n_cars
     out = d_abs.copy()
     out[1:n] = np.diff(d_abs[:n])
-    out[n + 1:] = np.diff(d_abs[n:])
+    out[n + 1 :] = np.diff(d_abs[n:])
     return out
 
 
@@ -122,10 +121,10 @@ def discretise(
         nx, nu = b.shape
         big = np.zeros((nx + nu + 1, nx + nu + 1))
         big[:nx, :nx] = a
-        big[:nx, nx:nx + nu] = b
+        big[:nx, nx : nx + nu] = b
         big[:nx, -1] = d
         e = scipy.linalg.expm(big * period_s)
-        return e[:nx, :nx], e[:nx, nx:nx + nu], e[:nx, -1]
+        return e[:nx, :nx], e[:nx, nx : nx + nu], e[:nx, -1]
     raise ValueError(f"discretisation: expected one of {', '.join(DISCRETISATIONS)}, got {method!r}")
 
 
@@ -156,9 +155,9 @@ def prediction_matrices(
     acc = np.zeros(ns)
     for i in range(n_p):
         acc = at @ acc + dt  # Σ_{j≤i} Ã^j D̃
-        dvec[i * ns:(i + 1) * ns] = acc
+        dvec[i * ns : (i + 1) * ns] = acc
         for j in range(min(i + 1, n_c)):
-            g[i * ns:(i + 1) * ns, j * nu:(j + 1) * nu] = powers[i - j] @ bt
+            g[i * ns : (i + 1) * ns, j * nu : (j + 1) * nu] = powers[i - j] @ bt
     return f, g, dvec
 
 

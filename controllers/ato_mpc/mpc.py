@@ -29,6 +29,7 @@ def mpc_settings(variant: str = "A", **overrides: Any) -> MpcSettings:
     raise ValueError(f"variant: expected one of {', '.join(MPC_VARIANTS)}, got {variant!r}")
 
 
-def make_mpc_law(params: MultipointParams, variant: str = "A", reference_mode: str = "distance",
-                 **overrides: Any) -> MpcLaw:
+def make_mpc_law(
+    params: MultipointParams, variant: str = "A", reference_mode: str = "distance", **overrides: Any
+) -> MpcLaw:
     return MpcLaw(params, mpc_settings(variant, **overrides), reference_mode)

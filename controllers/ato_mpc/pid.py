@@ -26,8 +26,9 @@ class PidParams:
 
 
 class PidLaw:
-    def __init__(self, params: MultipointParams, settings: PidParams = PidParams(),
-                 reference_mode: str = "distance") -> None:
+    def __init__(
+        self, params: MultipointParams, settings: PidParams = PidParams(), reference_mode: str = "distance"
+    ) -> None:
         self.p = params
         self.s = settings
         self.reference_mode = reference_mode
@@ -40,13 +41,22 @@ class PidLaw:
         p, c = self.p, self.s
         xr, vr, v0 = reference_window(sit, c.period_s, 1, self.reference_mode)
         err = v0 - sit.v1_mps
-        self.integral_mps = float(np.clip(self.integral_mps + err * c.period_s,
-                                          -c.integral_limit_mps2 / max(c.ki_per_s2, 1e-12),
-                                          c.integral_limit_mps2 / max(c.ki_per_s2, 1e-12)))
+        self.integral_mps = float(
+            np.clip(
+                self.integral_mps + err * c.period_s,
+                -c.integral_limit_mps2 / max(c.ki_per_s2, 1e-12),
+                c.integral_limit_mps2 / max(c.ki_per_s2, 1e-12),
+            )
+        )
         a = (float(vr[0]) - v0) / c.period_s + c.kp_per_s * err + c.ki_per_s2 * self.integral_mps
         v = sit.v1_mps
-        a_res = (p.c0_mps2 + p.c1_per_s * v + p.c2_per_m * v * v
-                 + G_MPS2 * np.asarray(sit.gradient_permille) * 1e-3 + sit.wind_mps2)
+        a_res = (
+            p.c0_mps2
+            + p.c1_per_s * v
+            + p.c2_per_m * v * v
+            + G_MPS2 * np.asarray(sit.gradient_permille) * 1e-3
+            + sit.wind_mps2
+        )
         u = p.car_mass_kg * (a + a_res)
         if c.rate_limited:
             return limit_forces(u, u_prev_n, p, c.period_s), {"fallback": False}

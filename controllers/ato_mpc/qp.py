@@ -223,8 +223,14 @@ class CondensedMpc:
         nominal = build_model(params, nominal_speed_mps, np.zeros(n), settings.period_s, settings.discretisation)
         self.terminal: TerminalIngredients | None = None
         if settings.terminal != "none":
-            self.terminal = terminal_ingredients(nominal.at, nominal.bt, self.q_stage, self.r_step, settings.terminal,
-                                                 params.force_rate_max_n_per_s * settings.period_s)
+            self.terminal = terminal_ingredients(
+                nominal.at,
+                nominal.bt,
+                self.q_stage,
+                self.r_step,
+                settings.terminal,
+                params.force_rate_max_n_per_s * settings.period_s,
+            )
         self.n_dec = n * settings.horizon_c
         self.n_rows_state = settings.horizon_p * (n + 1)
         self.n_slack = self.n_rows_state
@@ -241,8 +247,8 @@ class CondensedMpc:
         else:
             pt = self.terminal.p.copy()
             if s.terminal_blocks == "x":
-                pt[2 * self.n:, :] = 0.0
-                pt[:, 2 * self.n:] = 0.0
+                pt[2 * self.n :, :] = 0.0
+                pt[:, 2 * self.n :] = 0.0
             blocks.append(pt)
         return scipy.linalg.block_diag(*blocks)
 
@@ -292,23 +298,30 @@ class CondensedMpc:
         a_mask = np.zeros_like(a_dense, dtype=bool)
         ro = 2 * self.n_rows_state
         a_mask[:ro, : self.n_dec] = True
-        a_mask[: self.n_rows_state, self.n_dec:] = np.eye(self.n_slack, dtype=bool)
-        a_mask[self.n_rows_state: ro, self.n_dec:] = np.eye(self.n_slack, dtype=bool)
-        a_mask[ro: ro + self.n_slack, self.n_dec:] = np.eye(self.n_slack, dtype=bool)
-        a_mask[ro + self.n_slack:, : self.n_dec] = True
+        a_mask[: self.n_rows_state, self.n_dec :] = np.eye(self.n_slack, dtype=bool)
+        a_mask[self.n_rows_state : ro, self.n_dec :] = np.eye(self.n_slack, dtype=bool)
+        a_mask[ro : ro + self.n_slack, self.n_dec :] = np.eye(self.n_slack, dtype=bool)
+        a_mask[ro + self.n_slack :, : self.n_dec] = True
         self._a_csc, self._a_rows, self._a_cols = _pattern_indices(a_mask)
         p_full = self._objective_matrix(h)
         self.solver = osqp.OSQP()
         self.solver.setup(
-            P=sp.csc_matrix((p_full[self._p_rows, self._p_cols], self._p_csc.indices, self._p_csc.indptr),
-                            shape=p_full.shape),
+            P=sp.csc_matrix(
+                (p_full[self._p_rows, self._p_cols], self._p_csc.indices, self._p_csc.indptr), shape=p_full.shape
+            ),
             q=np.zeros(nz),
-            A=sp.csc_matrix((a_dense[self._a_rows, self._a_cols], self._a_csc.indices, self._a_csc.indptr),
-                            shape=a_dense.shape),
+            A=sp.csc_matrix(
+                (a_dense[self._a_rows, self._a_cols], self._a_csc.indices, self._a_csc.indptr), shape=a_dense.shape
+            ),
             l=-_INF * np.ones(a_dense.shape[0]),
             u=_INF * np.ones(a_dense.shape[0]),
-            eps_abs=s.eps, eps_rel=s.eps, max_iter=s.max_iter, polishing=True, verbose=False,
-            warm_starting=True, check_termination=25,
+            eps_abs=s.eps,
+            eps_rel=s.eps,
+            max_iter=s.max_iter,
+            polishing=True,
+            verbose=False,
+            warm_starting=True,
+            check_termination=25,
         )
         self._nominal_h = h
 
@@ -348,8 +361,8 @@ class CondensedMpc:
             if self.terminal is not None and s.terminal_blocks == "full" and i == s.horizon_p - 1:
                 v_prev = ref.v_ref_mps[i - 1] if i > 0 else ref.v_lin_mps
                 acc = (ref.v_ref_mps[i] - v_prev) / s.period_s
-                blk[2 * n:] = feedforward_forces_n(self.p, acc, ref.v_ref_mps[i], ref.gradient_permille, ref.wind_mps2)
-            out[i * self.ns:(i + 1) * self.ns] = blk
+                blk[2 * n :] = feedforward_forces_n(self.p, acc, ref.v_ref_mps[i], ref.gradient_permille, ref.wind_mps2)
+            out[i * self.ns : (i + 1) * self.ns] = blk
         return out
 
     def _linearisation(self, v_lin_mps: float) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, bool]:
@@ -371,7 +384,7 @@ class CondensedMpc:
         inj = np.vstack([gamma, np.zeros((self.n, 2 * self.n))])
         for i in range(s.horizon_p):
             acc = model.at @ acc + inj
-            d_map[i * self.ns:(i + 1) * self.ns] = acc
+            d_map[i * self.ns : (i + 1) * self.ns] = acc
         self._lin = (v_lin_mps, f, g, d_map, h)
         return f, g, d_map, h, True
 
@@ -387,8 +400,9 @@ class CondensedMpc:
         grad = 2.0 * g.T @ self.q_bar @ e0
         if s.decision == "force":
             grad = grad + 2.0 * s.r_u * self.l_cum.T @ np.tile(u_prev_n, s.horizon_c)
-        q = np.concatenate([self.cost_scale * (self.m_map.T @ grad),
-                            self.cost_scale * s.soft_linear * np.ones(self.n_slack)])
+        q = np.concatenate(
+            [self.cost_scale * (self.m_map.T @ grad), self.cost_scale * s.soft_linear * np.ones(self.n_slack)]
+        )
         zfree = self.z_sel @ free
         step_min = np.concatenate([[0.0], np.full(n - 1, -self.l_d - p.coupler_slack_m), [0.0]])
         step_max = np.concatenate([[ref.x_max_m], np.full(n - 1, -self.l_d + p.coupler_slack_m), [ref.v_max_mps]])
@@ -401,10 +415,12 @@ class CondensedMpc:
             du_hi = np.full(nd, p.force_rate_max_n_per_s * s.period_s)
         else:
             du_lo, du_hi = np.full(nd, -_INF), np.full(nd, _INF)
-        lo = np.concatenate([xmin, np.full(self.n_rows_state, -_INF), np.zeros(self.n_slack),
-                             p.force_min_n - u_rep, du_lo])
-        hi = np.concatenate([np.full(self.n_rows_state, _INF), xmax, np.full(self.n_slack, _INF),
-                             p.force_max_n - u_rep, du_hi])
+        lo = np.concatenate(
+            [xmin, np.full(self.n_rows_state, -_INF), np.zeros(self.n_slack), p.force_min_n - u_rep, du_lo]
+        )
+        hi = np.concatenate(
+            [np.full(self.n_rows_state, _INF), xmax, np.full(self.n_slack, _INF), p.force_max_n - u_rep, du_hi]
+        )
         if changed:
             pm = self._objective_matrix(h)
             am = self._constraint_matrix(g)
@@ -456,10 +472,19 @@ class CondensedMpc:
 
     def dense_problem(self, rel_state: np.ndarray, u_prev_n: np.ndarray, ref: ReferenceWindow) -> dict[str, Any]:
         """The unscaled QP of one step for cross-checks: H, g, constant, F, G, D, Ref (tests, diagnostics)."""
-        model = build_model(self.p, ref.v_lin_mps, ref.gradient_permille, self.s.period_s, self.s.discretisation,
-                            ref.wind_mps2)
+        model = build_model(
+            self.p, ref.v_lin_mps, ref.gradient_permille, self.s.period_s, self.s.discretisation, ref.wind_mps2
+        )
         xi = np.concatenate([np.asarray(rel_state, dtype=float), np.asarray(u_prev_n, dtype=float)])
         f, g, d, h = self.condensed(model)
         e0 = f @ xi + d - self.reference_stack(ref)
-        return {"h": h, "g": 2.0 * g.T @ self.q_bar @ e0, "const": float(e0 @ self.q_bar @ e0), "f": f, "gm": g,
-                "d": d, "xi": xi, "model": model}
+        return {
+            "h": h,
+            "g": 2.0 * g.T @ self.q_bar @ e0,
+            "const": float(e0 @ self.q_bar @ e0),
+            "f": f,
+            "gm": g,
+            "d": d,
+            "xi": xi,
+            "model": model,
+        }

@@ -169,7 +169,8 @@ def distance_window(
     vr = np.empty(n_p)
     s, v = x1_m, v0
     for i in range(n_p):
-        v_next = float(min(profile.cap_mps(s + v * period_s), max(v1_mps, 0.0) + profile.accel_mps2 * (i + 1) * period_s))  # type: ignore[arg-type]
+        cap_mps = float(profile.cap_mps(s + v * period_s))
+        v_next = min(cap_mps, max(v1_mps, 0.0) + profile.accel_mps2 * (i + 1) * period_s)
         s = min(s + 0.5 * (v + v_next) * period_s, max(profile.stop_m, x1_m))
         v = v_next
         xr[i], vr[i] = s, v

@@ -52,8 +52,13 @@ class MpcLaw:
 
     def forces(self, sit: Situation, u_prev_n: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:
         u, info = self.mpc.solve(sit.rel_state, u_prev_n, self.window(sit))
-        return u, {"status": info.status, "fallback": info.fallback, "solve_time_s": info.solve_time_s,
-                   "iterations": info.iterations, "max_slack": info.max_slack}
+        return u, {
+            "status": info.status,
+            "fallback": info.fallback,
+            "solve_time_s": info.solve_time_s,
+            "iterations": info.iterations,
+            "max_slack": info.max_slack,
+        }
 
 
 def sempc_settings(**overrides: Any) -> MpcSettings:

@@ -84,17 +84,20 @@ def scenario_a(length_m: float = 5000.0, **kw: Any) -> Scenario:
 
 def scenario_b(**kw: Any) -> Scenario:
     kw.setdefault("weights", dict(SINGLE_WEIGHTS))
-    return Scenario("B", PAPER_STOPS_M, paper_gradient(PAPER_STOPS_M[-1] + 100.0, seed=7),
-                    limits=paper_multi_limits(), **kw)
+    return Scenario(
+        "B", PAPER_STOPS_M, paper_gradient(PAPER_STOPS_M[-1] + 100.0, seed=7), limits=paper_multi_limits(), **kw
+    )
 
 
 def scenario_c(kind: str = "constant", length_m: float = 5000.0, **kw: Any) -> Scenario:
-    return Scenario(f"C-{kind}", (length_m,), paper_gradient(length_m + 100.0, seed=3),
-                    wind=WindDisturbance(kind=kind), **kw)
+    return Scenario(
+        f"C-{kind}", (length_m,), paper_gradient(length_m + 100.0, seed=3), wind=WindDisturbance(kind=kind), **kw
+    )
 
 
-def make_law(name: str, p: MultipointParams, period_s: float, weights: dict, reference_mode: str = "distance",
-             **overrides: Any) -> CarriageLaw:
+def make_law(
+    name: str, p: MultipointParams, period_s: float, weights: dict, reference_mode: str = "distance", **overrides: Any
+) -> CarriageLaw:
     if name == "sempc":
         return make_sempc_law(p, reference_mode, period_s=period_s, **weights, **overrides)
     if name == "mpc":
@@ -130,12 +133,18 @@ class RunResult:
 
 
 def _profile(sc: Scenario, stop_m: float) -> SpeedDistanceProfile:
-    return SpeedDistanceProfile(stop_m=stop_m, line_speed_mps=sc.line_speed_mps,
-                                design_speed_mps=sc.design_speed_mps, limits=sc.limits)
+    return SpeedDistanceProfile(
+        stop_m=stop_m, line_speed_mps=sc.line_speed_mps, design_speed_mps=sc.design_speed_mps, limits=sc.limits
+    )
 
 
-def run(sc: Scenario, controller: str, p: MultipointParams = MultipointParams(), reference_mode: str = "distance",
-        law_overrides: dict | None = None) -> RunResult:
+def run(
+    sc: Scenario,
+    controller: str,
+    p: MultipointParams = MultipointParams(),
+    reference_mode: str = "distance",
+    law_overrides: dict | None = None,
+) -> RunResult:
     """Simulate ``controller`` through all sections of ``sc``; returns the trajectories and :func:`metrics`."""
     period = sc.period_s
     law = make_law(controller, p, period, sc.weights, reference_mode, **(law_overrides or {}))
@@ -198,10 +207,23 @@ def run(sc: Scenario, controller: str, p: MultipointParams = MultipointParams(),
                     finished_at = t + 2.0  # record a short hold after the last stop
         else:
             held_since = None
-    res = RunResult(sc.name, controller, period, np.array(rows_t), np.array(rows_rel), np.array(rows_u),
-                    np.array(rows_xr), np.array(rows_vr), np.array(rows_sec), np.array(rows_dw, dtype=bool),
-                    np.array(rows_vmax), stop_errors, stop_times, driver.stats.fallbacks,
-                    list(driver.stats.solve_times_s))
+    res = RunResult(
+        sc.name,
+        controller,
+        period,
+        np.array(rows_t),
+        np.array(rows_rel),
+        np.array(rows_u),
+        np.array(rows_xr),
+        np.array(rows_vr),
+        np.array(rows_sec),
+        np.array(rows_dw, dtype=bool),
+        np.array(rows_vmax),
+        stop_errors,
+        stop_times,
+        driver.stats.fallbacks,
+        list(driver.stats.solve_times_s),
+    )
     res.metrics = metrics(res, p, len(sc.stops_m))
     return res
 
@@ -217,7 +239,7 @@ def metrics(r: RunResult, p: MultipointParams, n_sections: int) -> dict[str, Any
     x1 = r.rel[:, 0]
     v1 = r.rel[:, n]
     coupler_dev = r.rel[:, 1:n] + p.coupler_length_m
-    rel_speed = r.rel[:, n + 1:]
+    rel_speed = r.rel[:, n + 1 :]
     out: dict[str, Any] = {
         "e_u_1e12": float(np.sum(u**2) * T / 1e12),
         "e_v_mps": float(np.mean(np.abs(r.v_ref_mps - v1)[run_mask])),
@@ -228,8 +250,9 @@ def metrics(r: RunResult, p: MultipointParams, n_sections: int) -> dict[str, Any
         "min_force_n": float(np.min(u)),
         "max_force_rate_n_per_s": float(np.max(rate)),
         "force_violations": int(np.sum((u > p.force_max_n * (1 + tol)) | (u < p.force_min_n * (1 + tol)))),
-        "rate_violations": int(np.sum((du / T > p.force_rate_max_n_per_s * (1 + tol))
-                                      | (du / T < p.force_rate_min_n_per_s * (1 + tol)))),
+        "rate_violations": int(
+            np.sum((du / T > p.force_rate_max_n_per_s * (1 + tol)) | (du / T < p.force_rate_min_n_per_s * (1 + tol)))
+        ),
         "speed_limit_violations": int(np.sum(v1 > r.v_max_mps + 1e-6)),
         "coupler_band_violations": int(np.sum(np.abs(coupler_dev) > p.coupler_slack_m)),
         "max_coupler_deviation_m": float(np.max(np.abs(coupler_dev))) if n > 1 else 0.0,
@@ -247,12 +270,14 @@ def metrics(r: RunResult, p: MultipointParams, n_sections: int) -> dict[str, Any
         m = (r.section == s_idx) & run_mask
         if not np.any(m):
             continue
-        sections.append({
-            "section": s_idx + 1,
-            "e_v_mps": float(np.mean(np.abs(r.v_ref_mps - v1)[m])),
-            "e_x_m": float(np.mean(np.abs(r.x_ref_m - x1)[m])),
-            "e_p_m": float(r.stop_errors_m[s_idx]) if s_idx < len(r.stop_errors_m) else float("inf"),
-            "samples": int(np.sum(m)),
-        })
+        sections.append(
+            {
+                "section": s_idx + 1,
+                "e_v_mps": float(np.mean(np.abs(r.v_ref_mps - v1)[m])),
+                "e_x_m": float(np.mean(np.abs(r.x_ref_m - x1)[m])),
+                "e_p_m": float(r.stop_errors_m[s_idx]) if s_idx < len(r.stop_errors_m) else float("inf"),
+                "samples": int(np.sum(m)),
+            }
+        )
     out["sections"] = sections
     return out

@@ -46,8 +46,9 @@ the plant's net acceleration exactly ``ū_i`` — the paper's closed loop. On le
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from controllers.base import Command, Observation, PredecessorState, register
 from controllers.braking import params_from_mapping, require
@@ -66,8 +67,9 @@ class ConstraintWindowEmpty(RuntimeError):
         self.train_id = train_id
         self.delta_lo_m = delta_lo_m
         self.delta_hi_m = delta_hi_m
-        super().__init__(f"train {train_id}: constraint window empty, δ̲ = {delta_lo_m:.6g} m > δ̄ = "
-                         f"{delta_hi_m:.6g} m ({detail})")
+        super().__init__(
+            f"train {train_id}: constraint window empty, δ̲ = {delta_lo_m:.6g} m > δ̄ = {delta_hi_m:.6g} m ({detail})"
+        )
 
 
 @dataclass(frozen=True)
@@ -137,13 +139,25 @@ def control_step(
         s = _fallback_displacement_m(g, alpha_lo, alpha_hi, windows)
     else:
         raise ConstraintWindowEmpty(
-            train_id, delta_lo, delta_hi,
+            train_id,
+            delta_lo,
+            delta_hi,
             f"α = [{alpha_lo:.6g}, {alpha_hi:.6g}], β = [{windows.beta_lo_m:.6g}, {windows.beta_hi_m:.6g}], "
-            f"η = [{windows.eta_lo_m:.6g}, {windows.eta_hi_m:.6g}] m")
+            f"η = [{windows.eta_lo_m:.6g}, {windows.eta_hi_m:.6g}] m",
+        )
     ubar = -(speed_mps - v_ref_mps) / t + s / (t * t)
     u = ubar + params.resistance_mps2(speed_mps)
-    return ControlOutput(u_mps2=u, ubar_mps2=ubar, s_m=s, g_m=g, delta_lo_m=delta_lo, delta_hi_m=delta_hi,
-                         alpha_lo_m=alpha_lo, alpha_hi_m=alpha_hi, feasible=feasible)
+    return ControlOutput(
+        u_mps2=u,
+        ubar_mps2=ubar,
+        s_m=s,
+        g_m=g,
+        delta_lo_m=delta_lo,
+        delta_hi_m=delta_hi,
+        alpha_lo_m=alpha_lo,
+        alpha_hi_m=alpha_hi,
+        feasible=feasible,
+    )
 
 
 def _fallback_displacement_m(g: float, alpha_lo: float, alpha_hi: float, w: LocalWindows) -> float:
@@ -161,8 +175,9 @@ class TrainController:
     once and so a train carries only *its own* parameters.
     """
 
-    def __init__(self, train_id: str, params: TrainParams, sample_time_s: float, v_ref_mps: float,
-                 on_empty: str = "raise") -> None:
+    def __init__(
+        self, train_id: str, params: TrainParams, sample_time_s: float, v_ref_mps: float, on_empty: str = "raise"
+    ) -> None:
         if on_empty not in ON_EMPTY_CHOICES:
             raise ValueError(f"on_empty: expected one of {', '.join(ON_EMPTY_CHOICES)}, got {on_empty!r}")
         self.train_id = train_id
@@ -173,8 +188,16 @@ class TrainController:
         self.windows = local_windows(params, sample_time_s, v_ref_mps)
 
     def control(self, speed_mps: float, messages: Sequence[NeighbourMessage]) -> ControlOutput:
-        return control_step(self.train_id, speed_mps, messages, self.params, self.windows, self.sample_time_s,
-                            self.v_ref_mps, self.on_empty)
+        return control_step(
+            self.train_id,
+            speed_mps,
+            messages,
+            self.params,
+            self.windows,
+            self.sample_time_s,
+            self.v_ref_mps,
+            self.on_empty,
+        )
 
 
 # ------------------------------------------------------------------------------------------------ engine adapter
@@ -198,15 +221,31 @@ class DistributedConstrainedParams:
 
     def __post_init__(self) -> None:
         require("sample_time_s", self.sample_time_s > 0.0, "a number > 0", self.sample_time_s)
-        require("speed_max_mps", self.speed_min_mps < self.speed_max_mps,
-                f"a number > speed_min_mps = {self.speed_min_mps}", self.speed_max_mps)
-        require("input_max_mps2", self.input_min_mps2 < self.input_max_mps2,
-                f"a number > input_min_mps2 = {self.input_min_mps2}", self.input_max_mps2)
-        require("v_ref_mps", self.speed_min_mps < self.v_ref_mps < self.speed_max_mps,
-                f"speed_min_mps < v_ref_mps < speed_max_mps (Assumption 2.3) = ({self.speed_min_mps}, "
-                f"{self.speed_max_mps})", self.v_ref_mps)
-        require("on_empty_window", self.on_empty_window in ON_EMPTY_CHOICES,
-                f"one of {', '.join(ON_EMPTY_CHOICES)}", self.on_empty_window)
+        require(
+            "speed_max_mps",
+            self.speed_min_mps < self.speed_max_mps,
+            f"a number > speed_min_mps = {self.speed_min_mps}",
+            self.speed_max_mps,
+        )
+        require(
+            "input_max_mps2",
+            self.input_min_mps2 < self.input_max_mps2,
+            f"a number > input_min_mps2 = {self.input_min_mps2}",
+            self.input_max_mps2,
+        )
+        require(
+            "v_ref_mps",
+            self.speed_min_mps < self.v_ref_mps < self.speed_max_mps,
+            f"speed_min_mps < v_ref_mps < speed_max_mps (Assumption 2.3) = ({self.speed_min_mps}, "
+            f"{self.speed_max_mps})",
+            self.v_ref_mps,
+        )
+        require(
+            "on_empty_window",
+            self.on_empty_window in ON_EMPTY_CHOICES,
+            f"one of {', '.join(ON_EMPTY_CHOICES)}",
+            self.on_empty_window,
+        )
 
 
 def train_params_from_vehicle(p: DistributedConstrainedParams, vehicle: VehicleParams) -> TrainParams:
@@ -231,13 +270,20 @@ def paper_vehicle(params: TrainParams, name: str = "zhang2024_point_mass", lengt
     (spec 002 A15: keep it below the smallest ``γ̲``).
     """
     return VehicleParams(
-        name=name, length_m=length_m, mass_kg=1.0, rotating_mass_factor=1.0,
-        davis_a_n=params.resist_a_mps2, davis_b_n_per_mps=params.resist_b_per_s,
+        name=name,
+        length_m=length_m,
+        mass_kg=1.0,
+        rotating_mass_factor=1.0,
+        davis_a_n=params.resist_a_mps2,
+        davis_b_n_per_mps=params.resist_b_per_s,
         davis_c_n_per_mps2=params.resist_c_per_m,
         max_speed_mps=10.0 * max(params.speed_max_mps, 1.0),
-        traction_max_force_n=1e9, traction_max_power_w=1e12,
-        service_decel_mps2=1e9, emergency_decel_mps2=1e9,
-        jerk_limit_mps3=math.inf, actuator_time_constant_s=0.0,
+        traction_max_force_n=1e9,
+        traction_max_power_w=1e12,
+        service_decel_mps2=1e9,
+        emergency_decel_mps2=1e9,
+        jerk_limit_mps3=math.inf,
+        actuator_time_constant_s=0.0,
     )
 
 
@@ -274,9 +320,13 @@ class DistributedConstrainedController:
         self.train_params = train_params_from_vehicle(self.params, vehicle)
         self.windows = local_windows(self.train_params, self.params.sample_time_s, self.params.v_ref_mps)
         # Assumption 2.4 at the design T: reject at construction, as the factory contract asks (ValueError).
-        require("sample_time_s", self.windows.eta_lo_m < 0.0 < self.windows.eta_hi_m,
-                "T > T_min of Assumption 2.4 for this train's speed/input bounds and resistance "
-                f"(η̲ = {self.windows.eta_lo_m:.6g} m, η̄ = {self.windows.eta_hi_m:.6g} m)", self.params.sample_time_s)
+        require(
+            "sample_time_s",
+            self.windows.eta_lo_m < 0.0 < self.windows.eta_hi_m,
+            "T > T_min of Assumption 2.4 for this train's speed/input bounds and resistance "
+            f"(η̲ = {self.windows.eta_lo_m:.6g} m, η̄ = {self.windows.eta_hi_m:.6g} m)",
+            self.params.sample_time_s,
+        )
 
     def reset(self) -> None:  # stateless law
         return None
@@ -292,8 +342,10 @@ class DistributedConstrainedController:
             raw = edges[j]
             edge = raw if isinstance(raw, EdgeData) else EdgeData(float(raw[0]), float(raw[1]), float(raw[2]))
             if j not in states:
-                raise KeyError(f"distributed_constrained: neighbour {j!r} of {obs.own.train_id!r} is in "
-                               f"extras['edges'] but has no state in extras['neighbours']")
+                raise KeyError(
+                    f"distributed_constrained: neighbour {j!r} of {obs.own.train_id!r} is in "
+                    f"extras['edges'] but has no state in extras['neighbours']"
+                )
             n = states[j]
             neighbour_next = n.position_m + n.speed_mps * (n.age_s + t)
             out.append(NeighbourMessage(j, own_next - neighbour_next, edge))
@@ -302,12 +354,29 @@ class DistributedConstrainedController:
     def command(self, obs: Observation) -> Command:
         t = self.params.sample_time_s
         if abs(obs.dt_s - t) > 1e-9 * t:
-            raise SimulationError(f"distributed_constrained: the control step is {obs.dt_s} s but the controller "
-                                  f"was designed for sample_time_s = {t} s (Paper C's law is dead-beat in T)")
-        out = control_step(obs.own.train_id, obs.own.speed_mps, self.messages(obs), self.train_params,
-                           self.windows, t, self.params.v_ref_mps, self.params.on_empty_window)
+            raise SimulationError(
+                f"distributed_constrained: the control step is {obs.dt_s} s but the controller "
+                f"was designed for sample_time_s = {t} s (Paper C's law is dead-beat in T)"
+            )
+        out = control_step(
+            obs.own.train_id,
+            obs.own.speed_mps,
+            self.messages(obs),
+            self.train_params,
+            self.windows,
+            t,
+            self.params.v_ref_mps,
+            self.params.on_empty_window,
+        )
         applied = self.vehicle.net_to_applied(out.ubar_mps2, obs.own.speed_mps, obs.own.gradient_permille)
-        info = dict(u_paper_mps2=out.u_mps2, ubar_mps2=out.ubar_mps2, s_m=out.s_m, g_m=out.g_m,
-                    delta_lo_m=out.delta_lo_m, delta_hi_m=out.delta_hi_m, feasible=out.feasible,
-                    k=obs.extras.get("k"))
+        info = dict(
+            u_paper_mps2=out.u_mps2,
+            ubar_mps2=out.ubar_mps2,
+            s_m=out.s_m,
+            g_m=out.g_m,
+            delta_lo_m=out.delta_lo_m,
+            delta_hi_m=out.delta_hi_m,
+            feasible=out.feasible,
+            k=obs.extras.get("k"),
+        )
         return Command(accel_mps2=applied, fallback=not out.feasible, info=info)

@@ -23,8 +23,8 @@ Train identifiers are strings (as everywhere in railsim). Edge keys are ``frozen
 from __future__ import annotations
 
 from collections import deque
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
-from typing import Iterable, Iterator, Mapping
 
 from controllers.distributed.model import TrainParams
 
@@ -37,7 +37,7 @@ class EdgeData:
     gamma_lo_m: float
     gamma_hi_m: float
 
-    def reversed(self) -> "EdgeData":
+    def reversed(self) -> EdgeData:
         """The same edge seen from the other end (Assumption 2.2): ``(−d, −γ̄, −γ̲)``."""
         return EdgeData(d_m=-self.d_m, gamma_lo_m=-self.gamma_hi_m, gamma_hi_m=-self.gamma_lo_m)
 
@@ -66,7 +66,7 @@ class CommGraph:
     edges: Mapping[frozenset[str], Edge] = field(default_factory=dict)
 
     @staticmethod
-    def build(nodes: Iterable[str], edges: Iterable[Edge]) -> "CommGraph":
+    def build(nodes: Iterable[str], edges: Iterable[Edge]) -> CommGraph:
         """A graph from a node list and edges; raises ValueError for self-loops, unknown ends or duplicates."""
         node_set = frozenset(str(n) for n in nodes)
         table: dict[frozenset[str], Edge] = {}
@@ -149,24 +149,24 @@ class CommGraph:
 
     # ------------------------------------------------------------------ changes (new graphs)
 
-    def with_node(self, i: str) -> "CommGraph":
+    def with_node(self, i: str) -> CommGraph:
         if i in self.nodes:
             raise ValueError(f"train {i!r} is already in the graph")
         return CommGraph(self.nodes | {i}, dict(self.edges))
 
-    def without_node(self, i: str) -> "CommGraph":
+    def without_node(self, i: str) -> CommGraph:
         """Remove train ``i`` and every edge at it."""
         if i not in self.nodes:
             raise ValueError(f"train {i!r} is not in the graph")
         return CommGraph(self.nodes - {i}, {k: e for k, e in self.edges.items() if i not in k})
 
-    def with_edge(self, edge: Edge) -> "CommGraph":
+    def with_edge(self, edge: Edge) -> CommGraph:
         table = dict(self.edges)
         _check_edge(edge, self.nodes, table)
         table[edge.key] = edge
         return CommGraph(self.nodes, table)
 
-    def without_edge(self, i: str, j: str) -> "CommGraph":
+    def without_edge(self, i: str, j: str) -> CommGraph:
         key = frozenset((i, j))
         if key not in self.edges:
             raise ValueError(f"there is no edge {i}-{j}")

@@ -29,18 +29,33 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Mapping
 
 import numpy as np
 
 from controllers.distributed.control import ControlOutput, NeighbourMessage, TrainController, predicted_position_m
-from controllers.distributed.graph import (CommGraph, EdgeAdd, EdgeData, EdgeRemove, TopologyEvent, TrainJoin,
-                                           TrainLeave, apply_event, sort_events)
+from controllers.distributed.graph import (
+    CommGraph,
+    EdgeAdd,
+    EdgeData,
+    EdgeRemove,
+    TopologyEvent,
+    TrainJoin,
+    TrainLeave,
+    apply_event,
+    sort_events,
+)
 from controllers.distributed.model import TrainParams
-from controllers.distributed.validate import (DEFAULT_SOURCE, PreconditionError, Violation, check_assumptions,
-                                              check_event_preconditions, validate)
+from controllers.distributed.validate import (
+    DEFAULT_SOURCE,
+    PreconditionError,
+    Violation,
+    check_assumptions,
+    check_event_preconditions,
+    validate,
+)
 
 
 @dataclass(frozen=True)
@@ -126,12 +141,14 @@ class SimulationLog:
     def violations(self, tol: float = 0.0) -> list[tuple[int, str, str, float]]:
         """Every sample where O1 or O2 fails by more than ``tol``: ``(k, kind, where, margin)``."""
         out = []
-        checks = [("O1 lower", self.edge_margins_m()[0], self.edge_ids),
-                  ("O1 upper", self.edge_margins_m()[1], self.edge_ids),
-                  ("speed lower", self.speed_margins_mps()[0], self.train_ids),
-                  ("speed upper", self.speed_margins_mps()[1], self.train_ids),
-                  ("input lower", self.input_margins_mps2()[0], self.train_ids),
-                  ("input upper", self.input_margins_mps2()[1], self.train_ids)]
+        checks = [
+            ("O1 lower", self.edge_margins_m()[0], self.edge_ids),
+            ("O1 upper", self.edge_margins_m()[1], self.edge_ids),
+            ("speed lower", self.speed_margins_mps()[0], self.train_ids),
+            ("speed upper", self.speed_margins_mps()[1], self.train_ids),
+            ("input lower", self.input_margins_mps2()[0], self.train_ids),
+            ("input upper", self.input_margins_mps2()[1], self.train_ids),
+        ]
         for kind, margin, names in checks:
             bad = np.argwhere(margin < -tol)  # NaN compares False: absent entries never count
             for kk, col in bad:
@@ -167,8 +184,9 @@ def simulate(
     for e in events:
         if isinstance(e, TrainJoin):
             params.setdefault(e.train_id, e.params)
-    train_ids = tuple(sorted(set(scenario.graph.nodes) | {e.train_id for e in events if isinstance(e, TrainJoin)},
-                             key=_natural_key))
+    train_ids = tuple(
+        sorted(set(scenario.graph.nodes) | {e.train_id for e in events if isinstance(e, TrainJoin)}, key=_natural_key)
+    )
     col = {i: n for n, i in enumerate(train_ids)}
 
     # The union of edges ever active, oriented at first appearance (walk the event list once, graphs only).
@@ -197,8 +215,10 @@ def simulate(
             raise PreconditionError(source, [_v("events", f"step {e.k}: {exc}")], k=e.k) from None
         note_edges(g)
         if n_ev + 1 == len(events) or events[n_ev + 1].k != e.k:
-            ahead += [Violation(viol.assumption, viol.field, f"after the events of k = {e.k}: {viol.message}")
-                      for viol in check_assumptions(g, params, t, v_r)]
+            ahead += [
+                Violation(viol.assumption, viol.field, f"after the events of k = {e.k}: {viol.message}")
+                for viol in check_assumptions(g, params, t, v_r)
+            ]
     if ahead and strict:
         raise PreconditionError(source, ahead)
 
@@ -206,11 +226,26 @@ def simulate(
     nan_tr = lambda: np.full((n_k, n_tr), np.nan)  # noqa: E731
     nan_ed = lambda: np.full((n_k, n_ed), np.nan)  # noqa: E731
     log = SimulationLog(
-        scenario=scenario, train_ids=train_ids, train_params=params, k=np.arange(n_k),
-        present=np.zeros((n_k, n_tr), bool), x_m=nan_tr(), v_mps=nan_tr(), u_mps2=nan_tr(), ubar_mps2=nan_tr(),
-        s_m=nan_tr(), g_m=nan_tr(), delta_lo_m=nan_tr(), delta_hi_m=nan_tr(), feasible=np.ones((n_k, n_tr), bool),
-        edge_ids=tuple(edge_ids), edge_active=np.zeros((n_k, n_ed), bool), edge_d_m=nan_ed(),
-        edge_gamma_lo_m=nan_ed(), edge_gamma_hi_m=nan_ed(), x_rel_m=nan_ed(),
+        scenario=scenario,
+        train_ids=train_ids,
+        train_params=params,
+        k=np.arange(n_k),
+        present=np.zeros((n_k, n_tr), bool),
+        x_m=nan_tr(),
+        v_mps=nan_tr(),
+        u_mps2=nan_tr(),
+        ubar_mps2=nan_tr(),
+        s_m=nan_tr(),
+        g_m=nan_tr(),
+        delta_lo_m=nan_tr(),
+        delta_hi_m=nan_tr(),
+        feasible=np.ones((n_k, n_tr), bool),
+        edge_ids=tuple(edge_ids),
+        edge_active=np.zeros((n_k, n_ed), bool),
+        edge_d_m=nan_ed(),
+        edge_gamma_lo_m=nan_ed(),
+        edge_gamma_hi_m=nan_ed(),
+        x_rel_m=nan_ed(),
     )
 
     # State of the trains present now.
@@ -281,7 +316,8 @@ class _Topology:
 
     def __init__(self, graph: CommGraph) -> None:
         self.oriented: dict[str, list[tuple[str, EdgeData]]] = {
-            i: [(j, graph.oriented(i, j)) for j in graph.neighbours(i)] for i in graph.nodes}
+            i: [(j, graph.oriented(i, j)) for j in graph.neighbours(i)] for i in graph.nodes
+        }
 
 
 def network_controls(

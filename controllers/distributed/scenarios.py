@@ -18,7 +18,7 @@ successor only — ``E_a = {1-2, 2-3, 3-4, 4-6}``, ``E_b = {1-3, 3-4, 4-5, 5-6}`
 
 from __future__ import annotations
 
-from typing import Callable
+from collections.abc import Callable
 
 from controllers.distributed.graph import CommGraph, Edge, EdgeAdd, EdgeData, EdgeRemove, TrainJoin, TrainLeave
 from controllers.distributed.model import TrainParams
@@ -29,8 +29,15 @@ TOPOLOGIES = ("union", "path")
 
 def zhang2024_train(resist_b_per_s: float = 7.7616e-4) -> TrainParams:
     """The (identical) parameters of every train in Sec. IV."""
-    return TrainParams(resist_a_mps2=1.176e-2, resist_b_per_s=resist_b_per_s, resist_c_per_m=1.6e-5,
-                       speed_min_mps=75.0, speed_max_mps=85.0, input_min_mps2=-11.0, input_max_mps2=11.0)
+    return TrainParams(
+        resist_a_mps2=1.176e-2,
+        resist_b_per_s=resist_b_per_s,
+        resist_c_per_m=1.6e-5,
+        speed_min_mps=75.0,
+        speed_max_mps=85.0,
+        input_min_mps2=-11.0,
+        input_max_mps2=11.0,
+    )
 
 
 def zhang2024_fig1(
@@ -56,14 +63,22 @@ def zhang2024_fig1(
     graph = CommGraph.build(x0, edges_a)
     events: list = [
         TrainLeave(switch_k, "2"),
-        TrainJoin(switch_k, "5", x_m=89000.0, v_mps=80.0, params=p,
-                  edges=(Edge("4", "5", adjacent), Edge("5", "6", adjacent))),
+        TrainJoin(
+            switch_k, "5", x_m=89000.0, v_mps=80.0, params=p, edges=(Edge("4", "5", adjacent), Edge("5", "6", adjacent))
+        ),
     ]
     if topology == "path":
         events += [EdgeRemove(switch_k, "4", "6"), EdgeAdd(switch_k, Edge("1", "3", skip))]
     return Scenario(
-        name=f"zhang2024_fig1[{topology}]", sample_time_s=sample_time_s, v_ref_mps=80.0, horizon_k=horizon_k,
-        trains={i: p for i in x0}, graph=graph, initial_positions_m=x0, initial_speeds_mps=v0, events=tuple(events),
+        name=f"zhang2024_fig1[{topology}]",
+        sample_time_s=sample_time_s,
+        v_ref_mps=80.0,
+        horizon_k=horizon_k,
+        trains={i: p for i in x0},
+        graph=graph,
+        initial_positions_m=x0,
+        initial_speeds_mps=v0,
+        events=tuple(events),
     )
 
 

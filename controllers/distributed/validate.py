@@ -31,9 +31,9 @@ Numbers compare exactly, except the cycle sums of ``d`` (floating-point sums; to
 from __future__ import annotations
 
 import math
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable, Mapping
 
 from controllers.distributed.graph import CommGraph
 from controllers.distributed.model import TrainParams, local_windows, min_sample_time_s
@@ -99,8 +99,13 @@ def check_assumptions(
         comps = graph.components()
         if len(comps) > 1:
             listed = " | ".join(",".join(sorted(c)) for c in comps)
-            out.append(Violation("Assumption 2.1", "graph",
-                                 f"the communication graph must be connected, it has {len(comps)} components: {listed}"))
+            out.append(
+                Violation(
+                    "Assumption 2.1",
+                    "graph",
+                    f"the communication graph must be connected, it has {len(comps)} components: {listed}",
+                )
+            )
 
     # Per-train: (3), Assumption 2.3, Assumption 2.4
     for i in sorted(graph.nodes):
@@ -109,24 +114,49 @@ def check_assumptions(
         if p is None:
             out.append(Violation("model (1)", where, "no parameters for this train"))
             continue
-        bad = [name for name, value in vars(p).items()
-               if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value))]
+        bad = [
+            name
+            for name, value in vars(p).items()
+            if not (isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value))
+        ]
         if bad:
             for name in bad:
-                out.append(Violation("model (1)", f"{where}.{name}", f"expected a finite number, got {getattr(p, name)!r}"))
+                out.append(
+                    Violation("model (1)", f"{where}.{name}", f"expected a finite number, got {getattr(p, name)!r}")
+                )
             continue
         if not p.speed_min_mps < p.speed_max_mps:
-            out.append(Violation("objective O2 (3)", f"{where}.speed_max_mps",
-                                 f"ρ̲ < ρ̄ fails: ρ̲ = {_g(p.speed_min_mps)}, ρ̄ = {_g(p.speed_max_mps)} m/s"))
+            out.append(
+                Violation(
+                    "objective O2 (3)",
+                    f"{where}.speed_max_mps",
+                    f"ρ̲ < ρ̄ fails: ρ̲ = {_g(p.speed_min_mps)}, ρ̄ = {_g(p.speed_max_mps)} m/s",
+                )
+            )
         if not p.input_min_mps2 < p.input_max_mps2:
-            out.append(Violation("objective O2 (3)", f"{where}.input_max_mps2",
-                                 f"μ̲ < μ̄ fails: μ̲ = {_g(p.input_min_mps2)}, μ̄ = {_g(p.input_max_mps2)} m/s²"))
+            out.append(
+                Violation(
+                    "objective O2 (3)",
+                    f"{where}.input_max_mps2",
+                    f"μ̲ < μ̄ fails: μ̲ = {_g(p.input_min_mps2)}, μ̄ = {_g(p.input_max_mps2)} m/s²",
+                )
+            )
         if not p.speed_min_mps < v_ref_mps:
-            out.append(Violation("Assumption 2.3", f"{where}.speed_min_mps",
-                                 f"ρ̲ < v_r fails: ρ̲ = {_g(p.speed_min_mps)}, v_r = {_g(v_ref_mps)} m/s"))
+            out.append(
+                Violation(
+                    "Assumption 2.3",
+                    f"{where}.speed_min_mps",
+                    f"ρ̲ < v_r fails: ρ̲ = {_g(p.speed_min_mps)}, v_r = {_g(v_ref_mps)} m/s",
+                )
+            )
         if not v_ref_mps < p.speed_max_mps:
-            out.append(Violation("Assumption 2.3", f"{where}.speed_max_mps",
-                                 f"v_r < ρ̄ fails: v_r = {_g(v_ref_mps)}, ρ̄ = {_g(p.speed_max_mps)} m/s"))
+            out.append(
+                Violation(
+                    "Assumption 2.3",
+                    f"{where}.speed_max_mps",
+                    f"v_r < ρ̄ fails: v_r = {_g(v_ref_mps)}, ρ̄ = {_g(p.speed_max_mps)} m/s",
+                )
+            )
         if not p.speed_min_mps < p.speed_max_mps:
             continue  # f̲, f̄ undefined on an empty interval
         w = local_windows(p, t, v_ref_mps)
@@ -134,27 +164,46 @@ def check_assumptions(
         ok_inputs = True
         if not p.input_min_mps2 < f_lo:
             ok_inputs = False
-            out.append(Violation("Assumption 2.4", f"{where}.input_min_mps2",
-                                 f"μ̲ < f̲ fails: μ̲ = {_g(p.input_min_mps2)}, f̲ = min f on "
-                                 f"[{_g(p.speed_min_mps)}, {_g(p.speed_max_mps)}] = {_g(f_lo)} m/s²"))
+            out.append(
+                Violation(
+                    "Assumption 2.4",
+                    f"{where}.input_min_mps2",
+                    f"μ̲ < f̲ fails: μ̲ = {_g(p.input_min_mps2)}, f̲ = min f on "
+                    f"[{_g(p.speed_min_mps)}, {_g(p.speed_max_mps)}] = {_g(f_lo)} m/s²",
+                )
+            )
         if not f_hi < p.input_max_mps2:
             ok_inputs = False
-            out.append(Violation("Assumption 2.4", f"{where}.input_max_mps2",
-                                 f"f̄ < μ̄ fails: f̄ = max f on [{_g(p.speed_min_mps)}, {_g(p.speed_max_mps)}] = "
-                                 f"{_g(f_hi)}, μ̄ = {_g(p.input_max_mps2)} m/s²"))
+            out.append(
+                Violation(
+                    "Assumption 2.4",
+                    f"{where}.input_max_mps2",
+                    f"f̄ < μ̄ fails: f̄ = max f on [{_g(p.speed_min_mps)}, {_g(p.speed_max_mps)}] = "
+                    f"{_g(f_hi)}, μ̄ = {_g(p.input_max_mps2)} m/s²",
+                )
+            )
         lo_ok = (v_ref_mps - p.speed_max_mps) / t > p.input_min_mps2 - f_lo  # ⇔ η̲ < 0
         hi_ok = (v_ref_mps - p.speed_min_mps) / t < p.input_max_mps2 - f_hi  # ⇔ η̄ > 0
         if ok_inputs and not (lo_ok and hi_ok):
             t_min = min_sample_time_s(p, v_ref_mps)
             which = []
             if not lo_ok:
-                which.append(f"(v_r − ρ̄)/T = {_g((v_ref_mps - p.speed_max_mps) / t)} ≤ μ̲ − f̲ = "
-                             f"{_g(p.input_min_mps2 - f_lo)} (η̲ = {_g(w.eta_lo_m)} m ≥ 0)")
+                which.append(
+                    f"(v_r − ρ̄)/T = {_g((v_ref_mps - p.speed_max_mps) / t)} ≤ μ̲ − f̲ = "
+                    f"{_g(p.input_min_mps2 - f_lo)} (η̲ = {_g(w.eta_lo_m)} m ≥ 0)"
+                )
             if not hi_ok:
-                which.append(f"(v_r − ρ̲)/T = {_g((v_ref_mps - p.speed_min_mps) / t)} ≥ μ̄ − f̄ = "
-                             f"{_g(p.input_max_mps2 - f_hi)} (η̄ = {_g(w.eta_hi_m)} m ≤ 0)")
-            out.append(Violation("Assumption 2.4", "sample_time_s",
-                                 f"train {i} needs T > T_min = {_g(t_min)} s, got T = {_g(t)} s: " + " and ".join(which)))
+                which.append(
+                    f"(v_r − ρ̲)/T = {_g((v_ref_mps - p.speed_min_mps) / t)} ≥ μ̄ − f̄ = "
+                    f"{_g(p.input_max_mps2 - f_hi)} (η̄ = {_g(w.eta_hi_m)} m ≤ 0)"
+                )
+            out.append(
+                Violation(
+                    "Assumption 2.4",
+                    "sample_time_s",
+                    f"train {i} needs T > T_min = {_g(t_min)} s, got T = {_g(t)} s: " + " and ".join(which),
+                )
+            )
 
     # Assumption 2.2 per edge, then d-consistency around cycles
     for i, j, e in graph.oriented_edges():
@@ -164,19 +213,34 @@ def check_assumptions(
             out.append(Violation("Assumption 2.2", where, f"expected finite numbers (d, γ̲, γ̄), got {vals!r}"))
             continue
         if not e.gamma_lo_m < e.d_m:
-            out.append(Violation("Assumption 2.2", f"{where}.gamma_lo_m",
-                                 f"γ̲_ij < d_ij fails for edge {i}-{j}: γ̲ = {_g(e.gamma_lo_m)}, d = {_g(e.d_m)} m"))
+            out.append(
+                Violation(
+                    "Assumption 2.2",
+                    f"{where}.gamma_lo_m",
+                    f"γ̲_ij < d_ij fails for edge {i}-{j}: γ̲ = {_g(e.gamma_lo_m)}, d = {_g(e.d_m)} m",
+                )
+            )
         if not e.d_m < e.gamma_hi_m:
-            out.append(Violation("Assumption 2.2", f"{where}.gamma_hi_m",
-                                 f"d_ij < γ̄_ij fails for edge {i}-{j}: d = {_g(e.d_m)}, γ̄ = {_g(e.gamma_hi_m)} m"))
+            out.append(
+                Violation(
+                    "Assumption 2.2",
+                    f"{where}.gamma_hi_m",
+                    f"d_ij < γ̄_ij fails for edge {i}-{j}: d = {_g(e.d_m)}, γ̄ = {_g(e.gamma_hi_m)} m",
+                )
+            )
     if all(math.isfinite(e.data.d_m) for e in graph.edges.values()):
         _, mismatches = graph.node_offsets()
         for i, j, cycle in mismatches:
             scale = max(1.0, abs(graph.oriented(i, j).d_m))
             if abs(cycle) > 1e-9 * scale:
-                out.append(Violation("Assumption 2.2", f"{_edge_field(i, j)}.d_m",
-                                     f"d is not consistent: the cycle closed by edge {i}-{j} sums to {_g(cycle)} m "
-                                     f"(d_ij must equal d_il + d_lj around every cycle)"))
+                out.append(
+                    Violation(
+                        "Assumption 2.2",
+                        f"{_edge_field(i, j)}.d_m",
+                        f"d is not consistent: the cycle closed by edge {i}-{j} sums to {_g(cycle)} m "
+                        f"(d_ij must equal d_il + d_lj around every cycle)",
+                    )
+                )
     return out
 
 
@@ -201,11 +265,18 @@ def check_state(
             continue
         v, p = speeds_mps[i], trains.get(i)
         if not (math.isfinite(v) and math.isfinite(positions_m[i])):
-            out.append(Violation("condition (13)", f"state[{i}]", f"expected finite x and v, got {positions_m[i]!r}, {v!r}"))
+            out.append(
+                Violation("condition (13)", f"state[{i}]", f"expected finite x and v, got {positions_m[i]!r}, {v!r}")
+            )
         elif p is not None and not (p.speed_min_mps <= v <= p.speed_max_mps):
-            out.append(Violation("condition (13)", f"state[{i}].v_mps",
-                                 f"ρ̲ ≤ v_i ≤ ρ̄ fails for train {i}: v = {_g(v)} m/s, "
-                                 f"bounds [{_g(p.speed_min_mps)}, {_g(p.speed_max_mps)}]"))
+            out.append(
+                Violation(
+                    "condition (13)",
+                    f"state[{i}].v_mps",
+                    f"ρ̲ ≤ v_i ≤ ρ̄ fails for train {i}: v = {_g(v)} m/s, "
+                    f"bounds [{_g(p.speed_min_mps)}, {_g(p.speed_max_mps)}]",
+                )
+            )
     for i, j, e in graph.oriented_edges():
         if frozenset((i, j)) not in edge_keys:
             continue
@@ -215,12 +286,22 @@ def check_state(
         x_next = (positions_m[i] + t * speeds_mps[i]) - (positions_m[j] + t * speeds_mps[j])
         band = f"[{_g(e.gamma_lo_m)}, {_g(e.gamma_hi_m)}] m"
         if not (e.gamma_lo_m <= x_ij <= e.gamma_hi_m):
-            out.append(Violation("objective O1 at the check step (A8)", _edge_field(i, j),
-                                 f"x_ij = x_{i} − x_{j} = {_g(x_ij)} m for edge {i}-{j} outside {band}"))
+            out.append(
+                Violation(
+                    "objective O1 at the check step (A8)",
+                    _edge_field(i, j),
+                    f"x_ij = x_{i} − x_{j} = {_g(x_ij)} m for edge {i}-{j} outside {band}",
+                )
+            )
         if not (e.gamma_lo_m <= x_next <= e.gamma_hi_m):
-            out.append(Violation("condition (13)", _edge_field(i, j),
-                                 f"x_ij + T·v_ij = {_g(x_next)} m for edge {i}-{j} (x_ij = {_g(x_ij)} m, "
-                                 f"v_ij = {_g(speeds_mps[i] - speeds_mps[j])} m/s) outside {band}"))
+            out.append(
+                Violation(
+                    "condition (13)",
+                    _edge_field(i, j),
+                    f"x_ij + T·v_ij = {_g(x_next)} m for edge {i}-{j} (x_ij = {_g(x_ij)} m, "
+                    f"v_ij = {_g(speeds_mps[i] - speeds_mps[j])} m/s) outside {band}",
+                )
+            )
     return out
 
 
@@ -237,8 +318,11 @@ def validate(
 ) -> None:
     """Raise :class:`PreconditionError` listing every failed assumption (and (13)/O1 if a state is given)."""
     violations = check_assumptions(graph, trains, sample_time_s, v_ref_mps)
-    if positions_m is not None and speeds_mps is not None and not any(
-            v.field == "sample_time_s" and v.assumption == "model (1)" for v in violations):
+    if (
+        positions_m is not None
+        and speeds_mps is not None
+        and not any(v.field == "sample_time_s" and v.assumption == "model (1)" for v in violations)
+    ):
         violations += check_state(graph, trains, sample_time_s, positions_m, speeds_mps)
     if violations:
         raise PreconditionError(source, violations, k=k)
@@ -263,6 +347,7 @@ def check_event_preconditions(
     out = check_assumptions(new_graph, trains, sample_time_s, v_ref_mps)
     new_edges = {key for key, e in new_graph.edges.items() if old_graph.edges.get(key) != e}
     new_trains = new_graph.nodes - old_graph.nodes
-    out += check_state(new_graph, trains, sample_time_s, positions_m, speeds_mps,
-                       edges=new_edges, speed_trains=new_trains)
+    out += check_state(
+        new_graph, trains, sample_time_s, positions_m, speeds_mps, edges=new_edges, speed_trains=new_trains
+    )
     return out

@@ -40,15 +40,14 @@ def priority_order(problem: Problem, rule: Rule) -> list[int]:
     raise ValueError(f"rule: expected naive1 or naive2, got {rule!r}")
 
 
-def approach_speed_cap(speed_mps: float, distance_m: float, limit_mps: float, dt_s: float,
-                       brake_mps2: float) -> float:
+def approach_speed_cap(speed_mps: float, distance_m: float, limit_mps: float, dt_s: float, brake_mps2: float) -> float:
     """Highest speed [m/s] allowed now so that the train meets ``limit_mps`` at ``distance_m`` ahead.
 
     The braking curve uses 80 % of ``brake_mps2`` and looks one step ahead, so discrete tracking of the curve
     never overshoots the switch or its limit (the naive strategies' "run towards the next switch's limit").
     """
     look = distance_m - speed_mps * dt_s
-    return float(min(limit_mps, np.sqrt(limit_mps ** 2 + 2.0 * 0.8 * brake_mps2 * max(look, 0.0))))
+    return float(min(limit_mps, np.sqrt(limit_mps**2 + 2.0 * 0.8 * brake_mps2 * max(look, 0.0))))
 
 
 def accel_towards(speed_cap_mps: float, speed_mps: float, dt_s: float, params: JunctionParams) -> float:
@@ -56,8 +55,9 @@ def accel_towards(speed_cap_mps: float, speed_mps: float, dt_s: float, params: J
     return float(np.clip((speed_cap_mps - speed_mps) / dt_s, params.accel_min_mps2, params.accel_max_mps2))
 
 
-def run_naive(problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float = 600.0
-              ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def run_naive(
+    problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float = 600.0
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Simulate the naive strategy; returns ``(time_s (T,), position_m (T, n), speed_mps (T, n))``.
 
     Positions are along each train's own path from its start; the run ends when every train is past F (plus
@@ -106,12 +106,12 @@ def run_naive(problem: Problem, rule: Rule, dt_s: float = 0.1, horizon_s: float 
                 q = j if k == i else i
                 st_k = s[k] - problem.merge_distance_m[k]
                 st_q = s[q] - problem.merge_distance_m[q]
-                first_common = (problem.breakpoints_m[i, ii[0]] - problem.merge_distance_m[i])
+                first_common = problem.breakpoints_m[i, ii[0]] - problem.merge_distance_m[i]
                 if st_q > st_k and st_k >= first_common - 1e-9 and st_q >= first_common:
                     gap = st_q - st_k - p.pred_length_m - p.standstill_gap_m - v[k] * dt_s
                     caps.append(np.sqrt(2.0 * 0.8 * b * max(gap, 0.0)))
             acc[k] = accel_towards(min(caps), float(v[k]), dt_s, p)
-        s_new = s + np.maximum(v * dt_s + 0.5 * acc * dt_s ** 2, 0.0)
+        s_new = s + np.maximum(v * dt_s + 0.5 * acc * dt_s**2, 0.0)
         v_new = np.maximum(v + acc * dt_s, 0.0)
         for k, tr in enumerate(trains):
             while nxt[k] < len(tr.switches) and s_new[k] >= tr.switches[nxt[k]].distance_m:

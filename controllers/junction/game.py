@@ -25,8 +25,8 @@ from __future__ import annotations
 
 import itertools
 import math
+from collections.abc import Callable, Hashable, Iterable, Sequence
 from dataclasses import dataclass
-from typing import Callable, Hashable, Iterable, Sequence
 
 from controllers.junction.model import JunctionParams, safety_margin_m
 
@@ -41,10 +41,10 @@ class PlayerTerms:
     """
 
     train_id: str
-    time_before_switch_s: float       # t_1k (Eq. 20)
-    time_after_switch_s: float        # t_2k (Eq. 21)
-    coupled_speed_mps: float          # v_k at T_c
-    gap_to_pred_m: float | None = None          # D_{k−1,k}, head-to-head
+    time_before_switch_s: float  # t_1k (Eq. 20)
+    time_after_switch_s: float  # t_2k (Eq. 21)
+    coupled_speed_mps: float  # v_k at T_c
+    gap_to_pred_m: float | None = None  # D_{k−1,k}, head-to-head
     speed_diff_to_pred_mps: float | None = None  # Δv = v_{k−1} − v_k
     pred_speed_mps: float | None = None
 
@@ -66,8 +66,9 @@ def pair_cost(t: PlayerTerms, params: JunctionParams) -> float:
         return 0.0
     margin = float(safety_margin_m(t.pred_speed_mps, t.coupled_speed_mps, params))
     v = max(t.coupled_speed_mps, params.min_speed_mps)
-    return (params.weight_gap * abs(t.gap_to_pred_m - margin) / v
-            + params.weight_speed_diff * (abs(t.speed_diff_to_pred_mps) + params.speed_error_mps))
+    return params.weight_gap * abs(t.gap_to_pred_m - margin) / v + params.weight_speed_diff * (
+        abs(t.speed_diff_to_pred_mps) + params.speed_error_mps
+    )
 
 
 def marginal_cost(t: PlayerTerms, params: JunctionParams) -> float:
@@ -87,8 +88,7 @@ def is_queue(coalition: Iterable[str], order: Sequence[str]) -> bool:
     return m >= 2 and members == set(order[:m])
 
 
-def paper_coalition_cost(coalition: Iterable[str], players: Sequence[PlayerTerms],
-                         params: JunctionParams) -> float:
+def paper_coalition_cost(coalition: Iterable[str], players: Sequence[PlayerTerms], params: JunctionParams) -> float:
     """The paper's ``f_c = f_c1 + f_c2`` (Eqs. 24–26): finite on queue prefixes, ``+∞`` otherwise.
 
     ``players`` must be given in passing order (that defines 𝔴 and the predecessors).
@@ -163,20 +163,27 @@ def shapley_by_orderings(players: Sequence[Hashable], value: Callable[[frozenset
     return {k: v / count for k, v in phi.items()}
 
 
-def players_from_outcome(train_ids: Sequence[str], order: Sequence[int], merge_times_s: Sequence[float],
-                         coupling_time_s: float, speeds_mps: Sequence[float],
-                         positions_common_m: Sequence[float]) -> list[PlayerTerms]:
+def players_from_outcome(
+    train_ids: Sequence[str],
+    order: Sequence[int],
+    merge_times_s: Sequence[float],
+    coupling_time_s: float,
+    speeds_mps: Sequence[float],
+    positions_common_m: Sequence[float],
+) -> list[PlayerTerms]:
     """Build :class:`PlayerTerms` in passing order from a rollout/simulation (positions in s̃, head-to-head)."""
     out: list[PlayerTerms] = []
     for pos, k in enumerate(order):
         pred = order[pos - 1] if pos > 0 else None
-        out.append(PlayerTerms(
-            train_id=train_ids[k],
-            time_before_switch_s=float(merge_times_s[k]),
-            time_after_switch_s=float(coupling_time_s - merge_times_s[k]),
-            coupled_speed_mps=float(speeds_mps[k]),
-            gap_to_pred_m=None if pred is None else float(positions_common_m[pred] - positions_common_m[k]),
-            speed_diff_to_pred_mps=None if pred is None else float(speeds_mps[pred] - speeds_mps[k]),
-            pred_speed_mps=None if pred is None else float(speeds_mps[pred]),
-        ))
+        out.append(
+            PlayerTerms(
+                train_id=train_ids[k],
+                time_before_switch_s=float(merge_times_s[k]),
+                time_after_switch_s=float(coupling_time_s - merge_times_s[k]),
+                coupled_speed_mps=float(speeds_mps[k]),
+                gap_to_pred_m=None if pred is None else float(positions_common_m[pred] - positions_common_m[k]),
+                speed_diff_to_pred_mps=None if pred is None else float(speeds_mps[pred] - speeds_mps[k]),
+                pred_speed_mps=None if pred is None else float(speeds_mps[pred]),
+            )
+        )
     return out

@@ -75,59 +75,82 @@ Leg = Literal["normal", "reverse"]
 class JunctionParams:
     """Model parameters (spec Table 1 and the §6 defaults). Units in the names."""
 
-    accel_min_mps2: float = -1.2          # a_min, Table 1
-    accel_max_mps2: float = 1.0           # a_max, Table 1
-    normal_speed_mps: float = 15.0        # v_lsn, Table 1
-    reverse_speed_mps: float = 10.0       # v_lsr, Table 1
-    line_speed_mps: float = 20.0          # v_max of segment G, Table 1 (closed bound, spec §6 #11)
-    throw_time_s: float = 10.0            # t_ls, Table 1
-    segment_m: float = 20.0               # Δx (spec §6 #3 option; 10 m doubles the dimension)
-    min_speed_mps: float = 0.1            # v_eps for the open bound v > 0
+    accel_min_mps2: float = -1.2  # a_min, Table 1
+    accel_max_mps2: float = 1.0  # a_max, Table 1
+    normal_speed_mps: float = 15.0  # v_lsn, Table 1
+    reverse_speed_mps: float = 10.0  # v_lsr, Table 1
+    line_speed_mps: float = 20.0  # v_max of segment G, Table 1 (closed bound, spec §6 #11)
+    throw_time_s: float = 10.0  # t_ls, Table 1
+    segment_m: float = 20.0  # Δx (spec §6 #3 option; 10 m doubles the dimension)
+    min_speed_mps: float = 0.1  # v_eps for the open bound v > 0
     switch_speed_margin_mps: float = 1e-3  # strict "<" of Eq. 37
-    speed_error_mps: float = 0.1          # V_δ (Eq. 1, 18, 19)
-    comm_delay_s: float = 0.1             # T_1
-    processing_delay_s: float = 0.2       # T_2
-    standstill_gap_m: float = 10.0        # S_0 of the corrected Eq. 1
-    pred_length_m: float = 0.0            # L_k; 0 for mass points (the paper reproduction)
-    gap_tolerance_m: float = 5.0          # S_th (Eq. 2)
-    speed_tolerance_mps: float = 0.5      # V_th (Eq. 3)
-    braking_distance_m: float = 17.0      # D_braking (Eq. 23), constant (spec §2.5)
-    weight_gap: float = 1.0               # λ1
-    weight_speed: float = 1.0             # λ2
-    weight_speed_diff: float = 1.0        # λ3
-    weight_time: float = 1.0              # λ4
+    speed_error_mps: float = 0.1  # V_δ (Eq. 1, 18, 19)
+    comm_delay_s: float = 0.1  # T_1
+    processing_delay_s: float = 0.2  # T_2
+    standstill_gap_m: float = 10.0  # S_0 of the corrected Eq. 1
+    pred_length_m: float = 0.0  # L_k; 0 for mass points (the paper reproduction)
+    gap_tolerance_m: float = 5.0  # S_th (Eq. 2)
+    speed_tolerance_mps: float = 0.5  # V_th (Eq. 3)
+    braking_distance_m: float = 17.0  # D_braking (Eq. 23), constant (spec §2.5)
+    weight_gap: float = 1.0  # λ1
+    weight_speed: float = 1.0  # λ2
+    weight_speed_diff: float = 1.0  # λ3
+    weight_time: float = 1.0  # λ4
     headway_all_consecutive: bool = False  # paper-literal Eq. 39 scope (spec §6 #10)
     planning_tolerance_share: float = 0.9  # the planner aims inside S_th, V_th by this share (integration slack)
-    min_time_gap_s: float = 0.3           # follower reaches every shared point at least this much later
-    paper_literal_margin: bool = False    # Eq. 1 with "− L_k" instead of "+ L_pred + S_0"
+    min_time_gap_s: float = 0.3  # follower reaches every shared point at least this much later
+    paper_literal_margin: bool = False  # Eq. 1 with "− L_k" instead of "+ L_pred + S_0"
     # relative-braking-distance spacing on shared track (extension; off = the paper): at every instant the
     # follower's front must stay behind the leader's rear by controllers.braking.relative_braking_distance_m
-    rbd_reaction_s: float = 0.0           # T, the guard's dead time (0: the constraint is off)
-    rbd_decel_mps2: float = 1.2           # b, both trains' emergency braking
+    rbd_reaction_s: float = 0.0  # T, the guard's dead time (0: the constraint is off)
+    rbd_decel_mps2: float = 1.2  # b, both trains' emergency braking
     rbd_margin_m: float = 10.0
-    rbd_samples_per_segment: int = 4      # instants checked per follower segment (its start + interior ones)
+    rbd_samples_per_segment: int = 4  # instants checked per follower segment (its start + interior ones)
 
     def __post_init__(self) -> None:
         require("accel_min_mps2", self.accel_min_mps2 < 0.0, "a number < 0", self.accel_min_mps2)
         require("accel_max_mps2", self.accel_max_mps2 > 0.0, "a number > 0", self.accel_max_mps2)
-        require("reverse_speed_mps", 0.0 < self.reverse_speed_mps <= self.normal_speed_mps,
-                "0 < reverse_speed_mps <= normal_speed_mps", self.reverse_speed_mps)
-        require("line_speed_mps", self.line_speed_mps >= self.normal_speed_mps, ">= normal_speed_mps",
-                self.line_speed_mps)
+        require(
+            "reverse_speed_mps",
+            0.0 < self.reverse_speed_mps <= self.normal_speed_mps,
+            "0 < reverse_speed_mps <= normal_speed_mps",
+            self.reverse_speed_mps,
+        )
+        require(
+            "line_speed_mps", self.line_speed_mps >= self.normal_speed_mps, ">= normal_speed_mps", self.line_speed_mps
+        )
         require("throw_time_s", self.throw_time_s >= 0.0, "a number >= 0", self.throw_time_s)
         require("segment_m", self.segment_m > 0.0, "a number > 0", self.segment_m)
         require("min_speed_mps", self.min_speed_mps > 0.0, "a number > 0", self.min_speed_mps)
         require("gap_tolerance_m", self.gap_tolerance_m > 0.0, "a number > 0", self.gap_tolerance_m)
         require("speed_tolerance_mps", self.speed_tolerance_mps > 0.0, "a number > 0", self.speed_tolerance_mps)
-        require("planning_tolerance_share", 0.0 < self.planning_tolerance_share <= 1.0, "a share in (0, 1]",
-                self.planning_tolerance_share)
+        require(
+            "planning_tolerance_share",
+            0.0 < self.planning_tolerance_share <= 1.0,
+            "a share in (0, 1]",
+            self.planning_tolerance_share,
+        )
         require("braking_distance_m", self.braking_distance_m > 0.0, "a number > 0", self.braking_distance_m)
         require("rbd_decel_mps2", self.rbd_decel_mps2 > 0.0, "a number > 0", self.rbd_decel_mps2)
-        require("rbd_samples_per_segment", int(self.rbd_samples_per_segment) == self.rbd_samples_per_segment
-                and self.rbd_samples_per_segment >= 1, "an integer >= 1", self.rbd_samples_per_segment)
-        for name in ("weight_gap", "weight_speed", "weight_speed_diff", "weight_time", "speed_error_mps",
-                     "comm_delay_s", "processing_delay_s", "standstill_gap_m", "pred_length_m",
-                     "rbd_reaction_s", "rbd_margin_m"):
+        require(
+            "rbd_samples_per_segment",
+            int(self.rbd_samples_per_segment) == self.rbd_samples_per_segment and self.rbd_samples_per_segment >= 1,
+            "an integer >= 1",
+            self.rbd_samples_per_segment,
+        )
+        for name in (
+            "weight_gap",
+            "weight_speed",
+            "weight_speed_diff",
+            "weight_time",
+            "speed_error_mps",
+            "comm_delay_s",
+            "processing_delay_s",
+            "standstill_gap_m",
+            "pred_length_m",
+            "rbd_reaction_s",
+            "rbd_margin_m",
+        ):
             value = getattr(self, name)
             require(name, value >= 0.0, "a number >= 0", value)
 
@@ -135,18 +158,20 @@ class JunctionParams:
         return self.normal_speed_mps if leg == "normal" else self.reverse_speed_mps
 
 
-def safety_margin_m(leader_speed_mps: np.ndarray | float, follower_speed_mps: np.ndarray | float,
-                    params: JunctionParams) -> np.ndarray:
+def safety_margin_m(
+    leader_speed_mps: np.ndarray | float, follower_speed_mps: np.ndarray | float, params: JunctionParams
+) -> np.ndarray:
     """``S_m`` of Eq. (1), head-to-head, corrected reading of spec §6 #5 (or the printed one, by flag)."""
     closing = (np.asarray(follower_speed_mps) + params.speed_error_mps) - (
-        np.asarray(leader_speed_mps) - params.speed_error_mps)
+        np.asarray(leader_speed_mps) - params.speed_error_mps
+    )
     delay_s = params.comm_delay_s + params.processing_delay_s
     if params.paper_literal_margin:
         return closing * delay_s - params.pred_length_m
     return np.maximum(closing, 0.0) * delay_s + params.pred_length_m + params.standstill_gap_m
 
 
-SUMO_SWITCH_INTERVAL_S = 21.6   # t_ls of the SUMO Table 3 runs (README "Junction planner online")
+SUMO_SWITCH_INTERVAL_S = 21.6  # t_ls of the SUMO Table 3 runs (README "Junction planner online")
 
 
 def sumo_corrected_params(**overrides: float | bool) -> JunctionParams:
@@ -157,8 +182,14 @@ def sumo_corrected_params(**overrides: float | bool) -> JunctionParams:
     ``pred_length_m`` = 20 m, ``S_0`` = 15 m (the gap the followers' CACC holds at 15 m/s) and the
     relative-braking-distance guard (T = 0.2 s, b = 1.5 m/s², margin 10 m). Keyword overrides win.
     """
-    values: dict = {"throw_time_s": SUMO_SWITCH_INTERVAL_S, "pred_length_m": 20.0, "standstill_gap_m": 15.0,
-                    "rbd_reaction_s": 0.2, "rbd_decel_mps2": 1.5, "rbd_margin_m": 10.0}
+    values: dict = {
+        "throw_time_s": SUMO_SWITCH_INTERVAL_S,
+        "pred_length_m": 20.0,
+        "standstill_gap_m": 15.0,
+        "rbd_reaction_s": 0.2,
+        "rbd_decel_mps2": 1.5,
+        "rbd_margin_m": 10.0,
+    }
     values.update(overrides)
     return JunctionParams(**values)
 
@@ -208,16 +239,16 @@ class Problem:
     merge_switch_id: str
     params: JunctionParams
     switch_states: dict[str, SwitchState]
-    breakpoints_m: np.ndarray          # (n, L+1) along own path, padded by repeating F
-    seg_len_m: np.ndarray              # (n, L) zero in the padding
-    n_segments: np.ndarray             # (n,) l_k
-    dim_index: np.ndarray              # (D,) flat index into (n*L) of each decision variable
-    dim_slices: tuple[slice, ...]      # train k's decision variables in a particle
-    merge_distance_m: np.ndarray       # (n,) d_{k,σ*}
+    breakpoints_m: np.ndarray  # (n, L+1) along own path, padded by repeating F
+    seg_len_m: np.ndarray  # (n, L) zero in the padding
+    n_segments: np.ndarray  # (n,) l_k
+    dim_index: np.ndarray  # (D,) flat index into (n*L) of each decision variable
+    dim_slices: tuple[slice, ...]  # train k's decision variables in a particle
+    merge_distance_m: np.ndarray  # (n,) d_{k,σ*}
     switch_ids: tuple[str, ...]
-    switch_users: dict[str, np.ndarray]       # switch id -> train indices using it
-    switch_boundary: dict[str, np.ndarray]    # switch id -> boundary index (per user)
-    switch_legs: dict[str, np.ndarray]        # switch id -> 1 for reverse, 0 for normal (per user)
+    switch_users: dict[str, np.ndarray]  # switch id -> train indices using it
+    switch_boundary: dict[str, np.ndarray]  # switch id -> boundary index (per user)
+    switch_legs: dict[str, np.ndarray]  # switch id -> 1 for reverse, 0 for normal (per user)
     switch_limits_mps: dict[str, np.ndarray]  # switch id -> limit speed (per user)
     shared_pairs: tuple[tuple[int, int, np.ndarray, np.ndarray], ...]  # (i, j, boundary idx of i, of j)
     frozen_order: tuple[int, ...] | None = None  # passing order at σ* forced by a re-plan (train indices)
@@ -239,10 +270,13 @@ class Problem:
         return [np.asarray(x[s], dtype=float) for s in self.dim_slices]
 
 
-def compile_problem(trains: tuple[TrainPath, ...] | list[TrainPath], merge_switch_id: str,
-                    params: JunctionParams | None = None,
-                    switch_states: dict[str, SwitchState] | None = None,
-                    frozen_order: tuple[int, ...] | None = None) -> Problem:
+def compile_problem(
+    trains: tuple[TrainPath, ...] | list[TrainPath],
+    merge_switch_id: str,
+    params: JunctionParams | None = None,
+    switch_states: dict[str, SwitchState] | None = None,
+    frozen_order: tuple[int, ...] | None = None,
+) -> Problem:
     """Build the segment grids and index tables (see the module docstring for the grid reading)."""
     params = params or JunctionParams()
     trains = tuple(trains)
@@ -270,7 +304,7 @@ def compile_problem(trains: tuple[TrainPath, ...] | list[TrainPath], merge_switc
     bp = np.zeros((len(trains), L + 1))
     for k, g in enumerate(grids):
         bp[k, : g.size] = g
-        bp[k, g.size:] = g[-1]
+        bp[k, g.size :] = g[-1]
     seg = np.diff(bp, axis=1)
     dim_index = np.concatenate([k * L + np.arange(n_seg[k]) for k in range(len(trains))])
     offs = np.concatenate([[0], np.cumsum(n_seg)])
@@ -293,8 +327,9 @@ def compile_problem(trains: tuple[TrainPath, ...] | list[TrainPath], merge_switc
     pairs = []
     for i in range(len(trains)):
         for j in range(i + 1, len(trains)):
-            common = [sw.switch_id for sw in trains[i].switches
-                      if sw.switch_id in {s.switch_id for s in trains[j].switches}]
+            common = [
+                sw.switch_id for sw in trains[i].switches if sw.switch_id in {s.switch_id for s in trains[j].switches}
+            ]
             if not common:
                 continue
             first = common[0]
@@ -307,14 +342,23 @@ def compile_problem(trains: tuple[TrainPath, ...] | list[TrainPath], merge_switc
             pairs.append((i, j, ii, jj))
     states = dict(switch_states or {})
     return Problem(
-        trains=trains, merge_switch_id=merge_switch_id, params=params, switch_states=states,
-        breakpoints_m=bp, seg_len_m=seg, n_segments=n_seg, dim_index=dim_index, dim_slices=slices,
-        merge_distance_m=merge_d, switch_ids=tuple(users),
+        trains=trains,
+        merge_switch_id=merge_switch_id,
+        params=params,
+        switch_states=states,
+        breakpoints_m=bp,
+        seg_len_m=seg,
+        n_segments=n_seg,
+        dim_index=dim_index,
+        dim_slices=slices,
+        merge_distance_m=merge_d,
+        switch_ids=tuple(users),
         switch_users={s: np.array(v) for s, v in users.items()},
         switch_boundary={s: np.array(v) for s, v in bidx.items()},
         switch_legs={s: np.array(v) for s, v in legs.items()},
         switch_limits_mps={s: np.array(v, dtype=float) for s, v in lims.items()},
-        shared_pairs=tuple(pairs), frozen_order=frozen_order,
+        shared_pairs=tuple(pairs),
+        frozen_order=frozen_order,
     )
 
 
@@ -322,19 +366,19 @@ def compile_problem(trains: tuple[TrainPath, ...] | list[TrainPath], merge_switc
 class Rollout:
     """Everything the vectorised rollout computes for a batch of particles (leading axis P)."""
 
-    speed_signed_mps: np.ndarray   # (P, n, L+1) boundary speeds, negative where the train would have stopped
-    time_s: np.ndarray             # (P, n, L+1) boundary times
-    accel_mps2: np.ndarray         # (P, n, L)
-    merge_time_s: np.ndarray       # (P, n) t_{k,σ*}
-    order: np.ndarray              # (P, n) train indices in passing order at σ*
-    coupling_time_s: np.ndarray    # (P,) T_c
-    position_at_tc_m: np.ndarray   # (P, n) along own path
-    speed_at_tc_mps: np.ndarray    # (P, n)
-    gap_m: np.ndarray              # (P, n-1) head-to-head D between consecutive trains in order
-    speed_diff_mps: np.ndarray     # (P, n-1) Δv = v_pred − v_follower
-    margin_m: np.ndarray           # (P, n-1) S_m
-    cost: np.ndarray               # (P,) f_c
-    violation: np.ndarray          # (P,) Σ max(g, 0)
+    speed_signed_mps: np.ndarray  # (P, n, L+1) boundary speeds, negative where the train would have stopped
+    time_s: np.ndarray  # (P, n, L+1) boundary times
+    accel_mps2: np.ndarray  # (P, n, L)
+    merge_time_s: np.ndarray  # (P, n) t_{k,σ*}
+    order: np.ndarray  # (P, n) train indices in passing order at σ*
+    coupling_time_s: np.ndarray  # (P,) T_c
+    position_at_tc_m: np.ndarray  # (P, n) along own path
+    speed_at_tc_mps: np.ndarray  # (P, n)
+    gap_m: np.ndarray  # (P, n-1) head-to-head D between consecutive trains in order
+    speed_diff_mps: np.ndarray  # (P, n-1) Δv = v_pred − v_follower
+    margin_m: np.ndarray  # (P, n-1) S_m
+    cost: np.ndarray  # (P,) f_c
+    violation: np.ndarray  # (P,) Σ max(g, 0)
     terms: dict[str, np.ndarray] = field(default_factory=dict)  # per-constraint violation (P,)
 
 
@@ -350,9 +394,9 @@ def rollout(problem: Problem, X: np.ndarray) -> Rollout:
     A = A.reshape(P, n, L)
     v0 = np.array([tr.initial_speed_mps for tr in problem.trains])
     v2 = np.empty((P, n, L + 1))
-    v2[:, :, 0] = v0 ** 2
+    v2[:, :, 0] = v0**2
     np.cumsum(2.0 * A * problem.seg_len_m, axis=2, out=v2[:, :, 1:])
-    v2[:, :, 1:] += (v0 ** 2)[None, :, None]
+    v2[:, :, 1:] += (v0**2)[None, :, None]
     v_signed = np.sign(v2) * np.sqrt(np.abs(v2))
     v_pos = np.maximum(v_signed, p.min_speed_mps)
     dt = 2.0 * problem.seg_len_m / (v_pos[:, :, :-1] + v_pos[:, :, 1:])
@@ -368,12 +412,12 @@ def rollout(problem: Problem, X: np.ndarray) -> Rollout:
         order = np.broadcast_to(np.array(problem.frozen_order), (P, n)).copy()
     else:
         order = np.argsort(t_merge, axis=1, kind="stable")
-    t_F = t[:, rows, problem.n_segments]                     # (P, n)
+    t_F = t[:, rows, problem.n_segments]  # (P, n)
     v_F = v_pos[:, rows, problem.n_segments]
     leader = order[:, 0]
     T_c = t_F[np.arange(P), leader]
     # position and speed of every train at T_c
-    seg_idx = np.sum(t[:, :, 1:] <= T_c[:, None, None], axis=2)        # completed segments
+    seg_idx = np.sum(t[:, :, 1:] <= T_c[:, None, None], axis=2)  # completed segments
     seg_idx = np.minimum(seg_idx, problem.n_segments[None, :] - 1)
     beyond = T_c[:, None] >= t_F
     gi = seg_idx[:, :, None]
@@ -383,7 +427,7 @@ def rollout(problem: Problem, X: np.ndarray) -> Rollout:
     s_j = problem.breakpoints_m[rows[None, :], seg_idx]
     s_j1 = problem.breakpoints_m[rows[None, :], seg_idx + 1]
     tau = np.maximum(T_c[:, None] - t_j, 0.0)
-    s_in = np.clip(s_j + v_j * tau + 0.5 * a_j * tau ** 2, s_j, s_j1)
+    s_in = np.clip(s_j + v_j * tau + 0.5 * a_j * tau**2, s_j, s_j1)
     v_in = np.clip(v_j + a_j * tau, p.min_speed_mps, None)
     d_F = np.array([tr.distance_to_F_m for tr in problem.trains])
     s_tc = np.where(beyond, d_F[None, :] + v_F * np.maximum(T_c[:, None] - t_F, 0.0), s_in)
@@ -430,14 +474,14 @@ def rollout(problem: Problem, X: np.ndarray) -> Rollout:
     terms["switch_speed"] = sw_speed
     terms["switch_headway"] = headway
     terms["switch_state"] = state
-    idx_valid = np.arange(L + 1)[None, :] <= problem.n_segments[:, None]     # (n, L+1)
+    idx_valid = np.arange(L + 1)[None, :] <= problem.n_segments[:, None]  # (n, L+1)
     vmin = np.where(idx_valid[None], v_signed, np.inf).min(axis=2)
     vmax = np.where(idx_valid[None], v_signed, -np.inf).max(axis=2)
     terms["speed_low"] = np.maximum(p.min_speed_mps - vmin, 0.0).sum(axis=1)
     terms["speed_high"] = np.maximum(vmax - p.line_speed_mps, 0.0).sum(axis=1)
     overtake = np.zeros(P)
     for i, j, ii, jj in problem.shared_pairs:
-        d = t[:, i, ii] - t[:, j, jj]      # < 0 everywhere: i ahead on the whole shared track
+        d = t[:, i, ii] - t[:, j, jj]  # < 0 everywhere: i ahead on the whole shared track
         overtake += np.maximum(np.minimum(d.max(axis=1), (-d).max(axis=1)) + p.min_time_gap_s, 0.0)
     if problem.frozen_order is not None:
         # a frozen order must also be the actual order at σ*
@@ -453,24 +497,25 @@ def rollout(problem: Problem, X: np.ndarray) -> Rollout:
     return Rollout(v_signed, t, A, t_merge, order, T_c, s_tc, v_tc, gap, dv, margin, cost, violation, terms)
 
 
-def _position_at(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray,
-                 tq: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def _position_at(
+    problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray, tq: np.ndarray
+) -> tuple[np.ndarray, np.ndarray]:
     """Train ``k``'s position along its path and speed at query times ``tq`` (P, Q): exact within a segment
     (constant acceleration), constant speed beyond F. Vectorised over particles with one ``searchsorted``."""
     P = t.shape[0]
     nk = int(problem.n_segments[k])
-    tk = t[:, k, : nk + 1]                                   # (P, nk+1) increasing in each row
+    tk = t[:, k, : nk + 1]  # (P, nk+1) increasing in each row
     span = float(max(tk[:, -1].max(), tq.max())) + 1.0
     rows = np.arange(P)[:, None]
     idx = np.searchsorted((tk + rows * span).ravel(), (tq + rows * span).ravel(), side="right")
-    idx = idx.reshape(tq.shape) - rows * (nk + 1)            # first boundary strictly after tq
+    idx = idx.reshape(tq.shape) - rows * (nk + 1)  # first boundary strictly after tq
     seg = np.clip(idx - 1, 0, nk - 1)
     t0 = np.take_along_axis(tk, seg, axis=1)
     v0 = np.take_along_axis(v_pos[:, k, : nk + 1], seg, axis=1)
     a = np.take_along_axis(A[:, k, :nk], seg, axis=1)
     bp = problem.breakpoints_m[k]
     tau = np.maximum(tq - t0, 0.0)
-    s_in = np.clip(bp[seg] + v0 * tau + 0.5 * a * tau ** 2, bp[seg], bp[seg + 1])
+    s_in = np.clip(bp[seg] + v0 * tau + 0.5 * a * tau**2, bp[seg], bp[seg + 1])
     v_in = np.maximum(v0 + a * tau, problem.params.min_speed_mps)
     done = tq >= tk[:, -1:]
     v_F = v_pos[:, k, nk][:, None]
@@ -479,8 +524,9 @@ def _position_at(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: 
     return s, v
 
 
-def _follower_samples(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray,
-                      boundaries: np.ndarray) -> tuple[np.ndarray, ...]:
+def _follower_samples(
+    problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray, A: np.ndarray, boundaries: np.ndarray
+) -> tuple[np.ndarray, ...]:
     """Instants at which train ``k`` is checked along the segments starting at ``boundaries`` (plus the last one):
     each segment's start and ``rbd_samples_per_segment − 1`` equally spaced interior instants. Returns
     ``(time, position along own path, speed, acceleration)``, each (P, Q); exact kinematics within a segment."""
@@ -494,13 +540,13 @@ def _follower_samples(problem: Problem, k: int, t: np.ndarray, v_pos: np.ndarray
     v0 = v_pos[:, k, segs]
     a = A[:, k, segs]
     tq = t0.repeat(K, axis=2).reshape(t.shape[0], -1) + tau
-    s = problem.breakpoints_m[k, segs][None, :] + v0 * tau + 0.5 * a * tau ** 2
+    s = problem.breakpoints_m[k, segs][None, :] + v0 * tau + 0.5 * a * tau**2
     v = np.maximum(v0 + a * tau, problem.params.min_speed_mps)
     last = boundaries[-1]
     tq = np.concatenate([tq, t[:, k, last][:, None]], axis=1)
     s = np.concatenate([s, np.broadcast_to(problem.breakpoints_m[k, last], (t.shape[0], 1))], axis=1)
     v = np.concatenate([v, v_pos[:, k, last][:, None]], axis=1)
-    a = np.concatenate([a, np.zeros((t.shape[0], 1))], axis=1)     # at F the follower holds its speed
+    a = np.concatenate([a, np.zeros((t.shape[0], 1))], axis=1)  # at F the follower holds its speed
     return tq, s, v, a
 
 
@@ -519,10 +565,11 @@ def _rbd_violation(problem: Problem, t: np.ndarray, v_pos: np.ndarray, A: np.nda
             tq, s_f, v_f, a_f = _follower_samples(problem, fol, t, v_pos, A, jf)
             s_lead, v_lead = _position_at(problem, lead, t, v_pos, A, tq)
             gap = (s_lead - problem.merge_distance_m[lead]) - (s_f - problem.merge_distance_m[fol]) - p.pred_length_m
-            need = relative_braking_distance_m(v_f, v_lead, p.rbd_decel_mps2, p.rbd_decel_mps2, p.rbd_reaction_s,
-                                               a_f, p.rbd_margin_m)
+            need = relative_braking_distance_m(
+                v_f, v_lead, p.rbd_decel_mps2, p.rbd_decel_mps2, p.rbd_reaction_s, a_f, p.rbd_margin_m
+            )
             worst.append(np.maximum(need - gap, 0.0).max(axis=1))
-        first_i = t[:, i, ii[0]] <= t[:, j, jj[0]]          # who is ahead at the first shared point
+        first_i = t[:, i, ii[0]] <= t[:, j, jj[0]]  # who is ahead at the first shared point
         out += np.where(first_i, worst[0], worst[1])
     return out
 
@@ -533,8 +580,9 @@ def evaluate(problem: Problem, X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return r.cost, r.violation
 
 
-def profile_from_speed_waypoints(problem: Problem, k: int, waypoints_m: np.ndarray,
-                                 speeds_mps: np.ndarray) -> np.ndarray:
+def profile_from_speed_waypoints(
+    problem: Problem, k: int, waypoints_m: np.ndarray, speeds_mps: np.ndarray
+) -> np.ndarray:
     """Accelerations for train ``k`` that follow ``v(s)`` linear in ``v²`` between waypoints, clipped to bounds.
 
     Used to seed the swarm with smooth, roughly sensible profiles (spec §6 #23) and by the baselines. The

@@ -40,16 +40,24 @@ Infeasible inputs (exact behaviour)
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Literal, Sequence
+from typing import Literal
 
 import numpy as np
 
 from controllers.braking import require
 from controllers.junction.game import closed_form_shapley, players_from_outcome
 from controllers.junction.model import (
-    JunctionParams, Leg, Problem, SwitchOnPath, SwitchState, TrainPath, compile_problem,
-    profile_from_speed_waypoints, rollout,
+    JunctionParams,
+    Leg,
+    Problem,
+    SwitchOnPath,
+    SwitchState,
+    TrainPath,
+    compile_problem,
+    profile_from_speed_waypoints,
+    rollout,
 )
 from controllers.junction.pso import PSOParams, improved_pso_params, plain_pso_params, run_pso
 from controllers.junction.qp import QpOrderParams, solve_qp_order
@@ -68,10 +76,10 @@ class PlannerError(ValueError):
 class YJunctionLayout:
     """Geometry of the ``y_junction`` world that the planner needs (its docstring: spec §2.1, §6 #2)."""
 
-    S4_m: float = 200.0                  # sw1 → sw2
-    S5_m: float = 200.0                  # sw2 → F
-    sw1_branch_leg: Leg = "reverse"      # leg used by entry3 at sw1 (entry2 uses the other)
-    sw2_branch_leg: Leg = "reverse"      # leg used by entry1 at sw2 (the line from sw1 uses the other)
+    S4_m: float = 200.0  # sw1 → sw2
+    S5_m: float = 200.0  # sw2 → F
+    sw1_branch_leg: Leg = "reverse"  # leg used by entry3 at sw1 (entry2 uses the other)
+    sw2_branch_leg: Leg = "reverse"  # leg used by entry1 at sw2 (the line from sw1 uses the other)
 
     def __post_init__(self) -> None:
         require("S4_m", self.S4_m > 0.0, "a number > 0", self.S4_m)
@@ -98,15 +106,16 @@ def train_path(state: TrainState, layout: YJunctionLayout) -> TrainPath:
     """The :class:`TrainPath` (switches with legs, distance to F) of a train in the ``y_junction`` world."""
     d = state.distance_to_switch_m
     if state.track not in ("entry1", "entry2", "entry3", "trunk"):
-        raise PlannerError(f"{state.train_id}: unknown track {state.track!r}; expected entry1, entry2, entry3 "
-                           "or trunk")
+        raise PlannerError(f"{state.train_id}: unknown track {state.track!r}; expected entry1, entry2, entry3 or trunk")
     if not math.isfinite(d) or not math.isfinite(state.speed_mps):
         raise PlannerError(f"{state.train_id}: distance and speed must be finite numbers")
     next_switch = "sw1" if state.track in ("entry2", "entry3") else MERGE_SWITCH
     if d < 0.0:
-        raise PlannerError(f"{state.train_id}: already past switch {next_switch} "
-                           f"({-d:g} m beyond it on {state.track}); give it on the next track, or, past "
-                           f"{MERGE_SWITCH}, leave it out of the plan")
+        raise PlannerError(
+            f"{state.train_id}: already past switch {next_switch} "
+            f"({-d:g} m beyond it on {state.track}); give it on the next track, or, past "
+            f"{MERGE_SWITCH}, leave it out of the plan"
+        )
     if state.track == "entry1":
         sws = (SwitchOnPath(MERGE_SWITCH, d, layout.sw2_branch_leg),)
         to_f = d + layout.S5_m
@@ -115,8 +124,7 @@ def train_path(state: TrainState, layout: YJunctionLayout) -> TrainPath:
         to_f = d + layout.S5_m
     else:
         leg1 = layout.sw1_branch_leg if state.track == "entry3" else _other(layout.sw1_branch_leg)
-        sws = (SwitchOnPath("sw1", d, leg1),
-               SwitchOnPath(MERGE_SWITCH, d + layout.S4_m, _other(layout.sw2_branch_leg)))
+        sws = (SwitchOnPath("sw1", d, leg1), SwitchOnPath(MERGE_SWITCH, d + layout.S4_m, _other(layout.sw2_branch_leg)))
         to_f = d + layout.S4_m + layout.S5_m
     return TrainPath(state.train_id, float(state.speed_mps), sws, float(to_f))
 
@@ -138,7 +146,7 @@ class TrainPlan:
     passages: tuple[SwitchPassage, ...]
     arrival_F_s: float
     speed_at_F_mps: float
-    slot_behind_F_m: float          # 0 for the leader; head-to-head distance behind F at T_c for followers
+    slot_behind_F_m: float  # 0 for the leader; head-to-head distance behind F at T_c for followers
     shapley_share: float
 
     def accel_at(self, distance_m: float) -> float:
@@ -164,12 +172,12 @@ class SwitchCommand:
 @dataclass(frozen=True)
 class JunctionPlan:
     trains: tuple[TrainPlan, ...]
-    order: tuple[str, ...]                  # passing order at the merge switch sw2
+    order: tuple[str, ...]  # passing order at the merge switch sw2
     switch_schedule: tuple[SwitchCommand, ...]
-    coupling_time_s: float                  # T_c: the leader reaches F
-    coupling_point: str                     # "F"
-    coupled_speed_mps: float                # mean speed of the platoon at T_c
-    cost: float                             # f_c(N)
+    coupling_time_s: float  # T_c: the leader reaches F
+    coupling_point: str  # "F"
+    coupled_speed_mps: float  # mean speed of the platoon at T_c
+    cost: float  # f_c(N)
     shapley: dict[str, float]
     feasible: bool
     violation: float
@@ -185,9 +193,13 @@ class JunctionPlan:
         return next(t for t in self.trains if t.train_id == train_id)
 
 
-def build_problem(trains: Sequence[TrainState], switches: Sequence[SwitchState] = (),
-                  layout: YJunctionLayout | None = None, params: JunctionParams | None = None,
-                  frozen_order: Sequence[str] | None = None) -> Problem:
+def build_problem(
+    trains: Sequence[TrainState],
+    switches: Sequence[SwitchState] = (),
+    layout: YJunctionLayout | None = None,
+    params: JunctionParams | None = None,
+    frozen_order: Sequence[str] | None = None,
+) -> Problem:
     """Validate the inputs (see module docstring) and compile the optimisation problem."""
     layout = layout or YJunctionLayout()
     params = params or JunctionParams()
@@ -208,10 +220,12 @@ def build_problem(trains: Sequence[TrainState], switches: Sequence[SwitchState] 
             raise PlannerError(f"switch {s.switch_id!r}: not a switch of the junction (sw1, sw2)")
         held_by_other = s.locked_for is not None and s.locked_for not in ids
         if held_by_other and not math.isfinite(s.locked_until_s):
-            raise PlannerError(f"switch {s.switch_id}: locked for {s.locked_for} (outside this plan) with no "
-                               "release time; cannot plan through it")
+            raise PlannerError(
+                f"switch {s.switch_id}: locked for {s.locked_for} (outside this plan) with no "
+                "release time; cannot plan through it"
+            )
         if s.locked_for is not None and not held_by_other:
-            s = SwitchState(s.switch_id, s.position, 0.0, s.locked_for)   # the lock belongs to the plan
+            s = SwitchState(s.switch_id, s.position, 0.0, s.locked_for)  # the lock belongs to the plan
         states[s.switch_id] = s
     order_idx = None
     if frozen_order is not None:
@@ -297,12 +311,15 @@ def timed_seeds(problem: Problem, count: int, rng: np.random.Generator) -> np.nd
             times.append(ts)
         # enforce order and headway switch by switch, upstream first (sw1 before sw2)
         for sid in problem.switch_ids:
-            users = [(k, [s.switch_id for s in trains[k].switches].index(sid)) for k in range(n)
-                     if any(s.switch_id == sid for s in trains[k].switches)]
+            users = [
+                (k, [s.switch_id for s in trains[k].switches].index(sid))
+                for k in range(n)
+                if any(s.switch_id == sid for s in trains[k].switches)
+            ]
             # trains that already share track upstream keep their order (no overtaking): a later one is
             # pushed at least a couple of seconds behind the earlier one before sorting
-            for (ka, ja) in users:
-                for (kb, jb) in users:
+            for ka, ja in users:
+                for kb, jb in users:
                     if ja > 0 and jb > 0 and times[ka][ja - 1] < times[kb][jb - 1]:
                         times[kb][jb] = max(times[kb][jb], times[ka][ja] + 2.0)
             users.sort(key=lambda kj: times[kj[0]][kj[1]])
@@ -316,9 +333,13 @@ def timed_seeds(problem: Problem, count: int, rng: np.random.Generator) -> np.nd
         merge_t = [times[k][-1] for k in range(n)]
         order = np.argsort(merge_t)
         margin = p.standstill_gap_m + p.pred_length_m
-        t_c = max(merge_t[k] + (trains[k].distance_to_F_m - problem.merge_distance_m[k])
-                  / (0.5 * (sw_speed[k][-1] + v_c) * rng.uniform(1.0, 1.3)) - pos * margin / v_c
-                  for pos, k in enumerate(order))
+        t_c = max(
+            merge_t[k]
+            + (trains[k].distance_to_F_m - problem.merge_distance_m[k])
+            / (0.5 * (sw_speed[k][-1] + v_c) * rng.uniform(1.0, 1.3))
+            - pos * margin / v_c
+            for pos, k in enumerate(order)
+        )
         for pos, k in enumerate(order):
             tr = trains[k]
             wp = [0.0]
@@ -344,14 +365,19 @@ def _warm_start(problem: Problem, previous: JunctionPlan) -> np.ndarray | None:
         run_m = previous.distance_to_F_m[tr.train_id] - tr.distance_to_F_m
         plan = previous.train(tr.train_id)
         nk = int(problem.n_segments[k])
-        mids = 0.5 * (problem.breakpoints_m[k, :nk] + problem.breakpoints_m[k, 1: nk + 1]) + run_m
+        mids = 0.5 * (problem.breakpoints_m[k, :nk] + problem.breakpoints_m[k, 1 : nk + 1]) + run_m
         x[problem.dim_slices[k]] = [plan.accel_at(m) for m in mids]
     return x
 
 
-def solve(problem: Problem, method: Method = "improved_pso",
-          pso: PSOParams | None = None, rng: np.random.Generator | None = None,
-          warm: np.ndarray | None = None, qp: QpOrderParams | None = None):
+def solve(
+    problem: Problem,
+    method: Method = "improved_pso",
+    pso: PSOParams | None = None,
+    rng: np.random.Generator | None = None,
+    warm: np.ndarray | None = None,
+    qp: QpOrderParams | None = None,
+):
     """Run the chosen optimiser on a compiled problem.
 
     Returns a :class:`~controllers.junction.pso.PSOResult` (PSO methods) or a
@@ -379,16 +405,23 @@ def solve(problem: Problem, method: Method = "improved_pso",
     return run_pso(objective, problem.dimension, (lo, hi), pso, rng, init)
 
 
-def decode(problem: Problem, x: np.ndarray, method: str = "", iterations: int = 0, wall_time_s: float = 0.0,
-           frozen: bool = False) -> JunctionPlan:
+def decode(
+    problem: Problem,
+    x: np.ndarray,
+    method: str = "",
+    iterations: int = 0,
+    wall_time_s: float = 0.0,
+    frozen: bool = False,
+) -> JunctionPlan:
     """Turn one particle into a :class:`JunctionPlan` (profiles, passages, order, switch schedule, Φ_k)."""
     r = rollout(problem, x[None, :])
     p = problem.params
     ids = [tr.train_id for tr in problem.trains]
     order = [int(i) for i in r.order[0]]
     s_tilde = r.position_at_tc_m[0] - problem.merge_distance_m
-    players = players_from_outcome(ids, order, r.merge_time_s[0], float(r.coupling_time_s[0]),
-                                   r.speed_at_tc_mps[0], s_tilde)
+    players = players_from_outcome(
+        ids, order, r.merge_time_s[0], float(r.coupling_time_s[0]), r.speed_at_tc_mps[0], s_tilde
+    )
     shares = closed_form_shapley(players, p)
     s_F = max(tr.distance_to_F_m - d for tr, d in zip(problem.trains, problem.merge_distance_m))
     plans = []
@@ -400,14 +433,26 @@ def decode(problem: Problem, x: np.ndarray, method: str = "", iterations: int = 
         passages = []
         for sw in tr.switches:
             j = int(np.argmin(np.abs(bp[: nk + 1] - sw.distance_m)))
-            passages.append(SwitchPassage(sw.switch_id, sw.leg, float(r.time_s[0, k, j]),
-                                          float(r.speed_signed_mps[0, k, j])))
-        plans.append(TrainPlan(tr.train_id, segs, tuple(passages), float(r.time_s[0, k, nk]),
-                               float(r.speed_signed_mps[0, k, nk]), float(s_F - s_tilde[k]), shares[tr.train_id]))
+            passages.append(
+                SwitchPassage(sw.switch_id, sw.leg, float(r.time_s[0, k, j]), float(r.speed_signed_mps[0, k, j]))
+            )
+        plans.append(
+            TrainPlan(
+                tr.train_id,
+                segs,
+                tuple(passages),
+                float(r.time_s[0, k, nk]),
+                float(r.speed_signed_mps[0, k, nk]),
+                float(s_F - s_tilde[k]),
+                shares[tr.train_id],
+            )
+        )
     schedule = []
     for sid in problem.switch_ids:
-        passes = sorted(((pl.train_id, ps) for pl in plans for ps in pl.passages if ps.switch_id == sid),
-                        key=lambda item: item[1].time_s)
+        passes = sorted(
+            ((pl.train_id, ps) for pl in plans for ps in pl.passages if ps.switch_id == sid),
+            key=lambda item: item[1].time_s,
+        )
         st = problem.switch_states.get(sid)
         prev_leg = st.position if st is not None else None
         prev_t = st.locked_until_s if st is not None else 0.0
@@ -417,19 +462,35 @@ def decode(problem: Problem, x: np.ndarray, method: str = "", iterations: int = 
             prev_leg, prev_t = ps.leg, ps.time_s
     viol = {name: float(v[0]) for name, v in r.terms.items()}
     return JunctionPlan(
-        trains=tuple(plans), order=tuple(ids[i] for i in order), switch_schedule=tuple(schedule),
-        coupling_time_s=float(r.coupling_time_s[0]), coupling_point="F",
-        coupled_speed_mps=float(np.mean(r.speed_at_tc_mps[0])), cost=float(r.cost[0]), shapley=shares,
-        feasible=bool(r.violation[0] <= 0.0), violation=float(r.violation[0]), violations=viol,
-        frozen_order=frozen, method=method, iterations=iterations, wall_time_s=wall_time_s,
+        trains=tuple(plans),
+        order=tuple(ids[i] for i in order),
+        switch_schedule=tuple(schedule),
+        coupling_time_s=float(r.coupling_time_s[0]),
+        coupling_point="F",
+        coupled_speed_mps=float(np.mean(r.speed_at_tc_mps[0])),
+        cost=float(r.cost[0]),
+        shapley=shares,
+        feasible=bool(r.violation[0] <= 0.0),
+        violation=float(r.violation[0]),
+        violations=viol,
+        frozen_order=frozen,
+        method=method,
+        iterations=iterations,
+        wall_time_s=wall_time_s,
         distance_to_F_m={tr.train_id: tr.distance_to_F_m for tr in problem.trains},
     )
 
 
-def plan(trains: Sequence[TrainState], switches: Sequence[SwitchState] = (), layout: YJunctionLayout | None = None,
-         params: JunctionParams | None = None, method: Method = "improved_pso",
-         pso: PSOParams | None = None, rng: np.random.Generator | None = None,
-         qp: QpOrderParams | None = None) -> JunctionPlan:
+def plan(
+    trains: Sequence[TrainState],
+    switches: Sequence[SwitchState] = (),
+    layout: YJunctionLayout | None = None,
+    params: JunctionParams | None = None,
+    method: Method = "improved_pso",
+    pso: PSOParams | None = None,
+    rng: np.random.Generator | None = None,
+    qp: QpOrderParams | None = None,
+) -> JunctionPlan:
     """Initial plan at the coupling opportunity (spec §7 step 1)."""
     problem = build_problem(trains, switches, layout, params)
     res = solve(problem, method, pso, rng, qp=qp)
@@ -439,15 +500,21 @@ def plan(trains: Sequence[TrainState], switches: Sequence[SwitchState] = (), lay
 def past_point_of_no_return(trains: Sequence[TrainState], params: JunctionParams | None = None) -> list[str]:
     """Trains within their service-braking distance ``v²/(2|a_min|)`` of the next switch ahead of them."""
     params = params or JunctionParams()
-    return [t.train_id for t in trains
-            if t.distance_to_switch_m <= t.speed_mps ** 2 / (2.0 * abs(params.accel_min_mps2))]
+    return [t.train_id for t in trains if t.distance_to_switch_m <= t.speed_mps**2 / (2.0 * abs(params.accel_min_mps2))]
 
 
-def replan(previous: JunctionPlan, trains: Sequence[TrainState], switches: Sequence[SwitchState] = (),
-           layout: YJunctionLayout | None = None, params: JunctionParams | None = None,
-           method: Method = "improved_pso", pso: PSOParams | None = None,
-           rng: np.random.Generator | None = None, keep_order: bool = False,
-           qp: QpOrderParams | None = None) -> JunctionPlan:
+def replan(
+    previous: JunctionPlan,
+    trains: Sequence[TrainState],
+    switches: Sequence[SwitchState] = (),
+    layout: YJunctionLayout | None = None,
+    params: JunctionParams | None = None,
+    method: Method = "improved_pso",
+    pso: PSOParams | None = None,
+    rng: np.random.Generator | None = None,
+    keep_order: bool = False,
+    qp: QpOrderParams | None = None,
+) -> JunctionPlan:
     """Receding-horizon re-plan (spec §7 steps 2–4): warm start from ``previous``; order frozen past the PNR.
 
     ``keep_order`` freezes the order regardless of the current states (a caller that froze it earlier keeps it
@@ -457,8 +524,10 @@ def replan(previous: JunctionPlan, trains: Sequence[TrainState], switches: Seque
     frozen = keep_order or bool(past_point_of_no_return(trains, params))
     ids = [t.train_id for t in trains]
     if frozen and sorted(previous.order) != sorted(ids):
-        raise PlannerError(f"order is frozen ({', '.join(past_point_of_no_return(trains, params))} past the point "
-                           f"of no return) but the trains changed: {list(previous.order)} -> {ids}")
+        raise PlannerError(
+            f"order is frozen ({', '.join(past_point_of_no_return(trains, params))} past the point "
+            f"of no return) but the trains changed: {list(previous.order)} -> {ids}"
+        )
     problem = build_problem(trains, switches, layout, params, previous.order if frozen else None)
     warm = _warm_start(problem, previous)
     res = solve(problem, method, pso, rng, warm, qp)

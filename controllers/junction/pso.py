@@ -32,8 +32,9 @@ the run stops at the first loop that ends past the budget, so results then also 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
-from typing import Callable, Literal
+from typing import Literal
 
 import numpy as np
 
@@ -50,35 +51,37 @@ class PSOParams:
     max_iterations: int = 300
     max_loops: int = 3000
     stall_loops: int = 200
-    constriction: float = 0.729          # ζ
-    cognitive: float = 2.05              # c1
-    social: float = 2.05                 # c2
-    inertia_max: float = 0.9             # ω_max
-    inertia_min: float = 0.4             # ω_min
-    vmax_fraction: float = 0.2           # V_max = fraction · (hi − lo)
-    penalty_alpha: float = 3.0           # α
+    constriction: float = 0.729  # ζ
+    cognitive: float = 2.05  # c1
+    social: float = 2.05  # c2
+    inertia_max: float = 0.9  # ω_max
+    inertia_min: float = 0.4  # ω_min
+    vmax_fraction: float = 0.2  # V_max = fraction · (hi − lo)
+    penalty_alpha: float = 3.0  # α
     adaptive_penalty: bool = True
-    no_update_bounds: bool = True        # False: clip to the box
-    no_update_scope: Literal["particle", "dimension"] = "particle"   # what reverts when a bound is crossed
-    linear_inertia: bool = True          # False: constant ω = inertia_max
+    no_update_bounds: bool = True  # False: clip to the box
+    no_update_scope: Literal["particle", "dimension"] = "particle"  # what reverts when a bound is crossed
+    linear_inertia: bool = True  # False: constant ω = inertia_max
     mutation: bool = True
-    variance_threshold: float = 1.0      # σ_d²
-    fitness_floor: float = 0.0           # f_d
+    variance_threshold: float = 1.0  # σ_d²
+    fitness_floor: float = 0.0  # f_d
     mutation_prob_range: tuple[float, float] = (0.1, 0.3)
     count_mode: Literal["every_loop", "improving"] = "every_loop"
-    wall_time_s: float | None = None     # stop after this much wall time (checked once per loop)
-    seed_fraction: float = 0.3           # share of the initial swarm built by the caller's heuristic seeds
+    wall_time_s: float | None = None  # stop after this much wall time (checked once per loop)
+    seed_fraction: float = 0.3  # share of the initial swarm built by the caller's heuristic seeds
 
     def __post_init__(self) -> None:
         require("swarm_size", self.swarm_size >= 2, "an integer >= 2", self.swarm_size)
         require("max_iterations", self.max_iterations >= 1, "an integer >= 1", self.max_iterations)
         require("constriction", 0.0 < self.constriction <= 1.0, "0 < ζ <= 1", self.constriction)
         require("vmax_fraction", self.vmax_fraction > 0.0, "a number > 0", self.vmax_fraction)
-        require("count_mode", self.count_mode in ("every_loop", "improving"), "every_loop or improving",
-                self.count_mode)
+        require(
+            "count_mode", self.count_mode in ("every_loop", "improving"), "every_loop or improving", self.count_mode
+        )
         require("seed_fraction", 0.0 <= self.seed_fraction <= 1.0, "a fraction in [0, 1]", self.seed_fraction)
-        require("wall_time_s", self.wall_time_s is None or self.wall_time_s > 0.0, "None or a number > 0",
-                self.wall_time_s)
+        require(
+            "wall_time_s", self.wall_time_s is None or self.wall_time_s > 0.0, "None or a number > 0", self.wall_time_s
+        )
 
 
 def improved_pso_params(**overrides) -> PSOParams:
@@ -86,27 +89,43 @@ def improved_pso_params(**overrides) -> PSOParams:
 
 
 def plain_pso_params(**overrides) -> PSOParams:
-    base = PSOParams(constriction=1.0, cognitive=1.49618, social=1.49618, inertia_max=0.7298,
-                     inertia_min=0.7298, vmax_fraction=1.0, adaptive_penalty=False, no_update_bounds=False,
-                     linear_inertia=False, mutation=False, count_mode="every_loop")
+    base = PSOParams(
+        constriction=1.0,
+        cognitive=1.49618,
+        social=1.49618,
+        inertia_max=0.7298,
+        inertia_min=0.7298,
+        vmax_fraction=1.0,
+        adaptive_penalty=False,
+        no_update_bounds=False,
+        linear_inertia=False,
+        mutation=False,
+        count_mode="every_loop",
+    )
     return replace(base, **overrides)
 
 
 @dataclass
 class PSOResult:
-    x: np.ndarray                 # best position (best feasible if any was seen, else gbest)
-    cost: float                   # f_c at x
-    violation: float              # VIOL at x
+    x: np.ndarray  # best position (best feasible if any was seen, else gbest)
+    cost: float  # f_c at x
+    violation: float  # VIOL at x
     feasible: bool
     iterations: int
     loops: int
     wall_time_s: float
     mutations: int
-    history: dict[str, list[float]] = field(default_factory=dict)   # per loop: gbest fitness, β, ε, ω, σ²
+    history: dict[str, list[float]] = field(default_factory=dict)  # per loop: gbest fitness, β, ε, ω, σ²
 
 
-def run_pso(objective: Objective, dimension: int, bounds: tuple[float, float], params: PSOParams,
-            rng: np.random.Generator, initial: np.ndarray | None = None) -> PSOResult:
+def run_pso(
+    objective: Objective,
+    dimension: int,
+    bounds: tuple[float, float],
+    params: PSOParams,
+    rng: np.random.Generator,
+    initial: np.ndarray | None = None,
+) -> PSOResult:
     """Minimise ``objective`` over ``[lo, hi]^dimension``; ``initial`` rows (clipped) replace the first particles."""
     t_start = time.perf_counter()
     lo, hi = float(bounds[0]), float(bounds[1])
@@ -209,6 +228,14 @@ def run_pso(objective: Objective, dimension: int, bounds: tuple[float, float], p
     else:
         fc_g, v_g = objective(gbest[None, :])
         x, fc, viol = gbest, float(fc_g[0]), float(v_g[0])
-    return PSOResult(x=np.asarray(x), cost=float(fc), violation=float(viol), feasible=viol <= 0.0,
-                     iterations=it, loops=loops, wall_time_s=time.perf_counter() - t_start,
-                     mutations=mutations, history=hist)
+    return PSOResult(
+        x=np.asarray(x),
+        cost=float(fc),
+        violation=float(viol),
+        feasible=viol <= 0.0,
+        iterations=it,
+        loops=loops,
+        wall_time_s=time.perf_counter() - t_start,
+        mutations=mutations,
+        history=hist,
+    )

@@ -69,32 +69,42 @@ from controllers.junction.model import Problem, rollout, safety_margin_m
 class QpOrderParams:
     """Settings of :func:`solve_qp_order` (units in the names)."""
 
-    step_s: float = 1.0                  # Δt of the time grid
-    jerk_max_mps3: float = 1.0           # comfort bound |Δu| ≤ J·Δt
-    speed_floor_mps: float = 3.0         # least planned speed once reachable (see _OrderQP.solve)
-    accel_weight: float = 0.01           # Σ u² (per s of grid)
-    smooth_weight: float = 0.1           # Σ (Δu)²
-    slack_weight: float = 1000          # price of one unit of constraint violation (above every dual: exact)
-    proximal_weight: float = 0.001      # Σ (v − v̄)² on the speeds: damps the SCP step, helps ADMM
-    osqp_eps: float = 1.0e-4             # OSQP's absolute and relative tolerances (the solution is polished)
-    headway_margin_s: float = 0.5        # extra on every switch interval (grid and conversion error)
-    speed_margin_mps: float = 0.1        # below each switch limit
-    rbd_margin_m: float = 2.0            # extra on the guard's spacing (linearisation and conversion error)
+    step_s: float = 1.0  # Δt of the time grid
+    jerk_max_mps3: float = 1.0  # comfort bound |Δu| ≤ J·Δt
+    speed_floor_mps: float = 3.0  # least planned speed once reachable (see _OrderQP.solve)
+    accel_weight: float = 0.01  # Σ u² (per s of grid)
+    smooth_weight: float = 0.1  # Σ (Δu)²
+    slack_weight: float = 1000  # price of one unit of constraint violation (above every dual: exact)
+    proximal_weight: float = 0.001  # Σ (v − v̄)² on the speeds: damps the SCP step, helps ADMM
+    osqp_eps: float = 1.0e-4  # OSQP's absolute and relative tolerances (the solution is polished)
+    headway_margin_s: float = 0.5  # extra on every switch interval (grid and conversion error)
+    speed_margin_mps: float = 0.1  # below each switch limit
+    rbd_margin_m: float = 2.0  # extra on the guard's spacing (linearisation and conversion error)
     coupling_speed_tol_mps: float = 0.1  # |Δv| at the coupling instant
-    coupling_gap_tol_m: float = 1.0      # |D − S_m| at the coupling instant
-    scp_iterations: int = 6              # re-linearisations per coupling instant
-    trust_s: float = 4.0                 # a passage time moves at most this much per SCP step (soft)
-    converge_s: float = 0.25             # passage times moving less than this: converged
-    max_probes: int = 10                 # coupling instants tried per order
-    lower_probes: int = 2                # earlier coupling instants tried after the first feasible one
+    coupling_gap_tol_m: float = 1.0  # |D − S_m| at the coupling instant
+    scp_iterations: int = 6  # re-linearisations per coupling instant
+    trust_s: float = 4.0  # a passage time moves at most this much per SCP step (soft)
+    converge_s: float = 0.25  # passage times moving less than this: converged
+    max_probes: int = 10  # coupling instants tried per order
+    lower_probes: int = 2  # earlier coupling instants tried after the first feasible one
     max_horizon_s: float = 300.0
-    feasibility_tol: float = 1e-3        # total slack below which a QP counts as feasible
+    feasibility_tol: float = 1e-3  # total slack below which a QP counts as feasible
 
     def __post_init__(self) -> None:
         for name in ("step_s", "jerk_max_mps3", "max_horizon_s", "trust_s", "converge_s", "feasibility_tol"):
             require(name, getattr(self, name) > 0.0, "a number > 0", getattr(self, name))
-        for name in ("speed_floor_mps", "accel_weight", "smooth_weight", "proximal_weight", "osqp_eps", "headway_margin_s", "speed_margin_mps", "rbd_margin_m",
-                     "coupling_speed_tol_mps", "coupling_gap_tol_m"):
+        for name in (
+            "speed_floor_mps",
+            "accel_weight",
+            "smooth_weight",
+            "proximal_weight",
+            "osqp_eps",
+            "headway_margin_s",
+            "speed_margin_mps",
+            "rbd_margin_m",
+            "coupling_speed_tol_mps",
+            "coupling_gap_tol_m",
+        ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("slack_weight", self.slack_weight > 0.0, "a number > 0", self.slack_weight)
         for name in ("scp_iterations", "max_probes", "lower_probes"):
@@ -105,15 +115,15 @@ class QpOrderParams:
 class QpOrderResult:
     """What :func:`solve_qp_order` returns (the fields :func:`.planner.decode` and the callers read)."""
 
-    x: np.ndarray                # distance-segment accelerations (the encoding of .model)
-    order: tuple[int, ...]       # passing order at the merge switch (train indices)
-    cost: float                  # rolled-out f_c
-    violation: float             # rolled-out Σ max(g, 0)
+    x: np.ndarray  # distance-segment accelerations (the encoding of .model)
+    order: tuple[int, ...]  # passing order at the merge switch (train indices)
+    cost: float  # rolled-out f_c
+    violation: float  # rolled-out Σ max(g, 0)
     feasible: bool
-    iterations: int              # QP solves
+    iterations: int  # QP solves
     orders_solved: int
     wall_time_s: float
-    coupling_step: int           # N of the chosen plan (coupling instant = N·step_s)
+    coupling_step: int  # N of the chosen plan (coupling instant = N·step_s)
 
 
 @dataclass
@@ -205,8 +215,9 @@ class _Rows:
         self.hi.extend(np.broadcast_to(hi, (R,)).tolist())
 
     def matrix(self, n_cols: int) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
-        A = sp.csc_matrix((np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))),
-                          shape=(len(self.lo), n_cols))
+        A = sp.csc_matrix(
+            (np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))), shape=(len(self.lo), n_cols)
+        )
         return A, np.array(self.lo), np.array(self.hi)
 
 
@@ -224,9 +235,9 @@ class _OrderQP:
         self.d_m = problem.merge_distance_m
         rank = {k: i for i, k in enumerate(order)}
         # consecutive users of each switch in the order's sequence, with the interval they need
-        self.switch_pairs: list[tuple[int, float, int, float, float]] = []   # (lead, x_lead, fol, x_fol, need_s)
-        self.switch_first: list[tuple[int, float, float]] = []               # (train, x, ready_s)
-        self.speed_points: list[tuple[int, float, float]] = []               # (train, x, limit)
+        self.switch_pairs: list[tuple[int, float, int, float, float]] = []  # (lead, x_lead, fol, x_fol, need_s)
+        self.switch_first: list[tuple[int, float, float]] = []  # (train, x, ready_s)
+        self.speed_points: list[tuple[int, float, float]] = []  # (train, x, limit)
         for sid in problem.switch_ids:
             users = sorted(problem.switch_users[sid].tolist(), key=lambda k: rank[k])
             info = {}
@@ -248,11 +259,14 @@ class _OrderQP:
         self.shared: list[tuple[int, int, float]] = []
         for i, j, _, _ in problem.shared_pairs:
             lead, fol = (i, j) if rank[i] < rank[j] else (j, i)
-            common = [s for s in problem.trains[lead].switches
-                      if s.switch_id in {t.switch_id for t in problem.trains[fol].switches}]
+            common = [
+                s
+                for s in problem.trains[lead].switches
+                if s.switch_id in {t.switch_id for t in problem.trains[fol].switches}
+            ]
             self.shared.append((lead, fol, common[0].distance_m))
         v_ref = p.normal_speed_mps
-        self.margin0_m = float(safety_margin_m(v_ref, v_ref, p))                  # S_m at equal speeds
+        self.margin0_m = float(safety_margin_m(v_ref, v_ref, p))  # S_m at equal speeds
         self.margin_slope_s = float(safety_margin_m(v_ref, v_ref + 1.0, p)) - self.margin0_m  # ∂S_m/∂(v_f − v_l)
 
     # -------------------------------------------------------------- variable layout
@@ -264,8 +278,9 @@ class _OrderQP:
         u = base + 2 * N + 2 + np.arange(N)[None, :]
         return s, v, u
 
-    def _lin_point(self, tr: _Traj, k: int, x: float, N: int, S: np.ndarray, V: np.ndarray, U: np.ndarray
-                   ) -> tuple[list[int], list[float], float, float, list[int]]:
+    def _lin_point(
+        self, tr: _Traj, k: int, x: float, N: int, S: np.ndarray, V: np.ndarray, U: np.ndarray
+    ) -> tuple[list[int], list[float], float, float, list[int]]:
         """Linearised passage time of train ``k`` at ``x``: ``t ≈ Σ c·z + const``; also the grid speeds around it."""
         dt = self.qp.step_s
         tau = _passage_time(tr, k, x, dt)
@@ -299,10 +314,18 @@ class _OrderQP:
         # dynamics (exact double integrator on the grid) and initial state
         for k in range(n):
             i = np.arange(N)
-            rows.add_block(np.stack([V[k, i + 1], V[k, i], U[k, i]], axis=1),
-                           np.tile([1.0, -1.0, -dt], (N, 1)), np.zeros(N), np.zeros(N))
-            rows.add_block(np.stack([S[k, i + 1], S[k, i], V[k, i], U[k, i]], axis=1),
-                           np.tile([1.0, -1.0, -dt, -0.5 * dt * dt], (N, 1)), np.zeros(N), np.zeros(N))
+            rows.add_block(
+                np.stack([V[k, i + 1], V[k, i], U[k, i]], axis=1),
+                np.tile([1.0, -1.0, -dt], (N, 1)),
+                np.zeros(N),
+                np.zeros(N),
+            )
+            rows.add_block(
+                np.stack([S[k, i + 1], S[k, i], V[k, i], U[k, i]], axis=1),
+                np.tile([1.0, -1.0, -dt, -0.5 * dt * dt], (N, 1)),
+                np.zeros(N),
+                np.zeros(N),
+            )
             rows.add([S[k, 0]], [1.0], 0.0, 0.0)
             rows.add([V[k, 0]], [1.0], self.v0[k], self.v0[k])
             # speed floor (reachable from v0 at half the traction bound): a train that must wait does so by running
@@ -310,12 +333,15 @@ class _OrderQP:
             # inside one segment, which it cannot
             reach = self.v0[k] + 0.5 * p.accel_max_mps2 * dt * np.arange(1, N + 1)
             floor = np.maximum(np.minimum(qp.speed_floor_mps, reach), p.min_speed_mps + 0.05)
-            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor,
-                           np.full(N, p.line_speed_mps - qp.speed_margin_mps))
+            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor, np.full(N, p.line_speed_mps - qp.speed_margin_mps))
             rows.add_block(U[k, :, None], np.ones((N, 1)), np.full(N, p.accel_min_mps2), np.full(N, p.accel_max_mps2))
             if N > 1:
-                rows.add_block(np.stack([U[k, 1:], U[k, :-1]], axis=1), np.tile([1.0, -1.0], (N - 1, 1)),
-                               np.full(N - 1, -qp.jerk_max_mps3 * dt), np.full(N - 1, qp.jerk_max_mps3 * dt))
+                rows.add_block(
+                    np.stack([U[k, 1:], U[k, :-1]], axis=1),
+                    np.tile([1.0, -1.0], (N - 1, 1)),
+                    np.full(N - 1, -qp.jerk_max_mps3 * dt),
+                    np.full(N - 1, qp.jerk_max_mps3 * dt),
+                )
         inf = np.inf
         # Eq. 37: speed at the switch passage
         for k, x, lim in self.speed_points:
@@ -350,15 +376,25 @@ class _OrderQP:
                 d_af = 0.5 * T * T + T * w / b
                 d_vl = -vl / b
                 # s_l − d_l − s_f + d_f − L − [need + d_vf(v_f − v̄_f) + d_af(u_f − ū_f) + d_vl(v_l − v̄_l)] + σ ≥ extra
-                lo = (qp.rbd_margin_m + p.pred_length_m + self.d_m[lead] - self.d_m[fol] + need
-                      - d_vf * vf - d_af * af - d_vl * vl)
+                lo = (
+                    qp.rbd_margin_m
+                    + p.pred_length_m
+                    + self.d_m[lead]
+                    - self.d_m[fol]
+                    + need
+                    - d_vf * vf
+                    - d_af * af
+                    - d_vl * vl
+                )
                 u_cols = np.where(i < N, U[fol, np.minimum(i, N - 1)], S[fol, i])  # placeholder where no u
                 u_vals = np.where(i < N, -d_af, 0.0)
                 g = slack("relative_braking")
-                rows.add_block(np.stack([S[lead, i], S[fol, i], V[fol, i], V[lead, i], u_cols,
-                                         np.full(i.size, g)], axis=1),
-                               np.stack([np.ones(i.size), -np.ones(i.size), -d_vf, -d_vl, u_vals,
-                                         np.ones(i.size)], axis=1), lo, np.full(i.size, inf))
+                rows.add_block(
+                    np.stack([S[lead, i], S[fol, i], V[fol, i], V[lead, i], u_cols, np.full(i.size, g)], axis=1),
+                    np.stack([np.ones(i.size), -np.ones(i.size), -d_vf, -d_vl, u_vals, np.ones(i.size)], axis=1),
+                    lo,
+                    np.full(i.size, inf),
+                )
         # Eqs. 2-3 at the coupling instant N; the leader is not yet past F
         lead0 = self.order[0]
         rows.add([S[lead0, N], slack("coupling_gap")], [-1.0, 1.0], -self.d_F[lead0], inf)
@@ -394,23 +430,38 @@ class _OrderQP:
         c2 = p.weight_speed * 2.0 * p.braking_distance_m
         for k in range(n):
             vb = max(tr.v[k, N] - p.speed_error_mps, 0.3)
-            g1, g2 = -c2 / vb ** 2, 2.0 * c2 / vb ** 3  # type: ignore[operator]  # vb is a float here
+            g1, g2 = -c2 / vb**2, 2.0 * c2 / vb**3  # type: ignore[operator]  # vb is a float here
             Pd[V[k, N]] += g2
             q[V[k, N]] += g1 - g2 * tr.v[k, N]
         vl = max(tr.v[lead0, N], 0.3)
         wt = n * p.weight_time
         q[S[lead0, N]] += -wt / vl
-        q[V[lead0, N]] += -wt * (self.d_F[lead0] - tr.s[lead0, N]) / vl ** 2
+        q[V[lead0, N]] += -wt * (self.d_F[lead0] - tr.s[lead0, N]) / vl**2
         q[n_state:] = qp.slack_weight
         mu = 2.0 * qp.proximal_weight
         Pd[V.ravel()] += mu
         q[V.ravel()] -= mu * tr.v.ravel()
-        P = sp.csc_matrix((np.concatenate([Pd, off_v]),
-                           (np.concatenate([np.arange(n_var), off_r]), np.concatenate([np.arange(n_var), off_c]))),
-                          shape=(n_var, n_var))
+        P = sp.csc_matrix(
+            (
+                np.concatenate([Pd, off_v]),
+                (np.concatenate([np.arange(n_var), off_r]), np.concatenate([np.arange(n_var), off_c])),
+            ),
+            shape=(n_var, n_var),
+        )
         solver = osqp.OSQP()
-        solver.setup(P, q, A, lo, hi, verbose=False, eps_abs=qp.osqp_eps, eps_rel=qp.osqp_eps, max_iter=4000,
-                     polish=True, scaling=10)
+        solver.setup(
+            P,
+            q,
+            A,
+            lo,
+            hi,
+            verbose=False,
+            eps_abs=qp.osqp_eps,
+            eps_rel=qp.osqp_eps,
+            max_iter=4000,
+            polish=True,
+            scaling=10,
+        )
         z = np.empty(n_var)
         z[S.ravel()] = tr.s.ravel()
         z[V.ravel()] = tr.v.ravel()
@@ -471,7 +522,7 @@ def profile_from_trajectory(problem: Problem, tr: _Traj, dt: float) -> np.ndarra
         d = bp - s[i]
         v2 = np.where(bp > s[N], v[N] ** 2, v[i] ** 2 + 2.0 * u[i] * d)
         v2[0] = problem.trains[k].initial_speed_mps ** 2
-        v2 = np.maximum(v2, v_min ** 2)
+        v2 = np.maximum(v2, v_min**2)
         acc = np.diff(v2) / (2.0 * np.diff(bp))
         x[problem.dim_slices[k]] = np.clip(acc, *problem.bounds)
     return x
@@ -487,8 +538,7 @@ def order_lower_bound(problem: Problem, order: tuple[int, ...]) -> float:
         d = next(s.distance_m for s in tr.switches if s.switch_id == ms)
         v0, vm, a = tr.initial_speed_mps, p.line_speed_mps, p.accel_max_mps2
         d_acc = (vm * vm - v0 * v0) / (2.0 * a)
-        earliest.append((vm - v0) / a + (d - d_acc) / vm if d >= d_acc
-                        else (math.sqrt(v0 * v0 + 2.0 * a * d) - v0) / a)
+        earliest.append((vm - v0) / a + (d - d_acc) / vm if d >= d_acc else (math.sqrt(v0 * v0 + 2.0 * a * d) - v0) / a)
     legs = {k: next(s.leg for s in problem.trains[k].switches if s.switch_id == ms) for k in order}
     t = earliest[order[0]]
     for a, b in zip(order, order[1:]):
@@ -500,7 +550,8 @@ def order_lower_bound(problem: Problem, order: tuple[int, ...]) -> float:
     t_c = t + max(run - slot, 0.0) / p.line_speed_mps
     n = problem.n_trains
     return n * p.weight_time * t_c + n * p.weight_speed * 2.0 * p.braking_distance_m / (
-        p.line_speed_mps - p.speed_error_mps)
+        p.line_speed_mps - p.speed_error_mps
+    )
 
 
 def _timetable_iterate(problem: Problem, order: tuple[int, ...], dt: float) -> tuple[_Traj, int]:
@@ -522,7 +573,7 @@ def _timetable_iterate(problem: Problem, order: tuple[int, ...], dt: float) -> t
         tr = problem.trains[k]
         v0, a_up = tr.initial_speed_mps, 0.5 * p.accel_max_mps2
         v_run = max(min(cap[k], math.sqrt(v0 * v0 + 2.0 * a_up * problem.merge_distance_m[k])), v0)
-        t = (v_run - v0) / a_up + (problem.merge_distance_m[k] - (v_run ** 2 - v0 ** 2) / (2.0 * a_up)) / v_run
+        t = (v_run - v0) / a_up + (problem.merge_distance_m[k] - (v_run**2 - v0**2) / (2.0 * a_up)) / v_run
         if prev is not None:
             need = p.throw_time_s if (legs[prev] != legs[k] or p.headway_all_consecutive) else 2.0 * p.min_time_gap_s
             t = max(t, t_m[prev] + need + 1.0)
@@ -530,8 +581,14 @@ def _timetable_iterate(problem: Problem, order: tuple[int, ...], dt: float) -> t
         prev = k
     last = order[-1]
     v_last = max(min(problem.merge_distance_m[last] / t_m[last], cap[last]), 1.0)
-    N = max(int(math.ceil((t_m[last] + (problem.trains[last].distance_to_F_m - problem.merge_distance_m[last])
-                           / v_last) / dt)), 2)
+    N = max(
+        int(
+            math.ceil(
+                (t_m[last] + (problem.trains[last].distance_to_F_m - problem.merge_distance_m[last]) / v_last) / dt
+            )
+        ),
+        2,
+    )
     v = np.empty((n, N + 1))
     u = np.zeros((n, N))
     for k, tr in enumerate(problem.trains):
@@ -547,8 +604,9 @@ def _timetable_iterate(problem: Problem, order: tuple[int, ...], dt: float) -> t
     return _Traj(s, v, u), N
 
 
-def _solve_order(problem: Problem, order: tuple[int, ...], qp: QpOrderParams, warm: _Traj | None,
-                 guess: int | None) -> tuple[_Traj, int, bool, int]:
+def _solve_order(
+    problem: Problem, order: tuple[int, ...], qp: QpOrderParams, warm: _Traj | None, guess: int | None
+) -> tuple[_Traj, int, bool, int]:
     """Coupling-instant search for one order (module docstring).
 
     Returns (last trajectory — the best feasible one if any, N, whether it is QP-feasible and converged, solves).
@@ -594,8 +652,9 @@ def _solve_order(problem: Problem, order: tuple[int, ...], qp: QpOrderParams, wa
     return best[0], best[1], True, solves
 
 
-def solve_qp_order(problem: Problem, params: QpOrderParams | None = None, warm_x: np.ndarray | None = None
-                   ) -> QpOrderResult:
+def solve_qp_order(
+    problem: Problem, params: QpOrderParams | None = None, warm_x: np.ndarray | None = None
+) -> QpOrderResult:
     """Enumerate the passing orders, solve each by SCP over OSQP QPs, verify with the rollout, keep the best.
 
     ``warm_x`` (distance encoding, e.g. the previous plan shifted by :func:`.planner._warm_start`) is tried first:
@@ -623,7 +682,7 @@ def solve_qp_order(problem: Problem, params: QpOrderParams | None = None, warm_x
         if warm_order is not None and warm_order in orders:
             orders.remove(warm_order)
             orders.insert(0, warm_order)
-    best: tuple[float, float, np.ndarray, tuple[int, ...], int] | None = None   # (violation, cost, x, order, N)
+    best: tuple[float, float, np.ndarray, tuple[int, ...], int] | None = None  # (violation, cost, x, order, N)
     solves = solved = 0
     for order in orders:
         if best is not None and best[0] <= 0.0 and order_lower_bound(problem, order) >= best[1]:
@@ -636,12 +695,24 @@ def solve_qp_order(problem: Problem, params: QpOrderParams | None = None, warm_x
         r = rollout(problem, x[None, :])
         viol, cost = float(r.violation[0]), float(r.cost[0])
         if tuple(int(k) for k in r.order[0]) != order and problem.frozen_order is None:
-            viol = max(viol, 1e-9)        # the plan does not realise the order it was built for
+            viol = max(viol, 1e-9)  # the plan does not realise the order it was built for
         key = (viol, cost)
-        if best is None or (key[0] <= 0.0 and (best[0] > 0.0 or key[1] < best[1])) or (
-                best[0] > 0.0 and key[0] < best[0]):
+        if (
+            best is None
+            or (key[0] <= 0.0 and (best[0] > 0.0 or key[1] < best[1]))
+            or (best[0] > 0.0 and key[0] < best[0])
+        ):
             best = (viol, cost, x, order, N)
     assert best is not None
     viol, cost, x, order, N = best
-    return QpOrderResult(x=x, order=order, cost=cost, violation=viol, feasible=viol <= 0.0, iterations=solves,
-                         orders_solved=solved, wall_time_s=time.perf_counter() - t0, coupling_step=N)
+    return QpOrderResult(
+        x=x,
+        order=order,
+        cost=cost,
+        violation=viol,
+        feasible=viol <= 0.0,
+        iterations=solves,
+        orders_solved=solved,
+        wall_time_s=time.perf_counter() - t0,
+        coupling_step=N,
+    )

@@ -18,8 +18,8 @@ naive strategies are deterministic: one run, std 0).
 from __future__ import annotations
 
 import time
+from collections.abc import Iterable, Sequence
 from dataclasses import asdict, dataclass
-from typing import Iterable, Sequence
 
 import numpy as np
 
@@ -27,7 +27,10 @@ from controllers.junction.baselines import run_naive
 from controllers.junction.game import closed_form_shapley, players_from_outcome
 from controllers.junction.model import JunctionParams, Problem, safety_margin_m
 from controllers.junction.planner import (
-    TrainState, YJunctionLayout, build_problem, solve,
+    TrainState,
+    YJunctionLayout,
+    build_problem,
+    solve,
 )
 from controllers.junction.pso import PSOParams, improved_pso_params, plain_pso_params
 
@@ -39,12 +42,16 @@ TABLE3: dict[int, tuple[float, ...]] = {
 }
 
 
-def table3_scenario(number: int, sw1_branch_leg: str = "reverse", sw2_branch_leg: str = "reverse"
-                    ) -> tuple[list[TrainState], YJunctionLayout]:
+def table3_scenario(
+    number: int, sw1_branch_leg: str = "reverse", sw2_branch_leg: str = "reverse"
+) -> tuple[list[TrainState], YJunctionLayout]:
     """Trains 1–3 on entry1–3 of ``y_junction`` with the Table 3 distances and speeds."""
     S1, S2, S3, S4, S5, v1, v2, v3 = TABLE3[number]
-    trains = [TrainState("train1", "entry1", S1, v1), TrainState("train2", "entry2", S2, v2),
-              TrainState("train3", "entry3", S3, v3)]
+    trains = [
+        TrainState("train1", "entry1", S1, v1),
+        TrainState("train2", "entry2", S2, v2),
+        TrainState("train3", "entry3", S3, v3),
+    ]
     return trains, YJunctionLayout(S4, S5, sw1_branch_leg, sw2_branch_leg)  # type: ignore[arg-type]
 
 
@@ -55,24 +62,25 @@ class Outcome:
     coupled_at_F: bool
     order: tuple[str, ...]
     coupling_time_s: float
-    coupled_speed_mps: float        # mean platoon speed at T_c
-    cost: float                     # f_c at T_c
-    operation_time_s: float         # last train at F
-    min_separation_m: float         # head-to-head, trains on shared track
+    coupled_speed_mps: float  # mean platoon speed at T_c
+    cost: float  # f_c at T_c
+    operation_time_s: float  # last train at F
+    min_separation_m: float  # head-to-head, trains on shared track
     min_speed_mps: float
-    max_gap_error_m: float          # max |D − S_m| at T_c
-    max_speed_diff_mps: float       # max |Δv| at T_c
+    max_gap_error_m: float  # max |D − S_m| at T_c
+    max_speed_diff_mps: float  # max |Δv| at T_c
     switch_speed_excess_mps: float  # max(v_pass − v_lim, 0) over passages
-    headway_shortfall_s: float      # max(t_ls needed − Δt, 0) over switches
+    headway_shortfall_s: float  # max(t_ls needed − Δt, 0) over switches
 
 
-def _advance_exact(s: float, v: float, dt: float, edges: np.ndarray, prof: np.ndarray, d_F: float
-                   ) -> tuple[float, float]:
+def _advance_exact(
+    s: float, v: float, dt: float, edges: np.ndarray, prof: np.ndarray, d_F: float
+) -> tuple[float, float]:
     """Advance one train by ``dt`` with its distance profile, splitting the step at segment boundaries."""
     remaining = dt
     while remaining > 1e-12:
         if s >= d_F - 1e-9:
-            return s + v * remaining, v          # behind F: hold the speed
+            return s + v * remaining, v  # behind F: hold the speed
         j = min(int(np.searchsorted(edges, s, side="right")) - 1, len(prof) - 1)
         a = float(prof[j])
         end = float(edges[j + 1])
@@ -84,18 +92,23 @@ def _advance_exact(s: float, v: float, dt: float, edges: np.ndarray, prof: np.nd
             disc = v * v + 2.0 * a * gap
             tau = (-v + np.sqrt(disc)) / a if disc >= 0.0 else np.inf
         if a < 0.0 and v + a * remaining <= 0.0 and (not np.isfinite(tau) or -v / a < tau):
-            t_stop = -v / a                      # stops inside the segment: stays stopped
+            t_stop = -v / a  # stops inside the segment: stays stopped
             return s + 0.5 * v * t_stop, 0.0
         if tau >= remaining:
-            return s + v * remaining + 0.5 * a * remaining ** 2, v + a * remaining
+            return s + v * remaining + 0.5 * a * remaining**2, v + a * remaining
         s, v = end + 1e-12, v + a * tau
         remaining -= tau
     return s, v
 
 
-def simulate_plan(problem: Problem, x: np.ndarray, dt_s: float = 0.1, lag_s: float = 0.0,
-                  integrator: str = "exact", horizon_s: float = 600.0
-                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def simulate_plan(
+    problem: Problem,
+    x: np.ndarray,
+    dt_s: float = 0.1,
+    lag_s: float = 0.0,
+    integrator: str = "exact",
+    horizon_s: float = 600.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Integrate the plan ``x`` (one particle); returns ``(time_s, position_m (T, n), speed_mps (T, n))``.
 
     ``integrator="exact"`` splits each Δt step at segment boundaries, so the acceleration really is piecewise
@@ -119,10 +132,16 @@ def simulate_plan(problem: Problem, x: np.ndarray, dt_s: float = 0.1, lag_s: flo
             for k in range(n):
                 s[k], v[k] = _advance_exact(s[k], v[k], dt_s, edges[k], profiles[k], d_F[k])
         else:
-            cmd = np.array([profiles[k][min(int(np.searchsorted(edges[k], s[k], side="right")) - 1,
-                                            len(profiles[k]) - 1)] if s[k] < d_F[k] else 0.0 for k in range(n)])
+            cmd = np.array(
+                [
+                    profiles[k][min(int(np.searchsorted(edges[k], s[k], side="right")) - 1, len(profiles[k]) - 1)]
+                    if s[k] < d_F[k]
+                    else 0.0
+                    for k in range(n)
+                ]
+            )
             a = cmd if lag_s <= 0.0 else a + (cmd - a) * min(dt_s / lag_s, 1.0)
-            s = s + np.maximum(v * dt_s + 0.5 * a * dt_s ** 2, 0.0)
+            s = s + np.maximum(v * dt_s + 0.5 * a * dt_s**2, 0.0)
             v = np.maximum(v + a * dt_s, 0.0)
         t += dt_s
         ts.append(t)
@@ -181,8 +200,20 @@ def measure(problem: Problem, t: np.ndarray, s: np.ndarray, v: np.ndarray) -> Ou
     op_times = [_crossing(t, s[:, k], v[:, k], d_F[k])[0] for k in range(n)]
     op_time = max(op_times) if not any(np.isnan(op_times)) else nan
     if np.isnan(t_c) or not np.all(np.isfinite(merge_t)):
-        return Outcome(False, tuple(ids[k] for k in order), t_c, nan, nan, op_time, min_sep,
-                       float(v.min()), nan, nan, max(excess, 0.0), max(shortfall, 0.0))
+        return Outcome(
+            False,
+            tuple(ids[k] for k in order),
+            t_c,
+            nan,
+            nan,
+            op_time,
+            min_sep,
+            float(v.min()),
+            nan,
+            nan,
+            max(excess, 0.0),
+            max(shortfall, 0.0),
+        )
     st_c = np.array([np.interp(t_c, t, st[:, k]) for k in range(n)])
     v_c = np.array([np.interp(t_c, t, v[:, k]) for k in range(n)])
     gaps = np.array([st_c[order[i - 1]] - st_c[order[i]] for i in range(1, n)])
@@ -192,17 +223,29 @@ def measure(problem: Problem, t: np.ndarray, s: np.ndarray, v: np.ndarray) -> Ou
     coupled = bool(np.all(gap_err <= p.gap_tolerance_m) and np.all(np.abs(dvs) <= p.speed_tolerance_mps))
     players = players_from_outcome(ids, order, merge_t, t_c, v_c, st_c)
     cost = float(sum(closed_form_shapley(players, p).values()))
-    return Outcome(coupled, tuple(ids[k] for k in order), t_c, float(v_c.mean()), cost, op_time, min_sep,
-                   float(v.min()), float(gap_err.max()), float(np.abs(dvs).max()), max(excess, 0.0),
-                   max(shortfall, 0.0))
+    return Outcome(
+        coupled,
+        tuple(ids[k] for k in order),
+        t_c,
+        float(v_c.mean()),
+        cost,
+        op_time,
+        min_sep,
+        float(v.min()),
+        float(gap_err.max()),
+        float(np.abs(dvs).max()),
+        max(excess, 0.0),
+        max(shortfall, 0.0),
+    )
 
 
 METHODS = ("improved_pso", "plain_pso", "qp_order", "naive1", "naive2")
 DETERMINISTIC = ("qp_order", "naive1", "naive2")
 
 
-def run_method(problem: Problem, method: str, seed: int = 0, pso: PSOParams | None = None,
-               dt_s: float = 0.1) -> tuple[Outcome, dict[str, float]]:
+def run_method(
+    problem: Problem, method: str, seed: int = 0, pso: PSOParams | None = None, dt_s: float = 0.1
+) -> tuple[Outcome, dict[str, float]]:
     """One run of ``method`` on a compiled problem: the measured outcome plus planner diagnostics."""
     if method in ("naive1", "naive2"):
         t0 = time.perf_counter()
@@ -212,13 +255,20 @@ def run_method(problem: Problem, method: str, seed: int = 0, pso: PSOParams | No
         pso = improved_pso_params() if method == "improved_pso" else plain_pso_params()
     res = solve(problem, method, pso, np.random.default_rng(seed))  # type: ignore[arg-type]
     traj = simulate_plan(problem, res.x, dt_s)
-    return measure(problem, *traj), {"plan_feasible": float(res.feasible), "wall_time_s": res.wall_time_s,
-                                     "iterations": float(res.iterations)}
+    return measure(problem, *traj), {
+        "plan_feasible": float(res.feasible),
+        "wall_time_s": res.wall_time_s,
+        "iterations": float(res.iterations),
+    }
 
 
-def compare_table3(seeds: Iterable[int] = range(30), scenarios: Sequence[int] = (1, 2, 3),
-                   methods: Sequence[str] = METHODS, params: JunctionParams | None = None,
-                   pso_overrides: dict | None = None) -> list[dict]:
+def compare_table3(
+    seeds: Iterable[int] = range(30),
+    scenarios: Sequence[int] = (1, 2, 3),
+    methods: Sequence[str] = METHODS,
+    params: JunctionParams | None = None,
+    pso_overrides: dict | None = None,
+) -> list[dict]:
     """Table 3 scenarios × methods × seeds → one row per (scenario, method) with mean/std of every metric.
 
     Row keys: ``scenario``, ``method``, ``runs``, ``coupled_rate``, ``plan_feasible_rate`` and, for each of
@@ -241,10 +291,15 @@ def compare_table3(seeds: Iterable[int] = range(30), scenarios: Sequence[int] = 
                 o, d = run_method(problem, m, sd, pso)
                 outs.append(o)
                 diags.append(d)
-            row: dict = {"scenario": sc, "method": m, "runs": len(outs),
-                         "coupled_rate": float(np.mean([o.coupled_at_F for o in outs])),
-                         "plan_feasible_rate": float(np.nanmean([d["plan_feasible"] for d in diags]))
-                         if m not in ("naive1", "naive2") else float("nan")}
+            row: dict = {
+                "scenario": sc,
+                "method": m,
+                "runs": len(outs),
+                "coupled_rate": float(np.mean([o.coupled_at_F for o in outs])),
+                "plan_feasible_rate": float(np.nanmean([d["plan_feasible"] for d in diags]))
+                if m not in ("naive1", "naive2")
+                else float("nan"),
+            }
             for name in ("coupling_time_s", "coupled_speed_mps", "cost", "operation_time_s", "min_separation_m"):
                 vals = np.array([getattr(o, name) for o in outs], dtype=float)
                 vals = vals[np.isfinite(vals)]

@@ -46,13 +46,13 @@ def max_braking_distance_m(speed_mps: float, t_eq_s: float, decel_mps2: float) -
 def average_emergency_decel_mps2(speed_mps: float, braking_distance_m: float, t_eq_s: float) -> float:
     """Eq. (25) reading: the constant deceleration that, after ``t_eq_s`` at speed, stops within the distance."""
     room = braking_distance_m - speed_mps * t_eq_s
-    require("braking_distance_m", room > 0.0, f"a distance > v·t_eq = {speed_mps * t_eq_s:.3f} m",
-            braking_distance_m)
+    require("braking_distance_m", room > 0.0, f"a distance > v·t_eq = {speed_mps * t_eq_s:.3f} m", braking_distance_m)
     return speed_mps * speed_mps / (2.0 * room)
 
 
-def safety_distance_m(speed_mps: float = 25.0 * KMH, t_eq_s: float = 1.0, decel_mps2: float = 1.5,
-                      buffer_m: float = 5.0) -> float:
+def safety_distance_m(
+    speed_mps: float = 25.0 * KMH, t_eq_s: float = 1.0, decel_mps2: float = 1.5, buffer_m: float = 5.0
+) -> float:
     """Eq. (23): ``S_safe = S_b,max + S_buf``; the defaults give the paper's 28 m (28.02 m)."""
     return max_braking_distance_m(speed_mps, t_eq_s, decel_mps2) + buffer_m
 
@@ -88,16 +88,21 @@ def adbm_distance_m(v_follower_mps: float, b_follower_mps2: float, t_eq_s: float
     return max_braking_distance_m(v_follower_mps, t_eq_s, b_follower_mps2) + margin_m
 
 
-def rdbm_distance_m(v_follower_mps: float, b_follower_mps2: float, v_leader_mps: float, b_leader_mps2: float,
-                    t_eq_s: float, margin_m: float) -> float:
+def rdbm_distance_m(
+    v_follower_mps: float,
+    b_follower_mps2: float,
+    v_leader_mps: float,
+    b_leader_mps2: float,
+    t_eq_s: float,
+    margin_m: float,
+) -> float:
     """RDBM: follower's braking distance minus the leader's, plus margin, never below the margin [m]."""
     v_l = max(v_leader_mps, 0.0)
     rel = max_braking_distance_m(v_follower_mps, t_eq_s, b_follower_mps2) - v_l * v_l / (2.0 * b_leader_mps2)
     return max(rel, 0.0) + margin_m
 
 
-def required_gap_m(policy: BrakingPolicy, v_follower_mps: float, v_leader_mps: float,
-                   own_decel_mps2: float) -> float:
+def required_gap_m(policy: BrakingPolicy, v_follower_mps: float, v_leader_mps: float, own_decel_mps2: float) -> float:
     """The gap the policy requires now [m]; ``own_decel_mps2`` is the follower's actual emergency deceleration,
     used when the policy does not fix an assumed value."""
     if policy.mode == "fixed":

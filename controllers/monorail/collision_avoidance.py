@@ -35,8 +35,9 @@ Inactive, the command is the traction limit (no restriction under the engine's m
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
@@ -79,24 +80,42 @@ class CaParams:
     standstill_mps: float = 0.01
 
     def __post_init__(self) -> None:
-        require("latch", self.latch in ("obstacle", "always", "never"), "'obstacle', 'always' or 'never'",
-                self.latch)
+        require("latch", self.latch in ("obstacle", "always", "never"), "'obstacle', 'always' or 'never'", self.latch)
         for name in ("law", "latched_law"):
             require(name, getattr(self, name) in ("mpc", "bang_bang"), "'mpc' or 'bang_bang'", getattr(self, name))
-        require("post_release", self.post_release in ("none", "hold_speed"), "'none' or 'hold_speed'",
-                self.post_release)
-        for name in ("release_margin_m", "min_on_s", "trigger_dwell_s", "trigger_band_m", "rearm_s",
-                     "assumed_own_decel_mps2", "assumed_object_decel_mps2",
-                     "ref_offset_m", "s_min_m", "standstill_mps"):
+        require(
+            "post_release", self.post_release in ("none", "hold_speed"), "'none' or 'hold_speed'", self.post_release
+        )
+        for name in (
+            "release_margin_m",
+            "min_on_s",
+            "trigger_dwell_s",
+            "trigger_band_m",
+            "rearm_s",
+            "assumed_own_decel_mps2",
+            "assumed_object_decel_mps2",
+            "ref_offset_m",
+            "s_min_m",
+            "standstill_mps",
+        ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
-        require("horizon_steps", self.horizon_steps >= self.control_horizon_steps >= 1,
-                "horizon_steps >= control_horizon_steps >= 1", (self.horizon_steps, self.control_horizon_steps))
+        require(
+            "horizon_steps",
+            self.horizon_steps >= self.control_horizon_steps >= 1,
+            "horizon_steps >= control_horizon_steps >= 1",
+            (self.horizon_steps, self.control_horizon_steps),
+        )
         self.policy()
 
     def policy(self) -> BrakingPolicy:
-        return BrakingPolicy(mode=self.threshold_mode, fixed_threshold_m=self.fixed_threshold_m, t_eq_s=self.t_eq_s,
-                             margin_m=self.margin_m, follower_decel_mps2=self.assumed_own_decel_mps2 or None,
-                             leader_decel_mps2=self.assumed_object_decel_mps2 or None)
+        return BrakingPolicy(
+            mode=self.threshold_mode,
+            fixed_threshold_m=self.fixed_threshold_m,
+            t_eq_s=self.t_eq_s,
+            margin_m=self.margin_m,
+            follower_decel_mps2=self.assumed_own_decel_mps2 or None,
+            leader_decel_mps2=self.assumed_object_decel_mps2 or None,
+        )
 
 
 @dataclass(frozen=True)
@@ -116,8 +135,12 @@ def read_sensor(obs: Observation) -> SensorReading | None:
     if not math.isfinite(dist):
         return None
     service = raw.get("service_accel_mps2")
-    return SensorReading(dist, float(raw.get("closing_speed_mps", 0.0)), str(raw.get("object", "vehicle")),
-                         None if service is None else float(service))
+    return SensorReading(
+        dist,
+        float(raw.get("closing_speed_mps", 0.0)),
+        str(raw.get("object", "vehicle")),
+        None if service is None else float(service),
+    )
 
 
 class CollisionAvoidance:
@@ -125,8 +148,14 @@ class CollisionAvoidance:
 
     def __init__(self, params: CaParams) -> None:
         p = self.params = params
-        self.qp = GapTrackingQp(p.dt_s, p.response_s, p.efficiency, int(p.horizon_steps),
-                                int(p.control_horizon_steps), QpWeights(p.q_gap, p.q_speed, p.r_u, p.r_du))
+        self.qp = GapTrackingQp(
+            p.dt_s,
+            p.response_s,
+            p.efficiency,
+            int(p.horizon_steps),
+            int(p.control_horizon_steps),
+            QpWeights(p.q_gap, p.q_speed, p.r_u, p.r_du),
+        )
         self.reset()
 
     def reset(self) -> None:
@@ -141,8 +170,9 @@ class CollisionAvoidance:
     def thresholds_m(self, obs: Observation, reading: SensorReading) -> tuple[float, float]:
         """(trigger, release) gaps [m] for the present speeds."""
         v = max(obs.own.speed_mps, 0.0)
-        trig = required_gap_m(self.params.policy(), v, max(v - reading.closing_speed_mps, 0.0),
-                              obs.vehicle.emergency_decel_mps2)
+        trig = required_gap_m(
+            self.params.policy(), v, max(v - reading.closing_speed_mps, 0.0), obs.vehicle.emergency_decel_mps2
+        )
         return trig, trig + self.params.release_margin_m
 
     def command(self, obs: Observation) -> Command:
@@ -158,17 +188,30 @@ class CollisionAvoidance:
         gap = reading.distance_m if reading is not None else math.inf
         trig, release = self.thresholds_m(obs, reading) if reading is not None else (0.0, 0.0)
         was = self.active
-        self.below_since_s = (self.below_since_s if self.below_since_s is not None else obs.t_s) \
-            if gap <= trig else None
+        self.below_since_s = (
+            (self.below_since_s if self.below_since_s is not None else obs.t_s) if gap <= trig else None
+        )
         if was:
-            self.active = ca_hysteresis(True, self.on_since_s, obs.t_s, gap, trig, release, p.min_on_s, self.latched,
-                                        v, p.standstill_mps)
+            self.active = ca_hysteresis(
+                True, self.on_since_s, obs.t_s, gap, trig, release, p.min_on_s, self.latched, v, p.standstill_mps
+            )
         else:
             urgent = reading is not None and reading.object == "obstacle"
-            enough = reading is not None and braking_suffices(gap, reading.closing_speed_mps, obs.own.accel_mps2,
-                                                              p.s_min_m)
-            self.active = ca_should_fire(gap, trig, obs.t_s, self.below_since_s, self.off_since_s,
-                                         p.trigger_dwell_s, p.trigger_band_m, p.rearm_s, urgent, enough)
+            enough = reading is not None and braking_suffices(
+                gap, reading.closing_speed_mps, obs.own.accel_mps2, p.s_min_m
+            )
+            self.active = ca_should_fire(
+                gap,
+                trig,
+                obs.t_s,
+                self.below_since_s,
+                self.off_since_s,
+                p.trigger_dwell_s,
+                p.trigger_band_m,
+                p.rearm_s,
+                urgent,
+                enough,
+            )
         info: dict[str, Any] = {"ca": "active" if self.active else "idle", "gap_m": gap, "trigger_m": trig}
         if self.active and not was:
             self.on_since_s = obs.t_s
@@ -190,8 +233,9 @@ class CollisionAvoidance:
             n = int(p.horizon_steps)
             v_obj = max(v - reading.closing_speed_mps, 0.0)
             dx, v_ahead = predict_ahead(v_obj, 0.0, p.dt_s, n)
-            sol = self.qp.solve(gap, v, obs.own.accel_mps2, dx, v_ahead, release + p.ref_offset_m, p.s_min_m,
-                                self._u_prev, -b_e, a_t)
+            sol = self.qp.solve(
+                gap, v, obs.own.accel_mps2, dx, v_ahead, release + p.ref_offset_m, p.s_min_m, self._u_prev, -b_e, a_t
+            )
             if sol is None:
                 u, info["fallback"] = -b_e, True
             else:
@@ -217,11 +261,15 @@ def make_ca(params: Mapping[str, Any], vehicle: VehicleParams) -> CollisionAvoid
     return CollisionAvoidance(params_from_mapping(CaParams, params))
 
 
-def sensor_extras(distance_m: float, closing_speed_mps: float, obj: str = "vehicle",
-                  service_accel_mps2: float | None = None) -> dict[str, Any]:
+def sensor_extras(
+    distance_m: float, closing_speed_mps: float, obj: str = "vehicle", service_accel_mps2: float | None = None
+) -> dict[str, Any]:
     """Build the ``obs.extras`` entry this controller reads (for the engine and the scenario runner)."""
-    reading: dict[str, Any] = {"distance_m": float(distance_m), "closing_speed_mps": float(closing_speed_mps),
-                               "object": obj}
+    reading: dict[str, Any] = {
+        "distance_m": float(distance_m),
+        "closing_speed_mps": float(closing_speed_mps),
+        "object": obj,
+    }
     if service_accel_mps2 is not None:
         reading["service_accel_mps2"] = float(service_accel_mps2)
     return {"sensor": reading}

@@ -29,8 +29,9 @@ role (:mod:`.collision_avoidance`).
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -55,8 +56,14 @@ def incidence(edges: list[tuple[int, int]], n: int) -> np.ndarray:
     return b
 
 
-def apf_graph_accel(positions_m: np.ndarray, speeds_mps: np.ndarray, adjacency: np.ndarray,
-                    offsets_m: np.ndarray, k_x_per_s2: float, k_v_per_s: float) -> np.ndarray:
+def apf_graph_accel(
+    positions_m: np.ndarray,
+    speeds_mps: np.ndarray,
+    adjacency: np.ndarray,
+    offsets_m: np.ndarray,
+    k_x_per_s2: float,
+    k_v_per_s: float,
+) -> np.ndarray:
     """Eq. (11): ``u_i = k_x Σ_j a_ij (x_j − x_i − d_ij) + k_v Σ_j a_ij (v_j − v_i)`` for all vehicles.
 
     ``offsets_m[i, j] = d_ij``, the desired ``x_j − x_i`` (positive when j is ahead of i).
@@ -83,8 +90,11 @@ def predecessor_now(obs: Observation) -> tuple[float, float, float]:
 
 def _limits(vehicle: VehicleParams) -> tuple[float, float, float]:
     """(traction max, service decel, emergency decel) of the vehicle [m/s²]."""
-    return (vehicle.traction_max_force_n / vehicle.effective_mass_kg, vehicle.service_decel_mps2,
-            vehicle.emergency_decel_mps2)
+    return (
+        vehicle.traction_max_force_n / vehicle.effective_mass_kg,
+        vehicle.service_decel_mps2,
+        vehicle.emergency_decel_mps2,
+    )
 
 
 @dataclass(frozen=True)
@@ -141,8 +151,9 @@ class MonorailApf:
 
     def __init__(self, params: ApfParams) -> None:
         self.params = params
-        self.safety = CouplingSafety(params.safety_mode, params.safety_t_eq_s, params.safety_margin_m,
-                                     params.k_cap_per_s)
+        self.safety = CouplingSafety(
+            params.safety_mode, params.safety_t_eq_s, params.safety_margin_m, params.k_cap_per_s
+        )
 
     def command(self, obs: Observation) -> Command:
         a_t, _, _ = _limits(obs.vehicle)
@@ -157,8 +168,9 @@ class MonorailApf:
             pos = min(pos, p.k_v_per_s * min(p.approach_speed_mps, math.sqrt(2.0 * p.approach_decel_mps2 * err)))
         v = max(obs.own.speed_mps, 0.0)
         net = p.k_ff * a_p + pos + p.k_v_per_s * (v_p - v)
-        return _finish(obs, net, _safety_cap(obs, gap, v_p, self.safety),
-                       {"phase": "track", "gap_m": gap, "gap_error_m": err})
+        return _finish(
+            obs, net, _safety_cap(obs, gap, v_p, self.safety), {"phase": "track", "gap_m": gap, "gap_error_m": err}
+        )
 
 
 @dataclass(frozen=True)
@@ -183,10 +195,18 @@ class DmpcParams:
 
     def __post_init__(self) -> None:
         for name in ("horizon_steps", "control_horizon_steps"):
-            require(name, float(getattr(self, name)).is_integer() and getattr(self, name) >= 1, "an integer >= 1",
-                    getattr(self, name))
-        require("control_horizon_steps", self.control_horizon_steps <= self.horizon_steps,
-                "at most horizon_steps", self.control_horizon_steps)
+            require(
+                name,
+                float(getattr(self, name)).is_integer() and getattr(self, name) >= 1,
+                "an integer >= 1",
+                getattr(self, name),
+            )
+        require(
+            "control_horizon_steps",
+            self.control_horizon_steps <= self.horizon_steps,
+            "at most horizon_steps",
+            self.control_horizon_steps,
+        )
         require("dt_s", self.dt_s > 0.0, "a number > 0", self.dt_s)
         require("efficiency", 0.0 < self.efficiency <= 1.0, "a number in (0, 1]", self.efficiency)
         for name in ("q_gap", "q_speed", "r_u", "r_du", "s_min_m", "response_s"):
@@ -199,8 +219,14 @@ class MonorailDmpc:
 
     def __init__(self, params: DmpcParams) -> None:
         p = self.params = params
-        self.qp = GapTrackingQp(p.dt_s, p.response_s, p.efficiency, int(p.horizon_steps),
-                                int(p.control_horizon_steps), QpWeights(p.q_gap, p.q_speed, p.r_u, p.r_du))
+        self.qp = GapTrackingQp(
+            p.dt_s,
+            p.response_s,
+            p.efficiency,
+            int(p.horizon_steps),
+            int(p.control_horizon_steps),
+            QpWeights(p.q_gap, p.q_speed, p.r_u, p.r_du),
+        )
         self.safety = CouplingSafety(p.safety_mode, p.safety_t_eq_s, p.safety_margin_m, p.k_cap_per_s)
         self._u_prev = 0.0
 

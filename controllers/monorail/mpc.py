@@ -41,27 +41,45 @@ class QpWeights:
 class GapTrackingQp:
     """One vehicle's QP; :meth:`solve` returns the optimal command sequence or ``None`` if OSQP failed."""
 
-    def __init__(self, dt_s: float, response_s: float, efficiency: float, horizon: int, control_horizon: int,
-                 weights: QpWeights) -> None:
+    def __init__(
+        self, dt_s: float, response_s: float, efficiency: float, horizon: int, control_horizon: int, weights: QpWeights
+    ) -> None:
         self.n, self.m = horizon, control_horizon
         self.w = weights
-        self.px, self.gx, self.pv, self.gv = lag_prediction_matrices(dt_s, response_s, efficiency, horizon,
-                                                                     control_horizon)
+        self.px, self.gx, self.pv, self.gv = lag_prediction_matrices(
+            dt_s, response_s, efficiency, horizon, control_horizon
+        )
         n, m, w = self.n, self.m, weights
         diff = np.eye(m) - np.eye(m, k=-1)
-        h_u = 2.0 * (w.q_gap * self.gx.T @ self.gx + w.q_speed * self.gv.T @ self.gv + w.r_u * np.eye(m)
-                     + w.r_du * diff.T @ diff)
+        h_u = 2.0 * (
+            w.q_gap * self.gx.T @ self.gx + w.q_speed * self.gv.T @ self.gv + w.r_u * np.eye(m) + w.r_du * diff.T @ diff
+        )
         self._diff = diff
         p_mat = sparse.block_diag([sparse.csc_matrix(h_u), sparse.eye(n) * 2.0 * w.slack_quadratic], format="csc")
-        a_mat = sparse.vstack([sparse.hstack([sparse.csc_matrix(-self.gx), sparse.eye(n)]),
-                               sparse.hstack([sparse.eye(m), sparse.csc_matrix((m, n))]),
-                               sparse.hstack([sparse.csc_matrix((n, m)), sparse.eye(n)])], format="csc")
+        a_mat = sparse.vstack(
+            [
+                sparse.hstack([sparse.csc_matrix(-self.gx), sparse.eye(n)]),
+                sparse.hstack([sparse.eye(m), sparse.csc_matrix((m, n))]),
+                sparse.hstack([sparse.csc_matrix((n, m)), sparse.eye(n)]),
+            ],
+            format="csc",
+        )
         self._p, self._a = sparse.triu(p_mat, format="csc"), a_mat
         self._solver: osqp.OSQP | None = None
 
-    def solve(self, gap0_m: float, v0_mps: float, a0_mps2: float, ahead_dx_m: np.ndarray, ahead_v_mps: np.ndarray,
-              d_ref_m: float, s_min_m: float, u_prev_mps2: float, u_min_mps2: float,
-              u_max_mps2: float) -> np.ndarray | None:
+    def solve(
+        self,
+        gap0_m: float,
+        v0_mps: float,
+        a0_mps2: float,
+        ahead_dx_m: np.ndarray,
+        ahead_v_mps: np.ndarray,
+        d_ref_m: float,
+        s_min_m: float,
+        u_prev_mps2: float,
+        u_min_mps2: float,
+        u_max_mps2: float,
+    ) -> np.ndarray | None:
         """``ahead_dx_m[k]``/``ahead_v_mps[k]``: the object's displacement from now and speed at steps 1..Np."""
         n, m, w = self.n, self.m, self.w
         s0 = np.array([0.0, v0_mps, a0_mps2])
@@ -69,15 +87,19 @@ class GapTrackingQp:
         c_v = np.asarray(ahead_v_mps, float) - self.pv @ s0
         e1 = np.zeros(m)
         e1[0] = u_prev_mps2
-        q_u = (-2.0 * w.q_gap * self.gx.T @ (c_gap - d_ref_m) - 2.0 * w.q_speed * self.gv.T @ c_v
-               - 2.0 * w.r_du * self._diff.T @ e1)
+        q_u = (
+            -2.0 * w.q_gap * self.gx.T @ (c_gap - d_ref_m)
+            - 2.0 * w.q_speed * self.gv.T @ c_v
+            - 2.0 * w.r_du * self._diff.T @ e1
+        )
         q = np.concatenate([q_u, np.full(n, w.slack_linear)])
         lo = np.concatenate([s_min_m - c_gap, np.full(m, u_min_mps2), np.zeros(n)])
         hi = np.concatenate([np.full(n, np.inf), np.full(m, u_max_mps2), np.full(n, np.inf)])
         if self._solver is None:
             self._solver = osqp.OSQP()
-            self._solver.setup(self._p, q, self._a, lo, hi, verbose=False, eps_abs=1e-5, eps_rel=1e-5,
-                               max_iter=4000, polishing=True)
+            self._solver.setup(
+                self._p, q, self._a, lo, hi, verbose=False, eps_abs=1e-5, eps_rel=1e-5, max_iter=4000, polishing=True
+            )
         else:
             self._solver.update(q=q, l=lo, u=hi)
         res = self._solver.solve(raise_error=False)

@@ -20,8 +20,9 @@ Parameters: ``mode`` (``adbm`` | ``rdbm``), ``t_eq_s`` (equivalent response time
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 from controllers.base import Command, Observation, register
 from controllers.braking import require, traction_limit_mps2
@@ -48,8 +49,12 @@ class PolicySeparation:
 
     def policy(self, age_s: float) -> BrakingPolicy:
         p = self.params
-        return BrakingPolicy(mode=p.mode, t_eq_s=p.t_eq_s + max(age_s, 0.0), margin_m=p.margin_m,
-                             leader_decel_mps2=p.leader_decel_mps2 or None)
+        return BrakingPolicy(
+            mode=p.mode,
+            t_eq_s=p.t_eq_s + max(age_s, 0.0),
+            margin_m=p.margin_m,
+            leader_decel_mps2=p.leader_decel_mps2 or None,
+        )
 
     def command(self, obs: Observation) -> Command:
         veh = obs.vehicle
@@ -75,14 +80,17 @@ def make_policy_separation(params: Mapping[str, Any], vehicle: VehicleParams) ->
     params = dict(params or {})
     unknown = set(params) - {f for f in PolicySeparationParams.__dataclass_fields__}
     if unknown:
-        raise ValueError(f"{sorted(unknown)[0]}: unknown parameter; expected mode, t_eq_s, margin_m, "
-                         "leader_decel_mps2, k_speed_per_s")
+        raise ValueError(
+            f"{sorted(unknown)[0]}: unknown parameter; expected mode, t_eq_s, margin_m, "
+            "leader_decel_mps2, k_speed_per_s"
+        )
     p = PolicySeparationParams(**params)
     require("mode", p.mode in ("adbm", "rdbm"), "'adbm' or 'rdbm'", p.mode)
     for name in ("t_eq_s", "margin_m", "leader_decel_mps2"):
         value = getattr(p, name)
-        require(name, isinstance(value, (int, float)) and not isinstance(value, bool) and value >= 0, "a number >= 0",
-                value)
+        require(
+            name, isinstance(value, (int, float)) and not isinstance(value, bool) and value >= 0, "a number >= 0", value
+        )
     k = p.k_speed_per_s
     require("k_speed_per_s", isinstance(k, (int, float)) and not isinstance(k, bool) and k > 0, "a number > 0", k)
     return PolicySeparation(p, vehicle)

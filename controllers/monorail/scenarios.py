@@ -30,8 +30,7 @@ from controllers.base import Observation, OwnState, PredecessorState
 from controllers.monorail.collision_avoidance import CaParams, CollisionAvoidance, sensor_extras
 from controllers.monorail.coupling import ApfParams, DmpcParams, MonorailApf, MonorailDmpc
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, transition
-from railsim.physics.monorail import MonorailParams, PlantState, load_mass_kg, plant_step, \
-    vehicle_params_for
+from railsim.physics.monorail import MonorailParams, PlantState, load_mass_kg, plant_step, vehicle_params_for
 
 KMH = 1.0 / 3.6
 SCENARIOS = ("in_station", "track_accel", "track_decel", "ca_departure", "ca_arrival", "ca_obstacle")
@@ -90,9 +89,14 @@ class ScenarioResult:
     metrics: dict[str, Any] = field(default_factory=dict)
 
 
-def build_scenario(name: str, load: str = "empty", comm_delay_s: float = 0.1,
-                   comm_outage_s: tuple[float, float] | None = None, coupling_law: str = "apf",
-                   **overrides: Any) -> ScenarioConfig:
+def build_scenario(
+    name: str,
+    load: str = "empty",
+    comm_delay_s: float = 0.1,
+    comm_outage_s: tuple[float, float] | None = None,
+    coupling_law: str = "apf",
+    **overrides: Any,
+) -> ScenarioConfig:
     """The scenario ``name`` with the spec's placeholder initial conditions (Tables 2–7)."""
     if name not in SCENARIOS:
         raise ValueError(f"scenario: expected one of {', '.join(SCENARIOS)}, got {name!r}")
@@ -100,40 +104,51 @@ def build_scenario(name: str, load: str = "empty", comm_delay_s: float = 0.1,
         raise ValueError(f"load: expected 'empty' or 'loaded', got {load!r}")
     coupling = name in ("in_station", "track_accel", "track_decel")
     loads = ("empty",) * 3 if load == "empty" else (("full",) * 3 if coupling else ("full", "overloaded", "full"))
-    ca_coupling = CaParams(threshold_mode="rdbm", t_eq_s=0.3, margin_m=1.0, law="mpc", ref_offset_m=1.0,
-                           s_min_m=1.0)
+    ca_coupling = CaParams(threshold_mode="rdbm", t_eq_s=0.3, margin_m=1.0, law="mpc", ref_offset_m=1.0, s_min_m=1.0)
     common: dict[str, Any] = dict(comm_delay_s=comm_delay_s, comm_outage_s=comm_outage_s, coupling_law=coupling_law)
     if name == "in_station":  # Table 2: distances to the own stop point 80/200/300 m, d_c = 5 m; follower
         # speeds inside the spec's feasible range for immediate monotone braking (F1 14 m/s, F2 15 m/s)
-        veh = (VehicleSpec("L", -80.0, 10.7, loads[0], "stop", 0.0, 0.0, 0.0),
-               VehicleSpec("F1", -200.0, 14.0, loads[1], "couple"),
-               VehicleSpec("F2", -300.0, 15.0, loads[2], "couple"))
+        veh = (
+            VehicleSpec("L", -80.0, 10.7, loads[0], "stop", 0.0, 0.0, 0.0),
+            VehicleSpec("F1", -200.0, 14.0, loads[1], "couple"),
+            VehicleSpec("F2", -300.0, 15.0, loads[2], "couple"),
+        )
         cfg = ScenarioConfig(name, veh, 60.0, ca=ca_coupling, couple_command=True, **common)
     elif name == "track_accel":  # Table 3: lead 30 km/h, followers 20 km/h
-        veh = (VehicleSpec("L", 120.0, 30 * KMH, loads[0], "accel", 0.0, 30 * KMH),
-               VehicleSpec("F1", 60.0, 20 * KMH, loads[1], "couple"),
-               VehicleSpec("F2", 0.0, 20 * KMH, loads[2], "couple"))
+        veh = (
+            VehicleSpec("L", 120.0, 30 * KMH, loads[0], "accel", 0.0, 30 * KMH),
+            VehicleSpec("F1", 60.0, 20 * KMH, loads[1], "couple"),
+            VehicleSpec("F2", 0.0, 20 * KMH, loads[2], "couple"),
+        )
         cfg = ScenarioConfig(name, veh, 80.0, ca=ca_coupling, couple_command=True, **common)
     elif name == "track_decel":  # Table 4: lead 10 km/h, followers 20 km/h, 20 m gaps
-        veh = (VehicleSpec("L", 40.0, 10 * KMH, loads[0], "accel", 0.0, 10 * KMH),
-               VehicleSpec("F1", 20.0, 20 * KMH, loads[1], "couple"),
-               VehicleSpec("F2", 0.0, 20 * KMH, loads[2], "couple"))
+        veh = (
+            VehicleSpec("L", 40.0, 10 * KMH, loads[0], "accel", 0.0, 10 * KMH),
+            VehicleSpec("F1", 20.0, 20 * KMH, loads[1], "couple"),
+            VehicleSpec("F2", 0.0, 20 * KMH, loads[2], "couple"),
+        )
         cfg = ScenarioConfig(name, veh, 60.0, ca=ca_coupling, couple_command=True, **common)
     elif name == "ca_departure":  # Table 5 placeholder: F1's faulty +1.2 m/s²; post-release hold speed (A11)
-        veh = (VehicleSpec("L", 59.42, 2.90, loads[0], "accel", 1.0, 30 * KMH),
-               VehicleSpec("F1", 30.74, 3.74, loads[1], "accel", 1.2, 30 * KMH),
-               VehicleSpec("F2", 0.0, 2.90, loads[2], "accel", 1.0, 30 * KMH))
+        veh = (
+            VehicleSpec("L", 59.42, 2.90, loads[0], "accel", 1.0, 30 * KMH),
+            VehicleSpec("F1", 30.74, 3.74, loads[1], "accel", 1.2, 30 * KMH),
+            VehicleSpec("F2", 0.0, 2.90, loads[2], "accel", 1.0, 30 * KMH),
+        )
         cfg = ScenarioConfig(name, veh, 40.0, ca=CaParams(post_release="hold_speed"), **common)
     elif name == "ca_arrival":  # Table 6 placeholder: inconsistent service braking; CA additive (A27)
         stop_l = 60.0 + 9.72**2 / (2 * 0.28)
-        veh = (VehicleSpec("L", 60.0, 9.72, loads[0], "stop", -0.28, 0.0, stop_l),
-               VehicleSpec("F1", 30.0, 11.1, loads[1], "stop", -0.15, 0.0, stop_l - 30.0),
-               VehicleSpec("F2", 0.0, 11.1, loads[2], "stop", -0.15, 0.0, stop_l - 60.0))
+        veh = (
+            VehicleSpec("L", 60.0, 9.72, loads[0], "stop", -0.28, 0.0, stop_l),
+            VehicleSpec("F1", 30.0, 11.1, loads[1], "stop", -0.15, 0.0, stop_l - 30.0),
+            VehicleSpec("F2", 0.0, 11.1, loads[2], "stop", -0.15, 0.0, stop_l - 60.0),
+        )
         cfg = ScenarioConfig(name, veh, 70.0, ca=CaParams(additive=True), **common)
     else:  # ca_obstacle, Table 7: 25 km/h, 30 m spacing, obstacle 50 m ahead of the lead at t = 0
-        veh = (VehicleSpec("L", 0.0, 25 * KMH, loads[0], "accel", 0.0, 25 * KMH),
-               VehicleSpec("F1", -30.0, 25 * KMH, loads[1], "accel", 0.0, 25 * KMH),
-               VehicleSpec("F2", -60.0, 25 * KMH, loads[2], "accel", 0.0, 25 * KMH))
+        veh = (
+            VehicleSpec("L", 0.0, 25 * KMH, loads[0], "accel", 0.0, 25 * KMH),
+            VehicleSpec("F1", -30.0, 25 * KMH, loads[1], "accel", 0.0, 25 * KMH),
+            VehicleSpec("F2", -60.0, 25 * KMH, loads[2], "accel", 0.0, 25 * KMH),
+        )
         cfg = ScenarioConfig(name, veh, 30.0, obstacle_m=50.0, ca=CaParams(latch="always"), **common)
     return replace(cfg, **overrides) if overrides else cfg
 
@@ -161,8 +176,9 @@ def run_scenario(cfg: ScenarioConfig) -> ScenarioResult:
     vparams = [vehicle_params_for(s.load, cfg.model, cfg.length_m) for s in cfg.vehicles]
     plants = [PlantState(0.0, s.x0_m, s.v0_mps, 0.0) for s in cfg.vehicles]
     cas = [CollisionAvoidance(cfg.lead_ca if i == 0 else cfg.ca) for i in range(n_veh)]
-    couplers: list[Any] = [None] + [MonorailApf(cfg.apf) if cfg.coupling_law == "apf" else MonorailDmpc(cfg.dmpc)
-                                    for _ in range(n_veh - 1)]
+    couplers: list[Any] = [None] + [
+        MonorailApf(cfg.apf) if cfg.coupling_law == "apf" else MonorailDmpc(cfg.dmpc) for _ in range(n_veh - 1)
+    ]
     state_params = StateParams(target_gap_m=cfg.target_gap_m)
     mems = [VcMemory(VcState.COUPLING if cfg.couple_command else VcState.INDEPENDENT) for _ in range(n_veh)]
     history: list[list[tuple[float, float, float, float]]] = [[] for _ in range(n_veh)]  # (t, x, v, a)
@@ -201,12 +217,22 @@ def run_scenario(cfg: ScenarioConfig) -> ScenarioResult:
                 msgs = [m for m in history[i - 1] if m[0] <= t - cfg.comm_delay_s + 1e-9]
                 if msgs:
                     ts, xp, vp, ap = msgs[-1]
-                    pred = PredecessorState(cfg.vehicles[i - 1].name, xp, vp, ap, cfg.length_m, ts, t - ts,
-                                            vparams[i - 1].service_decel_mps2, vparams[i - 1].emergency_decel_mps2)
+                    pred = PredecessorState(
+                        cfg.vehicles[i - 1].name,
+                        xp,
+                        vp,
+                        ap,
+                        cfg.length_m,
+                        ts,
+                        t - ts,
+                        vparams[i - 1].service_decel_mps2,
+                        vparams[i - 1].emergency_decel_mps2,
+                    )
             # nominal
             if spec.nominal == "couple":
-                obs = Observation(t, dt, own, veh, 1e6, predecessor=pred, formation_state="coupling",
-                                  target_gap_m=cfg.target_gap_m)
+                obs = Observation(
+                    t, dt, own, veh, 1e6, predecessor=pred, formation_state="coupling", target_gap_m=cfg.target_gap_m
+                )
                 nominal = couplers[i].command(obs).accel_mps2 if pred is not None else 0.0
             else:
                 nominal = _scripted(spec, p.x_m, p.v_mps, veh.service_decel_mps2)
@@ -259,8 +285,9 @@ def _intervals(mask: np.ndarray, t: np.ndarray, dt: float) -> list[tuple[float, 
     return out
 
 
-def _metrics(cfg: ScenarioConfig, res: ScenarioResult, coupled_at: list[float | None],
-             events: list[tuple[float, str, str]]) -> dict[str, Any]:
+def _metrics(
+    cfg: ScenarioConfig, res: ScenarioResult, coupled_at: list[float | None], events: list[tuple[float, str, str]]
+) -> dict[str, Any]:
     names = [s.name for s in cfg.vehicles]
     pairs: dict[str, Any] = {}
     for i in range(len(names)):
@@ -278,10 +305,13 @@ def _metrics(cfg: ScenarioConfig, res: ScenarioResult, coupled_at: list[float | 
         deep = np.where(g[:-1] < trig - band)[0]
         unguarded = [int(j) for j in deep if not (res.ca_active[j, i] or (j > 0 and res.ca_active[j - 1, i]))]
         pairs[label] = {
-            "min_gap_m": float(g[k]), "min_gap_t_s": float(res.t_s[k]), "collision": bool(g.min() <= 0.0),
+            "min_gap_m": float(g[k]),
+            "min_gap_t_s": float(res.t_s[k]),
+            "collision": bool(g.min() <= 0.0),
             "final_gap_m": float(g[-1]),
             "final_speed_diff_mps": float(res.v_mps[-1, i] - (res.v_mps[-1, i - 1] if i > 0 else 0.0)),
-            "time_below_trigger_s": float(len(below) * cfg.dt_s), "unguarded_steps": len(unguarded),
+            "time_below_trigger_s": float(len(below) * cfg.dt_s),
+            "unguarded_steps": len(unguarded),
             "ca_triggers": int(np.sum(np.diff(np.r_[0, res.ca_active[:, i].astype(int)]) == 1)),
         }
     return {

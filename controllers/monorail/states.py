@@ -58,14 +58,25 @@ class StateParams:
 
     def __post_init__(self) -> None:
         require("target_gap_m", self.target_gap_m >= 0.0, "a number >= 0", self.target_gap_m)
-        for name in ("couple_gap_tol_m", "couple_speed_tol_mps", "hold_s", "passive_band_m", "active_band_m",
-                     "closing_tol_mps", "decouple_duration_s", "standstill_mps"):
+        for name in (
+            "couple_gap_tol_m",
+            "couple_speed_tol_mps",
+            "hold_s",
+            "passive_band_m",
+            "active_band_m",
+            "closing_tol_mps",
+            "decouple_duration_s",
+            "standstill_mps",
+        ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
 
     @property
     def d_max_m(self) -> float:
-        return self.passive_gap_m if self.passive_gap_m is not None else max(2.0 * self.target_gap_m,
-                                                                             self.target_gap_m + 20.0)
+        return (
+            self.passive_gap_m
+            if self.passive_gap_m is not None
+            else max(2.0 * self.target_gap_m, self.target_gap_m + 20.0)
+        )
 
     @property
     def d_min_m(self) -> float:
@@ -99,8 +110,18 @@ class VcMemory:
     reason: str = ""
 
 
-def ca_hysteresis(active: bool, on_since_s: float, t_s: float, gap_m: float, trigger_m: float, release_m: float,
-                  min_on_s: float, latched: bool, speed_mps: float, standstill_mps: float = 0.01) -> bool:
+def ca_hysteresis(
+    active: bool,
+    on_since_s: float,
+    t_s: float,
+    gap_m: float,
+    trigger_m: float,
+    release_m: float,
+    min_on_s: float,
+    latched: bool,
+    speed_mps: float,
+    standstill_mps: float = 0.01,
+) -> bool:
     """Whether CA is active after this step: on at ``gap ≤ trigger``; off at ``gap > release`` after ``min_on_s``;
     a latched brake stays on until standstill and, standing, as long as the object is still within the release
     distance (the vehicle holds, "awaiting assistance"; it releases once the obstacle is cleared)."""
@@ -111,9 +132,18 @@ def ca_hysteresis(active: bool, on_since_s: float, t_s: float, gap_m: float, tri
     return not (gap_m > release_m and t_s - on_since_s >= min_on_s - 1e-9)
 
 
-def ca_should_fire(gap_m: float, trigger_m: float, t_s: float, below_since_s: float | None, off_since_s: float,
-                   dwell_s: float, band_m: float, rearm_s: float, urgent_object: bool = False,
-                   braking_suffices: bool = False) -> bool:
+def ca_should_fire(
+    gap_m: float,
+    trigger_m: float,
+    t_s: float,
+    below_since_s: float | None,
+    off_since_s: float,
+    dwell_s: float,
+    band_m: float,
+    rearm_s: float,
+    urgent_object: bool = False,
+    braking_suffices: bool = False,
+) -> bool:
     """Debounced CA *trigger* (issue #19, our design; the paper's §3.2 trigger is the bare ``gap ≤ S_trig``).
 
     During normal accelerated coupling the coupling law brakes *along* the RDBM curve, so the measured gap grazes
@@ -185,13 +215,24 @@ def transition(mem: VcMemory, inp: VcInputs, p: StateParams) -> tuple[VcMemory, 
     if s is VcState.CA_ACTIVE:
         if mem.ca_latched and inp.speed_mps <= p.standstill_mps:
             return go(VcState.STOPPED, "ca_standstill", ca_latched=False), tuple(events)
-        still = ca_hysteresis(True, mem.since_s, t, inp.gap_m, inp.ca_trigger_m, inp.ca_release_m, inp.ca_min_on_s,
-                              mem.ca_latched, inp.speed_mps, p.standstill_mps)
+        still = ca_hysteresis(
+            True,
+            mem.since_s,
+            t,
+            inp.gap_m,
+            inp.ca_trigger_m,
+            inp.ca_release_m,
+            inp.ca_min_on_s,
+            mem.ca_latched,
+            inp.speed_mps,
+            p.standstill_mps,
+        )
         if still:
             return mem, ()
         return go(VcState.INDEPENDENT, "ca_released"), tuple(events)
-    if inp.ca_enabled and ca_hysteresis(False, t, t, inp.gap_m, inp.ca_trigger_m, inp.ca_release_m, 0.0, False,
-                                        inp.speed_mps):
+    if inp.ca_enabled and ca_hysteresis(
+        False, t, t, inp.gap_m, inp.ca_trigger_m, inp.ca_release_m, 0.0, False, inp.speed_mps
+    ):
         if s in (VcState.COUPLING, VcState.COUPLED):
             events.append("decouple:active_ca")  # A12: a CA trigger also leaves the formation
         return go(VcState.CA_ACTIVE, "ca_trigger", ca_latched=inp.ca_latch_to_standstill), tuple(events)
@@ -210,14 +251,19 @@ def transition(mem: VcMemory, inp: VcInputs, p: StateParams) -> tuple[VcMemory, 
             return go(VcState.DECOUPLING, "command"), tuple(events)
         if inp.separate_command:
             return go(VcState.SEPARATING, "command"), tuple(events)
-        if inp.gap_m > p.d_max_m + p.passive_band_m and inp.closing_speed_mps < -p.closing_tol_mps \
-                and s is VcState.COUPLED:
+        if (
+            inp.gap_m > p.d_max_m + p.passive_band_m
+            and inp.closing_speed_mps < -p.closing_tol_mps
+            and s is VcState.COUPLED
+        ):
             return go(VcState.DECOUPLING, "passive"), tuple(events)
         if inp.gap_m < p.d_min_m - p.active_band_m and inp.closing_speed_mps > p.closing_tol_mps:
             return go(VcState.DECOUPLING, "active"), tuple(events)
         if s is VcState.COUPLING:
-            ok = abs(inp.gap_m - p.target_gap_m) < p.couple_gap_tol_m and \
-                abs(inp.closing_speed_mps) < p.couple_speed_tol_mps
+            ok = (
+                abs(inp.gap_m - p.target_gap_m) < p.couple_gap_tol_m
+                and abs(inp.closing_speed_mps) < p.couple_speed_tol_mps
+            )
             if not ok:
                 return (replace(mem, hold_start_s=None) if mem.hold_start_s is not None else mem), ()
             if mem.hold_start_s is None:

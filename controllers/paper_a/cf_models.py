@@ -78,7 +78,7 @@ class CfTheta:
         return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
 
     @classmethod
-    def from_array(cls, values: np.ndarray) -> "CfTheta":
+    def from_array(cls, values: np.ndarray) -> CfTheta:
         return cls(*(float(x) for x in np.asarray(values, dtype=float).ravel()[:7]))
 
 
@@ -93,8 +93,17 @@ def saturate(u: np.ndarray, u_min: float = -0.8, u_max: float = 1.0) -> np.ndarr
     return np.clip(u, u_min, u_max)
 
 
-def enhanced_idm(v, v_pred, spacing_m, desired_m, theta1, theta2, a_max: float = 1.0,
-                 u_min: float | None = -0.8, u_max: float | None = 1.0) -> np.ndarray:
+def enhanced_idm(
+    v,
+    v_pred,
+    spacing_m,
+    desired_m,
+    theta1,
+    theta2,
+    a_max: float = 1.0,
+    u_min: float | None = -0.8,
+    u_max: float | None = 1.0,
+) -> np.ndarray:
     """Enhanced IDM, Eq. (8); ``u_min=None`` returns the unsaturated law (ΔS ≤ 0 then gives −inf)."""
     v = np.maximum(np.asarray(v, dtype=float), 0.0)
     s = np.asarray(spacing_m, dtype=float)
@@ -108,16 +117,30 @@ def enhanced_idm(v, v_pred, spacing_m, desired_m, theta1, theta2, a_max: float =
     return _maybe_saturate(a, u_min, u_max)
 
 
-def enhanced_cacc(v, v_pred, spacing_m, desired_m, a_pred, theta3, theta4, theta5,
-                  u_min: float | None = -0.8, u_max: float | None = 1.0) -> np.ndarray:
+def enhanced_cacc(
+    v,
+    v_pred,
+    spacing_m,
+    desired_m,
+    a_pred,
+    theta3,
+    theta4,
+    theta5,
+    u_min: float | None = -0.8,
+    u_max: float | None = 1.0,
+) -> np.ndarray:
     """Enhanced CACC, Eq. (10): feed-forward + spacing error to D^(e) + relative speed."""
-    a = theta3 * np.asarray(a_pred, dtype=float) + theta4 * (np.asarray(spacing_m, dtype=float) - desired_m) \
+    a = (
+        theta3 * np.asarray(a_pred, dtype=float)
+        + theta4 * (np.asarray(spacing_m, dtype=float) - desired_m)
         + theta5 * (np.asarray(v_pred, dtype=float) - v)
+    )
     return _maybe_saturate(a, u_min, u_max)
 
 
-def enhanced_fvd(v, v_pred, spacing_m, desired_m, theta6, theta7,
-                 u_min: float | None = -0.8, u_max: float | None = 1.0) -> np.ndarray:
+def enhanced_fvd(
+    v, v_pred, spacing_m, desired_m, theta6, theta7, u_min: float | None = -0.8, u_max: float | None = 1.0
+) -> np.ndarray:
     """Enhanced FVD, Eq. (11)–(13): optimal velocity v* of Eq. (13), close-range gain θ7 only when ΔS ≤ D^(e)."""
     v = np.asarray(v, dtype=float)
     vp = np.asarray(v_pred, dtype=float)
@@ -128,31 +151,61 @@ def enhanced_fvd(v, v_pred, spacing_m, desired_m, theta6, theta7,
     return _maybe_saturate(a, u_min, u_max)
 
 
-def original_idm(v, desired_speed_mps, spacing_m, desired_m, a_max: float = 1.0, delta: float = 4.0,
-                 u_min: float | None = -0.8, u_max: float | None = 1.0) -> np.ndarray:
+def original_idm(
+    v,
+    desired_speed_mps,
+    spacing_m,
+    desired_m,
+    a_max: float = 1.0,
+    delta: float = 4.0,
+    u_min: float | None = -0.8,
+    u_max: float | None = 1.0,
+) -> np.ndarray:
     """Original IDM as printed in Eq. (7): at v = v^(d), ΔS = D^(e) it gives −a_m (why it cannot couple)."""
     v = np.maximum(np.asarray(v, dtype=float), 0.0)
     s = np.asarray(spacing_m, dtype=float)
     positive = s > 0.0
     with np.errstate(over="ignore", divide="ignore"):
         ratio = np.minimum(np.maximum(desired_m, 0.0) / np.where(positive, s, 1.0), RATIO_CAP)
-    a = a_max * (1.0 - (v / np.maximum(desired_speed_mps, V_FLOOR_MPS)) ** delta - ratio ** 2)
+    a = a_max * (1.0 - (v / np.maximum(desired_speed_mps, V_FLOOR_MPS)) ** delta - ratio**2)
     return _maybe_saturate(np.where(positive, a, -np.inf), u_min, u_max)
 
 
-def original_cacc(v, v_pred, spacing_m, a_pred, theta3, theta4, theta5, pred_length_m: float,
-                  safety_margin_m: float, time_gap_s: float = 1.5,
-                  u_min: float | None = -0.8, u_max: float | None = 1.0) -> np.ndarray:
+def original_cacc(
+    v,
+    v_pred,
+    spacing_m,
+    a_pred,
+    theta3,
+    theta4,
+    theta5,
+    pred_length_m: float,
+    safety_margin_m: float,
+    time_gap_s: float = 1.5,
+    u_min: float | None = -0.8,
+    u_max: float | None = 1.0,
+) -> np.ndarray:
     """Original constant-time-gap CACC, Eq. (9): spacing target ``t_g·v + L^(t)_{i−1} + L^(s)``."""
     v = np.asarray(v, dtype=float)
-    a = theta3 * np.asarray(a_pred, dtype=float) \
-        + theta4 * (np.asarray(spacing_m, dtype=float) - time_gap_s * v - pred_length_m - safety_margin_m) \
+    a = (
+        theta3 * np.asarray(a_pred, dtype=float)
+        + theta4 * (np.asarray(spacing_m, dtype=float) - time_gap_s * v - pred_length_m - safety_margin_m)
         + theta5 * (np.asarray(v_pred, dtype=float) - v)
+    )
     return _maybe_saturate(a, u_min, u_max)
 
 
-def all_models(v, v_pred, spacing_m, desired_m, a_pred, theta: np.ndarray, a_max: float = 1.0,
-               u_min: float = -0.8, u_max: float = 1.0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def all_models(
+    v,
+    v_pred,
+    spacing_m,
+    desired_m,
+    a_pred,
+    theta: np.ndarray,
+    a_max: float = 1.0,
+    u_min: float = -0.8,
+    u_max: float = 1.0,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The three saturated enhanced laws at once; ``theta`` is ``(7,)`` or ``(..., 7)`` (broadcast over rows)."""
     th = np.asarray(theta, dtype=float)
     t = [th[..., k] for k in range(7)]

@@ -31,8 +31,9 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any, Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -71,8 +72,13 @@ _THETA_PRESETS = {"train2": THETA_TRAIN2, "train3": THETA_TRAIN3}
 
 def _int_field(obj: Any, name: str, low: int) -> None:
     value = getattr(obj, name)
-    ok = isinstance(value, (int, float)) and not isinstance(value, bool) and math.isfinite(value) \
-        and float(value).is_integer() and value >= low
+    ok = (
+        isinstance(value, (int, float))
+        and not isinstance(value, bool)
+        and math.isfinite(value)
+        and float(value).is_integer()
+        and value >= low
+    )
     require(name, ok, f"an integer >= {low}", value)
     object.__setattr__(obj, name, int(value))
 
@@ -100,8 +106,7 @@ class CommonParams:
         require("safety_margin_m", self.safety_margin_m >= 0.0, "a number >= 0", self.safety_margin_m)
         for name in ("xi_v", "xi_s", "xi_u", "xi_du", "xi_term", "penalty_weight"):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
-        require("u_prev_init", self.u_prev_init in ("zero", "resistance"), "'zero' or 'resistance'",
-                self.u_prev_init)
+        require("u_prev_init", self.u_prev_init in ("zero", "resistance"), "'zero' or 'resistance'", self.u_prev_init)
 
     def weights(self) -> CostWeights:
         return CostWeights(self.xi_v, self.xi_s, self.xi_u, self.xi_du, self.xi_term, self.penalty_weight)
@@ -124,15 +129,19 @@ class CfParams(CommonParams):
 
     def __post_init__(self) -> None:
         super().__post_init__()
-        require("theta_preset", isinstance(self.theta_preset, str) and self.theta_preset in _THETA_PRESETS,
-                "'train2' or 'train3'", self.theta_preset)
-        require("cacc_feedforward", self.cacc_feedforward in ("net", "applied"), "'net' or 'applied'",
-                self.cacc_feedforward)
+        require(
+            "theta_preset",
+            isinstance(self.theta_preset, str) and self.theta_preset in _THETA_PRESETS,
+            "'train2' or 'train3'",
+            self.theta_preset,
+        )
+        require(
+            "cacc_feedforward", self.cacc_feedforward in ("net", "applied"), "'net' or 'applied'", self.cacc_feedforward
+        )
         theta = self.theta()
         for k, value in enumerate(theta, start=1):
             low_ok = value > 0.0 if k <= 2 else value >= 0.0
-            require(f"theta{k}", math.isfinite(value) and low_ok, "a number > 0" if k <= 2 else "a number >= 0",
-                    value)
+            require(f"theta{k}", math.isfinite(value) and low_ok, "a number > 0" if k <= 2 else "a number >= 0", value)
 
     def theta(self) -> np.ndarray:
         base = _THETA_PRESETS.get(self.theta_preset, THETA_TRAIN2).as_array()
@@ -155,10 +164,15 @@ class McfParams(CfParams):
         _int_field(self, "population", 4)
         _int_field(self, "iterations", 1)
         _int_field(self, "decision_dim", 0)
-        require("optimizer", self.optimizer in ("msmfo", "mfo", "ga", "pso", "sa"),
-                "one of msmfo, mfo, ga, pso, sa", self.optimizer)
-        require("decision_dim", self.decision_dim <= self.horizon_steps, "an integer <= horizon_steps",
-                self.decision_dim)
+        require(
+            "optimizer",
+            self.optimizer in ("msmfo", "mfo", "ga", "pso", "sa"),
+            "one of msmfo, mfo, ga, pso, sa",
+            self.optimizer,
+        )
+        require(
+            "decision_dim", self.decision_dim <= self.horizon_steps, "an integer <= horizon_steps", self.decision_dim
+        )
 
 
 @dataclass(frozen=True)
@@ -190,8 +204,12 @@ class OpoMcfParams(McfParams):
             lo, hi = getattr(self, f"theta{k}_min"), getattr(self, f"theta{k}_max")
             require(f"theta{k}_max", hi >= lo, f"a number >= theta{k}_min ({lo})", hi)
         require("opo_initial_step", 0.0 < self.opo_initial_step <= 1.0, "a number in (0, 1]", self.opo_initial_step)
-        require("opo_min_step", 0.0 < self.opo_min_step <= self.opo_initial_step,
-                "a number in (0, opo_initial_step]", self.opo_min_step)
+        require(
+            "opo_min_step",
+            0.0 < self.opo_min_step <= self.opo_initial_step,
+            "a number in (0, opo_initial_step]",
+            self.opo_min_step,
+        )
 
     def opo_settings(self) -> OpoSettings:
         bounds = np.array([[getattr(self, f"theta{k}_min"), getattr(self, f"theta{k}_max")] for k in range(1, 8)])
@@ -260,8 +278,9 @@ class _PaperAController:
         info.setdefault("phase", "track")
         return Command(u0, fallback=fallback, info=info)
 
-    def _decide(self, x0: float, v0: float, u_prev: float,
-                hz: PredecessorHorizon) -> tuple[float, dict[str, Any], dict[str, Any], bool]:
+    def _decide(
+        self, x0: float, v0: float, u_prev: float, hz: PredecessorHorizon
+    ) -> tuple[float, dict[str, Any], dict[str, Any], bool]:
         raise NotImplementedError
 
 
@@ -291,8 +310,9 @@ def _default_optimizer() -> SequenceOptimizer:
 class McfDmpc(_PaperAController):
     """MCF-DMPC: the model sequence chosen by an integer optimiser every step."""
 
-    def __init__(self, params: McfParams, vehicle: VehicleParams,
-                 sequence_optimizer: SequenceOptimizer | None = None) -> None:
+    def __init__(
+        self, params: McfParams, vehicle: VehicleParams, sequence_optimizer: SequenceOptimizer | None = None
+    ) -> None:
         super().__init__(params, vehicle)
         self.theta = params.theta()
         self.optimizer = sequence_optimizer if sequence_optimizer is not None else _default_optimizer()
@@ -311,8 +331,17 @@ class McfDmpc(_PaperAController):
         def cost(seqs: np.ndarray, thetas: np.ndarray) -> np.ndarray:
             full = expand_sequence(seqs, self.n_steps)
             # = dmpc_cost(rollout_models(...)); fused in plain floats for the optimisers' small batches
-            return sequence_costs(full, x0, v0, hz, thetas, self.train, u_prev, self.weights,
-                                  resistance_feedforward=p.resistance_feedforward)
+            return sequence_costs(
+                full,
+                x0,
+                v0,
+                hz,
+                thetas,
+                self.train,
+                u_prev,
+                self.weights,
+                resistance_feedforward=p.resistance_feedforward,
+            )
 
         return cost
 
@@ -329,8 +358,16 @@ class McfDmpc(_PaperAController):
             if self._best is not None:
                 seeds.insert(0, np.append(self._best[1:], self._best[-1]))
             init = np.stack(seeds[: p.population])
-        res = self.optimizer(fitness, self.dim, 3, method=p.optimizer, population=p.population,
-                             iterations=p.iterations, rng=self.rng, init=init)
+        res = self.optimizer(
+            fitness,
+            self.dim,
+            3,
+            method=p.optimizer,
+            population=p.population,
+            iterations=p.iterations,
+            rng=self.rng,
+            init=init,
+        )
         best = np.asarray(res.best, dtype=np.int64).ravel()
         self._best = best
         return best, res
@@ -340,9 +377,13 @@ class McfDmpc(_PaperAController):
         full = expand_sequence(best[None, :], self.n_steps)
         traj = rollout_models(full, x0, v0, hz, theta, self.train, resistance_feedforward=p.resistance_feedforward)
         j = float(dmpc_cost(traj, hz, u_prev, self.train, self.weights)[0])
-        info = {"J": j, "model_sequence": tuple(int(m) for m in full[0]),
-                "model_counts": tuple(int(np.sum(full[0] == m)) for m in range(3)),
-                "evaluations": int(getattr(res, "evaluations", 0)), **extra}
+        info = {
+            "J": j,
+            "model_sequence": tuple(int(m) for m in full[0]),
+            "model_counts": tuple(int(np.sum(full[0] == m)) for m in range(3)),
+            "evaluations": int(getattr(res, "evaluations", 0)),
+            **extra,
+        }
         return float(traj.u[0, 0]), plan_dict(traj, 0, p.dt_s), info, False
 
     def _decide(self, x0, v0, u_prev, hz):
@@ -353,8 +394,9 @@ class McfDmpc(_PaperAController):
 class OpoMcfDmpc(McfDmpc):
     """OPO-MCF-DMPC: Θ re-tuned by OPO, then the MCF sequence search with the new Θ."""
 
-    def __init__(self, params: OpoMcfParams, vehicle: VehicleParams,
-                 sequence_optimizer: SequenceOptimizer | None = None) -> None:
+    def __init__(
+        self, params: OpoMcfParams, vehicle: VehicleParams, sequence_optimizer: SequenceOptimizer | None = None
+    ) -> None:
         super().__init__(params, vehicle, sequence_optimizer)
         self.opo_settings = params.opo_settings()
         lo, hi = self.opo_settings.bounds.T
@@ -372,9 +414,16 @@ class OpoMcfDmpc(McfDmpc):
         self.theta = opo.theta
         opo_time = time.perf_counter() - t0
         best, res = self._select(x0, v0, u_prev, hz, self.theta)
-        return self._finish(x0, v0, u_prev, hz, self.theta, best, res,
-                            {"theta": tuple(float(x) for x in self.theta), "opo_time_s": opo_time,
-                             "opo_evaluations": opo.evaluations})
+        return self._finish(
+            x0,
+            v0,
+            u_prev,
+            hz,
+            self.theta,
+            best,
+            res,
+            {"theta": tuple(float(x) for x in self.theta), "opo_time_s": opo_time, "opo_evaluations": opo.evaluations},
+        )
 
 
 class DmpcController(_PaperAController):
@@ -382,8 +431,16 @@ class DmpcController(_PaperAController):
 
     def __init__(self, params: DmpcParams, vehicle: VehicleParams) -> None:
         super().__init__(params, vehicle)
-        self.qp = DmpcQp(self.n_steps, self.train, self.weights, eps_abs=params.eps_abs, eps_rel=params.eps_rel,
-                         max_iter=params.max_iter, sqp_iterations=params.sqp_iterations, sqp_tol_m=params.sqp_tol_m)
+        self.qp = DmpcQp(
+            self.n_steps,
+            self.train,
+            self.weights,
+            eps_abs=params.eps_abs,
+            eps_rel=params.eps_rel,
+            max_iter=params.max_iter,
+            sqp_iterations=params.sqp_iterations,
+            sqp_tol_m=params.sqp_tol_m,
+        )
         self._u_plan: np.ndarray | None = None
 
     def reset(self) -> None:
@@ -394,15 +451,23 @@ class DmpcController(_PaperAController):
     def _decide(self, x0, v0, u_prev, hz):
         nominal = shift_controls(self._u_plan) if self._u_plan is not None else None
         sol = self.qp.solve(x0, v0, u_prev, hz, nominal)
-        info: dict[str, Any] = {"status": sol.status, "sqp_iterations": sol.sqp_iterations,
-                                "admm_iterations": sol.admm_iterations, "qp_time_s": sol.solve_time_s}
+        info: dict[str, Any] = {
+            "status": sol.status,
+            "sqp_iterations": sol.sqp_iterations,
+            "admm_iterations": sol.admm_iterations,
+            "qp_time_s": sol.solve_time_s,
+        }
         if not sol.ok:
             self.fallbacks += 1
             self._u_plan = None  # the next solve starts from cruise, not from a failed plan
             brake = np.full((1, self.n_steps), -self.train.service_decel_mps2)
             info.update(phase="fallback", fallbacks=self.fallbacks, J=math.nan)
-            return -self.train.service_decel_mps2, plan_dict(rollout_controls(brake, x0, v0, self.train), 0,
-                                                             self.params.dt_s), info, True
+            return (
+                -self.train.service_decel_mps2,
+                plan_dict(rollout_controls(brake, x0, v0, self.train), 0, self.params.dt_s),
+                info,
+                True,
+            )
         self._u_plan = sol.u
         info.update(J=sol.J, safety_margin_m=sol.safety_margin_m, fallbacks=self.fallbacks)
         return float(sol.u[0]), plan_dict(sol.trajectory, 0, self.params.dt_s), info, False
@@ -443,5 +508,11 @@ def make_dmpc(params: Mapping[str, Any], vehicle: VehicleParams) -> DmpcControll
     return DmpcController(params_from_mapping(DmpcParams, params), vehicle)
 
 
-PARAMS_BY_NAME = {"cf_idm": CfParams, "cf_cacc": CfParams, "cf_fvd": CfParams, "mcf_dmpc": McfParams,
-                  "opo_mcf_dmpc": OpoMcfParams, "dmpc": DmpcParams}
+PARAMS_BY_NAME = {
+    "cf_idm": CfParams,
+    "cf_cacc": CfParams,
+    "cf_fvd": CfParams,
+    "mcf_dmpc": McfParams,
+    "opo_mcf_dmpc": OpoMcfParams,
+    "dmpc": DmpcParams,
+}

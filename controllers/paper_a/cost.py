@@ -23,8 +23,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.paper_a import kernels as _kernels
-from controllers.paper_a import rollout as _rollout
+from controllers.paper_a import kernels as _kernels, rollout as _rollout
 from controllers.paper_a.rollout import PredecessorHorizon, Trajectory
 from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m, safe_spacing_m
 
@@ -52,8 +51,9 @@ class CostWeights:
 TABLE_II = CostWeights()
 
 
-def cost_terms(traj: Trajectory, pred: PredecessorHorizon, u_prev_mps2: float, train: TrainParamsA,
-               weights: CostWeights = TABLE_II) -> dict[str, np.ndarray]:
+def cost_terms(
+    traj: Trajectory, pred: PredecessorHorizon, u_prev_mps2: float, train: TrainParamsA, weights: CostWeights = TABLE_II
+) -> dict[str, np.ndarray]:
     """Each term of Eq. (14)–(18) and the penalty, shape ``(P,)``; ``"J"`` is their sum (Eq. 19 + penalty)."""
     u, v, s = traj.u, traj.v[:, 1:], traj.s[:, 1:]
     vp = pred.speed_mps[1:]
@@ -71,19 +71,37 @@ def cost_terms(traj: Trajectory, pred: PredecessorHorizon, u_prev_mps2: float, t
     violation += (np.maximum(-train.service_decel_mps2 - u, 0.0) + np.maximum(u - train.max_accel_mps2, 0.0)).sum(1)
     penalty = weights.penalty * violation
     total = j_v + j_s + j_u + j_du + j_term + penalty
-    return {"J_v": j_v, "J_s": j_s, "J_u": j_u, "J_du": j_du, "J_term": j_term, "penalty": penalty,
-            "violation": violation, "J": total}
+    return {
+        "J_v": j_v,
+        "J_s": j_s,
+        "J_u": j_u,
+        "J_du": j_du,
+        "J_term": j_term,
+        "penalty": penalty,
+        "violation": violation,
+        "J": total,
+    }
 
 
-def dmpc_cost(traj: Trajectory, pred: PredecessorHorizon, u_prev_mps2: float, train: TrainParamsA,
-              weights: CostWeights = TABLE_II) -> np.ndarray:
+def dmpc_cost(
+    traj: Trajectory, pred: PredecessorHorizon, u_prev_mps2: float, train: TrainParamsA, weights: CostWeights = TABLE_II
+) -> np.ndarray:
     """J^(DMPC) + penalty, shape ``(P,)`` (see :func:`cost_terms`)."""
     return cost_terms(traj, pred, u_prev_mps2, train, weights)["J"]
 
 
-def sequence_costs(seq: np.ndarray, x0_m: float, v0_mps: float, pred: PredecessorHorizon, theta: np.ndarray,
-                   train: TrainParamsA, u_prev_mps2: float, weights: CostWeights = TABLE_II, *,
-                   resistance_feedforward: bool = False) -> np.ndarray:
+def sequence_costs(
+    seq: np.ndarray,
+    x0_m: float,
+    v0_mps: float,
+    pred: PredecessorHorizon,
+    theta: np.ndarray,
+    train: TrainParamsA,
+    u_prev_mps2: float,
+    weights: CostWeights = TABLE_II,
+    *,
+    resistance_feedforward: bool = False,
+) -> np.ndarray:
     """``dmpc_cost(rollout_models(seq, ...), ...)`` — the optimisers' fitness — shape ``(P,)``.
 
     With numba available the rollout and the cost run fused in the compiled kernel of
@@ -99,11 +117,19 @@ def sequence_costs(seq: np.ndarray, x0_m: float, v0_mps: float, pred: Predecesso
         # compiled fused rollout + cost (same arithmetic, pinned to the scalar path in test_paper_a_kernels)
         thetas = np.ascontiguousarray(np.broadcast_to(theta, (seq.shape[0], 7)))
         return _kernels.population_costs(
-            np.ascontiguousarray(seq), thetas, float(x0_m), float(v0_mps), np.ascontiguousarray(pred.position_m,
-                                                                                               dtype=float),
-            np.ascontiguousarray(pred.speed_mps, dtype=float), np.ascontiguousarray(pred.accel_mps2, dtype=float),
-            float(pred.length_m), float(pred.emergency_decel_mps2), _kernels.train_vector(train),
-            _kernels.weight_vector(weights), float(u_prev_mps2), bool(resistance_feedforward))
-    traj = _rollout.rollout_models(seq, x0_m, v0_mps, pred, theta, train,
-                                   resistance_feedforward=resistance_feedforward)
+            np.ascontiguousarray(seq),
+            thetas,
+            float(x0_m),
+            float(v0_mps),
+            np.ascontiguousarray(pred.position_m, dtype=float),
+            np.ascontiguousarray(pred.speed_mps, dtype=float),
+            np.ascontiguousarray(pred.accel_mps2, dtype=float),
+            float(pred.length_m),
+            float(pred.emergency_decel_mps2),
+            _kernels.train_vector(train),
+            _kernels.weight_vector(weights),
+            float(u_prev_mps2),
+            bool(resistance_feedforward),
+        )
+    traj = _rollout.rollout_models(seq, x0_m, v0_mps, pred, theta, train, resistance_feedforward=resistance_feedforward)
     return dmpc_cost(traj, pred, u_prev_mps2, train, weights)

@@ -68,9 +68,19 @@ def shift_controls(u: np.ndarray) -> np.ndarray:
 class DmpcQp:
     """The OSQP problem for one follower; keeps the solver (and its factorisation pattern) across steps."""
 
-    def __init__(self, horizon_steps: int, train: TrainParamsA, weights: CostWeights = TABLE_II, *,
-                 eps_abs: float = 1e-5, eps_rel: float = 1e-5, max_iter: int = 4000, sqp_iterations: int = 2,
-                 sqp_tol_m: float = 0.1, polish: bool = False) -> None:
+    def __init__(
+        self,
+        horizon_steps: int,
+        train: TrainParamsA,
+        weights: CostWeights = TABLE_II,
+        *,
+        eps_abs: float = 1e-5,
+        eps_rel: float = 1e-5,
+        max_iter: int = 4000,
+        sqp_iterations: int = 2,
+        sqp_tol_m: float = 0.1,
+        polish: bool = False,
+    ) -> None:
         if horizon_steps < 1:
             raise ValueError(f"horizon_steps: expected an integer >= 1, got {horizon_steps!r}")
         if sqp_iterations < 1:
@@ -78,8 +88,14 @@ class DmpcQp:
         self.n_steps = int(horizon_steps)
         self.train = train
         self.weights = weights
-        self.settings = dict(eps_abs=eps_abs, eps_rel=eps_rel, max_iter=int(max_iter), polishing=polish, verbose=False,
-                             warm_starting=True)
+        self.settings = dict(
+            eps_abs=eps_abs,
+            eps_rel=eps_rel,
+            max_iter=int(max_iter),
+            polishing=polish,
+            verbose=False,
+            warm_starting=True,
+        )
         self.sqp_iterations = int(sqp_iterations)
         self.sqp_tol = float(sqp_tol_m)
         self._solver: osqp.OSQP | None = None
@@ -90,14 +106,20 @@ class DmpcQp:
         n = self.n_steps
         iu, iv, is_ = np.arange(n), n + np.arange(n), 2 * n + np.arange(n)  # u_j, v_{j+1}, s_{j+1}
         j1 = np.arange(1, n)
-        rows = [np.arange(n), j1, np.arange(n),  # v-dynamics rows: v_{j+1}, v_j (j≥1), u_j
-                n + np.arange(n), n + j1, n + j1, n + np.arange(n),  # s-dynamics: s_{j+1}, s_j, v_j (j≥1), u_j
-                2 * n + np.arange(n), 3 * n + np.arange(n),  # bounds on u, on v
-                4 * n + np.arange(n), 4 * n + np.arange(n)]  # safety: s_{j+1}, v_{j+1}
-        cols = [iv, iv[:-1], iu,
-                is_, is_[:-1], iv[:-1], iu,
-                iu, iv,
-                is_, iv]
+        rows = [
+            np.arange(n),
+            j1,
+            np.arange(n),  # v-dynamics rows: v_{j+1}, v_j (j≥1), u_j
+            n + np.arange(n),
+            n + j1,
+            n + j1,
+            n + np.arange(n),  # s-dynamics: s_{j+1}, s_j, v_j (j≥1), u_j
+            2 * n + np.arange(n),
+            3 * n + np.arange(n),  # bounds on u, on v
+            4 * n + np.arange(n),
+            4 * n + np.arange(n),
+        ]  # safety: s_{j+1}, v_{j+1}
+        cols = [iv, iv[:-1], iu, is_, is_[:-1], iv[:-1], iu, iu, iv, is_, iv]
         self._a_rows, self._a_cols = np.concatenate(rows), np.concatenate(cols)
         p_rows = [iu, iu[:-1], iv, is_, iv]  # u diag, u super-diag, v diag, s diag, v-s cross (upper)
         p_cols = [iu, iu[1:], iv, is_, is_]
@@ -106,8 +128,9 @@ class DmpcQp:
         self._p_perm, self._p_shape = _csc_order(self._p_rows, self._p_cols, (3 * n, 3 * n))
 
     # ------------------------------------------------------------------ one linearised QP
-    def _qp_data(self, v0: float, u_prev: float, pred: PredecessorHorizon, sp_rel: np.ndarray,
-                 nominal: Trajectory) -> tuple[np.ndarray, ...]:
+    def _qp_data(
+        self, v0: float, u_prev: float, pred: PredecessorHorizon, sp_rel: np.ndarray, nominal: Trajectory
+    ) -> tuple[np.ndarray, ...]:
         n, tr, w = self.n_steps, self.train, self.weights
         tau = tr.dt_s
         vbar = nominal.v[0]  # (n+1,)
@@ -117,18 +140,34 @@ class DmpcQp:
         b_coef = tau - 0.5 * tau * tau * slope
         c = -tau * (omega - slope * vbar[:-1])
         d = -0.5 * tau * tau * (omega - slope * vbar[:-1])
-        a_vals = np.concatenate([np.ones(n), -a_coef[1:], np.full(n, -tau),
-                                 np.ones(n), -np.ones(n - 1), -b_coef[1:], np.full(n, -0.5 * tau * tau),
-                                 np.ones(n), np.ones(n),
-                                 np.ones(n), vbar[1:] / tr.emergency_decel_mps2])
+        a_vals = np.concatenate(
+            [
+                np.ones(n),
+                -a_coef[1:],
+                np.full(n, -tau),
+                np.ones(n),
+                -np.ones(n - 1),
+                -b_coef[1:],
+                np.full(n, -0.5 * tau * tau),
+                np.ones(n),
+                np.ones(n),
+                np.ones(n),
+                vbar[1:] / tr.emergency_decel_mps2,
+            ]
+        )
         eq_v = c.copy()
         eq_v[0] += a_coef[0] * v0
         eq_s = d.copy()
         eq_s[0] += b_coef[0] * v0
         vp = pred.speed_mps[1:]
         lp, bp = pred.length_m, pred.emergency_decel_mps2
-        safety_ub = sp_rel[1:] - tr.safety_margin_m - lp + vp * vp / (2.0 * bp) \
+        safety_ub = (
+            sp_rel[1:]
+            - tr.safety_margin_m
+            - lp
+            + vp * vp / (2.0 * bp)
             + vbar[1:] ** 2 / (2.0 * tr.emergency_decel_mps2)
+        )
         inf = np.full(n, np.inf)
         lower = np.concatenate([eq_v, eq_s, np.full(n, -tr.service_decel_mps2), np.zeros(n), -inf])
         upper = np.concatenate([eq_v, eq_s, np.full(n, tr.max_accel_mps2), np.full(n, tr.max_speed_mps), safety_ub])
@@ -142,14 +181,27 @@ class DmpcQp:
         r = sp_rel[1:] - de_bar + g * vbar[1:]
         count = np.full(n, 2.0)
         count[-1] = 1.0  # u_{Np−1} only appears in one increment (or, for Np = 1, in the u_{−1} term)
-        p_vals = np.concatenate([2.0 * (w.xi_u + w.xi_du * count), np.full(n - 1, -2.0 * w.xi_du),
-                                 2.0 * (w_v + w_s * g * g), 2.0 * w_s, 2.0 * w_s * g])
+        p_vals = np.concatenate(
+            [
+                2.0 * (w.xi_u + w.xi_du * count),
+                np.full(n - 1, -2.0 * w.xi_du),
+                2.0 * (w_v + w_s * g * g),
+                2.0 * w_s,
+                2.0 * w_s * g,
+            ]
+        )
         q = np.concatenate([np.zeros(n), -2.0 * w_v * vp - 2.0 * w_s * r * g, -2.0 * w_s * r])
         q[0] -= 2.0 * w.xi_du * u_prev
         return p_vals[self._p_perm], q, a_vals[self._a_perm], lower, upper
 
-    def solve(self, x0_m: float, v0_mps: float, u_prev_mps2: float, pred: PredecessorHorizon,
-              nominal_u: np.ndarray | None = None) -> DmpcSolution:
+    def solve(
+        self,
+        x0_m: float,
+        v0_mps: float,
+        u_prev_mps2: float,
+        pred: PredecessorHorizon,
+        nominal_u: np.ndarray | None = None,
+    ) -> DmpcSolution:
         """Solve at state ``(x0, v0)``; ``nominal_u`` is the linearisation point (default: cruise at ω(v0))."""
         t0 = time.perf_counter()
         n, tr = self.n_steps, self.train
@@ -167,9 +219,14 @@ class DmpcQp:
             px, q, ax, lo, hi = self._qp_data(v0_mps, u_prev_mps2, pred, sp_rel, nominal)
             if self._solver is None:
                 self._solver = osqp.OSQP()
-                self._solver.setup(_csc(px, self._p_perm, self._p_rows, self._p_cols, self._p_shape), q,
-                                   _csc(ax, self._a_perm, self._a_rows, self._a_cols, self._a_shape), lo, hi,
-                                   **self.settings)
+                self._solver.setup(
+                    _csc(px, self._p_perm, self._p_rows, self._p_cols, self._p_shape),
+                    q,
+                    _csc(ax, self._a_perm, self._a_rows, self._a_cols, self._a_shape),
+                    lo,
+                    hi,
+                    **self.settings,
+                )
             else:
                 self._solver.update(Px=px, Ax=ax, q=q, l=lo, u=hi)
             self._solver.warm_start(x=np.concatenate([u_nom, nominal.v[0, 1:], nominal.s[0, 1:]]))
@@ -191,8 +248,7 @@ class DmpcQp:
         terms = cost_terms(traj, pred, u_prev_mps2, tr, self.weights)
         ds = safe_spacing_m(traj.v[0, 1:], pred.speed_mps[1:], tr, pred.length_m, pred.emergency_decel_mps2)
         margin = float(np.min(pred.position_m[1:] - traj.s[0, 1:] - ds))
-        return DmpcSolution(ok, u_sol, traj, float(terms["J"][0]), margin, status, it, admm,
-                            time.perf_counter() - t0)
+        return DmpcSolution(ok, u_sol, traj, float(terms["J"][0]), margin, status, it, admm, time.perf_counter() - t0)
 
     def reset(self) -> None:
         """Drop the solver (next solve sets it up again, cold)."""
@@ -208,8 +264,9 @@ def _csc_order(rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> tu
     return marker.data.astype(np.int64) - 1, shape
 
 
-def _csc(data_sorted: np.ndarray, perm: np.ndarray, rows: np.ndarray, cols: np.ndarray,
-         shape: tuple[int, int]) -> sparse.csc_matrix:
+def _csc(
+    data_sorted: np.ndarray, perm: np.ndarray, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]
+) -> sparse.csc_matrix:
     """A CSC matrix with our fixed pattern and ``data_sorted`` (already in CSC order); zeros stay explicit."""
     marker = sparse.csc_matrix((np.arange(1, len(rows) + 1, dtype=float), (rows, cols)), shape=shape)
     marker.sort_indices()

@@ -44,6 +44,7 @@ except ImportError:  # pragma: no cover - exercised only in environments without
 
         return wrap(args[0]) if args and callable(args[0]) else wrap
 
+
 __all__ = ["NUMBA_AVAILABLE", "population_costs", "rollout_rows", "train_vector", "weight_vector"]
 
 # Layout of the scalar parameter vectors handed to the kernels (numba wants flat, typed arguments).
@@ -53,15 +54,28 @@ __all__ = ["NUMBA_AVAILABLE", "population_costs", "rollout_rows", "train_vector"
 
 def train_vector(train) -> np.ndarray:
     """The :class:`~controllers.paper_a.spacing.TrainParamsA` fields the kernels need, as a float vector."""
-    return np.array([train.dt_s, -train.service_decel_mps2, train.max_accel_mps2, train.service_decel_mps2,
-                     train.emergency_decel_mps2, train.davis_c0_mps2, train.davis_c1_per_s, train.davis_c2_per_m,
-                     train.safety_margin_m, train.max_speed_mps], dtype=float)
+    return np.array(
+        [
+            train.dt_s,
+            -train.service_decel_mps2,
+            train.max_accel_mps2,
+            train.service_decel_mps2,
+            train.emergency_decel_mps2,
+            train.davis_c0_mps2,
+            train.davis_c1_per_s,
+            train.davis_c2_per_m,
+            train.safety_margin_m,
+            train.max_speed_mps,
+        ],
+        dtype=float,
+    )
 
 
 def weight_vector(weights) -> np.ndarray:
     """The :class:`~controllers.paper_a.cost.CostWeights` as a float vector."""
-    return np.array([weights.xi_v, weights.xi_s, weights.xi_u, weights.xi_du, weights.xi_term, weights.penalty],
-                    dtype=float)
+    return np.array(
+        [weights.xi_v, weights.xi_s, weights.xi_u, weights.xi_du, weights.xi_term, weights.penalty], dtype=float
+    )
 
 
 @njit(cache=True)
@@ -93,7 +107,7 @@ def _rollout_row(row, th, x0, v0, xp, vp, ap, base, tr, feedforward, u, v, s):  
                 ratio = (de if de > 0.0 else 0.0) / spacing
                 if ratio > RATIO_CAP:
                     ratio = RATIO_CAP
-                a = a_max * (2.0 - speed_term - ratio ** th2)
+                a = a_max * (2.0 - speed_term - ratio**th2)
             else:
                 a = -math.inf
         elif m == 1:  # enhanced CACC, Eq. (10)

@@ -52,9 +52,14 @@ def vc_times(t: np.ndarray, ok: np.ndarray, sustain_s: float) -> tuple[float, fl
     return first, sustained
 
 
-def follower_metrics(run: PlatoonRun, late_start_s: float = 300.0, late_end_s: float = 500.0,
-                     spacing_tol_m: float = 10.0, speed_tol_mps: float = 0.01,
-                     sustain_s: float = 30.0) -> list[FollowerMetrics]:
+def follower_metrics(
+    run: PlatoonRun,
+    late_start_s: float = 300.0,
+    late_end_s: float = 500.0,
+    spacing_tol_m: float = 10.0,
+    speed_tol_mps: float = 0.01,
+    sustain_s: float = 30.0,
+) -> list[FollowerMetrics]:
     dv = run.speed_error_mps
     err = run.spacing_m - run.desired_m
     margin = run.spacing_m - run.safe_m
@@ -66,32 +71,38 @@ def follower_metrics(run: PlatoonRun, late_start_s: float = 300.0, late_end_s: f
         first, sustained = vc_times(run.t, ok, sustain_s)
         st = run.solve_time_s[:, i]
         st = st[np.isfinite(st)]
-        out.append(FollowerMetrics(
-            train=i + 1,
-            mean_abs_dv_mps=float(np.mean(np.abs(dv[:, c]))),
-            mean_abs_spacing_error_m=float(np.mean(np.abs(err[:, c]))),
-            late_mean_abs_dv_mps=float(np.mean(np.abs(dv[late, c]))) if late.any() else math.nan,
-            late_mean_abs_spacing_error_m=float(np.mean(np.abs(err[late, c]))) if late.any() else math.nan,
-            vc_first_s=first,
-            vc_sustained_s=sustained,
-            min_safety_margin_m=float(np.min(margin[:, c])),
-            solve_time_mean_s=float(np.mean(st)) if st.size else math.nan,
-            solve_time_p95_s=float(np.percentile(st, 95)) if st.size else math.nan,
-            fallbacks=int(np.sum(run.fallback[:, i])),
-        ))
+        out.append(
+            FollowerMetrics(
+                train=i + 1,
+                mean_abs_dv_mps=float(np.mean(np.abs(dv[:, c]))),
+                mean_abs_spacing_error_m=float(np.mean(np.abs(err[:, c]))),
+                late_mean_abs_dv_mps=float(np.mean(np.abs(dv[late, c]))) if late.any() else math.nan,
+                late_mean_abs_spacing_error_m=float(np.mean(np.abs(err[late, c]))) if late.any() else math.nan,
+                vc_first_s=first,
+                vc_sustained_s=sustained,
+                min_safety_margin_m=float(np.min(margin[:, c])),
+                solve_time_mean_s=float(np.mean(st)) if st.size else math.nan,
+                solve_time_p95_s=float(np.percentile(st, 95)) if st.size else math.nan,
+                fallbacks=int(np.sum(run.fallback[:, i])),
+            )
+        )
     return out
 
 
 def format_table(rows: dict[str, list[FollowerMetrics]]) -> str:
     """A plain-text table, one line per (method, train)."""
-    head = f"{'method':<14}{'train':>6}{'|dv|':>9}{'|e|':>9}{'late|dv|':>10}{'late|e|':>9}{'VC1st':>7}{'VC30':>7}" \
-           f"{'minSafe':>9}{'t_mean':>9}{'t_p95':>9}{'fb':>4}"
+    head = (
+        f"{'method':<14}{'train':>6}{'|dv|':>9}{'|e|':>9}{'late|dv|':>10}{'late|e|':>9}{'VC1st':>7}{'VC30':>7}"
+        f"{'minSafe':>9}{'t_mean':>9}{'t_p95':>9}{'fb':>4}"
+    )
     lines = [head]
     for name, ms in rows.items():
         for m in ms:
             d = asdict(m)
-            lines.append(f"{name:<14}{d['train']:>6}{d['mean_abs_dv_mps']:>9.4f}{d['mean_abs_spacing_error_m']:>9.2f}"
-                         f"{d['late_mean_abs_dv_mps']:>10.4f}{d['late_mean_abs_spacing_error_m']:>9.2f}"
-                         f"{d['vc_first_s']:>7.0f}{d['vc_sustained_s']:>7.0f}{d['min_safety_margin_m']:>9.1f}"
-                         f"{d['solve_time_mean_s'] * 1e3:>8.2f}m{d['solve_time_p95_s'] * 1e3:>8.2f}m{d['fallbacks']:>4}")
+            lines.append(
+                f"{name:<14}{d['train']:>6}{d['mean_abs_dv_mps']:>9.4f}{d['mean_abs_spacing_error_m']:>9.2f}"
+                f"{d['late_mean_abs_dv_mps']:>10.4f}{d['late_mean_abs_spacing_error_m']:>9.2f}"
+                f"{d['vc_first_s']:>7.0f}{d['vc_sustained_s']:>7.0f}{d['min_safety_margin_m']:>9.1f}"
+                f"{d['solve_time_mean_s'] * 1e3:>8.2f}m{d['solve_time_p95_s'] * 1e3:>8.2f}m{d['fallbacks']:>4}"
+            )
     return "\n".join(lines)

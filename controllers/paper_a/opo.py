@@ -19,8 +19,8 @@ Warm start: the previous step's Θ (initially Table Θ_2 / Θ_3); bounds default
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
 
 import numpy as np
 
@@ -61,8 +61,9 @@ class OpoResult:
     batches: int  # vectorised rollout calls
 
 
-def opo_step(theta: np.ndarray, batch_cost: BatchCost, horizon_steps: int,
-             settings: OpoSettings = OpoSettings()) -> OpoResult:
+def opo_step(
+    theta: np.ndarray, batch_cost: BatchCost, horizon_steps: int, settings: OpoSettings = OpoSettings()
+) -> OpoResult:
     """One OPO update from the warm start ``theta`` (projected onto the box first)."""
     lo, hi = np.asarray(settings.bounds, dtype=float).T
     span = hi - lo

@@ -76,16 +76,29 @@ class Trajectory:
     s: np.ndarray
 
 
-def constant_speed_horizon(position_m: float, speed_mps: float, steps: int, dt_s: float, length_m: float,
-                           emergency_decel_mps2: float, elapsed_s: float = 0.0) -> PredecessorHorizon:
+def constant_speed_horizon(
+    position_m: float,
+    speed_mps: float,
+    steps: int,
+    dt_s: float,
+    length_m: float,
+    emergency_decel_mps2: float,
+    elapsed_s: float = 0.0,
+) -> PredecessorHorizon:
     """A predecessor cruising at constant speed (no plan received), ``elapsed_s`` after its report."""
     t = elapsed_s + dt_s * np.arange(steps + 1)
-    return PredecessorHorizon(position_m + speed_mps * t, np.full(steps + 1, float(speed_mps)), np.zeros(steps),
-                              float(length_m), float(emergency_decel_mps2))
+    return PredecessorHorizon(
+        position_m + speed_mps * t,
+        np.full(steps + 1, float(speed_mps)),
+        np.zeros(steps),
+        float(length_m),
+        float(emergency_decel_mps2),
+    )
 
 
-def predecessor_horizon(pred: PredecessorState, steps: int, dt_s: float, feedforward: str = "net",
-                        emergency_decel_mps2: float | None = None) -> PredecessorHorizon:
+def predecessor_horizon(
+    pred: PredecessorState, steps: int, dt_s: float, feedforward: str = "net", emergency_decel_mps2: float | None = None
+) -> PredecessorHorizon:
     """Sample the predecessor's broadcast plan at ``age + j·dt`` (j = 0 … steps) — see the module docstring.
 
     ``emergency_decel_mps2`` overrides ``pred.emergency_decel_mps2`` (Paper A: all units identical, so a controller
@@ -99,8 +112,13 @@ def predecessor_horizon(pred: PredecessorState, steps: int, dt_s: float, feedfor
     if n < 2 or not pred.plan_dt_s > 0.0:
         hz = constant_speed_horizon(pred.position_m, max(pred.speed_mps, 0.0), steps, dt_s, pred.length_m, b_p, age)
         if feedforward == "applied":
-            return PredecessorHorizon(hz.position_m, hz.speed_mps, np.full(steps, float(pred.accel_mps2)),
-                                      hz.length_m, hz.emergency_decel_mps2)
+            return PredecessorHorizon(
+                hz.position_m,
+                hz.speed_mps,
+                np.full(steps, float(pred.accel_mps2)),
+                hz.length_m,
+                hz.emergency_decel_mps2,
+            )
         return hz
     tp = pred.plan_dt_s * np.arange(n)
     xp = np.asarray(pred.planned_position_m[:n], dtype=float)
@@ -132,8 +150,16 @@ def expand_sequence(seq: np.ndarray, steps: int) -> np.ndarray:
     return np.concatenate([seq, np.repeat(seq[:, -1:], steps - d, axis=1)], axis=1)
 
 
-def rollout_models(seq: np.ndarray, x0_m: float, v0_mps: float, pred: PredecessorHorizon, theta: np.ndarray,
-                   train: TrainParamsA, *, resistance_feedforward: bool = False) -> Trajectory:
+def rollout_models(
+    seq: np.ndarray,
+    x0_m: float,
+    v0_mps: float,
+    pred: PredecessorHorizon,
+    theta: np.ndarray,
+    train: TrainParamsA,
+    *,
+    resistance_feedforward: bool = False,
+) -> Trajectory:
     """MCF rollout (Eq. 29) of model-index sequences ``seq (P, Np)`` from the own state ``(x0, v0)``.
 
     ``resistance_feedforward`` (A9 option): the law's output is a *net* acceleration and ``u = a_CF + ω(v)``
@@ -174,8 +200,15 @@ def rollout_models(seq: np.ndarray, x0_m: float, v0_mps: float, pred: Predecesso
     return Trajectory(u, v, s)
 
 
-def _rollout_scalar(seq: np.ndarray, x0_m: float, v0_mps: float, pred: PredecessorHorizon, theta: np.ndarray,
-                    train: TrainParamsA, resistance_feedforward: bool = False) -> Trajectory:
+def _rollout_scalar(
+    seq: np.ndarray,
+    x0_m: float,
+    v0_mps: float,
+    pred: PredecessorHorizon,
+    theta: np.ndarray,
+    train: TrainParamsA,
+    resistance_feedforward: bool = False,
+) -> Trajectory:
     """:func:`rollout_models` for up to :data:`SCALAR_MAX_ROWS` rows (Θ ``(7,)`` or one per row ``(P, 7)``) in
     plain floats: the same arithmetic as the vectorised laws of :mod:`.cf_models` (guards A11 included), but
     only the law each step selects is evaluated.
@@ -214,7 +247,7 @@ def _rollout_scalar(seq: np.ndarray, x0_m: float, v0_mps: float, pred: Predecess
                     ratio = (de if de > 0.0 else 0.0) / spacing
                     if ratio > RATIO_CAP:
                         ratio = RATIO_CAP
-                    a = a_max * (2.0 - speed_term - ratio ** th2)
+                    a = a_max * (2.0 - speed_term - ratio**th2)
                 else:
                     a = -math.inf
             elif m == 1:  # enhanced CACC, Eq. (10)

@@ -18,14 +18,20 @@ step (sequential DMPC, A17). Control noise N(0, σ²) is added to each follower'
 
 from __future__ import annotations
 
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 import numpy as np
 
 from controllers.base import Command, Controller, Observation, OwnState, PredecessorState
-from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m, paper_a_vehicle, safe_spacing_m
-from controllers.paper_a.spacing import train_params_from_vehicle
+from controllers.paper_a.spacing import (
+    TrainParamsA,
+    desired_spacing_m,
+    paper_a_vehicle,
+    safe_spacing_m,
+    train_params_from_vehicle,
+)
 from railsim.physics.dynamics import FleetParams, step_many
 from railsim.physics.vehicle import VehicleParams
 
@@ -40,8 +46,13 @@ def constant_speed_profile(speed_mps: float) -> SpeedProfile:
     return lambda t: speed_mps
 
 
-def variable_speed_profile(high_mps: float = 220 * KMH, low_mps: float = 180 * KMH, rate_mps2: float = 0.2,
-                           hold_s: float = 100.0, start_s: float = 20.0) -> SpeedProfile:
+def variable_speed_profile(
+    high_mps: float = 220 * KMH,
+    low_mps: float = 180 * KMH,
+    rate_mps2: float = 0.2,
+    hold_s: float = 100.0,
+    start_s: float = 20.0,
+) -> SpeedProfile:
     """S-E leader reference: decelerate at ``rate`` from ``start_s``, hold ``hold_s``, accelerate back."""
     ramp_s = (high_mps - low_mps) / rate_mps2
     t1, t2, t3 = start_s + ramp_s, start_s + ramp_s + hold_s, start_s + 2 * ramp_s + hold_s
@@ -170,13 +181,29 @@ def run_platoon(
                     msg = last_msg[i - 1]
                 assert msg is not None
                 pred = PredecessorState(
-                    msg.train_id, msg.position_m, msg.speed_mps, msg.accel_mps2, msg.length_m, msg.stamp_s,
-                    t - msg.stamp_s, msg.service_decel_mps2, msg.emergency_decel_mps2, msg.planned_position_m,
-                    msg.planned_speed_mps, msg.planned_accel_mps2, msg.plan_dt_s)
-                obs = Observation(t_s=t, dt_s=dt_s,
-                                  own=OwnState(f"T{i + 1}", float(x[k, i]), float(v[k, i]), float(applied[i]),
-                                               veh.length_m),
-                                  vehicle=veh, route_length_m=1.0e9, predecessor=pred, formation_state="coupled")
+                    msg.train_id,
+                    msg.position_m,
+                    msg.speed_mps,
+                    msg.accel_mps2,
+                    msg.length_m,
+                    msg.stamp_s,
+                    t - msg.stamp_s,
+                    msg.service_decel_mps2,
+                    msg.emergency_decel_mps2,
+                    msg.planned_position_m,
+                    msg.planned_speed_mps,
+                    msg.planned_accel_mps2,
+                    msg.plan_dt_s,
+                )
+                obs = Observation(
+                    t_s=t,
+                    dt_s=dt_s,
+                    own=OwnState(f"T{i + 1}", float(x[k, i]), float(v[k, i]), float(applied[i]), veh.length_m),
+                    vehicle=veh,
+                    route_length_m=1.0e9,
+                    predecessor=pred,
+                    formation_state="coupled",
+                )
                 cmd = followers[i - 1].command(obs)
             info = dict(cmd.info)
             plan = info.pop("plan", None)
@@ -191,17 +218,42 @@ def run_platoon(
                 seq = info.get("model_sequence")
                 if seq is not None:
                     counts[k, i] = np.bincount(np.asarray(seq, dtype=np.int64), minlength=3)[:3]
-            fresh.append(PredecessorState(
-                f"T{i + 1}", float(x[k, i]), float(v[k, i]), float(cmd.accel_mps2), veh.length_m, t, 0.0,
-                veh.service_decel_mps2, veh.emergency_decel_mps2,
-                tuple(plan["position_m"]) if plan else (), tuple(plan["speed_mps"]) if plan else (),
-                tuple(plan["accel_mps2"]) if plan else (), float(plan["dt_s"]) if plan else 0.0))
+            fresh.append(
+                PredecessorState(
+                    f"T{i + 1}",
+                    float(x[k, i]),
+                    float(v[k, i]),
+                    float(cmd.accel_mps2),
+                    veh.length_m,
+                    t,
+                    0.0,
+                    veh.service_decel_mps2,
+                    veh.emergency_decel_mps2,
+                    tuple(plan["position_m"]) if plan else (),
+                    tuple(plan["speed_mps"]) if plan else (),
+                    tuple(plan["accel_mps2"]) if plan else (),
+                    float(plan["dt_s"]) if plan else 0.0,
+                )
+            )
         last_msg = list(fresh)
         infos.append(step_info)
-        res = step_many(fleet, v[k], applied, target, u_app[k], dt_s,
-                        emergency=np.array([False] * n), step_method="ballistic")
+        res = step_many(
+            fleet, v[k], applied, target, u_app[k], dt_s, emergency=np.array([False] * n), step_method="ballistic"
+        )
         applied, target = res.applied_accel_mps2, res.target_accel_mps2
         v[k + 1] = res.speed_mps
         x[k + 1] = x[k] + res.advance_m
-    return PlatoonRun(np.arange(n_steps + 1) * dt_s, x, v, u_cmd, u_app, j_arr, t_arr, fb, counts,
-                      np.full(n, veh.length_m), train, infos)
+    return PlatoonRun(
+        np.arange(n_steps + 1) * dt_s,
+        x,
+        v,
+        u_cmd,
+        u_app,
+        j_arr,
+        t_arr,
+        fb,
+        counts,
+        np.full(n, veh.length_m),
+        train,
+        infos,
+    )

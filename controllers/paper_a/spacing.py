@@ -54,8 +54,14 @@ class TrainParamsA:
     dt_s: float = 1.0  # τ, sampling time of Eq. (2)
 
     def __post_init__(self) -> None:
-        for name in ("length_m", "service_decel_mps2", "emergency_decel_mps2", "max_accel_mps2", "max_speed_mps",
-                     "dt_s"):
+        for name in (
+            "length_m",
+            "service_decel_mps2",
+            "emergency_decel_mps2",
+            "max_accel_mps2",
+            "max_speed_mps",
+            "dt_s",
+        ):
             value = getattr(self, name)
             if not (math.isfinite(value) and value > 0.0):
                 raise ValueError(f"{name}: expected a finite number > 0, got {value!r}")
@@ -137,8 +143,9 @@ def paper_a_vehicle(train: TrainParamsA = TABLE_I, name: str = "paper_a_203m") -
     )
 
 
-def train_params_from_vehicle(vehicle: VehicleParams, safety_margin_m: float = TABLE_I.safety_margin_m,
-                              dt_s: float = 1.0) -> TrainParamsA:
+def train_params_from_vehicle(
+    vehicle: VehicleParams, safety_margin_m: float = TABLE_I.safety_margin_m, dt_s: float = 1.0
+) -> TrainParamsA:
     """The prediction model of a controller from the plant's own :class:`VehicleParams` (one physics).
 
     Davis coefficients become per-unit-mass (divided by the effective mass); ``a^(m)`` is the low-speed traction

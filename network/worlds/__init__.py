@@ -27,8 +27,9 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import yaml
 
@@ -37,8 +38,9 @@ from railsim.errors import ConfigError
 WORLD_DIR = Path(__file__).resolve().parent
 
 
-def _straight_corridor(length_km: float, stations: int, line_speed_kmh: float, platform_length_m: float,
-                       overrun_m: float) -> dict[str, Any]:
+def _straight_corridor(
+    length_km: float, stations: int, line_speed_kmh: float, platform_length_m: float, overrun_m: float
+) -> dict[str, Any]:
     n = stations
     return {
         "name": "straight_corridor",
@@ -48,15 +50,30 @@ def _straight_corridor(length_km: float, stations: int, line_speed_kmh: float, p
         "platform_length_m": platform_length_m,
         "overrun_m": overrun_m,
         "main_line_id": "corridor",
-        "stations": [{"id": f"s{i + 1}", "name": f"Station {i + 1}", "km": length_km * i / (n - 1),
-                      "turnback": i in (0, n - 1)} for i in range(n)],
+        "stations": [
+            {"id": f"s{i + 1}", "name": f"Station {i + 1}", "km": length_km * i / (n - 1), "turnback": i in (0, n - 1)}
+            for i in range(n)
+        ],
     }
 
 
-def _y_junction(S1: float, S2: float, S3: float, S4: float, S5: float, approach_m: float,
-                platform_offset_m: float, platform_length_m: float, line_speed_kmh: float,
-                normal_speed_kmh: float, diverging_speed_kmh: float, throw_time_s: float,
-                turnout_length_m: float, sw1_branch_leg: str, sw2_branch_leg: str) -> dict[str, Any]:
+def _y_junction(
+    S1: float,
+    S2: float,
+    S3: float,
+    S4: float,
+    S5: float,
+    approach_m: float,
+    platform_offset_m: float,
+    platform_length_m: float,
+    line_speed_kmh: float,
+    normal_speed_kmh: float,
+    diverging_speed_kmh: float,
+    throw_time_s: float,
+    turnout_length_m: float,
+    sw1_branch_leg: str,
+    sw2_branch_leg: str,
+) -> dict[str, Any]:
     sw1_km = (approach_m + S2) / 1000.0
     sw2_km = sw1_km + S4 / 1000.0
     f_km = sw2_km + S5 / 1000.0
@@ -66,13 +83,19 @@ def _y_junction(S1: float, S2: float, S3: float, S4: float, S5: float, approach_
         return round(track_start_km + (50.0 + platform_length_m / 2) / 1000.0, 6)
 
     def switch(sid: str) -> dict[str, Any]:
-        return {"id": sid, "throw_time_s": throw_time_s, "diverging_speed_kmh": diverging_speed_kmh,
-                "normal_speed_kmh": normal_speed_kmh}
+        return {
+            "id": sid,
+            "throw_time_s": throw_time_s,
+            "diverging_speed_kmh": diverging_speed_kmh,
+            "normal_speed_kmh": normal_speed_kmh,
+        }
 
     return {
         "name": "y_junction",
-        "description": (f"Three entry tracks merging through two switches (spec 004 Fig. 2): "
-                        f"S1={S1:g} S2={S2:g} S3={S3:g} S4={S4:g} S5={S5:g} m."),
+        "description": (
+            f"Three entry tracks merging through two switches (spec 004 Fig. 2): "
+            f"S1={S1:g} S2={S2:g} S3={S3:g} S4={S4:g} S5={S5:g} m."
+        ),
         "track": "double",
         "line_speed_kmh": line_speed_kmh,
         "platform_length_m": platform_length_m,
@@ -82,22 +105,40 @@ def _y_junction(S1: float, S2: float, S3: float, S4: float, S5: float, approach_
         "from_km": 0.0,
         # an origin station at the far end of each entry track (trains for the junction start from them,
         # usually already in motion close to the switches: scenario ``start: {before_switch, distance_m}``)
-        "stations": [{"id": "entry2", "name": "Entry 2 origin", "km": origin(0.0)},
-                     {"id": "platform", "name": "Platform", "km": platform_km}],
+        "stations": [
+            {"id": "entry2", "name": "Entry 2 origin", "km": origin(0.0)},
+            {"id": "platform", "name": "Platform", "km": platform_km},
+        ],
         "points": [{"id": "F", "line": "trunk", "km": f_km}],
         "branches": [
-            {"id": "entry3", "name": "entry track 3", "joins": "trunk", "at_km": sw1_km, "side": "down",
-             "leg": sw1_branch_leg, "turnout_length_m": turnout_length_m,
-             "from_km": sw1_km - (S3 + approach_m) / 1000.0,
-             "switches": {"up": switch("sw1"), "down": switch("sw1_down")},
-             "stations": [{"id": "entry3", "name": "Entry 3 origin",
-                           "km": origin(sw1_km - (S3 + approach_m) / 1000.0)}]},
-            {"id": "entry1", "name": "entry track 1", "joins": "trunk", "at_km": sw2_km, "side": "down",
-             "leg": sw2_branch_leg, "turnout_length_m": turnout_length_m,
-             "from_km": sw2_km - (S1 + approach_m) / 1000.0,
-             "switches": {"up": switch("sw2"), "down": switch("sw2_down")},
-             "stations": [{"id": "entry1", "name": "Entry 1 origin",
-                           "km": origin(sw2_km - (S1 + approach_m) / 1000.0)}]},
+            {
+                "id": "entry3",
+                "name": "entry track 3",
+                "joins": "trunk",
+                "at_km": sw1_km,
+                "side": "down",
+                "leg": sw1_branch_leg,
+                "turnout_length_m": turnout_length_m,
+                "from_km": sw1_km - (S3 + approach_m) / 1000.0,
+                "switches": {"up": switch("sw1"), "down": switch("sw1_down")},
+                "stations": [
+                    {"id": "entry3", "name": "Entry 3 origin", "km": origin(sw1_km - (S3 + approach_m) / 1000.0)}
+                ],
+            },
+            {
+                "id": "entry1",
+                "name": "entry track 1",
+                "joins": "trunk",
+                "at_km": sw2_km,
+                "side": "down",
+                "leg": sw2_branch_leg,
+                "turnout_length_m": turnout_length_m,
+                "from_km": sw2_km - (S1 + approach_m) / 1000.0,
+                "switches": {"up": switch("sw2"), "down": switch("sw2_down")},
+                "stations": [
+                    {"id": "entry1", "name": "Entry 1 origin", "km": origin(sw2_km - (S1 + approach_m) / 1000.0)}
+                ],
+            },
         ],
     }
 
@@ -118,9 +159,16 @@ def _chongqing_line3(curve_allowance_kmh: float, curve_allowance_m: float) -> di
             if free_km < curve_allowance_m / 1000.0 + 0.1:  # no room between the platforms: leave it out
                 continue
             mid = (a["km"] + b["km"]) / 2.0
-            limits.append({"line": line, "from_km": round(mid - half_km, 6), "to_km": round(mid + half_km, 6),
-                           "speed_kmh": curve_allowance_kmh, "direction": "both",
-                           "basis": "estimated: curve/grade allowance (world parameter curve_allowance_*)"})
+            limits.append(
+                {
+                    "line": line,
+                    "from_km": round(mid - half_km, 6),
+                    "to_km": round(mid + half_km, 6),
+                    "speed_kmh": curve_allowance_kmh,
+                    "direction": "both",
+                    "basis": "estimated: curve/grade allowance (world parameter curve_allowance_*)",
+                }
+            )
 
     add(raw.get("main_line_id", "main"), raw["stations"])
     for br in raw.get("branches", []):
@@ -131,12 +179,30 @@ def _chongqing_line3(curve_allowance_kmh: float, curve_allowance_m: float) -> di
 
 
 _PARAMS: dict[str, dict[str, Any]] = {
-    "straight_corridor": {"length_km": 60.0, "stations": 3, "line_speed_kmh": 400.0, "platform_length_m": 700.0,
-                          "overrun_m": 500.0},
-    "y_junction": {"S1": 400.0, "S2": 200.0, "S3": 160.0, "S4": 200.0, "S5": 200.0, "approach_m": 2000.0,
-                   "platform_offset_m": 200.0, "platform_length_m": 400.0, "line_speed_kmh": 72.0,
-                   "normal_speed_kmh": 54.0, "diverging_speed_kmh": 36.0, "throw_time_s": 10.0,
-                   "turnout_length_m": 50.0, "sw1_branch_leg": "reverse", "sw2_branch_leg": "reverse"},
+    "straight_corridor": {
+        "length_km": 60.0,
+        "stations": 3,
+        "line_speed_kmh": 400.0,
+        "platform_length_m": 700.0,
+        "overrun_m": 500.0,
+    },
+    "y_junction": {
+        "S1": 400.0,
+        "S2": 200.0,
+        "S3": 160.0,
+        "S4": 200.0,
+        "S5": 200.0,
+        "approach_m": 2000.0,
+        "platform_offset_m": 200.0,
+        "platform_length_m": 400.0,
+        "line_speed_kmh": 72.0,
+        "normal_speed_kmh": 54.0,
+        "diverging_speed_kmh": 36.0,
+        "throw_time_s": 10.0,
+        "turnout_length_m": 50.0,
+        "sw1_branch_leg": "reverse",
+        "sw2_branch_leg": "reverse",
+    },
     "chongqing_line3": {"curve_allowance_kmh": 50.0, "curve_allowance_m": 300.0},
 }
 _BUILDERS: dict[str, Callable[..., dict[str, Any]]] = {

@@ -60,16 +60,17 @@ departure stopping mark.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
 import numpy as np
 import pandas as pd
 
 from controllers.braking import build_up_delay_s, stopping_distance_m
-from railsim.errors import ConfigError
 from railsim.analysis.sections import LineFrame, read_table, section_table
+from railsim.errors import ConfigError
 
 PEAK_LIMIT_SUBURBAN = 0.85  # UIC 406 (2004) Table 2: dedicated suburban passenger traffic, peak hour
 PEAK_LIMIT_MIXED = 0.75  # UIC 406 (2004) Table 2: mixed-traffic and dedicated high-speed lines, peak hour
@@ -118,8 +119,9 @@ class BlockModel:
         return f"moving block (points every {self.resolution_m:g} m)"
 
 
-def claim_m(front_m: np.ndarray, speed_mps: np.ndarray, decel_mps2: float, delay_s: float,
-            margin_m: float) -> np.ndarray:
+def claim_m(
+    front_m: np.ndarray, speed_mps: np.ndarray, decel_mps2: float, delay_s: float, margin_m: float
+) -> np.ndarray:
     """End of the track a train reserves ahead of its front: absolute braking distance + margin, made
     non-decreasing in time (a claim, once made, is not given back while the train is still behind it)."""
     brake = np.array([stopping_distance_m(float(v), decel_mps2, delay_s) for v in speed_mps])
@@ -153,8 +155,16 @@ class Stairway:
     end_s: np.ndarray  # per block: end of blocking (release), relative to reference_s
 
 
-def stairway(path: str, reference_s: float, t_claim_s: np.ndarray, claim: np.ndarray, t_rear_s: np.ndarray,
-             rear_m: np.ndarray, blocks: tuple[np.ndarray, np.ndarray], released_by_s: float) -> Stairway:
+def stairway(
+    path: str,
+    reference_s: float,
+    t_claim_s: np.ndarray,
+    claim: np.ndarray,
+    t_rear_s: np.ndarray,
+    rear_m: np.ndarray,
+    blocks: tuple[np.ndarray, np.ndarray],
+    released_by_s: float,
+) -> Stairway:
     """Blocking times of one path on a section: a block is blocked from the first time ``claim`` reaches its
     entry until the first time ``rear`` passes its exit (``released_by_s`` if the rear never does: a train removed
     at its terminal)."""
@@ -190,6 +200,7 @@ def compress(stairways: Sequence[Stairway]) -> tuple[float, list[float]]:
 
 def markdown_table(frame: pd.DataFrame, digits: int = 1) -> str:
     """A GitHub-flavoured Markdown table of ``frame`` (floats rounded to ``digits``; NaN shown as ``–``)."""
+
     def cell(v: Any) -> str:
         if isinstance(v, (float, np.floating)):
             return "–" if math.isnan(v) else f"{v:.{digits}f}"
@@ -258,11 +269,22 @@ def _busiest_window(departures_s: np.ndarray, period_s: float) -> tuple[float, n
 
 def _stats(values: np.ndarray) -> dict[str, float]:
     if len(values) == 0:
-        return {"min_s": math.nan, "p5_s": math.nan, "median_s": math.nan, "mean_s": math.nan, "p95_s": math.nan,
-                "max_s": math.nan}
-    return {"min_s": float(np.min(values)), "p5_s": float(np.percentile(values, 5)),
-            "median_s": float(np.median(values)), "mean_s": float(np.mean(values)),
-            "p95_s": float(np.percentile(values, 95)), "max_s": float(np.max(values))}
+        return {
+            "min_s": math.nan,
+            "p5_s": math.nan,
+            "median_s": math.nan,
+            "mean_s": math.nan,
+            "p95_s": math.nan,
+            "max_s": math.nan,
+        }
+    return {
+        "min_s": float(np.min(values)),
+        "p5_s": float(np.percentile(values, 5)),
+        "median_s": float(np.median(values)),
+        "mean_s": float(np.mean(values)),
+        "p95_s": float(np.percentile(values, 95)),
+        "max_s": float(np.max(values)),
+    }
 
 
 def _separation_params(scn: Any) -> tuple[float, float]:
@@ -277,9 +299,16 @@ def _section_label(row: Any) -> str:
     return f"{row.from_station} → {row.to_station}"
 
 
-def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_m: float = 10.0,
-                period_s: float = HOUR_S, limit: float = PEAK_LIMIT_SUBURBAN,
-                sections: pd.DataFrame | None = None, frame: LineFrame | None = None) -> CapacityReport:
+def analyse_run(
+    run_dir: str | Path,
+    *,
+    block_length_m: float = 0.0,
+    resolution_m: float = 10.0,
+    period_s: float = HOUR_S,
+    limit: float = PEAK_LIMIT_SUBURBAN,
+    sections: pd.DataFrame | None = None,
+    frame: LineFrame | None = None,
+) -> CapacityReport:
     """Headways, throughput and UIC 406 occupancy of the run in ``run_dir`` (see the module docstring).
 
     ``block_length_m`` 0 = moving block; > 0 fixed virtual blocks. ``period_s`` is the UIC 406 time window
@@ -309,8 +338,9 @@ def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_
             if g is None or g.empty:
                 raise ConfigError(run / "trace.csv", "train", f"no trace samples for trip {trip!r}")
             veh = frame.scenario.vehicle_of(str(trips.at[trip, "service"]))
-            delay = build_up_delay_s(0.0, veh.service_decel_mps2, veh.actuator_time_constant_s,
-                                     veh.jerk_limit_mps3, model.reaction_s)
+            delay = build_up_delay_s(
+                0.0, veh.service_decel_mps2, veh.actuator_time_constant_s, veh.jerk_limit_mps3, model.reaction_s
+            )
             t = g["t_s"].to_numpy(float)
             x = g["chainage_m"].to_numpy(float)
             c = claim_m(x, g["speed_mps"].to_numpy(float), veh.service_decel_mps2, delay, model.margin_m)
@@ -325,11 +355,16 @@ def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_
     head_rows, thr_rows, uic_rows, pair_rows = [], [], [], []  # type: ignore[var-annotated]
     paths_all = secs[secs["formation_role"] != "follower"]
     for (direction, a, b), grp in secs.groupby(["direction", "from_station", "to_station"], sort=False):
-        paths = paths_all[(paths_all["direction"] == direction) & (paths_all["from_station"] == a)
-                          & (paths_all["to_station"] == b)].sort_values("departure_s", kind="mergesort")
+        paths = paths_all[
+            (paths_all["direction"] == direction) & (paths_all["from_station"] == a) & (paths_all["to_station"] == b)
+        ].sort_values("departure_s", kind="mergesort")
         first = grp.iloc[0]
-        label = {"direction": direction, "section": _section_label(first), "from_km": first.from_km,
-                 "to_km": first.to_km}
+        label = {
+            "direction": direction,
+            "section": _section_label(first),
+            "from_km": first.from_km,
+            "to_km": first.to_km,
+        }
         dep = paths["departure_s"].to_numpy(float)
         head_rows.append({**label, "paths": len(paths), **_stats(np.diff(dep))})
 
@@ -338,8 +373,15 @@ def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_
         units = grp[(grp["departure_s"] >= w0) & (grp["departure_s"] < w0 + period_s)]
         pax = sum(frame.capacity_pax(s) for s in units["service"])
         scale = HOUR_S / period_s
-        thr_rows.append({**label, "window_start_s": w0, "paths_per_h": len(win) * scale,
-                         "trains_per_h": len(units) * scale, "pax_per_h": pax * scale})
+        thr_rows.append(
+            {
+                **label,
+                "window_start_s": w0,
+                "paths_per_h": len(win) * scale,
+                "trains_per_h": len(units) * scale,
+                "pax_per_h": pax * scale,
+            }
+        )
 
         # UIC 406: one stairway per path in the window (a formation: leader's claim, follower's rear)
         length = float(first.length_m)
@@ -357,20 +399,36 @@ def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_
             t_r, x_r, _ = arrays(rear_trip)
             rf = frame.services[str(trips.at[rear_trip, "service"])]
             rear = x_r - rf.mark_m[a] - frame.length_m(rf.service)
-            stairs.append(stairway(lead, float(row.departure_s), t_c, claim - lf.mark_m[a], t_r, rear, blocks,
-                                   end_of(rear_trip)))
+            stairs.append(
+                stairway(lead, float(row.departure_s), t_c, claim - lf.mark_m[a], t_r, rear, blocks, end_of(rear_trip))
+            )
         compressed, heads = compress(stairs)
         occ = compressed / period_s
         for ahead, behind, h in zip(stairs, stairs[1:], heads):
             achieved = behind.reference_s - ahead.reference_s
-            pair_rows.append({**label, "ahead": ahead.path, "behind": behind.path, "min_headway_s": h,
-                              "achieved_s": achieved, "buffer_s": achieved - h})
-        uic_rows.append({**label, "paths": len(stairs), "window_start_s": w0,
-                         "min_headway_mean_s": float(np.mean(heads)) if heads else math.nan,
-                         "min_headway_max_s": float(np.max(heads)) if heads else math.nan,
-                         "compressed_s": compressed, "occupancy": occ,
-                         "paths_per_h_at_limit": (limit * HOUR_S / float(np.mean(heads))) if heads else math.nan,
-                         "over_limit": bool(occ > limit)})
+            pair_rows.append(
+                {
+                    **label,
+                    "ahead": ahead.path,
+                    "behind": behind.path,
+                    "min_headway_s": h,
+                    "achieved_s": achieved,
+                    "buffer_s": achieved - h,
+                }
+            )
+        uic_rows.append(
+            {
+                **label,
+                "paths": len(stairs),
+                "window_start_s": w0,
+                "min_headway_mean_s": float(np.mean(heads)) if heads else math.nan,
+                "min_headway_max_s": float(np.max(heads)) if heads else math.nan,
+                "compressed_s": compressed,
+                "occupancy": occ,
+                "paths_per_h_at_limit": (limit * HOUR_S / float(np.mean(heads))) if heads else math.nan,
+                "over_limit": bool(occ > limit),
+            }
+        )
 
     headways = pd.DataFrame(head_rows)
     throughput = pd.DataFrame(thr_rows)
@@ -380,17 +438,38 @@ def analyse_run(run_dir: str | Path, *, block_length_m: float = 0.0, resolution_
         best = g.sort_values(["paths_per_h", "pax_per_h"], ascending=False, kind="mergesort").iloc[0]
         u = uic[uic["direction"] == direction]
         worst = u.sort_values("occupancy", ascending=False, kind="mergesort").iloc[0]
-        directions.append({"direction": direction, "busiest_section": best.section,
-                           "trains_per_h": best.trains_per_h, "paths_per_h": best.paths_per_h,
-                           "pax_per_h": best.pax_per_h, "max_occupancy": worst.occupancy,
-                           "max_occupancy_section": worst.section})
-    return CapacityReport(run, {"headways": headways, "junction": junction_table(run, frame),
-                                "throughput": throughput, "directions": pd.DataFrame(directions), "uic406": uic,
-                                "uic406_pairs": pd.DataFrame(pair_rows)},
-                          {"block_model": model.label, "block_length_m": block_length_m, "resolution_m": resolution_m,
-                           "margin_m": margin_m, "reaction_s": model.reaction_s, "period_s": period_s,
-                           "limit": limit, "limit_label": "dedicated suburban passenger traffic"
-                           if limit == PEAK_LIMIT_SUBURBAN else "user-given"})
+        directions.append(
+            {
+                "direction": direction,
+                "busiest_section": best.section,
+                "trains_per_h": best.trains_per_h,
+                "paths_per_h": best.paths_per_h,
+                "pax_per_h": best.pax_per_h,
+                "max_occupancy": worst.occupancy,
+                "max_occupancy_section": worst.section,
+            }
+        )
+    return CapacityReport(
+        run,
+        {
+            "headways": headways,
+            "junction": junction_table(run, frame),
+            "throughput": throughput,
+            "directions": pd.DataFrame(directions),
+            "uic406": uic,
+            "uic406_pairs": pd.DataFrame(pair_rows),
+        },
+        {
+            "block_model": model.label,
+            "block_length_m": block_length_m,
+            "resolution_m": resolution_m,
+            "margin_m": margin_m,
+            "reaction_s": model.reaction_s,
+            "period_s": period_s,
+            "limit": limit,
+            "limit_label": "dedicated suburban passenger traffic" if limit == PEAK_LIMIT_SUBURBAN else "user-given",
+        },
+    )
 
 
 def junction_passes(run_dir: str | Path, frame: LineFrame | None = None) -> pd.DataFrame:
@@ -408,12 +487,17 @@ def junction_passes(run_dir: str | Path, frame: LineFrame | None = None) -> pd.D
             g = by_train.get(tid)
             t = math.nan
             if g is not None and not g.empty:
-                t = float(first_time_at(g["t_s"].to_numpy(float), g["chainage_m"].to_numpy(float),
-                                        np.array([sw.point_m]))[0])
-            rows.append({"switch": sw.switch_id, "leg": sw.leg, "trip_id": str(tid), "service": str(svc),
-                         "t_pass_s": t})
-    return pd.DataFrame(rows, columns=["switch", "leg", "trip_id", "service", "t_pass_s"]) \
-        .sort_values(["switch", "t_pass_s"], kind="mergesort").reset_index(drop=True)
+                t = float(
+                    first_time_at(g["t_s"].to_numpy(float), g["chainage_m"].to_numpy(float), np.array([sw.point_m]))[0]
+                )
+            rows.append(
+                {"switch": sw.switch_id, "leg": sw.leg, "trip_id": str(tid), "service": str(svc), "t_pass_s": t}
+            )
+    return (
+        pd.DataFrame(rows, columns=["switch", "leg", "trip_id", "service", "t_pass_s"])
+        .sort_values(["switch", "t_pass_s"], kind="mergesort")
+        .reset_index(drop=True)
+    )
 
 
 def junction_table(run_dir: str | Path, frame: LineFrame | None = None) -> pd.DataFrame:
@@ -423,7 +507,27 @@ def junction_table(run_dir: str | Path, frame: LineFrame | None = None) -> pd.Da
     for sw, g in passes.groupby("switch", sort=True):
         t = g["t_pass_s"].dropna().to_numpy(float)
         legs = g.dropna(subset=["t_pass_s"])["leg"].value_counts()
-        rows.append({"switch": sw, "trains": len(t), "normal_leg": int(legs.get("normal", 0)),
-                     "reverse_leg": int(legs.get("reverse", 0)), **_stats(np.diff(np.sort(t)))})
-    return pd.DataFrame(rows, columns=["switch", "trains", "normal_leg", "reverse_leg", "min_s", "p5_s",
-                                       "median_s", "mean_s", "p95_s", "max_s"])
+        rows.append(
+            {
+                "switch": sw,
+                "trains": len(t),
+                "normal_leg": int(legs.get("normal", 0)),
+                "reverse_leg": int(legs.get("reverse", 0)),
+                **_stats(np.diff(np.sort(t))),
+            }
+        )
+    return pd.DataFrame(
+        rows,
+        columns=[
+            "switch",
+            "trains",
+            "normal_leg",
+            "reverse_leg",
+            "min_s",
+            "p5_s",
+            "median_s",
+            "mean_s",
+            "p95_s",
+            "max_s",
+        ],
+    )

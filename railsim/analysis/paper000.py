@@ -31,9 +31,10 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import asdict, dataclass
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import yaml
@@ -41,8 +42,16 @@ import yaml
 from controllers.paper_a.spacing import TABLE_I, TrainParamsA, desired_spacing_m, safe_spacing_m
 from railsim.errors import ConfigError
 
-__all__ = ["FollowerRow", "FollowerSeries", "VcCriterion", "follower_row", "follower_series", "format_table",
-           "paper000_metrics", "vc_times"]
+__all__ = [
+    "FollowerRow",
+    "FollowerSeries",
+    "VcCriterion",
+    "follower_row",
+    "follower_series",
+    "format_table",
+    "paper000_metrics",
+    "vc_times",
+]
 
 
 @dataclass(frozen=True)
@@ -96,10 +105,22 @@ def vc_times(t_s: np.ndarray, ok: np.ndarray, sustain_s: float) -> tuple[float, 
     return first, math.nan
 
 
-def follower_row(t_s: np.ndarray, v_lead: np.ndarray, v_fol: np.ndarray, spacing_m: np.ndarray,
-                 unit: TrainParamsA, lead_length_m: float, lead_emergency_mps2: float,
-                 criterion: VcCriterion = VcCriterion(), *, follower: str = "", leader: str = "",
-                 controller: str = "", solve_time_s: np.ndarray | None = None, fallbacks: int = 0) -> FollowerRow:
+def follower_row(
+    t_s: np.ndarray,
+    v_lead: np.ndarray,
+    v_fol: np.ndarray,
+    spacing_m: np.ndarray,
+    unit: TrainParamsA,
+    lead_length_m: float,
+    lead_emergency_mps2: float,
+    criterion: VcCriterion = VcCriterion(),
+    *,
+    follower: str = "",
+    leader: str = "",
+    controller: str = "",
+    solve_time_s: np.ndarray | None = None,
+    fallbacks: int = 0,
+) -> FollowerRow:
     """The metrics of one follower from aligned samples (``t_s`` paper time, front-to-front ``spacing_m``)."""
     if len(t_s) == 0:
         raise ValueError(f"follower {follower!r}: no samples shared with its leader {leader!r}")
@@ -114,12 +135,16 @@ def follower_row(t_s: np.ndarray, v_lead: np.ndarray, v_fol: np.ndarray, spacing
     st = np.asarray(solve_time_s, dtype=float) if solve_time_s is not None else np.array([])
     st = st[np.isfinite(st)]
     return FollowerRow(
-        follower=follower, leader=leader, controller=controller, samples=int(len(t_s)),
+        follower=follower,
+        leader=leader,
+        controller=controller,
+        samples=int(len(t_s)),
         mean_abs_dv_mps=float(np.mean(np.abs(dv))),
         mean_abs_spacing_error_m=float(np.mean(np.abs(err))),
         late_mean_abs_dv_mps=float(np.mean(np.abs(dv[late]))) if late.any() else math.nan,
         late_mean_abs_spacing_error_m=float(np.mean(np.abs(err[late]))) if late.any() else math.nan,
-        vc_first_s=first, vc_sustained_s=sustained,
+        vc_first_s=first,
+        vc_sustained_s=sustained,
         min_safety_margin_m=float(np.min(margin)),
         final_spacing_error_m=float(err[-1]),
         solve_time_mean_s=float(np.mean(st)) if st.size else math.nan,
@@ -223,29 +248,44 @@ def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str
     for f in formations:
         lead_id, fol_id = _trip_of(raw, f["leader"]), _trip_of(raw, f["follower"])
         if lead_id not in series or fol_id not in series:
-            raise ConfigError(str(out / "trace.csv"), f"formations.{f['id']}",
-                              f"no samples of {lead_id if lead_id not in series else fol_id}")
+            raise ConfigError(
+                str(out / "trace.csv"),
+                f"formations.{f['id']}",
+                f"no samples of {lead_id if lead_id not in series else fol_id}",
+            )
         lead, fol = series[lead_id], series[fol_id]
         common, il, jf = np.intersect1d(lead["t"], fol["t"], return_indices=True)
         gap = fol["gap"][jf]
         keep = np.isfinite(gap)
         lead_veh = service_vehicle[f["leader"]["service"]]
         fol_veh = service_vehicle[f["follower"]["service"]]
-        unit = TrainParamsA(length_m=float(fol_veh["length_m"]),
-                            safety_margin_m=_safety_margin_of(raw, f["follower"]["service"]),
-                            service_decel_mps2=float(fol_veh["service_decel_mps2"]),
-                            emergency_decel_mps2=float(fol_veh["emergency_decel_mps2"]))
+        unit = TrainParamsA(
+            length_m=float(fol_veh["length_m"]),
+            safety_margin_m=_safety_margin_of(raw, f["follower"]["service"]),
+            service_decel_mps2=float(fol_veh["service_decel_mps2"]),
+            emergency_decel_mps2=float(fol_veh["emergency_decel_mps2"]),
+        )
         lead_len, lead_em = float(lead_veh["length_m"]), float(lead_veh["emergency_decel_mps2"])
         v_lead, v_fol = lead["v"][il][keep], fol["v"][jf][keep]
         spacing = gap[keep] + lead_len
-        result.append(FollowerSeries(
-            follower=fol_id, leader=lead_id, controller=_controller_of(raw, f["follower"]["service"]),
-            t_s=common[keep] - float(fol["t"][0]), v_lead_mps=v_lead, v_fol_mps=v_fol, spacing_m=spacing,
-            desired_m=desired_spacing_m(v_fol, v_lead, unit, lead_len, lead_em),
-            safe_m=safe_spacing_m(v_fol, v_lead, unit, lead_len, lead_em),
-            solve_time_s=fol["solve"][jf][keep] if has_solve else None,
-            objective=fol["objective"][jf][keep],
-            unit=unit, lead_length_m=lead_len, lead_emergency_mps2=lead_em))
+        result.append(
+            FollowerSeries(
+                follower=fol_id,
+                leader=lead_id,
+                controller=_controller_of(raw, f["follower"]["service"]),
+                t_s=common[keep] - float(fol["t"][0]),
+                v_lead_mps=v_lead,
+                v_fol_mps=v_fol,
+                spacing_m=spacing,
+                desired_m=desired_spacing_m(v_fol, v_lead, unit, lead_len, lead_em),
+                safe_m=safe_spacing_m(v_fol, v_lead, unit, lead_len, lead_em),
+                solve_time_s=fol["solve"][jf][keep] if has_solve else None,
+                objective=fol["objective"][jf][keep],
+                unit=unit,
+                lead_length_m=lead_len,
+                lead_emergency_mps2=lead_em,
+            )
+        )
     return raw, result, fallbacks, summary, has_solve
 
 
@@ -263,24 +303,45 @@ def paper000_metrics(out_dir: Path | str, criterion: VcCriterion | None = None) 
     """
     crit = criterion or VcCriterion()
     raw, series, fallbacks, summary, has_solve = _load_run(Path(out_dir))
-    rows = [asdict(follower_row(fs.t_s, fs.v_lead_mps, fs.v_fol_mps, fs.spacing_m, fs.unit, fs.lead_length_m,
-                                fs.lead_emergency_mps2, crit, follower=fs.follower, leader=fs.leader,
-                                controller=fs.controller, solve_time_s=fs.solve_time_s,
-                                fallbacks=fallbacks.get(fs.follower, 0)))
-            for fs in series]
+    rows = [
+        asdict(
+            follower_row(
+                fs.t_s,
+                fs.v_lead_mps,
+                fs.v_fol_mps,
+                fs.spacing_m,
+                fs.unit,
+                fs.lead_length_m,
+                fs.lead_emergency_mps2,
+                crit,
+                follower=fs.follower,
+                leader=fs.leader,
+                controller=fs.controller,
+                solve_time_s=fs.solve_time_s,
+                fallbacks=fallbacks.get(fs.follower, 0),
+            )
+        )
+        for fs in series
+    ]
     steps = float(summary.get("steps") or 0)
     wall = float(summary.get("wall_s") or math.nan)
-    return {"scenario": raw.get("name", ""), "followers": rows,
-            "wall_per_train_step_s": wall / (steps * len(series)) if steps else math.nan,
-            "collisions": summary.get("collisions"), "solve_times_recorded": has_solve}
+    return {
+        "scenario": raw.get("name", ""),
+        "followers": rows,
+        "wall_per_train_step_s": wall / (steps * len(series)) if steps else math.nan,
+        "collisions": summary.get("collisions"),
+        "solve_times_recorded": has_solve,
+    }
 
 
 def format_table(metrics: Mapping[str, Any] | Mapping[str, Mapping[str, Any]]) -> str:
     """Plain-text Table III/IV: one line per (run, follower). Accepts one :func:`paper000_metrics` result or a
     mapping ``label -> result`` (e.g. the three S-D methods)."""
     runs: dict[str, Any] = {str(metrics.get("scenario", "run")): metrics} if "followers" in metrics else dict(metrics)
-    head = (f"{'run':<16}{'train':>8}{'ctl':>14}{'|dv|':>9}{'|e|':>9}{'late|dv|':>10}{'late|e|':>9}"
-            f"{'VC1st':>7}{'VC30':>7}{'minSafe':>9}{'e_end':>8}{'t_ms':>9}{'p95_ms':>9}{'wall_ms':>9}{'fb':>4}")
+    head = (
+        f"{'run':<16}{'train':>8}{'ctl':>14}{'|dv|':>9}{'|e|':>9}{'late|dv|':>10}{'late|e|':>9}"
+        f"{'VC1st':>7}{'VC30':>7}{'minSafe':>9}{'e_end':>8}{'t_ms':>9}{'p95_ms':>9}{'wall_ms':>9}{'fb':>4}"
+    )
     lines = [head]
 
     def num(x: float, spec: str, width: int) -> str:
@@ -295,5 +356,6 @@ def format_table(metrics: Mapping[str, Any] | Mapping[str, Mapping[str, Any]]) -
                 f"{num(r['vc_sustained_s'], '.0f', 7)}{num(r['min_safety_margin_m'], '.1f', 9)}"
                 f"{num(r['final_spacing_error_m'], '.2f', 8)}{num(r['solve_time_mean_s'] * 1e3, '.2f', 9)}"
                 f"{num(r['solve_time_p95_s'] * 1e3, '.2f', 9)}{num(m['wall_per_train_step_s'] * 1e3, '.1f', 9)}"
-                f"{r['fallbacks']:>4}")
+                f"{r['fallbacks']:>4}"
+            )
     return "\n".join(lines)

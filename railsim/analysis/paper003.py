@@ -30,9 +30,10 @@ from __future__ import annotations
 import csv
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import fields
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 import yaml
@@ -82,8 +83,7 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
     """All CA/coupling metrics of the run in ``out_dir`` (see the module docstring)."""
     out = Path(out_dir)
     raw = yaml.safe_load((out / "scenario.resolved.yaml").read_text(encoding="utf-8"))
-    summary = json.loads((out / "summary.json").read_text(encoding="utf-8")) if (out / "summary.json").exists() \
-        else {}
+    summary = json.loads((out / "summary.json").read_text(encoding="utf-8")) if (out / "summary.json").exists() else {}
     step_s = float(raw["simulation"]["step_s"])
     rows = _read_csv(out / "trace.csv")
     events = _read_csv(out / "events.csv")
@@ -103,8 +103,12 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
         for k in grid:
             grid[k][idx] = d[k]
         veh = _vehicle_of(raw, d["service"])
-        series[tid] = {**grid, "length_m": float(veh.get("length_m", 0.0)),
-                       "b_e": float(veh.get("emergency_decel_mps2", math.inf)), "service": d["service"]}
+        series[tid] = {
+            **grid,
+            "length_m": float(veh.get("length_m", 0.0)),
+            "b_e": float(veh.get("emergency_decel_mps2", math.inf)),
+            "service": d["service"],
+        }
 
     def on_off(on_kind: str, off_kind: str, tid: str) -> list[tuple[float, float | None]]:
         on = [float(e["t_s"]) for e in events if e["kind"] == on_kind and e["subject"] == tid]
@@ -114,14 +118,17 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
     ca = {tid: on_off("ca_trigger", "ca_release", tid) for tid in series}
     emergency = {tid: on_off("emergency_brake_on", "emergency_brake_off", tid) for tid in series}
 
-    order = sorted(series, key=lambda tid: -float(series[tid]["x"][np.nanargmin(np.where(
-        np.isnan(series[tid]["x"]), np.inf, times))]))
+    order = sorted(
+        series,
+        key=lambda tid: -float(series[tid]["x"][np.nanargmin(np.where(np.isnan(series[tid]["x"]), np.inf, times))]),
+    )
     pairs: dict[str, dict[str, Any]] = {}
     for ahead, fol in zip(order, order[1:]):
         a, f = series[ahead], series[fol]
         gap = a["x"] - a["length_m"] - f["x"]
-        pairs[f"{ahead}-{fol}"] = _pair_row(times, gap, f["v"], a["v"], _ca_params(raw, f["service"]), f["b_e"],
-                                           ca[fol], step_s)
+        pairs[f"{ahead}-{fol}"] = _pair_row(
+            times, gap, f["v"], a["v"], _ca_params(raw, f["service"]), f["b_e"], ca[fol], step_s
+        )
     for _k, ev in enumerate(e for e in events if e["kind"] == "obstacle_appeared"):
         detail = json.loads(ev["detail"] or "{}")
         tid, ch = detail.get("ahead_of"), detail.get("chainage_m")
@@ -132,9 +139,16 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
         t1 = min((c for c in cleared if c >= t0), default=math.inf)
         on = (times >= t0) & (times < t1)
         gap = np.where(on, float(ch) - series[tid]["x"], np.nan)
-        pairs[f"{ev['subject']}-{tid}"] = _pair_row(times, gap, series[tid]["v"], np.zeros(len(times)),
-                                                   _ca_params(raw, series[tid]["service"]), series[tid]["b_e"],
-                                                   ca[tid], step_s)
+        pairs[f"{ev['subject']}-{tid}"] = _pair_row(
+            times,
+            gap,
+            series[tid]["v"],
+            np.zeros(len(times)),
+            _ca_params(raw, series[tid]["service"]),
+            series[tid]["b_e"],
+            ca[tid],
+            step_s,
+        )
     couple: dict[str, float | None] = {}
     couple_by_follower: dict[str, float | None] = {}
     for r in _read_csv(out / "formations.csv"):
@@ -153,25 +167,46 @@ def metrics(out_dir: Path | str) -> dict[str, Any]:
         "time_to_couple_s": couple,
         "coupled": {k: v is not None for k, v in couple.items()},
         "time_to_couple_by_follower_s": couple_by_follower,
-        "final_speeds_mps": {tid: float(s["v"][~np.isnan(s["v"])][-1]) for tid, s in series.items()
-                             if (~np.isnan(s["v"])).any()},
+        "final_speeds_mps": {
+            tid: float(s["v"][~np.isnan(s["v"])][-1]) for tid, s in series.items() if (~np.isnan(s["v"])).any()
+        },
     }
 
 
-def _pair_row(times: np.ndarray, gap: np.ndarray, v_fol: np.ndarray, v_ahead: np.ndarray, params: CaParams | None,
-              b_e: float, ca: list[tuple[float, float | None]], step_s: float) -> dict[str, Any]:
+def _pair_row(
+    times: np.ndarray,
+    gap: np.ndarray,
+    v_fol: np.ndarray,
+    v_ahead: np.ndarray,
+    params: CaParams | None,
+    b_e: float,
+    ca: list[tuple[float, float | None]],
+    step_s: float,
+) -> dict[str, Any]:
     ok = ~np.isnan(gap)
     if not ok.any():
-        return {"min_gap_m": None, "min_gap_t_s": None, "collision": False, "final_gap_m": None,
-                "final_speed_diff_mps": None, "safety_distance": None, "below_trigger_s": None,
-                "unguarded_s": None}
+        return {
+            "min_gap_m": None,
+            "min_gap_t_s": None,
+            "collision": False,
+            "final_gap_m": None,
+            "final_speed_diff_mps": None,
+            "safety_distance": None,
+            "below_trigger_s": None,
+            "unguarded_s": None,
+        }
     g = np.where(ok, gap, np.inf)
     k = int(np.argmin(g))
     last = int(np.nonzero(ok)[0][-1])
     row: dict[str, Any] = {
-        "min_gap_m": float(g[k]), "min_gap_t_s": float(times[k]), "collision": bool(g[k] <= 0.0),
-        "final_gap_m": float(gap[last]), "final_speed_diff_mps": float(v_fol[last] - v_ahead[last]),
-        "safety_distance": None, "below_trigger_s": None, "unguarded_s": None,
+        "min_gap_m": float(g[k]),
+        "min_gap_t_s": float(times[k]),
+        "collision": bool(g[k] <= 0.0),
+        "final_gap_m": float(gap[last]),
+        "final_speed_diff_mps": float(v_fol[last] - v_ahead[last]),
+        "safety_distance": None,
+        "below_trigger_s": None,
+        "unguarded_s": None,
     }
     if params is None:
         return row
@@ -186,8 +221,11 @@ def _pair_row(times: np.ndarray, gap: np.ndarray, v_fol: np.ndarray, v_ahead: np
     for t0, t1 in ca:
         guarded |= (times >= t0 - step_s - 1e-9) & (times <= (math.inf if t1 is None else t1) + 1e-9)
     stride = float(np.median(np.diff(times))) if len(times) > 1 else step_s
-    row.update(safety_distance=policy.mode if policy.mode != "fixed" else f"fixed {policy.fixed_threshold_m:g} m",
-               below_trigger_s=float(below.sum() * stride), unguarded_s=float((below & ~guarded).sum() * stride))
+    row.update(
+        safety_distance=policy.mode if policy.mode != "fixed" else f"fixed {policy.fixed_threshold_m:g} m",
+        below_trigger_s=float(below.sum() * stride),
+        unguarded_s=float((below & ~guarded).sum() * stride),
+    )
     return row
 
 
@@ -203,8 +241,10 @@ def format_table(results: Mapping[str, Any] | Mapping[str, Mapping[str, Any]]) -
     """A plain-text table, one row per pair; ``results`` is one :func:`metrics` dict or ``{label: metrics}``."""
     if "pairs" in results:
         results = {str(results.get("scenario", "run")): results}
-    head = (f"{'run':<28} {'pair':<22} {'min gap':>8} {'at':>6} {'final':>7} {'dv_end':>7} {'<trig':>6} "
-            f"{'unguard':>7} {'CA trigger->release':<22} {'EB s':>5} {'couple':>7} coll")
+    head = (
+        f"{'run':<28} {'pair':<22} {'min gap':>8} {'at':>6} {'final':>7} {'dv_end':>7} {'<trig':>6} "
+        f"{'unguard':>7} {'CA trigger->release':<22} {'EB s':>5} {'couple':>7} coll"
+    )
     lines = [head, "-" * len(head)]
     for label, m in results.items():
         for pair, p in m["pairs"].items():
@@ -213,10 +253,12 @@ def format_table(results: Mapping[str, Any] | Mapping[str, Mapping[str, Any]]) -
             ca_txt = ", ".join(f"{a:.1f}->{_fmt(b)}" for a, b in ca) or "-"
             eb = sum((b if b is not None else math.nan) - a for a, b in m["emergency_intervals"].get(fol, []))
             form = m.get("time_to_couple_by_follower_s", {}).get(fol)
-            lines.append(f"{label:<28} {pair:<22} {_fmt(p['min_gap_m'], '.2f'):>8} {_fmt(p['min_gap_t_s']):>6} "
-                         f"{_fmt(p['final_gap_m'], '.2f'):>7} {_fmt(p['final_speed_diff_mps'], '.2f'):>7} "
-                         f"{_fmt(p['below_trigger_s']):>6} {_fmt(p['unguarded_s']):>7} {ca_txt:<22} "
-                         f"{eb:>5.1f} {_fmt(form):>7} {'YES' if p['collision'] else 'no'}")
+            lines.append(
+                f"{label:<28} {pair:<22} {_fmt(p['min_gap_m'], '.2f'):>8} {_fmt(p['min_gap_t_s']):>6} "
+                f"{_fmt(p['final_gap_m'], '.2f'):>7} {_fmt(p['final_speed_diff_mps'], '.2f'):>7} "
+                f"{_fmt(p['below_trigger_s']):>6} {_fmt(p['unguarded_s']):>7} {ca_txt:<22} "
+                f"{eb:>5.1f} {_fmt(form):>7} {'YES' if p['collision'] else 'no'}"
+            )
     return "\n".join(lines)
 
 

@@ -13,8 +13,9 @@ controllers, that paper's metrics are computed from the written files too, added
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 PAPER_A_TYPES = frozenset({"cf_idm", "cf_cacc", "cf_fvd", "mcf_dmpc", "opo_mcf_dmpc", "dmpc"})
 PAPER_D_TYPES = frozenset({"monorail_ca", "monorail_apf", "monorail_dmpc"})

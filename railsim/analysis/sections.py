@@ -50,9 +50,22 @@ import pandas as pd
 
 from railsim.errors import ConfigError
 
-SECTION_COLUMNS = ["trip_id", "service", "direction", "from_station", "to_station", "from_km", "to_km",
-                   "departure_s", "arrival_s", "running_time_s", "length_m", "headway_s", "formation",
-                   "formation_role"]
+SECTION_COLUMNS = [
+    "trip_id",
+    "service",
+    "direction",
+    "from_station",
+    "to_station",
+    "from_km",
+    "to_km",
+    "departure_s",
+    "arrival_s",
+    "running_time_s",
+    "length_m",
+    "headway_s",
+    "formation",
+    "formation_role",
+]
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -166,7 +179,7 @@ class LineFrame:
         return self._trace_by_train
 
     @classmethod
-    def from_run(cls, run_dir: str | Path) -> "LineFrame":
+    def from_run(cls, run_dir: str | Path) -> LineFrame:
         """Rebuild the world of ``run_dir`` from its ``scenario.resolved.yaml`` (the network cache makes this a
         file read when the world was built before)."""
         import network
@@ -175,12 +188,17 @@ class LineFrame:
         run = require_run_dir(run_dir)
         resolved = run / "scenario.resolved.yaml"
         if not resolved.exists():
-            raise ConfigError(run, None, "expected scenario.resolved.yaml in the run folder (written by railsim "
-                                         "run), found none")
+            raise ConfigError(
+                run, None, "expected scenario.resolved.yaml in the run folder (written by railsim run), found none"
+            )
         scn = scenario_mod.load(resolved)
         if scn.world.kind == "net":
-            raise ConfigError(resolved, "world", "line sections need a world built from a line description "
-                                                 "(stations with km); a ready SUMO net has none")
+            raise ConfigError(
+                resolved,
+                "world",
+                "line sections need a world built from a line description "
+                "(stations with km); a ready SUMO net has none",
+            )
         name_or_path, params = scn.world.build_args()
         bundle = network.build(name_or_path, **params)
         frames = {svc.id: _service_frame(svc, bundle) for svc in scn.services}
@@ -249,8 +267,10 @@ def section_table(run_dir: str | Path, frame: LineFrame | None = None) -> pd.Dat
         grp = by_trip.get(tid)
         if grp is not None:
             order = {s: i for i, s in enumerate(sf.stations)}
-            for st, arr, dep in sorted(zip(grp["station"].astype(str), grp["arrival_s"].astype(float),
-                                           grp["departure_s"].astype(float)), key=lambda r: order.get(r[0], 1e9)):
+            for st, arr, dep in sorted(
+                zip(grp["station"].astype(str), grp["arrival_s"].astype(float), grp["departure_s"].astype(float)),
+                key=lambda r: order.get(r[0], 1e9),
+            ):
                 if st in order and not math.isnan(arr):
                     seq.append((st, arr, dep))
         served[tid] = seq
@@ -265,10 +285,22 @@ def section_table(run_dir: str | Path, frame: LineFrame | None = None) -> pd.Dat
         for (a, _, dep), (b, arr, _) in zip(seq, seq[1:]):
             if math.isnan(dep):
                 break  # the train never left a (served) station: nothing after it was run
-            rows.append({"trip_id": tid, "service": svc, "direction": sf.direction, "from_station": a,
-                         "to_station": b, "from_km": sf.km[a], "to_km": sf.km[b], "departure_s": dep,
-                         "arrival_s": arr, "length_m": sf.mark_m[b] - sf.mark_m[a], "formation": "",
-                         "formation_role": ""})
+            rows.append(
+                {
+                    "trip_id": tid,
+                    "service": svc,
+                    "direction": sf.direction,
+                    "from_station": a,
+                    "to_station": b,
+                    "from_km": sf.km[a],
+                    "to_km": sf.km[b],
+                    "departure_s": dep,
+                    "arrival_s": arr,
+                    "length_m": sf.mark_m[b] - sf.mark_m[a],
+                    "formation": "",
+                    "formation_role": "",
+                }
+            )
     table = pd.DataFrame(rows, columns=[c for c in SECTION_COLUMNS if c not in ("running_time_s", "headway_s")])
 
     key = ["direction", "from_station", "to_station"]
@@ -294,7 +326,10 @@ def section_table(run_dir: str | Path, frame: LineFrame | None = None) -> pd.Dat
     table["running_time_s"] = table["arrival_s"] - table["departure_s"]
     order_km = table["from_km"].where(table["direction"] == "up", -table["from_km"])
     follower_last = (table["formation_role"] == "follower").astype(int)  # a leader before its follower
-    table = table.assign(_k=order_km, _f=follower_last).sort_values(
-        ["direction", "_k", "to_station", "departure_s", "_f", "trip_id"], kind="mergesort").drop(columns=["_k", "_f"])
+    table = (
+        table.assign(_k=order_km, _f=follower_last)
+        .sort_values(["direction", "_k", "to_station", "departure_s", "_f", "trip_id"], kind="mergesort")
+        .drop(columns=["_k", "_f"])
+    )
     table["headway_s"] = table.groupby(key, sort=False)["departure_s"].diff()
     return table.reset_index(drop=True)[SECTION_COLUMNS]

@@ -15,11 +15,18 @@ from railsim.report.export import FORMATS, READERS, export
 
 
 def add_commands(sub: Any) -> None:
-    p = sub.add_parser("export", help="write a run's trip/stop/formation/event/section tables (or a sweep's "
-                                      "cases) as CSV, Parquet or JSON")
+    p = sub.add_parser(
+        "export",
+        help="write a run's trip/stop/formation/event/section tables (or a sweep's cases) as CSV, Parquet or JSON",
+    )
     p.add_argument("folder", help="run folder (railsim run) or sweep folder (railsim sweep)")
-    p.add_argument("--format", choices=FORMATS, default="csv", dest="fmt",
-                   help='read back with pd.read_csv, pd.read_parquet or pd.read_json(path, orient="records")')
+    p.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="csv",
+        dest="fmt",
+        help='read back with pd.read_csv, pd.read_parquet or pd.read_json(path, orient="records")',
+    )
     p.add_argument("--out", default=None, help="output folder (default: FOLDER/export)")
     p.add_argument("--trace", action="store_true", help="also export the per-train trace (large)")
     p.set_defaults(func=cmd_export)
@@ -31,4 +38,3 @@ def cmd_export(args: argparse.Namespace) -> int:
         print(path)
     print(f"read each with: {READERS[args.fmt].format(path=paths[0].parent / ('<table>.' + args.fmt))}")
     return 0
-

@@ -27,15 +27,25 @@ from __future__ import annotations
 import argparse
 import logging
 import sys
+from collections.abc import Callable, Sequence
 from types import ModuleType
-from typing import Callable, Sequence
 
 from railsim.cli import export, headway, network, plot, report, reproduce, run, scenario, study, sweep
 from railsim.errors import EXIT_CONFIG_ERROR, EXIT_SIMULATION_ERROR, ConfigError, SimulationError
 
 # The command groups, in help order; each module has ``add_commands(subparsers)``.
-COMMAND_GROUPS: tuple[ModuleType, ...] = (network, scenario, run, reproduce, plot, sweep, headway, export, report,
-                                          study)
+COMMAND_GROUPS: tuple[ModuleType, ...] = (
+    network,
+    scenario,
+    run,
+    reproduce,
+    plot,
+    sweep,
+    headway,
+    export,
+    report,
+    study,
+)
 
 
 def build_parser() -> argparse.ArgumentParser:

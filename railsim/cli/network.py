@@ -43,8 +43,10 @@ def cmd_build(args: argparse.Namespace) -> int:
     from network import build
 
     bundle = build(_world_arg(args.world), out_dir=Path(args.out), **_params(args.param))
-    print(f"{bundle.name}: wrote {bundle.net_file}, {bundle.stops_file}, {bundle.topology_file} "
-          f"({len(bundle.stations)} stations, {len(bundle.switches)} switches, {len(bundle.routes)} routes)")
+    print(
+        f"{bundle.name}: wrote {bundle.net_file}, {bundle.stops_file}, {bundle.topology_file} "
+        f"({len(bundle.stations)} stations, {len(bundle.switches)} switches, {len(bundle.routes)} routes)"
+    )
     return 0
 
 
@@ -57,8 +59,10 @@ def summary(bundle: Any) -> str:
     lines += ["", f"stations ({len(bundle.stations)}):"]
     if external:
         for st in bundle.stations.values():
-            plats = ", ".join(f"{p.stop_id} on {p.edge} {p.start_pos_m:.0f}-{p.end_pos_m:.0f} m heading {p.direction}"
-                              for p in st.platforms)
+            plats = ", ".join(
+                f"{p.stop_id} on {p.edge} {p.start_pos_m:.0f}-{p.end_pos_m:.0f} m heading {p.direction}"
+                for p in st.platforms
+            )
             lines.append(f"  {st.id:<24} {st.name!r:<26} {plats}")
     else:
         lines.append(f"  {'id':<48} {'line':<10} {'km':>9} {'platform':>9}  turnback")
@@ -68,14 +72,18 @@ def summary(bundle: Any) -> str:
     lines.append("")
     lines.append(f"switches ({len(bundle.switches)}):")
     for sw in bundle.switches.values():
-        lines.append(f"  {sw.id:<12} {sw.kind:<8} node {sw.sumo_node:<12} trunk {sw.trunk_edge:<16} "
-                     f"normal {sw.normal_edge:<16} reverse {sw.reverse_edge:<16} throw {sw.throw_time_s:g} s, "
-                     f"diverging {sw.diverging_speed_mps * 3.6:g} km/h")
+        lines.append(
+            f"  {sw.id:<12} {sw.kind:<8} node {sw.sumo_node:<12} trunk {sw.trunk_edge:<16} "
+            f"normal {sw.normal_edge:<16} reverse {sw.reverse_edge:<16} throw {sw.throw_time_s:g} s, "
+            f"diverging {sw.diverging_speed_mps * 3.6:g} km/h"
+        )
     lines.append("")
     lines.append(f"routes ({len(bundle.routes)}):")
     for r in bundle.routes.values():
         sws = ", ".join(f"{s.switch_id}({s.leg}) @{s.point_m:.0f} m" for s in r.switches) or "no switches"
-        lines.append(f"  {r.id:<36} {r.length_m / 1000:8.3f} km  {len(r.edges):3d} edges  {len(r.stops):2d} stops  {sws}")
+        lines.append(
+            f"  {r.id:<36} {r.length_m / 1000:8.3f} km  {len(r.edges):3d} edges  {len(r.stops):2d} stops  {sws}"
+        )
     return "\n".join(lines)
 
 
@@ -87,8 +95,9 @@ def cmd_show(args: argparse.Namespace) -> int:
 
         if args.param:
             raise ConfigError("<command line>", "-p", "expected no world parameters for a .net.xml")
-        bundle = load_net(args.world, args.additional or (), signals=args.signals, vclass=args.vclass,
-                          where=("<command line>", "--"))
+        bundle = load_net(
+            args.world, args.additional or (), signals=args.signals, vclass=args.vclass, where=("<command line>", "--")
+        )
         print(summary(bundle))
         return 0
     if args.additional or args.vclass or args.signals != "strip":
@@ -108,9 +117,18 @@ def add_commands(subparsers: Any) -> None:
     s = sub.add_parser("show", help="print a readable summary of a world (or of an existing SUMO .net.xml)")
     s.add_argument("world", metavar="NAME|FILE", help="a shipped world, a line description or a SUMO .net.xml")
     s.add_argument("-p", "--param", action="append", metavar="KEY=VALUE", help="world parameter (repeatable)")
-    s.add_argument("-a", "--additional", action="append", metavar="FILE",
-                   help=".net.xml only: an additional file with trainStops/busStops (repeatable)")
-    s.add_argument("--signals", choices=("strip", "keep"), default="strip",
-                   help=".net.xml only: strip SUMO's rail signals in railsim's copy (default) or keep them")
+    s.add_argument(
+        "-a",
+        "--additional",
+        action="append",
+        metavar="FILE",
+        help=".net.xml only: an additional file with trainStops/busStops (repeatable)",
+    )
+    s.add_argument(
+        "--signals",
+        choices=("strip", "keep"),
+        default="strip",
+        help=".net.xml only: strip SUMO's rail signals in railsim's copy (default) or keep them",
+    )
     s.add_argument("--vclass", default=None, help=".net.xml only: rail vClass of railsim's trains (default: auto)")
     s.set_defaults(func=cmd_show)

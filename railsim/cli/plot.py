@@ -26,8 +26,12 @@ KINDS = ("auto", "paper000", "paper003", *LINE_KINDS)
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("plot", help="write figures (PNG) for finished run folders")
     p.add_argument("runs", nargs="+", help="run output folders (from railsim run)")
-    p.add_argument("--out", default=None, help="folder for the figures; for line kinds a file stem (default "
-                                               "RUN/<kind>; with several runs <stem>-<run name>)")
+    p.add_argument(
+        "--out",
+        default=None,
+        help="folder for the figures; for line kinds a file stem (default "
+        "RUN/<kind>; with several runs <stem>-<run name>)",
+    )
     p.add_argument("--kind", choices=KINDS, default="auto")
     p.add_argument("--direction", choices=("up", "down"), default=None, help="line kinds: one direction only")
     p.set_defaults(func=cmd_plot)
@@ -60,8 +64,13 @@ def cmd_plot(args: argparse.Namespace) -> int:
         from railsim.report.plots.line import write_kind
 
         for r in runs:
-            stem = (r / args.kind if args.out is None else
-                    Path(args.out) if len(runs) == 1 else Path(f"{args.out}-{r.name}"))
+            stem = (
+                r / args.kind
+                if args.out is None
+                else Path(args.out)
+                if len(runs) == 1
+                else Path(f"{args.out}-{r.name}")
+            )
             written += write_kind(args.kind, r, stem, args.direction)
         for path in written:
             print(path)

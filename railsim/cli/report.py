@@ -17,8 +17,13 @@ from railsim.report.document import FORMATS, write_report
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("report", help="write a one-page Markdown or HTML report of a run or a sweep folder")
     p.add_argument("folder", help="run folder (railsim run) or sweep folder (railsim sweep)")
-    p.add_argument("--format", choices=FORMATS, default="md", dest="fmt",
-                   help="md: report.md with figures linked from report_figures/; html: one self-contained file")
+    p.add_argument(
+        "--format",
+        choices=FORMATS,
+        default="md",
+        dest="fmt",
+        help="md: report.md with figures linked from report_figures/; html: one self-contained file",
+    )
     p.set_defaults(func=cmd_report)
 
 

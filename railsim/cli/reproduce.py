@@ -23,10 +23,18 @@ def add_commands(sub: Any) -> None:
     p.add_argument("--workers", type=int, default=None, help="paper004: local worker processes (default: cores)")
     p.add_argument("--dask", default=None, metavar="ADDRESS", help="paper004: run the cases on this Dask scheduler")
     p.add_argument("--out", required=True, help="output folder")
-    p.add_argument("--topology", choices=["union", "path"], default="union",
-                   help="paper002: reading of the lost Fig. 2 (spec 002 §3.2)")
-    p.add_argument("--scenario", choices=["A", "B", "C-constant", "C-harmonic"], default="A",
-                   help="paper001: single section, multi-section, constant wind, harmonic gust")
+    p.add_argument(
+        "--topology",
+        choices=["union", "path"],
+        default="union",
+        help="paper002: reading of the lost Fig. 2 (spec 002 §3.2)",
+    )
+    p.add_argument(
+        "--scenario",
+        choices=["A", "B", "C-constant", "C-harmonic"],
+        default="A",
+        help="paper001: single section, multi-section, constant wind, harmonic gust",
+    )
     p.add_argument("--controllers", default="sempc,mpc,afsmc", help="paper001: comma-separated controllers")
     p.set_defaults(func=cmd_reproduce)
 
@@ -44,6 +52,8 @@ def cmd_reproduce(args: argparse.Namespace) -> int:
         print(f"figure and metrics.json in {out}/")
         return 0
     summary = reproduce_paper002(out, args.topology)
-    print(f"{summary['experiment']} ({summary['topology']}): {summary['steps']} steps, "
-          f"{summary['violations']} constraint violations; figures and CSV in {out}/")
+    print(
+        f"{summary['experiment']} ({summary['topology']}): {summary['steps']} steps, "
+        f"{summary['violations']} constraint violations; figures and CSV in {out}/"
+    )
     return 0 if summary["violations"] == 0 else 1

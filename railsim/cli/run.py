@@ -40,8 +40,7 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from railsim import api as engine
-    from railsim import scenario
+    from railsim import api as engine, scenario
 
     scn = scenario.load(args.scenario)
     out = Path(args.out)

@@ -21,14 +21,20 @@ from railsim.studies.vc_vs_mb import DEFAULT_MB, DEFAULT_SERVICES, DEFAULT_VC, v
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("study", help="line studies (vc-vs-mb: virtual coupling vs moving block)")
     studies = p.add_subparsers(dest="study", metavar="STUDY")
-    q = studies.add_parser("vc-vs-mb", help="minimum headway, capacity, running time, energy and gaps of moving "
-                                            "block vs virtual coupling, side by side (DIR/vc_vs_mb.md)")
+    q = studies.add_parser(
+        "vc-vs-mb",
+        help="minimum headway, capacity, running time, energy and gaps of moving "
+        "block vs virtual coupling, side by side (DIR/vc_vs_mb.md)",
+    )
     q.add_argument("--out", required=True, help="output folder (probes are kept and reused on a re-run)")
     q.add_argument("--workers", type=int, default=1, help="probes run in parallel (default 1)")
     q.add_argument("--mb", default=str(DEFAULT_MB), help="moving-block scenario (default: %(default)s)")
     q.add_argument("--vc", default=str(DEFAULT_VC), help="virtual-coupling scenario (default: %(default)s)")
-    q.add_argument("--services", default=",".join(DEFAULT_SERVICES),
-                   help="services whose headway is searched, comma-separated (default: %(default)s)")
+    q.add_argument(
+        "--services",
+        default=",".join(DEFAULT_SERVICES),
+        help="services whose headway is searched, comma-separated (default: %(default)s)",
+    )
     q.add_argument("--lo", type=float, default=60.0, help="lower end of the headway search [s] (default 60)")
     q.add_argument("--mb-hi", type=float, default=240.0, help="upper end for moving block [s] (default 240)")
     q.add_argument("--vc-hi", type=float, default=150.0, help="upper end for virtual coupling [s] (default 150)")
@@ -50,15 +56,32 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
     services = [s.strip() for s in args.services.split(",") if s.strip()]
     if not services:
         raise ConfigError("<command line>", "--services", "expected at least one service id")
-    results = vc_vs_mb(args.out, mb_scenario=args.mb, vc_scenario=args.vc, services=services, lo_s=args.lo,
-                       mb_hi_s=args.mb_hi, vc_hi_s=args.vc_hi, tol_s=args.tol, max_delay_s=args.max_delay,
-                       workers=args.workers, headway_s=args.headway, confirm=not args.no_confirm,
-                       progress=False if args.no_progress else None)
+    results = vc_vs_mb(
+        args.out,
+        mb_scenario=args.mb,
+        vc_scenario=args.vc,
+        services=services,
+        lo_s=args.lo,
+        mb_hi_s=args.mb_hi,
+        vc_hi_s=args.vc_hi,
+        tol_s=args.tol,
+        max_delay_s=args.max_delay,
+        workers=args.workers,
+        headway_s=args.headway,
+        confirm=not args.no_confirm,
+        progress=False if args.no_progress else None,
+    )
     for r in results.values():
         h = "none feasible" if r.headway_s is None else f"{r.headway_s:g} s"
         up = r.metrics.get("up.pax_per_h")
-        print(f"{r.regime.label}: minimum headway {h}"
-              + (f"; up {r.metrics['up.trains_per_h']:.0f} trains/h on {r.metrics['up.paths_per_h']:.0f} paths, "
-                 f"{up:,.0f} passengers/h" if up is not None else ""))
+        print(
+            f"{r.regime.label}: minimum headway {h}"
+            + (
+                f"; up {r.metrics['up.trains_per_h']:.0f} trains/h on {r.metrics['up.paths_per_h']:.0f} paths, "
+                f"{up:,.0f} passengers/h"
+                if up is not None
+                else ""
+            )
+        )
     print(f"report: {Path(args.out) / 'vc_vs_mb.md'}")
     return 0 if all(r.headway_s is not None for r in results.values()) else 1

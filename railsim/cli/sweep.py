@@ -25,16 +25,27 @@ def require_one_backend(args: argparse.Namespace) -> None:
 def cmd_sweep(args: argparse.Namespace) -> int:
     require_one_backend(args)
     spec = load_sweep(args.sweep)
-    result = run_sweep(spec, args.out, workers=args.workers, dask_address=args.dask, retry_failed=args.retry_failed,
-                       keep_runs=args.keep_runs, timeout_s=args.timeout, progress=False if args.no_progress else None)
+    result = run_sweep(
+        spec,
+        args.out,
+        workers=args.workers,
+        dask_address=args.dask,
+        retry_failed=args.retry_failed,
+        keep_runs=args.keep_runs,
+        timeout_s=args.timeout,
+        progress=False if args.no_progress else None,
+    )
     print(result.summary_line(spec.name))
     return 0 if result.n_failed == 0 else 1
 
 
 def add_commands(sub: Any) -> None:
-    p = sub.add_parser("sweep", help="run a base scenario over a grid/list of overrides (resumable), one table",
-                       description="Run every case of a sweep file in its own process, locally or on a Dask "
-                       "cluster; re-running the same command resumes (finished cases are skipped).")
+    p = sub.add_parser(
+        "sweep",
+        help="run a base scenario over a grid/list of overrides (resumable), one table",
+        description="Run every case of a sweep file in its own process, locally or on a Dask "
+        "cluster; re-running the same command resumes (finished cases are skipped).",
+    )
     p.add_argument("sweep", metavar="SWEEP", help="sweep YAML file (base scenario, grid, cases, seeds)")
     p.add_argument("--out", required=True, help="sweep folder: rows/, cases.parquet, cases.csv, sweep.yaml")
     p.add_argument("--workers", type=int, default=None, help="local worker processes (default: number of cores)")

@@ -21,8 +21,9 @@ from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable, Protocol
+from typing import Any, Protocol
 
 import numpy as np
 
@@ -47,8 +48,17 @@ class CommandSource(Protocol):
 
     def in_plan_phase(self, train_id: str) -> bool: ...
 
-    def commands(self, t: float, tr: TrainRuntime, a: Ahead | None, base: dict[str, Any],
-                 commands: dict[str, Command], own_pos_m: float, own_v_mps: float, fstate: str) -> None: ...
+    def commands(
+        self,
+        t: float,
+        tr: TrainRuntime,
+        a: Ahead | None,
+        base: dict[str, Any],
+        commands: dict[str, Command],
+        own_pos_m: float,
+        own_v_mps: float,
+        fstate: str,
+    ) -> None: ...
 
 
 @dataclass
@@ -74,9 +84,20 @@ class Disturbances:
 class ControlStage:
     """Observations → role commands → arbitration → plant step, for one train at a time."""
 
-    def __init__(self, trains: dict[str, TrainRuntime], formations: FormationBook, knowledge: Knowledge,
-                 safety: SafetyMonitor, locks: RouteLocks, stops: StopBook, events: EventLog,
-                 settings: EngineSettings, dt_s: float, step_method: str, disturbances: Disturbances) -> None:
+    def __init__(
+        self,
+        trains: dict[str, TrainRuntime],
+        formations: FormationBook,
+        knowledge: Knowledge,
+        safety: SafetyMonitor,
+        locks: RouteLocks,
+        stops: StopBook,
+        events: EventLog,
+        settings: EngineSettings,
+        dt_s: float,
+        step_method: str,
+        disturbances: Disturbances,
+    ) -> None:
         self.trains = trains
         self.formations = formations
         self.knowledge = knowledge
@@ -98,8 +119,13 @@ class ControlStage:
         target = None
         if stop is not None:
             # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
-            target = StopTarget(stop.station_id, stop.mark_m - offset, stop.window_start_m, stop.window_end_m,
-                                dwelling=tr.sumo_stopped or tr.halted_s is not None)
+            target = StopTarget(
+                stop.station_id,
+                stop.mark_m - offset,
+                stop.window_start_m,
+                stop.window_end_m,
+                dwelling=tr.sumo_stopped or tr.halted_s is not None,
+            )
         own_pos = tr.front_m
         own_v = tr.plant.speed_mps
         if self.dist.position_sd_m > 0:
@@ -113,11 +139,15 @@ class ControlStage:
             # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears
             limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
         base = dict(
-            t_s=t, dt_s=self.dt,
+            t_s=t,
+            dt_s=self.dt,
             own=OwnState(tr.train_id, own_pos, own_v, tr.plant.applied_accel_mps2, veh.length_m, grad),
-            vehicle=veh, route_length_m=tr.view.length_m,
+            vehicle=veh,
+            route_length_m=tr.view.length_m,
             speed_limits=limits,
-            line_speed_mps=tr.view.line_speed_mps, next_stop=target, authority_end_m=self.locks.authority_end_m(tr),
+            line_speed_mps=tr.view.line_speed_mps,
+            next_stop=target,
+            authority_end_m=self.locks.authority_end_m(tr),
         )
         return base, own_pos, own_v
 
@@ -143,8 +173,13 @@ class ControlStage:
             src.commands(t, tr, a, base, commands, own_pos, own_v, fstate)
             return self._finish(t, tr, commands, grad)
         used_vc = False
-        if f is not None and fstate in COUPLED_STATES and leader is not None and leader.on_line and \
-                tr.controllers.get("coupled") is not None:
+        if (
+            f is not None
+            and fstate in COUPLED_STATES
+            and leader is not None
+            and leader.on_line
+            and tr.controllers.get("coupled") is not None
+        ):
             used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
             other = self.trains[a.train_id]
@@ -158,8 +193,16 @@ class ControlStage:
             self._collision_avoidance(t, tr, a, ca_ctl, base, fstate, commands)
         return self._finish(t, tr, commands, grad)
 
-    def _coupled(self, t: float, tr: TrainRuntime, f: Any, fstate: str, leader: TrainRuntime,
-                 base: dict[str, Any], commands: dict[str, Command]) -> bool:
+    def _coupled(
+        self,
+        t: float,
+        tr: TrainRuntime,
+        f: Any,
+        fstate: str,
+        leader: TrainRuntime,
+        base: dict[str, Any],
+        commands: dict[str, Command],
+    ) -> bool:
         """The coupled controller on t2t data if fresh enough; degrade/restore events. True if it commanded."""
         pred = self.knowledge.known_state(tr, leader, "t2t", tr.train_id)
         # hysteresis: degrade when the leader's data is older than max_message_age_s, restore only once it is at
@@ -172,8 +215,9 @@ class ControlStage:
                 # both units stop at this platform: the ATO stops us exactly behind the leader's mark, the coupled
                 # controller keeps only its safety cap (its slow gap loop would halt us short)
                 extras["vc_tracking"] = False
-            obs = Observation(**base, predecessor=pred, formation_state=fstate,
-                              target_gap_m=float(f.target_gap_m), extras=extras)
+            obs = Observation(
+                **base, predecessor=pred, formation_state=fstate, target_gap_m=float(f.target_gap_m), extras=extras
+            )
             vc_cmd = tr.controllers["coupled"].command(obs)
             commands["coupled"] = vc_cmd
             info = vc_cmd.info or {}
@@ -191,17 +235,30 @@ class ControlStage:
             self.events.record(t, "vc_degraded", tr.train_id, age_s=None if pred is None else round(pred.age_s, 3))
         return False
 
-    def _collision_avoidance(self, t: float, tr: TrainRuntime, a: Ahead | None, ca_ctl: Any,
-                             base: dict[str, Any], fstate: str, commands: dict[str, Command]) -> None:
-        ca_cmd = ca_ctl.command(Observation(**base, extras={"sensor": self.safety.sensor(tr, a)},
-                                            formation_state=fstate))
+    def _collision_avoidance(
+        self,
+        t: float,
+        tr: TrainRuntime,
+        a: Ahead | None,
+        ca_ctl: Any,
+        base: dict[str, Any],
+        fstate: str,
+        commands: dict[str, Command],
+    ) -> None:
+        ca_cmd = ca_ctl.command(
+            Observation(**base, extras={"sensor": self.safety.sensor(tr, a)}, formation_state=fstate)
+        )
         commands["ca"] = ca_cmd
         event = ca_cmd.info.get("event") if ca_cmd.info else None
         if event in ("ca_on", "ca_off"):
             gap = float(ca_cmd.info.get("gap_m", INF))
-            self.events.record(t, "ca_trigger" if event == "ca_on" else "ca_release", tr.train_id,
-                               gap_m=round(gap, 3) if math.isfinite(gap) else None,
-                               trigger_m=ca_cmd.info.get("trigger_m"))
+            self.events.record(
+                t,
+                "ca_trigger" if event == "ca_on" else "ca_release",
+                tr.train_id,
+                gap_m=round(gap, 3) if math.isfinite(gap) else None,
+                trigger_m=ca_cmd.info.get("trigger_m"),
+            )
 
     # ------------------------------------------------------------------ arbitration and plant
     def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
@@ -212,8 +269,9 @@ class ControlStage:
             tr.emergency_since_s = t
             self.events.record(t, "emergency_brake_on", tr.train_id, role=role)
         elif not cmd.emergency and tr.emergency_since_s is not None:
-            self.events.record(t, "emergency_brake_off", tr.train_id, role=role,
-                               duration_s=round(t - tr.emergency_since_s, 3))
+            self.events.record(
+                t, "emergency_brake_off", tr.train_id, role=role, duration_s=round(t - tr.emergency_since_s, 3)
+            )
             tr.emergency_since_s = None
         if cmd.fallback:
             tr.fallbacks += 1
@@ -256,8 +314,9 @@ class ControlStage:
         advance_m, v_new, applied_mps2 = tr.exact_plant.advance(t, tr, cmd, grad, self.dt)
         jerk = abs(applied_mps2 - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
-        tr.plant = dynamics.PlantState(speed_mps=float(v_new), applied_accel_mps2=float(applied_mps2),
-                                       target_accel_mps2=float(applied_mps2))
+        tr.plant = dynamics.PlantState(
+            speed_mps=float(v_new), applied_accel_mps2=float(applied_mps2), target_accel_mps2=float(applied_mps2)
+        )
         tr.last_role = role
         tr.last_cmd_mps2 = cmd.accel_mps2
         tr.last_plan = None

@@ -17,7 +17,8 @@ Paper-specific follower logic (Paper D's state machine) plugs in through ``follo
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from railsim.engine.events.formations import Formation, FormationManager
 from railsim.engine.fleet import Fleet
@@ -59,16 +60,24 @@ class FormationBook:
         follower = self.fleet.trip_ref(f.follower, f"{where}.follower")
         # decoupling completes at this true gap: the engine default, or beyond a large target gap
         separation = max(self.settings.separation_gap_m, float(f.target_gap_m) + 100.0)
-        form = Formation(id=f.id, leader_id=leader.train_id, follower_id=follower.train_id,
-                         target_gap_m=float(f.target_gap_m), separation_gap_m=separation,
-                         coupling_timeout_s=float(f.coupling_timeout_s))
+        form = Formation(
+            id=f.id,
+            leader_id=leader.train_id,
+            follower_id=follower.train_id,
+            target_gap_m=float(f.target_gap_m),
+            separation_gap_m=separation,
+            coupling_timeout_s=float(f.coupling_timeout_s),
+        )
         self.manager.add(form)
         if trig(f.couple, "on_departure"):
             origin = follower.trip.origin.station_id
             planned = leader.trip.planned_departure_s.get(origin)
             if planned is None:
-                raise ConfigError(self.fleet.source, f"{where}.couple",
-                                  f"the leader's trip does not stop at the follower's origin {origin!r}")
+                raise ConfigError(
+                    self.fleet.source,
+                    f"{where}.couple",
+                    f"the leader's trip does not stop at the follower's origin {origin!r}",
+                )
             shift = planned - follower.trip.depart_s
             follower.trip.depart_s = planned
             for d in (follower.trip.planned_arrival_s, follower.trip.planned_departure_s):
@@ -147,8 +156,9 @@ class FormationBook:
         """A train left a station: decouple triggers of its formations, couple triggers of its own."""
         for f in self.of_leader.get(tr.train_id, ()):  # decouple when the leader departs X
             if self.manager.state(f.id) in COUPLED_STATES:
-                if (trig(f.decouple, "at_station") and f.decouple.station == stop.station_id) or \
-                        self._last_stop_before_switch(tr, stop, f):
+                if (
+                    trig(f.decouple, "at_station") and f.decouple.station == stop.station_id
+                ) or self._last_stop_before_switch(tr, stop, f):
                     self.manager.request_decouple(f.id)
         f = self.of_follower.get(tr.train_id)
         if f is not None and trig(f.couple, "at_station") and f.couple.station == stop.station_id:
@@ -177,8 +187,11 @@ class FormationBook:
                     self.manager.request_couple(f.id)
             if trig(f.decouple, "before_switch") and self.manager.state(f.id) in COUPLED_STATES:
                 for rs in tr.trip.route.switches:
-                    if rs.switch_id == f.decouple.switch and \
-                            rs.point_m - tr.front_m <= self.settings.decouple_distance_m and tr.front_m < rs.point_m:
+                    if (
+                        rs.switch_id == f.decouple.switch
+                        and rs.point_m - tr.front_m <= self.settings.decouple_distance_m
+                        and tr.front_m < rs.point_m
+                    ):
                         nxt, _ = self.current_stop(tr)
                         if nxt is None or nxt.mark_m > rs.point_m:  # no stop left before the switch
                             self.manager.request_decouple(f.id)

@@ -8,7 +8,8 @@ line, which train a scenario ``TripRef`` names, and whether every trip has finis
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 import controllers as ctl
 from railsim.engine.routeview import route_view
@@ -51,23 +52,46 @@ class Fleet:
             except (KeyError, ValueError) as exc:
                 raise ConfigError(self.source, f"services[{svc.id}]", f"no route: {exc}") from None
             vehicle = scenario.vehicles[svc.vehicle]
-            stops = make_stops(route, vehicle.length_m, tuple(svc.skip), svc.dwell_default_s,
-                               dict(svc.dwell_by_station), svc.from_station, svc.to_station)
+            stops = make_stops(
+                route,
+                vehicle.length_m,
+                tuple(svc.skip),
+                svc.dwell_default_s,
+                dict(svc.dwell_by_station),
+                svc.from_station,
+                svc.to_station,
+            )
             if len(stops) < 2 or stops[0].station_id != svc.from_station or stops[-1].station_id != svc.to_station:
-                raise ConfigError(self.source, f"services[{svc.id}]",
-                                  f"route from {svc.from_station} to {svc.to_station} does not serve both stations")
+                raise ConfigError(
+                    self.source,
+                    f"services[{svc.id}]",
+                    f"route from {svc.from_station} to {svc.to_station} does not serve both stations",
+                )
             start_offset = self._start_offset(svc, route, stops)
             if start_offset > 0.0:  # a trip that starts in motion skips the stops already behind it
                 start_m = stops[0].mark_m + start_offset
                 stops = (stops[0],) + tuple(st for st in stops[1:] if st.window_end_m > start_m)
                 if len(stops) < 2:
-                    raise ConfigError(self.source, f"services[{svc.id}].start.offset_m",
-                                      f"starts beyond its destination {svc.to_station!r}")
+                    raise ConfigError(
+                        self.source,
+                        f"services[{svc.id}].start.offset_m",
+                        f"starts beyond its destination {svc.to_station!r}",
+                    )
             trips = []
             for k, (trip_id, dep) in enumerate(zip(svc.trip_ids, svc.departures_s)):
-                trip = Trip(trip_id=trip_id, service_id=svc.id, index=k, vehicle_name=svc.vehicle, vehicle=vehicle,
-                            route=route, depart_s=float(dep), stops=stops, roles=dict(svc.roles),
-                            start_offset_m=start_offset, start_speed_mps=float(svc.start_speed_mps))
+                trip = Trip(
+                    trip_id=trip_id,
+                    service_id=svc.id,
+                    index=k,
+                    vehicle_name=svc.vehicle,
+                    vehicle=vehicle,
+                    route=route,
+                    depart_s=float(dep),
+                    stops=stops,
+                    roles=dict(svc.roles),
+                    start_offset_m=start_offset,
+                    start_speed_mps=float(svc.start_speed_mps),
+                )
                 factory = _ato_factory(scenario, dict(svc.roles), vehicle)
                 arr, depm = plan_free_run(trip, factory, dt_s, step_method)
                 trip.planned_arrival_s.update(arr)
@@ -86,13 +110,20 @@ class Fleet:
         where = f"services[{svc.id}].start.before_switch"  # "the front starts distance_m before switch X"
         points = [rs.point_m for rs in route.switches if rs.switch_id == svc.start_before_switch]
         if not points:
-            raise ConfigError(self.source, where, f"switch {svc.start_before_switch!r} is not on the route "
-                              f"{route.id} (its switches: {', '.join(rs.switch_id for rs in route.switches)})")
+            raise ConfigError(
+                self.source,
+                where,
+                f"switch {svc.start_before_switch!r} is not on the route "
+                f"{route.id} (its switches: {', '.join(rs.switch_id for rs in route.switches)})",
+            )
         start_offset = points[0] - float(svc.start_distance_m) - stops[0].mark_m
         if start_offset < 0.0:
-            raise ConfigError(self.source, f"services[{svc.id}].start.distance_m",
-                              f"{svc.start_distance_m:g} m before {svc.start_before_switch} lies behind the "
-                              f"origin's stopping mark (at most {points[0] - stops[0].mark_m:.1f} m)")
+            raise ConfigError(
+                self.source,
+                f"services[{svc.id}].start.distance_m",
+                f"{svc.start_distance_m:g} m before {svc.start_before_switch} lies behind the "
+                f"origin's stopping mark (at most {points[0] - stops[0].mark_m:.1f} m)",
+            )
         return start_offset
 
 

@@ -13,7 +13,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events.clock import EventLayer
@@ -30,9 +31,16 @@ InsertHook = Callable[[float, TrainRuntime, float], None]
 class Dispatcher:
     """Departures, insertion into SUMO, and removal."""
 
-    def __init__(self, fleet: Fleet, layer: EventLayer, events: EventLog, settings: EngineSettings,
-                 formations: FormationBook, handshake: Callable[[TrainRuntime], None],
-                 release_locks: Callable[[TrainRuntime], None]) -> None:
+    def __init__(
+        self,
+        fleet: Fleet,
+        layer: EventLayer,
+        events: EventLog,
+        settings: EngineSettings,
+        formations: FormationBook,
+        handshake: Callable[[TrainRuntime], None],
+        release_locks: Callable[[TrainRuntime], None],
+    ) -> None:
         self.fleet = fleet
         self.layer = layer
         self.events = events
@@ -52,8 +60,10 @@ class Dispatcher:
 
     def _inserter(self, tr: TrainRuntime) -> Callable[[float], None]:
         """A clock callback that inserts ``tr`` (or holds it again)."""
+
         def call(_t: float) -> None:
             self.insert(tr)
+
         return call
 
     def insert_behind(self, tr: TrainRuntime, behind: TrainRuntime, gap_m: float) -> None:
@@ -70,28 +80,45 @@ class Dispatcher:
                 raise SimulationError(f"{tr.train_id} cannot start behind {behind.train_id}: routes share no track")
             depart_m = behind.front_m + off - behind.trip.vehicle.length_m - gap_m
             if depart_m < trip.origin.window_start_m:
-                self.events.record(self.layer.now_s, "platform_too_short", tr.train_id,
-                                   detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m")
+                self.events.record(
+                    self.layer.now_s,
+                    "platform_too_short",
+                    tr.train_id,
+                    detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m",
+                )
         elif trip.start_speed_mps == 0.0 and trip.start_offset_m == 0.0:
             blocker = self.blocker(tr, depart_m)
             if blocker is not None:  # the dispatcher holds the departure: a train approaching could not stop
                 if tr.train_id not in self._held:
                     self._held.add(tr.train_id)
                     self.events.record(self.layer.now_s, "departure_held", tr.train_id, approaching=blocker)
-                self.layer.at(self.layer.now_s + self.settings.departure_retry_s, self._inserter(tr),
-                              "departure_retry", tr.train_id)
+                self.layer.at(
+                    self.layer.now_s + self.settings.departure_retry_s,
+                    self._inserter(tr),
+                    "departure_retry",
+                    tr.train_id,
+                )
                 return
         from railsim.engine.sumo import StopSpec
 
-        stops = [StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s)
-                 for s in trip.stops[1:]]
+        stops = [
+            StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s)
+            for s in trip.stops[1:]
+        ]
         # SUMO inserts a vehicle on its route's first edge: a train starting further along (a start offset in
         # motion) gets the route trimmed to begin at the edge that holds its start chainage
         k = tr.view.edge_at(depart_m)
         route_id = trip.route.id if k == 0 else f"{trip.route.id}@{k}"
         self.bridge.add_route(route_id, trip.route.edges[k:])
-        self.bridge.add_train(tr.train_id, route_id, trip.vehicle_name, depart_m - tr.view.edge_start_m[k], stops,
-                              controlled=True, depart_speed_mps=trip.start_speed_mps)
+        self.bridge.add_train(
+            tr.train_id,
+            route_id,
+            trip.vehicle_name,
+            depart_m - tr.view.edge_start_m[k],
+            stops,
+            controlled=True,
+            depart_speed_mps=trip.start_speed_mps,
+        )
         tr.status = "inserting"
         tr.front_m = depart_m
         tr.plant = dynamics.PlantState(speed_mps=trip.start_speed_mps)
@@ -100,8 +127,9 @@ class Dispatcher:
         self.handshake(tr)
         tr.depart_chainage_m = depart_m
         tr.inserted_s = self.layer.now_s
-        self.events.record(self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id,
-                           chainage_m=round(depart_m, 3))
+        self.events.record(
+            self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id, chainage_m=round(depart_m, 3)
+        )
 
     def blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
         """A train on the line that a departure at ``depart_m`` would put in danger, or None (module docstring)."""
@@ -116,8 +144,11 @@ class Dispatcher:
             if front_o <= other.front_m - other.trip.vehicle.length_m:
                 continue  # it lies behind the other train's rear: the other one is ahead
             v = other.plant.speed_mps
-            needed = v * v / (2.0 * other.trip.vehicle.service_decel_mps2) + v * INSERTION_REACTION_S + \
-                self.settings.insertion_margin_m
+            needed = (
+                v * v / (2.0 * other.trip.vehicle.service_decel_mps2)
+                + v * INSERTION_REACTION_S
+                + self.settings.insertion_margin_m
+            )
             if rear_o - other.front_m < needed:
                 return other.train_id
         return None

@@ -14,7 +14,8 @@ conservative).
 
 from __future__ import annotations
 
-from typing import Any, Callable, Iterable
+from collections.abc import Callable, Iterable
+from typing import Any
 
 from controllers.base import PredecessorState
 from railsim.engine.coupling import FormationBook
@@ -78,11 +79,16 @@ class Knowledge:
         for follower, leader in pairs:
             if follower.on_line and leader.on_line:
                 self.registration[(follower.train_id, leader.train_id)] = (
-                    leader.trip.route.id, leader.front_m, leader.plant.speed_mps, leader.plant.applied_accel_mps2,
-                    now)
+                    leader.trip.route.id,
+                    leader.front_m,
+                    leader.plant.speed_mps,
+                    leader.plant.applied_accel_mps2,
+                    now,
+                )
 
-    def known_state(self, observer: TrainRuntime, other: TrainRuntime, channel: str,
-                    receiver: str) -> PredecessorState | None:
+    def known_state(
+        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
+    ) -> PredecessorState | None:
         """What ``observer`` knows of ``other`` via ``channel`` (mapped into the observer's frame)."""
         ch = self.channels.get(channel)
         msg = ch.latest(receiver, other.train_id) if ch is not None else None
@@ -90,9 +96,17 @@ class Knowledge:
             # no message yet: a registration report — a follower placed behind its leader knows where the leader
             # stood; the ground knows where each train was inserted (stale and behind the truth: conservative)
             reg = self.registration.get((observer.train_id, other.train_id))
-            route_id, pos, v, acc, stamp = reg if reg is not None else (
-                other.trip.route.id, other.depart_chainage_m, other.trip.start_speed_mps, 0.0,
-                other.inserted_s or 0.0)
+            route_id, pos, v, acc, stamp = (
+                reg
+                if reg is not None
+                else (
+                    other.trip.route.id,
+                    other.depart_chainage_m,
+                    other.trip.start_speed_mps,
+                    0.0,
+                    other.inserted_s or 0.0,
+                )
+            )
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
@@ -102,10 +116,19 @@ class Knowledge:
             return None
         front, rear = mapped  # only the part of its body on our track (see RouteView.map_body)
         planned = _plan_in_frame(plan, front - pos, stamp) if plan else {}
-        return PredecessorState(train_id=other.train_id, position_m=front, speed_mps=v, accel_mps2=acc,
-                                length_m=front - rear, stamp_s=stamp, age_s=max(0.0, self.layer.now_s - stamp),
-                                service_decel_mps2=veh.service_decel_mps2,
-                                emergency_decel_mps2=veh.emergency_decel_mps2, source=channel, **planned)
+        return PredecessorState(
+            train_id=other.train_id,
+            position_m=front,
+            speed_mps=v,
+            accel_mps2=acc,
+            length_m=front - rear,
+            stamp_s=stamp,
+            age_s=max(0.0, self.layer.now_s - stamp),
+            service_decel_mps2=veh.service_decel_mps2,
+            emergency_decel_mps2=veh.emergency_decel_mps2,
+            source=channel,
+            **planned,
+        )
 
 
 def _plan_in_frame(plan: dict[str, Any], shift_m: float, stamp_s: float) -> dict[str, Any]:
@@ -114,7 +137,9 @@ def _plan_in_frame(plan: dict[str, Any], shift_m: float, stamp_s: float) -> dict
     drop = 0
     if "t0_s" in plan and dt_plan > 0.0:  # entry 0 refers to t0_s: skip entries before the stamp
         drop = max(0, int(round((stamp_s - float(plan["t0_s"])) / dt_plan)))
-    return {"planned_position_m": tuple(float(x) + shift_m for x in plan.get("position_m", ())[drop:]),
-            "planned_speed_mps": tuple(float(x) for x in plan.get("speed_mps", ())[drop:]),
-            "planned_accel_mps2": tuple(float(x) for x in plan.get("accel_mps2", ())[drop:]),
-            "plan_dt_s": dt_plan}
+    return {
+        "planned_position_m": tuple(float(x) + shift_m for x in plan.get("position_m", ())[drop:]),
+        "planned_speed_mps": tuple(float(x) for x in plan.get("speed_mps", ())[drop:]),
+        "planned_accel_mps2": tuple(float(x) for x in plan.get("accel_mps2", ())[drop:]),
+        "plan_dt_s": dt_plan,
+    }

@@ -12,7 +12,8 @@ planner requests in its planned order).
 from __future__ import annotations
 
 import logging
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.interlocking import Interlocking
@@ -27,8 +28,14 @@ log = logging.getLogger(__name__)
 class RouteLocks:
     """Requests, authority and releases of switch locks for every train."""
 
-    def __init__(self, fleet: Fleet, interlocking: Interlocking, formations: FormationBook, events: EventLog,
-                 settings: EngineSettings) -> None:
+    def __init__(
+        self,
+        fleet: Fleet,
+        interlocking: Interlocking,
+        formations: FormationBook,
+        events: EventLog,
+        settings: EngineSettings,
+    ) -> None:
         self.fleet = fleet
         self.interlocking = interlocking
         self.formations = formations
@@ -45,15 +52,22 @@ class RouteLocks:
                 continue
             if rs.point_m < tr.trip.depart_chainage_m - length:
                 continue
-            if sid not in tr.locks and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m and \
-                    not self.managed_by(tr.train_id, sid):
+            if (
+                sid not in tr.locks
+                and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
+                and not self.managed_by(tr.train_id, sid)
+            ):
                 holders = self._lock_group(tr, rs)
                 if holders is not None:
                     req = self.interlocking.request(holders, sid, rs.leg)
                     for h in holders:
                         self.fleet.trains[h].locks[sid] = req
-            if sid in tr.locks and tr.front_m > rs.point_m and sid not in tr.violations and \
-                    not self.interlocking.is_locked_for(tr.train_id, sid, rs.leg):
+            if (
+                sid in tr.locks
+                and tr.front_m > rs.point_m
+                and sid not in tr.violations
+                and not self.interlocking.is_locked_for(tr.train_id, sid, rs.leg)
+            ):
                 tr.violations.add(sid)
                 self.events.record(t, "switch_violation", tr.train_id, switch=sid, leg=rs.leg)
                 log.error("%s passed switch %s without its lock", tr.train_id, sid)

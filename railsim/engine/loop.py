@@ -43,7 +43,10 @@ from railsim.engine.occupancy import Ahead, Body, Occupancy
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import (
-    PERMISSIVE_DECEL_MPS2, PERMISSIVE_SPEED_FACTOR, PERMISSIVE_TAU_S, EngineSettings,
+    PERMISSIVE_DECEL_MPS2,
+    PERMISSIVE_SPEED_FACTOR,
+    PERMISSIVE_TAU_S,
+    EngineSettings,
 )
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
@@ -59,8 +62,14 @@ PROGRESS_EVERY_S = 10  # progress bar update interval [simulated s]
 class Simulation:
     """Builds the world, the trains and the ports for a scenario, and runs the step loop. Use :func:`run`."""
 
-    def __init__(self, scenario: Any, out_dir: Path | None, seed: int | None = None,
-                 progress: bool | None = None, settings: EngineSettings | None = None) -> None:
+    def __init__(
+        self,
+        scenario: Any,
+        out_dir: Path | None,
+        seed: int | None = None,
+        progress: bool | None = None,
+        settings: EngineSettings | None = None,
+    ) -> None:
         from network.external import load_world, sumo_args
         from railsim import scenario as scn_mod
 
@@ -77,8 +86,9 @@ class Simulation:
 
         self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
         self.sumo_extra_args = sumo_args(self.bundle)  # () for generated worlds
-        scn_mod.check_against_world(scenario, self.bundle.stations.keys(), self.bundle.switches.keys(),
-                                    self.bundle.station_aliases)
+        scn_mod.check_against_world(
+            scenario, self.bundle.stations.keys(), self.bundle.switches.keys(), self.bundle.station_aliases
+        )
         if self.bundle.station_aliases:  # an external net: stations named by name or stop id -> station ids
             scenario = self.scenario = scn_mod.with_station_ids(scenario, self.bundle.station_aliases)
 
@@ -93,9 +103,14 @@ class Simulation:
         noise_rng = np.random.default_rng(self.rng.integers(2**63))
         actuator_rng = np.random.default_rng(self.rng.integers(2**63))
         disturbances = Disturbances(
-            float(faults.sensor_noise.position_sd_m), float(faults.sensor_noise.speed_sd_mps), noise_rng,
-            float(faults.actuator_noise.accel_sd_mps2), actuator_rng, faults.actuator_noise.trains,
-            tuple(faults.actuator_bias))
+            float(faults.sensor_noise.position_sd_m),
+            float(faults.sensor_noise.speed_sd_mps),
+            noise_rng,
+            float(faults.actuator_noise.accel_sd_mps2),
+            actuator_rng,
+            faults.actuator_noise.trains,
+            tuple(faults.actuator_bias),
+        )
 
         # ---- the ports
         self.fleet = Fleet(scenario.source)
@@ -106,27 +121,62 @@ class Simulation:
             self.formations.add(f, f"formations[{k}]")
         self.locks = RouteLocks(self.fleet, self.interlocking, self.formations, self.events, self.settings)
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
-        self.stops = StopBook(self.formations, self.events, self.settings, self.recorder.stop_record,
-                              self.locks.release_all)
+        self.stops = StopBook(
+            self.formations, self.events, self.settings, self.recorder.stop_record, self.locks.release_all
+        )
         self.knowledge = Knowledge(self.layer, self.channels, self.formations)
-        self.dispatcher = Dispatcher(self.fleet, self.layer, self.events, self.settings, self.formations,
-                                     self.knowledge.handshake, self.locks.release_all)
+        self.dispatcher = Dispatcher(
+            self.fleet,
+            self.layer,
+            self.events,
+            self.settings,
+            self.formations,
+            self.knowledge.handshake,
+            self.locks.release_all,
+        )
         self.formations.insert_behind = self.dispatcher.insert_behind
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
-        self.control = ControlStage(self.trains, self.formations, self.knowledge, self.safety, self.locks,
-                                    self.stops, self.events, self.settings, self.dt, self.step_method, disturbances)
+        self.control = ControlStage(
+            self.trains,
+            self.formations,
+            self.knowledge,
+            self.safety,
+            self.locks,
+            self.stops,
+            self.events,
+            self.settings,
+            self.dt,
+            self.step_method,
+            disturbances,
+        )
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
         self.dispatcher.schedule_departures()
-        timed.schedule(timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher,
-                                        self.safety), scenario)
-        self.extensions = install_all(ExtensionContext(
-            scenario=scenario, fleet=self.fleet, formations=self.formations, dispatcher=self.dispatcher,
-            knowledge=self.knowledge, locks=self.locks, control=self.control, events=self.events,
-            layer=self.layer, interlocking=self.interlocking, channels=self.channels, settings=self.settings,
-            switch_throw_s={sid: float(sw.throw_time_s) for sid, sw in self.bundle.switches.items()},
-            dt_s=self.dt, step_method=self.step_method, draw_seed=lambda: int(self.rng.integers(2**63))))
+        timed.schedule(
+            timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety),
+            scenario,
+        )
+        self.extensions = install_all(
+            ExtensionContext(
+                scenario=scenario,
+                fleet=self.fleet,
+                formations=self.formations,
+                dispatcher=self.dispatcher,
+                knowledge=self.knowledge,
+                locks=self.locks,
+                control=self.control,
+                events=self.events,
+                layer=self.layer,
+                interlocking=self.interlocking,
+                channels=self.channels,
+                settings=self.settings,
+                switch_throw_s={sid: float(sw.throw_time_s) for sid, sw in self.bundle.switches.items()},
+                dt_s=self.dt,
+                step_method=self.step_method,
+                draw_seed=lambda: int(self.rng.integers(2**63)),
+            )
+        )
         self._before_bookkeeping = [e.before_bookkeeping for e in self.extensions if hasattr(e, "before_bookkeeping")]
         self._before_comms = [e.before_comms for e in self.extensions if hasattr(e, "before_comms")]
         self.steps = 0
@@ -137,10 +187,10 @@ class Simulation:
     def _channels(self, scenario: Any) -> dict[str, Channel]:
         channels = {}
         for name, spec in scenario.faults.comm.items():
-            delay = DelaySpec.from_mapping(_delay_mapping(spec.delay), str(scenario.source),
-                                           f"faults.comm.{name}.delay_s")
-            outages = tuple(Outage(o.start_s, o.end_s, frozenset(o.trains) if o.trains else None)
-                            for o in spec.outages)
+            delay = DelaySpec.from_mapping(
+                _delay_mapping(spec.delay), str(scenario.source), f"faults.comm.{name}.delay_s"
+            )
+            outages = tuple(Outage(o.start_s, o.end_s, frozenset(o.trains) if o.trains else None) for o in spec.outages)
             channels[name] = Channel(self.layer, name, delay, float(spec.loss_prob), outages)
         return channels
 
@@ -180,16 +230,32 @@ class Simulation:
         from railsim.engine.sumo import SumoConfig, VTypeSpec
 
         # permissive vTypes: SUMO inserts exactly where and when we say (railsim.engine.settings explains why)
-        vtypes = [VTypeSpec(name, v.length_m, max(v.max_speed_mps * PERMISSIVE_SPEED_FACTOR, 1.0), accel_mps2=1.0,
-                            decel_mps2=PERMISSIVE_DECEL_MPS2, emergency_decel_mps2=PERMISSIVE_DECEL_MPS2,
-                            tau_s=PERMISSIVE_TAU_S, vclass=self.bundle.vclass)
-                  for name, v in self.scenario.vehicles.items()]
+        vtypes = [
+            VTypeSpec(
+                name,
+                v.length_m,
+                max(v.max_speed_mps * PERMISSIVE_SPEED_FACTOR, 1.0),
+                accel_mps2=1.0,
+                decel_mps2=PERMISSIVE_DECEL_MPS2,
+                emergency_decel_mps2=PERMISSIVE_DECEL_MPS2,
+                tau_s=PERMISSIVE_TAU_S,
+                vclass=self.bundle.vclass,
+            )
+            for name, v in self.scenario.vehicles.items()
+        ]
         outs = tuple(self.scenario.outputs.sumo)
         additional = list(self.bundle.additional_files) or [self.bundle.stops_file]  # an external net: the user's
-        return SumoConfig(net_file=self.bundle.net_file, additional_files=additional, step_s=self.dt,
-                          seed=self.seed, step_method=self.step_method, vtypes=vtypes,
-                          output_dir=self.out_dir if outs else None, sumo_outputs=outs,
-                          extra_args=self.sumo_extra_args)
+        return SumoConfig(
+            net_file=self.bundle.net_file,
+            additional_files=additional,
+            step_s=self.dt,
+            seed=self.seed,
+            step_method=self.step_method,
+            vtypes=vtypes,
+            output_dir=self.out_dir if outs else None,
+            sumo_outputs=outs,
+            extra_args=self.sumo_extra_args,
+        )
 
     def _step(self, t: float) -> None:
         self.layer.advance_to(t)
@@ -247,9 +313,11 @@ class Simulation:
                 if tr.exact_plant is not None:
                     tr.exact_plant.resync(t, tr.front_m, sumo_v)
                 # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
-                tr.plant = dynamics.PlantState(speed_mps=sumo_v, applied_accel_mps2=0.0 if sumo_v == 0 else
-                                               tr.plant.applied_accel_mps2,
-                                               target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2)
+                tr.plant = dynamics.PlantState(
+                    speed_mps=sumo_v,
+                    applied_accel_mps2=0.0 if sumo_v == 0 else tr.plant.applied_accel_mps2,
+                    target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
+                )
             tr.sumo_stopped_now = bool(truth.stopped[i])
 
     # ------------------------------------------------------------------ results
@@ -260,14 +328,23 @@ class Simulation:
 
         extra = {e.summary_key: e.summary() for e in self.extensions if getattr(e, "summary_key", None)}
         return RunSnapshot(
-            scenario_name=self.scenario.name, seed=self.seed, trains=list(self.trains.values()),
-            formations=self.recording.formation_outcomes(), events=list(self.events.rows()),
+            scenario_name=self.scenario.name,
+            seed=self.seed,
+            trains=list(self.trains.values()),
+            formations=self.recording.formation_outcomes(),
+            events=list(self.events.rows()),
             channel_stats={name: ch.stats() for name, ch in self.channels.items()},
-            collisions=len(self.safety.collisions), sumo_collisions=len(self.safety.sumo_collisions),
-            sim_s=self.end_s, wall_s=self.wall_s, steps=self.steps, step_s=self.dt,
-            formats=tuple(self.scenario.outputs.formats), resolved_scenario=self.scenario.raw,
+            collisions=len(self.safety.collisions),
+            sumo_collisions=len(self.safety.sumo_collisions),
+            sim_s=self.end_s,
+            wall_s=self.wall_s,
+            steps=self.steps,
+            step_s=self.dt,
+            formats=tuple(self.scenario.outputs.formats),
+            resolved_scenario=self.scenario.raw,
             versions={"railsim": __version__, "sumo": sumo_version(), "numpy": np.__version__},
-            extra_summary=extra)
+            extra_summary=extra,
+        )
 
     def write(self, out_dir: Path) -> dict[str, Path]:
         return self.recorder.write(out_dir, self.snapshot())
@@ -284,15 +361,21 @@ def _delay_mapping(delay: Any) -> dict[str, Any]:
     return out
 
 
-def run(scenario: Any, out_dir: Path | str | None, seed: int | None = None, progress: bool | None = None,
-        settings: EngineSettings | None = None) -> dict[str, Any]:
+def run(
+    scenario: Any,
+    out_dir: Path | str | None,
+    seed: int | None = None,
+    progress: bool | None = None,
+    settings: EngineSettings | None = None,
+) -> dict[str, Any]:
     """Run ``scenario`` (a :class:`railsim.scenario.Scenario`) and write its outputs to ``out_dir``.
 
     Returns the summary dictionary (also written as ``summary.json``). :func:`railsim.api.run` adds the paper
     families' analyses of the files written; use that one unless you want the bare engine.
     """
-    sim = Simulation(scenario, Path(out_dir) if out_dir is not None else None, seed=seed, progress=progress,
-                     settings=settings)
+    sim = Simulation(
+        scenario, Path(out_dir) if out_dir is not None else None, seed=seed, progress=progress, settings=settings
+    )
     summary = sim.run()
     if sim.out_dir is not None:
         sim.write(sim.out_dir)

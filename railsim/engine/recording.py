@@ -26,8 +26,9 @@ class RecordingPort:
         self.recorder = recorder
         self.formations = formations
 
-    def step(self, t: float, active: list[TrainRuntime], ahead: dict[str, Ahead | None],
-             reports: dict[str, tuple[Any, ...]]) -> None:
+    def step(
+        self, t: float, active: list[TrainRuntime], ahead: dict[str, Ahead | None], reports: dict[str, tuple[Any, ...]]
+    ) -> None:
         book = self.formations
         for f in book.of_follower.values():
             if book.manager.state(f.id) != "coupled":
@@ -37,25 +38,44 @@ class RecordingPort:
             a = ahead.get(fol.train_id)
             if a is None or a.train_id != lead.train_id:
                 continue
-            self.recorder.coupled_sample(f.id, abs(a.gap_m - book.effective_target_m(fol, f)),
-                                         abs(fol.plant.speed_mps - lead.plant.speed_mps), a.gap_m)
+            self.recorder.coupled_sample(
+                f.id,
+                abs(a.gap_m - book.effective_target_m(fol, f)),
+                abs(fol.plant.speed_mps - lead.plant.speed_mps),
+                a.gap_m,
+            )
         if not self.recorder.trace_due(t):
             return
         for tr in active:
             f = book.of_follower.get(tr.train_id)
             rep = reports.get(tr.train_id)
             speed, accel = (rep[2], rep[3]) if rep is not None else (tr.plant.speed_mps, tr.plant.applied_accel_mps2)
-            self.recorder.trace_row({
-                "t_s": t, "train": tr.train_id, "service": tr.trip.service_id, "chainage_m": tr.front_m,
-                "speed_mps": speed, "applied_accel_mps2": accel,
-                "command_mps2": tr.last_cmd_mps2, "role": tr.last_role,
-                "gap_m": tr.last_gap_m if math.isfinite(tr.last_gap_m) else None,
-                "formation_state": str(book.manager.state(f.id)) if f is not None else "",
-                "solve_time_s": tr.vc_solve_s, "objective": tr.vc_objective,
-            })
+            self.recorder.trace_row(
+                {
+                    "t_s": t,
+                    "train": tr.train_id,
+                    "service": tr.trip.service_id,
+                    "chainage_m": tr.front_m,
+                    "speed_mps": speed,
+                    "applied_accel_mps2": accel,
+                    "command_mps2": tr.last_cmd_mps2,
+                    "role": tr.last_role,
+                    "gap_m": tr.last_gap_m if math.isfinite(tr.last_gap_m) else None,
+                    "formation_state": str(book.manager.state(f.id)) if f is not None else "",
+                    "solve_time_s": tr.vc_solve_s,
+                    "objective": tr.vc_objective,
+                }
+            )
 
     def formation_outcomes(self) -> list[FormationOutcome]:
         book = self.formations
-        return [FormationOutcome(f.id, book.fleet.trip_ref(f.leader, "formations").train_id,
-                                 book.follower_of(f).train_id, book.manager.stats(f.id), book.manager.state(f.id))
-                for f in book.of_follower.values()]
+        return [
+            FormationOutcome(
+                f.id,
+                book.fleet.trip_ref(f.leader, "formations").train_id,
+                book.follower_of(f).train_id,
+                book.manager.stats(f.id),
+                book.manager.state(f.id),
+            )
+            for f in book.of_follower.values()
+        ]

@@ -78,7 +78,7 @@ class RouteView:
                 out.append(lim)
         return tuple(out)
 
-    def offset_on_edge(self, other: "RouteView", edge_id: str) -> float | None:
+    def offset_on_edge(self, other: RouteView, edge_id: str) -> float | None:
         """Constant taking a chainage of *this* route to ``other``'s frame on the shared edge ``edge_id``."""
         i = self.edge_index.get(edge_id)
         j = other.edge_index.get(edge_id)
@@ -86,7 +86,7 @@ class RouteView:
             return None
         return other.edge_start_m[j] - self.edge_start_m[i]
 
-    def map_body(self, other: "RouteView", front_m: float, length_m: float) -> tuple[float, float] | None:
+    def map_body(self, other: RouteView, front_m: float, length_m: float) -> tuple[float, float] | None:
         """A train on ``other``'s route (front at ``front_m`` in its frame) as ``(front, rear)`` in *this* frame.
 
         Only the part of its body on track this route shares counts. At a merge the other train's front may be on
@@ -113,7 +113,7 @@ class RouteView:
             return front_m + off, rear_here
         return None
 
-    def offset_to(self, other: "RouteView", from_chainage_m: float) -> float | None:
+    def offset_to(self, other: RouteView, from_chainage_m: float) -> float | None:
         """Constant to add to a chainage in *this* frame to express it in ``other``'s frame.
 
         Uses the first edge at or after ``from_chainage_m`` (in this route) that ``other`` also uses; ``None`` if

@@ -24,8 +24,9 @@ log = logging.getLogger(__name__)
 class SafetyMonitor:
     """Truth checks every step; obstacles; the sensor reading a controller may use."""
 
-    def __init__(self, trains: dict[str, TrainRuntime], layer: EventLayer, events: EventLog,
-                 settings: EngineSettings) -> None:
+    def __init__(
+        self, trains: dict[str, TrainRuntime], layer: EventLayer, events: EventLog, settings: EngineSettings
+    ) -> None:
         self.trains = trains
         self.layer = layer
         self.events = events
@@ -42,9 +43,9 @@ class SafetyMonitor:
         ch = tr.front_m + float(ev.ahead_m)
         i = tr.view.edge_at(ch)
         self.obstacles[oid] = (tr.view.edges[i], ch - tr.view.edge_start_m[i])
-        self.events.record(self.layer.now_s, "obstacle_appeared", oid, ahead_of=tr.train_id,
-                           chainage_m=round(ch, 3))
+        self.events.record(self.layer.now_s, "obstacle_appeared", oid, ahead_of=tr.train_id, chainage_m=round(ch, 3))
         if ev.duration_s is not None:
+
             def clear(_t: float, oid: str = oid) -> None:
                 self.obstacles.pop(oid, None)
                 self.events.record(self.layer.now_s, "obstacle_cleared", oid)
@@ -68,8 +69,11 @@ class SafetyMonitor:
         reading: dict[str, Any] = {"distance_m": INF, "closing_speed_mps": 0.0, "object": "vehicle"}
         if a is not None and a.gap_m <= self.settings.sensor_range_m:
             other = self.trains[a.train_id]
-            reading = {"distance_m": a.gap_m, "closing_speed_mps": tr.plant.speed_mps - other.plant.speed_mps,
-                       "object": "vehicle"}
+            reading = {
+                "distance_m": a.gap_m,
+                "closing_speed_mps": tr.plant.speed_mps - other.plant.speed_mps,
+                "object": "vehicle",
+            }
         obs = self.obstacle_ahead(tr)
         if obs is not None and obs[1] <= self.settings.sensor_range_m and obs[1] < reading["distance_m"]:
             reading = {"distance_m": obs[1], "closing_speed_mps": tr.plant.speed_mps, "object": "obstacle"}
@@ -96,8 +100,9 @@ class SafetyMonitor:
         if pair in self._colliding_pairs:
             return
         self._colliding_pairs.add(pair)
-        self.collisions.append({"t_s": t, "follower": tr.train_id, "leader": other, "overlap_m": overlap_m,
-                                "chainage_m": tr.front_m})
+        self.collisions.append(
+            {"t_s": t, "follower": tr.train_id, "leader": other, "overlap_m": overlap_m, "chainage_m": tr.front_m}
+        )
         self.events.record(t, "collision", tr.train_id, leader=other, overlap_m=round(overlap_m, 3))
         log.error("collision at t=%.1f s: " + what + " (overlap %.2f m)", t, tr.train_id, other, overlap_m)
 

@@ -11,7 +11,7 @@ registering a *moving* train as stopped is logged as an error event (``stop_regi
 from __future__ import annotations
 
 import logging
-from typing import Callable
+from collections.abc import Callable
 
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events.log import EventLog
@@ -26,8 +26,14 @@ MOVING_REGISTRATION_MPS = 0.1  # SUMO registering a stop above this speed is an 
 class StopBook:
     """Per-train stop progress (``next_stop``, halt, dwell) and the stop records."""
 
-    def __init__(self, formations: FormationBook, events: EventLog, settings: EngineSettings,
-                 record_stop: Callable[..., None], release_locks: Callable[[TrainRuntime], None]) -> None:
+    def __init__(
+        self,
+        formations: FormationBook,
+        events: EventLog,
+        settings: EngineSettings,
+        record_stop: Callable[..., None],
+        release_locks: Callable[[TrainRuntime], None],
+    ) -> None:
         self.formations = formations
         self.events = events
         self.settings = settings
@@ -61,8 +67,12 @@ class StopBook:
             tr.halted_s = None
             tr.halt_error_m = None
             return
-        if not tr.sumo_stopped and tr.halted_s is None and v == 0.0 and \
-                stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6:
+        if (
+            not tr.sumo_stopped
+            and tr.halted_s is None
+            and v == 0.0
+            and stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6
+        ):
             tr.halted_s = t
             tr.halt_error_m = tr.front_m - mark
         if not tr.sumo_stopped and tr.front_m > stop.window_end_m + self.settings.missed_stop_tolerance_m:
@@ -73,8 +83,7 @@ class StopBook:
         tr.dwell_started_s = t
         if v > MOVING_REGISTRATION_MPS:
             self.events.record(t, "stop_registered_moving", tr.train_id, station=stop.station_id, speed_mps=v)
-            log.error("SUMO registered %s as stopped at %s while moving at %.2f m/s", tr.train_id,
-                      stop.station_id, v)
+            log.error("SUMO registered %s as stopped at %s while moving at %.2f m/s", tr.train_id, stop.station_id, v)
         if tr.halted_s is None:  # SUMO saw the halt before we did (same step)
             tr.halted_s = t
             tr.halt_error_m = tr.front_m - mark
@@ -88,10 +97,12 @@ class StopBook:
             self.release_locks(tr)
 
     def _missed(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
-        self.events.record(t, "stop_missed", tr.train_id, station=stop.station_id,
-                           overrun_m=round(tr.front_m - stop.window_end_m, 3))
-        log.warning("%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id,
-                    tr.front_m - stop.window_end_m)
+        self.events.record(
+            t, "stop_missed", tr.train_id, station=stop.station_id, overrun_m=round(tr.front_m - stop.window_end_m, 3)
+        )
+        log.warning(
+            "%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id, tr.front_m - stop.window_end_m
+        )
         self._record(tr, stop, None, None, None, missed=True)
         self.skip_next_stop(tr.train_id)
         tr.next_stop += 1
@@ -100,10 +111,22 @@ class StopBook:
             tr.status = "arrived"
             tr.arrived_s = t
 
-    def _record(self, tr: TrainRuntime, stop: TripStop, arrival_s: float | None, departure_s: float | None,
-                error_m: float | None, missed: bool = False) -> None:
-        self.record_stop(trip_id=tr.train_id, service=tr.trip.service_id, station=stop.station_id,
-                         planned_arrival_s=tr.trip.planned_arrival_s.get(stop.station_id), arrival_s=arrival_s,
-                         departure_s=departure_s, error_m=error_m, missed=missed)
-
-
+    def _record(
+        self,
+        tr: TrainRuntime,
+        stop: TripStop,
+        arrival_s: float | None,
+        departure_s: float | None,
+        error_m: float | None,
+        missed: bool = False,
+    ) -> None:
+        self.record_stop(
+            trip_id=tr.train_id,
+            service=tr.trip.service_id,
+            station=stop.station_id,
+            planned_arrival_s=tr.trip.planned_arrival_s.get(stop.station_id),
+            arrival_s=arrival_s,
+            departure_s=departure_s,
+            error_m=error_m,
+            missed=missed,
+        )

@@ -25,9 +25,9 @@ from __future__ import annotations
 import logging
 import os
 import tempfile
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterable, Sequence
 from xml.sax.saxutils import quoteattr
 
 import numpy as np
@@ -111,10 +111,10 @@ def _write_vtypes(path: Path, vtypes: Iterable[VTypeSpec]) -> None:
     lines = ["<routes>"]
     for vt in vtypes:
         lines.append(
-            f"  <vType id={quoteattr(vt.type_id)} vClass={quoteattr(vt.vclass)} length=\"{vt.length_m:.3f}\""
-            f" maxSpeed=\"{vt.max_speed_mps:.3f}\" accel=\"{vt.accel_mps2:.3f}\" decel=\"{vt.decel_mps2:.3f}\""
-            f" emergencyDecel=\"{vt.emergency_decel_mps2:.3f}\" minGap=\"0\" sigma=\"0\" tau=\"{vt.tau_s:g}\""
-            " carFollowModel=\"Krauss\"/>"
+            f'  <vType id={quoteattr(vt.type_id)} vClass={quoteattr(vt.vclass)} length="{vt.length_m:.3f}"'
+            f' maxSpeed="{vt.max_speed_mps:.3f}" accel="{vt.accel_mps2:.3f}" decel="{vt.decel_mps2:.3f}"'
+            f' emergencyDecel="{vt.emergency_decel_mps2:.3f}" minGap="0" sigma="0" tau="{vt.tau_s:g}"'
+            ' carFollowModel="Krauss"/>'
         )
     lines.append("</routes>")
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -135,19 +135,32 @@ class SumoBridge:
         cfg = self.config
         args = [
             "sumo",
-            "-n", str(cfg.net_file),
-            "--step-length", f"{cfg.step_s:g}",
-            "--begin", f"{cfg.begin_s:g}",
-            "--seed", str(int(cfg.seed)),
-            "--railsignal.default-classes", "tram",
-            "--collision.action", "warn",
-            "--collision.check-junctions", "true",
-            "--collision.mingap-factor", "0",
-            "--time-to-teleport", "-1",
-            "--emergencydecel.warning-threshold", "100",
-            "--no-step-log", "true",
-            "--duration-log.disable", "true",
-            "--no-warnings", "true",
+            "-n",
+            str(cfg.net_file),
+            "--step-length",
+            f"{cfg.step_s:g}",
+            "--begin",
+            f"{cfg.begin_s:g}",
+            "--seed",
+            str(int(cfg.seed)),
+            "--railsignal.default-classes",
+            "tram",
+            "--collision.action",
+            "warn",
+            "--collision.check-junctions",
+            "true",
+            "--collision.mingap-factor",
+            "0",
+            "--time-to-teleport",
+            "-1",
+            "--emergencydecel.warning-threshold",
+            "100",
+            "--no-step-log",
+            "true",
+            "--duration-log.disable",
+            "true",
+            "--no-warnings",
+            "true",
         ]
         if cfg.step_method == "ballistic":
             args += ["--step-method.ballistic", "true"]
@@ -161,8 +174,12 @@ class SumoBridge:
         if cfg.output_dir is not None and cfg.sumo_outputs:
             out = Path(cfg.output_dir)
             out.mkdir(parents=True, exist_ok=True)
-            names = {"tripinfo": "--tripinfo-output", "stops": "--stop-output", "fcd": "--fcd-output",
-                     "collisions": "--collision-output"}
+            names = {
+                "tripinfo": "--tripinfo-output",
+                "stops": "--stop-output",
+                "fcd": "--fcd-output",
+                "collisions": "--collision-output",
+            }
             for key in cfg.sumo_outputs:
                 if key not in names:
                     raise ValueError(f"unknown SUMO output {key!r}; expected one of {sorted(names)}")
@@ -172,7 +189,7 @@ class SumoBridge:
         args += list(cfg.extra_args)
         return args
 
-    def start(self) -> "SumoBridge":
+    def start(self) -> SumoBridge:
         if _ACTIVE["started"]:
             raise SimulationError("a SUMO simulation is already running in this process (libsumo hosts one)")
         self._tmp = tempfile.TemporaryDirectory(prefix="railsim-sumo-")
@@ -208,7 +225,7 @@ class SumoBridge:
             self._tmp.cleanup()
             self._tmp = None
 
-    def __enter__(self) -> "SumoBridge":
+    def __enter__(self) -> SumoBridge:
         return self.start()
 
     def __exit__(self, *exc: object) -> None:
@@ -243,11 +260,18 @@ class SumoBridge:
     ) -> None:
         """Insert a train now (it appears after the next step) with its stops; controlled → speedMode 32."""
         try:
-            libsumo.vehicle.add(train_id, route_id, type_id, depart="now", departPos=f"{depart_pos_m:.3f}",
-                                departSpeed=f"{depart_speed_mps:.6f}")
+            libsumo.vehicle.add(
+                train_id,
+                route_id,
+                type_id,
+                depart="now",
+                departPos=f"{depart_pos_m:.3f}",
+                departSpeed=f"{depart_speed_mps:.6f}",
+            )
             for stop in stops:
                 libsumo.vehicle.setBusStop(
-                    train_id, stop.stop_id,
+                    train_id,
+                    stop.stop_id,
                     duration=-1073741824.0 if stop.duration_s is None else float(stop.duration_s),
                     until=-1073741824.0 if stop.until_s is None else float(stop.until_s),
                     flags=_STOP_BUS_STOP,
@@ -321,8 +345,7 @@ class SumoBridge:
         """SUMO's own collision reports of the last step (an independent check of our ground truth)."""
         out = []
         for c in libsumo.simulation.getCollisions():
-            out.append({"collider": c.collider, "victim": c.victim, "type": c.type, "lane": c.lane,
-                        "pos_m": c.pos})
+            out.append({"collider": c.collider, "victim": c.victim, "type": c.type, "lane": c.lane, "pos_m": c.pos})
         return out
 
     def stop_states(self, train_id: str) -> list[tuple[str, float, float]]:

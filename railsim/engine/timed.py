@@ -9,8 +9,9 @@ and the event.
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events.clock import EventLayer
@@ -57,8 +58,14 @@ EVENT_HANDLERS: dict[str, Callable[[TimedPorts, int, Any], None]] = {
 
 def _fault_logger(p: TimedPorts, bias: Any) -> Callable[[float], None]:
     def call(_t: float) -> None:
-        p.events.record(p.layer.now_s, "actuator_fault", bias.train, accel_mps2=bias.accel_mps2,
-                        until_s=bias.until_s if math.isfinite(bias.until_s) else None)
+        p.events.record(
+            p.layer.now_s,
+            "actuator_fault",
+            bias.train,
+            accel_mps2=bias.accel_mps2,
+            until_s=bias.until_s if math.isfinite(bias.until_s) else None,
+        )
+
     return call
 
 

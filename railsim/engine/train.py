@@ -20,8 +20,9 @@ class ExactPlant(Protocol):
     """A plant integrated inside the step (Paper B carriages, Paper D monorail drive) instead of
     :func:`railsim.physics.dynamics.step`; SUMO then gets the step's mean speed (see :mod:`.control`)."""
 
-    def advance(self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float,
-                dt_s: float) -> tuple[float, float, float]:
+    def advance(
+        self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float, dt_s: float
+    ) -> tuple[float, float, float]:
         """Advance one step; return ``(advance_m, new_speed_mps, applied_accel_mps2)``."""
 
     def resync(self, t: float, chainage_m: float, speed_mps: float) -> None:

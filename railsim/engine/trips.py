@@ -18,8 +18,9 @@ platform (the line world has no reversal edges; see ``network/``'s docstring).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
-from typing import Any, Sequence
+from typing import Any
 
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 
@@ -69,8 +70,15 @@ class Trip:
         return self.origin.mark_m + self.start_offset_m
 
 
-def make_stops(route: Any, length_m: float, skip: Sequence[str], dwell_default_s: float,
-               dwell_by_station: dict[str, float], from_station: str, to_station: str) -> tuple[TripStop, ...]:
+def make_stops(
+    route: Any,
+    length_m: float,
+    skip: Sequence[str],
+    dwell_default_s: float,
+    dwell_by_station: dict[str, float],
+    from_station: str,
+    to_station: str,
+) -> tuple[TripStop, ...]:
     """Stops served on ``route`` between ``from_station`` and ``to_station`` (inclusive), skipping ``skip``."""
     stops: list[TripStop] = []
     started = False
@@ -84,27 +92,42 @@ def make_stops(route: Any, length_m: float, skip: Sequence[str], dwell_default_s
         if rs.station_id in skip and not (is_origin or is_dest):
             continue
         mark = rs.end_m - STOP_MARK_BEFORE_END_M
-        stops.append(TripStop(
-            station_id=rs.station_id, stop_id=rs.stop_id, mark_m=mark,
-            window_start_m=rs.start_m + length_m, window_end_m=rs.end_m,
-            dwell_s=0.0 if (is_origin or is_dest) else float(dwell_by_station.get(rs.station_id, dwell_default_s)),
-            is_origin=is_origin, is_destination=is_dest,
-        ))
+        stops.append(
+            TripStop(
+                station_id=rs.station_id,
+                stop_id=rs.stop_id,
+                mark_m=mark,
+                window_start_m=rs.start_m + length_m,
+                window_end_m=rs.end_m,
+                dwell_s=0.0 if (is_origin or is_dest) else float(dwell_by_station.get(rs.station_id, dwell_default_s)),
+                is_origin=is_origin,
+                is_destination=is_dest,
+            )
+        )
         if is_dest:
             break
     return tuple(stops)
 
 
-def plan_free_run(trip: Trip, controller_factory: Any, dt_s: float, step_method: str = "euler",
-                  max_time_s: float = 6 * 3600.0) -> tuple[dict[str, float], dict[str, float]]:
+def plan_free_run(
+    trip: Trip, controller_factory: Any, dt_s: float, step_method: str = "euler", max_time_s: float = 6 * 3600.0
+) -> tuple[dict[str, float], dict[str, float]]:
     """Planned arrival/departure per station from a free run (no other trains) of the trip's ATO.
 
     Pure numpy/python: the same controller and plant as the simulation, integrated with the same step, so the
     plan is achievable by construction. Returns ``(arrival_by_station, departure_by_station)`` in absolute
     simulation seconds. Cached per (route, vehicle, stops, controller) so 48 identical trips cost one run.
     """
-    key = (trip.route.id, trip.vehicle, trip.stops, dt_s, step_method, trip.roles.get("ato"), trip.start_offset_m,
-           trip.start_speed_mps)
+    key = (
+        trip.route.id,
+        trip.vehicle,
+        trip.stops,
+        dt_s,
+        step_method,
+        trip.roles.get("ato"),
+        trip.start_offset_m,
+        trip.start_speed_mps,
+    )
     rel_arr, rel_dep = _free_run_cached(key, trip, controller_factory, dt_s, step_method, max_time_s)
     return ({k: v + trip.depart_s for k, v in rel_arr.items()}, {k: v + trip.depart_s for k, v in rel_dep.items()})
 
@@ -112,13 +135,14 @@ def plan_free_run(trip: Trip, controller_factory: Any, dt_s: float, step_method:
 _FREE_RUN_CACHE: dict[Any, tuple[dict[str, float], dict[str, float]]] = {}
 
 
-def _free_run_cached(key: Any, trip: Trip, controller_factory: Any, dt_s: float, step_method: str,
-                     max_time_s: float) -> tuple[dict[str, float], dict[str, float]]:
+def _free_run_cached(
+    key: Any, trip: Trip, controller_factory: Any, dt_s: float, step_method: str, max_time_s: float
+) -> tuple[dict[str, float], dict[str, float]]:
     if key in _FREE_RUN_CACHE:
         return _FREE_RUN_CACHE[key]
+    from controllers.base import Observation, OwnState, StopTarget
     from railsim.engine.routeview import route_view
     from railsim.physics import dynamics
-    from controllers.base import Observation, OwnState, StopTarget
 
     ato = controller_factory()
     veh = trip.vehicle
@@ -135,12 +159,14 @@ def _free_run_cached(key: Any, trip: Trip, controller_factory: Any, dt_s: float,
         dwelling = dwell_until is not None
         target = StopTarget(stop.station_id, stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling=dwelling)
         obs = Observation(
-            t_s=t, dt_s=dt_s,
-            own=OwnState(trip.trip_id, x, state.speed_mps, state.applied_accel_mps2, veh.length_m,
-                         view.gradient_at(x)),
-            vehicle=veh, route_length_m=trip.route.length_m,
+            t_s=t,
+            dt_s=dt_s,
+            own=OwnState(trip.trip_id, x, state.speed_mps, state.applied_accel_mps2, veh.length_m, view.gradient_at(x)),
+            vehicle=veh,
+            route_length_m=trip.route.length_m,
             speed_limits=view.limits_ahead(x - veh.length_m, x + 4000.0),
-            line_speed_mps=view.line_speed_mps, next_stop=target,
+            line_speed_mps=view.line_speed_mps,
+            next_stop=target,
         )
         cmd = ato.command(obs)
         res = dynamics.step(veh, state, cmd.accel_mps2, dt_s, view.gradient_at(x), cmd.emergency, step_method)

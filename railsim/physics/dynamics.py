@@ -69,9 +69,9 @@ reproductions and tests).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from functools import lru_cache
-from typing import Callable, Sequence
 
 import numpy as np
 
@@ -114,8 +114,15 @@ JERK_OVERRIDDEN = "jerk_overridden"
 STANDSTILL_HOLD = "standstill_hold"
 
 # Bit order of the saturation mask used by step_many (and internally by step, to reuse frozensets).
-_FLAG_ORDER = (TRACTION_LIMITED, POWER_LIMITED, OVERSPEED_CUT, BRAKE_LIMITED, JERK_LIMITED, JERK_OVERRIDDEN,
-               STANDSTILL_HOLD)
+_FLAG_ORDER = (
+    TRACTION_LIMITED,
+    POWER_LIMITED,
+    OVERSPEED_CUT,
+    BRAKE_LIMITED,
+    JERK_LIMITED,
+    JERK_OVERRIDDEN,
+    STANDSTILL_HOLD,
+)
 SATURATION_FLAGS = frozenset(_FLAG_ORDER)
 _BIT = {name: 1 << i for i, name in enumerate(_FLAG_ORDER)}
 _B_TRACTION, _B_POWER, _B_OVERSPEED, _B_BRAKE, _B_JERK, _B_OVERRIDE, _B_HOLD = (_BIT[n] for n in _FLAG_ORDER)
@@ -211,9 +218,7 @@ def _lag_gain(tau_s: float, dt_s: float) -> float:
     return -math.expm1(-dt_s / tau_s)
 
 
-def _check_inputs(
-    speed_mps: float, u_cmd_mps2: float, dt_s: float, gradient_permille: float, step_method: str
-) -> None:
+def _check_inputs(speed_mps: float, u_cmd_mps2: float, dt_s: float, gradient_permille: float, step_method: str) -> None:
     # One place for the messages; called only when the fast checks in step() fail.
     if not (dt_s > 0.0 and dt_s < _INF):
         raise ValueError(f"dt_s must be a finite number > 0, got {dt_s!r}")
@@ -356,7 +361,7 @@ class FleetParams:
     _gain_cache: dict[float, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
-    def from_vehicles(cls, vehicles: Sequence[VehicleParams]) -> "FleetParams":
+    def from_vehicles(cls, vehicles: Sequence[VehicleParams]) -> FleetParams:
         vs = tuple(vehicles)
 
         def col(name: str) -> np.ndarray:
@@ -429,16 +434,22 @@ def step_many(
     u_cmd = np.asarray(u_cmd_mps2, dtype=float)
     grad = np.broadcast_to(np.asarray(gradient_permille, dtype=float), (n,))
     emerg = np.broadcast_to(np.asarray(emergency, dtype=bool), (n,))
-    for name, arr in (("speed_mps", v), ("applied_accel_mps2", a_prev), ("target_accel_mps2", u_prev),
-                      ("u_cmd_mps2", u_cmd)):
+    for name, arr in (
+        ("speed_mps", v),
+        ("applied_accel_mps2", a_prev),
+        ("target_accel_mps2", u_prev),
+        ("u_cmd_mps2", u_cmd),
+    ):
         if arr.shape != (n,):
             raise ValueError(f"{name} must have shape ({n},), got {arr.shape}")
     if not (0.0 < dt_s < _INF):
         raise ValueError(f"dt_s must be a finite number > 0, got {dt_s!r}")
     if np.isnan(u_cmd).any():
         bad = [fleet.vehicles[i].name for i in np.flatnonzero(np.isnan(u_cmd))[:5]]
-        raise ValueError(f"u_cmd_mps2 is NaN for train(s) at index {np.flatnonzero(np.isnan(u_cmd))[:5].tolist()} "
-                         f"({', '.join(bad)}): refusing to propagate it")
+        raise ValueError(
+            f"u_cmd_mps2 is NaN for train(s) at index {np.flatnonzero(np.isnan(u_cmd))[:5].tolist()} "
+            f"({', '.join(bad)}): refusing to propagate it"
+        )
     if not ((v >= 0.0) & (v < _INF)).all():
         raise ValueError("speed_mps must be finite and >= 0 for every train")
     if not np.isfinite(grad).all():
@@ -570,7 +581,11 @@ def simulate(
         state = res.state
         pos += res.advance_m  # accumulate like SUMO's odometer: one addition per step
         x[k + 1], v[k + 1] = pos, state.speed_mps
-        a[k], u[k], a_net[k], energy[k] = (state.applied_accel_mps2, state.target_accel_mps2, res.net_accel_mps2,
-                                           res.traction_energy_j)
+        a[k], u[k], a_net[k], energy[k] = (
+            state.applied_accel_mps2,
+            state.target_accel_mps2,
+            res.net_accel_mps2,
+            res.traction_energy_j,
+        )
         mask[k] = _MASK_OF[res.saturations]
     return {"t": t, "x": x, "v": v, "a": a, "u": u, "a_net": a_net, "energy_j": energy, "mask": mask}

@@ -88,13 +88,28 @@ class MonorailParams:
 
     def __post_init__(self) -> None:
         require("mass_empty_kg", self.mass_empty_kg > 0.0, "a number > 0", self.mass_empty_kg)
-        for name in ("traction_max_empty_mps2", "emergency_decel_empty_mps2", "service_decel_empty_mps2",
-                     "max_speed_mps"):
+        for name in (
+            "traction_max_empty_mps2",
+            "emergency_decel_empty_mps2",
+            "service_decel_empty_mps2",
+            "max_speed_mps",
+        ):
             require(name, getattr(self, name) > 0.0, "a number > 0", getattr(self, name))
-        require("braking_model", self.braking_model in ("force_limited", "load_compensated"),
-                "'force_limited' or 'load_compensated'", self.braking_model)
-        for name in ("traction_delay_s", "traction_response_s", "brake_delay_s", "brake_response_s",
-                     "davis_a_mps2", "davis_b_per_s", "davis_c_per_m"):
+        require(
+            "braking_model",
+            self.braking_model in ("force_limited", "load_compensated"),
+            "'force_limited' or 'load_compensated'",
+            self.braking_model,
+        )
+        for name in (
+            "traction_delay_s",
+            "traction_response_s",
+            "brake_delay_s",
+            "brake_response_s",
+            "davis_a_mps2",
+            "davis_b_per_s",
+            "davis_c_per_m",
+        ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         for name in ("traction_efficiency", "brake_efficiency"):
             require(name, 0.0 < getattr(self, name) <= 1.0, "a number in (0, 1]", getattr(self, name))
@@ -135,8 +150,9 @@ class MonorailParams:
         return max(self.traction_delay_s + self.traction_response_s, self.brake_delay_s + self.brake_response_s)
 
 
-def vehicle_params_for(load: str, params: MonorailParams = MonorailParams(), length_m: float = 0.0,
-                       name: str | None = None) -> VehicleParams:
+def vehicle_params_for(
+    load: str, params: MonorailParams = MonorailParams(), length_m: float = 0.0, name: str | None = None
+) -> VehicleParams:
     """A :class:`railsim.physics.vehicle.VehicleParams` for one Mc car at ``load`` (point mass: rotating factor 1).
 
     ``length_m = 0`` is the paper's point mass (A1); 15.5 m is the cab car. Traction force and brake limits are the
@@ -144,11 +160,19 @@ def vehicle_params_for(load: str, params: MonorailParams = MonorailParams(), len
     """
     mass = load_mass_kg(load)
     return VehicleParams(
-        name=name or f"cq3_mc_{load}", length_m=length_m, mass_kg=mass, rotating_mass_factor=1.0,
-        max_speed_mps=params.max_speed_mps, traction_max_force_n=params.traction_max_mps2(mass) * mass,
-        traction_max_power_w=1e12, service_decel_mps2=params.service_decel_mps2(mass),
-        emergency_decel_mps2=params.emergency_decel_mps2(mass), jerk_limit_mps3=1e6,
-        actuator_time_constant_s=params.brake_response_s, capacity_pax=MC_CAPACITY_AW2_PAX)
+        name=name or f"cq3_mc_{load}",
+        length_m=length_m,
+        mass_kg=mass,
+        rotating_mass_factor=1.0,
+        max_speed_mps=params.max_speed_mps,
+        traction_max_force_n=params.traction_max_mps2(mass) * mass,
+        traction_max_power_w=1e12,
+        service_decel_mps2=params.service_decel_mps2(mass),
+        emergency_decel_mps2=params.emergency_decel_mps2(mass),
+        jerk_limit_mps3=1e6,
+        actuator_time_constant_s=params.brake_response_s,
+        capacity_pax=MC_CAPACITY_AW2_PAX,
+    )
 
 
 @dataclass(frozen=True)
@@ -169,8 +193,14 @@ class PlantState:
         return self.a_mps2
 
 
-def plant_step(state: PlantState, command_mps2: float, dt_s: float, params: MonorailParams, mass_kg: float,
-               gradient_permille: float = 0.0) -> PlantState:
+def plant_step(
+    state: PlantState,
+    command_mps2: float,
+    dt_s: float,
+    params: MonorailParams,
+    mass_kg: float,
+    gradient_permille: float = 0.0,
+) -> PlantState:
     """Advance one step of ``dt_s``: issue ``command_mps2`` now, deliver what has arrived, integrate Eq. (17).
 
     The command is clipped to the load-dependent envelope ``[−a_eb,max(m), a_t,max(m)]`` (Eq. 18). A command
@@ -204,12 +234,20 @@ def plant_step(state: PlantState, command_mps2: float, dt_s: float, params: Mono
         v = v0 + net * dt_s
     if v > params.max_speed_mps:
         v = params.max_speed_mps
-    return PlantState(t_s=t + dt_s, x_m=x, v_mps=v, a_mps2=a, active_command_mps2=active_u,
-                      active_issue_s=active_issue, pending=tuple(still))
+    return PlantState(
+        t_s=t + dt_s,
+        x_m=x,
+        v_mps=v,
+        a_mps2=a,
+        active_command_mps2=active_u,
+        active_issue_s=active_issue,
+        pending=tuple(still),
+    )
 
 
-def step_response_mps2(t_s: float | np.ndarray, command_mps2: float, params: MonorailParams,
-                       a0_mps2: float = 0.0) -> np.ndarray:
+def step_response_mps2(
+    t_s: float | np.ndarray, command_mps2: float, params: MonorailParams, a0_mps2: float = 0.0
+) -> np.ndarray:
     """Closed form of Eq. (5), Form B: delivered acceleration ``t_s`` after a step command issued at 0.
 
     ``command_mps2 > 0`` from ``a0 = 0`` is start-up, ``0`` from ``a0 > 0`` is traction cut-off, a positive command
@@ -223,8 +261,9 @@ def step_response_mps2(t_s: float | np.ndarray, command_mps2: float, params: Mon
     return np.where(t < td, a0_mps2, a0_mps2 + (target - a0_mps2) * rise)
 
 
-def lag_prediction_matrices(dt_s: float, response_s: float, efficiency: float, horizon: int,
-                            control_horizon: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def lag_prediction_matrices(
+    dt_s: float, response_s: float, efficiency: float, horizon: int, control_horizon: int
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Linear prediction of Eq. (17) with the response lag: the controllers' model.
 
     State ``s = [x, v, a]``; ``a(k+1) = ρ·a(k) + (1−ρ)·η·u(k)``, ``ρ = e^{−T/t_r}``, resistance left out (it is
@@ -245,11 +284,12 @@ def lag_prediction_matrices(dt_s: float, response_s: float, efficiency: float, h
         a_row_phi = rho * s_phi[2]
         a_row_gam = rho * s_gam[2].copy()
         a_row_gam[j] += (1.0 - rho) * efficiency
-        new_phi = np.vstack([s_phi[0] + dt_s * s_phi[1] + 0.5 * dt_s * dt_s * a_row_phi,
-                             s_phi[1] + dt_s * a_row_phi, a_row_phi])
-        new_gam = np.vstack([s_gam[0] + dt_s * s_gam[1] + 0.5 * dt_s * dt_s * a_row_gam,
-                             s_gam[1] + dt_s * a_row_gam, a_row_gam])
+        new_phi = np.vstack(
+            [s_phi[0] + dt_s * s_phi[1] + 0.5 * dt_s * dt_s * a_row_phi, s_phi[1] + dt_s * a_row_phi, a_row_phi]
+        )
+        new_gam = np.vstack(
+            [s_gam[0] + dt_s * s_gam[1] + 0.5 * dt_s * dt_s * a_row_gam, s_gam[1] + dt_s * a_row_gam, a_row_gam]
+        )
         s_phi, s_gam = new_phi, new_gam
         phi[k], gam[k] = s_phi, s_gam
     return phi[:, 0, :], gam[:, 0, :], phi[:, 1, :], gam[:, 1, :]
-

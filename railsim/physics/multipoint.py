@@ -43,9 +43,9 @@ Pure numpy, no I/O.
 from __future__ import annotations
 
 import math
-from functools import lru_cache
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import Callable
+from functools import lru_cache
 
 import numpy as np
 
@@ -91,17 +91,23 @@ class MultipointParams:
         checks = (
             ("n_cars", self.n_cars >= 1 and float(self.n_cars).is_integer(), "an integer >= 1", self.n_cars),
             ("car_mass_kg", self.car_mass_kg > 0.0, "a number > 0", self.car_mass_kg),
-            ("coupler_stiffness_n_per_m", self.coupler_stiffness_n_per_m > 0.0, "a number > 0",
-             self.coupler_stiffness_n_per_m),
+            (
+                "coupler_stiffness_n_per_m",
+                self.coupler_stiffness_n_per_m > 0.0,
+                "a number > 0",
+                self.coupler_stiffness_n_per_m,
+            ),
             ("coupler_length_m", self.coupler_length_m >= 0.0, "a number >= 0", self.coupler_length_m),
-            ("coupler_damping_ns_per_m", self.coupler_damping_ns_per_m >= 0.0, "a number >= 0",
-             self.coupler_damping_ns_per_m),
+            (
+                "coupler_damping_ns_per_m",
+                self.coupler_damping_ns_per_m >= 0.0,
+                "a number >= 0",
+                self.coupler_damping_ns_per_m,
+            ),
             ("force_max_n", self.force_max_n > 0.0, "a number > 0", self.force_max_n),
             ("force_min_n", self.force_min_n < 0.0, "a number < 0", self.force_min_n),
-            ("force_rate_max_n_per_s", self.force_rate_max_n_per_s > 0.0, "a number > 0",
-             self.force_rate_max_n_per_s),
-            ("force_rate_min_n_per_s", self.force_rate_min_n_per_s < 0.0, "a number < 0",
-             self.force_rate_min_n_per_s),
+            ("force_rate_max_n_per_s", self.force_rate_max_n_per_s > 0.0, "a number > 0", self.force_rate_max_n_per_s),
+            ("force_rate_min_n_per_s", self.force_rate_min_n_per_s < 0.0, "a number < 0", self.force_rate_min_n_per_s),
             ("coupler_slack_m", self.coupler_slack_m > 0.0, "a number > 0", self.coupler_slack_m),
             ("car_spacing_m", self.car_spacing_m >= 0.0, "a number >= 0", self.car_spacing_m),
             ("max_substep_s", 0.0 < self.max_substep_s <= 0.05, "a number in (0, 0.05]", self.max_substep_s),
@@ -216,8 +222,9 @@ class MultipointState:
 
     def relative(self) -> np.ndarray:
         """Paper B's relative-coordinate state ``[x_1, x_{i,i−1}…, v_1, v_{i,i−1}…]`` (Eq. (4), spec §2.3)."""
-        return np.concatenate(([self.positions_m[0]], np.diff(self.positions_m),
-                               [self.speeds_mps[0]], np.diff(self.speeds_mps)))
+        return np.concatenate(
+            ([self.positions_m[0]], np.diff(self.positions_m), [self.speeds_mps[0]], np.diff(self.speeds_mps))
+        )
 
 
 def initial_state(params: MultipointParams, lead_position_m: float = 0.0, speed_mps: float = 0.0) -> MultipointState:
@@ -232,7 +239,7 @@ def state_from_relative(relative: np.ndarray, held: bool = False) -> MultipointS
     r = np.asarray(relative, dtype=float)
     n = r.size // 2
     x = r[0] + np.concatenate(([0.0], np.cumsum(r[1:n])))
-    v = r[n] + np.concatenate(([0.0], np.cumsum(r[n + 1:])))
+    v = r[n] + np.concatenate(([0.0], np.cumsum(r[n + 1 :])))
     return MultipointState(x, v, held=held)
 
 
@@ -241,7 +248,9 @@ def clip_forces(params: MultipointParams, u_forces_n: np.ndarray) -> np.ndarray:
     return np.clip(np.asarray(u_forces_n, dtype=float), params.force_min_n, params.force_max_n)
 
 
-def carriage_gradients_permille(params: MultipointParams, positions_m: np.ndarray, gradient_fn: GradientFn) -> np.ndarray:
+def carriage_gradients_permille(
+    params: MultipointParams, positions_m: np.ndarray, gradient_fn: GradientFn
+) -> np.ndarray:
     """θ_i for every carriage (spec A10): at ``x_1 − (i−1)·car_spacing_m``, or at ``x_i`` when the spacing is 0."""
     if params.car_spacing_m > 0.0:
         where = positions_m[0] - params.car_spacing_m * np.arange(positions_m.size)
@@ -291,8 +300,13 @@ def accelerations_mps2(
     """Right-hand side of Eq. (1): carriage accelerations [m/s²] for already-clipped forces."""
     ks, cs, const = _chain_matrices(params)
     v = speeds_mps
-    resist = (params.c0_mps2 + params.c1_per_s * v + params.c2_per_m * v * np.abs(v)
-              + G_MPS2 * 1e-3 * gradient_permille + wind_mps2)
+    resist = (
+        params.c0_mps2
+        + params.c1_per_s * v
+        + params.c2_per_m * v * np.abs(v)
+        + G_MPS2 * 1e-3 * gradient_permille
+        + wind_mps2
+    )
     coupler = ks @ positions_m + const
     if params.coupler_damping_ns_per_m:
         coupler = coupler + cs @ v

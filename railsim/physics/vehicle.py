@@ -69,7 +69,7 @@ class VehicleParams:
         """Applied specific force [m/s²] that yields ``net_accel_mps2`` once resistance and gradient act."""
         return net_accel_mps2 + self.resistance_n(speed_mps, gradient_permille) / self.effective_mass_kg
 
-    def with_overrides(self, **changes: Any) -> "VehicleParams":
+    def with_overrides(self, **changes: Any) -> VehicleParams:
         """Return a copy with some fields replaced (scenario overrides on top of a preset)."""
         return replace(self, **changes)
 

@@ -13,8 +13,9 @@ import json
 import math
 import os
 import tempfile
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 import yaml
 
@@ -65,8 +66,13 @@ def write_parquet(path: Path, rows: Sequence[Mapping[str, Any]], columns: Sequen
     write_bytes(path, buf.getvalue())
 
 
-def write_table(out_dir: Path, stem: str, rows: Sequence[Mapping[str, Any]], columns: Sequence[str],
-                formats: Sequence[str] = ("csv",)) -> list[Path]:
+def write_table(
+    out_dir: Path,
+    stem: str,
+    rows: Sequence[Mapping[str, Any]],
+    columns: Sequence[str],
+    formats: Sequence[str] = ("csv",),
+) -> list[Path]:
     written = []
     for fmt in formats:
         path = Path(out_dir) / f"{stem}.{fmt}"

@@ -33,17 +33,70 @@ import numpy as np
 from railsim.record import output
 from railsim.record.snapshot import OUTPUT_FILES, RunSnapshot
 
-TRIP_COLUMNS = ["trip_id", "service", "vehicle", "origin", "destination", "planned_departure_s", "departure_s",
-                "planned_arrival_s", "arrival_s", "travel_time_s", "delay_s", "energy_kwh", "min_gap_m",
-                "time_coupled_s", "max_jerk_mps3", "stops_served", "stops_scheduled", "fallbacks",
-                "max_message_age_s", "status"]
-STOP_COLUMNS = ["trip_id", "service", "station", "planned_arrival_s", "arrival_s", "departure_s", "dwell_s",
-                "stopping_error_m", "missed"]
-FORMATION_COLUMNS = ["formation", "leader", "follower", "couple_requests", "couple_successes", "couple_failures",
-                     "time_to_couple_s", "time_coupled_s", "gap_error_p50_m", "gap_error_p95_m", "gap_error_max_m",
-                     "speed_error_p50_mps", "speed_error_p95_mps", "min_gap_m", "final_state"]
-TRACE_COLUMNS = ["t_s", "train", "service", "chainage_m", "speed_mps", "applied_accel_mps2", "command_mps2", "role",
-                 "gap_m", "formation_state", "solve_time_s", "objective"]
+TRIP_COLUMNS = [
+    "trip_id",
+    "service",
+    "vehicle",
+    "origin",
+    "destination",
+    "planned_departure_s",
+    "departure_s",
+    "planned_arrival_s",
+    "arrival_s",
+    "travel_time_s",
+    "delay_s",
+    "energy_kwh",
+    "min_gap_m",
+    "time_coupled_s",
+    "max_jerk_mps3",
+    "stops_served",
+    "stops_scheduled",
+    "fallbacks",
+    "max_message_age_s",
+    "status",
+]
+STOP_COLUMNS = [
+    "trip_id",
+    "service",
+    "station",
+    "planned_arrival_s",
+    "arrival_s",
+    "departure_s",
+    "dwell_s",
+    "stopping_error_m",
+    "missed",
+]
+FORMATION_COLUMNS = [
+    "formation",
+    "leader",
+    "follower",
+    "couple_requests",
+    "couple_successes",
+    "couple_failures",
+    "time_to_couple_s",
+    "time_coupled_s",
+    "gap_error_p50_m",
+    "gap_error_p95_m",
+    "gap_error_max_m",
+    "speed_error_p50_mps",
+    "speed_error_p95_mps",
+    "min_gap_m",
+    "final_state",
+]
+TRACE_COLUMNS = [
+    "t_s",
+    "train",
+    "service",
+    "chainage_m",
+    "speed_mps",
+    "applied_accel_mps2",
+    "command_mps2",
+    "role",
+    "gap_m",
+    "formation_state",
+    "solve_time_s",
+    "objective",
+]
 EVENT_COLUMNS = ["t_s", "kind", "subject", "detail"]
 
 
@@ -81,15 +134,30 @@ class Recorder:
         """One sample (the columns of :data:`TRACE_COLUMNS`)."""
         self.trace.append(row)
 
-    def stop_record(self, trip_id: str, service: str, station: str, planned_arrival_s: float | None,
-                    arrival_s: float | None, departure_s: float | None, error_m: float | None,
-                    missed: bool = False) -> None:
-        self.stops.append({
-            "trip_id": trip_id, "service": service, "station": station,
-            "planned_arrival_s": planned_arrival_s, "arrival_s": arrival_s, "departure_s": departure_s,
-            "dwell_s": (departure_s - arrival_s) if (arrival_s is not None and departure_s is not None) else None,
-            "stopping_error_m": error_m, "missed": missed,
-        })
+    def stop_record(
+        self,
+        trip_id: str,
+        service: str,
+        station: str,
+        planned_arrival_s: float | None,
+        arrival_s: float | None,
+        departure_s: float | None,
+        error_m: float | None,
+        missed: bool = False,
+    ) -> None:
+        self.stops.append(
+            {
+                "trip_id": trip_id,
+                "service": service,
+                "station": station,
+                "planned_arrival_s": planned_arrival_s,
+                "arrival_s": arrival_s,
+                "departure_s": departure_s,
+                "dwell_s": (departure_s - arrival_s) if (arrival_s is not None and departure_s is not None) else None,
+                "stopping_error_m": error_m,
+                "missed": missed,
+            }
+        )
 
     # ------------------------------------------------------------------ tables
     @staticmethod
@@ -99,20 +167,35 @@ class Recorder:
             trip = tr.trip
             dest = trip.destination.station_id
             planned_arr = trip.planned_arrival_s.get(dest)
-            travel = (tr.arrived_s - tr.departed_s) if (tr.arrived_s is not None and tr.departed_s is not None) \
-                else None
-            rows.append({
-                "trip_id": tr.train_id, "service": trip.service_id, "vehicle": trip.vehicle_name,
-                "origin": trip.origin.station_id, "destination": dest,
-                "planned_departure_s": trip.depart_s, "departure_s": tr.departed_s,
-                "planned_arrival_s": planned_arr, "arrival_s": tr.arrived_s, "travel_time_s": travel,
-                "delay_s": (tr.arrived_s - planned_arr) if (tr.arrived_s is not None and planned_arr is not None)
-                else None,
-                "energy_kwh": tr.energy_j / 3.6e6, "min_gap_m": tr.min_gap_m if math.isfinite(tr.min_gap_m) else None,
-                "time_coupled_s": tr.coupled_s, "max_jerk_mps3": tr.max_jerk_mps3,
-                "stops_served": tr.stops_served, "stops_scheduled": len(trip.stops) - 1, "fallbacks": tr.fallbacks,
-                "max_message_age_s": tr.stale_max_s, "status": tr.status,
-            })
+            travel = (
+                (tr.arrived_s - tr.departed_s) if (tr.arrived_s is not None and tr.departed_s is not None) else None
+            )
+            rows.append(
+                {
+                    "trip_id": tr.train_id,
+                    "service": trip.service_id,
+                    "vehicle": trip.vehicle_name,
+                    "origin": trip.origin.station_id,
+                    "destination": dest,
+                    "planned_departure_s": trip.depart_s,
+                    "departure_s": tr.departed_s,
+                    "planned_arrival_s": planned_arr,
+                    "arrival_s": tr.arrived_s,
+                    "travel_time_s": travel,
+                    "delay_s": (tr.arrived_s - planned_arr)
+                    if (tr.arrived_s is not None and planned_arr is not None)
+                    else None,
+                    "energy_kwh": tr.energy_j / 3.6e6,
+                    "min_gap_m": tr.min_gap_m if math.isfinite(tr.min_gap_m) else None,
+                    "time_coupled_s": tr.coupled_s,
+                    "max_jerk_mps3": tr.max_jerk_mps3,
+                    "stops_served": tr.stops_served,
+                    "stops_scheduled": len(trip.stops) - 1,
+                    "fallbacks": tr.fallbacks,
+                    "max_message_age_s": tr.stale_max_s,
+                    "status": tr.status,
+                }
+            )
         return rows
 
     def formation_rows(self, run: RunSnapshot) -> list[dict[str, Any]]:
@@ -121,23 +204,33 @@ class Recorder:
             st = f.stats
             ge = self.gap_err.get(f.id, [])
             se = self.speed_err.get(f.id, [])
-            rows.append({
-                "formation": f.id, "leader": f.leader_id, "follower": f.follower_id,
-                "couple_requests": st.couple_requests, "couple_successes": st.successes,
-                "couple_failures": st.failures + st.aborts,
-                "time_to_couple_s": st.time_to_couple_s[0] if st.time_to_couple_s else None,
-                "time_coupled_s": st.coupled_time_s,
-                "gap_error_p50_m": _pct(ge, 50), "gap_error_p95_m": _pct(ge, 95),
-                "gap_error_max_m": max(ge) if ge else None,
-                "speed_error_p50_mps": _pct(se, 50), "speed_error_p95_mps": _pct(se, 95),
-                "min_gap_m": self.min_gap_pair.get(f.id), "final_state": f.state,
-            })
+            rows.append(
+                {
+                    "formation": f.id,
+                    "leader": f.leader_id,
+                    "follower": f.follower_id,
+                    "couple_requests": st.couple_requests,
+                    "couple_successes": st.successes,
+                    "couple_failures": st.failures + st.aborts,
+                    "time_to_couple_s": st.time_to_couple_s[0] if st.time_to_couple_s else None,
+                    "time_coupled_s": st.coupled_time_s,
+                    "gap_error_p50_m": _pct(ge, 50),
+                    "gap_error_p95_m": _pct(ge, 95),
+                    "gap_error_max_m": max(ge) if ge else None,
+                    "speed_error_p50_mps": _pct(se, 50),
+                    "speed_error_p95_mps": _pct(se, 95),
+                    "min_gap_m": self.min_gap_pair.get(f.id),
+                    "final_state": f.state,
+                }
+            )
         return rows
 
     @staticmethod
     def event_rows(run: RunSnapshot) -> list[dict[str, Any]]:
-        return [{"t_s": r["t_s"], "kind": r["kind"], "subject": r["subject"], "detail": r.get("detail", "")}
-                for r in run.events]
+        return [
+            {"t_s": r["t_s"], "kind": r["kind"], "subject": r["subject"], "detail": r.get("detail", "")}
+            for r in run.events
+        ]
 
     # ------------------------------------------------------------------ summary
     def summary(self, run: RunSnapshot) -> dict[str, Any]:
@@ -162,11 +255,17 @@ class Recorder:
             "switch_violations": sum(len(tr.violations) for tr in trains),
             "min_gap_m": min(min_gaps) if min_gaps else None,
             "fallbacks": sum(tr.fallbacks for tr in trains),
-            "max_stopping_error_m": max((abs(s["stopping_error_m"]) for s in self.stops
-                                         if s["stopping_error_m"] is not None), default=None),
+            "max_stopping_error_m": max(
+                (abs(s["stopping_error_m"]) for s in self.stops if s["stopping_error_m"] is not None), default=None
+            ),
             "mean_running_time_s": {k: float(np.mean(v)) for k, v in sorted(running_times.items())},
-            "formations": {r["formation"]: {k: r[k] for k in ("final_state", "couple_successes", "time_to_couple_s",
-                                                               "gap_error_p95_m", "min_gap_m")} for r in formations},
+            "formations": {
+                r["formation"]: {
+                    k: r[k]
+                    for k in ("final_state", "couple_successes", "time_to_couple_s", "gap_error_p95_m", "min_gap_m")
+                }
+                for r in formations
+            },
             "comm": {name: dataclasses.asdict(stats) for name, stats in run.channel_stats.items()},
             "sim_s": run.sim_s,
             "wall_s": run.wall_s,
@@ -182,9 +281,13 @@ class Recorder:
         out_dir.mkdir(parents=True, exist_ok=True)
         formats = tuple(run.formats) or ("csv",)
         files: dict[str, Path] = {}
-        tables = {"trips": (self.trip_rows(run), TRIP_COLUMNS), "stops": (self.stops, STOP_COLUMNS),
-                  "formations": (self.formation_rows(run), FORMATION_COLUMNS),
-                  "events": (self.event_rows(run), EVENT_COLUMNS), "trace": (self.trace, TRACE_COLUMNS)}
+        tables = {
+            "trips": (self.trip_rows(run), TRIP_COLUMNS),
+            "stops": (self.stops, STOP_COLUMNS),
+            "formations": (self.formation_rows(run), FORMATION_COLUMNS),
+            "events": (self.event_rows(run), EVENT_COLUMNS),
+            "trace": (self.trace, TRACE_COLUMNS),
+        }
         for spec in OUTPUT_FILES:
             if spec.kind == "table":
                 rows, cols = tables[spec.stem]

@@ -10,8 +10,9 @@ prints it, and a new output is one row here plus its writer in :meth:`railsim.re
 
 from __future__ import annotations
 
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
-from typing import Any, Iterable, Mapping, Protocol
+from typing import Any, Protocol
 
 
 class TripOutcome(Protocol):

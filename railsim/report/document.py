@@ -31,12 +31,13 @@ import base64
 import html
 import math
 import re
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Mapping, Sequence
+from typing import TYPE_CHECKING, Any
 
-from railsim.report import export
-from railsim.record import output
 from railsim.errors import ConfigError
+from railsim.record import output
+from railsim.report import export
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -44,8 +45,17 @@ if TYPE_CHECKING:
 FORMATS = ("md", "html")
 FIGURES_DIR = "report_figures"
 # key metrics of a sweep's cases table (exact names, or a prefix ending in "."), in display order
-SWEEP_METRICS = ("collisions", "n_arrived", "n_stops_missed", "min_gap_m", "fallbacks", "mean_running_time_s.",
-                 "trips.arrival_delay_p95_s", "trips.arrival_delay_max_s", "trips.energy_kwh_total")
+SWEEP_METRICS = (
+    "collisions",
+    "n_arrived",
+    "n_stops_missed",
+    "min_gap_m",
+    "fallbacks",
+    "mean_running_time_s.",
+    "trips.arrival_delay_p95_s",
+    "trips.arrival_delay_max_s",
+    "trips.energy_kwh_total",
+)
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -64,8 +74,7 @@ def _cell(value: Any, digits: int) -> str:
     return str(value)
 
 
-def formatted(frame: "pd.DataFrame", digits: Mapping[str, int] | None = None,
-              default_digits: int = 1) -> "pd.DataFrame":
+def formatted(frame: pd.DataFrame, digits: Mapping[str, int] | None = None, default_digits: int = 1) -> pd.DataFrame:
     """``frame`` with every value as display text: floats to ``digits[column]`` decimals (else
     ``default_digits``), missing values as ``–``, booleans as yes/no."""
     import pandas as pd
@@ -78,7 +87,7 @@ def formatted(frame: "pd.DataFrame", digits: Mapping[str, int] | None = None,
     return pd.DataFrame(out, columns=[str(c) for c in frame.columns])
 
 
-def md_table(frame: "pd.DataFrame", digits: Mapping[str, int] | None = None, default_digits: int = 1) -> str:
+def md_table(frame: pd.DataFrame, digits: Mapping[str, int] | None = None, default_digits: int = 1) -> str:
     """A Markdown pipe table (:func:`railsim.analysis.capacity.markdown_table`) of :func:`formatted` ``frame``."""
     from railsim.analysis.capacity import markdown_table
 
@@ -90,7 +99,7 @@ def md_table(frame: "pd.DataFrame", digits: Mapping[str, int] | None = None, def
 # --------------------------------------------------------------------------------------------------------------
 
 
-def _summary_table(summary: Mapping[str, Any]) -> "pd.DataFrame":
+def _summary_table(summary: Mapping[str, Any]) -> pd.DataFrame:
     import pandas as pd
 
     def num(key: str, fmt: str) -> str:
@@ -98,10 +107,14 @@ def _summary_table(summary: Mapping[str, Any]) -> "pd.DataFrame":
         return "–" if v is None else format(v, fmt)
 
     rows = [
-        ("trains arrived / inserted / total", f"{summary.get('n_arrived')} / {summary.get('n_inserted')} / "
-                                              f"{summary.get('n_trains')}"),
-        ("stops served / scheduled (missed)", f"{summary.get('n_stops_served')} / {summary.get('n_stops_scheduled')}"
-                                              f" ({summary.get('n_stops_missed')})"),
+        (
+            "trains arrived / inserted / total",
+            f"{summary.get('n_arrived')} / {summary.get('n_inserted')} / {summary.get('n_trains')}",
+        ),
+        (
+            "stops served / scheduled (missed)",
+            f"{summary.get('n_stops_served')} / {summary.get('n_stops_scheduled')} ({summary.get('n_stops_missed')})",
+        ),
         ("collisions (SUMO's own check)", f"{summary.get('collisions')} ({summary.get('sumo_collisions')})"),
         ("switch violations", str(summary.get("switch_violations"))),
         ("minimum true gap [m]", num("min_gap_m", ".1f")),
@@ -114,7 +127,7 @@ def _summary_table(summary: Mapping[str, Any]) -> "pd.DataFrame":
     return pd.DataFrame(rows, columns=["", "value"])
 
 
-def running_time_table(trips: "pd.DataFrame") -> "pd.DataFrame":
+def running_time_table(trips: pd.DataFrame) -> pd.DataFrame:
     """Per service: trips, arrived, running time (departure → arrival) mean/min/max [min], arrival delay against
     the free-run plan mean/max [s], traction energy per trip [kWh], time coupled per trip [min]."""
     import pandas as pd
@@ -123,19 +136,28 @@ def running_time_table(trips: "pd.DataFrame") -> "pd.DataFrame":
     for svc, g in trips.groupby("service", sort=True):
         rt = pd.to_numeric(g["travel_time_s"], errors="coerce") / 60.0
         delay = pd.to_numeric(g["delay_s"], errors="coerce")
-        rows.append({"service": svc, "trips": len(g), "arrived": int(g["arrival_s"].notna().sum()),
-                     "running time mean [min]": rt.mean(), "min [min]": rt.min(), "max [min]": rt.max(),
-                     "delay mean [s]": delay.mean(), "delay max [s]": delay.max(),
-                     "energy per trip [kWh]": pd.to_numeric(g["energy_kwh"], errors="coerce").mean(),
-                     "coupled per trip [min]": pd.to_numeric(g["time_coupled_s"], errors="coerce").mean() / 60.0})
+        rows.append(
+            {
+                "service": svc,
+                "trips": len(g),
+                "arrived": int(g["arrival_s"].notna().sum()),
+                "running time mean [min]": rt.mean(),
+                "min [min]": rt.min(),
+                "max [min]": rt.max(),
+                "delay mean [s]": delay.mean(),
+                "delay max [s]": delay.max(),
+                "energy per trip [kWh]": pd.to_numeric(g["energy_kwh"], errors="coerce").mean(),
+                "coupled per trip [min]": pd.to_numeric(g["time_coupled_s"], errors="coerce").mean() / 60.0,
+            }
+        )
     return pd.DataFrame(rows)
 
 
-def _missed(stops: "pd.DataFrame") -> "pd.Series":
+def _missed(stops: pd.DataFrame) -> pd.Series:
     return stops["missed"].astype(str).str.lower().isin(("true", "1"))
 
 
-def stop_service_table(stops: "pd.DataFrame") -> "pd.DataFrame":
+def stop_service_table(stops: pd.DataFrame) -> pd.DataFrame:
     """Per service: stops recorded, served, missed, dwell mean/max [s], largest |stopping error| [m]."""
     import pandas as pd
 
@@ -145,12 +167,21 @@ def stop_service_table(stops: "pd.DataFrame") -> "pd.DataFrame":
         m = missed.loc[g.index]
         err = pd.to_numeric(g["stopping_error_m"], errors="coerce").abs()
         dwell = pd.to_numeric(g["dwell_s"], errors="coerce")
-        rows.append({"service": svc, "stops": len(g), "served": int((~m).sum()), "missed": int(m.sum()),
-                     "dwell mean [s]": dwell.mean(), "dwell max [s]": dwell.max(), "max abs stop error [m]": err.max()})
+        rows.append(
+            {
+                "service": svc,
+                "stops": len(g),
+                "served": int((~m).sum()),
+                "missed": int(m.sum()),
+                "dwell mean [s]": dwell.mean(),
+                "dwell max [s]": dwell.max(),
+                "max abs stop error [m]": err.max(),
+            }
+        )
     return pd.DataFrame(rows)
 
 
-def stop_station_table(stops: "pd.DataFrame", stations: Sequence[Any]) -> "pd.DataFrame":
+def stop_station_table(stops: pd.DataFrame, stations: Sequence[Any]) -> pd.DataFrame:
     """Per station in line order (``stations``: :class:`railsim.report.plots.line.StationMark`): stops, missed, dwell
     mean/max [s], largest |stopping error| [m]."""
     import pandas as pd
@@ -163,17 +194,34 @@ def stop_station_table(stops: "pd.DataFrame", stations: Sequence[Any]) -> "pd.Da
             continue
         err = pd.to_numeric(g["stopping_error_m"], errors="coerce").abs()
         dwell = pd.to_numeric(g["dwell_s"], errors="coerce")
-        rows.append({"station": st.name, "km": st.km, "stops": len(g), "missed": int(missed.loc[g.index].sum()),
-                     "dwell mean [s]": dwell.mean(), "dwell max [s]": dwell.max(), "max abs stop error [m]": err.max()})
+        rows.append(
+            {
+                "station": st.name,
+                "km": st.km,
+                "stops": len(g),
+                "missed": int(missed.loc[g.index].sum()),
+                "dwell mean [s]": dwell.mean(),
+                "dwell max [s]": dwell.max(),
+                "max abs stop error [m]": err.max(),
+            }
+        )
     return pd.DataFrame(rows)
 
 
-def formation_table(formations: "pd.DataFrame") -> "pd.DataFrame":
+def formation_table(formations: pd.DataFrame) -> pd.DataFrame:
     """The formations with their coupling outcome, gap error and minimum gap."""
-    cols = {"formation": "formation", "leader": "leader", "follower": "follower",
-            "couple_successes": "coupled (times)", "time_to_couple_s": "time to couple [s]",
-            "time_coupled_s": "time coupled [s]", "gap_error_p95_m": "gap error p95 [m]",
-            "gap_error_max_m": "gap error max [m]", "min_gap_m": "min gap [m]", "final_state": "final state"}
+    cols = {
+        "formation": "formation",
+        "leader": "leader",
+        "follower": "follower",
+        "couple_successes": "coupled (times)",
+        "time_to_couple_s": "time to couple [s]",
+        "time_coupled_s": "time coupled [s]",
+        "gap_error_p95_m": "gap error p95 [m]",
+        "gap_error_max_m": "gap error max [m]",
+        "min_gap_m": "min gap [m]",
+        "final_state": "final state",
+    }
     return formations[list(cols)].rename(columns=cols)
 
 
@@ -207,28 +255,48 @@ def run_report_markdown(run_dir: Path | str, figures_dir: Path | None = None, sv
     parts = [f"# Run report: {scn.name}"]
     if scn.description:
         parts.append(scn.description)
-    parts.append(f"World `{scn.world.label}`, seed {summary.get('seed')}, simulation start "
-                 f"{line.clock_label(line_run.start_time_s)}, step {scn.simulation.step_s:g} s. Run folder "
-                 f"`{run}`; tables in `trips`, `stops`, `formations`, `events` (CSV/Parquet; `railsim export` for "
-                 f"JSON and the section table).")
+    parts.append(
+        f"World `{scn.world.label}`, seed {summary.get('seed')}, simulation start "
+        f"{line.clock_label(line_run.start_time_s)}, step {scn.simulation.step_s:g} s. Run folder "
+        f"`{run}`; tables in `trips`, `stops`, `formations`, `events` (CSV/Parquet; `railsim export` for "
+        f"JSON and the section table)."
+    )
     parts += ["## Summary", md_table(_summary_table(summary))]
     parts += ["## Running times per service", md_table(running_time_table(trips), {"trips": 0, "arrived": 0})]
-    parts += ["## Stops", "Per service:", md_table(stop_service_table(stops), {"max abs stop error [m]": 3}),
-              "Per station (line order):",
-              md_table(stop_station_table(stops, line_run.stations), {"km": 1, "max abs stop error [m]": 3})]
+    parts += [
+        "## Stops",
+        "Per service:",
+        md_table(stop_service_table(stops), {"max abs stop error [m]": 3}),
+        "Per station (line order):",
+        md_table(stop_station_table(stops, line_run.stations), {"km": 1, "max abs stop error [m]": 3}),
+    ]
     if len(formations):
-        parts += ["## Formations (virtual coupling)",
-                  md_table(formation_table(formations), {"gap error p95 [m]": 2, "gap error max [m]": 2})]
+        parts += [
+            "## Formations (virtual coupling)",
+            md_table(formation_table(formations), {"gap error p95 [m]": 2, "gap error max [m]": 2}),
+        ]
 
     parts.append("## Figures")
-    figures = [("time-distance", "Train graph: time of day against line km, one line per train; flat segments "
-                                 "are dwells, the wide band marks virtually coupled running."),
-               ("speed", "Speed profiles over line km (dashed: the route's speed limits)."),
-               ("headway", "Achieved departure headways per section (box: quartiles, excluding coupled "
-                           "followers behind their leader, shown as separate dots).")]
+    figures = [
+        (
+            "time-distance",
+            "Train graph: time of day against line km, one line per train; flat segments "
+            "are dwells, the wide band marks virtually coupled running.",
+        ),
+        ("speed", "Speed profiles over line km (dashed: the route's speed limits)."),
+        (
+            "headway",
+            "Achieved departure headways per section (box: quartiles, excluding coupled "
+            "followers behind their leader, shown as separate dots).",
+        ),
+    ]
     if any(line_run.paths.get(scn.trip_id(f.follower)) is not None for f in scn.formations):
-        figures.append(("gap", "True gap of each formation while coupling, coupled and decoupling, with the "
-                               "configured target gap."))
+        figures.append(
+            (
+                "gap",
+                "True gap of each formation while coupling, coupled and decoupling, with the configured target gap.",
+            )
+        )
     for kind, caption in figures:
         try:
             paths = line.write_kind(kind, line_run, fig_dir / kind)
@@ -259,16 +327,16 @@ def _capacity_markdown(run: Path, frame: Any) -> str:
 # --------------------------------------------------------------------------------------------------------------
 
 
-def parameter_columns(cases: "pd.DataFrame") -> list[str]:
+def parameter_columns(cases: pd.DataFrame) -> list[str]:
     """The parameter columns of a sweep's cases table: labels and override paths, between ``seed`` and
     ``wall_s`` (:mod:`railsim.studies.sweep`'s column order)."""
     cols = [str(c) for c in cases.columns]
     if "seed" not in cols or "wall_s" not in cols:
         raise ConfigError(None, "cases", "not a railsim sweep table (expected the columns seed and wall_s)")
-    return cols[cols.index("seed") + 1:cols.index("wall_s")]
+    return cols[cols.index("seed") + 1 : cols.index("wall_s")]
 
 
-def metric_columns(cases: "pd.DataFrame") -> list[str]:
+def metric_columns(cases: pd.DataFrame) -> list[str]:
     """The key metrics (:data:`SWEEP_METRICS`) present in a cases table, in display order."""
     cols = [str(c) for c in cases.columns]
     out: list[str] = []
@@ -277,13 +345,16 @@ def metric_columns(cases: "pd.DataFrame") -> list[str]:
     return out
 
 
-def _independent(cases: "pd.DataFrame", params: list[str]) -> list[str]:
+def _independent(cases: pd.DataFrame, params: list[str]) -> list[str]:
     """``params`` without those that are a one-to-one function of an earlier one (a ``link:`` copy such as the
     down headway that always equals the up headway): plotting against them would repeat the same figure."""
     keep: list[str] = []
     for p in params:
-        if not any(cases.groupby(k, dropna=False)[p].nunique(dropna=False).max() <= 1
-                   and cases.groupby(p, dropna=False)[k].nunique(dropna=False).max() <= 1 for k in keep):
+        if not any(
+            cases.groupby(k, dropna=False)[p].nunique(dropna=False).max() <= 1
+            and cases.groupby(p, dropna=False)[k].nunique(dropna=False).max() <= 1
+            for k in keep
+        ):
             keep.append(p)
     return keep
 
@@ -294,7 +365,7 @@ def _short_param(name: str) -> str:
     return name if len(parts) <= 2 else f"{parts[0]}.{parts[-1]}"
 
 
-def _metric_plot(cases: "pd.DataFrame", param: str, others: list[str], metrics: list[str], stem: Path) -> list[Path]:
+def _metric_plot(cases: pd.DataFrame, param: str, others: list[str], metrics: list[str], stem: Path) -> list[Path]:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -322,7 +393,7 @@ def _metric_plot(cases: "pd.DataFrame", param: str, others: list[str], metrics: 
         ax.set_xlabel(_short_param(param), fontsize=7)
         ax.tick_params(labelsize=7)
         ax.grid(color="#e6e6e6", lw=0.5)
-    for ax in axes.ravel()[len(metrics):]:
+    for ax in axes.ravel()[len(metrics) :]:
         ax.set_visible(False)
     handles, labels = axes[0, 0].get_legend_handles_labels()
     if len(groups) > 1 and len(groups) <= 12:
@@ -365,20 +436,26 @@ def sweep_report_markdown(sweep_dir: Path | str, figures_dir: Path | None = None
     parts = [f"# Sweep report: {name}"]
     if spec.get("description"):
         parts.append(str(spec["description"]))
-    parts.append(f"Base scenario `{spec.get('base', '?')}`; {len(cases)} cases ({n_ok} ok, {n_failed} failed), "
-                 f"seeds {', '.join(str(s) for s in sorted(cases['seed'].dropna().unique()))}. Parameters: "
-                 + (", ".join(f"`{p}`" for p in params) or "none") + f". Every column is in `cases.csv` / "
-                 f"`cases.parquet` of `{folder}`.")
+    parts.append(
+        f"Base scenario `{spec.get('base', '?')}`; {len(cases)} cases ({n_ok} ok, {n_failed} failed), "
+        f"seeds {', '.join(str(s) for s in sorted(cases['seed'].dropna().unique()))}. Parameters: "
+        + (", ".join(f"`{p}`" for p in params) or "none")
+        + f". Every column is in `cases.csv` / "
+        f"`cases.parquet` of `{folder}`."
+    )
     shown = ["case_id", "status", "seed", *params, *metrics, "wall_s"]
-    parts += ["## Cases", md_table(cases[shown], {"seed": 0, "collisions": 0, "n_arrived": 0,
-                                                  "n_stops_missed": 0, "fallbacks": 0}, 1)]
+    parts += [
+        "## Cases",
+        md_table(cases[shown], {"seed": 0, "collisions": 0, "n_arrived": 0, "n_stops_missed": 0, "fallbacks": 0}, 1),
+    ]
     if n_failed:
         failed = cases.loc[status != "ok", ["case_id", *params, "error"]].copy()
         failed["error"] = failed["error"].astype(str).str.replace("\n", " ").str.slice(0, 200)
         parts += ["## Failed cases", md_table(failed)]
     independent = _independent(cases, params)
-    numeric = [p for p in independent if pd.to_numeric(cases[p], errors="coerce").notna().all()
-               and cases[p].nunique() > 1]
+    numeric = [
+        p for p in independent if pd.to_numeric(cases[p], errors="coerce").notna().all() and cases[p].nunique() > 1
+    ]
     varying = [m for m in metrics if pd.to_numeric(cases[m], errors="coerce").nunique() > 1]
     if numeric and varying and n_ok:
         parts.append("## Metrics against parameters")
@@ -387,8 +464,7 @@ def sweep_report_markdown(sweep_dir: Path | str, figures_dir: Path | None = None
             others = [o for o in independent if o != p and cases[o].nunique() > 1]
             slug = re.sub(r"[^A-Za-z0-9_.-]+", "_", p).strip("_")
             paths = _metric_plot(cases, p, others, varying, fig_dir / f"metrics_vs_{slug}")
-            parts.append(_figure_md(paths, folder, f"Key metrics against {p}.", f"metrics vs {p}",
-                                     svg_links))
+            parts.append(_figure_md(paths, folder, f"Key metrics against {p}.", f"metrics vs {p}", svg_links))
     return "\n\n".join(part.strip("\n") for part in parts if part) + "\n"
 
 
@@ -425,8 +501,10 @@ def markdown_to_html(markdown: str, base_dir: Path, title: str = "railsim report
             level = len(first) - len(first.lstrip("#"))
             body.append(f"<h{level}>{_inline(first[level:].strip())}</h{level}>")
         elif first.startswith("|") and len(lines) >= 2:
+
             def cells(row: str) -> list[str]:
                 return [c.strip().replace("\\|", "|") for c in re.split(r"(?<!\\)\|", row.strip())[1:-1]]
+
             head = "".join(f"<th>{_inline(c)}</th>" for c in cells(lines[0]))
             rows = "".join("<tr>" + "".join(f"<td>{_inline(c)}</td>" for c in cells(r)) + "</tr>" for r in lines[2:])
             body.append(f"<table><thead><tr>{head}</tr></thead><tbody>{rows}</tbody></table>")
@@ -437,8 +515,10 @@ def markdown_to_html(markdown: str, base_dir: Path, title: str = "railsim report
             body.append(f'<figure><img alt="{html.escape(m["alt"])}" src="data:image/png;base64,{data}"></figure>')
         else:
             body.append(f"<p>{_inline(' '.join(lines))}</p>")
-    return (f"<!DOCTYPE html>\n<html lang=\"en\"><head><meta charset=\"utf-8\"><title>{html.escape(title)}</title>"
-            f"<style>{_CSS}</style></head>\n<body>\n" + "\n".join(body) + "\n</body></html>\n")
+    return (
+        f'<!DOCTYPE html>\n<html lang="en"><head><meta charset="utf-8"><title>{html.escape(title)}</title>'
+        f"<style>{_CSS}</style></head>\n<body>\n" + "\n".join(body) + "\n</body></html>\n"
+    )
 
 
 # --------------------------------------------------------------------------------------------------------------

@@ -42,8 +42,8 @@ import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from railsim.record import output, recorder as record
 from railsim.errors import ConfigError
+from railsim.record import output, recorder as record
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -56,9 +56,13 @@ READERS = {
     "json": 'pd.read_json("{path}", orient="records")',
 }
 # columns a run's table must have (the recorder writes all of them; a table without them is not ours)
-REQUIRED_COLUMNS = {"trips": record.TRIP_COLUMNS, "stops": record.STOP_COLUMNS,
-                    "formations": record.FORMATION_COLUMNS, "events": record.EVENT_COLUMNS,
-                    "trace": record.TRACE_COLUMNS}
+REQUIRED_COLUMNS = {
+    "trips": record.TRIP_COLUMNS,
+    "stops": record.STOP_COLUMNS,
+    "formations": record.FORMATION_COLUMNS,
+    "events": record.EVENT_COLUMNS,
+    "trace": record.TRACE_COLUMNS,
+}
 CASE_TABLE = "cases"
 
 
@@ -84,12 +88,15 @@ def check_folder(folder: Path | str) -> str:
         return "sweep"
     if is_run_folder(folder):
         return "run"
-    raise ConfigError(folder, None, "not a railsim run folder (no trips.csv or trips.parquet) nor a sweep folder "
-                                    "(no cases.csv or cases.parquet)")
+    raise ConfigError(
+        folder,
+        None,
+        "not a railsim run folder (no trips.csv or trips.parquet) nor a sweep folder (no cases.csv or cases.parquet)",
+    )
 
 
 # ---------------------------------------------------------------------------------------------------- reading
-def read_table(folder: Path | str, name: str) -> "pd.DataFrame":
+def read_table(folder: Path | str, name: str) -> pd.DataFrame:
     """Table ``name`` of a run or sweep folder as a DataFrame (:func:`railsim.analysis.sections.read_table`: Parquet
     preferred over CSV), checked for the columns the recorder writes.
 
@@ -105,7 +112,7 @@ def read_table(folder: Path | str, name: str) -> "pd.DataFrame":
     return frame
 
 
-def run_tables(run_dir: Path | str, include_trace: bool = False) -> dict[str, "pd.DataFrame"]:
+def run_tables(run_dir: Path | str, include_trace: bool = False) -> dict[str, pd.DataFrame]:
     """The exportable tables of a run folder: trips, stops, formations, events, sections (and trace)."""
     run_dir = Path(run_dir)
     if check_folder(run_dir) != "run":
@@ -119,7 +126,7 @@ def run_tables(run_dir: Path | str, include_trace: bool = False) -> dict[str, "p
     return tables
 
 
-def folder_tables(folder: Path | str, include_trace: bool = False) -> dict[str, "pd.DataFrame"]:
+def folder_tables(folder: Path | str, include_trace: bool = False) -> dict[str, pd.DataFrame]:
     """A sweep folder's ``{"cases": ...}`` or a run folder's :func:`run_tables`."""
     if check_folder(folder) == "sweep":
         return {CASE_TABLE: read_table(folder, CASE_TABLE)}
@@ -135,7 +142,7 @@ def _json_value(value: Any) -> Any:
     return value
 
 
-def table_bytes(frame: "pd.DataFrame", fmt: str) -> bytes:
+def table_bytes(frame: pd.DataFrame, fmt: str) -> bytes:
     """``frame`` encoded as a CSV, Parquet or JSON-records file (no index)."""
     import pandas as pd
 
@@ -147,14 +154,20 @@ def table_bytes(frame: "pd.DataFrame", fmt: str) -> bytes:
         return buf.getvalue()
     if fmt == "json":
         columns = [str(c) for c in frame.columns]
-        records = [{c: (None if v is None or (not isinstance(v, str) and pd.isna(v)) else _json_value(v))
-                    for c, v in zip(columns, row)} for row in frame.itertuples(index=False, name=None)]
+        records = [
+            {
+                c: (None if v is None or (not isinstance(v, str) and pd.isna(v)) else _json_value(v))
+                for c, v in zip(columns, row)
+            }
+            for row in frame.itertuples(index=False, name=None)
+        ]
         return (json.dumps(records, ensure_ascii=False, indent=None) + "\n").encode("utf-8")
     raise ConfigError(None, "format", f"expected one of {', '.join(FORMATS)}, got {fmt!r}")
 
 
-def export(folder: Path | str, fmt: str = "csv", out_dir: Path | str | None = None,
-           include_trace: bool = False) -> list[Path]:
+def export(
+    folder: Path | str, fmt: str = "csv", out_dir: Path | str | None = None, include_trace: bool = False
+) -> list[Path]:
     """Write the tables of a run or sweep folder as ``<out_dir>/<table>.<fmt>``; returns the paths written.
 
     ``out_dir`` defaults to ``<folder>/export``. Files are replaced atomically.

@@ -27,8 +27,9 @@ under its own name (``"couple"``, ``"decouple"``, ``"leave"``, ``"obstacle"``).
 from __future__ import annotations
 
 import dataclasses
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
-from typing import Any, Callable, Sequence
+from typing import Any
 
 from railsim.scenario.model import EventSpec, FormationSpec, ServiceSpec
 from railsim.scenario.validate import Checker, did_you_mean, short_repr
@@ -78,8 +79,9 @@ class EventKind:
         """The key the engine looks its handler up by: ``handler``, or the kind's name."""
         return self.handler or self.name
 
-    def parse(self, ck: Checker, m: dict[str, Any], path: str, at_s: float,
-              ctx: EventContext) -> tuple[EventSpec, dict[str, Any]]:
+    def parse(
+        self, ck: Checker, m: dict[str, Any], path: str, at_s: float, ctx: EventContext
+    ) -> tuple[EventSpec, dict[str, Any]]:
         """The event ``m`` (keys already checked) → its :class:`EventSpec` and resolved raw mapping.
 
         Every required field's presence is checked first, then the present fields are checked in order.
@@ -102,8 +104,10 @@ def register_event_kind(kind: EventKind) -> EventKind:
         raise ValueError(f"event kind {kind.name!r} is already registered")
     unknown = [f.key for f in kind.fields if f.key not in _SPEC_ATTRIBUTES]
     if unknown:
-        raise ValueError(f"event kind {kind.name!r}: fields {unknown} are not EventSpec attributes "
-                         f"({', '.join(sorted(_SPEC_ATTRIBUTES))}); add them to railsim.scenario.model.EventSpec")
+        raise ValueError(
+            f"event kind {kind.name!r}: fields {unknown} are not EventSpec attributes "
+            f"({', '.join(sorted(_SPEC_ATTRIBUTES))}); add them to railsim.scenario.model.EventSpec"
+        )
     EVENT_KINDS[kind.name] = kind
     return kind
 
@@ -143,19 +147,30 @@ def _positive(ck: Checker, value: Any, path: str, ctx: EventContext) -> float:
 # ---- the built-in kinds ---------------------------------------------------------------------------------------
 
 _FORMATION = EventField("formation", _formation_id)
-register_event_kind(EventKind(
-    "couple", (_FORMATION,), "start coupling the formation now (whatever its couple trigger says)"))
-register_event_kind(EventKind(
-    "decouple", (_FORMATION,), "decouple the formation now"))
-register_event_kind(EventKind(
-    "leave", (EventField("train", _train),), "the train leaves the line (removed, e.g. to another track)",
-    why_required="a leave event names the train"))
-register_event_kind(EventKind(
-    "obstacle",
-    (EventField("train", _train), EventField("ahead_m", _positive),
-     EventField("duration_s", _positive, required=False)),
-    "a static obstacle appears ahead_m ahead of the train's front; removed after duration_s (absent: stays)",
-    why_required="an obstacle appears ahead of a train"))
+register_event_kind(
+    EventKind("couple", (_FORMATION,), "start coupling the formation now (whatever its couple trigger says)")
+)
+register_event_kind(EventKind("decouple", (_FORMATION,), "decouple the formation now"))
+register_event_kind(
+    EventKind(
+        "leave",
+        (EventField("train", _train),),
+        "the train leaves the line (removed, e.g. to another track)",
+        why_required="a leave event names the train",
+    )
+)
+register_event_kind(
+    EventKind(
+        "obstacle",
+        (
+            EventField("train", _train),
+            EventField("ahead_m", _positive),
+            EventField("duration_s", _positive, required=False),
+        ),
+        "a static obstacle appears ahead_m ahead of the train's front; removed after duration_s (absent: stays)",
+        why_required="an obstacle appears ahead of a train",
+    )
+)
 
 EVENT_TYPES: tuple[str, ...] = tuple(EVENT_KINDS)  # the built-in kinds (EVENT_KINDS also holds later ones)
 
@@ -163,8 +178,9 @@ EVENT_TYPES: tuple[str, ...] = tuple(EVENT_KINDS)  # the built-in kinds (EVENT_K
 # ---- the section --------------------------------------------------------------------------------------------
 
 
-def events(ck: Checker, value: Any, formations: Sequence[FormationSpec],
-           services: Sequence[ServiceSpec] = ()) -> tuple[tuple[EventSpec, ...], list[Any]]:
+def events(
+    ck: Checker, value: Any, formations: Sequence[FormationSpec], services: Sequence[ServiceSpec] = ()
+) -> tuple[tuple[EventSpec, ...], list[Any]]:
     """``events:`` → the events in file order, each checked by its kind's entry in :data:`EVENT_KINDS`."""
     if not isinstance(value, list):
         raise ck.expect("events", "a list of events", value)

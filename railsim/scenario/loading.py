@@ -25,8 +25,9 @@ loading that text gives an equal scenario — every run's output folder carries 
 from __future__ import annotations
 
 import re
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 import yaml
 

@@ -389,4 +389,3 @@ class Scenario:
     def vehicle_of(self, service_id: str) -> VehicleParams:
         """The vehicle that runs ``service_id``."""
         return self.vehicles[self.service(service_id).vehicle]
-

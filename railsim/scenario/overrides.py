@@ -16,7 +16,8 @@ from __future__ import annotations
 
 import copy
 import re
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from railsim.errors import ConfigError
 from railsim.scenario.validate import join_path, short_repr

@@ -23,8 +23,9 @@ import difflib
 import importlib
 import math
 import re
+from collections.abc import Iterable, Mapping, Sequence
 from pathlib import Path
-from typing import Any, Iterable, Mapping, Sequence
+from typing import Any
 
 from railsim.errors import ConfigError
 from railsim.scenario.clock import CLOCK_WHAT, parse_clock
@@ -213,8 +214,10 @@ class Checker:
         names = {f.name for f in dataclasses.fields(cls)}
         for key in values:
             if key not in names:
-                raise self.fail(f"{path}.{key}", f"unknown field{did_you_mean(key, sorted(names))}; "
-                                                 f"known: {', '.join(sorted(names))}")
+                raise self.fail(
+                    f"{path}.{key}",
+                    f"unknown field{did_you_mean(key, sorted(names))}; known: {', '.join(sorted(names))}",
+                )
         try:
             cls(**values)
         except (TypeError, ValueError) as exc:

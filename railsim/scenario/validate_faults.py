@@ -15,10 +15,21 @@ The resolved raw mapping always lists every channel and every noise field, defau
 from __future__ import annotations
 
 import math
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
-from railsim.scenario.model import (COMM_CHANNELS, DELAY_DISTS, ActuatorBiasSpec, ActuatorNoiseSpec, ChannelSpec,
-                                    DelaySpec, FaultSpec, OutageSpec, SensorNoiseSpec, ServiceSpec)
+from railsim.scenario.model import (
+    COMM_CHANNELS,
+    DELAY_DISTS,
+    ActuatorBiasSpec,
+    ActuatorNoiseSpec,
+    ChannelSpec,
+    DelaySpec,
+    FaultSpec,
+    OutageSpec,
+    SensorNoiseSpec,
+    ServiceSpec,
+)
 from railsim.scenario.validate import Checker, did_you_mean
 from railsim.scenario.validate_services import trip_name
 
@@ -43,17 +54,21 @@ def faults(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple[Fa
     if "trains" in act_in:
         if not isinstance(act_in["trains"], list):
             raise ck.expect("faults.actuator_noise.trains", "a list of trains", act_in["trains"])
-        noise_trains = tuple(trip_name(ck, x, f"faults.actuator_noise.trains[{i}]", services)
-                             for i, x in enumerate(act_in["trains"]))
+        noise_trains = tuple(
+            trip_name(ck, x, f"faults.actuator_noise.trains[{i}]", services) for i, x in enumerate(act_in["trains"])
+        )
     act = ActuatorNoiseSpec(
         accel_sd_mps2=ck.number(act_in.get("accel_sd_mps2", 0.0), "faults.actuator_noise.accel_sd_mps2", ge=0.0),
-        trains=noise_trains)
+        trains=noise_trains,
+    )
     biases, biases_raw = actuator_biases(ck, m.get("actuator_bias") or [], services)
     raw = {
         "comm": comm_raw,
         "sensor_noise": {"position_sd_m": noise.position_sd_m, "speed_sd_mps": noise.speed_sd_mps},
-        "actuator_noise": {"accel_sd_mps2": act.accel_sd_mps2,
-                           **({"trains": list(noise_trains)} if noise_trains is not None else {})},
+        "actuator_noise": {
+            "accel_sd_mps2": act.accel_sd_mps2,
+            **({"trains": list(noise_trains)} if noise_trains is not None else {}),
+        },
     }
     if biases_raw:
         raw["actuator_bias"] = biases_raw  # type: ignore[assignment]
@@ -75,8 +90,11 @@ def channel(ck: Checker, value: Any, path: str, services: Sequence[ServiceSpec])
         spec, raw = outage(ck, body, f"{path}.outages[{j}]", service_trips)
         outages.append(spec)
         outages_raw.append(raw)
-    return ChannelSpec(delay_spec, loss, tuple(outages)), {"delay_s": delay_raw, "loss_prob": loss,
-                                                           "outages": outages_raw}
+    return ChannelSpec(delay_spec, loss, tuple(outages)), {
+        "delay_s": delay_raw,
+        "loss_prob": loss,
+        "outages": outages_raw,
+    }
 
 
 def outage(

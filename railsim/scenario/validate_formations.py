@@ -17,10 +17,20 @@ from __future__ import annotations
 
 import copy
 import math
-from typing import Any, Sequence
+from collections.abc import Sequence
+from typing import Any
 
-from railsim.scenario.model import (DEFAULT_COUPLING_TIMEOUT_S, JUNCTION_METHODS, CooperativeEdge, CooperativeSpec,
-                                    FormationSpec, JunctionSpec, ServiceSpec, TriggerSpec, TripRef)
+from railsim.scenario.model import (
+    DEFAULT_COUPLING_TIMEOUT_S,
+    JUNCTION_METHODS,
+    CooperativeEdge,
+    CooperativeSpec,
+    FormationSpec,
+    JunctionSpec,
+    ServiceSpec,
+    TriggerSpec,
+    TripRef,
+)
 from railsim.scenario.validate import Checker, short_repr
 from railsim.scenario.validate_services import trip_name, trip_ref
 
@@ -137,14 +147,15 @@ def cooperative(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tup
     return CooperativeSpec(tuple(edges)), {"edges": raws}
 
 
-def junction(ck: Checker, value: Any, services: Sequence[ServiceSpec],
-             formations: Sequence[FormationSpec]) -> tuple[JunctionSpec, dict[str, Any]]:
+def junction(
+    ck: Checker, value: Any, services: Sequence[ServiceSpec], formations: Sequence[FormationSpec]
+) -> tuple[JunctionSpec, dict[str, Any]]:
     """``junction:`` → a :class:`JunctionSpec`; its trains may not already be in a formation."""
-    m = ck.mapping(value, "junction", ("trains",),
-                   ("method", "replan_s", "target_gap_m", "params", "pso", "replan_pso"))
+    m = ck.mapping(
+        value, "junction", ("trains",), ("method", "replan_s", "target_gap_m", "params", "pso", "replan_pso")
+    )
     if not isinstance(m["trains"], list) or not 2 <= len(m["trains"]) <= 8:
-        raise ck.expect("junction.trains", "a list of 2 to 8 trains (trip ids or one-trip service ids)",
-                        m["trains"])
+        raise ck.expect("junction.trains", "a list of 2 to 8 trains (trip ids or one-trip service ids)", m["trains"])
     trains = [trip_name(ck, v, f"junction.trains[{i}]", services) for i, v in enumerate(m["trains"])]
     if len(set(trains)) != len(trains):
         raise ck.fail("junction.trains", f"a train is listed twice: {trains}")
@@ -152,8 +163,11 @@ def junction(ck: Checker, value: Any, services: Sequence[ServiceSpec],
         for ref in (f.leader, f.follower):
             tid = next(svc.trip_ids[ref.trip] for svc in services if svc.id == ref.service)
             if tid in trains:
-                raise ck.fail("junction.trains", f"{tid} is in formation {f.id!r}; the junction planner "
-                                                 "forms the formations of its trains itself (in passing order)")
+                raise ck.fail(
+                    "junction.trains",
+                    f"{tid} is in formation {f.id!r}; the junction planner "
+                    "forms the formations of its trains itself (in passing order)",
+                )
     method = ck.string(m.get("method", "improved_pso"), "junction.method", JUNCTION_METHODS)
     replan = ck.number(m.get("replan_s", 2.0), "junction.replan_s", gt=0.0)
     gap = m.get("target_gap_m")
@@ -165,8 +179,14 @@ def junction(ck: Checker, value: Any, services: Sequence[ServiceSpec],
     ck.dataclass_fields(pso, "junction.pso", "controllers.junction.pso", "PSOParams")
     ck.dataclass_fields(replan_pso, "junction.replan_pso", "controllers.junction.pso", "PSOParams")
     spec = JunctionSpec(tuple(trains), method, replan, gap, params, pso, replan_pso)
-    raw = {"trains": trains, "method": method, "replan_s": replan, "params": copy.deepcopy(params),
-           "pso": copy.deepcopy(pso), "replan_pso": copy.deepcopy(replan_pso)}
+    raw = {
+        "trains": trains,
+        "method": method,
+        "replan_s": replan,
+        "params": copy.deepcopy(params),
+        "pso": copy.deepcopy(pso),
+        "replan_pso": copy.deepcopy(replan_pso),
+    }
     if gap is not None:
         raw["target_gap_m"] = gap
     return spec, raw

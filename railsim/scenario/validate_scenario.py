@@ -25,9 +25,14 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from railsim.scenario import events as event_section
-from railsim.scenario import validate_faults, validate_formations, validate_services, validate_setup
-from railsim.scenario import validate_vehicles
+from railsim.scenario import (
+    events as event_section,
+    validate_faults,
+    validate_formations,
+    validate_services,
+    validate_setup,
+    validate_vehicles,
+)
 from railsim.scenario.model import Scenario
 from railsim.scenario.validate import Checker, require_top_mapping
 

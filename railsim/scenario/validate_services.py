@@ -17,12 +17,19 @@ from __future__ import annotations
 import copy
 import logging
 import math
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from railsim.physics.vehicle import VehicleParams
 from railsim.scenario.clock import CLOCK_WHAT, format_clock
-from railsim.scenario.model import (DEFAULT_DWELL_S, MAX_TRIPS_PER_SERVICE, ControllerSpec, ServiceSpec,
-                                    SimulationSpec, TripRef)
+from railsim.scenario.model import (
+    DEFAULT_DWELL_S,
+    MAX_TRIPS_PER_SERVICE,
+    ControllerSpec,
+    ServiceSpec,
+    SimulationSpec,
+    TripRef,
+)
 from railsim.scenario.validate import Checker, did_you_mean, short_repr
 from railsim.scenario.validate_vehicles import roles as check_roles
 
@@ -87,8 +94,9 @@ def service(
     departures, dep_raw = departure_times(ck, m["departures"], f"{path}.departures", sim)
     dwell_default, dwell_stations, dwell_raw = dwell(ck, m.get("dwell_s", DEFAULT_DWELL_S), f"{path}.dwell_s")
     own_roles, own_raw = check_roles(ck, m.get("roles") or {}, ctrls, f"{path}.roles", required=False)
-    start_in = ck.mapping(m.get("start") or {}, f"{path}.start", (),
-                          ("offset_m", "speed_kmh", "before_switch", "distance_m"))
+    start_in = ck.mapping(
+        m.get("start") or {}, f"{path}.start", (), ("offset_m", "speed_kmh", "before_switch", "distance_m")
+    )
     start_offset = ck.number(start_in.get("offset_m", 0.0), f"{path}.start.offset_m", ge=0.0)
     start_kmh = ck.number(start_in.get("speed_kmh", 0.0), f"{path}.start.speed_kmh", ge=0.0)
     start_switch = None
@@ -106,7 +114,11 @@ def service(
     if late:
         log.warning(
             "%s: %s: %d of %d departures fall after duration_s=%g and will not run",
-            ck.source, path, len(late), len(departures), sim.duration_s,
+            ck.source,
+            path,
+            len(late),
+            len(departures),
+            sim.duration_s,
         )
     spec = ServiceSpec(
         id=sid,
@@ -126,8 +138,15 @@ def service(
         start_distance_m=start_distance,
     )
     raw = {
-        "id": sid, "from": origin, "to": dest, "via": via, "vehicle": vehicle, "departures": dep_raw,
-        "dwell_s": dwell_raw, "skip": skip, "roles": own_raw,
+        "id": sid,
+        "from": origin,
+        "to": dest,
+        "via": via,
+        "vehicle": vehicle,
+        "departures": dep_raw,
+        "dwell_s": dwell_raw,
+        "skip": skip,
+        "roles": own_raw,
     }
     if start_in and start_switch is not None:
         raw["start"] = {"before_switch": start_switch, "distance_m": start_distance, "speed_kmh": start_kmh}
@@ -168,9 +187,7 @@ def departure_times(
         order = sorted(range(len(times)), key=times.__getitem__)
         for a, b in zip(order, order[1:]):
             if times[a] == times[b]:
-                raise ck.fail(
-                    f"{path}.times[{b}]", f"expected distinct departure times, got {times_in[b]!r} twice"
-                )
+                raise ck.fail(f"{path}.times[{b}]", f"expected distinct departure times, got {times_in[b]!r} twice")
         return tuple(times[k] for k in order), {"times": copy.deepcopy(times_in)}
     m = ck.mapping(value, path, ("first", "last", "headway_s"), what=what)
     first = time_point(ck, m["first"], f"{path}.first", sim)
@@ -227,8 +244,11 @@ def trip_name(ck: Checker, value: Any, path: str, services: Sequence[ServiceSpec
     for svc in services:
         if value == svc.id:
             if len(svc.trip_ids) != 1:
-                raise ck.fail(path, f"expected a trip id; service {svc.id!r} has {len(svc.trip_ids)} trips "
-                                    f"(name one of {svc.trip_ids[0]}…)")
+                raise ck.fail(
+                    path,
+                    f"expected a trip id; service {svc.id!r} has {len(svc.trip_ids)} trips "
+                    f"(name one of {svc.trip_ids[0]}…)",
+                )
             return svc.trip_ids[0]
     names = [svc.id for svc in services]
     hint = did_you_mean(value, names) if isinstance(value, str) else ""

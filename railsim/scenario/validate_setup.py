@@ -13,8 +13,15 @@ from __future__ import annotations
 import copy
 from typing import Any
 
-from railsim.scenario.model import (MAX_STEP_S, OUTPUT_FORMATS, STEP_METHODS, SUMO_OUTPUTS, OutputSpec,
-                                    SimulationSpec, WorldSpec)
+from railsim.scenario.model import (
+    MAX_STEP_S,
+    OUTPUT_FORMATS,
+    STEP_METHODS,
+    SUMO_OUTPUTS,
+    OutputSpec,
+    SimulationSpec,
+    WorldSpec,
+)
 from railsim.scenario.validate import Checker, short_repr
 
 
@@ -51,8 +58,7 @@ def world(ck: Checker, value: Any) -> tuple[WorldSpec, Any]:
     vclass = m.get("vclass")
     vclass = None if vclass in (None, "auto") else ck.string(vclass, "world.vclass", RAIL_VCLASSES)
     throw = ck.number(m.get("throw_time_s", DEFAULT_THROW_TIME_S), "world.throw_time_s", ge=0.0)
-    return WorldSpec(kind="net", net=net, additional=additional, signals=signals, vclass=vclass,
-                     throw_time_s=throw), {
+    return WorldSpec(kind="net", net=net, additional=additional, signals=signals, vclass=vclass, throw_time_s=throw), {
         "net": str(net),
         "additional": [str(p) for p in additional],
         "signals": signals,

@@ -17,7 +17,8 @@ from __future__ import annotations
 import copy
 import dataclasses
 import re
-from typing import Any, Mapping, Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 from railsim.physics.vehicle import VehicleParams, preset, preset_names
 from railsim.scenario.model import PLANT_KINDS, REQUIRED_ROLES, ROLES, ControllerSpec, PlantSpec, ServiceSpec
@@ -172,7 +173,11 @@ def controller_specs(ck: Checker, value: Any) -> tuple[dict[str, ControllerSpec]
 
 
 def roles(
-    ck: Checker, value: Any, ctrls: Mapping[str, ControllerSpec], path: str, need_coupled: bool = False,
+    ck: Checker,
+    value: Any,
+    ctrls: Mapping[str, ControllerSpec],
+    path: str,
+    need_coupled: bool = False,
     required: bool = True,
 ) -> tuple[dict[str, str], dict[str, str]]:
     """``roles:`` (or a service's overrides, ``required=False``) → role -> controller instance name."""
@@ -208,8 +213,9 @@ def check_controllers(
         if spec.type not in registry:
             known = ", ".join(sorted(registry)) or "none registered"
             hint = did_you_mean(spec.type, registry)
-            raise ck.fail(f"controllers.{name}.type",
-                          f"expected a registered controller type ({known}), got {spec.type!r}{hint}")
+            raise ck.fail(
+                f"controllers.{name}.type", f"expected a registered controller type ({known}), got {spec.type!r}{hint}"
+            )
     for name, spec in ctrls.items():
         users = [vehicles[s.vehicle] for s in services if name in s.roles.values()]
         for params in {v.name: v for v in (users or vehicles.values())}.values():

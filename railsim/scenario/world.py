@@ -15,15 +15,16 @@ separate and run once the world is built (``railsim validate`` and the engine do
 from __future__ import annotations
 
 import dataclasses
-from typing import Collection, Mapping
+from collections.abc import Collection, Mapping
 
 from railsim.errors import ConfigError
 from railsim.scenario.model import Scenario, TriggerSpec
 from railsim.scenario.validate import did_you_mean
 
 
-def check_against_world(scn: Scenario, stations: Collection[str], switches: Collection[str],
-                        aliases: Mapping[str, str] | None = None) -> None:
+def check_against_world(
+    scn: Scenario, stations: Collection[str], switches: Collection[str], aliases: Mapping[str, str] | None = None
+) -> None:
     """Check that every station id and switch id the scenario names exists in the built world.
 
     ``aliases`` (external nets) are other names a station may go by: its name or a stop id -> station id.
@@ -56,23 +57,33 @@ def check_against_world(scn: Scenario, stations: Collection[str], switches: Coll
                 station(str(trig.station), f"formations[{i}].{key}.at_station")
             elif trig.kind == "before_switch" and trig.switch not in switch_set:
                 hint = did_you_mean(str(trig.switch), switch_set)
-                raise ConfigError(source, f"formations[{i}].{key}.before_switch",
-                                  f"expected a switch id of world {world!r}, got {trig.switch!r}{hint}")
+                raise ConfigError(
+                    source,
+                    f"formations[{i}].{key}.before_switch",
+                    f"expected a switch id of world {world!r}, got {trig.switch!r}{hint}",
+                )
 
 
 def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
     """The scenario with every station it names by an alias (a name or stop id of an external net's station)
     replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario)."""
+
     def sid(name: str) -> str:
         return aliases.get(name, name)
 
     def trig(t: TriggerSpec | None) -> TriggerSpec | None:
         return t if t is None or t.station is None else dataclasses.replace(t, station=sid(t.station))
 
-    services = tuple(dataclasses.replace(
-        svc, from_station=sid(svc.from_station), to_station=sid(svc.to_station),
-        via=tuple(sid(v) for v in svc.via), skip=tuple(sid(v) for v in svc.skip),
-        dwell_by_station={sid(k): v for k, v in svc.dwell_by_station.items()}) for svc in scn.services)
-    formations = tuple(dataclasses.replace(f, couple=trig(f.couple), decouple=trig(f.decouple))
-                       for f in scn.formations)
+    services = tuple(
+        dataclasses.replace(
+            svc,
+            from_station=sid(svc.from_station),
+            to_station=sid(svc.to_station),
+            via=tuple(sid(v) for v in svc.via),
+            skip=tuple(sid(v) for v in svc.skip),
+            dwell_by_station={sid(k): v for k, v in svc.dwell_by_station.items()},
+        )
+        for svc in scn.services
+    )
+    formations = tuple(dataclasses.replace(f, couple=trig(f.couple), decouple=trig(f.decouple)) for f in scn.formations)
     return dataclasses.replace(scn, services=services, formations=formations)

@@ -28,17 +28,38 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
     for svc in scenario.services:
         route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
         veh = scenario.vehicles[svc.vehicle]
-        stops = make_stops(route, veh.length_m, tuple(svc.skip), svc.dwell_default_s, dict(svc.dwell_by_station),
-                           svc.from_station, svc.to_station)
+        stops = make_stops(
+            route,
+            veh.length_m,
+            tuple(svc.skip),
+            svc.dwell_default_s,
+            dict(svc.dwell_by_station),
+            svc.from_station,
+            svc.to_station,
+        )
         for trip_id, dep in zip(svc.trip_ids, svc.departures_s):
             trips.append((float(dep), trip_id, svc.vehicle, route, stops))
     trips.sort(key=lambda x: (x[0], x[1]))
-    vtypes = [VTypeSpec(n, v.length_m, v.max_speed_mps, accel_mps2=0.8, decel_mps2=v.service_decel_mps2,
-                        emergency_decel_mps2=max(v.emergency_decel_mps2, 1.3))
-              for n, v in scenario.vehicles.items()]
-    cfg = SumoConfig(net_file=bundle.net_file, additional_files=list(bundle.additional_files) or [bundle.stops_file],
-                     step_s=float(sim.step_s), extra_args=sumo_args(bundle),
-                     seed=int(sim.seed), step_method=sim.step_method, vtypes=vtypes)
+    vtypes = [
+        VTypeSpec(
+            n,
+            v.length_m,
+            v.max_speed_mps,
+            accel_mps2=0.8,
+            decel_mps2=v.service_decel_mps2,
+            emergency_decel_mps2=max(v.emergency_decel_mps2, 1.3),
+        )
+        for n, v in scenario.vehicles.items()
+    ]
+    cfg = SumoConfig(
+        net_file=bundle.net_file,
+        additional_files=list(bundle.additional_files) or [bundle.stops_file],
+        step_s=float(sim.step_s),
+        extra_args=sumo_args(bundle),
+        seed=int(sim.seed),
+        step_method=sim.step_method,
+        vtypes=vtypes,
+    )
     t0 = time.perf_counter()
     steps = 0
     arrived = 0
@@ -50,8 +71,9 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
                 dep, trip_id, vname, route, stops = trips[k]
                 bridge.add_route(route.id, route.edges)
                 specs = [StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s) for s in stops[1:]]
-                bridge.add_train(trip_id, route.id, vname, stops[0].mark_m - route.edge_start_m[0], specs,
-                                 controlled=False)
+                bridge.add_train(
+                    trip_id, route.id, vname, stops[0].mark_m - route.edge_start_m[0], specs, controlled=False
+                )
                 k += 1
             bridge.step()
             steps += 1

@@ -42,12 +42,13 @@ from __future__ import annotations
 
 import math
 import sys
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
-from railsim.record import output
 from railsim.errors import ConfigError
+from railsim.record import output
 from railsim.studies.sweep import Case, CaseTask, case_id, execute, read_rows, write_row
 
 DELAY_STATS = ("max", "p95")
@@ -134,25 +135,37 @@ class HeadwaySearchResult:
         return data
 
     def to_markdown(self) -> str:
-        lines = [f"Minimum feasible headway over {', '.join(self.headway_paths)} in [{self.lo_s:g}, {self.hi_s:g}] s "
-                 f"(tolerance {self.tol_s:g} s; feasible = no collision, every stop served, every trip arrived, "
-                 f"{self.criteria.delay_stat} arrival delay <= {self.criteria.max_delay_s:g} s):", ""]
+        lines = [
+            f"Minimum feasible headway over {', '.join(self.headway_paths)} in [{self.lo_s:g}, {self.hi_s:g}] s "
+            f"(tolerance {self.tol_s:g} s; feasible = no collision, every stop served, every trip arrived, "
+            f"{self.criteria.delay_stat} arrival delay <= {self.criteria.max_delay_s:g} s):",
+            "",
+        ]
         if self.min_headway_s is None:
             lines.append("**No feasible headway in the range.**")
         else:
             extra = " (the range's lower end: the minimum may be smaller)" if self.at_lower_bound else ""
-            lines.append(f"**{self.min_headway_s:g} s**{extra}; confirmed with seeds "
-                         f"{', '.join(map(str, self.confirmed_seeds)) or '-'}; trains/h per direction: "
-                         + (", ".join(f"{d} {v:.1f}" for d, v in self.trains_per_hour.items()) or "-"))
+            lines.append(
+                f"**{self.min_headway_s:g} s**{extra}; confirmed with seeds "
+                f"{', '.join(map(str, self.confirmed_seeds)) or '-'}; trains/h per direction: "
+                + (", ".join(f"{d} {v:.1f}" for d, v in self.trains_per_hour.items()) or "-")
+            )
         if self.non_monotone:
-            lines.append(f"Non-monotone: feasible at {', '.join(f'{h:g}' for h in self.non_monotone)} s although a "
-                         "longer probed headway was not (the answer stays above them).")
-        lines += ["", "| headway s | seed | round | feasible | delay s | trains | reason |",
-                  "|---:|---:|---:|:---:|---:|---:|---|"]
+            lines.append(
+                f"Non-monotone: feasible at {', '.join(f'{h:g}' for h in self.non_monotone)} s although a "
+                "longer probed headway was not (the answer stays above them)."
+            )
+        lines += [
+            "",
+            "| headway s | seed | round | feasible | delay s | trains | reason |",
+            "|---:|---:|---:|:---:|---:|---:|---|",
+        ]
         for p in sorted(self.probes, key=lambda p: (p.headway_s, p.seed)):
             delay = "-" if p.delay_s is None else f"{p.delay_s:.1f}"
-            lines.append(f"| {p.headway_s:g} | {p.seed} | {p.round} | {'yes' if p.feasible else 'no'} | {delay} | "
-                         f"{p.n_trains if p.n_trains is not None else '-'} | {p.reason} |")
+            lines.append(
+                f"| {p.headway_s:g} | {p.seed} | {p.round} | {'yes' if p.feasible else 'no'} | {delay} | "
+                f"{p.n_trains if p.n_trains is not None else '-'} | {p.reason} |"
+            )
         return "\n".join(lines)
 
 
@@ -191,12 +204,25 @@ def service_rates(scn: Any) -> tuple[dict[str, float], dict[str, float]]:
     return dict(sorted(by_direction.items())), by_service
 
 
-def find_min_headway(scenario_path: str | Path, headway_paths: Sequence[str], lo_s: float, hi_s: float, *,
-                     tol_s: float = 5.0, max_delay_s: float = 120.0, delay_stat: str = "max",
-                     overrides: Mapping[str, Any] | None = None, seed: int | None = None,
-                     confirm_seeds: Sequence[int] | None = None, workers: int = 1, dask_address: str | None = None,
-                     timeout_s: float | None = None, out_dir: str | Path | None = None, keep_runs: bool = False,
-                     progress: bool | None = None) -> HeadwaySearchResult:
+def find_min_headway(
+    scenario_path: str | Path,
+    headway_paths: Sequence[str],
+    lo_s: float,
+    hi_s: float,
+    *,
+    tol_s: float = 5.0,
+    max_delay_s: float = 120.0,
+    delay_stat: str = "max",
+    overrides: Mapping[str, Any] | None = None,
+    seed: int | None = None,
+    confirm_seeds: Sequence[int] | None = None,
+    workers: int = 1,
+    dask_address: str | None = None,
+    timeout_s: float | None = None,
+    out_dir: str | Path | None = None,
+    keep_runs: bool = False,
+    progress: bool | None = None,
+) -> HeadwaySearchResult:
     """Smallest feasible headway in ``[lo_s, hi_s]`` to ``tol_s`` (module docstring: criteria, search, answer).
 
     Every path of ``headway_paths`` is set to the probed headway [s]; ``overrides`` are applied to every probe as
@@ -270,8 +296,19 @@ def find_min_headway(scenario_path: str | Path, headway_paths: Sequence[str], lo
         for k, case, row in sorted(results, key=lambda x: (x[0], x[1].seed)):
             ok, reason = feasibility(row, criteria)
             delay = row.get(f"trips.arrival_delay_{delay_stat}_s")
-            probes.append(Probe(grid[k], case.seed, case.case_id, ok, reason, round_no,
-                                None if delay is None else float(delay), row.get("n_trains"), row.get("wall_s")))
+            probes.append(
+                Probe(
+                    grid[k],
+                    case.seed,
+                    case.case_id,
+                    ok,
+                    reason,
+                    round_no,
+                    None if delay is None else float(delay),
+                    row.get("n_trains"),
+                    row.get("wall_s"),
+                )
+            )
             feasible_at[k] = feasible_at.get(k, True) and ok
 
     try:
@@ -303,17 +340,27 @@ def find_min_headway(scenario_path: str | Path, headway_paths: Sequence[str], lo
 
     b = _frontier(feasible_at)
     min_h = grid[b] if b is not None else None
-    non_mono = tuple(sorted(grid[k] for k, ok in feasible_at.items()
-                            if ok and any(not feasible_at[j] for j in feasible_at if j > k)))
+    non_mono = tuple(
+        sorted(grid[k] for k, ok in feasible_at.items() if ok and any(not feasible_at[j] for j in feasible_at if j > k))
+    )
     per_dir: dict[str, float] = {}
     per_svc: dict[str, float] = {}
     if min_h is not None:
         per_dir, per_svc = service_rates(load_at(min_h))
     result = HeadwaySearchResult(
-        min_headway_s=min_h, lo_s=float(lo_s), hi_s=float(hi_s), tol_s=float(tol_s), headway_paths=paths,
-        criteria=criteria, probes=tuple(probes), non_monotone=non_mono, at_lower_bound=(b == 0),
+        min_headway_s=min_h,
+        lo_s=float(lo_s),
+        hi_s=float(hi_s),
+        tol_s=float(tol_s),
+        headway_paths=paths,
+        criteria=criteria,
+        probes=tuple(probes),
+        non_monotone=non_mono,
+        at_lower_bound=(b == 0),
         confirmed_seeds=tuple(confirm) if b is not None and b in confirmed else (),
-        trains_per_hour=per_dir, trains_per_hour_by_service=per_svc)
+        trains_per_hour=per_dir,
+        trains_per_hour_by_service=per_svc,
+    )
     if out is not None:
         output.write_json(out / "headway.json", result.to_dict())
         table = result.probe_table()

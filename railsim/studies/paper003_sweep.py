@@ -18,9 +18,9 @@ import json
 import subprocess
 import sys
 import tempfile
+from collections.abc import Iterable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Iterable
 
 import yaml
 
@@ -48,26 +48,43 @@ def run_one(scenario: str, load: str, delay_s: float, workdir: Path) -> SweepRow
     """One engine run of ``paper003_<scenario>[_loaded].yaml`` with a constant t2t delay ``delay_s``."""
     src = ROOT / "scenarios" / f"paper003_{scenario}{'' if load == 'empty' else '_loaded'}.yaml"
     raw = yaml.safe_load(src.read_text(encoding="utf-8"))
-    raw.setdefault("faults", {}).setdefault("comm", {})["t2t"] = {"delay_s": {"dist": "constant",
-                                                                              "value": float(delay_s)}}
+    raw.setdefault("faults", {}).setdefault("comm", {})["t2t"] = {
+        "delay_s": {"dist": "constant", "value": float(delay_s)}
+    }
     tag = f"{scenario}_{load}_{delay_s:g}"
     path = workdir / f"{tag}.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False), encoding="utf-8")
     out = workdir / tag
-    res = subprocess.run([sys.executable, "-m", "railsim.cli.main", "run", str(path), "--out", str(out), "--no-progress"],
-                         capture_output=True, text=True, cwd=ROOT, timeout=600)
+    res = subprocess.run(
+        [sys.executable, "-m", "railsim.cli.main", "run", str(path), "--out", str(out), "--no-progress"],
+        capture_output=True,
+        text=True,
+        cwd=ROOT,
+        timeout=600,
+    )
     if res.returncode not in (0, 1):  # 1: the run had a collision (still a result)
         raise RuntimeError(f"{tag}: railsim exited {res.returncode}: {res.stderr[-500:]}")
     m = ca_metrics.metrics(out)
     events = ca_metrics._read_csv(out / "events.csv")
     gaps = [p["min_gap_m"] for p in m["pairs"].values() if p["min_gap_m"] is not None]
-    return SweepRow(scenario, load, float(delay_s), bool(m["coupled"]) and all(m["coupled"].values()),
-                    sum(1 for e in events if e["kind"] == "ca_trigger"), min(gaps), int(m["collisions"]),
-                    sum(1 for e in events if e["kind"] == "vc_degraded"))
+    return SweepRow(
+        scenario,
+        load,
+        float(delay_s),
+        bool(m["coupled"]) and all(m["coupled"].values()),
+        sum(1 for e in events if e["kind"] == "ca_trigger"),
+        min(gaps),
+        int(m["collisions"]),
+        sum(1 for e in events if e["kind"] == "vc_degraded"),
+    )
 
 
-def sweep(delays_s: Iterable[float] = DELAYS_S, loads: Iterable[str] = LOADS,
-          scenarios: Iterable[str] = SCENARIOS, workdir: Path | None = None) -> list[SweepRow]:
+def sweep(
+    delays_s: Iterable[float] = DELAYS_S,
+    loads: Iterable[str] = LOADS,
+    scenarios: Iterable[str] = SCENARIOS,
+    workdir: Path | None = None,
+) -> list[SweepRow]:
     """All combinations, sequentially; outputs go to ``workdir`` (a temporary folder if None)."""
     rows: list[SweepRow] = []
     with tempfile.TemporaryDirectory(prefix="paper003_sweep_") as tmp:
@@ -84,8 +101,10 @@ def format_sweep(rows: Iterable[SweepRow]) -> str:
     head = f"{'scenario':<12} {'load':<7} {'delay s':>7} {'coupled':>8} {'CA on':>6} {'min gap m':>9} {'coll':>5} {'degraded':>8}"
     lines = [head, "-" * len(head)]
     for r in rows:
-        lines.append(f"{r.scenario:<12} {r.load:<7} {r.delay_s:>7g} {str(r.coupled):>8} {r.ca_activations:>6} "
-                     f"{r.min_gap_m:>9.2f} {r.collisions:>5} {r.degraded:>8}")
+        lines.append(
+            f"{r.scenario:<12} {r.load:<7} {r.delay_s:>7g} {str(r.coupled):>8} {r.ca_activations:>6} "
+            f"{r.min_gap_m:>9.2f} {r.collisions:>5} {r.degraded:>8}"
+        )
     return "\n".join(lines)
 
 

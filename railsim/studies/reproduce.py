@@ -39,23 +39,42 @@ def reproduce_paper002(out: Path, topology: str = "union") -> dict[str, Any]:
         for j, tid in enumerate(log.train_ids):
             if not log.present[n, j]:
                 continue
-            trains.append({"k": int(k), "train": tid, "x_m": _num(log.x_m[n, j]), "v_mps": _num(log.v_mps[n, j]),
-                           "u_mps2": _num(log.u_mps2[n, j]) if n < len(log.u_mps2) else None,
-                           "s_m": _num(log.s_m[n, j]) if n < len(log.s_m) else None})
+            trains.append(
+                {
+                    "k": int(k),
+                    "train": tid,
+                    "x_m": _num(log.x_m[n, j]),
+                    "v_mps": _num(log.v_mps[n, j]),
+                    "u_mps2": _num(log.u_mps2[n, j]) if n < len(log.u_mps2) else None,
+                    "s_m": _num(log.s_m[n, j]) if n < len(log.s_m) else None,
+                }
+            )
     edges = []
     for n, k in enumerate(log.k):
         for e, (i, j) in enumerate(log.edge_ids):  # type: ignore[assignment]
             if log.edge_active[n, e]:
-                edges.append({"k": int(k), "edge": f"{i}-{j}", "x_rel_m": _num(log.x_rel_m[n, e]),
-                              "d_m": _num(log.edge_d_m[n, e]), "gamma_lo_m": _num(log.edge_gamma_lo_m[n, e]),
-                              "gamma_hi_m": _num(log.edge_gamma_hi_m[n, e])})
+                edges.append(
+                    {
+                        "k": int(k),
+                        "edge": f"{i}-{j}",
+                        "x_rel_m": _num(log.x_rel_m[n, e]),
+                        "d_m": _num(log.edge_d_m[n, e]),
+                        "gamma_lo_m": _num(log.edge_gamma_lo_m[n, e]),
+                        "gamma_hi_m": _num(log.edge_gamma_hi_m[n, e]),
+                    }
+                )
     out.mkdir(parents=True, exist_ok=True)
     output.write_csv(out / "trains.csv", trains, ["k", "train", "x_m", "v_mps", "u_mps2", "s_m"])
     output.write_csv(out / "edges.csv", edges, ["k", "edge", "x_rel_m", "d_m", "gamma_lo_m", "gamma_hi_m"])
     figures = write_figures(log, out)
     violations = log.violations(1e-9)
-    summary = {"experiment": "paper002", "topology": topology, "steps": int(log.k[-1]),
-               "violations": len(violations), "figures": [str(f) for f in figures]}
+    summary = {
+        "experiment": "paper002",
+        "topology": topology,
+        "steps": int(log.k[-1]),
+        "violations": len(violations),
+        "figures": [str(f) for f in figures],
+    }
     output.write_json(out / "summary.json", summary)
     return summary
 
@@ -78,8 +97,16 @@ def reproduce_paper001(out: Path, scenario: str = "A", controllers: str = "sempc
     return {"experiment": "paper001", "scenario": scenario, "metrics": metrics, "figure": str(figure)}
 
 
-PAPER004_METRICS = ("coupling_time_s", "coupled_speed_mps", "cost", "operation_time_s", "min_separation_m",
-                    "max_gap_error_m", "max_speed_diff_mps", "plan_wall_time_s_mean")
+PAPER004_METRICS = (
+    "coupling_time_s",
+    "coupled_speed_mps",
+    "cost",
+    "operation_time_s",
+    "min_separation_m",
+    "max_gap_error_m",
+    "max_speed_diff_mps",
+    "plan_wall_time_s_mean",
+)
 
 
 def paper004_table(tables: dict[int, Any]) -> Any:
@@ -94,10 +121,14 @@ def paper004_table(tables: dict[int, Any]) -> Any:
     for sc, df in sorted(tables.items()):
         df = df[df["status"] == "ok"]
         for method, g in df.groupby("junction.method", sort=False):
-            row: dict[str, Any] = {"scenario": sc, "method": method, "runs": len(g),
-                                   "coupled_rate": float(g["junction.coupled_at_F"].astype(float).mean()),
-                                   "collisions": int(g["collisions"].sum()),
-                                   "switch_violations": int(g["switch_violations"].sum())}
+            row: dict[str, Any] = {
+                "scenario": sc,
+                "method": method,
+                "runs": len(g),
+                "coupled_rate": float(g["junction.coupled_at_F"].astype(float).mean()),
+                "collisions": int(g["collisions"].sum()),
+                "switch_violations": int(g["switch_violations"].sum()),
+            }
             for m in PAPER004_METRICS:
                 col = f"junction.{m}"
                 vals = pd.to_numeric(g[col], errors="coerce").dropna() if col in g else pd.Series(dtype=float)
@@ -112,14 +143,18 @@ def paper004_markdown(table: Any) -> str:
         mean, std = r[f"{m}_mean"], r[f"{m}_std"]
         return "–" if mean is None or mean != mean else f"{mean:.{nd}f} ± {std:.{nd}f}"
 
-    lines = ["| scenario | method | runs | coupled at F | T_c [s] | V_c [m/s] | f_c | operation [s] | "
-             "min head-to-head [m] | max gap error [m] | collisions | switch violations |",
-             "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+    lines = [
+        "| scenario | method | runs | coupled at F | T_c [s] | V_c [m/s] | f_c | operation [s] | "
+        "min head-to-head [m] | max gap error [m] | collisions | switch violations |",
+        "|---|---|---|---|---|---|---|---|---|---|---|---|",
+    ]
     for _, r in table.iterrows():
-        lines.append(f"| {r['scenario']} | {r['method']} | {r['runs']} | {r['coupled_rate']:.2f} | "
-                     f"{pm(r, 'coupling_time_s')} | {pm(r, 'coupled_speed_mps', 2)} | {pm(r, 'cost')} | "
-                     f"{pm(r, 'operation_time_s')} | {pm(r, 'min_separation_m')} | {pm(r, 'max_gap_error_m')} | "
-                     f"{r['collisions']} | {r['switch_violations']} |")
+        lines.append(
+            f"| {r['scenario']} | {r['method']} | {r['runs']} | {r['coupled_rate']:.2f} | "
+            f"{pm(r, 'coupling_time_s')} | {pm(r, 'coupled_speed_mps', 2)} | {pm(r, 'cost')} | "
+            f"{pm(r, 'operation_time_s')} | {pm(r, 'min_separation_m')} | {pm(r, 'max_gap_error_m')} | "
+            f"{r['collisions']} | {r['switch_violations']} |"
+        )
     return "\n".join(lines)
 
 

@@ -49,12 +49,13 @@ not.
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Sequence
+from typing import Any
 
-from railsim.record import output
 from railsim.errors import ConfigError
+from railsim.record import output
 
 ROOT = Path(__file__).resolve().parents[2]  # the repository (railsim/studies/<this file>)
 DEFAULT_MB = ROOT / "scenarios" / "chongqing_line3_peak_mb.yaml"
@@ -95,12 +96,16 @@ def headway_paths(scenario_path: Path, services: Sequence[str]) -> list[str]:
     paths = []
     for sid in services:
         if sid not in ids:
-            raise ConfigError(scenario_path, "services", f"expected a service {sid!r} to set the headway of, "
-                                                         f"found {', '.join(ids)}")
+            raise ConfigError(
+                scenario_path, "services", f"expected a service {sid!r} to set the headway of, found {', '.join(ids)}"
+            )
         i = ids.index(sid)
         if "headway_s" not in raw[i]["departures"]:
-            raise ConfigError(scenario_path, f"services[{i}].departures", f"service {sid!r} must be timetabled by "
-                                                                          "first/last/headway_s for a headway study")
+            raise ConfigError(
+                scenario_path,
+                f"services[{i}].departures",
+                f"service {sid!r} must be timetabled by first/last/headway_s for a headway study",
+            )
         paths.append(f"services[{i}].departures.headway_s")
     return paths
 
@@ -120,8 +125,11 @@ def run_metrics(run_dir: Path) -> tuple[dict[str, Any], str]:
     forms = read_table(run_dir, "formations")
     report = analyse_run(run_dir)
     m: dict[str, Any] = {
-        "trains": summary["n_trains"], "arrived": summary["n_arrived"], "collisions": summary["collisions"],
-        "stops_missed": summary["n_stops_missed"], "min_gap_m": summary["min_gap_m"],
+        "trains": summary["n_trains"],
+        "arrived": summary["n_arrived"],
+        "collisions": summary["collisions"],
+        "stops_missed": summary["n_stops_missed"],
+        "min_gap_m": summary["min_gap_m"],
     }
     for row in report.tables["directions"].itertuples(index=False):
         d = row.direction
@@ -162,19 +170,32 @@ def _time_distance(run_dir: Path, stem: Path) -> list[Path]:
 # --------------------------------------------------------------------------------------------------------------
 
 
-def vc_vs_mb(out_dir: str | Path, *, mb_scenario: str | Path = DEFAULT_MB, vc_scenario: str | Path = DEFAULT_VC,
-             services: Sequence[str] = DEFAULT_SERVICES, lo_s: float = 60.0, mb_hi_s: float = 240.0,
-             vc_hi_s: float = 150.0, tol_s: float = 10.0, max_delay_s: float = 120.0, workers: int = 1,
-             headway_s: float | None = None, confirm: bool = True,
-             progress: bool | None = None) -> dict[str, RegimeResult]:
+def vc_vs_mb(
+    out_dir: str | Path,
+    *,
+    mb_scenario: str | Path = DEFAULT_MB,
+    vc_scenario: str | Path = DEFAULT_VC,
+    services: Sequence[str] = DEFAULT_SERVICES,
+    lo_s: float = 60.0,
+    mb_hi_s: float = 240.0,
+    vc_hi_s: float = 150.0,
+    tol_s: float = 10.0,
+    max_delay_s: float = 120.0,
+    workers: int = 1,
+    headway_s: float | None = None,
+    confirm: bool = True,
+    progress: bool | None = None,
+) -> dict[str, RegimeResult]:
     """Run the VC-vs-moving-block study into ``out_dir`` (module docstring); returns the two regimes' results."""
     from railsim import scenario
     from railsim.studies.headway import find_min_headway
     from railsim.studies.sweep import case_id, run_case
 
     out = Path(out_dir)
-    regimes = [Regime("mb", "(a) moving block", Path(mb_scenario), lo_s, mb_hi_s),
-               Regime("vc", "(b) virtual coupling", Path(vc_scenario), lo_s, vc_hi_s)]
+    regimes = [
+        Regime("mb", "(a) moving block", Path(mb_scenario), lo_s, mb_hi_s),
+        Regime("vc", "(b) virtual coupling", Path(vc_scenario), lo_s, vc_hi_s),
+    ]
     if headway_s is not None and not (headway_s > 0 and math.isfinite(headway_s)):
         raise ConfigError("<study>", "headway_s", f"expected a number of seconds > 0, got {headway_s!r}")
     paths = {r.key: headway_paths(r.scenario, services) for r in regimes}  # validates both files first
@@ -184,9 +205,19 @@ def vc_vs_mb(out_dir: str | Path, *, mb_scenario: str | Path = DEFAULT_MB, vc_sc
         search = None
         h = headway_s
         if h is None:
-            search = find_min_headway(r.scenario, paths[r.key], r.lo_s, r.hi_s, tol_s=tol_s,
-                                      max_delay_s=max_delay_s, workers=workers, out_dir=folder / "search",
-                                      confirm_seeds=None if confirm else [], keep_runs=True, progress=progress)
+            search = find_min_headway(
+                r.scenario,
+                paths[r.key],
+                r.lo_s,
+                r.hi_s,
+                tol_s=tol_s,
+                max_delay_s=max_delay_s,
+                workers=workers,
+                out_dir=folder / "search",
+                confirm_seeds=None if confirm else [],
+                keep_runs=True,
+                progress=progress,
+            )
             h = search.min_headway_s
         res = RegimeResult(r, h, search, None)
         if h is not None:
@@ -197,8 +228,9 @@ def vc_vs_mb(out_dir: str | Path, *, mb_scenario: str | Path = DEFAULT_MB, vc_sc
                 run_dir = folder / "run"
                 row = run_case(r.scenario, overrides, seed, out_dir=run_dir)
                 if row["status"] != "ok":
-                    raise ConfigError(r.scenario, f"headway {h:g} s", f"the run at the minimum headway failed: "
-                                                                     f"{row['error']}")
+                    raise ConfigError(
+                        r.scenario, f"headway {h:g} s", f"the run at the minimum headway failed: {row['error']}"
+                    )
             res.run_dir = run_dir
             res.metrics, res.capacity_md = run_metrics(run_dir)
             res.plots = _time_distance(run_dir, out / f"{r.key}_time_distance")
@@ -217,38 +249,61 @@ def _fmt(v: Any) -> str:
 
 ROWS = [
     ("minimum feasible headway [s]", "headway_s"),
-    ("trains (units) run", "trains"), ("collisions", "collisions"), ("stops missed", "stops_missed"),
-    ("up: trains/h, busiest section", "up.trains_per_h"), ("up: paths/h", "up.paths_per_h"),
-    ("up: passengers/h", "up.pax_per_h"), ("up: busiest section", "up.busiest_section"),
-    ("up: max UIC 406 occupancy", "up.max_occupancy"), ("up: at section", "up.max_occupancy_section"),
-    ("down: trains/h, busiest section", "down.trains_per_h"), ("down: paths/h", "down.paths_per_h"),
-    ("down: passengers/h", "down.pax_per_h"), ("down: max UIC 406 occupancy", "down.max_occupancy"),
+    ("trains (units) run", "trains"),
+    ("collisions", "collisions"),
+    ("stops missed", "stops_missed"),
+    ("up: trains/h, busiest section", "up.trains_per_h"),
+    ("up: paths/h", "up.paths_per_h"),
+    ("up: passengers/h", "up.pax_per_h"),
+    ("up: busiest section", "up.busiest_section"),
+    ("up: max UIC 406 occupancy", "up.max_occupancy"),
+    ("up: at section", "up.max_occupancy_section"),
+    ("down: trains/h, busiest section", "down.trains_per_h"),
+    ("down: paths/h", "down.paths_per_h"),
+    ("down: passengers/h", "down.pax_per_h"),
+    ("down: max UIC 406 occupancy", "down.max_occupancy"),
     ("down: at section", "down.max_occupancy_section"),
-    ("arrival delay max / mean [s]", "delay"), ("traction energy, all trips [kWh]", "energy_kwh_total"),
-    ("smallest true gap, whole run [m]", "min_gap_m"), ("median of per-trip smallest gap [m]", "trip_min_gap_p50_m"),
-    ("formations coupled", "formations_coupled"), ("coupled gap error p95, worst formation [m]",
-                                                   "coupled_gap_error_p95_m"),
+    ("arrival delay max / mean [s]", "delay"),
+    ("traction energy, all trips [kWh]", "energy_kwh_total"),
+    ("smallest true gap, whole run [m]", "min_gap_m"),
+    ("median of per-trip smallest gap [m]", "trip_min_gap_p50_m"),
+    ("formations coupled", "formations_coupled"),
+    ("coupled gap error p95, worst formation [m]", "coupled_gap_error_p95_m"),
 ]
 
 
-def write_report(out: Path, results: dict[str, RegimeResult], services: Sequence[str], tol_s: float,
-                 max_delay_s: float, searched: bool = True) -> Path:
+def write_report(
+    out: Path,
+    results: dict[str, RegimeResult],
+    services: Sequence[str],
+    tol_s: float,
+    max_delay_s: float,
+    searched: bool = True,
+) -> Path:
     """``vc_vs_mb.md`` and ``vc_vs_mb.json`` in ``out``."""
     out.mkdir(parents=True, exist_ok=True)
     cols = [results[k] for k in ("mb", "vc") if k in results]
-    lines = ["# Virtual coupling vs moving block", "",
-             f"Scenarios: (a) `{cols[0].regime.scenario.name}`, (b) `{cols[1].regime.scenario.name}`. Headway of "
-             f"{', '.join(services)} (both set together) "
-             + (f"searched in [{cols[0].regime.lo_s:g}, {cols[0].regime.hi_s:g}] s for (a) and "
-                f"[{cols[1].regime.lo_s:g}, {cols[1].regime.hi_s:g}] s for (b), tolerance {tol_s:g} s, feasible = "
-                f"no collision, every stop served, every trip arrived, max arrival delay ≤ {max_delay_s:g} s; "
-                "each regime then run once at its minimum headway."
-                if searched else "given (no search): both regimes run at the same headway."),
-             "In (b) relative braking distance applies inside the Airport/Jurenba formations only; consecutive "
-             "independent trains keep the moving-block absolute braking distance (see railsim/study.py). Capacity "
-             "over the busiest hour of the busiest section per direction; a formation is one path carrying both "
-             "units' passengers.", "",
-             "| | " + " | ".join(r.regime.label for r in cols) + " |", "|---|" + "---:|" * len(cols)]
+    lines = [
+        "# Virtual coupling vs moving block",
+        "",
+        f"Scenarios: (a) `{cols[0].regime.scenario.name}`, (b) `{cols[1].regime.scenario.name}`. Headway of "
+        f"{', '.join(services)} (both set together) "
+        + (
+            f"searched in [{cols[0].regime.lo_s:g}, {cols[0].regime.hi_s:g}] s for (a) and "
+            f"[{cols[1].regime.lo_s:g}, {cols[1].regime.hi_s:g}] s for (b), tolerance {tol_s:g} s, feasible = "
+            f"no collision, every stop served, every trip arrived, max arrival delay ≤ {max_delay_s:g} s; "
+            "each regime then run once at its minimum headway."
+            if searched
+            else "given (no search): both regimes run at the same headway."
+        ),
+        "In (b) relative braking distance applies inside the Airport/Jurenba formations only; consecutive "
+        "independent trains keep the moving-block absolute braking distance (see railsim/study.py). Capacity "
+        "over the busiest hour of the busiest section per direction; a formation is one path carrying both "
+        "units' passengers.",
+        "",
+        "| | " + " | ".join(r.regime.label for r in cols) + " |",
+        "|---|" + "---:|" * len(cols),
+    ]
     for label, key in ROWS:
         vals = []
         for r in cols:
@@ -262,7 +317,8 @@ def write_report(out: Path, results: dict[str, RegimeResult], services: Sequence
     run_keys = sorted({k for r in cols for k in r.metrics if k.startswith(("running_time_min.", "energy_kwh_per"))})
     for key in run_keys:
         name = key.replace("running_time_min.", "mean running time [min] ").replace(
-            "energy_kwh_per_trip.", "traction energy per trip [kWh] ")
+            "energy_kwh_per_trip.", "traction energy per trip [kWh] "
+        )
         lines.append(f"| {name} | " + " | ".join(_fmt(r.metrics.get(key)) for r in cols) + " |")
     for r in cols:
         lines += ["", f"## {r.regime.label}", ""]
@@ -277,8 +333,18 @@ def write_report(out: Path, results: dict[str, RegimeResult], services: Sequence
             lines.append(f"Run outputs: `{r.run_dir.relative_to(out) if r.run_dir.is_relative_to(out) else r.run_dir}`")
     md = out / "vc_vs_mb.md"
     output.write_bytes(md, ("\n".join(lines) + "\n").encode("utf-8"))
-    output.write_json(out / "vc_vs_mb.json", {
-        r.regime.key: {"label": r.regime.label, "scenario": str(r.regime.scenario), "headway_s": r.headway_s,
-                       "metrics": r.metrics, "search": r.search.to_dict() if r.search is not None else None,
-                       "run_dir": str(r.run_dir) if r.run_dir else None} for r in cols})
+    output.write_json(
+        out / "vc_vs_mb.json",
+        {
+            r.regime.key: {
+                "label": r.regime.label,
+                "scenario": str(r.regime.scenario),
+                "headway_s": r.headway_s,
+                "metrics": r.metrics,
+                "search": r.search.to_dict() if r.search is not None else None,
+                "run_dir": str(r.run_dir) if r.run_dir else None,
+            }
+            for r in cols
+        },
+    )
     return md

@@ -16,7 +16,8 @@ It lives here, not in :mod:`railsim.cli`, because studies may not import the com
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from railsim import scenario as scenario_mod
 
@@ -40,6 +41,7 @@ def world_check(scn: scenario_mod.Scenario) -> str | None:
     else:
         name_or_path, params = scn.world.build_args()
         bundle = build(name_or_path, **params)
-    scenario_mod.check_against_world(scn, bundle.stations.keys(), bundle.switches.keys(),
-                                     getattr(bundle, "station_aliases", None))
+    scenario_mod.check_against_world(
+        scn, bundle.stations.keys(), bundle.switches.keys(), getattr(bundle, "station_aliases", None)
+    )
     return None

@@ -25,7 +25,22 @@ from .mothflame import (
 from .rounding import clamp_round, cyclic_round, logistic_tent
 
 __all__ = [
-    "METHODS", "MFO_SETTINGS", "MSMFO_SETTINGS", "Evaluator", "GaSettings", "MothFlameSettings", "OptimResult",
-    "PsoSettings", "SaSettings", "chaotic_positions", "clamp_round", "cyclic_round", "flame_count",
-    "greedy_refine", "logistic_tent", "method_settings", "minimize_sequence", "mutation_probability",
+    "METHODS",
+    "MFO_SETTINGS",
+    "MSMFO_SETTINGS",
+    "Evaluator",
+    "GaSettings",
+    "MothFlameSettings",
+    "OptimResult",
+    "PsoSettings",
+    "SaSettings",
+    "chaotic_positions",
+    "clamp_round",
+    "cyclic_round",
+    "flame_count",
+    "greedy_refine",
+    "logistic_tent",
+    "method_settings",
+    "minimize_sequence",
+    "mutation_probability",
 ]

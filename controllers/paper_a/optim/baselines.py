@@ -89,8 +89,16 @@ def _running(evaluate: Evaluator, k: int, iterations: int) -> bool:
     return not evaluate.exhausted and (evaluate.budget is not None or k <= iterations)
 
 
-def run_ga(evaluate: Evaluator, dim: int, n_values: int, population: int, iterations: int,
-           rng: np.random.Generator, init: np.ndarray | None, settings: GaSettings) -> list[float]:
+def run_ga(
+    evaluate: Evaluator,
+    dim: int,
+    n_values: int,
+    population: int,
+    iterations: int,
+    rng: np.random.Generator,
+    init: np.ndarray | None,
+    settings: GaSettings,
+) -> list[float]:
     P, D = population, dim
     mutation_rate = settings.mutation_rate if settings.mutation_rate is not None else 1.0 / D
     n_elite = min(math.ceil(settings.elite_fraction * P), P - 1)
@@ -119,8 +127,16 @@ def run_ga(evaluate: Evaluator, dim: int, n_values: int, population: int, iterat
     return history
 
 
-def run_pso(evaluate: Evaluator, dim: int, n_values: int, population: int, iterations: int,
-            rng: np.random.Generator, init: np.ndarray | None, settings: PsoSettings) -> list[float]:
+def run_pso(
+    evaluate: Evaluator,
+    dim: int,
+    n_values: int,
+    population: int,
+    iterations: int,
+    rng: np.random.Generator,
+    init: np.ndarray | None,
+    settings: PsoSettings,
+) -> list[float]:
     P, D = population, dim
     lb, ub = LB, LB + n_values - 1
     upper = clamp_box_upper(ub)
@@ -160,8 +176,16 @@ def run_pso(evaluate: Evaluator, dim: int, n_values: int, population: int, itera
     return history
 
 
-def run_sa(evaluate: Evaluator, dim: int, n_values: int, population: int, iterations: int,
-           rng: np.random.Generator, init: np.ndarray | None, settings: SaSettings) -> list[float]:
+def run_sa(
+    evaluate: Evaluator,
+    dim: int,
+    n_values: int,
+    population: int,
+    iterations: int,
+    rng: np.random.Generator,
+    init: np.ndarray | None,
+    settings: SaSettings,
+) -> list[float]:
     D = dim
     chain = population * iterations if evaluate.budget is None else evaluate.budget
     evaluate.limit = chain
@@ -189,7 +213,7 @@ def run_sa(evaluate: Evaluator, dim: int, n_values: int, population: int, iterat
     since_record = 0
     while not evaluate.exhausted:
         tau = min(evaluate.evaluations / chain, 1.0)
-        temperature = t0 * settings.final_ratio ** tau
+        temperature = t0 * settings.final_ratio**tau
         cand = neighbours(x, 1)
         fc = float(evaluate(cand)[0])
         if fc <= fx:

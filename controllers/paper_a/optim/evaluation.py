@@ -15,8 +15,8 @@ gives the guarantees the benchmark of Paper A (§4 S-B′, spec A31) needs to be
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Callable
 
 import numpy as np
 

@@ -19,7 +19,8 @@ from __future__ import annotations
 
 import dataclasses
 import time
-from typing import Any, Callable, Mapping
+from collections.abc import Callable, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -30,8 +31,13 @@ from .evaluation import Evaluator, OptimResult
 from .mothflame import MFO_SETTINGS, MSMFO_SETTINGS, SOURCE, check_number, run_mothflame
 
 METHODS = ("msmfo", "mfo", "ga", "pso", "sa")
-_DEFAULTS: dict[str, Any] = {"msmfo": MSMFO_SETTINGS, "mfo": MFO_SETTINGS, "ga": GaSettings(),
-                             "pso": PsoSettings(), "sa": SaSettings()}
+_DEFAULTS: dict[str, Any] = {
+    "msmfo": MSMFO_SETTINGS,
+    "mfo": MFO_SETTINGS,
+    "ga": GaSettings(),
+    "pso": PsoSettings(),
+    "sa": SaSettings(),
+}
 
 
 def method_settings(method: str, options: Mapping[str, Any] | None) -> tuple[Any, int | None]:
@@ -45,8 +51,9 @@ def method_settings(method: str, options: Mapping[str, Any] | None) -> tuple[Any
     known = {f.name for f in dataclasses.fields(base)}
     unknown = sorted(set(opts) - known)
     if unknown:
-        raise ConfigError(SOURCE, f"options.{unknown[0]}",
-                          f"not an option of {method!r}; known: budget, {', '.join(sorted(known))}")
+        raise ConfigError(
+            SOURCE, f"options.{unknown[0]}", f"not an option of {method!r}; known: budget, {', '.join(sorted(known))}"
+        )
     return dataclasses.replace(base, **opts), (None if budget is None else int(budget))
 
 
@@ -67,10 +74,18 @@ def _check_init(init: np.ndarray | None, dim: int, n_values: int, population: in
     return arr.astype(np.int64)
 
 
-def minimize_sequence(fitness: Callable[[np.ndarray], np.ndarray], dim: int, n_values: int, *,
-                      method: str = "msmfo", population: int = 50, iterations: int = 100,
-                      rng: np.random.Generator, init: np.ndarray | None = None,
-                      options: Mapping[str, Any] | None = None) -> OptimResult:
+def minimize_sequence(
+    fitness: Callable[[np.ndarray], np.ndarray],
+    dim: int,
+    n_values: int,
+    *,
+    method: str = "msmfo",
+    population: int = 50,
+    iterations: int = 100,
+    rng: np.random.Generator,
+    init: np.ndarray | None = None,
+    options: Mapping[str, Any] | None = None,
+) -> OptimResult:
     """Minimise ``fitness`` over sequences in ``[0, n_values)^dim`` with ``method``; see the module docstring.
 
     Default reading of MSMFO: every component on, the *suggested* variants of Eq. (22) (chaos map mod 1),
@@ -83,8 +98,12 @@ def minimize_sequence(fitness: Callable[[np.ndarray], np.ndarray], dim: int, n_v
     """
     t_start = time.perf_counter()
     settings, budget = method_settings(method, options)
-    for name, value, low in (("dim", dim, 1), ("n_values", n_values, 1), ("population", population, 2),
-                             ("iterations", iterations, 1)):
+    for name, value, low in (
+        ("dim", dim, 1),
+        ("n_values", n_values, 1),
+        ("population", population, 2),
+        ("iterations", iterations, 1),
+    ):
         if isinstance(value, bool) or not isinstance(value, (int, np.integer)) or value < low:
             raise ConfigError(SOURCE, name, f"expected an integer >= {low}, got {value!r}")
     if not isinstance(rng, np.random.Generator):
@@ -104,5 +123,11 @@ def minimize_sequence(fitness: Callable[[np.ndarray], np.ndarray], dim: int, n_v
     else:
         history = run_sa(evaluate, dim, n_values, population, iterations, rng, warm, settings)
     assert evaluate.best is not None  # at least one row is always evaluated (budget >= 1)
-    return OptimResult(best=evaluate.best.copy(), best_cost=evaluate.best_cost, history=np.asarray(history),
-                       evaluations=evaluate.evaluations, wall_s=time.perf_counter() - t_start, method=method)
+    return OptimResult(
+        best=evaluate.best.copy(),
+        best_cost=evaluate.best_cost,
+        history=np.asarray(history),
+        evaluations=evaluate.evaluations,
+        wall_s=time.perf_counter() - t_start,
+        method=method,
+    )

@@ -70,8 +70,9 @@ def check_choice(field: str, value: object, choices: tuple[object, ...]) -> None
         raise ConfigError(SOURCE, f"options.{field}", f"expected one of {', '.join(map(repr, choices))}, got {value!r}")
 
 
-def check_number(field: str, value: object, *, low: float, high: float = math.inf, integer: bool = False,
-                 allow_none: bool = False) -> None:
+def check_number(
+    field: str, value: object, *, low: float, high: float = math.inf, integer: bool = False, allow_none: bool = False
+) -> None:
     if value is None and allow_none:
         return
     ok = isinstance(value, (int, float, np.integer, np.floating)) and not isinstance(value, bool)
@@ -86,20 +87,20 @@ def check_number(field: str, value: object, *, low: float, high: float = math.in
 class MothFlameSettings:
     """Switches and constants of (MS)MFO; defaults are MSMFO with Paper A's Table II / §2.7 values."""
 
-    rounding: str = "cyclic"            # Eq. 21
-    chaotic_init: str = "suggested"     # Eq. 22
-    eobl: str = "init+iter"             # Eq. 23
-    elite_fraction: float = 0.4         # Eq. 23: top 40 %
-    flame_count: str = "suggested"      # Eq. 24
-    initial_flames: int | None = None   # N0 of Eq. 24; None = population (Table II: 50 = P)
-    mutation: str = "suggested"         # Eq. 25–26
-    spiral: str = "modified"            # Eq. 27
-    alpha: float = 0.5                  # Eq. 27 spiral shape α
-    beta: float = 4.0                   # Eq. 27 spiral shape β
-    spiral_b: float = 1.0               # classical MFO log-spiral constant b
-    greedy: bool = True                 # Eq. 28
-    greedy_max_passes: int = 10         # spec A28
-    greedy_reserve: int | None = None   # evaluations kept for Eq. 28 under a budget; None = two passes
+    rounding: str = "cyclic"  # Eq. 21
+    chaotic_init: str = "suggested"  # Eq. 22
+    eobl: str = "init+iter"  # Eq. 23
+    elite_fraction: float = 0.4  # Eq. 23: top 40 %
+    flame_count: str = "suggested"  # Eq. 24
+    initial_flames: int | None = None  # N0 of Eq. 24; None = population (Table II: 50 = P)
+    mutation: str = "suggested"  # Eq. 25–26
+    spiral: str = "modified"  # Eq. 27
+    alpha: float = 0.5  # Eq. 27 spiral shape α
+    beta: float = 4.0  # Eq. 27 spiral shape β
+    spiral_b: float = 1.0  # classical MFO log-spiral constant b
+    greedy: bool = True  # Eq. 28
+    greedy_max_passes: int = 10  # spec A28
+    greedy_reserve: int | None = None  # evaluations kept for Eq. 28 under a budget; None = two passes
 
     def __post_init__(self) -> None:
         check_choice("rounding", self.rounding, ("cyclic", "clamp"))
@@ -119,8 +120,15 @@ class MothFlameSettings:
 
 
 MSMFO_SETTINGS = MothFlameSettings()
-MFO_SETTINGS = MothFlameSettings(rounding="clamp", chaotic_init="off", eobl="off", flame_count="linear",
-                                 mutation="off", spiral="standard", greedy=False)
+MFO_SETTINGS = MothFlameSettings(
+    rounding="clamp",
+    chaotic_init="off",
+    eobl="off",
+    flame_count="linear",
+    mutation="off",
+    spiral="standard",
+    greedy=False,
+)
 
 
 def flame_count(progress: float, n0: int, variant: str = "suggested") -> int:
@@ -142,8 +150,9 @@ def mutation_probability(progress: float) -> float:
     return 1.0 - math.sin(0.5 * math.pi * progress)
 
 
-def chaotic_positions(population: int, dim: int, n_values: int, rng: np.random.Generator,
-                      variant: str = "suggested") -> np.ndarray:
+def chaotic_positions(
+    population: int, dim: int, n_values: int, rng: np.random.Generator, variant: str = "suggested"
+) -> np.ndarray:
     """Eq. (22): ``population`` integer positions in the paper frame ``{1, …, n_values}`` (float array).
 
     One chaotic stream per dimension; moth p is the stream's p-th value mapped by ``CR(lb + C·n)``
@@ -170,8 +179,14 @@ def chaotic_positions(population: int, dim: int, n_values: int, rng: np.random.G
     return out
 
 
-def greedy_refine(evaluate: Evaluator, start: np.ndarray, start_cost: float, n_values: int,
-                  rng: np.random.Generator, max_passes: int = 10) -> tuple[np.ndarray, float, bool]:
+def greedy_refine(
+    evaluate: Evaluator,
+    start: np.ndarray,
+    start_cost: float,
+    n_values: int,
+    rng: np.random.Generator,
+    max_passes: int = 10,
+) -> tuple[np.ndarray, float, bool]:
     """Eq. (28): coordinate descent from ``start`` (zero-based indices) with exhaustive search per coordinate.
 
     Each pass visits the coordinates in a fresh random permutation and evaluates all other values of one
@@ -202,9 +217,16 @@ def greedy_refine(evaluate: Evaluator, start: np.ndarray, start_cost: float, n_v
     return m, cost, False
 
 
-def run_mothflame(evaluate: Evaluator, dim: int, n_values: int, population: int, iterations: int,
-                  rng: np.random.Generator, init: np.ndarray | None, settings: MothFlameSettings
-                  ) -> tuple[np.ndarray, float, list[float]]:
+def run_mothflame(
+    evaluate: Evaluator,
+    dim: int,
+    n_values: int,
+    population: int,
+    iterations: int,
+    rng: np.random.Generator,
+    init: np.ndarray | None,
+    settings: MothFlameSettings,
+) -> tuple[np.ndarray, float, list[float]]:
     """Run (MS)MFO; returns ``(best zero-based indices, best cost, history)``."""
     lb, ub = LB, LB + n_values - 1
     upper = clamp_box_upper(ub)

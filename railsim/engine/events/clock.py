@@ -38,9 +38,9 @@ channel) does not reshuffle another module's draws. No ``random`` module, no glo
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
 from heapq import heappush
-from typing import Callable, Generator
 
 import numpy as np
 import simpy
@@ -95,9 +95,7 @@ class EventLayer:
         log: an existing log to append to (a new one by default).
     """
 
-    def __init__(
-        self, t0_s: float = 0.0, *, rng: np.random.Generator, log: EventLog | None = None
-    ) -> None:
+    def __init__(self, t0_s: float = 0.0, *, rng: np.random.Generator, log: EventLog | None = None) -> None:
         t0_s = float(t0_s)
         if not math.isfinite(t0_s):
             raise ValueError(f"start time must be finite, got {t0_s!r}")
@@ -134,9 +132,7 @@ class EventLayer:
         """An independent child stream of the scenario generator (deterministic in call order)."""
         return self.rng.spawn(1)[0]
 
-    def at(
-        self, t_s: float, callback: Callable[[float], object], kind: str, subject: str = ""
-    ) -> ScheduledCall:
+    def at(self, t_s: float, callback: Callable[[float], object], kind: str, subject: str = "") -> ScheduledCall:
         """Call ``callback(t_s)`` at exactly ``t_s``; the firing is logged as ``kind``/``subject``.
 
         ``t_s`` may equal now (it fires on the next :meth:`advance_to`, stamped ``t_s``); before now raises.

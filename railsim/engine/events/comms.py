@@ -39,14 +39,15 @@ Readings and choices
 from __future__ import annotations
 
 import math
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
-from typing import Any, Callable, Generator, Iterable, Literal
+from typing import Any, Literal
 
 import numpy as np
 import simpy
 
-from railsim.errors import ConfigError
 from railsim.engine.events.clock import EventLayer, TimeoutAt
+from railsim.errors import ConfigError
 
 DelayDist = Literal["constant", "uniform", "normal", "lognormal", "exponential"]
 
@@ -343,5 +344,16 @@ class Channel:
             mean_s, std_s, lo, hi = acc.mean, math.sqrt(acc.m2 / acc.n), acc.lo, acc.hi
         else:
             mean_s = std_s = lo = hi = None  # type: ignore[assignment]
-        return ChannelStats(self.name, self.sent, self.lost_random, self.lost_outage, self.delivered,
-                            self.overtaken, self.sent - lost - self.delivered, mean_s, std_s, lo, hi)
+        return ChannelStats(
+            self.name,
+            self.sent,
+            self.lost_random,
+            self.lost_outage,
+            self.delivered,
+            self.overtaken,
+            self.sent - lost - self.delivered,
+            mean_s,
+            std_s,
+            lo,
+            hi,
+        )

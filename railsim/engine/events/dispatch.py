@@ -12,7 +12,7 @@ Callbacks run inside ``layer.advance_to``; they are called as ``callback(trip_id
 from __future__ import annotations
 
 import math
-from typing import Callable
+from collections.abc import Callable
 
 from railsim.engine.events.clock import EventLayer, ScheduledCall
 

@@ -51,13 +51,13 @@ from __future__ import annotations
 
 import enum
 import math
+from collections.abc import Generator
 from dataclasses import dataclass, field
-from typing import Generator
 
 import simpy
 
-from railsim.errors import ConfigError
 from railsim.engine.events.clock import EventLayer
+from railsim.errors import ConfigError
 
 
 class FormationState(enum.StrEnum):
@@ -101,15 +101,22 @@ class Formation:
 
         def positive(name: str, allow_zero: bool = False) -> None:
             value = getattr(self, name)
-            ok = isinstance(value, (int, float)) and math.isfinite(value) and (
-                value >= 0.0 if allow_zero else value > 0.0
+            ok = (
+                isinstance(value, (int, float))
+                and math.isfinite(value)
+                and (value >= 0.0 if allow_zero else value > 0.0)
             )
             if not ok:
                 bound = ">= 0" if allow_zero else "> 0"
                 raise ConfigError(None, f"{where}.{name}", f"expected a finite number {bound}, got {value!r}")
 
-        for name in ("target_gap_m", "separation_gap_m", "gap_tolerance_m", "speed_tolerance_mps",
-                     "coupling_timeout_s"):
+        for name in (
+            "target_gap_m",
+            "separation_gap_m",
+            "gap_tolerance_m",
+            "speed_tolerance_mps",
+            "coupling_timeout_s",
+        ):
             positive(name)
         positive("hold_s", allow_zero=True)
         if self.separation_gap_m <= self.target_gap_m + self.gap_tolerance_m:
@@ -227,8 +234,9 @@ class FormationManager:
         rt.requested_s = t_s
         rt.in_band_since_s = None
         rt.streak += 1
-        self._layer.log.record(t_s, "couple_requested", fid, attempt=rt.attempt,
-                               deadline_s=t_s + rt.spec.coupling_timeout_s)
+        self._layer.log.record(
+            t_s, "couple_requested", fid, attempt=rt.attempt, deadline_s=t_s + rt.spec.coupling_timeout_s
+        )
         self._layer.env.process(self._coupling_deadline(rt, rt.attempt, t_s + rt.spec.coupling_timeout_s))
 
     def _on_decouple(self, fid: str, t_s: float) -> None:
@@ -266,8 +274,10 @@ class FormationManager:
         rt.last_obs_s, rt.last_gap_m, rt.last_dv_mps = t_s, float(gap_m), float(speed_diff_mps)
         spec = rt.spec
         if rt.state is FormationState.COUPLING:
-            in_band = (abs(gap_m - spec.target_gap_m) <= spec.gap_tolerance_m
-                       and abs(speed_diff_mps) <= spec.speed_tolerance_mps)
+            in_band = (
+                abs(gap_m - spec.target_gap_m) <= spec.gap_tolerance_m
+                and abs(speed_diff_mps) <= spec.speed_tolerance_mps
+            )
             if in_band and rt.in_band_since_s is None:
                 rt.in_band_since_s = t_s
                 rt.streak += 1
@@ -282,14 +292,12 @@ class FormationManager:
             self._layer.log.record(t_s, "decoupled", fid, gap_m=float(gap_m))
 
     # ------------------------------------------------------------------ simpy processes
-    def _hold_timer(self, rt: _Runtime, attempt: int, streak: int, t_s: float
-                    ) -> Generator[simpy.Event, None, None]:
+    def _hold_timer(self, rt: _Runtime, attempt: int, streak: int, t_s: float) -> Generator[simpy.Event, None, None]:
         yield self._layer.timeout_at(t_s)
         if rt.state is FormationState.COUPLING and rt.attempt == attempt and rt.streak == streak:
             self._enter_coupled(rt, t_s)
 
-    def _coupling_deadline(self, rt: _Runtime, attempt: int, t_s: float
-                           ) -> Generator[simpy.Event, None, None]:
+    def _coupling_deadline(self, rt: _Runtime, attempt: int, t_s: float) -> Generator[simpy.Event, None, None]:
         yield self._layer.timeout_at(t_s)
         if rt.state is not FormationState.COUPLING or rt.attempt != attempt:
             return
@@ -312,8 +320,14 @@ class FormationManager:
         rt.in_band_since_s = None
         rt.streak += 1
         self._layer.log.record(
-            t_s, "coupling_failed", rt.spec.id, attempt=attempt, reason="timeout",
-            timeout_s=rt.spec.coupling_timeout_s, last_gap_m=rt.last_gap_m, last_speed_diff_mps=rt.last_dv_mps,
+            t_s,
+            "coupling_failed",
+            rt.spec.id,
+            attempt=attempt,
+            reason="timeout",
+            timeout_s=rt.spec.coupling_timeout_s,
+            last_gap_m=rt.last_gap_m,
+            last_speed_diff_mps=rt.last_dv_mps,
         )
 
     def _enter_coupled(self, rt: _Runtime, t_s: float) -> None:

@@ -53,13 +53,14 @@ from __future__ import annotations
 import enum
 import math
 from collections import deque
+from collections.abc import Generator
 from dataclasses import dataclass, field
-from typing import Generator, Literal
+from typing import Literal
 
 import simpy
 
-from railsim.errors import ConfigError
 from railsim.engine.events.clock import EventLayer
+from railsim.errors import ConfigError
 
 Leg = Literal["normal", "reverse"]
 LEGS: tuple[str, ...] = ("normal", "reverse")
@@ -78,8 +79,9 @@ class Switch:
         if not (isinstance(t, (int, float)) and math.isfinite(t) and t >= 0.0):
             raise ConfigError(None, f"switches.{self.id}.throw_time_s", f"expected a finite number >= 0, got {t!r}")
         if self.position not in LEGS:
-            raise ConfigError(None, f"switches.{self.id}.position",
-                              f"expected 'normal' or 'reverse', got {self.position!r}")
+            raise ConfigError(
+                None, f"switches.{self.id}.position", f"expected 'normal' or 'reverse', got {self.position!r}"
+            )
 
 
 class RequestState(enum.StrEnum):
@@ -141,9 +143,7 @@ class Interlocking:
         self._layer.env.process(self._serve(sw))
 
     # ------------------------------------------------------------------ commands
-    def request(
-        self, holder_ids: tuple[str, ...], switch_id: str, leg: Leg, t_s: float | None = None
-    ) -> LockRequest:
+    def request(self, holder_ids: tuple[str, ...], switch_id: str, leg: Leg, t_s: float | None = None) -> LockRequest:
         """Queue a request by ``holder_ids`` for ``switch_id`` on ``leg`` now, or at exactly ``t_s``.
 
         A train may have at most one waiting or held request per switch (ValueError otherwise: a second
@@ -184,8 +184,9 @@ class Interlocking:
     def _enqueue(self, sw: _SwitchRuntime, req: LockRequest) -> None:
         req.state = RequestState.WAITING
         sw.queue.append(req)
-        self._layer.log.record(req.requested_s, "lock_requested", sw.spec.id, request=req.seq,
-                               holders=list(req.holder_ids), leg=req.leg)
+        self._layer.log.record(
+            req.requested_s, "lock_requested", sw.spec.id, request=req.seq, holders=list(req.holder_ids), leg=req.leg
+        )
         self._wake(sw)
 
     def release(self, holder_id: str, switch_id: str) -> bool:
@@ -228,8 +229,14 @@ class Interlocking:
         sw.holder = None
         req.state = RequestState.RELEASED if reason == "released" else RequestState.CANCELLED
         req.released_s = t_s
-        self._layer.log.record(t_s, "lock_released", sw.spec.id, request=req.seq, reason=reason,
-                               held_s=t_s - (req.granted_s if req.granted_s is not None else t_s))
+        self._layer.log.record(
+            t_s,
+            "lock_released",
+            sw.spec.id,
+            request=req.seq,
+            reason=reason,
+            held_s=t_s - (req.granted_s if req.granted_s is not None else t_s),
+        )
         assert req._done is not None
         req._done.succeed()
 
@@ -266,8 +273,7 @@ class Interlocking:
         self._set_position(sw, leg)
         sw.throwing = False
         sw.throws += 1
-        self._layer.log.record(self._layer.now_s, "throw_end", sw.spec.id, leg=leg,
-                               throw_s=self._layer.now_s - start_s)
+        self._layer.log.record(self._layer.now_s, "throw_end", sw.spec.id, leg=leg, throw_s=self._layer.now_s - start_s)
 
     def _set_position(self, sw: _SwitchRuntime, leg: str) -> None:
         if sw.holder is not None:
@@ -276,17 +282,24 @@ class Interlocking:
 
     def _grant(self, sw: _SwitchRuntime, req: LockRequest) -> None:
         if sw.holder is not None:
-            raise RuntimeError(
-                f"switch {sw.spec.id}: granting #{req.seq} while #{sw.holder.seq} holds the lock"
-            )
+            raise RuntimeError(f"switch {sw.spec.id}: granting #{req.seq} while #{sw.holder.seq} holds the lock")
         if sw.throwing or sw.position != req.leg:
-            raise RuntimeError(f"switch {sw.spec.id}: granting #{req.seq} for {req.leg} but switch is "
-                               f"{'throwing' if sw.throwing else sw.position}")
+            raise RuntimeError(
+                f"switch {sw.spec.id}: granting #{req.seq} for {req.leg} but switch is "
+                f"{'throwing' if sw.throwing else sw.position}"
+            )
         sw.holder = req
         req.state = RequestState.GRANTED
         req.granted_s = self._layer.now_s
-        self._layer.log.record(req.granted_s, "lock_granted", sw.spec.id, request=req.seq,
-                               holders=list(req.holder_ids), leg=req.leg, waited_s=req.granted_s - req.requested_s)
+        self._layer.log.record(
+            req.granted_s,
+            "lock_granted",
+            sw.spec.id,
+            request=req.seq,
+            holders=list(req.holder_ids),
+            leg=req.leg,
+            waited_s=req.granted_s - req.requested_s,
+        )
         req.granted.succeed(req)
 
     # ------------------------------------------------------------------ queries
@@ -345,4 +358,3 @@ class Interlocking:
     def throw_count(self, switch_id: str) -> int:
         """Completed throws of ``switch_id``."""
         return self._get(switch_id).throws
-

@@ -32,8 +32,9 @@ from __future__ import annotations
 import json
 import math
 from collections import Counter
+from collections.abc import Mapping
 from dataclasses import dataclass
-from typing import Any, Mapping
+from typing import Any
 
 import numpy as np
 
@@ -73,9 +74,7 @@ class EventLog:
         t_s = float(t_s)
         if not math.isfinite(t_s):
             raise ValueError(f"event time must be finite, got {t_s!r} for {kind} {subject}")
-        detail_json = json.dumps(
-            detail, sort_keys=True, separators=(",", ":"), allow_nan=False, default=_json_default
-        )
+        detail_json = json.dumps(detail, sort_keys=True, separators=(",", ":"), allow_nan=False, default=_json_default)
         entry = LogEntry(t_s, len(self._entries), str(kind), str(subject), dict(detail), detail_json)
         if self._entries and t_s < self._entries[-1].t_s:
             self._sorted = False
@@ -89,9 +88,7 @@ class EventLog:
             self._entries.sort(key=lambda e: (e.t_s, e.seq))
             self._sorted = True
         return [
-            e
-            for e in self._entries
-            if (kind is None or e.kind == kind) and (subject is None or e.subject == subject)
+            e for e in self._entries if (kind is None or e.kind == kind) and (subject is None or e.subject == subject)
         ]
 
     def rows(self, kind: str | None = None, subject: str | None = None) -> list[dict[str, Any]]:

@@ -22,8 +22,9 @@ Families: :mod:`.paper001` (carriage-by-carriage plant), :mod:`.paper002` (coope
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Callable
+from typing import Any
 
 from railsim.errors import ConfigError
 
@@ -54,9 +55,12 @@ def require_euler(ctx: ExtensionContext, kind: str) -> None:
     """Exact plants hand SUMO the step's mean speed, which is only right with SUMO's Euler update."""
     for vname, plant in ctx.scenario.plants.items():
         if plant.kind == kind and ctx.step_method != "euler":
-            raise ConfigError(ctx.scenario.source, "simulation.step_method",
-                              f"vehicle {vname!r} uses the {plant.kind} plant, which needs step_method euler "
-                              f"(SUMO is handed the step's mean speed), got {ctx.step_method!r}")
+            raise ConfigError(
+                ctx.scenario.source,
+                "simulation.step_method",
+                f"vehicle {vname!r} uses the {plant.kind} plant, which needs step_method euler "
+                f"(SUMO is handed the step's mean speed), got {ctx.step_method!r}",
+            )
 
 
 def plant_kind(ctx: ExtensionContext, vehicle_name: str) -> tuple[str | None, dict[str, Any]]:

@@ -25,13 +25,15 @@ class MultipointPlant:
         self.params = params
         self.state = multipoint.initial_state(params, chainage_m, speed_mps)
 
-    def advance(self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float,
-                dt_s: float) -> tuple[float, float, float]:
+    def advance(
+        self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float, dt_s: float
+    ) -> tuple[float, float, float]:
         p, state = self.params, self.state
         forces = carriage_forces(cmd, p)
         view = tr.view
-        new = multipoint.step(p, state, forces, dt_s,
-                              lambda xs: np.array([view.gradient_at(float(x)) for x in np.atleast_1d(xs)]), t)
+        new = multipoint.step(
+            p, state, forces, dt_s, lambda xs: np.array([view.gradient_at(float(x)) for x in np.atleast_1d(xs)]), t
+        )
         advance = float(new.lead_position_m - state.lead_position_m)
         mass = p.n_cars * p.car_mass_kg
         applied = float(np.clip(forces, p.force_min_n, p.force_max_n).sum()) / mass
@@ -65,8 +67,7 @@ class Paper001:
     def _on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:
         kind, params = plant_kind(self.ctx, tr.trip.vehicle_name)
         if kind == "multipoint":
-            tr.exact_plant = MultipointPlant(multipoint.MultipointParams(**params), chainage_m,
-                                             tr.trip.start_speed_mps)
+            tr.exact_plant = MultipointPlant(multipoint.MultipointParams(**params), chainage_m, tr.trip.start_speed_mps)
 
     @staticmethod
     def _ato_extras(t: float, tr: TrainRuntime) -> dict[str, Any]:

@@ -11,7 +11,8 @@ with the validator's message (exit code 2): an unsafe topology change is never s
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from controllers.distributed.graph import CommGraph, Edge, EdgeData
 from controllers.distributed.validate import PreconditionError, check_event_preconditions, validate
@@ -69,8 +70,9 @@ class Paper002:
         if self.graph is not None and graph.edges == self.graph.edges and graph.nodes == self.graph.nodes:
             return out
         self._validate(t, graph, nodes)
-        self.ctx.events.record(t, "graph_changed", "cooperative", nodes=nodes,
-                               edges=sorted(f"{e.a}-{e.b}" for e in live))
+        self.ctx.events.record(
+            t, "graph_changed", "cooperative", nodes=nodes, edges=sorted(f"{e.a}-{e.b}" for e in live)
+        )
         self.graph = graph
         return out
 
@@ -82,8 +84,11 @@ class Paper002:
         for tid in nodes:
             law = trains[tid].controllers["ato"]
             if not hasattr(law, "train_params"):
-                raise ConfigError(src, "cooperative.edges",
-                                  f"trip {tid} is in the cooperative graph but its ato controller is not a graph law")
+                raise ConfigError(
+                    src,
+                    "cooperative.edges",
+                    f"trip {tid} is in the cooperative graph but its ato controller is not a graph law",
+                )
             params[tid] = law.train_params
             v_ref = law.params.v_ref_mps
         x = {tid: trains[tid].front_m for tid in nodes}

@@ -11,7 +11,8 @@
 
 from __future__ import annotations
 
-from typing import Any, Callable
+from collections.abc import Callable
+from typing import Any
 
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, transition
 from railsim.engine.extensions import ExtensionContext, plant_kind, require_euler
@@ -26,20 +27,33 @@ CLOCK_TOLERANCE_S = 1e-6
 class MonorailPlant:
     """One vehicle's monorail drive (an :class:`~railsim.engine.train.ExactPlant`)."""
 
-    def __init__(self, params: monorail.MonorailParams, t: float, chainage_m: float, speed_mps: float,
-                 biased: Callable[[float, str, float], float]) -> None:
+    def __init__(
+        self,
+        params: monorail.MonorailParams,
+        t: float,
+        chainage_m: float,
+        speed_mps: float,
+        biased: Callable[[float, str, float], float],
+    ) -> None:
         self.params = params
         self.state = monorail.PlantState(t_s=t, x_m=chainage_m, v_mps=speed_mps)
         self.biased = biased
 
-    def advance(self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float,
-                dt_s: float) -> tuple[float, float, float]:
+    def advance(
+        self, t: float, tr: TrainRuntime, cmd: Any, grad_permille: float, dt_s: float
+    ) -> tuple[float, float, float]:
         u = self.biased(t, tr.train_id, cmd.accel_mps2)
         state = self.state
         if abs(state.t_s - t) > CLOCK_TOLERANCE_S:  # keep the drive's clock on the engine's (after a hold by SUMO)
-            state = monorail.PlantState(t_s=t, x_m=state.x_m, v_mps=state.v_mps, a_mps2=state.a_mps2,
-                                        active_command_mps2=state.active_command_mps2,
-                                        active_issue_s=state.active_issue_s, pending=state.pending)
+            state = monorail.PlantState(
+                t_s=t,
+                x_m=state.x_m,
+                v_mps=state.v_mps,
+                a_mps2=state.a_mps2,
+                active_command_mps2=state.active_command_mps2,
+                active_issue_s=state.active_issue_s,
+                pending=state.pending,
+            )
         mass = tr.trip.vehicle.mass_kg
         new = monorail.plant_step(state, u, dt_s, self.params, mass, grad_permille)
         mean_v = 0.5 * (state.v_mps + new.v_mps)
@@ -65,8 +79,9 @@ class Paper003:
     def _on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:
         kind, params = plant_kind(self.ctx, tr.trip.vehicle_name)
         if kind == "monorail":
-            tr.exact_plant = MonorailPlant(monorail.MonorailParams(**params), t, chainage_m,
-                                           tr.trip.start_speed_mps, self.ctx.control.dist.biased)
+            tr.exact_plant = MonorailPlant(
+                monorail.MonorailParams(**params), t, chainage_m, tr.trip.start_speed_mps, self.ctx.control.dist.biased
+            )
 
     def _follower_fsm(self, t: float, tr: TrainRuntime, f: Any, a: Ahead) -> None:
         name = tr.trip.roles.get("coupled")
@@ -75,19 +90,27 @@ class Paper003:
         manager = self.ctx.formations.manager
         fstate = manager.state(f.id)
         if tr.train_id not in self.memory:
-            self.memory[tr.train_id] = (VcMemory(VcState.INDEPENDENT, since_s=t),
-                                        StateParams(target_gap_m=float(f.target_gap_m)))
+            self.memory[tr.train_id] = (
+                VcMemory(VcState.INDEPENDENT, since_s=t),
+                StateParams(target_gap_m=float(f.target_gap_m)),
+            )
         mem, params = self.memory[tr.train_id]
         other = self.ctx.fleet.trains[a.train_id]
-        inp = VcInputs(t_s=t, gap_m=a.gap_m, closing_speed_mps=tr.plant.speed_mps - other.plant.speed_mps,
-                       speed_mps=tr.plant.speed_mps, couple_command=fstate in ("coupling", "coupled"),
-                       ca_enabled=False)
+        inp = VcInputs(
+            t_s=t,
+            gap_m=a.gap_m,
+            closing_speed_mps=tr.plant.speed_mps - other.plant.speed_mps,
+            speed_mps=tr.plant.speed_mps,
+            couple_command=fstate in ("coupling", "coupled"),
+            ca_enabled=False,
+        )
         new, events = transition(mem, inp, params)
         self.memory[tr.train_id] = (new, params)
         for ev in events:
             state, _, reason = ev.partition(":")
-            self.ctx.events.record(t, "vc_state", tr.train_id, state=state, reason=reason or None,
-                                   gap_m=round(a.gap_m, 3))
+            self.ctx.events.record(
+                t, "vc_state", tr.train_id, state=state, reason=reason or None, gap_m=round(a.gap_m, 3)
+            )
             if state == "decoupling" and reason in ("passive", "active") and fstate in ("coupling", "coupled"):
                 self.ctx.events.record(t, f"{reason}_decoupling", f.id, gap_m=round(a.gap_m, 3))
                 manager.request_decouple(f.id)

@@ -52,19 +52,26 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, Callable
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from controllers.base import Command, Observation
 from controllers.junction import baselines
 from controllers.junction.model import JunctionParams, SwitchState
 from controllers.junction.planner import (
-    JunctionPlan, PlannerError, TrainState, YJunctionLayout, build_problem, plan, replan,
+    JunctionPlan,
+    PlannerError,
+    TrainState,
+    YJunctionLayout,
+    build_problem,
+    plan,
+    replan,
 )
 from controllers.junction.pso import improved_pso_params, plain_pso_params
 from controllers.junction.simulate import measure
-from controllers.base import Command, Observation
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -74,9 +81,9 @@ if TYPE_CHECKING:  # pragma: no cover
 log = logging.getLogger(__name__)
 
 SWITCHES = ("sw1", "sw2")
-K_V_PER_S = 1.0          # tracking gains (critically damped double integrator, ω = 0.5 rad/s)
+K_V_PER_S = 1.0  # tracking gains (critically damped double integrator, ω = 0.5 rad/s)
 K_S_PER_S2 = 0.25
-DEVIATION_M = 5.0        # re-plan at once beyond these tracking errors (spec §7.3)
+DEVIATION_M = 5.0  # re-plan at once beyond these tracking errors (spec §7.3)
 DEVIATION_MPS = 0.5
 MIN_REPLAN_GAP_S = 0.5
 
@@ -86,13 +93,13 @@ class _Member:
     """One planned train: its path through the junction in route chainage and its tracking reference."""
 
     train_id: str
-    switch_m: dict[str, float]            # planner switch point (turnout start) per switch on the path [route m]
-    legs: dict[str, str]                  # leg per switch
-    point_m: dict[str, float]             # switch point (the node) per switch [route m]
-    F_m: float                            # route chainage of F
-    s0_m: float | None = None             # route chainage of the front at the first plan (measurement origin)
-    ref_t0_s: float = 0.0                 # plan instant of the current reference
-    ref_front_m: float = 0.0              # front at that instant
+    switch_m: dict[str, float]  # planner switch point (turnout start) per switch on the path [route m]
+    legs: dict[str, str]  # leg per switch
+    point_m: dict[str, float]  # switch point (the node) per switch [route m]
+    F_m: float  # route chainage of F
+    s0_m: float | None = None  # route chainage of the front at the first plan (measurement origin)
+    ref_t0_s: float = 0.0  # plan instant of the current reference
+    ref_front_m: float = 0.0  # front at that instant
     ref_t: np.ndarray = field(default_factory=lambda: np.zeros(1))
     ref_s: np.ndarray = field(default_factory=lambda: np.zeros(1))
     ref_v: np.ndarray = field(default_factory=lambda: np.zeros(1))
@@ -112,20 +119,20 @@ class _Member:
 class JunctionPorts:
     """What the coordinator may use of the engine — nothing else (it never sees the simulation)."""
 
-    source: Any                                   # the scenario file (error messages)
+    source: Any  # the scenario file (error messages)
     trains: dict[str, TrainRuntime]
-    settings: Any                                 # EngineSettings (clearance, protection margin)
+    settings: Any  # EngineSettings (clearance, protection margin)
     dt_s: float
-    channels: dict[str, Any]                      # the radio channels (t2g reports, t2t delay)
-    events: Any                                   # EventLog
-    interlocking: Any                             # Interlocking (switch states, lock requests)
-    manager: Any                                  # FormationManager (couple requests, stats)
-    add_formation: Callable[[Any, str], None]     # register a formation formed at run time
-    known_state: Callable[..., Any]               # Knowledge.known_state (what a train knows of another)
-    leader_of: Callable[[Any], TrainRuntime]      # FormationBook.leader_of
-    of_follower: dict[str, Any]                   # FormationBook.of_follower
-    switch_throw_s: dict[str, float]              # throw time per switch of the world
-    seed: int                                     # the planner's own random stream
+    channels: dict[str, Any]  # the radio channels (t2g reports, t2t delay)
+    events: Any  # EventLog
+    interlocking: Any  # Interlocking (switch states, lock requests)
+    manager: Any  # FormationManager (couple requests, stats)
+    add_formation: Callable[[Any, str], None]  # register a formation formed at run time
+    known_state: Callable[..., Any]  # Knowledge.known_state (what a train knows of another)
+    leader_of: Callable[[Any], TrainRuntime]  # FormationBook.leader_of
+    of_follower: dict[str, Any]  # FormationBook.of_follower
+    switch_throw_s: dict[str, float]  # throw time per switch of the world
+    seed: int  # the planner's own random stream
 
 
 class JunctionCoordinator:
@@ -158,19 +165,22 @@ class JunctionCoordinator:
         try:
             probe = JunctionParams(**{"pred_length_m": max(lengths), **spec.params})
             if "standstill_gap_m" not in spec.params:
-                probe = dataclasses.replace(probe, standstill_gap_m=max(
-                    probe.standstill_gap_m, self._safe_gap_m(probe.normal_speed_mps)))
+                probe = dataclasses.replace(
+                    probe, standstill_gap_m=max(probe.standstill_gap_m, self._safe_gap_m(probe.normal_speed_mps))
+                )
             self.switch_interval_s = self._switch_interval_s(probe, throw_s, max(lengths))
-            self.params = dataclasses.replace(probe, throw_time_s=self.switch_interval_s) \
-                if "throw_time_s" not in spec.params else probe
+            self.params = (
+                dataclasses.replace(probe, throw_time_s=self.switch_interval_s)
+                if "throw_time_s" not in spec.params
+                else probe
+            )
             base = improved_pso_params() if self.method != "plain_pso" else plain_pso_params()
             # the first plan may take longer (1000 iterations, ~0.4 s); re-plans keep the online budget (200)
             self.pso = dataclasses.replace(base, **{"max_iterations": 1000, **spec.pso})
             self.replan_pso = dataclasses.replace(self.pso, **{"max_iterations": 200, **spec.replan_pso})
         except ValueError as exc:
             raise ConfigError(src, "junction.params", str(exc)) from None
-        self.target_gap_m = float(spec.target_gap_m if spec.target_gap_m is not None
-                                  else self.params.standstill_gap_m)
+        self.target_gap_m = float(spec.target_gap_m if spec.target_gap_m is not None else self.params.standstill_gap_m)
         self.rng = np.random.default_rng(ports.seed)
         self.plan: JunctionPlan | None = None
         self.problem0: Any = None
@@ -195,12 +205,21 @@ class JunctionCoordinator:
         points = {rs.switch_id: rs for rs in route.switches if rs.switch_id in SWITCHES}
         F = [p.point_m for p in route.points if p.point_id == "F"]
         if "sw2" not in points or not F:
-            raise ConfigError(src, where, f"{tr.train_id}: the junction planner needs a route through switch sw2 "
-                                          f"to point F (the y_junction world); route {route.id} has "
-                                          f"switches {[rs.switch_id for rs in route.switches]}")
+            raise ConfigError(
+                src,
+                where,
+                f"{tr.train_id}: the junction planner needs a route through switch sw2 "
+                f"to point F (the y_junction world); route {route.id} has "
+                f"switches {[rs.switch_id for rs in route.switches]}",
+            )
         switch_m = {sid: self._turnout_start(tr, rs.point_m) for sid, rs in points.items()}
-        return _Member(tr.train_id, switch_m, {sid: rs.leg for sid, rs in points.items()},
-                       {sid: rs.point_m for sid, rs in points.items()}, F[0])
+        return _Member(
+            tr.train_id,
+            switch_m,
+            {sid: rs.leg for sid, rs in points.items()},
+            {sid: rs.point_m for sid, rs in points.items()},
+            F[0],
+        )
 
     def _switch_interval_s(self, p: JunctionParams, throw_s: float, length_m: float) -> float:
         """The planner's ``t_ls``: the least time between two passages on different legs that the interlocking
@@ -215,8 +234,7 @@ class JunctionCoordinator:
             t_ls = (turnout + L + clearance) / v_lsr  +  throw_s  +  (v_lsn² / (2 |a_min|) + protection) / v_lsn
         """
         st = self.ports.settings
-        turnout = max((m.point_m[sid] - m.switch_m[sid] for m in self.members.values() for sid in m.legs),
-                      default=0.0)
+        turnout = max((m.point_m[sid] - m.switch_m[sid] for m in self.members.values() for sid in m.legs), default=0.0)
         release = (turnout + length_m + st.clearance_m) / p.reverse_speed_mps
         v = p.normal_speed_mps
         sighting = (v * v / (2.0 * abs(p.accel_min_mps2)) + st.protection_margin_m) / v
@@ -243,10 +261,27 @@ class JunctionCoordinator:
                 continue
             veh = tr.trip.vehicle
             own = OwnState(tid, 1000.0, speed_mps, 0.0, veh.length_m)
-            pred = PredecessorState("leader", 2000.0, speed_mps, 0.0, veh.length_m, 0.0, age,
-                                    veh.service_decel_mps2, veh.emergency_decel_mps2)
-            obs = Observation(t_s=age, dt_s=self.ports.dt_s, own=own, vehicle=veh, route_length_m=1e6,
-                              predecessor=pred, formation_state="coupled", target_gap_m=1.0)
+            pred = PredecessorState(
+                "leader",
+                2000.0,
+                speed_mps,
+                0.0,
+                veh.length_m,
+                0.0,
+                age,
+                veh.service_decel_mps2,
+                veh.emergency_decel_mps2,
+            )
+            obs = Observation(
+                t_s=age,
+                dt_s=self.ports.dt_s,
+                own=own,
+                vehicle=veh,
+                route_length_m=1e6,
+                predecessor=pred,
+                formation_state="coupled",
+                target_gap_m=1.0,
+            )
             info = ctl.command(obs).info or {}
             gaps.append(float(info.get("target_gap_m", 0.0)))
         return max(gaps)
@@ -274,8 +309,7 @@ class JunctionCoordinator:
             return False
         if not m.handed_over:
             return True
-        return bool(self.order) and train_id == self.order[0] and \
-            not all(x.handed_over for x in self.members.values())
+        return bool(self.order) and train_id == self.order[0] and not all(x.handed_over for x in self.members.values())
 
     def command(self, t: float, tr: TrainRuntime, own_pos_m: float, own_v_mps: float) -> float | None:
         """The junction role's acceleration for a planned train (None before the first plan)."""
@@ -293,8 +327,17 @@ class JunctionCoordinator:
         u = a_ff + K_V_PER_S * (v_ref - own_v_mps) + K_S_PER_S2 * (s_ref - s)
         return float(np.clip(u, p.accel_min_mps2, p.accel_max_mps2))
 
-    def commands(self, t: float, tr: TrainRuntime, a: Ahead | None, base: dict[str, Any],
-                 commands: dict[str, Command], own_pos_m: float, own_v_mps: float, fstate: str) -> None:
+    def commands(
+        self,
+        t: float,
+        tr: TrainRuntime,
+        a: Ahead | None,
+        base: dict[str, Any],
+        commands: dict[str, Command],
+        own_pos_m: float,
+        own_v_mps: float,
+        fstate: str,
+    ) -> None:
         """A train under the plan: the plan's command, and only a relative-braking-distance safety cap against
         the train ahead (the coupled controller without gap tracking) — see the module docstring, step 3."""
         u = self.command(t, tr, own_pos_m, own_v_mps)
@@ -305,18 +348,26 @@ class JunctionCoordinator:
         other = self.ports.trains[a.train_id]
         f = self.ports.of_follower.get(tr.train_id)
         own_leader = f is not None and self.ports.leader_of(f).train_id == other.train_id
-        pred = self.ports.known_state(tr, other, "t2t" if own_leader else "t2g",
-                                      tr.train_id if own_leader else "ground")
+        pred = self.ports.known_state(
+            tr, other, "t2t" if own_leader else "t2g", tr.train_id if own_leader else "ground"
+        )
         guard = tr.controllers.get("coupled")
         if pred is None:
             return
         if guard is None:
             commands["separation"] = tr.controllers["separation"].command(
-                Observation(**base, predecessor=pred, formation_state=fstate))
+                Observation(**base, predecessor=pred, formation_state=fstate)
+            )
             return
-        commands["guard"] = guard.command(Observation(**base, predecessor=pred, formation_state="coupling",
-                                                      target_gap_m=self.target_gap_m,
-                                                      extras={"vc_tracking": False}))
+        commands["guard"] = guard.command(
+            Observation(
+                **base,
+                predecessor=pred,
+                formation_state="coupling",
+                target_gap_m=self.target_gap_m,
+                extras={"vc_tracking": False},
+            )
+        )
 
     def _naive_command(self, m: _Member, pos_m: float, v: float) -> float:
         p = self.params
@@ -383,22 +434,29 @@ class JunctionCoordinator:
             if not m.handed_over and tr.front_m >= m.F_m:
                 m.handed_over = True
                 self.handover_s[tr.train_id] = t
-                self.ports.events.record(t, "junction_handover", tr.train_id, at="F",
-                                       speed_mps=round(tr.plant.speed_mps, 3))
-        if not self.formed and (self.frozen or any(tr.front_m >= self.members[tr.train_id].point_m["sw2"]
-                                                   for tr in trains)):
+                self.ports.events.record(
+                    t, "junction_handover", tr.train_id, at="F", speed_mps=round(tr.plant.speed_mps, 3)
+                )
+        if not self.formed and (
+            self.frozen or any(tr.front_m >= self.members[tr.train_id].point_m["sw2"] for tr in trains)
+        ):
             self._form(t)
         self._record(t, trains)
 
     def _record(self, t: float, trains: list[TrainRuntime]) -> None:
         if self.t0_s is None:
             return
-        if self.traj_t and all(tr.status != "running" or tr.front_m - self.members[tr.train_id].F_m > 1.0
-                               for tr in trains):
+        if self.traj_t and all(
+            tr.status != "running" or tr.front_m - self.members[tr.train_id].F_m > 1.0 for tr in trains
+        ):
             return  # every planned train is past F: the junction process is over
         self.traj_t.append(t - self.t0_s)
-        self.traj_s.append([(tr.front_m - self.members[tr.train_id].s0_m) if tr.status in ("running",)  # type: ignore[operator]
-                            else math.nan for tr in trains])
+        self.traj_s.append(
+            [
+                (tr.front_m - (self.members[tr.train_id].s0_m or 0.0)) if tr.status in ("running",) else math.nan
+                for tr in trains
+            ]
+        )
         self.traj_v.append([tr.plant.speed_mps for tr in trains])
 
     def _ground_states(self, t: float, trains: list[TrainRuntime]) -> tuple[list[TrainState], dict[str, float]]:
@@ -426,9 +484,14 @@ class JunctionCoordinator:
             lock = il.lock(sid)
             holders = tuple(lock.holder_ids) if lock is not None else ()
             foreign = [h for h in holders if h not in self.members]
-            out.append(SwitchState(sid, il.position(sid),  # type: ignore[arg-type]
-                                   locked_until_s=math.inf if foreign else 0.0,
-                                   locked_for=foreign[0] if foreign else None))
+            out.append(
+                SwitchState(
+                    sid,
+                    il.position(sid),  # type: ignore[arg-type]
+                    locked_until_s=math.inf if foreign else 0.0,
+                    locked_for=foreign[0] if foreign else None,
+                )
+            )
         return out
 
     def _first_plan(self, t: float, trains: list[TrainRuntime]) -> None:
@@ -444,19 +507,24 @@ class JunctionCoordinator:
             # the referee scores the run against the true states at the plan instant (the plan uses the ground's)
             self.problem0 = build_problem(truth, (), self.layout, self.params)
             if self.method in ("naive1", "naive2"):
-                prio = baselines.priority_order(build_problem(states, (), self.layout, self.params),
-                                                self.method)  # type: ignore[arg-type]
+                prio = baselines.priority_order(build_problem(states, (), self.layout, self.params), self.method)  # type: ignore[arg-type]
                 ids = [tr.train_id for tr in self.problem0.trains]
                 order = tuple(ids[k] for k in prio)
                 self._apply_order(t, order, naive=True)
                 self.frozen = True
                 self.ports.events.record(t, "junction_plan", "junction", method=self.method, order=list(order))
                 return
-            new = plan(states, self._switch_states(), self.layout, self.params, self.method,  # type: ignore[arg-type]
-                       self.pso, self.rng)
+            new = plan(
+                states,
+                self._switch_states(),
+                self.layout,
+                self.params,
+                self.method,  # type: ignore[arg-type]
+                self.pso,
+                self.rng,
+            )
         except PlannerError as exc:
-            raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}"
-                              ) from None
+            raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}") from None
         self._adopt(t, new, trains)
 
     def _maybe_replan(self, t: float, trains: list[TrainRuntime]) -> None:
@@ -471,11 +539,18 @@ class JunctionCoordinator:
             for tr in trains:
                 m = self.members[tr.train_id]
                 s_ref, v_ref = self._reference(m, t)
-                if abs(tr.front_m - m.ref_front_m - s_ref) > DEVIATION_M or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS:
+                if (
+                    abs(tr.front_m - m.ref_front_m - s_ref) > DEVIATION_M
+                    or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS
+                ):
                     due = True
-                    self.ports.events.record(t, "junction_deviation", tr.train_id,
-                                           ds_m=round(tr.front_m - m.ref_front_m - s_ref, 2),
-                                           dv_mps=round(tr.plant.speed_mps - v_ref, 3))
+                    self.ports.events.record(
+                        t,
+                        "junction_deviation",
+                        tr.train_id,
+                        ds_m=round(tr.front_m - m.ref_front_m - s_ref, 2),
+                        dv_mps=round(tr.plant.speed_mps - v_ref, 3),
+                    )
                     break
         if not due:
             return
@@ -483,8 +558,17 @@ class JunctionCoordinator:
         if any(s.distance_to_switch_m < 0.0 for s in states):
             return  # a train is inside a turnout (between restriction start and point): keep the current plan
         try:
-            new = replan(self.plan, states, self._switch_states(), self.layout, self.params, self.method,  # type: ignore[arg-type]
-                         self.replan_pso, self.rng, keep_order=self.frozen)
+            new = replan(
+                self.plan,
+                states,
+                self._switch_states(),
+                self.layout,
+                self.params,
+                self.method,  # type: ignore[arg-type]
+                self.replan_pso,
+                self.rng,
+                keep_order=self.frozen,
+            )
         except PlannerError as exc:
             self.ports.events.record(t, "junction_plan_failed", "junction", error=str(exc))
             log.warning("junction re-plan at t=%.1f s failed (%s); keeping the current plan", t, exc)
@@ -503,14 +587,32 @@ class JunctionCoordinator:
         for tr in trains:
             tp = new.train(tr.train_id)
             self._set_reference(self.members[tr.train_id], t, tr.front_m, tr.plant.speed_mps, tp.segments)
-        self.plans.append({"t_s": t, "order": list(new.order), "feasible": new.feasible, "cost": new.cost,
-                           "violation": new.violation, "frozen": new.frozen_order,
-                           "wall_time_s": new.wall_time_s, "iterations": new.iterations,
-                           "coupling_time_s": t + new.coupling_time_s, "coupled_speed_mps": new.coupled_speed_mps})
-        self.ports.events.record(t, "junction_plan", "junction", method=self.method, order=list(new.order),
-                               feasible=new.feasible, cost=round(new.cost, 4), frozen=new.frozen_order,
-                               wall_time_s=round(new.wall_time_s, 4),
-                               predicted_coupling_s=round(t + new.coupling_time_s, 2))
+        self.plans.append(
+            {
+                "t_s": t,
+                "order": list(new.order),
+                "feasible": new.feasible,
+                "cost": new.cost,
+                "violation": new.violation,
+                "frozen": new.frozen_order,
+                "wall_time_s": new.wall_time_s,
+                "iterations": new.iterations,
+                "coupling_time_s": t + new.coupling_time_s,
+                "coupled_speed_mps": new.coupled_speed_mps,
+            }
+        )
+        self.ports.events.record(
+            t,
+            "junction_plan",
+            "junction",
+            method=self.method,
+            order=list(new.order),
+            feasible=new.feasible,
+            cost=round(new.cost, 4),
+            frozen=new.frozen_order,
+            wall_time_s=round(new.wall_time_s, 4),
+            predicted_coupling_s=round(t + new.coupling_time_s, 2),
+        )
         if new.frozen_order and not self.frozen:
             self.frozen = True
             self.ports.events.record(t, "junction_order_frozen", "junction", order=list(new.order))
@@ -557,8 +659,12 @@ class JunctionCoordinator:
         for lead, fol in zip(order, order[1:]):
             lt, ft = self.ports.trains[lead].trip, self.ports.trains[fol].trip
             fid = f"junction_{lead}_{fol}"
-            spec = FormationSpec(id=fid, leader=TripRef(lt.service_id, lt.index),
-                                 follower=TripRef(ft.service_id, ft.index), target_gap_m=self.target_gap_m)
+            spec = FormationSpec(
+                id=fid,
+                leader=TripRef(lt.service_id, lt.index),
+                follower=TripRef(ft.service_id, ft.index),
+                target_gap_m=self.target_gap_m,
+            )
             self.ports.add_formation(spec, "junction")
             self.ports.manager.request_couple(fid)
         self.ports.events.record(t, "junction_formed", "junction", order=list(order))
@@ -566,14 +672,16 @@ class JunctionCoordinator:
     # ------------------------------------------------------------------ results
     def summary(self) -> dict[str, Any]:
         """Outcome of the junction process (spec 004 metrics, measured on the SUMO trajectories)."""
-        out: dict[str, Any] = {"method": self.method, "trains": list(self.members), "order": list(self.order),
-                               "plans": len(self.plans),
-                               "initial_plan_feasible": self.plans[0]["feasible"] if self.plans else None,
-                               "plan_wall_time_s_mean": float(np.mean([p["wall_time_s"] for p in self.plans]))
-                               if self.plans else None,
-                               "plan_wall_time_s_max": float(np.max([p["wall_time_s"] for p in self.plans]))
-                               if self.plans else None,
-                               "handover_s": dict(self.handover_s)}
+        out: dict[str, Any] = {
+            "method": self.method,
+            "trains": list(self.members),
+            "order": list(self.order),
+            "plans": len(self.plans),
+            "initial_plan_feasible": self.plans[0]["feasible"] if self.plans else None,
+            "plan_wall_time_s_mean": float(np.mean([p["wall_time_s"] for p in self.plans])) if self.plans else None,
+            "plan_wall_time_s_max": float(np.max([p["wall_time_s"] for p in self.plans])) if self.plans else None,
+            "handover_s": dict(self.handover_s),
+        }
         if self.problem0 is None or len(self.traj_t) < 2:
             return out
         t = np.array(self.traj_t)
@@ -594,8 +702,11 @@ class JunctionCoordinator:
         out["formations"] = form
         out["formations_coupled"] = sum(1 for c in times if c)
         # every formation locked in (Eq. 2-3 held for the hold time): when the last one did, from the first plan
-        out["all_coupled_s"] = (self.formed_s - self.t0_s + max(c[0] for c in times)
-                                if times and all(times) and self.t0_s is not None else None)
+        out["all_coupled_s"] = (
+            self.formed_s - self.t0_s + max(c[0] for c in times)
+            if times and all(times) and self.t0_s is not None
+            else None
+        )
         return out
 
 
@@ -604,12 +715,22 @@ def install(ctx: Any) -> JunctionCoordinator | None:
     spec = ctx.scenario.junction
     if spec is None:
         return None
-    ports = JunctionPorts(source=ctx.scenario.source, trains=ctx.fleet.trains, settings=ctx.settings,
-                          dt_s=ctx.dt_s, channels=ctx.channels, events=ctx.events, interlocking=ctx.interlocking,
-                          manager=ctx.formations.manager, add_formation=ctx.formations.add,
-                          known_state=ctx.knowledge.known_state, leader_of=ctx.formations.leader_of,
-                          of_follower=ctx.formations.of_follower, switch_throw_s=ctx.switch_throw_s,
-                          seed=ctx.draw_seed())
+    ports = JunctionPorts(
+        source=ctx.scenario.source,
+        trains=ctx.fleet.trains,
+        settings=ctx.settings,
+        dt_s=ctx.dt_s,
+        channels=ctx.channels,
+        events=ctx.events,
+        interlocking=ctx.interlocking,
+        manager=ctx.formations.manager,
+        add_formation=ctx.formations.add,
+        known_state=ctx.knowledge.known_state,
+        leader_of=ctx.formations.leader_of,
+        of_follower=ctx.formations.of_follower,
+        switch_throw_s=ctx.switch_throw_s,
+        seed=ctx.draw_seed(),
+    )
     coordinator = JunctionCoordinator(ports, spec)
     ctx.control.command_source = coordinator
     ctx.locks.managed_by = coordinator.manages_lock

@@ -30,9 +30,10 @@ as ``gid``, which also names its group in the SVG). Agg backend; no window opens
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 import matplotlib
 
@@ -45,9 +46,9 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.ticker import FuncFormatter, MultipleLocator  # noqa: E402
 
-from railsim.report import export  # noqa: E402
 from railsim.analysis import sections
 from railsim.errors import ConfigError  # noqa: E402
+from railsim.report import export  # noqa: E402
 
 KINDS = ("time-distance", "speed", "gap", "headway")
 DIRECTIONS = ("up", "down")
@@ -115,12 +116,22 @@ class LineRun:
         return [p for p in self.paths.values() if p.direction == direction]
 
     def services_in(self, direction: str) -> list[str]:
-        return [s for s, sf in self.frame.services.items() if sf.direction == direction
-                and any(p.service == s for p in self.paths.values())]
+        return [
+            s
+            for s, sf in self.frame.services.items()
+            if sf.direction == direction and any(p.service == s for p in self.paths.values())
+        ]
 
 
-_ABBREVIATIONS = (("University", "Univ."), ("Station", "Stn."), ("Square", "Sq."), ("Technology", "Tech."),
-                  ("North", "N."), ("South", "S."), (" and ", " & "))
+_ABBREVIATIONS = (
+    ("University", "Univ."),
+    ("Station", "Stn."),
+    ("Square", "Sq."),
+    ("Technology", "Tech."),
+    ("North", "N."),
+    ("South", "S."),
+    (" and ", " & "),
+)
 NAME_CHARS = 30  # longest station label before abbreviating
 
 
@@ -132,7 +143,7 @@ def station_label(name: str, max_chars: int = NAME_CHARS) -> str:
         if len(label) <= max_chars:
             break
         label = label.replace(word, short)
-    return label if len(label) <= max_chars else label[:max_chars - 1].rstrip() + "…"
+    return label if len(label) <= max_chars else label[: max_chars - 1].rstrip() + "…"
 
 
 def load_line_run(run_dir: Path | str) -> LineRun:
@@ -146,9 +157,19 @@ def load_line_run(run_dir: Path | str) -> LineRun:
     on_routes = {s for sf in frame.services.values() for s in sf.stations}
     lines = [bundle.stations[s].line for s in on_routes]
     main_line = max(set(lines), key=lines.count) if lines else ""
-    stations = sorted((StationMark(s, station_label(bundle.stations[s].name), float(bundle.stations[s].km),
-                                   bundle.stations[s].line != main_line, bool(bundle.stations[s].turnback))
-                       for s in on_routes), key=lambda m: (m.km, m.branch))
+    stations = sorted(
+        (
+            StationMark(
+                s,
+                station_label(bundle.stations[s].name),
+                float(bundle.stations[s].km),
+                bundle.stations[s].line != main_line,
+                bool(bundle.stations[s].turnback),
+            )
+            for s in on_routes
+        ),
+        key=lambda m: (m.km, m.branch),
+    )
 
     trace = export.read_table(run, "trace")
     trips = export.read_table(run, "trips")
@@ -163,10 +184,16 @@ def load_line_run(run_dir: Path | str) -> LineRun:
         grp = grp.sort_values("t_s", kind="mergesort")
         fs = grp["formation_state"]
         state = np.where(fs.isna(), "", fs.astype(str)).astype(str)  # all-empty columns read back as NaN
-        paths[tid] = TrainPath(tid, svc, sf.direction, t0 + grp["t_s"].to_numpy(float),
-                               np.asarray(sf.km_of(grp["chainage_m"].to_numpy(float)), dtype=float),
-                               grp["speed_mps"].to_numpy(float), pd.to_numeric(grp["gap_m"]).to_numpy(float),
-                               state)
+        paths[tid] = TrainPath(
+            tid,
+            svc,
+            sf.direction,
+            t0 + grp["t_s"].to_numpy(float),
+            np.asarray(sf.km_of(grp["chainage_m"].to_numpy(float)), dtype=float),
+            grp["speed_mps"].to_numpy(float),
+            pd.to_numeric(grp["gap_m"]).to_numpy(float),
+            state,
+        )
     # route families: services between the same two end stations share a colour (airport_up and airport_down);
     # a second service of the same family and direction gets the next colour, so no panel repeats one
     families: dict[tuple[frozenset[str], int], str] = {}
@@ -226,8 +253,13 @@ def spread_labels(values: list[float], min_sep: float, lo: float, hi: float) -> 
 def _station_axis(ax: Any, stations: list[StationMark], side: str | None, fig_h_in: float) -> None:
     """Grid lines at the stations' km and their names (``side`` ``"left"``/``"right"``, None: grid only)."""
     for st in stations:
-        ax.axhline(st.km, color="#808080" if st.turnback else GRID_COLOUR, lw=0.7 if st.turnback else 0.45,
-                   ls=(0, (4, 3)) if st.branch else "-", zorder=0.5)
+        ax.axhline(
+            st.km,
+            color="#808080" if st.turnback else GRID_COLOUR,
+            lw=0.7 if st.turnback else 0.45,
+            ls=(0, (4, 3)) if st.branch else "-",
+            zorder=0.5,
+        )
     ax.set_yticks([])
     if side is None or not stations:
         return
@@ -239,9 +271,18 @@ def _station_axis(ax: Any, stations: list[StationMark], side: str | None, fig_h_
     trans = mtransforms.blended_transform_factory(ax.transAxes, ax.transData)
     for st, y in zip(stations, ys):
         text = f"{st.name}  {st.km:.1f}" if side == "left" else f"{st.km:.1f}  {st.name}"
-        ax.text(x_text, y, text, transform=trans, ha=ha, va="center", fontsize=LABEL_PT,
-                style="italic" if st.branch else "normal", color="#5a3d7a" if st.branch else "black",
-                fontweight="bold" if st.turnback else "normal")
+        ax.text(
+            x_text,
+            y,
+            text,
+            transform=trans,
+            ha=ha,
+            va="center",
+            fontsize=LABEL_PT,
+            style="italic" if st.branch else "normal",
+            color="#5a3d7a" if st.branch else "black",
+            fontweight="bold" if st.turnback else "normal",
+        )
         edge = 0.0 if side == "left" else 1.0
         ax.plot([edge, x_tick], [st.km, y], transform=trans, color="#606060", lw=0.5, clip_on=False)
 
@@ -310,8 +351,13 @@ def time_distance_figure(run_dir: Path | str | LineRun, direction: str | None = 
     label_w = 0.25 + longest * LABEL_PT * 0.56 / 72.0  # [in] (average glyph width of DejaVu Sans ~0.56 em)
     width = len(dirs) * panel_w + label_w * len(dirs) + 0.3
     fig, axes = plt.subplots(1, len(dirs), figsize=(width, height), sharey=True, squeeze=False)
-    fig.subplots_adjust(left=label_w / width, right=1.0 - (label_w if len(dirs) == 2 else 0.3) / width,
-                        bottom=0.9 / height, top=1.0 - 0.75 / height, wspace=0.04)
+    fig.subplots_adjust(
+        left=label_w / width,
+        right=1.0 - (label_w if len(dirs) == 2 else 0.3) / width,
+        bottom=0.9 / height,
+        top=1.0 - 0.75 / height,
+        wspace=0.04,
+    )
     fig.suptitle(f"{run.name}: train graph", fontsize=11, y=1.0 - 0.2 / height)
     lo, hi = _km_limits(run.stations)
     for k, (ax, d) in enumerate(zip(axes[0], dirs)):
@@ -323,8 +369,15 @@ def time_distance_figure(run_dir: Path | str | LineRun, direction: str | None = 
         for p in sorted(run.trips_in(d), key=lambda p: p.clock_s[0]):
             coupled = p.formation_state == "coupled"
             for a, b in _runs(coupled):
-                ax.plot(p.clock_s[a:b + 1], p.km[a:b + 1], color=COUPLED_COLOUR, lw=5.0, alpha=0.55,
-                        solid_capstyle="butt", zorder=1)
+                ax.plot(
+                    p.clock_s[a : b + 1],
+                    p.km[a : b + 1],
+                    color=COUPLED_COLOUR,
+                    lw=5.0,
+                    alpha=0.55,
+                    solid_capstyle="butt",
+                    zorder=1,
+                )
                 any_coupled = True
             (line,) = ax.plot(p.clock_s, p.km, color=run.colours[p.service], lw=0.75, zorder=2)
             line.set_gid(p.trip_id)
@@ -336,8 +389,7 @@ def time_distance_figure(run_dir: Path | str | LineRun, direction: str | None = 
         arrow = "↑ towards higher km" if d == "up" else "↓ towards lower km"
         ax.set_title(f"{d} ({arrow}): {len(run.trips_in(d))} trains", fontsize=9)
         ax.set_xlabel(f"time of day (simulation start {clock_label(run.start_time_s)})", fontsize=8)
-        _service_legend(ax, run, run.services_in(d), any_coupled,
-                        loc="upper left" if d == "up" else "lower left")
+        _service_legend(ax, run, run.services_in(d), any_coupled, loc="upper left" if d == "up" else "lower left")
     return fig
 
 
@@ -379,15 +431,20 @@ def speed_figure(run_dir: Path | str | LineRun, direction: str | None = None) ->
         ax.set_xlabel("line km" + ("" if d == "up" else " (decreasing: direction of travel)"), fontsize=8)
         ax.tick_params(labelsize=7)
         top = ax.secondary_xaxis("top")
-        top.set_xticks([s.km for s in run.stations], labels=[s.name for s in run.stations], rotation=90,
-                       fontsize=5.5)
+        top.set_xticks([s.km for s in run.stations], labels=[s.name for s in run.stations], rotation=90, fontsize=5.5)
         for st in run.stations:
             ax.axvline(st.km, color=GRID_COLOUR, lw=0.4, ls=(0, (4, 3)) if st.branch else "-", zorder=0)
         ax.set_ylabel(f"{d}: speed [km/h]", fontsize=8)
         handles = [Line2D([], [], color=run.colours[s], lw=1.2, label=s) for s in run.services_in(d)]
         handles.append(Line2D([], [], color="#555555", lw=0.8, ls="--", label="speed limit of the route"))
-        ax.legend(handles=handles, fontsize=7, loc="upper right", bbox_to_anchor=(1.0, -0.13), ncol=len(handles),
-                  frameon=False)
+        ax.legend(
+            handles=handles,
+            fontsize=7,
+            loc="upper right",
+            bbox_to_anchor=(1.0, -0.13),
+            ncol=len(handles),
+            frameon=False,
+        )
     return fig
 
 
@@ -421,8 +478,14 @@ def gap_figure(run_dir: Path | str | LineRun, direction: str | None = None) -> F
     ncol = 1 if len(forms) == 1 else 2
     nrow = math.ceil(len(forms) / ncol)
     fig, axes = plt.subplots(nrow, ncol, figsize=(6.5 * ncol, 1.9 * nrow + 1.0), squeeze=False, sharey=True)
-    fig.subplots_adjust(left=0.08, right=0.98, bottom=0.6 / (1.9 * nrow + 1.0) + 0.02,
-                        top=1.0 - 0.7 / (1.9 * nrow + 1.0), hspace=0.65, wspace=0.08)
+    fig.subplots_adjust(
+        left=0.08,
+        right=0.98,
+        bottom=0.6 / (1.9 * nrow + 1.0) + 0.02,
+        top=1.0 - 0.7 / (1.9 * nrow + 1.0),
+        hspace=0.65,
+        wspace=0.08,
+    )
     fig.suptitle(f"{run.name}: true gap of each virtually coupled formation", fontsize=11)
     for ax, (f, leader, p) in zip(axes.ravel(), forms):
         ax.set_gid(f.id)
@@ -445,16 +508,24 @@ def gap_figure(run_dir: Path | str | LineRun, direction: str | None = None) -> F
         ax.set_title(f"{f.id}: {leader} + {p.trip_id} (target {float(f.target_gap_m):g} m)", fontsize=8)
         ax.tick_params(labelsize=7)
         ax.set_ylabel("gap [m]", fontsize=7)
-    for ax in axes.ravel()[len(forms):]:
+    for ax in axes.ravel()[len(forms) :]:
         ax.set_visible(False)
     coupled = [p.gap_m[p.formation_state == "coupled"] for _, _, p in forms]
     vals = np.concatenate([c[np.isfinite(c)] for c in coupled]) if coupled else np.zeros(0)
     if len(vals):  # zoom on the coupled gaps; coupling/decoupling gaps beyond 2.5x that are clipped
         axes[0, 0].set_ylim(0.0, max(2.5 * float(np.max(vals)), max(float(f.target_gap_m) for f, _, _ in forms) * 2))
-    handles = [Line2D([], [], color="#555555", lw=0.8, label="true gap while coupling/coupled/decoupling"),
-               Line2D([], [], color="black", lw=0.8, ls="--",
-                      label="configured target gap (the gap policy may keep more at speed)"),
-               Line2D([], [], color=COUPLED_COLOUR, lw=6, alpha=0.4, label="coupled")]
+    handles = [
+        Line2D([], [], color="#555555", lw=0.8, label="true gap while coupling/coupled/decoupling"),
+        Line2D(
+            [],
+            [],
+            color="black",
+            lw=0.8,
+            ls="--",
+            label="configured target gap (the gap policy may keep more at speed)",
+        ),
+        Line2D([], [], color=COUPLED_COLOUR, lw=6, alpha=0.4, label="coupled"),
+    ]
     fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=7, frameon=False)
     return fig
 
@@ -479,8 +550,10 @@ def headway_table(run_dir: Path | str | LineRun) -> pd.DataFrame:
     names = {sid: station_label(st.name) for sid, st in frame.bundle.stations.items()}
     table = table[table["headway_s"].notna()].copy()
     n_to = table.groupby(["direction", "from_station"])["to_station"].transform("nunique")
-    table["label"] = [names.get(a, a) + (f" → {names.get(b, b)}" if n > 1 else "")
-                      for a, b, n in zip(table["from_station"], table["to_station"], n_to)]
+    table["label"] = [
+        names.get(a, a) + (f" → {names.get(b, b)}" if n > 1 else "")
+        for a, b, n in zip(table["from_station"], table["to_station"], n_to)
+    ]
     table["vc_follower"] = table["formation_role"].astype(str) == "follower"
     return table
 
@@ -493,13 +566,14 @@ def headway_figure(run_dir: Path | str | LineRun, direction: str | None = None) 
     table = headway_table(run)
     if table.empty or not table["direction"].isin(dirs).any():
         raise ConfigError(run.run_dir, "sections", "no two trains completed the same section: no headway to plot")
-    n_rows = max((table[table["direction"] == d].groupby(["from_station", "to_station"]).ngroups for d in dirs),
-                 default=1)
+    n_rows = max(
+        (table[table["direction"] == d].groupby(["from_station", "to_station"]).ngroups for d in dirs), default=1
+    )
     height = float(np.clip(1.5 + 0.17 * n_rows, 4.0, 14.0))
-    fig, axes = plt.subplots(1, len(dirs), figsize=(6.8 * len(dirs) if len(dirs) == 2 else 8.0, height),
-                             squeeze=False)
-    fig.subplots_adjust(left=0.2 if len(dirs) == 2 else 0.3, right=0.98, bottom=0.9 / height,
-                        top=1.0 - 0.75 / height, wspace=0.55)
+    fig, axes = plt.subplots(1, len(dirs), figsize=(6.8 * len(dirs) if len(dirs) == 2 else 8.0, height), squeeze=False)
+    fig.subplots_adjust(
+        left=0.2 if len(dirs) == 2 else 0.3, right=0.98, bottom=0.9 / height, top=1.0 - 0.75 / height, wspace=0.55
+    )
     fig.suptitle(f"{run.name}: achieved departure headways per section", fontsize=11)
     rng = np.random.default_rng(0)  # jitter of the dots only (fixed: the same run gives the same picture)
     for ax, d in zip(axes[0], dirs):
@@ -518,9 +592,18 @@ def headway_figure(run_dir: Path | str | LineRun, direction: str | None = None) 
             ax.scatter(h[~vc], y + jitter[~vc], s=4, color="#444444", alpha=0.5, lw=0, zorder=3)
             ax.scatter(h[vc], y + jitter[vc], s=9, color=COUPLED_COLOUR, edgecolor="#8a6d00", lw=0.3, zorder=4)
         if data:
-            ax.boxplot(data, positions=range(len(data)), orientation="horizontal", widths=0.6, showfliers=False,
-                       medianprops={"color": "#0072B2", "lw": 1.2}, boxprops={"lw": 0.7},
-                       whiskerprops={"lw": 0.7}, capprops={"lw": 0.7}, manage_ticks=False)
+            ax.boxplot(
+                data,
+                positions=range(len(data)),
+                orientation="horizontal",
+                widths=0.6,
+                showfliers=False,
+                medianprops={"color": "#0072B2", "lw": 1.2},
+                boxprops={"lw": 0.7},
+                whiskerprops={"lw": 0.7},
+                capprops={"lw": 0.7},
+                manage_ticks=False,
+            )
         ax.set_yticks(range(len(labels)), labels=labels, fontsize=6)
         ax.set_ylim(max(len(labels), 1) - 0.5, -0.5)  # travel order top to bottom
         if not labels:
@@ -536,10 +619,11 @@ def headway_figure(run_dir: Path | str | LineRun, direction: str | None = None) 
         ax.tick_params(axis="x", labelsize=7)
         ax.set_xlabel("departure headway behind the previous train on the section [s]", fontsize=8)
         ax.set_title(f"{d}: {len(sub)} headways on {len(order)} sections", fontsize=9)
-    handles = [Line2D([], [], ls="", marker="o", ms=3, color="#444444", label="departure headway"),
-               Line2D([], [], ls="", marker="o", ms=4, color=COUPLED_COLOUR,
-                      label="coupled follower behind its leader"),
-               Line2D([], [], color="#0072B2", lw=1.2, label="median of the other headways (box: quartiles)")]
+    handles = [
+        Line2D([], [], ls="", marker="o", ms=3, color="#444444", label="departure headway"),
+        Line2D([], [], ls="", marker="o", ms=4, color=COUPLED_COLOUR, label="coupled follower behind its leader"),
+        Line2D([], [], color="#0072B2", lw=1.2, label="median of the other headways (box: quartiles)"),
+    ]
     fig.legend(handles=handles, loc="lower center", ncol=3, fontsize=7, frameon=False)
     return fig
 
@@ -553,12 +637,17 @@ def headway(run_dir: Path | str, out_stem: Path | str, direction: str | None = N
 # By name (for railsim plot and the report)
 # --------------------------------------------------------------------------------------------------------------
 
-FIGURES: dict[str, Callable[..., Figure]] = {"time-distance": time_distance_figure, "speed": speed_figure,
-                                              "gap": gap_figure, "headway": headway_figure}
+FIGURES: dict[str, Callable[..., Figure]] = {
+    "time-distance": time_distance_figure,
+    "speed": speed_figure,
+    "gap": gap_figure,
+    "headway": headway_figure,
+}
 
 
-def write_kind(kind: str, run_dir: Path | str | LineRun, out_stem: Path | str,
-               direction: str | None = None) -> list[Path]:
+def write_kind(
+    kind: str, run_dir: Path | str | LineRun, out_stem: Path | str, direction: str | None = None
+) -> list[Path]:
     """Write figure ``kind`` (one of :data:`KINDS`) of a run; returns the PNG and SVG paths."""
     if kind not in FIGURES:
         raise ConfigError(None, "kind", f"expected one of {', '.join(KINDS)}, got {kind!r}")

@@ -13,8 +13,8 @@ Eq. 5), so the figures and the metric tables agree by construction. Agg backend;
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Mapping
 
 import matplotlib
 
@@ -72,8 +72,9 @@ def _late_limits(values: list[np.ndarray], t: list[np.ndarray], late_start_s: fl
     return -3.0 * hi, 3.0 * hi
 
 
-def figure_comparison(out_dirs: Mapping[str, Path | str], title: str = "", zoom: bool = True,
-                      late_start_s: float | None = LATE_START_S) -> Figure:
+def figure_comparison(
+    out_dirs: Mapping[str, Path | str], title: str = "", zoom: bool = True, late_start_s: float | None = LATE_START_S
+) -> Figure:
     """Per follower: Δv and ΔS − D^(e) of every run in ``out_dirs`` (label → folder), on common axes; the zoom
     uses the late phase from ``late_start_s`` (None: the second half of the run)."""
     runs: dict[str, list[FollowerSeries]] = {label: follower_series(d) for label, d in out_dirs.items()}
@@ -115,8 +116,9 @@ def figure_comparison(out_dirs: Mapping[str, Path | str], title: str = "", zoom:
     return fig
 
 
-def write_figures(out_dirs: Mapping[str, Path | str], dest: Path | str,
-                  late_start_s: float | None = LATE_START_S) -> list[Path]:
+def write_figures(
+    out_dirs: Mapping[str, Path | str], dest: Path | str, late_start_s: float | None = LATE_START_S
+) -> list[Path]:
     """One ``<label>.png`` per run, plus ``comparison.png`` (full range) and ``comparison_zoom.png`` when more
     than one run is given. ``late_start_s``: the A7 late-phase marker (None for S-E). Returns the files."""
     dest = Path(dest)
@@ -130,8 +132,12 @@ def write_figures(out_dirs: Mapping[str, Path | str], dest: Path | str,
         written.append(path)
     if len(out_dirs) > 1:
         for zoom, stem in ((False, "comparison"), (True, "comparison_zoom")):
-            fig = figure_comparison(out_dirs, title="comparison" + (" (late-phase zoom)" if zoom else ""), zoom=zoom,
-                                    late_start_s=late_start_s)
+            fig = figure_comparison(
+                out_dirs,
+                title="comparison" + (" (late-phase zoom)" if zoom else ""),
+                zoom=zoom,
+                late_start_s=late_start_s,
+            )
             path = dest / f"{stem}.png"
             fig.savefig(path, dpi=110)
             plt.close(fig)

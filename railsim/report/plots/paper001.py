@@ -38,8 +38,13 @@ def plot_runs(runs: list[RunResult], path: Path, p: MultipointParams = Multipoin
         axes[1].axhline(lim / 1e3, color="r", ls=":", lw=0.8)
     for lim in (p.force_rate_max_n_per_s, p.force_rate_min_n_per_s):
         axes[2].axhline(lim / 1e3, color="r", ls=":", lw=0.8)
-    labels = ["speed carriage 1 [m/s]", "force u_1 [kN]", "force rate du_1/T [kN/s]", "speed error [m/s]",
-              "displacement error [m]"]
+    labels = [
+        "speed carriage 1 [m/s]",
+        "force u_1 [kN]",
+        "force rate du_1/T [kN/s]",
+        "speed error [m/s]",
+        "displacement error [m]",
+    ]
     for ax, lab in zip(axes, labels):
         ax.set_ylabel(lab)
         ax.grid(True, alpha=0.3)

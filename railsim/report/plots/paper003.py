@@ -38,8 +38,7 @@ def _series(out: Path) -> tuple[np.ndarray, dict[str, dict[str, np.ndarray]]]:
     for r in rows:
         d = out_s.setdefault(r["train"], {k: np.full(len(times), np.nan) for k in ("x", "v", "a")})
         j = int(np.searchsorted(times, float(r["t_s"])))
-        d["x"][j], d["v"][j], d["a"][j] = float(r["chainage_m"]), float(r["speed_mps"]), \
-            float(r["applied_accel_mps2"])
+        d["x"][j], d["v"][j], d["a"][j] = float(r["chainage_m"]), float(r["speed_mps"]), float(r["applied_accel_mps2"])
     return times, out_s
 
 
@@ -54,9 +53,11 @@ def write_figures(out_dir: Path | str, dest: Path | str) -> list[Path]:
     order = sorted(s, key=lambda tid: -float(s[tid]["x"][~np.isnan(s[tid]["x"])][0]))
     x0 = min(float(np.nanmin(d["x"])) for d in s.values())
     paths: list[Path] = []
-    for key, ylabel, fname, scale in (("x", "position [m]", "positions.png", None),
-                                      ("v", "speed [km/h]", "speeds.png", 3.6),
-                                      ("a", "acceleration [m/s²]", "accelerations.png", 1.0)):
+    for key, ylabel, fname, scale in (
+        ("x", "position [m]", "positions.png", None),
+        ("v", "speed [km/h]", "speeds.png", 3.6),
+        ("a", "acceleration [m/s²]", "accelerations.png", 1.0),
+    ):
         fig, ax = plt.subplots(figsize=(8, 4.5), constrained_layout=True)
         for tid in order:
             y = s[tid][key] - x0 if scale is None else s[tid][key] * scale
@@ -78,8 +79,12 @@ def write_figures(out_dir: Path | str, dest: Path | str) -> list[Path]:
         params = ca_metrics._ca_params(raw, _service(raw, fol))
         if params is not None:
             policy, b_e = params.policy(), _decel(raw, fol)
-            trig = [required_gap_m(policy, max(vf, 0.0), max(va, 0.0), b_e) if not (math.isnan(vf) or math.isnan(va))
-                    else math.nan for vf, va in zip(s[fol]["v"], s[ahead]["v"])]
+            trig = [
+                required_gap_m(policy, max(vf, 0.0), max(va, 0.0), b_e)
+                if not (math.isnan(vf) or math.isnan(va))
+                else math.nan
+                for vf, va in zip(s[fol]["v"], s[ahead]["v"])
+            ]
             ax.plot(times, trig, lw=1.0, ls="--", color=colour, label=f"CA trigger of {fol.split('.')[0]}")
         for t0, t1 in m["ca_intervals"].get(fol, []):
             ax.axvspan(t0, t1 if t1 is not None else times[-1], color=colour, alpha=0.15)

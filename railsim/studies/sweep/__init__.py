@@ -76,6 +76,10 @@ The package, one concept per module, each importing only those before it:
 Everything public is re-exported here: ``from railsim.studies import sweep; sweep.run_sweep(...)``.
 """
 
+from railsim.studies.sweep.child import SweepInterrupted, run_case
+from railsim.studies.sweep.metrics import summary_metrics, trip_metrics
+from railsim.studies.sweep.parallel import CaseTask, execute
+from railsim.studies.sweep.runner import SweepResult, run_sweep
 from railsim.studies.sweep.spec import (
     CASE_ID_HEX,
     RESERVED_COLUMNS,
@@ -86,15 +90,28 @@ from railsim.studies.sweep.spec import (
     load_sweep,
     validate_cases,
 )
-from railsim.studies.sweep.metrics import summary_metrics, trip_metrics
-from railsim.studies.sweep.child import SweepInterrupted, run_case
-from railsim.studies.sweep.parallel import CaseTask, execute
 from railsim.studies.sweep.tables import WALL_CLOCK_COLUMNS, load_table, read_rows, write_row, write_tables
-from railsim.studies.sweep.runner import SweepResult, run_sweep
 
 __all__ = [
-    "CASE_ID_HEX", "RESERVED_COLUMNS", "SWEEP_KEYS", "WALL_CLOCK_COLUMNS",
-    "Case", "CaseTask", "SweepInterrupted", "SweepResult", "SweepSpec",
-    "case_id", "execute", "load_sweep", "load_table", "read_rows", "run_case", "run_sweep", "summary_metrics",
-    "trip_metrics", "validate_cases", "write_row", "write_tables",
+    "CASE_ID_HEX",
+    "RESERVED_COLUMNS",
+    "SWEEP_KEYS",
+    "WALL_CLOCK_COLUMNS",
+    "Case",
+    "CaseTask",
+    "SweepInterrupted",
+    "SweepResult",
+    "SweepSpec",
+    "case_id",
+    "execute",
+    "load_sweep",
+    "load_table",
+    "read_rows",
+    "run_case",
+    "run_sweep",
+    "summary_metrics",
+    "trip_metrics",
+    "validate_cases",
+    "write_row",
+    "write_tables",
 ]

@@ -20,8 +20,9 @@ import sys
 import tempfile
 import threading
 import time
+from collections.abc import Mapping
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from railsim.record import output
 from railsim.studies.sweep.metrics import summary_metrics, trip_metrics
@@ -84,8 +85,7 @@ def _child_main(spec_path: str) -> None:
     threading.Thread(target=_watch_parent, args=(int(spec["parent_pid"]),), daemon=True).start()
     result_path = Path(spec["result"])
     try:
-        from railsim import api as engine
-        from railsim import scenario
+        from railsim import api as engine, scenario
 
         scn = scenario.load(spec["scenario"], spec["overrides"])
         with tempfile.TemporaryDirectory(prefix="railsim_case_") as tmp:
@@ -100,8 +100,15 @@ def _child_main(spec_path: str) -> None:
         raise SystemExit(1) from None
 
 
-def run_case(scenario_path: str | Path, overrides: Mapping[str, Any], seed: int, out_dir: Path | None = None,
-             timeout_s: float | None = None, *, control: ChildControl | None = None) -> dict[str, Any]:
+def run_case(
+    scenario_path: str | Path,
+    overrides: Mapping[str, Any],
+    seed: int,
+    out_dir: Path | None = None,
+    timeout_s: float | None = None,
+    *,
+    control: ChildControl | None = None,
+) -> dict[str, Any]:
     """Run one case of ``scenario_path`` in a fresh child process and return its flat row.
 
     Never raises for a failing case: an exception in the child, a crash (signal) or a timeout gives
@@ -116,14 +123,23 @@ def run_case(scenario_path: str | Path, overrides: Mapping[str, Any], seed: int,
     with tempfile.TemporaryDirectory(prefix="railsim_case_io_") as io_dir:
         spec_file = Path(io_dir) / "spec.json"
         result_file = Path(io_dir) / "result.json"
-        output.write_json(spec_file, {"scenario": str(Path(scenario_path).resolve()), "overrides": overrides,
-                                      "seed": int(seed), "out_dir": str(Path(out_dir).resolve()) if out_dir else None,
-                                      "result": str(result_file), "parent_pid": os.getpid()})
+        output.write_json(
+            spec_file,
+            {
+                "scenario": str(Path(scenario_path).resolve()),
+                "overrides": overrides,
+                "seed": int(seed),
+                "out_dir": str(Path(out_dir).resolve()) if out_dir else None,
+                "result": str(result_file),
+                "parent_pid": os.getpid(),
+            },
+        )
         code = f"from railsim.studies.sweep.child import _child_main; _child_main({str(spec_file)!r})"
         if ctl.stopping.is_set():
             raise SweepInterrupted(row["case_id"])
-        proc = subprocess.Popen([sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
-                                start_new_session=True)
+        proc = subprocess.Popen(
+            [sys.executable, "-c", code], stdout=subprocess.DEVNULL, stderr=subprocess.PIPE, start_new_session=True
+        )
         ctl.add(proc)
         timed_out = False
         try:
@@ -145,8 +161,11 @@ def run_case(scenario_path: str | Path, overrides: Mapping[str, Any], seed: int,
             row["error"] = f"timed out after {timeout_s:g} s"
         elif result is None:
             tail = err.decode("utf-8", "replace").strip()[-_TAIL_CHARS:]
-            how = (f"killed by signal {signal.Signals(-proc.returncode).name}" if proc.returncode < 0
-                   else f"exited with code {proc.returncode}")
+            how = (
+                f"killed by signal {signal.Signals(-proc.returncode).name}"
+                if proc.returncode < 0
+                else f"exited with code {proc.returncode}"
+            )
             row["error"] = f"child process {how} without a result" + (f": {tail}" if tail else "")
         elif not result["ok"]:
             row["error"] = result["error"]
@@ -154,4 +173,3 @@ def run_case(scenario_path: str | Path, overrides: Mapping[str, Any], seed: int,
             row["status"] = "ok"
             row.update(result["metrics"])
     return row
-

@@ -15,9 +15,10 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Iterator, Sequence
+from typing import Any
 
 from railsim.errors import ConfigError
 from railsim.studies.sweep.child import ChildControl, run_case
@@ -47,8 +48,11 @@ def _connect(dask_address: str) -> Any:
         raise ConfigError(None, "--dask", f"cannot connect to the Dask scheduler at {dask_address!r}: {exc}") from None
 
 
-def execute(tasks: Sequence[CaseTask], workers: int | None = None, dask_address: str | None = None,
-            ) -> Iterator[tuple[CaseTask, dict[str, Any]]]:
+def execute(
+    tasks: Sequence[CaseTask],
+    workers: int | None = None,
+    dask_address: str | None = None,
+) -> Iterator[tuple[CaseTask, dict[str, Any]]]:
     """Run ``tasks`` in parallel and yield ``(task, row)`` as each finishes (completion order).
 
     Locally ``workers`` threads (default: the number of cores) each wait on one child process; with
@@ -64,8 +68,10 @@ def execute(tasks: Sequence[CaseTask], workers: int | None = None, dask_address:
     ctl = ChildControl()
     pool = cf.ThreadPoolExecutor(max_workers=min(n, len(tasks)), thread_name_prefix="railsim-case")
     try:
-        futures = {pool.submit(run_case, t.scenario, t.case.overrides, t.case.seed, t.out_dir, t.timeout_s,
-                               control=ctl): t for t in tasks}
+        futures = {
+            pool.submit(run_case, t.scenario, t.case.overrides, t.case.seed, t.out_dir, t.timeout_s, control=ctl): t
+            for t in tasks
+        }
         for fut in cf.as_completed(futures):
             yield futures[fut], fut.result()
     finally:
@@ -80,15 +86,26 @@ def _execute_dask(tasks: Sequence[CaseTask], dask_address: str) -> Iterator[tupl
     futures: dict[Any, CaseTask] = {}
     try:
         for t in tasks:
-            fut = client.submit(run_case, str(t.scenario), t.case.overrides, t.case.seed,
-                                str(t.out_dir) if t.out_dir else None, t.timeout_s, pure=False,
-                                key=f"railsim-case-{t.case.case_id}-{os.urandom(4).hex()}")
+            fut = client.submit(
+                run_case,
+                str(t.scenario),
+                t.case.overrides,
+                t.case.seed,
+                str(t.out_dir) if t.out_dir else None,
+                t.timeout_s,
+                pure=False,
+                key=f"railsim-case-{t.case.case_id}-{os.urandom(4).hex()}",
+            )
             futures[fut] = t
         for fut in as_completed(list(futures)):
             task = futures[fut]
             if fut.status == "error":  # the task itself died (a lost worker): a failed case, like a crash
-                row = {"case_id": task.case.case_id, "status": "failed", "seed": task.case.seed,
-                       "error": f"Dask task failed: {type(fut.exception()).__name__}: {fut.exception()}"}
+                row = {
+                    "case_id": task.case.case_id,
+                    "status": "failed",
+                    "seed": task.case.seed,
+                    "error": f"Dask task failed: {type(fut.exception()).__name__}: {fut.exception()}",
+                }
                 row.update(override_cells(task.case.overrides))
             else:
                 row = fut.result()
@@ -98,4 +115,3 @@ def _execute_dask(tasks: Sequence[CaseTask], dask_address: str) -> Iterator[tupl
         if pending:
             client.cancel(pending)
         client.close()
-

@@ -13,9 +13,10 @@ import signal
 import sys
 import threading
 import time
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, Callable
+from typing import Any
 
 from railsim.errors import ConfigError
 from railsim.record import output
@@ -44,9 +45,11 @@ class SweepResult:
     def summary_line(self, name: str) -> str:
         rate = self.n_run / self.wall_s * 60.0 if self.wall_s > 0 and self.n_run else 0.0
         state = "interrupted: " if self.interrupted else ""
-        return (f"sweep {name}: {state}{self.n_cases} cases, {self.n_ok} ok, {self.n_failed} failed "
-                f"({self.n_run} run now, {self.n_skipped} already done) in {self.wall_s:.0f} s wall "
-                f"({rate:.1f} cases/min) -> {self.out_dir}/cases.parquet, cases.csv")
+        return (
+            f"sweep {name}: {state}{self.n_cases} cases, {self.n_ok} ok, {self.n_failed} failed "
+            f"({self.n_run} run now, {self.n_skipped} already done) in {self.wall_s:.0f} s wall "
+            f"({rate:.1f} cases/min) -> {self.out_dir}/cases.parquet, cases.csv"
+        )
 
 
 def _check_folder(spec: SweepSpec, out_dir: Path) -> None:
@@ -56,8 +59,12 @@ def _check_folder(spec: SweepSpec, out_dir: Path) -> None:
 
         old = yaml.safe_load(stored.read_text(encoding="utf-8")) or {}
         if old.get("base_sha256") not in (None, spec.base_sha256):
-            raise ConfigError(stored, "base_sha256", f"this folder holds a sweep of a different version of the base "
-                              f"scenario ({old.get('base')}); use a new --out folder (or delete this one)")
+            raise ConfigError(
+                stored,
+                "base_sha256",
+                f"this folder holds a sweep of a different version of the base "
+                f"scenario ({old.get('base')}); use a new --out folder (or delete this one)",
+            )
 
 
 class _TermAsInterrupt:
@@ -66,6 +73,7 @@ class _TermAsInterrupt:
     def __enter__(self) -> None:
         self.previous = None
         if threading.current_thread() is threading.main_thread():
+
             def handler(signum: int, frame: Any) -> None:
                 raise KeyboardInterrupt
 
@@ -76,10 +84,17 @@ class _TermAsInterrupt:
             signal.signal(signal.SIGTERM, self.previous)
 
 
-def run_sweep(sweep: str | Path | SweepSpec, out_dir: str | Path, workers: int | None = None,
-              dask_address: str | None = None, retry_failed: bool = False, keep_runs: bool = False,
-              timeout_s: float | None = None, progress: bool | None = None,
-              on_row: Callable[[Case, dict[str, Any]], None] | None = None) -> SweepResult:
+def run_sweep(
+    sweep: str | Path | SweepSpec,
+    out_dir: str | Path,
+    workers: int | None = None,
+    dask_address: str | None = None,
+    retry_failed: bool = False,
+    keep_runs: bool = False,
+    timeout_s: float | None = None,
+    progress: bool | None = None,
+    on_row: Callable[[Case, dict[str, Any]], None] | None = None,
+) -> SweepResult:
     """Validate every case, run those not finished yet in ``out_dir``, and rebuild its tables (module docstring).
 
     ``timeout_s`` (or the file's ``timeout_s``) limits each case's wall clock. ``progress``: tqdm bar, default
@@ -95,11 +110,9 @@ def run_sweep(sweep: str | Path | SweepSpec, out_dir: str | Path, workers: int |
     _check_folder(spec, out)
     validate_cases(spec)
     out.mkdir(parents=True, exist_ok=True)
-    output.write_yaml(out / "sweep.yaml", {**spec.raw, "base_sha256": spec.base_sha256,
-                                           "n_cases": len(spec.cases)})
+    output.write_yaml(out / "sweep.yaml", {**spec.raw, "base_sha256": spec.base_sha256, "n_cases": len(spec.cases)})
     done = read_rows(out)
-    todo = [c for c in spec.cases if c.case_id not in done
-            or (retry_failed and done[c.case_id].get("status") != "ok")]
+    todo = [c for c in spec.cases if c.case_id not in done or (retry_failed and done[c.case_id].get("status") != "ok")]
     limit = timeout_s if timeout_s is not None else spec.timeout_s
     tasks = [CaseTask(spec.base, c, out / "runs" / c.case_id if keep_runs else None, limit) for c in todo]
     show = sys.stderr.isatty() if progress is None else progress
@@ -133,11 +146,16 @@ def run_sweep(sweep: str | Path | SweepSpec, out_dir: str | Path, workers: int |
         write_tables(spec, out)
         rows = read_rows(out)
         statuses = [rows[c.case_id].get("status") for c in spec.cases if c.case_id in rows]
-        result = SweepResult(out_dir=out, n_cases=len(spec.cases), n_ok=statuses.count("ok"),
-                             n_failed=sum(1 for s in statuses if s != "ok"), n_run=n_run,
-                             n_skipped=len(spec.cases) - len(todo), wall_s=time.perf_counter() - t0,
-                             interrupted=interrupted)
+        result = SweepResult(
+            out_dir=out,
+            n_cases=len(spec.cases),
+            n_ok=statuses.count("ok"),
+            n_failed=sum(1 for s in statuses if s != "ok"),
+            n_run=n_run,
+            n_skipped=len(spec.cases) - len(todo),
+            wall_s=time.perf_counter() - t0,
+            interrupted=interrupted,
+        )
         if interrupted:
             print(result.summary_line(spec.name), file=sys.stderr)
     return result
-

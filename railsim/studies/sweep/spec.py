@@ -15,9 +15,10 @@ import hashlib
 import itertools
 import json
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Mapping
+from typing import Any
 
 from railsim.errors import ConfigError
 from railsim.scenario import OVERRIDE_PATH_RE, parse_yaml, read_text
@@ -76,8 +77,12 @@ def _canonical(value: Any) -> Any:
 
 def case_id(overrides: Mapping[str, Any], seed: int) -> str:
     """Stable id of a case: SHA-256 of the canonical JSON of ``{overrides, seed}``, first 12 hex digits."""
-    text = json.dumps({"overrides": _canonical(dict(overrides)), "seed": int(seed)}, sort_keys=True,
-                      separators=(",", ":"), default=str)
+    text = json.dumps(
+        {"overrides": _canonical(dict(overrides)), "seed": int(seed)},
+        sort_keys=True,
+        separators=(",", ":"),
+        default=str,
+    )
     return hashlib.sha256(text.encode("utf-8")).hexdigest()[:CASE_ID_HEX]
 
 
@@ -87,8 +92,10 @@ def _is_scalar(value: Any) -> bool:
 
 def override_cells(overrides: Mapping[str, Any]) -> dict[str, Any]:
     """The override columns of a case's row: scalars as they are, lists and mappings as compact sorted JSON."""
-    return {path: value if _is_scalar(value) else json.dumps(value, separators=(",", ":"), sort_keys=True)
-            for path, value in overrides.items()}
+    return {
+        path: value if _is_scalar(value) else json.dumps(value, separators=(",", ":"), sort_keys=True)
+        for path, value in overrides.items()
+    }
 
 
 class _SweepValidator:
@@ -217,8 +224,11 @@ def load_sweep(path: str | Path) -> SweepSpec:
             for seed in seeds:
                 cid = case_id(over, seed)
                 if cid in seen:
-                    raise v.fail(f"cases[{ci}]", f"case ({Case(cid, over, seed, labels).describe()}) duplicates "
-                                                 f"case {seen[cid]}: same overrides and seed")
+                    raise v.fail(
+                        f"cases[{ci}]",
+                        f"case ({Case(cid, over, seed, labels).describe()}) duplicates "
+                        f"case {seen[cid]}: same overrides and seed",
+                    )
                 seen[cid] = len(cases)
                 cases.append(Case(cid, over, seed, labels))
 
@@ -227,13 +237,27 @@ def load_sweep(path: str | Path) -> SweepSpec:
     for col in label_columns:
         if col in override_columns:
             raise v.fail("cases", f"label column {col!r} has the name of an override path")
-    raw = {"name": name, "description": str(data.get("description", "")), "base": str(base),
-           "grid": grid, "link": link,
-           "cases": [dict(({"label": lab} if lab else {}), **o) for o, lab in case_defs],
-           "seeds": seeds, "timeout_s": timeout}
-    return SweepSpec(name=name, source=src, base=base, base_sha256=_sha256(base), cases=tuple(cases),
-                     override_columns=tuple(override_columns), label_columns=tuple(label_columns),
-                     timeout_s=float(timeout) if timeout is not None else None, raw=raw)
+    raw = {
+        "name": name,
+        "description": str(data.get("description", "")),
+        "base": str(base),
+        "grid": grid,
+        "link": link,
+        "cases": [dict(({"label": lab} if lab else {}), **o) for o, lab in case_defs],
+        "seeds": seeds,
+        "timeout_s": timeout,
+    }
+    return SweepSpec(
+        name=name,
+        source=src,
+        base=base,
+        base_sha256=_sha256(base),
+        cases=tuple(cases),
+        override_columns=tuple(override_columns),
+        label_columns=tuple(label_columns),
+        timeout_s=float(timeout) if timeout is not None else None,
+        raw=raw,
+    )
 
 
 def _sha256(path: Path) -> str:
@@ -261,4 +285,3 @@ def validate_cases(spec: SweepSpec, world_check: bool = True) -> None:
         except ConfigError as err:
             inner = str(err).replace("<overrides>", "override")
             raise ConfigError(spec.source, f"case {k} ({case.describe()})", inner) from None
-

@@ -9,8 +9,9 @@ expansion order (:func:`write_tables`), so they never hold a duplicate or a half
 from __future__ import annotations
 
 import json
+from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any, Mapping, Sequence
+from typing import Any
 
 from railsim.record import output
 from railsim.studies.sweep.spec import SweepSpec
@@ -60,8 +61,15 @@ def _uniform_types(rows: list[dict[str, Any]], columns: Sequence[str]) -> list[d
     """Parquet needs one type per column: a column mixing text and numbers becomes text."""
     out = [dict(r) for r in rows]
     for col in columns:
-        kinds = {("num" if isinstance(r.get(col), (int, float)) and not isinstance(r.get(col), bool)
-                  else type(r.get(col)).__name__) for r in out if r.get(col) is not None}
+        kinds = {
+            (
+                "num"
+                if isinstance(r.get(col), (int, float)) and not isinstance(r.get(col), bool)
+                else type(r.get(col)).__name__
+            )
+            for r in out
+            if r.get(col) is not None
+        }
         if len(kinds) > 1:
             for r in out:
                 if r.get(col) is not None:
@@ -83,4 +91,3 @@ def load_table(out_dir: str | Path) -> Any:
     import pandas as pd
 
     return pd.read_parquet(Path(out_dir) / "cases.parquet")
-

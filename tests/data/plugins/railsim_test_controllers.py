@@ -6,7 +6,8 @@ Imported by the scenario tests in-process, and by ``sitecustomize.py`` (this fol
 
 from __future__ import annotations
 
-from typing import Any, Mapping
+from collections.abc import Mapping
+from typing import Any
 
 from controllers.base import Command, Observation, register, registered
 from railsim.physics.vehicle import VehicleParams
