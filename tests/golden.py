@@ -111,7 +111,7 @@ def run_case(case: Case, workdir: Path, keep: Path | None = None) -> dict[str, s
         cache_dir=workdir / "cache",
         timeout=900,
     )
-    if res.returncode not in (0, 1):
+    if res.returncode not in (0, 1) or "Traceback" in res.stderr or not (out / "summary.json").is_file():
         raise RuntimeError(f"golden case {case.name} failed (exit {res.returncode}):\n{res.stderr[-3000:]}")
     hashes: dict[str, str] = {"exit_code": str(res.returncode)}
     for path in sorted(p for p in out.iterdir() if p.is_file()):

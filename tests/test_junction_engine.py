@@ -157,18 +157,15 @@ def test_start_before_a_switch_not_on_the_route(tmp_path: Path) -> None:
 
 
 def test_switch_interval_reading_closed_form() -> None:
-    """The planner's t_ls = release + throw + sighting (junction_control._switch_interval_s docstring)."""
-    from types import SimpleNamespace
-
+    """The planner's t_ls = release + throw + sighting (railsim.engine.extensions.paper004_readings)."""
     from controllers.junction.model import JunctionParams
-    from railsim.engine.extensions.junction import JunctionCoordinator, _Member
-    from railsim.engine.loop import EngineSettings
+    from railsim.engine.extensions.paper004_readings import switch_interval_s
+    from railsim.engine.extensions.paper004_tracking import PlannedTrain
+    from railsim.engine.settings import EngineSettings
 
-    coord = JunctionCoordinator.__new__(JunctionCoordinator)
-    coord.sim = SimpleNamespace(settings=EngineSettings(clearance_m=10.0, protection_margin_m=20.0))
-    coord.members = {"a": _Member("a", {"sw2": 90.0}, {"sw2": "reverse"}, {"sw2": 100.0}, 300.0)}
+    members = [PlannedTrain("a", {"sw2": 90.0}, {"sw2": "reverse"}, {"sw2": 100.0}, 300.0)]
     p = JunctionParams()
-    got = coord._switch_interval_s(p, throw_s=10.0, length_m=20.0)
+    got = switch_interval_s(EngineSettings(clearance_m=10.0, protection_margin_m=20.0), members, p, 10.0, 20.0)
     release = (10.0 + 20.0 + 10.0) / 10.0
     sighting = (15.0**2 / (2 * 1.2) + 20.0) / 15.0
     assert got == pytest.approx(release + 10.0 + sighting)

@@ -22,7 +22,7 @@ from railsim.analysis import sections
 from railsim.cli import plot as plot_command
 from railsim.cli.main import main as cli_main
 from railsim.errors import ConfigError
-from railsim.report.plots import line
+from railsim.report.plots import line, line_data
 from tests.helpers import DATA, read_csv, run_railsim
 
 pytestmark = pytest.mark.sumo
@@ -234,7 +234,7 @@ def test_spread_labels_keeps_order_and_spacing() -> None:
         line.station_label("Chongqing North Station South Square (重庆北站南广场)") == "Chongqing North Stn. South Sq."
     )
     long = line.station_label("Chongqing Technology and Business University")
-    assert len(long) == line.NAME_CHARS and long.startswith("Chongqing Tech. & Business") and long.endswith("…")
+    assert len(long) == line_data.NAME_CHARS and long.startswith("Chongqing Tech. & Business") and long.endswith("…")
 
 
 # ---------------------------------------------------------------------------------------------------- CLI

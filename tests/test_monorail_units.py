@@ -151,7 +151,8 @@ def test_ca_works_without_communication_and_latches_for_obstacles() -> None:
     assert cmd.emergency and cmd.accel_mps2 == pytest.approx(-1.5)
     cmd = ca.command(_obs(5.0, sensor_extras(60.0, 5.0, "obstacle"), t=1.0))  # far again, still moving: latched
     assert cmd.emergency and cmd.accel_mps2 < 0.0
-    ca2 = create("monorail_ca", {"law": "mpc"}, vehicle_params_for("empty"))
+    debounced = {"trigger_dwell_s": 0.3, "trigger_band_m": 2.5, "rearm_s": 1.0, "release_margin_m": 0.5}
+    ca2 = create("monorail_ca", {"law": "mpc", **debounced}, vehicle_params_for("empty"))
     c = ca2.command(_obs(8.0, sensor_extras(27.0, 3.0, "vehicle")))
     assert c.info["ca"] == "idle"  # shallow (1 m < band), not braking: debounced for trigger_dwell_s (0.3 s)
     for t in (0.1, 0.2, 0.3):

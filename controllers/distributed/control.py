@@ -58,6 +58,9 @@ from railsim.errors import SimulationError
 from railsim.physics.vehicle import VehicleParams
 
 ON_EMPTY_CHOICES = ("raise", "fallback")
+# Two bounds that meet exactly in exact arithmetic may cross by a few ulps (seen: 5e-14 m); such a window is the
+# single point, not empty (found by tests/test_distributed_properties.py).
+WINDOW_ROUNDING_M = 1e-9
 
 
 class ConstraintWindowEmpty(RuntimeError):
@@ -132,7 +135,7 @@ def control_step(
         alpha_lo, alpha_hi, g = -math.inf, math.inf, 0.0
     delta_lo = max(alpha_lo, windows.beta_lo_m, windows.eta_lo_m)
     delta_hi = min(alpha_hi, windows.beta_hi_m, windows.eta_hi_m)
-    feasible = delta_lo <= delta_hi
+    feasible = delta_lo <= delta_hi + WINDOW_ROUNDING_M  # a window empty by rounding only is a point
     if feasible:
         s = min(max(g, delta_lo), delta_hi)
     elif on_empty == "fallback":

@@ -55,12 +55,14 @@ class CaParams:
     margin_m: float = 5.0
     assumed_own_decel_mps2: float = 0.0  # 0: use the vehicle's own (load-aware) emergency deceleration
     assumed_object_decel_mps2: float = 0.0  # 0: same as the own value (RDBM credit for the object ahead)
-    release_margin_m: float = 0.5  # h of A10 (0 = paper reproduction, 0.5 robust)
+    release_margin_m: float = 0.0  # h of A10 (0 = paper reproduction, 0.5 robust)
     min_on_s: float = 0.1
-    # Trigger debounce (issue #19, :func:`.states.ca_should_fire`): all 0 = the paper's bare trigger.
-    trigger_dwell_s: float = 0.3  # a shallow intrusion must persist this long
-    trigger_band_m: float = 2.5  # deeper than this below the trigger fires at once (whatever the own braking)
-    rearm_s: float = 1.0  # after a release, shallow intrusions do not re-fire for this long
+    # Trigger debounce (issue #19, :func:`.states.ca_should_fire`): all 0 (the default) = the paper's bare trigger.
+    # Opt-in (e.g. dwell 0.3 s, band 2.5 m, re-arm 1 s, release margin 0.5 m) until "unguarded" time is defined
+    # against the debounced band: with it the gap may sit up to ``trigger_band_m`` below the bare trigger unbraked.
+    trigger_dwell_s: float = 0.0  # a shallow intrusion must persist this long
+    trigger_band_m: float = 0.0  # deeper than this below the trigger fires at once (whatever the own braking)
+    rearm_s: float = 0.0  # after a release, shallow intrusions do not re-fire for this long
     latch: str = "obstacle"  # obstacle | always | never
     law: str = "mpc"  # mpc | bang_bang
     latched_law: str = "bang_bang"

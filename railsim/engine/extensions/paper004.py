@@ -53,7 +53,7 @@ import dataclasses
 import logging
 import math
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -72,6 +72,8 @@ from controllers.junction.planner import (
 )
 from controllers.junction.pso import improved_pso_params, plain_pso_params
 from controllers.junction.simulate import measure
+from railsim.engine.extensions.paper004_readings import safe_gap_m, switch_interval_s, turnout_start
+from railsim.engine.extensions.paper004_tracking import PlannedTrain
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -86,33 +88,6 @@ K_S_PER_S2 = 0.25
 DEVIATION_M = 5.0  # re-plan at once beyond these tracking errors (spec §7.3)
 DEVIATION_MPS = 0.5
 MIN_REPLAN_GAP_S = 0.5
-
-
-@dataclass
-class _Member:
-    """One planned train: its path through the junction in route chainage and its tracking reference."""
-
-    train_id: str
-    switch_m: dict[str, float]  # planner switch point (turnout start) per switch on the path [route m]
-    legs: dict[str, str]  # leg per switch
-    point_m: dict[str, float]  # switch point (the node) per switch [route m]
-    F_m: float  # route chainage of F
-    s0_m: float | None = None  # route chainage of the front at the first plan (measurement origin)
-    ref_t0_s: float = 0.0  # plan instant of the current reference
-    ref_front_m: float = 0.0  # front at that instant
-    ref_t: np.ndarray = field(default_factory=lambda: np.zeros(1))
-    ref_s: np.ndarray = field(default_factory=lambda: np.zeros(1))
-    ref_v: np.ndarray = field(default_factory=lambda: np.zeros(1))
-    segments: tuple[tuple[float, float, float], ...] = ()
-    handed_over: bool = False
-
-    def track(self, front_m: float) -> tuple[str, float]:
-        """Planner track name and distance from the front to the next planner switch (may be < 0 past it)."""
-        if "sw1" in self.switch_m and front_m < self.point_m["sw1"]:
-            return ("entry3" if self.legs["sw1"] == "reverse" else "entry2"), self.switch_m["sw1"] - front_m
-        if "sw1" in self.switch_m:
-            return "trunk", self.switch_m["sw2"] - front_m
-        return "entry1", self.switch_m["sw2"] - front_m
 
 
 @dataclass
@@ -145,7 +120,7 @@ class JunctionCoordinator:
         self.spec = spec
         self.method: str = spec.method
         src = ports.source
-        self.members: dict[str, _Member] = {}
+        self.members: dict[str, PlannedTrain] = {}
         lengths = []
         for i, tid in enumerate(spec.trains):
             tr = ports.trains[tid]
@@ -166,9 +141,14 @@ class JunctionCoordinator:
             probe = JunctionParams(**{"pred_length_m": max(lengths), **spec.params})
             if "standstill_gap_m" not in spec.params:
                 probe = dataclasses.replace(
-                    probe, standstill_gap_m=max(probe.standstill_gap_m, self._safe_gap_m(probe.normal_speed_mps))
+                    probe,
+                    standstill_gap_m=max(
+                        probe.standstill_gap_m, safe_gap_m(ports, list(self.members), probe.normal_speed_mps)
+                    ),
                 )
-            self.switch_interval_s = self._switch_interval_s(probe, throw_s, max(lengths))
+            self.switch_interval_s = switch_interval_s(
+                ports.settings, self.members.values(), probe, throw_s, max(lengths)
+            )
             self.params = (
                 dataclasses.replace(probe, throw_time_s=self.switch_interval_s)
                 if "throw_time_s" not in spec.params
@@ -199,7 +179,7 @@ class JunctionCoordinator:
         self.handover_s: dict[str, float] = {}
 
     # ------------------------------------------------------------------ set-up
-    def _member(self, tr: TrainRuntime, where: str) -> _Member:
+    def _member(self, tr: TrainRuntime, where: str) -> PlannedTrain:
         route = tr.trip.route
         src = self.ports.source
         points = {rs.switch_id: rs for rs in route.switches if rs.switch_id in SWITCHES}
@@ -212,88 +192,14 @@ class JunctionCoordinator:
                 f"to point F (the y_junction world); route {route.id} has "
                 f"switches {[rs.switch_id for rs in route.switches]}",
             )
-        switch_m = {sid: self._turnout_start(tr, rs.point_m) for sid, rs in points.items()}
-        return _Member(
+        switch_m = {sid: turnout_start(tr, rs.point_m) for sid, rs in points.items()}
+        return PlannedTrain(
             tr.train_id,
             switch_m,
             {sid: rs.leg for sid, rs in points.items()},
             {sid: rs.point_m for sid, rs in points.items()},
             F[0],
         )
-
-    def _switch_interval_s(self, p: JunctionParams, throw_s: float, length_m: float) -> float:
-        """The planner's ``t_ls``: the least time between two passages on different legs that the interlocking
-        can serve without stopping the second train (unless ``junction.params.throw_time_s`` is given).
-
-        *Reading (departure from the paper's 10 s, which treats trains as points passing instantly):* after the
-        first train passes the turnout entry, its body must clear the switch point by the clearance distance
-        before the lock is released (``release``), then the switch throws (``throw_s``), and the lock must be
-        granted before the second train reaches its braking point for the protection point in front of the
-        switch (``sighting``), or its ATO brakes for the end of its movement authority::
-
-            t_ls = (turnout + L + clearance) / v_lsr  +  throw_s  +  (v_lsn² / (2 |a_min|) + protection) / v_lsn
-        """
-        st = self.ports.settings
-        turnout = max((m.point_m[sid] - m.switch_m[sid] for m in self.members.values() for sid in m.legs), default=0.0)
-        release = (turnout + length_m + st.clearance_m) / p.reverse_speed_mps
-        v = p.normal_speed_mps
-        sighting = (v * v / (2.0 * abs(p.accel_min_mps2)) + st.protection_margin_m) / v
-        return float(release + throw_s + sighting)
-
-    def _safe_gap_m(self, speed_mps: float) -> float:
-        """The gap the followers' own coupled controller holds at ``speed_mps`` behind an equally fast leader.
-
-        *Reading:* the planner's ``S_0`` (standstill part of ``S_m``, spec §6 #5) is raised to this gap, so that the
-        planned slots at F are ones the engine's relative-braking-distance safety cap lets the trains take; with
-        the spec's ``S_0`` = 10 m the guard holds followers ~8 m further back than planned (measured in SUMO) and
-        no platoon meets Eq. 2 (``|D − S_m| ≤ 5 m``). The controller is asked, not re-derived: one ``command`` on a
-        synthetic observation (leader at equal speed, message age = the t2t delay's mean) returns its target.
-        """
-        from controllers.base import Observation, OwnState, PredecessorState
-
-        gaps = [0.0]
-        ch = self.ports.channels.get("t2t")
-        age = float(ch.delay.mean_delay_s) if ch is not None else 0.1
-        for tid in self.members:
-            tr = self.ports.trains[tid]
-            ctl = tr.controllers.get("coupled")
-            if ctl is None:
-                continue
-            veh = tr.trip.vehicle
-            own = OwnState(tid, 1000.0, speed_mps, 0.0, veh.length_m)
-            pred = PredecessorState(
-                "leader",
-                2000.0,
-                speed_mps,
-                0.0,
-                veh.length_m,
-                0.0,
-                age,
-                veh.service_decel_mps2,
-                veh.emergency_decel_mps2,
-            )
-            obs = Observation(
-                t_s=age,
-                dt_s=self.ports.dt_s,
-                own=own,
-                vehicle=veh,
-                route_length_m=1e6,
-                predecessor=pred,
-                formation_state="coupled",
-                target_gap_m=1.0,
-            )
-            info = ctl.command(obs).info or {}
-            gaps.append(float(info.get("target_gap_m", 0.0)))
-        return max(gaps)
-
-    @staticmethod
-    def _turnout_start(tr: TrainRuntime, point_m: float) -> float:
-        """Route chainage where the leg speed restriction in front of a switch point begins (the point if none)."""
-        line = tr.view.line_speed_mps
-        for a, b, v in tr.trip.route.speed_limits:
-            if a < point_m <= b + 0.5 and v < line - 1e-6:
-                return a
-        return point_m
 
     # ------------------------------------------------------------------ queries from the engine
     def manages_lock(self, train_id: str, switch_id: str) -> bool:
@@ -321,9 +227,9 @@ class JunctionCoordinator:
             return None
         if self.method in ("naive1", "naive2"):
             return self._naive_command(m, own_pos_m, own_v_mps)
-        s_ref, v_ref = self._reference(m, t)
+        s_ref, v_ref = m.reference(t)
         s = own_pos_m - m.ref_front_m
-        a_ff = self._accel_at(m, s_ref)
+        a_ff = m.accel_at(s_ref)
         u = a_ff + K_V_PER_S * (v_ref - own_v_mps) + K_S_PER_S2 * (s_ref - s)
         return float(np.clip(u, p.accel_min_mps2, p.accel_max_mps2))
 
@@ -369,7 +275,7 @@ class JunctionCoordinator:
             )
         )
 
-    def _naive_command(self, m: _Member, pos_m: float, v: float) -> float:
+    def _naive_command(self, m: PlannedTrain, pos_m: float, v: float) -> float:
         p = self.params
         ahead = [(m.switch_m[sid], sid) for sid in m.switch_m if m.point_m[sid] > pos_m]
         if ahead:
@@ -380,40 +286,6 @@ class JunctionCoordinator:
             last = max(m.point_m, key=lambda k: m.point_m[k])
             cap = p.limit_speed_mps(m.legs[last])  # type: ignore[arg-type]
         return baselines.accel_towards(cap, v, self.ports.dt_s, p)
-
-    # ------------------------------------------------------------------ reference trajectories
-    def _set_reference(self, m: _Member, t: float, front_m: float, v0: float, segments: Any) -> None:
-        """Integrate a plan's acceleration-over-distance profile from (front, v0) at ``t`` (fine Δt = 0.02 s)."""
-        m.segments = tuple(segments)
-        m.ref_t0_s, m.ref_front_m = t, front_m
-        dt = 0.02
-        end = m.F_m - front_m + 100.0
-        ts, ss, vs = [0.0], [0.0], [v0]
-        s, v, tau = 0.0, v0, 0.0
-        v_min = self.params.min_speed_mps
-        while s < end and tau < 600.0:
-            a = self._accel_at(m, s)
-            v_new = max(v + a * dt, v_min)
-            s += 0.5 * (v + v_new) * dt
-            v = v_new
-            tau += dt
-            ts.append(tau)
-            ss.append(s)
-            vs.append(v)
-        m.ref_t, m.ref_s, m.ref_v = np.array(ts), np.array(ss), np.array(vs)
-
-    @staticmethod
-    def _accel_at(m: _Member, s: float) -> float:
-        for a, b, acc in m.segments:
-            if a <= s < b:
-                return acc
-        return 0.0
-
-    def _reference(self, m: _Member, t: float) -> tuple[float, float]:
-        tau = t - m.ref_t0_s
-        if tau >= m.ref_t[-1]:
-            return float(m.ref_s[-1] + m.ref_v[-1] * (tau - m.ref_t[-1])), float(m.ref_v[-1])
-        return float(np.interp(tau, m.ref_t, m.ref_s)), float(np.interp(tau, m.ref_t, m.ref_v))
 
     # ------------------------------------------------------------------ the per-step update
     def before_bookkeeping(self, t: float) -> None:
@@ -538,7 +410,7 @@ class JunctionCoordinator:
         if not due and t - self.last_plan_s >= MIN_REPLAN_GAP_S:
             for tr in trains:
                 m = self.members[tr.train_id]
-                s_ref, v_ref = self._reference(m, t)
+                s_ref, v_ref = m.reference(t)
                 if (
                     abs(tr.front_m - m.ref_front_m - s_ref) > DEVIATION_M
                     or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS
@@ -586,7 +458,9 @@ class JunctionCoordinator:
         self.last_plan_s = t
         for tr in trains:
             tp = new.train(tr.train_id)
-            self._set_reference(self.members[tr.train_id], t, tr.front_m, tr.plant.speed_mps, tp.segments)
+            self.members[tr.train_id].set_reference(
+                self.params.min_speed_mps, t, tr.front_m, tr.plant.speed_mps, tp.segments
+            )
         self.plans.append(
             {
                 "t_s": t,

@@ -1,0 +1,76 @@
+"""A train under the junction plan (Paper E online, :mod:`.paper004`): its path and its tracking reference.
+
+The coordinator turns each plan's acceleration-over-distance profile into a reference ``(s, v)(τ)`` by
+integrating it from the plan instant with a fine step (:meth:`PlannedTrain.set_reference`); the train tracks it
+with feed-forward plus feedback (:meth:`railsim.engine.extensions.paper004.JunctionCoordinator.command`).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+REFERENCE_DT_S = 0.02  # integration step of the reference trajectory
+REFERENCE_HORIZON_S = 600.0  # the reference ends here at the latest
+
+
+@dataclass
+class PlannedTrain:
+    """One planned train: its path through the junction in route chainage and its tracking reference."""
+
+    train_id: str
+    switch_m: dict[str, float]  # planner switch point (turnout start) per switch on the path [route m]
+    legs: dict[str, str]  # leg per switch
+    point_m: dict[str, float]  # switch point (the node) per switch [route m]
+    F_m: float  # route chainage of F
+    s0_m: float | None = None  # route chainage of the front at the first plan (measurement origin)
+    ref_t0_s: float = 0.0  # plan instant of the current reference
+    ref_front_m: float = 0.0  # front at that instant
+    ref_t: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    ref_s: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    ref_v: np.ndarray = field(default_factory=lambda: np.zeros(1))
+    segments: tuple[tuple[float, float, float], ...] = ()
+    handed_over: bool = False
+
+    def track(self, front_m: float) -> tuple[str, float]:
+        """Planner track name and distance from the front to the next planner switch (may be < 0 past it)."""
+        if "sw1" in self.switch_m and front_m < self.point_m["sw1"]:
+            return ("entry3" if self.legs["sw1"] == "reverse" else "entry2"), self.switch_m["sw1"] - front_m
+        if "sw1" in self.switch_m:
+            return "trunk", self.switch_m["sw2"] - front_m
+        return "entry1", self.switch_m["sw2"] - front_m
+
+    def set_reference(self, min_speed_mps: float, t: float, front_m: float, v0: float, segments: Any) -> None:
+        """Integrate a plan's acceleration-over-distance profile from (front, v0) at ``t`` (fine Δt = 0.02 s)."""
+        self.segments = tuple(segments)
+        self.ref_t0_s, self.ref_front_m = t, front_m
+        dt = REFERENCE_DT_S
+        end = self.F_m - front_m + 100.0
+        ts, ss, vs = [0.0], [0.0], [v0]
+        s, v, tau = 0.0, v0, 0.0
+        while s < end and tau < REFERENCE_HORIZON_S:
+            a = self.accel_at(s)
+            v_new = max(v + a * dt, min_speed_mps)
+            s += 0.5 * (v + v_new) * dt
+            v = v_new
+            tau += dt
+            ts.append(tau)
+            ss.append(s)
+            vs.append(v)
+        self.ref_t, self.ref_s, self.ref_v = np.array(ts), np.array(ss), np.array(vs)
+
+    def accel_at(self, s: float) -> float:
+        """The plan's acceleration at distance ``s`` from the plan instant's front."""
+        for a, b, acc in self.segments:
+            if a <= s < b:
+                return acc
+        return 0.0
+
+    def reference(self, t: float) -> tuple[float, float]:
+        """Reference distance (from the plan instant's front) and speed at ``t`` (constant speed past the end)."""
+        tau = t - self.ref_t0_s
+        if tau >= self.ref_t[-1]:
+            return float(self.ref_s[-1] + self.ref_v[-1] * (tau - self.ref_t[-1])), float(self.ref_v[-1])
+        return float(np.interp(tau, self.ref_t, self.ref_s)), float(np.interp(tau, self.ref_t, self.ref_v))
