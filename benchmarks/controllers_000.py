@@ -2,11 +2,11 @@
 
 For each registered controller (``cf_idm``, ``cf_cacc``, ``cf_fvd``, ``dmpc``, ``mcf_dmpc``, ``opo_mcf_dmpc``) it
 runs the S-A…S-D platoon (leader 2000 m at 220 km/h, followers at 1500 m / 200 km/h and 0 m / 180 km/h, Θ_2 and
-Θ_3, Np = 60, τ = 1 s, noise SD 0.01 m/s²) in the pure-numpy closed loop :func:`controllers.paper_a.sim.run_platoon`
+Θ_3, Np = 60, τ = 1 s, noise SD 0.01 m/s²) in the pure-numpy closed loop :func:`controllers.mcf_dmpc.sim.run_platoon`
 and collects each follower's ``info["solve_time_s"]`` (the wall time of ``command()``: predecessor horizon,
 optimisation, final rollout). The first ``--steps`` steps are the transient (largest errors, hardest problems);
 the MCF variants get ``--mcf-steps`` steps because each solve is ~10³× a CF law. The first train-step (numba JIT
-compilation or cache load of :mod:`controllers.paper_a.kernels`) is reported apart as ``first_step_s``;
+compilation or cache load of :mod:`controllers.mcf_dmpc.kernels`) is reported apart as ``first_step_s``;
 ``--mcf-iterations`` lowers MSMFO's K (Table II: 100) to show what budget a time target buys.
 
 Reported per controller: median, p95 and mean solve time per train-step, the number of train-steps, and the ratio
@@ -34,8 +34,8 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import controllers  # noqa: E402  (registers the Paper A controllers)
-from controllers.paper_a.sim import run_platoon  # noqa: E402
-from controllers.paper_a.spacing import paper_a_vehicle  # noqa: E402
+from controllers.mcf_dmpc.sim import run_platoon  # noqa: E402
+from controllers.mcf_dmpc.spacing import paper000_vehicle  # noqa: E402
 
 PAPER_S = {"dmpc": 0.439, "opo_mcf_dmpc": 0.282}
 TARGET_S = {"dmpc": 1e-3, "opo_mcf_dmpc": 20e-3}
@@ -44,7 +44,7 @@ X0_M, V0_MPS = (2000.0, 1500.0, 0.0), (220 / 3.6, 200 / 3.6, 180 / 3.6)
 
 
 def _followers(name: str, mcf_iterations: int = 100) -> list[Any]:
-    veh = paper_a_vehicle()
+    veh = paper000_vehicle()
     if name == "dmpc":
         return [controllers.create(name, {}, veh), controllers.create(name, {}, veh)]
     extra = {"iterations": mcf_iterations} if "mcf" in name else {}
@@ -83,7 +83,7 @@ def optimizer_comparison(seeds: int, budget: int = 5000) -> dict[str, Any]:
     """MSMFO vs the baselines on S-B′ at an equal budget (the problem and trace of optimizers_000.py)."""
     try:
         import benchmarks.optimizers_000 as ob  # noqa: PLC0415
-        from controllers.paper_a.optim import METHODS, minimize_sequence  # noqa: PLC0415
+        from controllers.mcf_dmpc.optim import METHODS, minimize_sequence  # noqa: PLC0415
     except ImportError as exc:  # the optimiser package or the other benchmark is not there yet
         return {"skipped": f"not importable: {exc}"}
     fitness = ob._colleague_fitness()

@@ -3,7 +3,7 @@
 Problem: the first prediction horizon of train 2 at t = 0 of scenario S-A — own state 1500 m at 200 km/h, the
 leader 2000 m ahead-frame at a constant 220 km/h (u = ω, so a constant-speed plan), Θ_2, Np = 60, D = Np model
 indices (A15), J^(DMPC) of Eq. (14)–(19) with the A21 penalty, u_{−1} = 0 (A19). It uses the colleague's
-``controllers.paper_a.rollout``/``cost`` when importable, otherwise a compact stand-in of the same equations.
+``controllers.mcf_dmpc.rollout``/``cost`` when importable, otherwise a compact stand-in of the same equations.
 
 Protocol (A31 SUGGESTION): P = 50, K = 100 for the population methods, every method capped at the same budget
 of P·K = 5,000 fitness evaluations (SA: a 5,000-step chain), ``--seeds`` independent runs (default 30) with
@@ -27,7 +27,7 @@ import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from controllers.paper_a.optim import METHODS, minimize_sequence  # noqa: E402
+from controllers.mcf_dmpc.optim import METHODS, minimize_sequence  # noqa: E402
 
 NP = 60
 OWN_POSITION_M, OWN_SPEED_MPS = 1500.0, 200.0 / 3.6
@@ -35,10 +35,10 @@ LEADER_POSITION_M, LEADER_SPEED_MPS = 2000.0, 220.0 / 3.6
 
 
 def _colleague_fitness() -> Callable[[np.ndarray], np.ndarray]:
-    from controllers.paper_a.cf_models import THETA_TRAIN2
-    from controllers.paper_a.cost import dmpc_cost
-    from controllers.paper_a.rollout import constant_speed_horizon, rollout_models
-    from controllers.paper_a.spacing import TABLE_I
+    from controllers.mcf_dmpc.cf_models import THETA_TRAIN2
+    from controllers.mcf_dmpc.cost import dmpc_cost
+    from controllers.mcf_dmpc.rollout import constant_speed_horizon, rollout_models
+    from controllers.mcf_dmpc.spacing import TABLE_I
 
     pred = constant_speed_horizon(
         LEADER_POSITION_M, LEADER_SPEED_MPS, NP, TABLE_I.dt_s, TABLE_I.length_m, TABLE_I.emergency_decel_mps2
@@ -125,7 +125,7 @@ def main() -> None:
     parser.add_argument("--budget", type=int, default=5000)
     args = parser.parse_args()
     try:
-        fitness, source = _colleague_fitness(), "controllers.paper_a.rollout+cost"
+        fitness, source = _colleague_fitness(), "controllers.mcf_dmpc.rollout+cost"
     except ImportError:
         fitness, source = _standin_fitness(), "stand-in (spec §2.4–2.5)"
 

@@ -179,6 +179,12 @@ def registered() -> dict[str, ControllerFactory]:
     return dict(_REGISTRY)
 
 
+def family_of(name: str) -> str:
+    """The controller family (the ``controllers`` sub-package) a registered type belongs to, e.g. ``mcf_dmpc``."""
+    parts = _REGISTRY[name].__module__.split(".")
+    return parts[1] if len(parts) > 1 else parts[0]
+
+
 def create(name: str, params: Mapping[str, Any], vehicle: VehicleParams) -> Controller:
     """Instantiate controller ``name`` for one train (KeyError if unknown, ValueError for bad params)."""
     return _REGISTRY[name](params, vehicle)

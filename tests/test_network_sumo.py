@@ -138,7 +138,7 @@ def test_chongqing_bijin_junction_both_directions() -> None:
         assert len(route.switches) == 1 and route.switches[0].switch_id in ("bijin_up", "bijin_down")
 
 
-def test_straight_corridor_at_paper_a_speed() -> None:
+def test_straight_corridor_at_paper000_speed() -> None:
     bundle = network.build("straight_corridor")
     route = bundle.routes["s1->s3"]
     assert min(v for _, _, v in route.speed_limits) >= 100.0

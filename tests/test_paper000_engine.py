@@ -14,7 +14,7 @@ import numpy as np
 import pytest
 import yaml
 
-from controllers.paper_a.spacing import TABLE_I, desired_spacing_m, safe_spacing_m
+from controllers.mcf_dmpc.spacing import TABLE_I, desired_spacing_m, safe_spacing_m
 from railsim.analysis.paper000 import VcCriterion, follower_series, format_table, paper000_metrics, vc_times
 from railsim.errors import ConfigError
 from tests.helpers import ROOT, run_railsim
@@ -208,9 +208,9 @@ def test_figures_are_written(tmp_path: Path) -> None:
 
 
 def test_plain_float_rollout_and_fused_cost_equal_the_numpy_path(monkeypatch: pytest.MonkeyPatch) -> None:
-    from controllers.paper_a import rollout as R
-    from controllers.paper_a.cf_models import THETA_TRAIN3
-    from controllers.paper_a.cost import dmpc_cost, sequence_costs
+    from controllers.mcf_dmpc import rollout as R
+    from controllers.mcf_dmpc.cf_models import THETA_TRAIN3
+    from controllers.mcf_dmpc.cost import dmpc_cost, sequence_costs
 
     rng = np.random.default_rng(7)
     for trial in range(60):

@@ -10,7 +10,7 @@ in the trace:
 * ``Δv_i = v_{i−1} − v_i`` and front-to-front ``ΔS_i = gap_m + L_{i−1}`` (``gap_m`` is the recorder's true
   front-to-rear gap to the train ahead, which in these scenarios is the predecessor; A3);
 * ``D^(e)`` (Eq. 5) and ``D^(s)`` (Eq. 6) from the two speeds, with the units' length and braking rates from the
-  resolved vehicles and ``L^(s) = 1.5·v_m`` (A4, :data:`controllers.paper_a.spacing.TABLE_I`);
+  resolved vehicles and ``L^(s) = 1.5·v_m`` (A4, :data:`controllers.mcf_dmpc.spacing.TABLE_I`);
 * **paper time** ``t = t_s − t_first``: the recorder's first sample of a train is its state at insertion (engine
   time 1 s for a departure at 0), which is the paper's ``t = 0``;
 * means of ``|Δv|`` and ``|ΔS − D^(e)|`` over all samples, and over the late phase ``t ∈ [late_start_s,
@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 import yaml
 
-from controllers.paper_a.spacing import TABLE_I, TrainParamsA, desired_spacing_m, safe_spacing_m
+from controllers.mcf_dmpc.spacing import TABLE_I, TrainParamsA, desired_spacing_m, safe_spacing_m
 from railsim.errors import ConfigError
 
 __all__ = [

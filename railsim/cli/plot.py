@@ -47,10 +47,9 @@ def _kind_of(run: Path) -> str:
         raise ConfigError(run, "scenario.resolved.yaml", "not a railsim run folder (no scenario.resolved.yaml)")
     raw = yaml.safe_load(resolved.read_text(encoding="utf-8")) or {}
     types = {c.get("type") for c in (raw.get("controllers") or {}).values() if isinstance(c, dict)}
-    if types & analyses.PAPER_A_TYPES:
-        return "paper000"
-    if types & analyses.PAPER_D_TYPES:
-        return "paper003"
+    kinds = analyses.applicable_to_types(t for t in types if isinstance(t, str))
+    if kinds:
+        return kinds[0]
     raise ConfigError(run, "controllers", "no figure kind applies to this run's controllers yet (use --kind)")
 
 

@@ -18,4 +18,4 @@ Modules, in the order of the paper:
 Importing this package registers the controllers.
 """
 
-from controllers.paper_a import controller as _controller  # noqa: F401  (registers the controllers)
+from controllers.mcf_dmpc import controller as _controller  # noqa: F401  (registers the controllers)

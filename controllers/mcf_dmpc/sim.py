@@ -1,6 +1,6 @@
 """A pure-numpy closed-loop runner for Paper A platoons (spec 000 §4): N trains on a straight, flat line.
 
-Plant: :func:`railsim.physics.dynamics.step_many` with the Table I unit (:func:`~controllers.paper_a.spacing.paper_a_vehicle`)
+Plant: :func:`railsim.physics.dynamics.step_many` with the Table I unit (:func:`~controllers.mcf_dmpc.spacing.paper000_vehicle`)
 and ``step_method="ballistic"`` — with τ = 1 s, no lag and no jerk limit this is exactly Eq. (2)
 ``x+ = x + τv + τ²/2·(u − ω(v))``, ``v+ = v + τ(u − ω(v))`` (plus the plant's envelope clip and v ≥ 0).
 
@@ -25,10 +25,10 @@ from typing import Any
 import numpy as np
 
 from controllers.base import Command, Controller, Observation, OwnState, PredecessorState
-from controllers.paper_a.spacing import (
+from controllers.mcf_dmpc.spacing import (
     TrainParamsA,
     desired_spacing_m,
-    paper_a_vehicle,
+    paper000_vehicle,
     safe_spacing_m,
     train_params_from_vehicle,
 )
@@ -131,7 +131,7 @@ def run_platoon(
         raise ValueError(f"x0_m and v0_mps need {n} entries (leader + {n - 1} followers)")
     if plan_delay_steps not in (0, 1):
         raise ValueError(f"plan_delay_steps must be 0 or 1, got {plan_delay_steps!r}")
-    veh = vehicle if vehicle is not None else paper_a_vehicle()
+    veh = vehicle if vehicle is not None else paper000_vehicle()
     train = train_params_from_vehicle(veh, dt_s=dt_s)
     fleet = FleetParams.from_vehicles([veh] * n)
     v_ref = leader_speed if leader_speed is not None else constant_speed_profile(float(v0_mps[0]))

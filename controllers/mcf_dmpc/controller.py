@@ -5,21 +5,21 @@ Registered names (factory ``(params, vehicle)``, parameters as in the dataclasse
 * ``cf_idm``, ``cf_cacc``, ``cf_fvd`` — CF-DMPC of Section IV-A: one model for the whole horizon (m ≡ const),
   fixed Θ. Reading: the applied control *is* that CF law at the current state (``u_0`` of the single-model
   rollout); the rollout is the prediction broadcast to the follower and scored by J^(DMPC).
-* ``mcf_dmpc`` — MCF-DMPC: every step an integer optimiser (``controllers.paper_a.optim.minimize_sequence``,
+* ``mcf_dmpc`` — MCF-DMPC: every step an integer optimiser (``controllers.mcf_dmpc.optim.minimize_sequence``,
   MSMFO by default) picks the model-index sequence m(t_j) ∈ {IDM, CACC, FVD} minimising J^(DMPC) (Eq. 19 +
   penalty for Eq. 20); the first control of the best rollout is applied (A16: re-solve every τ). Decision
   dimension D = Np (A15), option ``decision_dim`` = Nc with the last index held (move blocking).
   Warm start (reading, not in the paper): the optimiser's first individuals are the previous best sequence
   shifted by one step and the three single-model sequences, so MCF never does worse than the best single model
   it was offered.
-* ``opo_mcf_dmpc`` — as ``mcf_dmpc`` after OPO (:mod:`controllers.paper_a.opo`) re-tunes Θ every step (A29:
+* ``opo_mcf_dmpc`` — as ``mcf_dmpc`` after OPO (:mod:`controllers.mcf_dmpc.opo`) re-tunes Θ every step (A29:
   before the sequence search), warm-started from the previous step's Θ.
-* ``dmpc`` — the continuous-u baseline as a sparse OSQP QP (:mod:`controllers.paper_a.dmpc`); solver failure →
+* ``dmpc`` — the continuous-u baseline as a sparse OSQP QP (:mod:`controllers.mcf_dmpc.dmpc`); solver failure →
   service braking with ``fallback=True`` and a counter.
 
 Information flow: the predecessor's broadcast plan arrives in ``obs.predecessor.planned_*`` (delayed by the
 communication layer); it is shifted by ``age_s`` and extended at constant speed, or, without a plan, the last
-reported state is extrapolated at constant speed (:func:`~controllers.paper_a.rollout.predecessor_horizon`).
+reported state is extrapolated at constant speed (:func:`~controllers.mcf_dmpc.rollout.predecessor_horizon`).
 Each controller returns its own plan (``Np + 1`` samples, observer's route frame) in ``info["plan"]`` plus
 ``info["J"]``, ``info["solve_time_s"]`` and, where relevant, ``info["model_sequence"]`` / ``info["theta"]``.
 The previous control ``u_{−1}`` of Eq. (17) is this controller's own last command (A19: 0 at the first step,
@@ -39,11 +39,11 @@ import numpy as np
 
 from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
-from controllers.paper_a.cf_models import MODEL_CACC, MODEL_FVD, MODEL_IDM, MODEL_NAMES, THETA_TRAIN2, THETA_TRAIN3
-from controllers.paper_a.cost import CostWeights, dmpc_cost, sequence_costs
-from controllers.paper_a.dmpc import DmpcQp, shift_controls
-from controllers.paper_a.opo import OpoSettings, opo_step
-from controllers.paper_a.rollout import (
+from controllers.mcf_dmpc.cf_models import MODEL_CACC, MODEL_FVD, MODEL_IDM, MODEL_NAMES, THETA_TRAIN2, THETA_TRAIN3
+from controllers.mcf_dmpc.cost import CostWeights, dmpc_cost, sequence_costs
+from controllers.mcf_dmpc.dmpc import DmpcQp, shift_controls
+from controllers.mcf_dmpc.opo import OpoSettings, opo_step
+from controllers.mcf_dmpc.rollout import (
     PredecessorHorizon,
     expand_sequence,
     plan_dict,
@@ -51,7 +51,7 @@ from controllers.paper_a.rollout import (
     rollout_controls,
     rollout_models,
 )
-from controllers.paper_a.spacing import TABLE_I, train_params_from_vehicle
+from controllers.mcf_dmpc.spacing import TABLE_I, train_params_from_vehicle
 from railsim.physics.vehicle import VehicleParams
 
 __all__ = [
@@ -66,7 +66,7 @@ __all__ = [
     "OpoMcfParams",
 ]
 
-SequenceOptimizer = Callable[..., Any]  # the interface of controllers.paper_a.optim.minimize_sequence
+SequenceOptimizer = Callable[..., Any]  # the interface of controllers.mcf_dmpc.optim.minimize_sequence
 _THETA_PRESETS = {"train2": THETA_TRAIN2, "train3": THETA_TRAIN3}
 
 
@@ -302,7 +302,7 @@ class CfDmpc(_PaperAController):
 
 
 def _default_optimizer() -> SequenceOptimizer:
-    from controllers.paper_a.optim import minimize_sequence  # imported late: optim imports this package
+    from controllers.mcf_dmpc.optim import minimize_sequence  # imported late: optim imports this package
 
     return minimize_sequence
 
@@ -492,7 +492,7 @@ make_cf_fvd = register("cf_fvd")(_cf_factory(MODEL_FVD))
 
 @register("mcf_dmpc")
 def make_mcf_dmpc(params: Mapping[str, Any], vehicle: VehicleParams) -> McfDmpc:
-    """Factory: MCF-DMPC (sequence optimiser from :mod:`controllers.paper_a.optim`)."""
+    """Factory: MCF-DMPC (sequence optimiser from :mod:`controllers.mcf_dmpc.optim`)."""
     return McfDmpc(params_from_mapping(McfParams, params), vehicle)
 
 

@@ -25,7 +25,7 @@ Fitness = Callable[[np.ndarray], np.ndarray]
 
 @dataclass(frozen=True)
 class OptimResult:
-    """Outcome of one :func:`~controllers.paper_a.optim.minimize_sequence` call.
+    """Outcome of one :func:`~controllers.mcf_dmpc.optim.minimize_sequence` call.
 
     ``best`` is a zero-based index vector (D,) in ``[0, n_values)``; ``history[k]`` is the best cost found after
     iteration ``k`` (``k = 0`` is the initial population; one SA "iteration" is ``population`` chain steps so

@@ -4,7 +4,7 @@ the force / force-rate violation counts and the paper's metrics E_d (= E_x), E_p
 standstill near the mark, i.e. where the law itself brought the train to rest, before the hold supervisor of
 :class:`~controllers.ato_mpc.core.AtoDriver` takes over. JSON on stdout.
 
-    .venv/bin/python benchmarks/paper_b_limits_study.py [--controllers sempc mpc afsmc pid] [--jobs 2]
+    .venv/bin/python benchmarks/paper001_limits_study.py [--controllers sempc mpc afsmc pid] [--jobs 2]
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ signed numbers (−0.8, −1.0); here they are stored as positive magnitudes (``
 control lower bound of Eq. (20) is ``−service_decel_mps2``. At equal speeds ``D^(e) = 348.833 + 0.125·v²`` and
 ``D^(s) = 348.833`` m with Table I.
 
-The unit of Table I is also offered as a :class:`~railsim.physics.vehicle.VehicleParams` (:func:`paper_a_vehicle`) with
+The unit of Table I is also offered as a :class:`~railsim.physics.vehicle.VehicleParams` (:func:`paper000_vehicle`) with
 mass 1 kg so that forces read as accelerations: the plant of :mod:`railsim.physics.dynamics` then integrates exactly
 ``dv/dt = u − (c0 + c1·v + c2·v²)`` (Eq. 1), and with ``step_method="ballistic"`` and τ = 1 s it reproduces the
 zero-order hold of Eq. (2).
@@ -30,7 +30,7 @@ __all__ = [
     "TABLE_I",
     "TrainParamsA",
     "desired_spacing_m",
-    "paper_a_vehicle",
+    "paper000_vehicle",
     "safe_spacing_m",
     "train_params_from_vehicle",
 ]
@@ -118,7 +118,7 @@ def safe_spacing_m(
     return train.safety_margin_m + lp + v * v / (2.0 * train.emergency_decel_mps2) - vp * vp / (2.0 * bp)
 
 
-def paper_a_vehicle(train: TrainParamsA = TABLE_I, name: str = "paper_a_203m") -> VehicleParams:
+def paper000_vehicle(train: TrainParamsA = TABLE_I, name: str = "paper000_203m") -> VehicleParams:
     """The Table I unit as plant parameters: mass 1 kg (forces = accelerations), Davis A, B, C = c0, c1, c2.
 
     Traction force 1 N (= a^(m)) with unlimited power, service/emergency braking 0.8/1.0 m/s², no actuator lag

@@ -1,10 +1,10 @@
 """Late-phase spacing tracking of MCF-DMPC vs OPO-MCF-DMPC on the numpy runner (spec 000 S-D, S-E; issue #19).
 
-For each setting and seed it runs :func:`controllers.paper_a.sim.run_platoon` with both controllers and reports
+For each setting and seed it runs :func:`controllers.mcf_dmpc.sim.run_platoon` with both controllers and reports
 per follower the late-phase mean |ΔS − D^(e)| and |Δv| (A7: S-D late phase [300, 500) s; S-E: the last 40 % of
 its 380 s cycle, [228, 380) s) as mean ± sd over seeds, plus the whole-run means. JSON on stdout.
 
-    .venv/bin/python benchmarks/paper_a_opo_study.py [--seeds 5] [--iterations 100] [--jobs 2]
+    .venv/bin/python benchmarks/paper000_opo_study.py [--seeds 5] [--iterations 100] [--jobs 2]
 """
 
 from __future__ import annotations
@@ -21,9 +21,9 @@ import numpy as np
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import controllers  # noqa: E402
-from controllers.paper_a.metrics import follower_metrics  # noqa: E402
-from controllers.paper_a.sim import KMH, run_platoon, variable_speed_profile  # noqa: E402
-from controllers.paper_a.spacing import desired_spacing_m, paper_a_vehicle  # noqa: E402
+from controllers.mcf_dmpc.metrics import follower_metrics  # noqa: E402
+from controllers.mcf_dmpc.sim import KMH, run_platoon, variable_speed_profile  # noqa: E402
+from controllers.mcf_dmpc.spacing import desired_spacing_m, paper000_vehicle  # noqa: E402
 
 METHODS = ("mcf_dmpc", "opo_mcf_dmpc")
 SETTINGS = {
@@ -42,7 +42,7 @@ def run_case(
     setting: str, method: str, seed: int, iterations: int, extra: dict[str, Any] | None = None, steps: int | None = None
 ) -> list[dict[str, float]]:
     cfg = SETTINGS[setting]
-    veh = paper_a_vehicle()
+    veh = paper000_vehicle()
     params = {"iterations": iterations, "seed": seed, **(extra or {})}
     followers = [controllers.create(method, {"theta_preset": p, **params}, veh) for p in cfg["presets"]]
     n = steps or cfg["steps"]

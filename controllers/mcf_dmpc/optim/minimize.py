@@ -91,7 +91,7 @@ def minimize_sequence(
     Default reading of MSMFO: every component on, the *suggested* variants of Eq. (22) (chaos map mod 1),
     Eq. (24) (tanh flame count regrouped) and Eq. (26) (mutation with its random term restored), EOBL after
     initialisation and every iteration; ``options`` selects the literal variants or switches components off
-    (:class:`~controllers.paper_a.optim.mothflame.MothFlameSettings`).
+    (:class:`~controllers.mcf_dmpc.optim.mothflame.MothFlameSettings`).
 
     ``init`` (``(D,)`` or ``(k, D)``, k ≤ population) seeds the first k individuals (SA: starts from the best of
     them). All randomness comes from ``rng``: the same generator state gives the same result.

@@ -2,7 +2,7 @@
 
 Public entry point::
 
-    from controllers.paper_a.optim import minimize_sequence, OptimResult
+    from controllers.mcf_dmpc.optim import minimize_sequence, OptimResult
     res = minimize_sequence(fitness, dim=60, n_values=3, method="msmfo", rng=np.random.default_rng(0))
 
 ``fitness`` maps a ``(m, D)`` array of zero-based indices to ``(m,)`` costs (vectorise the rollout over rows).

@@ -1,7 +1,7 @@
-"""The compiled MCF rollout/cost of :mod:`controllers.paper_a.kernels` equals the scalar reference (issue #19).
+"""The compiled MCF rollout/cost of :mod:`controllers.mcf_dmpc.kernels` equals the scalar reference (issue #19).
 
 The reference is the plain-float rollout ``rollout._rollout_scalar`` (itself pinned to the numpy laws of
-:mod:`controllers.paper_a.cf_models` in test_paper_a_models) scored by ``cost.cost_terms``. Random states, plans,
+:mod:`controllers.mcf_dmpc.cf_models` in test_paper000_models) scored by ``cost.cost_terms``. Random states, plans,
 sequences and per-row Θ inside and outside the A29 box, including predecessors placed behind the follower
 (ΔS ≤ 0: the IDM guard) and predicted speeds that go negative (penalty terms non-zero).
 """
@@ -11,11 +11,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from controllers.paper_a import kernels
-from controllers.paper_a.cf_models import THETA_BOUNDS
-from controllers.paper_a.cost import TABLE_II, CostWeights, cost_terms, sequence_costs
-from controllers.paper_a.rollout import PredecessorHorizon, _rollout_scalar
-from controllers.paper_a.spacing import TABLE_I
+from controllers.mcf_dmpc import kernels
+from controllers.mcf_dmpc.cf_models import THETA_BOUNDS
+from controllers.mcf_dmpc.cost import TABLE_II, CostWeights, cost_terms, sequence_costs
+from controllers.mcf_dmpc.rollout import PredecessorHorizon, _rollout_scalar
+from controllers.mcf_dmpc.spacing import TABLE_I
 
 RTOL = 1e-12
 
@@ -85,7 +85,7 @@ def test_sequence_costs_uses_kernel_and_agrees_with_numpy_path() -> None:
     seq = rng.integers(0, 3, size=(80, 60))
     theta = np.array([1.2, 12.1, 0.0, 0.011, 0.013, 0.012, 4.2e-4])
     got = sequence_costs(seq, x0, v0, hz, theta, TABLE_I, u_prev, TABLE_II)
-    from controllers.paper_a.rollout import rollout_models  # numpy path for 80 rows
+    from controllers.mcf_dmpc.rollout import rollout_models  # numpy path for 80 rows
 
     ref = cost_terms(rollout_models(seq, x0, v0, hz, theta, TABLE_I), hz, u_prev, TABLE_I, TABLE_II)["J"]
     np.testing.assert_allclose(got, ref, rtol=1e-9)  # numpy's vectorised pow may differ in the last bits

@@ -10,7 +10,7 @@ real-time-iteration style): linearise around a *nominal* trajectory — the prev
 simulated with the nonlinear model from the current state — and solve the QP
 
 * dynamics: ``v_{j+1} = v_j + τ(u_j − ω̄_j − ω'_j(v_j − v̄_j))``, ``s_{j+1} = s_j + τv_j + τ²/2(u_j − ω̄_j − ω'_j(v_j − v̄_j))``;
-* cost: Eq. (14)–(18) exactly as in :mod:`controllers.paper_a.cost` with ``D^(e)(v) ≈ D^(e)(v̄) + (v̄/|b^(c)|)(v − v̄)``;
+* cost: Eq. (14)–(18) exactly as in :mod:`controllers.mcf_dmpc.cost` with ``D^(e)(v) ≈ D^(e)(v̄) + (v̄/|b^(c)|)(v − v̄)``;
 * constraints (20) as hard constraints: ``−b^(c) ≤ u ≤ a^(m)``, ``0 ≤ v ≤ v_m`` and the safe spacing
   ``ΔS_j ≥ D^(s)_j`` with ``v_j² ≈ 2v̄_j·v_j − v̄_j²``.
 
@@ -36,9 +36,9 @@ import numpy as np
 import osqp
 from scipy import sparse
 
-from controllers.paper_a.cost import TABLE_II, CostWeights, cost_terms
-from controllers.paper_a.rollout import PredecessorHorizon, Trajectory, rollout_controls
-from controllers.paper_a.spacing import TrainParamsA, safe_spacing_m
+from controllers.mcf_dmpc.cost import TABLE_II, CostWeights, cost_terms
+from controllers.mcf_dmpc.rollout import PredecessorHorizon, Trajectory, rollout_controls
+from controllers.mcf_dmpc.spacing import TrainParamsA, safe_spacing_m
 
 __all__ = ["DmpcQp", "DmpcSolution", "shift_controls"]
 

@@ -33,8 +33,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.base import PredecessorState
-from controllers.paper_a.cf_models import RATIO_CAP, V_FLOOR_MPS, all_models, enhanced_cacc, enhanced_fvd, enhanced_idm
-from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m
+from controllers.mcf_dmpc.cf_models import RATIO_CAP, V_FLOOR_MPS, all_models, enhanced_cacc, enhanced_fvd, enhanced_idm
+from controllers.mcf_dmpc.spacing import TrainParamsA, desired_spacing_m
 
 __all__ = [
     "PredecessorHorizon",

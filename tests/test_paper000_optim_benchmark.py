@@ -24,8 +24,8 @@ def _load():
 
 
 def test_standin_fitness_equals_the_mcf_rollout_cost():
-    pytest.importorskip("controllers.paper_a.rollout")
-    pytest.importorskip("controllers.paper_a.cost")
+    pytest.importorskip("controllers.mcf_dmpc.rollout")
+    pytest.importorskip("controllers.mcf_dmpc.cost")
     bench = _load()
     seqs = np.vstack(
         [np.random.default_rng(0).integers(0, 3, (40, bench.NP)), np.repeat(np.arange(3)[:, None], bench.NP, axis=1)]

@@ -23,9 +23,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from controllers.paper_a import kernels as _kernels, rollout as _rollout
-from controllers.paper_a.rollout import PredecessorHorizon, Trajectory
-from controllers.paper_a.spacing import TrainParamsA, desired_spacing_m, safe_spacing_m
+from controllers.mcf_dmpc import kernels as _kernels, rollout as _rollout
+from controllers.mcf_dmpc.rollout import PredecessorHorizon, Trajectory
+from controllers.mcf_dmpc.spacing import TrainParamsA, desired_spacing_m, safe_spacing_m
 
 __all__ = ["CostWeights", "TABLE_II", "cost_terms", "dmpc_cost", "sequence_costs"]
 
@@ -105,16 +105,16 @@ def sequence_costs(
     """``dmpc_cost(rollout_models(seq, ...), ...)`` — the optimisers' fitness — shape ``(P,)``.
 
     With numba available the rollout and the cost run fused in the compiled kernel of
-    :mod:`controllers.paper_a.kernels` (the optimisers' hot path: ~9,000 rows per MCF step); otherwise
+    :mod:`controllers.mcf_dmpc.kernels` (the optimisers' hot path: ~9,000 rows per MCF step); otherwise
     :func:`rollout_models` (plain floats for small batches, numpy for large) and :func:`dmpc_cost` score them.
-    Both give the same costs to rounding (``tests/test_paper_a_kernels.py``).
+    Both give the same costs to rounding (``tests/test_paper000_kernels.py``).
     """
     seq = np.atleast_2d(np.asarray(seq, dtype=np.int64))
     if seq.shape[1] != pred.steps:
         raise ValueError(f"sequence length {seq.shape[1]} != predecessor horizon {pred.steps}")
     theta = np.asarray(theta, dtype=float)
     if _kernels.NUMBA_AVAILABLE and theta.shape in ((7,), (seq.shape[0], 7)):
-        # compiled fused rollout + cost (same arithmetic, pinned to the scalar path in test_paper_a_kernels)
+        # compiled fused rollout + cost (same arithmetic, pinned to the scalar path in test_paper000_kernels)
         thetas = np.ascontiguousarray(np.broadcast_to(theta, (seq.shape[0], 7)))
         return _kernels.population_costs(
             np.ascontiguousarray(seq),

@@ -13,7 +13,7 @@ batch — moves to the best poll if it lowers that sub-problem's cost, otherwise
 sub-problem stops when ``h < min_step``. Derivative-free (the saturations and the θ7 switch of Eq. 12 make J
 non-smooth in Θ), deterministic, and every poll is projected onto the box, so **Θ never leaves its bounds**.
 Warm start: the previous step's Θ (initially Table Θ_2 / Θ_3); bounds default to the A29 SUGGESTION box
-(:data:`~controllers.paper_a.cf_models.THETA_BOUNDS`) and are configurable.
+(:data:`~controllers.mcf_dmpc.cf_models.THETA_BOUNDS`) and are configurable.
 """
 
 from __future__ import annotations
@@ -24,7 +24,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.paper_a.cf_models import MODEL_THETA_INDEX, THETA_BOUNDS
+from controllers.mcf_dmpc.cf_models import MODEL_THETA_INDEX, THETA_BOUNDS
 
 __all__ = ["OpoResult", "OpoSettings", "opo_step"]
 

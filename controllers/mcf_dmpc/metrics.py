@@ -14,7 +14,7 @@ from dataclasses import asdict, dataclass
 
 import numpy as np
 
-from controllers.paper_a.sim import PlatoonRun
+from controllers.mcf_dmpc.sim import PlatoonRun
 
 __all__ = ["FollowerMetrics", "follower_metrics", "format_table", "vc_times"]
 

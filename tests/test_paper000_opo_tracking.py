@@ -11,13 +11,13 @@ from __future__ import annotations
 import numpy as np
 
 import controllers
-from controllers.paper_a.metrics import follower_metrics
-from controllers.paper_a.sim import KMH, run_platoon, variable_speed_profile
-from controllers.paper_a.spacing import desired_spacing_m, paper_a_vehicle
+from controllers.mcf_dmpc.metrics import follower_metrics
+from controllers.mcf_dmpc.sim import KMH, run_platoon, variable_speed_profile
+from controllers.mcf_dmpc.spacing import desired_spacing_m, paper000_vehicle
 
 
 def _late_error(method: str, seed: int) -> float:
-    veh = paper_a_vehicle()
+    veh = paper000_vehicle()
     f = controllers.create(method, {"theta_preset": "train2", "population": 20, "iterations": 10, "seed": seed}, veh)
     d0 = float(desired_spacing_m(220 * KMH, 220 * KMH))
     run = run_platoon(

@@ -9,11 +9,11 @@ import pytest
 from scipy.optimize import minimize
 
 from controllers.base import Observation, OwnState, PredecessorState
-from controllers.paper_a.controller import DmpcController, DmpcParams
-from controllers.paper_a.cost import TABLE_II, CostWeights, dmpc_cost
-from controllers.paper_a.dmpc import DmpcQp, shift_controls
-from controllers.paper_a.rollout import PredecessorHorizon, constant_speed_horizon, rollout_controls
-from controllers.paper_a.spacing import TABLE_I, paper_a_vehicle, safe_spacing_m
+from controllers.mcf_dmpc.controller import DmpcController, DmpcParams
+from controllers.mcf_dmpc.cost import TABLE_II, CostWeights, dmpc_cost
+from controllers.mcf_dmpc.dmpc import DmpcQp, shift_controls
+from controllers.mcf_dmpc.rollout import PredecessorHorizon, constant_speed_horizon, rollout_controls
+from controllers.mcf_dmpc.spacing import TABLE_I, paper000_vehicle, safe_spacing_m
 
 
 def _braking_predecessor(x0: float, v0: float, n: int, decel: float) -> PredecessorHorizon:
@@ -85,7 +85,7 @@ def test_safety_linearisation_error_is_reported_not_hidden():
 
 
 def test_infeasible_start_falls_back_to_service_brake():
-    veh = paper_a_vehicle()
+    veh = paper000_vehicle()
     ctrl = DmpcController(DmpcParams(), veh)
     # 250 m front-to-front at equal speed: D^(s) = 348.8 m cannot be reached within one step
     pred = PredecessorState("T1", 250.0, 60.0, 0.0, 203.0, 0.0, 0.0, 0.8, 1.0)

@@ -6,19 +6,19 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-import controllers.paper_a  # noqa: F401  (registers)
+import controllers.mcf_dmpc  # noqa: F401  (registers)
 from controllers.base import Observation, OwnState, PredecessorState, create
-from controllers.paper_a.cf_models import THETA_BOUNDS, THETA_TRAIN2, THETA_TRAIN3
-from controllers.paper_a.controller import McfDmpc, McfParams
-from controllers.paper_a.cost import dmpc_cost
-from controllers.paper_a.metrics import follower_metrics
-from controllers.paper_a.opo import OpoSettings, opo_step
-from controllers.paper_a.rollout import constant_speed_horizon, rollout_models
-from controllers.paper_a.sim import run_platoon, variable_speed_profile
-from controllers.paper_a.spacing import TABLE_I, desired_spacing_m, paper_a_vehicle
+from controllers.mcf_dmpc.cf_models import THETA_BOUNDS, THETA_TRAIN2, THETA_TRAIN3
+from controllers.mcf_dmpc.controller import McfDmpc, McfParams
+from controllers.mcf_dmpc.cost import dmpc_cost
+from controllers.mcf_dmpc.metrics import follower_metrics
+from controllers.mcf_dmpc.opo import OpoSettings, opo_step
+from controllers.mcf_dmpc.rollout import constant_speed_horizon, rollout_models
+from controllers.mcf_dmpc.sim import run_platoon, variable_speed_profile
+from controllers.mcf_dmpc.spacing import TABLE_I, desired_spacing_m, paper000_vehicle
 
 KMH = 1 / 3.6
-VEH = paper_a_vehicle()
+VEH = paper000_vehicle()
 
 
 def _obs(x=1500.0, v=200 * KMH, xp=2000.0, vp=220 * KMH):
@@ -126,7 +126,7 @@ def test_mcf_never_worse_than_best_single_model_and_deterministic():
 
 
 def test_registered_mcf_and_opo_deterministic_with_real_optimizer():
-    pytest.importorskip("controllers.paper_a.optim")
+    pytest.importorskip("controllers.mcf_dmpc.optim")
     for name in ("mcf_dmpc", "opo_mcf_dmpc"):
         p = {"horizon_steps": 15, "population": 6, "iterations": 2, "seed": 7}
         c1, c2 = create(name, p, VEH), create(name, p, VEH)

@@ -9,18 +9,18 @@ row-step costs ~10–20 ns, and the rollout, the cost terms and the constraint p
 (no intermediate trajectory arrays), so a 50-row population costs ~50 µs.
 
 One definition of the physics: :func:`rollout_rows` is the *same* arithmetic, operation for operation, as
-:func:`controllers.paper_a.rollout._rollout_scalar` (guards of A11 included: ΔS ≤ 0 → −∞ for IDM+, denominators
+:func:`controllers.mcf_dmpc.rollout._rollout_scalar` (guards of A11 included: ΔS ≤ 0 → −∞ for IDM+, denominators
 floored at ``V_FLOOR_MPS``, ``D^(e)/ΔS`` capped at ``RATIO_CAP``), and :func:`population_costs` scores the
-trajectory it writes with the terms of :func:`controllers.paper_a.cost.cost_terms`::
+trajectory it writes with the terms of :func:`controllers.mcf_dmpc.cost.cost_terms`::
 
     J = ξ_v Σ Δv_j² + ξ_s Σ e_j² + ξ_u Σ u_j² + ξ_Δu [Σ (u_j − u_{j−1})² + (u_{−1} − u_0)²]
         + ξ_term (ξ_v Δv_Np² + ξ_s e_Np²) + w Σ [max(0, D^(s)_j − ΔS_j) + max(0, −v_j) + max(0, v_j − v_m)]
         + w Σ [max(0, −b^(c) − u_j) + max(0, u_j − a^(m))]
 
-``tests/test_paper_a_kernels.py`` pins both to the scalar reference to 1e-12 (relative) on random inputs.
+``tests/test_paper000_kernels.py`` pins both to the scalar reference to 1e-12 (relative) on random inputs.
 
 If numba is not importable the functions still run as plain Python (``NUMBA_AVAILABLE`` is False) — correct
-but ~100× slower; :mod:`controllers.paper_a.cost` then keeps using the numpy/scalar rollout instead.
+but ~100× slower; :mod:`controllers.mcf_dmpc.cost` then keeps using the numpy/scalar rollout instead.
 """
 
 from __future__ import annotations
@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from controllers.paper_a.cf_models import RATIO_CAP, V_FLOOR_MPS
+from controllers.mcf_dmpc.cf_models import RATIO_CAP, V_FLOOR_MPS
 
 try:  # numba: optional at import time, a declared dependency of the project (pyproject.toml)
     from numba import njit
@@ -53,7 +53,7 @@ __all__ = ["NUMBA_AVAILABLE", "population_costs", "rollout_rows", "train_vector"
 
 
 def train_vector(train) -> np.ndarray:
-    """The :class:`~controllers.paper_a.spacing.TrainParamsA` fields the kernels need, as a float vector."""
+    """The :class:`~controllers.mcf_dmpc.spacing.TrainParamsA` fields the kernels need, as a float vector."""
     return np.array(
         [
             train.dt_s,
@@ -72,7 +72,7 @@ def train_vector(train) -> np.ndarray:
 
 
 def weight_vector(weights) -> np.ndarray:
-    """The :class:`~controllers.paper_a.cost.CostWeights` as a float vector."""
+    """The :class:`~controllers.mcf_dmpc.cost.CostWeights` as a float vector."""
     return np.array(
         [weights.xi_v, weights.xi_s, weights.xi_u, weights.xi_du, weights.xi_term, weights.penalty], dtype=float
     )

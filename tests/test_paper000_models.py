@@ -7,7 +7,7 @@ import pytest
 from hypothesis import given, settings, strategies as st
 
 from controllers.base import PredecessorState
-from controllers.paper_a.cf_models import (
+from controllers.mcf_dmpc.cf_models import (
     THETA_BOUNDS,
     THETA_TRAIN2,
     THETA_TRAIN3,
@@ -16,14 +16,14 @@ from controllers.paper_a.cf_models import (
     enhanced_idm,
     original_idm,
 )
-from controllers.paper_a.cost import TABLE_II, cost_terms
-from controllers.paper_a.rollout import (
+from controllers.mcf_dmpc.cost import TABLE_II, cost_terms
+from controllers.mcf_dmpc.rollout import (
     constant_speed_horizon,
     predecessor_horizon,
     rollout_controls,
     rollout_models,
 )
-from controllers.paper_a.spacing import TABLE_I, desired_spacing_m, paper_a_vehicle, safe_spacing_m
+from controllers.mcf_dmpc.spacing import TABLE_I, desired_spacing_m, paper000_vehicle, safe_spacing_m
 from railsim.physics.dynamics import PlantState, step
 
 KMH = 1 / 3.6
@@ -42,7 +42,7 @@ def test_spacing_closed_forms_table_i():
 def test_resistance_values_and_vehicle():
     assert TABLE_I.resistance_mps2(50.0) == pytest.approx(0.0756, abs=1e-5)
     assert TABLE_I.resistance_mps2(0.0) == 0.0
-    veh = paper_a_vehicle()
+    veh = paper000_vehicle()
     assert veh.mass_kg == 1.0 and veh.actuator_time_constant_s == 0.0
     assert veh.resistance_n(61.0) == pytest.approx(float(TABLE_I.resistance_mps2(61.0)))
 
@@ -51,7 +51,7 @@ def test_resistance_values_and_vehicle():
 @settings(max_examples=50, deadline=None)
 def test_plant_ballistic_step_is_eq2(v0, u):
     """railsim's plant with the Paper A vehicle and the ballistic update is Eq. (2)."""
-    res = step(paper_a_vehicle(), PlantState(v0), u, 1.0, step_method="ballistic")
+    res = step(paper000_vehicle(), PlantState(v0), u, 1.0, step_method="ballistic")
     a = u - float(TABLE_I.resistance_mps2(v0))
     assert res.v_next_mps == pytest.approx(v0 + a, abs=1e-12)
     assert res.advance_m == pytest.approx(v0 + 0.5 * a, abs=1e-9)

@@ -1,4 +1,4 @@
-"""Paper A's sequence optimisers (controllers.paper_a.optim): rounding, schedules, determinism, optimality on
+"""Paper A's sequence optimisers (controllers.mcf_dmpc.optim): rounding, schedules, determinism, optimality on
 problems with a known optimum, evaluation budgets, and every MSMFO switch (spec 000 §2.7, A22–A28, A31)."""
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 from hypothesis import given, settings, strategies as st
 
-from controllers.paper_a.optim import (
+from controllers.mcf_dmpc.optim import (
     METHODS,
     MSMFO_SETTINGS,
     Evaluator,
