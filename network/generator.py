@@ -12,7 +12,7 @@ How a line becomes a SUMO net (facts measured in ``shared/notes/sumo_rail_findin
   ``allow="rail rail_urban rail_fast rail_electric subway"``; the lane speed is the lowest limit on that
   piece (line speed, speed limits for that direction, switch speeds on the turnout zones).
 * **No rail signals.** Plain XML nodes are ``priority``/``dead_end`` and we never ask netconvert to guess
-  signals: interlocking is ours (DESIGN.md §3). The built net is checked for ``rail_signal`` nodes.
+  signals: interlocking is ours (docs/architecture.md). The built net is checked for ``rail_signal`` nodes.
 * **Exact chainage.** netconvert's rail junction shapes are long (≈67 m at a turnout) and their internal
   lanes would add to the odometer. We write every connection explicitly with a fixed internal-lane length
   (:data:`INTERNAL_LANE_M`) and give each edge an explicit ``length`` = design length minus the internal

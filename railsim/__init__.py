@@ -1,8 +1,8 @@
 """railsim: virtually coupled trains on SUMO rail networks.
 
-Packages (DESIGN.md §2): ``network`` builds worlds, ``railsim`` runs them, ``controllers`` decides,
+Packages (docs/architecture.md): ``network`` builds worlds, ``railsim`` runs them, ``controllers`` decides,
 ``scenarios/`` describes. The public Python API mirrors the CLI: anything ``railsim`` does on the command
-line is a call here (``railsim.scenario.load``, ``railsim.engine.run``, ``network.build``).
+line is a call here (``railsim.scenario.load``, ``railsim.api.run``, ``network.build``).
 """
 
 __version__ = "0.1.0"

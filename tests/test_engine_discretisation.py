@@ -1,4 +1,4 @@
-"""The engine's positions follow the discrete model a scenario names, exactly (DESIGN.md §3 "Discretisation").
+"""The engine's positions follow the discrete model a scenario names, exactly (docs/architecture.md, "The step loop").
 
 One train on the straight corridor driven by a speed profile (accelerate, cruise, brake), run through the
 whole engine in SUMO for each step method; from the trace (the state at every step):

@@ -6,6 +6,8 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.record.snapshot import OUTPUT_FILES
+
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("run", help="run a scenario and write trips/stops/formations/events/summary")
@@ -33,7 +35,8 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
     if summary["formations"]:
         ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
         lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
-    lines.append(f"  outputs: {out_dir}/ (trips.csv, stops.csv, formations.csv, events.csv, trace.csv, summary.json)")
+    files = ", ".join(f.file_name for f in OUTPUT_FILES if f.stem not in ("scenario.resolved", "versions"))
+    lines.append(f"  outputs: {out_dir}/ ({files})")
     for table in summary.get("analysis_tables", ()):
         lines.append(table)
     return "\n".join(lines)

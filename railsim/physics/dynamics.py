@@ -1,7 +1,7 @@
 """The longitudinal train model (the *plant*): from a commanded acceleration to the next speed and position.
 
 SUMO moves controlled trains (speedMode 32) by exactly the speed we set and enforces no physics at all
-(DESIGN.md §3), so every physical limit of a train lives here. Controllers command the **applied** specific
+(docs/architecture.md), so every physical limit of a train lives here. Controllers command the **applied** specific
 force ``u`` [m/s²] — traction (>0) or braking (<0) force divided by the effective mass — and running resistance
 and gradient act on top of it, as in the papers' models ``dv/dt = u − ω(v)`` (spec 000 eq. (1), spec 002 eq. (1)).
 The plant reads the same :class:`~railsim.physics.vehicle.VehicleParams` as the controllers' prediction models (one

@@ -94,7 +94,7 @@ Readings and conventions (where the schema alone is ambiguous):
   ``start_time: 17:30`` means half past five whether quoted or not. It also reads ``1e3`` and ``1.0e9``
   as numbers (PyYAML would give strings).
 * **Vehicles.** A vehicle's :attr:`VehicleParams.name` is its key in ``vehicles`` (two keys may share a
-  preset with different overrides). ``max_speed_kmh`` is the only non-SI field accepted (DESIGN §6: km/h
+  preset with different overrides). ``max_speed_kmh`` is the only non-SI field accepted (docs/architecture.md: km/h
   only at the YAML edge) and is converted to ``max_speed_mps``. Without ``preset`` every field is required:
   no silent defaults borrowed from some other train.
 * **Controller parameters** are checked by building the controller (``controllers.create``) once for every

@@ -1,6 +1,6 @@
 """The simpy event layer: what happens between (and across) SUMO steps.
 
-One module per concept (DESIGN.md §4):
+One module per concept (docs/architecture.md):
 
 - :mod:`~railsim.engine.events.clock` — :class:`EventLayer`, the simpy environment advanced to SUMO time;
 - :mod:`~railsim.engine.events.log` — :class:`EventLog`, one row per timed event;

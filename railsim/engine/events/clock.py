@@ -2,7 +2,7 @@
 
 SUMO advances in fixed steps (dt = 0.1–1 s); the things that happen *between* steps — a message that
 arrives 37 ms after it was sent, a beam switch that finishes throwing 15 s after it started, a departure
-due at 08:00:00 — are simpy events with exact times. The engine owns the step loop (DESIGN.md §3) and, at
+due at 08:00:00 — are simpy events with exact times. The engine owns the step loop (docs/architecture.md) and, at
 every step k, calls ``layer.advance_to(t_k)``. That runs every event whose time is **≤ t_k**, in time order
 (ties in the order they were scheduled), and leaves ``layer.now_s == t_k``. Then the engine reads the
 results (mailboxes, lock grants, formation states) and acts for the step.

@@ -2,7 +2,7 @@
 
 A formation is two trains that may run virtually coupled — the follower keeps a short target gap behind
 the leader by radio instead of by a drawbar. Commands to couple or decouple come from the timetable, the
-junction planner or the scenario; they change what the follower's controller aims at (DESIGN.md §4). The
+junction planner or the scenario; they change what the follower's controller aims at (docs/architecture.md). The
 states follow the follower state table of spec 003 §3.1 (Hou et al., PLOS ONE 2026, Fig 4), without its
 emergency/standstill states, which belong to the controllers:
 

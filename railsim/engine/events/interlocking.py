@@ -1,6 +1,6 @@
 """Switch interlocking: who may pass a switch, on which leg, and when the switch may move.
 
-Where trains run virtually coupled SUMO's rail signals are off (DESIGN.md §3), so route protection is ours.
+Where trains run virtually coupled SUMO's rail signals are off (docs/architecture.md), so route protection is ours.
 Each switch is a small resource served by one simpy process. A train (or a coupled formation) asks for the
 switch on one leg — ``normal`` or ``reverse`` — and may pass the protection point only once the request is
 **granted**; a train that is not granted brakes to stop before the switch.
