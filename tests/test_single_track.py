@@ -1,0 +1,115 @@
+"""Single track is one direction at a time (issue 16): opposing trains on nets built here with netconvert.
+
+* **no passing loop** — one bidi line A–B with a station at each end: both trains are due at the same time; the
+  second is held at its platform (``departure_held`` naming the section) until the first has left the section,
+  then runs; both arrive, 0 collisions (ours and SUMO's).
+* **passing loop** — the two trains enter the single track from opposite ends at the same moment; they cross at
+  the loop: each single-track section is reserved in one direction at a time, and a train waiting for a section
+  stops before the loop's switch, not on it.
+
+Section sets are checked without SUMO too (:mod:`railsim.engine.single_track`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tests.helpers import read_csv, read_summary, run_railsim
+from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _stops, _write, build_passing_loop
+
+
+def build_single_line(folder: Path) -> tuple[Path, Path]:
+    """A 4 km single-track line (bidi edges, two pieces joined at a plain node) with stations at both ends."""
+    nodes = '<node id="A" x="0" y="0"/>\n<node id="M" x="2000" y="0"/>\n<node id="B" x="4000" y="0"/>'
+    edges = [_edge("AM", "A", "M"), _edge("-AM", "M", "A"), _edge("MB", "M", "B"), _edge("-MB", "B", "M")]
+    net = _netconvert(folder, "single", nodes, "\n".join(edges))
+    stops = _stops(
+        folder,
+        "single",
+        [
+            ("a_out", "AM_0", 100, 400, "Aston"),
+            ("b_in", "MB_0", 1600, 1900, "Bury"),
+            ("b_out", "-MB_0", 100, 400, "Bury"),
+            ("a_in", "-AM_0", 1600, 1900, "Aston"),
+        ],
+    )
+    return net, stops
+
+
+def _scenario(folder: Path, name: str, net: Path, stops: Path, services: list[dict]) -> Path:
+    raw = {"name": name, "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON, "services": services}
+    return _write(folder, f"{name}.yaml", yaml.safe_dump(raw, sort_keys=False))
+
+
+def test_sections_of_a_line_and_a_loop(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from network.external import load_net
+    from railsim.engine.single_track import contested, route_sections, section_map
+
+    monkeypatch.setenv("RAILSIM_CACHE", str(tmp_path / "cache"))
+    line = load_net(*build_single_line(tmp_path)[:1], [build_single_line(tmp_path)[1]])
+    smap = section_map(line.graph)
+    assert {smap[e][0] for e in ("AM", "-AM", "MB", "-MB")} == {"track:-AM"}  # one section: M is a plain node
+    assert smap["AM"][1] == smap["MB"][1] != smap["-AM"][1]
+    east, west = line.route_between("aston", "bury"), line.route_between("bury", "aston")
+    (e,) = route_sections(east, smap)
+    (w,) = route_sections(west, smap)
+    assert (e.start_m, e.end_m) == (0.0, pytest.approx(east.length_m)) and e.direction != w.direction
+    assert contested({"e": [e], "w": [w]}) == {"track:-AM"} and contested({"e": [e], "e2": [e]}) == set()
+    loop = load_net(*build_passing_loop(tmp_path)[:1], [build_passing_loop(tmp_path)[1]])
+    lmap = section_map(loop.graph)
+    assert len({lmap[x][0] for x in lmap}) == 4  # portal track, two loop tracks, bravo track: switches end them
+    r = loop.route_between("portal", "bravo")
+    secs = route_sections(r, lmap)
+    assert [s.section_id for s in secs] == ["track:-AW", "track:-L1", "track:-EB"]
+    w_point = next(s.point_m for s in r.switches if s.switch_id == "W")
+    assert secs[1].guard_m == w_point < secs[1].start_m  # the loop track is protected at the switch in front
+
+
+@pytest.mark.sumo
+def test_no_passing_loop_second_train_waits_at_the_entry(tmp_path: Path) -> None:
+    net, stops = build_single_line(tmp_path)
+    services = [_service("east", "aston", "bury", 0), _service("west", "bury", "aston", 0)]
+    scn = _scenario(tmp_path, "single_line", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    held = [e for e in events if e["kind"] == "departure_held"]
+    assert len(held) == 1 and held[0]["subject"] == "west.000" and "track:-AM" in held[0]["detail"]
+    trips = {r["service"]: r for r in read_csv(out / "trips.csv")}
+    released = [float(e["t_s"]) for e in events if e["kind"] == "section_released"]
+    # the west train left only after the east train had released the whole section
+    assert float(trips["west"]["departure_s"]) >= released[0] > float(trips["east"]["departure_s"])
+
+
+@pytest.mark.sumo
+def test_opposing_trains_cross_at_the_passing_loop(tmp_path: Path) -> None:
+    net, stops = build_passing_loop(tmp_path)
+    services = [_service("east", "portal", "bravo", 0), _service("west", "bravo_w", "Portal", 0, via=["Mid"])]
+    scn = _scenario(tmp_path, "loop", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    assert s["switch_violations"] == 0
+    events = read_csv(out / "events.csv")
+    reserved = [(e["subject"], e["detail"]) for e in events if e["kind"] == "section_reserved"]
+    assert any("east.000" in d for sid, d in reserved if sid == "track:-EB")
+    assert any("west.000" in d for sid, d in reserved if sid == "track:-AW")
+    # never both directions at once: replay the reservations and releases of every section
+    holders: dict[str, set[str]] = {}
+    for e in events:
+        if e["kind"] in ("section_reserved", "section_released"):
+            train = yaml.safe_load(e["detail"])["trains"][0]
+            bucket = holders.setdefault(e["subject"], set())
+            if e["kind"] == "section_reserved":
+                assert not bucket, f"{e['subject']} reserved for {train} while {bucket} held it"
+                bucket.add(train)
+            else:
+                bucket.discard(train)
