@@ -113,3 +113,61 @@ def test_opposing_trains_cross_at_the_passing_loop(tmp_path: Path) -> None:
                 bucket.add(train)
             else:
                 bucket.discard(train)
+
+
+def build_diamond(folder: Path) -> tuple[Path, Path]:
+    """Two lines crossing flat at node X (no connection between them: a diamond crossing, not a junction)."""
+    import subprocess
+
+    from network.generator import netconvert_binary
+
+    nodes = (
+        '<node id="W" x="0" y="0"/>\n<node id="X" x="2000" y="0"/>\n<node id="E" x="4000" y="0"/>\n'
+        '<node id="S" x="2000" y="-2000"/>\n<node id="N" x="2000" y="2000"/>'
+    )
+    edges = [_edge("WX", "W", "X"), _edge("XE", "X", "E"), _edge("SX", "S", "X"), _edge("XN", "X", "N")]
+    nod = _write(folder, "diamond.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
+    edg = _write(folder, "diamond.edg.xml", "<edges>\n" + "\n".join(edges) + "\n</edges>")
+    con = _write(
+        folder,
+        "diamond.con.xml",
+        '<connections>\n<connection from="WX" to="XE"/>\n<connection from="SX" to="XN"/>\n</connections>',
+    )
+    net = folder / "diamond.net.xml"
+    cmd = [str(netconvert_binary()), "-n", str(nod), "-e", str(edg), "-x", str(con), "-o", str(net)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    stops = _stops(
+        folder,
+        "diamond",
+        [
+            ("w", "WX_0", 100, 400, "West"),
+            ("e", "XE_0", 1600, 1900, "East"),
+            ("s", "SX_0", 100, 400, "South"),
+            ("n", "XN_0", 1600, 1900, "North"),
+        ],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_routes_crossing_inside_one_node_take_turns(tmp_path: Path) -> None:
+    from network.external import load_net
+
+    net, stops = build_diamond(tmp_path)
+    bundle = load_net(net, [stops])
+    assert bundle.switches == {}  # no connection between the lines: only the crossing protects them
+    assert set(bundle.graph.graph["crossings"]["X"]) == {("WX", "XE"), ("SX", "XN")}
+    services = [_service("we", "west", "east", 0), _service("sn", "south", "north", 0)]
+    scn = _scenario(tmp_path, "diamond", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    reserved = [yaml.safe_load(e["detail"])["trains"][0] for e in events if e["kind"] == "section_reserved"]
+    assert sorted(reserved) == ["sn.000", "we.000"]  # each took the crossing once, one after the other
+    kinds = [(e["kind"], e["subject"]) for e in events if e["subject"] == "crossing:X"]
+    first_release = kinds.index(("section_released", "crossing:X"))
+    assert [k for k, _ in kinds[:first_release]].count("section_reserved") == 1

@@ -8,14 +8,15 @@ its leader's request (one lock for the formation). Passing a switch without its 
 event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
 planner requests in its planned order).
 
-**Single track** (:mod:`railsim.engine.single_track`, :mod:`railsim.engine.events.tracks`): a section of bidi
+**Single track and flat crossings** (:mod:`railsim.engine.single_track`, :mod:`railsim.engine.events.tracks`): a section of bidi
 track that trains use in both directions is a resource held one direction at a time. A train requests it
 ``lock_request_distance_m`` before its protection point (the switch in front of the section, if any); until it
 is reserved the train's authority ends ``protection_margin_m`` before that point, and it does not ask for the
 switch in front of the section either (a train waiting for a section must not hold or stand on the switch the
 oncoming train needs to leave). A train starting inside a section reserves it before it is inserted (the
 dispatcher holds the departure until then). It releases the section when its rear is ``clearance_m`` past the
-section's end. So a single-track section is entered only when it is reserved to the next passing place.
+section's end. So a single-track section is entered only when it is reserved to the next passing place. A flat
+crossing (two routes crossing inside one SUMO node) is the same kind of resource with one movement at a time.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import EngineSettings
-from railsim.engine.single_track import RouteSection, contested, route_sections, section_map
+from railsim.engine.single_track import RouteSection, contested, route_crossings, route_sections, section_map
 from railsim.engine.train import TrainRuntime
 
 log = logging.getLogger(__name__)
@@ -60,12 +61,18 @@ class RouteLocks:
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
 
-    def set_up_single_track(self, graph: Any) -> None:
-        """Find the single-track sections the scenario's trains use in both directions (see the module docstring)."""
+    def set_up_shared_track(self, graph: Any) -> None:
+        """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
+        cross on different movements (see the module docstring)."""
         smap = section_map(graph)
-        if not smap:
+        if not smap and not graph.graph.get("crossings"):
             return
-        per_train = {tid: route_sections(tr.trip.route, smap) for tid, tr in self.fleet.trains.items()}
+        per_train = {
+            tid: sorted(
+                route_sections(tr.trip.route, smap) + route_crossings(tr.trip.route, graph), key=lambda x: x.start_m
+            )
+            for tid, tr in self.fleet.trains.items()
+        }
         shared = contested(per_train)
         if not shared:
             return

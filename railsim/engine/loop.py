@@ -135,7 +135,7 @@ class Simulation:
             self.locks.release_all,
         )
         self.formations.insert_behind = self.dispatcher.insert_behind
-        self.locks.set_up_single_track(self.bundle.graph)
+        self.locks.set_up_shared_track(self.bundle.graph)
         self.locks.now_s = lambda: self.layer.now_s
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current

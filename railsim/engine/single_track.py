@@ -1,4 +1,4 @@
-"""Where routes use single track: sections of ``bidi`` track between passing places, found in the track graph.
+"""Where routes share track head-on or across: single-track sections and flat crossings, found in the track graph.
 
 The track graph (:class:`network.topology.NetworkBundle`.graph) has one node per SUMO edge with its ``bidi``
 partner (external nets). A **section** is a maximal set of bidi edges joined at plain nodes: consecutive edges
@@ -11,6 +11,11 @@ cross a section with different orientations meet head-on.
 (``start_m``), where its rear has left (``end_m``), and its **protection point** ``guard_m``: the switch point in
 front of the section if the section begins at a switch (a train waiting for a section must not stand on the
 switch another train needs to leave the section), else the section's start.
+
+**Crossings** (:func:`route_crossings`): movements through one SUMO node that SUMO's foe matrix says intersect
+while sharing no track (``graph.graph["crossings"]``, from :mod:`network.external`) are one resource per node,
+held by one movement at a time (trains on the same movement may follow each other through). It spans the node's
+internal lanes: from the end of the edge in front to the start of the edge behind.
 """
 
 from __future__ import annotations
@@ -87,3 +92,20 @@ def contested(per_train: dict[str, list[RouteSection]]) -> set[str]:
         for s in sections:
             seen.setdefault(s.section_id, set()).add(s.direction)
     return {sid for sid, dirs in seen.items() if len(dirs) > 1}
+
+
+def route_crossings(route: Any, graph: nx.DiGraph) -> list[RouteSection]:
+    """The flat crossings ``route`` passes (see the module docstring), as one-movement-at-a-time resources."""
+    crossings: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = graph.graph.get("crossings", {})
+    if not crossings:
+        return []
+    at_node = {move: (node, sorted(moves).index(move)) for node, moves in crossings.items() for move in moves}
+    out = []
+    for k in range(len(route.edges) - 1):
+        move = (route.edges[k], route.edges[k + 1])
+        if move not in at_node:
+            continue
+        node, index = at_node[move]
+        start = float(route.edge_start_m[k]) + float(graph.nodes[move[0]]["length_m"])
+        out.append(RouteSection(f"crossing:{node}", index, start, float(route.edge_start_m[k + 1]), start))
+    return out
