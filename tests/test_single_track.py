@@ -171,3 +171,59 @@ def test_routes_crossing_inside_one_node_take_turns(tmp_path: Path) -> None:
     kinds = [(e["kind"], e["subject"]) for e in events if e["subject"] == "crossing:X"]
     first_release = kinds.index(("section_released", "crossing:X"))
     assert [k for k, _ in kinds[:first_release]].count("section_reserved") == 1
+
+
+def build_merge(folder: Path) -> tuple[Path, Path]:
+    """Two lines merging at switch J onto one track (a Y): the flank case."""
+    import subprocess
+
+    from network.generator import netconvert_binary
+
+    nodes = (
+        '<node id="A" x="0" y="0"/>\n<node id="B" x="0" y="600"/>\n<node id="J" x="2000" y="0"/>\n'
+        '<node id="Z" x="5000" y="0"/>'
+    )
+    branch = "0,600 1200,600 2000,0"
+    edges = [_edge("AJ", "A", "J"), _edge("BJ", "B", "J", 16.0, shape=branch), _edge("JZ", "J", "Z")]
+    nod = _write(folder, "merge.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
+    edg = _write(folder, "merge.edg.xml", "<edges>\n" + "\n".join(edges) + "\n</edges>")
+    net = folder / "merge.net.xml"
+    cmd = [str(netconvert_binary()), "-n", str(nod), "-e", str(edg), "-o", str(net)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    stops = _stops(
+        folder,
+        "merge",
+        [("a", "AJ_0", 100, 400, "Ash"), ("b", "BJ_0", 100, 400, "Birch"), ("z", "JZ_0", 2600, 2900, "Zed")],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path: Path) -> None:
+    """Both trains reach the merge at about the same time: the one without the lock stands at least the protection
+    margin before the switch point (it never fouls the route set for the other), then follows; 0 collisions."""
+    net, stops = build_merge(tmp_path)
+    services = [_service("main", "ash", "zed", 0), _service("branch", "birch", "zed", 0)]
+    scn = _scenario(tmp_path, "merge", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    assert s["switch_violations"] == 0
+    events = read_csv(out / "events.csv")
+    grants = [e for e in events if e["kind"] == "lock_granted"]
+    assert len(grants) == 2
+    second = yaml.safe_load(grants[1]["detail"])["holders"][0]
+    assert yaml.safe_load(grants[1]["detail"])["waited_s"] > 10.0  # it really had to wait for the other
+    t_grant = float(grants[1]["t_s"])
+    from network.external import load_net
+
+    bundle = load_net(net, [stops])
+    origin = "ash" if second.startswith("main") else "birch"
+    route = bundle.route_between(origin, "zed")
+    (sw,) = route.switches
+    trace = [r for r in read_csv(out / "trace.csv") if r["train"] == second and float(r["t_s"]) <= t_grant]
+    front_before_grant = max(float(r["chainage_m"]) for r in trace)
+    assert front_before_grant <= sw.point_m - 20.0 + 0.5  # protection margin (EngineSettings) before the point
