@@ -3,14 +3,18 @@
 Per step ``k`` at time ``t_k``::
 
     layer.advance_to(t_k)        departures due, message deliveries, switch throws, formation commands
-    truth   = sumo.read()        odometer → route chainage of every train (ground truth)
-    safety                       occupancy → the train ahead of each train; collisions on truth; SUMO's own
+    truth   = sumo.read()        odometer → route chainage of every train (ground truth); desync check
+    safety                       occupancy → the train ahead of each train; collisions on truth; SUMO's own;
+                                 the stall watchdog
     extensions.before_bookkeeping   e.g. the junction planner plans, re-plans and hands over
     bookkeeping per train        stops (halt, registration, dwell, arrival), formations, route locks
     extensions.before_comms      e.g. Paper C's cooperative graph
     comms                        every train reports to the ground (t2g); leaders to followers (t2t)
     control per train            observation → roles → arbitration → plant → speed for SUMO
     sumo.set_speeds; record; trains that arrived leave SUMO; sumo.step()
+
+A run stops early when a port reports a failure (a desync, a stall): the outputs are still written, then
+:func:`run` raises :class:`~railsim.errors.SimulationError` with that one line (the CLI exits 3).
 
 The loop only orders phases; each concern is a port with a narrow interface, built in :meth:`Simulation.__init__`:
 :class:`~railsim.engine.fleet.Fleet` (trips), :class:`~railsim.engine.coupling.FormationBook`,
@@ -50,8 +54,10 @@ from railsim.engine.settings import (
 )
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
+from railsim.engine.watchdog import StallWatch
 from railsim.physics import dynamics
 from railsim.record.recorder import Recorder
+from railsim.errors import SimulationError
 from railsim.record.snapshot import RunSnapshot
 
 __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]
@@ -137,6 +143,7 @@ class Simulation:
         self.formations.insert_behind = self.dispatcher.insert_behind
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
+        self.watchdog = StallWatch(self.events, self.settings, self.locks)
         self.control = ControlStage(
             self.trains,
             self.formations,
@@ -218,13 +225,20 @@ class Simulation:
                 if bar is not None and t - last_bar >= PROGRESS_EVERY_S:
                     bar.update(int(t - last_bar))
                     last_bar = t
-                if self.fleet.all_done():
+                if self.fleet.all_done() or self.failure() is not None:
                     break
             self.end_s = t
+            if self.failure() is None:
+                self.watchdog.at_end(t)
+            self.dispatcher.report_never_inserted(t)
         if bar is not None:
             bar.close()
         self.wall_s = _time.perf_counter() - t_wall
         return self.recorder.summary(self.snapshot())
+
+    def failure(self) -> str | None:
+        """Why the run had to stop (a desync, a stall), one line; None while all is well."""
+        return self.safety.failure or self.watchdog.failure
 
     def _sumo_config(self) -> Any:
         from railsim.engine.sumo import SumoConfig, VTypeSpec
@@ -270,7 +284,8 @@ class Simulation:
         if not active:
             return
         ids = [tr.train_id for tr in active]
-        self._read_truth(t, active, ids)
+        truth = self._read_truth(t, active, ids)
+        self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m)
 
         self.occupancy.update([Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m) for tr in active])
         ahead: dict[str, Ahead | None] = {}
@@ -279,6 +294,7 @@ class Simulation:
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
         self.safety.sumo_reported(t, bridge.collisions())
+        self.watchdog.check(t, active)
 
         for hook in self._before_bookkeeping:
             hook(t)
@@ -299,9 +315,10 @@ class Simulation:
         for tr in active:  # trains that finished this step leave SUMO now
             if tr.status == "arrived":
                 bridge.remove(tr.train_id)
+                self.formations.on_off_line(t, tr)
                 tr.status = "removed"
 
-    def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> None:
+    def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> Any:
         """Route chainage from SUMO's odometer; adopt SUMO's speed where it held a train (a stop)."""
         truth = self.bridge.read(ids)
         for i, tr in enumerate(active):
@@ -319,6 +336,7 @@ class Simulation:
                     target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
                 )
             tr.sumo_stopped_now = bool(truth.stopped[i])
+        return truth
 
     # ------------------------------------------------------------------ results
     def snapshot(self) -> RunSnapshot:
@@ -344,6 +362,7 @@ class Simulation:
             resolved_scenario=self.scenario.raw,
             versions={"railsim": __version__, "sumo": sumo_version(), "numpy": np.__version__},
             extra_summary=extra,
+            failure=self.failure(),
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:
@@ -379,4 +398,7 @@ def run(
     summary = sim.run()
     if sim.out_dir is not None:
         sim.write(sim.out_dir)
+    failure = sim.failure()
+    if failure is not None:  # the outputs are on disk; the run still failed
+        raise SimulationError(failure)
     return summary
