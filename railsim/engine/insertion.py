@@ -175,7 +175,6 @@ class Dispatcher:
             self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id, chainage_m=round(depart_m, 3)
         )
         for f, follower in self._starting_behind(tr):  # partners that start where this train stands
-            self.insert(follower, tr, float(f.target_gap_m))
             if self.insert(follower, tr, float(f.target_gap_m)):
                 self.formations.manager.request_couple(f.id)
         return True

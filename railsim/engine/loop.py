@@ -285,7 +285,7 @@ class Simulation:
             return
         ids = [tr.train_id for tr in active]
         truth = self._read_truth(t, active, ids)
-        self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m)
+        self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
 
         self.occupancy.update([Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m) for tr in active])
         ahead: dict[str, Ahead | None] = {}
