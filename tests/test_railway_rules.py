@@ -214,28 +214,38 @@ def test_a_train_moved_behind_railsims_back_is_a_desync_exit_3(
 
 
 _NEVER_MOVES = """
-from railsim.engine import loop, sumo
-from railsim.engine.settings import EngineSettings
-loop.EngineSettings = lambda: EngineSettings(stall_timeout_s=40.0)  # type: ignore[misc]
+from railsim.engine import sumo
 _set = sumo.SumoBridge.set_speeds
 def set_speeds(self, ids, speeds):  # SUMO holds lead.000 at 0 whatever railsim asks: it never moves
     _set(self, ids, [0.0 if i == "lead.000" else v for i, v in zip(ids, speeds)])
 sumo.SumoBridge.set_speeds = set_speeds
 """
+_SHORT_TIMEOUT = """
+from railsim.engine import loop
+from railsim.engine.settings import EngineSettings
+loop.EngineSettings = lambda: EngineSettings(stall_timeout_s=40.0)
+"""
 
 
 @pytest.mark.sumo
-def test_a_train_that_never_moves_stalls_the_run_exit_3(line: tuple[Path, Path], cache: Path, tmp_path: Path) -> None:
+@pytest.mark.parametrize(
+    ("patch", "duration_s", "stall_s", "says"),
+    [(_NEVER_MOVES + _SHORT_TIMEOUT, 300, 40.0, "stalled:"), (_NEVER_MOVES, 100, 100.0, "when the horizon ended")],
+    ids=["timeout", "horizon"],
+)
+def test_a_train_that_never_moves_stalls_the_run_exit_3(
+    patch: str, duration_s: float, stall_s: float, says: str, line: tuple[Path, Path], cache: Path, tmp_path: Path
+) -> None:
     out = tmp_path / "out"
-    scn = _scenario(tmp_path, line, [_service("lead", "alpha", "bravo", 0)], duration_s=300)
-    res = _run_patched(_NEVER_MOVES, scn, out, cache)
+    scn = _scenario(tmp_path, line, [_service("lead", "alpha", "bravo", 0)], duration_s=duration_s)
+    res = _run_patched(patch, scn, out, cache)
     assert res.returncode == 3, res.stdout + res.stderr
     lines = [ln for ln in res.stderr.splitlines() if ln.startswith("railsim:")]
-    assert len(lines) == 1 and "stalled" in lines[0] and "lead.000" in lines[0]
+    assert len(lines) == 1 and says in lines[0] and "lead.000" in lines[0]
     stalled = _events(out, "stalled")
     assert [e["subject"] for e in stalled] == ["lead.000"]
-    assert 40.0 <= stalled[0]["t_s"] <= 45.0 and stalled[0]["detail"]["edge"] == "AB"
-    assert read_summary(out)["sim_s"] < 60.0  # the run stopped there
+    assert stalled[0]["t_s"] == pytest.approx(stall_s, abs=1.0) and stalled[0]["detail"]["edge"] == "AB"
+    assert read_summary(out)["sim_s"] <= stall_s + 1.0  # the run stopped there
 
 
 # ---- one collision truth -------------------------------------------------------------------------------------
