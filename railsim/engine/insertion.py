@@ -69,7 +69,10 @@ class Dispatcher:
             self.layer.at(tr.trip.depart_s, self._inserter(tr), "departure_due", tr.train_id)
         for leader in self.fleet.trains.values():
             for f, follower in self._starting_behind(leader):
-                depart_m = self.behind_chainage_m(follower, leader, leader.trip.depart_chainage_m, f.target_gap_m)
+                leader_m = self._planned_start_m(leader)
+                depart_m = (
+                    None if leader_m is None else self.behind_chainage_m(follower, leader, leader_m, f.target_gap_m)
+                )
                 rear_m = None if depart_m is None else depart_m - follower.trip.vehicle.length_m
                 if rear_m is None or rear_m < 0.0:
                     why = "their routes share no track" if rear_m is None else f"its rear would be at {rear_m:.1f} m"
@@ -80,6 +83,16 @@ class Dispatcher:
                         f"leader {leader.train_id} at {follower.trip.origin.station_id!r}: {why}, before the start "
                         "of its route (no room on the platform's edge)",
                     )
+
+    def _planned_start_m(self, tr: TrainRuntime) -> float | None:
+        """Where ``tr``'s front starts: its platform mark, or behind its leader in a same-origin chain."""
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is not None:
+            leader = self.formations.leader_of(f)
+            if any(follower is tr for _, follower in self._starting_behind(leader)):
+                leader_m = self._planned_start_m(leader)
+                return None if leader_m is None else self.behind_chainage_m(tr, leader, leader_m, f.target_gap_m)
+        return tr.trip.depart_chainage_m
 
     def _starting_behind(self, leader: TrainRuntime) -> list[tuple[Any, TrainRuntime]]:
         """Formations whose follower couples on departure at the station where ``leader`` starts."""
