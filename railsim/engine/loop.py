@@ -4,17 +4,13 @@ Per step ``k`` at time ``t_k``::
 
     layer.advance_to(t_k)        departures due, message deliveries, switch throws, formation commands
     truth   = sumo.read()        odometer → route chainage of every train (ground truth); desync check
-    safety                       occupancy → the train ahead of each train; collisions on truth; SUMO's own;
-                                 the stall watchdog
+    safety                       occupancy → train ahead; collisions on truth; SUMO's own; stall watchdog
     extensions.before_bookkeeping   e.g. the junction planner plans, re-plans and hands over
     bookkeeping per train        stops (halt, registration, dwell, arrival), formations, route locks
     extensions.before_comms      e.g. Paper C's cooperative graph
     comms                        every train reports to the ground (t2g); leaders to followers (t2t)
     control per train            observation → roles → arbitration → plant → speed for SUMO
     sumo.set_speeds; record; trains that arrived leave SUMO; sumo.step()
-
-A run stops early when a port reports a failure (a desync, a stall): the outputs are still written, then
-:func:`run` raises :class:`~railsim.errors.SimulationError` with that one line (the CLI exits 3).
 
 The loop only orders phases; each concern is a port with a narrow interface, built in :meth:`Simulation.__init__`:
 :class:`~railsim.engine.fleet.Fleet` (trips), :class:`~railsim.engine.coupling.FormationBook`,
@@ -228,9 +224,8 @@ class Simulation:
                 if self.fleet.all_done() or self.failure() is not None:
                     break
             self.end_s = t
-            if self.failure() is None:
-                self.watchdog.at_end(t)
             self.dispatcher.report_never_inserted(t)
+            self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
         if bar is not None:
             bar.close()
         self.wall_s = _time.perf_counter() - t_wall
@@ -398,7 +393,6 @@ def run(
     summary = sim.run()
     if sim.out_dir is not None:
         sim.write(sim.out_dir)
-    failure = sim.failure()
-    if failure is not None:  # the outputs are on disk; the run still failed
-        raise SimulationError(failure)
+    if sim.failure() is not None:  # the outputs are on disk; the run still failed
+        raise SimulationError(sim.failure())
     return summary
