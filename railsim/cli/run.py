@@ -1,4 +1,9 @@
-"""``railsim run``: run one scenario and write its outputs (a thin layer over :func:`railsim.api.run`)."""
+"""``railsim run``: run one scenario and write its outputs (a thin layer over :func:`railsim.api.run`).
+
+Exit codes: 0 the run went through; 1 a collision (railsim's or SUMO's); 2 bad input; 3 the run could not
+continue (a desync, a stall: one line from :class:`railsim.errors.SimulationError`) or a train was never
+inserted (the summary names it).
+"""
 
 from __future__ import annotations
 
@@ -25,11 +30,17 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
         f"  trains: {summary['n_arrived']}/{summary['n_trains']} arrived; stops served "
         f"{summary['n_stops_served']}/{summary['n_stops_scheduled']} (missed {summary['n_stops_missed']}); "
         f"max stopping error {summary['max_stopping_error_m'] if summary['max_stopping_error_m'] is None else round(summary['max_stopping_error_m'], 3)} m",
-        f"  safety: {summary['collisions']} collisions (SUMO: {summary['sumo_collisions']}), "
+        f"  safety: {summary['collisions']} collisions (railsim: {summary['collisions_railsim']}, "
+        f"SUMO: {summary['sumo_collisions']}), "
         f"{summary['switch_violations']} switch violations, min gap "
         f"{'n/a' if summary['min_gap_m'] is None else format(summary['min_gap_m'], '.1f')} m, "
         f"{summary['fallbacks']} controller fallbacks",
     ]
+    if summary["n_never_inserted"]:
+        lines.append(
+            f"  never inserted: {summary['n_never_inserted']} train(s): {', '.join(summary['never_inserted'])} "
+            "(see the never_inserted events for why)"
+        )
     for svc, rt in summary["mean_running_time_s"].items():
         lines.append(f"  mean running time {svc}: {rt / 60:.1f} min")
     if summary["formations"]:
@@ -50,4 +61,13 @@ def cmd_run(args: argparse.Namespace) -> int:
     progress = False if args.no_progress else None
     summary = engine.run(scn, out, seed=args.seed, progress=progress)
     print(format_summary(summary, out))
-    return 0 if summary["collisions"] == 0 and summary["sumo_collisions"] == 0 else 1
+    return exit_code(summary)
+
+
+def exit_code(summary: dict[str, Any]) -> int:
+    """1 on any collision (railsim's or SUMO's), else 3 if a train was never inserted, else 0."""
+    from railsim.errors import EXIT_SIMULATION_ERROR
+
+    if summary["collisions"] > 0:
+        return 1
+    return EXIT_SIMULATION_ERROR if summary["n_never_inserted"] else 0

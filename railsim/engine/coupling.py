@@ -23,7 +23,7 @@ from typing import Any
 from railsim.engine.events.formations import Formation, FormationManager
 from railsim.engine.fleet import Fleet
 from railsim.engine.occupancy import Ahead
-from railsim.engine.settings import APART_GAP_M, EngineSettings
+from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.errors import ConfigError
@@ -49,7 +49,7 @@ class FormationBook:
         self.of_leader: dict[str, list[Any]] = {}  # leader id -> [FormationSpec]
         self.follower_hooks: list[FollowerHook] = []
         # wired by the loop: insert a train behind another (the dispatcher), a train's current stop (stops)
-        self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], None] = _unwired
+        self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], bool] = _unwired
         self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = _unwired
 
     # ------------------------------------------------------------------ registration
@@ -183,8 +183,8 @@ class FormationBook:
             if follower.status == "scheduled" and trig(f.couple, "on_departure"):
                 stop, _ = self.current_stop(tr)
                 if stop is not None and tr.sumo_stopped and stop.station_id == follower.trip.origin.station_id:
-                    self.insert_behind(follower, tr, float(f.target_gap_m))
-                    self.manager.request_couple(f.id)
+                    if self.insert_behind(follower, tr, float(f.target_gap_m)):
+                        self.manager.request_couple(f.id)
             if trig(f.decouple, "before_switch") and self.manager.state(f.id) in COUPLED_STATES:
                 for rs in tr.trip.route.switches:
                     if (
@@ -209,10 +209,18 @@ class FormationBook:
             self.manager.observe(t, f.id, gap_for_fsm, tr.plant.speed_mps - leader.plant.speed_mps)
         elif self.manager.state(f.id) == "decoupling":
             # the leader is no longer ahead on our track (it took the other leg, or left the line): the units
-            # are apart, which completes decoupling
-            self.manager.observe(t, f.id, APART_GAP_M, 0.0)
-        if self.manager.state(f.id) == "coupled":
+            # are apart, which completes decoupling (no gap is reported: there is none to measure)
+            self.manager.observe_apart(t, f.id)
+        if self.manager.state(f.id) == "coupled" and tr.arrived_s is None:  # an arrived train is no longer coupled
             tr.coupled_s += self.dt_s
+
+    def on_off_line(self, t: float, tr: TrainRuntime) -> None:
+        """``tr`` arrived or left the line: its formations' coupled time stops counting."""
+        fs = list(self.of_leader.get(tr.train_id, ()))
+        if tr.train_id in self.of_follower:
+            fs.append(self.of_follower[tr.train_id])
+        for f in fs:
+            self.manager.stop_clock(t, f.id)
 
 
 def _unwired(*_args: Any) -> Any:

@@ -1,11 +1,20 @@
 """The dispatcher: trains enter the world (SUMO) when due, leave it when they arrive or leave the line.
 
-* A departure is a simpy event at the trip's departure time (a follower that couples ``on_departure`` is
-  instead inserted behind its leader by :class:`~railsim.engine.coupling.FormationBook`).
-* **Holding a departure.** A train starting at a platform occupies ``[front − length, front]`` at once. If a
-  train approaching on shared track could not stop short of that rear (service braking distance + one reaction
-  time + ``insertion_margin_m``), the departure waits (``departure_held`` once, retried every
-  ``departure_retry_s``): the dispatcher, not the follower, is responsible for a train appearing on the track.
+* A departure is a simpy event at the trip's departure time. A follower that couples ``on_departure`` is
+  instead inserted behind its leader: at once when both start at the same station (the leader is inserted,
+  then the follower at the target gap behind the leader's rear), else by
+  :class:`~railsim.engine.coupling.FormationBook` once the leader stands at the follower's origin.
+* **A valid position.** SUMO reads a negative ``departPos`` as "from the lane's end" and clamps one past the
+  end, so a wrong start chainage would put the train somewhere railsim does not believe it is. The start
+  chainage must lie on the route (``0 ≤ front ≤ route length``) and a follower's whole body must fit behind its
+  leader on the track (rear ≥ 0); a same-origin formation that does not fit is a :class:`ConfigError` at set-up.
+* **Holding a departure.** A train starting at a platform occupies ``[front − length, front]`` at once. If
+  another train's body overlaps that ("track occupied by X") or a train approaching on shared track could not
+  stop short of its rear (service braking distance + one reaction time + ``insertion_margin_m``: "approaching
+  train X could not stop"), the departure waits: a ``departure_held`` event with the ``reason`` (again each
+  time the reason changes), retried every ``departure_retry_s``. The dispatcher, not the follower, is
+  responsible for a train appearing on the track. A train never inserted by the end of the run is reported
+  (:meth:`Dispatcher.report_never_inserted`: one ``never_inserted`` event each; the CLI exits 3).
 * **Inserting** hands SUMO the route (trimmed to begin at the edge holding the start chainage), the stops with
   their dwells, and the start speed; extensions hook in (``on_inserted``: exact plants, …) and the formation
   partners register (:meth:`Knowledge.handshake`).
@@ -22,7 +31,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import DWELL_REGISTRATION_S, INSERTION_REACTION_S, EngineSettings
 from railsim.engine.train import TrainRuntime
-from railsim.errors import SimulationError
+from railsim.errors import ConfigError, SimulationError
 from railsim.physics import dynamics
 
 InsertHook = Callable[[float, TrainRuntime, float], None]
@@ -52,13 +61,60 @@ class Dispatcher:
         # before inserting: (t, train, start chainage) -> a reason to hold the departure, or None
         self.admission: list[Callable[[float, TrainRuntime, float], str | None]] = []
         self.bridge: Any = None  # the SUMO bridge, wired when the run starts
-        self._held: set[str] = set()  # trips whose departure was held (logged once each)
+        self._held: dict[str, str] = {}  # trip -> the reason its departure is held (logged when it changes)
 
     def schedule_departures(self) -> None:
+        """Schedule every departure; check that same-origin formations fit (ConfigError naming the formation)."""
         for tr in self.fleet.trains.values():
             if self.formations.couples_on_departure(tr.train_id):
-                continue  # inserted behind its leader when the leader stands at the follower's origin
+                continue  # inserted behind its leader (module docstring)
             self.layer.at(tr.trip.depart_s, self._inserter(tr), "departure_due", tr.train_id)
+        for leader in self.fleet.trains.values():
+            for f, follower in self._starting_behind(leader):
+                leader_m = self._planned_start_m(leader)
+                depart_m = (
+                    None if leader_m is None else self.behind_chainage_m(follower, leader, leader_m, f.target_gap_m)
+                )
+                rear_m = None if depart_m is None else depart_m - follower.trip.vehicle.length_m
+                if rear_m is None or rear_m < 0.0:
+                    why = "their routes share no track" if rear_m is None else f"its rear would be at {rear_m:.1f} m"
+                    raise ConfigError(
+                        self.fleet.source,
+                        "formations",
+                        f"formation {f.id!r}: follower {follower.train_id} cannot start {f.target_gap_m:g} m behind "
+                        f"leader {leader.train_id} at {follower.trip.origin.station_id!r}: {why}, before the start "
+                        "of its route (no room on the platform's edge)",
+                    )
+
+    def _planned_start_m(self, tr: TrainRuntime) -> float | None:
+        """Where ``tr``'s front starts: its platform mark, or behind its leader in a same-origin chain."""
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is not None:
+            leader = self.formations.leader_of(f)
+            if any(follower is tr for _, follower in self._starting_behind(leader)):
+                leader_m = self._planned_start_m(leader)
+                return None if leader_m is None else self.behind_chainage_m(tr, leader, leader_m, f.target_gap_m)
+        return tr.trip.depart_chainage_m
+
+    def _starting_behind(self, leader: TrainRuntime) -> list[tuple[Any, TrainRuntime]]:
+        """Formations whose follower couples on departure at the station where ``leader`` starts."""
+        out = []
+        for f in self.formations.of_leader.get(leader.train_id, ()):
+            follower = self.formations.follower_of(f)
+            if (
+                self.formations.couples_on_departure(follower.train_id)
+                and follower.trip.origin.station_id == leader.trip.origin.station_id
+            ):
+                out.append((f, follower))
+        return out
+
+    @staticmethod
+    def behind_chainage_m(tr: TrainRuntime, behind: TrainRuntime, front_m: float, gap_m: float) -> float | None:
+        """``tr``'s front chainage ``gap_m`` behind the rear of ``behind`` (front at ``front_m``), or None if
+        their routes share no track there."""
+        length_m = behind.trip.vehicle.length_m
+        off = behind.view.offset_to(tr.view, front_m - length_m)
+        return None if off is None else front_m + off - length_m - float(gap_m)
 
     def _inserter(self, tr: TrainRuntime) -> Callable[[float], None]:
         """A clock callback that inserts ``tr`` (or holds it again)."""
@@ -68,19 +124,20 @@ class Dispatcher:
 
         return call
 
-    def insert_behind(self, tr: TrainRuntime, behind: TrainRuntime, gap_m: float) -> None:
-        self.insert(tr, behind, gap_m)
+    def insert_behind(self, tr: TrainRuntime, behind: TrainRuntime, gap_m: float) -> bool:
+        return self.insert(tr, behind, gap_m)
 
-    def insert(self, tr: TrainRuntime, behind: TrainRuntime | None = None, gap_m: float = 0.0) -> None:
+    def insert(self, tr: TrainRuntime, behind: TrainRuntime | None = None, gap_m: float = 0.0) -> bool:
+        """Insert ``tr`` now (behind ``behind`` at ``gap_m`` if given); False if it must wait (module docstring)."""
         trip = tr.trip
         if tr.status != "scheduled":
-            return
+            return False
         depart_m = trip.depart_chainage_m
         if behind is not None:
-            off = behind.view.offset_to(tr.view, behind.front_m - behind.trip.vehicle.length_m)
-            if off is None:
+            behind_m = self.behind_chainage_m(tr, behind, behind.front_m, gap_m)
+            if behind_m is None:
                 raise SimulationError(f"{tr.train_id} cannot start behind {behind.train_id}: routes share no track")
-            depart_m = behind.front_m + off - behind.trip.vehicle.length_m - gap_m
+            depart_m = behind_m
             if depart_m < trip.origin.window_start_m:
                 self.events.record(
                     self.layer.now_s,
@@ -89,31 +146,25 @@ class Dispatcher:
                     detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m",
                 )
         elif trip.start_speed_mps == 0.0 and trip.start_offset_m == 0.0:
-            blocker = self.blocker(tr, depart_m)
-            if blocker is not None:  # the dispatcher holds the departure: a train approaching could not stop
-                if tr.train_id not in self._held:
-                    self._held.add(tr.train_id)
-                    self.events.record(self.layer.now_s, "departure_held", tr.train_id, approaching=blocker)
-                self.layer.at(
-                    self.layer.now_s + self.settings.departure_retry_s,
-                    self._inserter(tr),
-                    "departure_retry",
-                    tr.train_id,
-                )
-                return
+            reason = self.blocker(tr, depart_m)
+            if reason is not None:
+                self._hold(tr, reason)
+                return False
         for admit in self.admission:  # the interlocking reserves what the train starts in (single track)
             reason = admit(self.layer.now_s, tr, depart_m)
             if reason is not None:
-                if tr.train_id not in self._held:
-                    self._held.add(tr.train_id)
-                    self.events.record(self.layer.now_s, "departure_held", tr.train_id, reason=reason)
-                self.layer.at(
-                    self.layer.now_s + self.settings.departure_retry_s,
-                    self._inserter(tr),
-                    "departure_retry",
-                    tr.train_id,
-                )
-                return
+                if behind is None:
+                    self._hold(tr, reason)
+                else:  # the formation book tries again while the leader stands there
+                    self._log_held(tr, reason)
+                return False
+        if not 0.0 <= depart_m <= tr.view.length_m:
+            reason = f"no valid position on the first edge (front at {depart_m:.1f} m of its route)"
+            if behind is None:
+                self._hold(tr, reason)
+            else:  # the formation book tries again while the leader stands there
+                self._log_held(tr, reason)
+            return False
         from railsim.engine.sumo import StopSpec
 
         stops = [
@@ -142,12 +193,37 @@ class Dispatcher:
         self.handshake(tr)
         tr.depart_chainage_m = depart_m
         tr.inserted_s = self.layer.now_s
+        self._held.pop(tr.train_id, None)
         self.events.record(
             self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id, chainage_m=round(depart_m, 3)
         )
+        for f, follower in self._starting_behind(tr):  # partners that start where this train stands
+            if self.insert(follower, tr, float(f.target_gap_m)):
+                self.formations.manager.request_couple(f.id)
+        return True
+
+    def _log_held(self, tr: TrainRuntime, reason: str) -> None:
+        if self._held.get(tr.train_id) != reason:
+            self._held[tr.train_id] = reason
+            self.events.record(self.layer.now_s, "departure_held", tr.train_id, reason=reason)
+
+    def _hold(self, tr: TrainRuntime, reason: str) -> None:
+        """The departure waits (module docstring): logged when the reason changes, retried later."""
+        self._log_held(tr, reason)
+        self.layer.at(
+            self.layer.now_s + self.settings.departure_retry_s, self._inserter(tr), "departure_retry", tr.train_id
+        )
+
+    def report_never_inserted(self, t: float) -> list[str]:
+        """End of the run: one ``never_inserted`` event per trip that never entered the world; their ids."""
+        ids = [tr.train_id for tr in self.fleet.trains.values() if tr.status == "scheduled"]
+        for tid in ids:
+            reason = self._held.get(tid, "its departure never came (its leader never stood at its origin)")
+            self.events.record(t, "never_inserted", tid, reason=reason)
+        return ids
 
     def blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
-        """A train on the line that a departure at ``depart_m`` would put in danger, or None (module docstring)."""
+        """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring)."""
         length = tr.trip.vehicle.length_m
         for other in self.fleet.active():
             if other is tr:
@@ -164,8 +240,10 @@ class Dispatcher:
                 + v * INSERTION_REACTION_S
                 + self.settings.insertion_margin_m
             )
+            if rear_o < other.front_m:
+                return f"track occupied by {other.train_id}"
             if rear_o - other.front_m < needed:
-                return other.train_id
+                return f"approaching train {other.train_id} could not stop"
         return None
 
     def leave(self, tr: TrainRuntime) -> None:
@@ -175,4 +253,5 @@ class Dispatcher:
         self.release_locks(tr)
         self.bridge.remove(tr.train_id)
         tr.status = "removed"
+        self.formations.on_off_line(self.layer.now_s, tr)
         self.events.record(self.layer.now_s, "train_left", tr.train_id, chainage_m=round(tr.front_m, 3))

@@ -3,8 +3,8 @@
 Per step ``k`` at time ``t_k``::
 
     layer.advance_to(t_k)        departures due, message deliveries, switch throws, formation commands
-    truth   = sumo.read()        odometer → route chainage of every train (ground truth)
-    safety                       occupancy → the train ahead of each train; collisions on truth; SUMO's own
+    truth   = sumo.read()        odometer → route chainage of every train (ground truth); desync check
+    safety                       occupancy → train ahead; collisions on truth; SUMO's own; stall watchdog
     extensions.before_bookkeeping   e.g. the junction planner plans, re-plans and hands over
     bookkeeping per train        stops (halt, registration, dwell, arrival), formations, route locks
     extensions.before_comms      e.g. Paper C's cooperative graph
@@ -50,8 +50,10 @@ from railsim.engine.settings import (
 )
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
+from railsim.engine.watchdog import StallWatch
 from railsim.physics import dynamics
 from railsim.record.recorder import Recorder
+from railsim.errors import SimulationError
 from railsim.record.snapshot import RunSnapshot
 
 __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]
@@ -140,6 +142,7 @@ class Simulation:
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
+        self.watchdog = StallWatch(self.events, self.settings, self.locks)
         self.control = ControlStage(
             self.trains,
             self.formations,
@@ -221,13 +224,19 @@ class Simulation:
                 if bar is not None and t - last_bar >= PROGRESS_EVERY_S:
                     bar.update(int(t - last_bar))
                     last_bar = t
-                if self.fleet.all_done():
+                if self.fleet.all_done() or self.failure() is not None:
                     break
             self.end_s = t
+            self.dispatcher.report_never_inserted(t)
+            self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
         if bar is not None:
             bar.close()
         self.wall_s = _time.perf_counter() - t_wall
         return self.recorder.summary(self.snapshot())
+
+    def failure(self) -> str | None:
+        """Why the run had to stop (a desync, a stall), one line; None while all is well."""
+        return self.safety.failure or self.watchdog.failure
 
     def _sumo_config(self) -> Any:
         from railsim.engine.sumo import SumoConfig, VTypeSpec
@@ -273,7 +282,8 @@ class Simulation:
         if not active:
             return
         ids = [tr.train_id for tr in active]
-        self._read_truth(t, active, ids)
+        truth = self._read_truth(t, active, ids)
+        self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
 
         self.occupancy.update([Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m) for tr in active])
         ahead: dict[str, Ahead | None] = {}
@@ -282,6 +292,7 @@ class Simulation:
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
         self.safety.sumo_reported(t, bridge.collisions())
+        self.watchdog.check(t, active)
 
         for hook in self._before_bookkeeping:
             hook(t)
@@ -302,9 +313,10 @@ class Simulation:
         for tr in active:  # trains that finished this step leave SUMO now
             if tr.status == "arrived":
                 bridge.remove(tr.train_id)
+                self.formations.on_off_line(t, tr)
                 tr.status = "removed"
 
-    def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> None:
+    def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> Any:
         """Route chainage from SUMO's odometer; adopt SUMO's speed where it held a train (a stop)."""
         truth = self.bridge.read(ids)
         for i, tr in enumerate(active):
@@ -322,6 +334,7 @@ class Simulation:
                     target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
                 )
             tr.sumo_stopped_now = bool(truth.stopped[i])
+        return truth
 
     # ------------------------------------------------------------------ results
     def snapshot(self) -> RunSnapshot:
@@ -347,6 +360,7 @@ class Simulation:
             resolved_scenario=self.scenario.raw,
             versions={"railsim": __version__, "sumo": sumo_version(), "numpy": np.__version__},
             extra_summary=extra,
+            failure=self.failure(),
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:
@@ -382,4 +396,6 @@ def run(
     summary = sim.run()
     if sim.out_dir is not None:
         sim.write(sim.out_dir)
+    if sim.failure() is not None:  # the outputs are on disk; the run still failed
+        raise SimulationError(sim.failure())
     return summary

@@ -2,9 +2,19 @@
 
 Collisions are detected on the true positions (the occupancy's gap to the train ahead < 0, or a front past an
 obstacle) once per pair and logged as ``collision`` events; SUMO's own collision check runs too and each of its
-reports is a ``sumo_collision`` event, kept apart (docs/architecture.md, "Safety is never hidden"). Obstacles
+reports is a ``sumo_collision`` event, kept apart in the detail (``collisions_railsim``, ``sumo_collisions``) and
+counted together in ``collisions`` (docs/architecture.md, "Safety is never hidden"). Obstacles
 (scenario ``events: obstacle``) are fixed to the track; a train's own ranging sensor (collision avoidance) reads
 the nearest train or obstacle ahead within ``sensor_range_m``.
+
+**Desync check.** Every chainage railsim uses (gaps, stopping errors, ``min_gap_m``) is SUMO's odometer plus the
+insertion chainage. Each step :meth:`SafetyMonitor.desync_check` compares it with where SUMO says the train is
+(its edge and lane position, mapped to route chainage), and the step's advance with SUMO's speed (a train
+moves at most ``max(v before, v now)·dt`` and never back; SUMO's ``moveTo`` shifts the odometer with the train,
+so only this catches a jump). A difference above ``desync_tolerance_m`` means railsim believes something SUMO
+does not (a train inserted elsewhere, moved behind our back). It is a ``desync`` event
+and a run failure (:attr:`SafetyMonitor.failure`; the run stops, writes its outputs and exits 3). Trains on an
+internal junction lane are skipped for that step (their lane position is not on a route edge).
 """
 
 from __future__ import annotations
@@ -15,6 +25,7 @@ from typing import Any
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
 from railsim.engine.occupancy import Ahead
+from railsim.engine.routeview import RouteView
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.train import TrainRuntime
 
@@ -35,6 +46,9 @@ class SafetyMonitor:
         self.collisions: list[dict[str, Any]] = []
         self.sumo_collisions: list[dict[str, Any]] = []
         self._colliding_pairs: set[tuple[str, str]] = set()
+        self.failure: str | None = None  # why the run must stop (a desync), one line
+        self._last: dict[str, tuple[float, float]] = {}  # train -> (chainage, SUMO speed) at the last check
+        self._last_t_s = 0.0
 
     # ------------------------------------------------------------------ obstacles
     def place_obstacle(self, oid: str, ev: Any) -> None:
@@ -112,3 +126,58 @@ class SafetyMonitor:
             c["t_s"] = t
             self.sumo_collisions.append(c)
             self.events.record(t, "sumo_collision", str(c["collider"]), victim=str(c["victim"]), type=str(c["type"]))
+
+    def desync_check(
+        self, t: float, active: list[TrainRuntime], edge_ids: list[str], lane_pos_m: Any, speed_mps: Any
+    ) -> None:
+        """Compare each train's chainage with SUMO's edge + lane position, and its advance with its speed
+        (module docstring)."""
+        tol = self.settings.desync_tolerance_m
+        dt_s = t - self._last_t_s
+        bad = []
+        last = self._last
+        self._last = {}
+        for i, tr in enumerate(active):
+            v_now = float(speed_mps[i])
+            self._last[tr.train_id] = (tr.front_m, v_now)
+            prev = last.get(tr.train_id)
+            sumo_m: float | None = tr.front_m
+            railsim_m = tr.front_m
+            if prev is not None:  # SUMO moved it by its speed: at most max(v before, v now)·dt, never back
+                max_advance_m = max(prev[1], v_now) * dt_s
+                advance_m = tr.front_m - prev[0]
+                if not -tol <= advance_m <= max_advance_m + tol:
+                    railsim_m = prev[0] + min(max(advance_m, 0.0), max_advance_m)
+            edge = edge_ids[i]
+            if railsim_m == tr.front_m and not edge.startswith(":"):  # skip internal junction lanes
+                j = _edge_near(tr.view, edge, tr.front_m)
+                sumo_m = None if j is None else tr.view.edge_start_m[j] + float(lane_pos_m[i])
+                if sumo_m is not None and abs(sumo_m - tr.front_m) <= tol:
+                    continue
+            elif railsim_m == tr.front_m:
+                continue
+            bad.append(tr.train_id)
+            self.events.record(
+                t,
+                "desync",
+                tr.train_id,
+                railsim_m=round(railsim_m, 3),
+                sumo_m=None if sumo_m is None else round(sumo_m, 3),
+                edge=edge,
+            )
+            log.error("desync at t=%.1f s: %s railsim %.3f m, SUMO %s m (%s)", t, tr.train_id, railsim_m, sumo_m, edge)
+        self._last_t_s = t
+        if bad and self.failure is None:
+            self.failure = (
+                f"railsim and SUMO disagree on where {', '.join(bad)} stand(s) at t={t:.1f} s "
+                f"(more than {tol:g} m; see the desync events)"
+            )
+
+
+def _edge_near(view: RouteView, edge: str, chainage_m: float) -> int | None:
+    """Index of ``edge`` in the route nearest ``chainage_m`` (a route may pass an edge twice, e.g. a loop)."""
+    i = view.edge_at(chainage_m)
+    for j in (i, i + 1, i - 1):
+        if 0 <= j < len(view.edges) and view.edges[j] == edge:
+            return j
+    return view.edge_index.get(edge)

@@ -9,7 +9,6 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 INF = float("inf")
-APART_GAP_M = 1.0e9  # "gap" reported to a formation whose units are on different tracks
 INSERTION_REACTION_S = 1.0  # a train approaching a departure needs this long to react before it brakes
 DWELL_REGISTRATION_S = 1.0  # SUMO dwell given to a destination stop (the trip ends when SUMO registers it)
 # SUMO never drives our trains (speedMode 32), but it still checks insertion with the vType's Krauss model: its
@@ -37,3 +36,5 @@ class EngineSettings:
     sensor_range_m: float = 400.0  # a train's own ranging sensor (collision avoidance) sees this far ahead
     insertion_margin_m: float = 50.0  # a departure waits unless trains approaching behind can stop this far back
     departure_retry_s: float = 1.0  # ... and is tried again after this long
+    desync_tolerance_m: float = 0.05  # railsim's chainage and SUMO's lane position may differ this much
+    stall_timeout_s: float = 300.0  # a train standing this long with no reason (no stop, no hold) stalls the run

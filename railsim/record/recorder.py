@@ -241,16 +241,22 @@ class Recorder:
             if tr.arrived_s is not None and tr.departed_s is not None:
                 running_times.setdefault(tr.trip.service_id, []).append(tr.arrived_s - tr.departed_s)
         formations = self.formation_rows(run)
+        never_inserted = [tr.train_id for tr in trains if tr.inserted_s is None]
         return {
             "scenario": run.scenario_name,
             "seed": run.seed,
             "n_trains": len(trains),
             "n_inserted": sum(1 for tr in trains if tr.inserted_s is not None),
             "n_arrived": sum(1 for tr in trains if tr.arrived_s is not None),
+            "n_never_inserted": len(never_inserted),
+            "never_inserted": never_inserted,
             "n_stops_served": sum(tr.stops_served for tr in trains),
             "n_stops_scheduled": sum(len(tr.trip.stops) - 1 for tr in trains),
             "n_stops_missed": sum(1 for s in self.stops if s["missed"]),
-            "collisions": run.collisions,
+            # one collision truth: railsim's (on the chainage the desync check keeps equal to SUMO's) and SUMO's
+            # own check count together; the detail keeps them apart
+            "collisions": run.collisions + run.sumo_collisions,
+            "collisions_railsim": run.collisions,
             "sumo_collisions": run.sumo_collisions,
             "switch_violations": sum(len(tr.violations) for tr in trains),
             "min_gap_m": min(min_gaps) if min_gaps else None,
@@ -271,6 +277,7 @@ class Recorder:
             "wall_s": run.wall_s,
             "steps": run.steps,
             "step_s": run.step_s,
+            "failure": run.failure,
             **run.extra_summary,
         }
 

@@ -65,6 +65,7 @@ class RunSnapshot:
     resolved_scenario: Any
     versions: Mapping[str, str]
     extra_summary: dict[str, Any] = field(default_factory=dict)  # extensions' summaries (e.g. "junction")
+    failure: str | None = None  # why the run stopped early (a desync, a stall), or None
 
 
 @dataclass(frozen=True)

@@ -339,9 +339,21 @@ class FormationManager:
         self._layer.log.record(t_s, "coupled", rt.spec.id, attempt=rt.attempt, time_to_couple_s=ttc)
 
     def _leave_coupled(self, rt: _Runtime, t_s: float) -> None:
-        assert rt.coupled_since_s is not None
+        if rt.coupled_since_s is None:  # the clock was already stopped (a unit arrived): nothing to add
+            return
         rt.coupled_time_s += t_s - rt.coupled_since_s
         rt.coupled_since_s = None
+
+    def stop_clock(self, t_s: float, fid: str) -> None:
+        """A unit of ``fid`` arrived or left the line: coupled time stops counting (the state is kept)."""
+        self._leave_coupled(self._get(fid), t_s)
+
+    def observe_apart(self, t_s: float, fid: str) -> None:
+        """The units are on different tracks (no gap to measure): a decoupling formation is now free."""
+        rt = self._get(fid)
+        if rt.state is FormationState.DECOUPLING:
+            rt.state = FormationState.FREE
+            self._layer.log.record(t_s, "decoupled", fid, gap_m=None, apart=True)
 
     # ------------------------------------------------------------------ queries
     def _get(self, fid: str) -> _Runtime:

@@ -1,0 +1,75 @@
+"""The stall watchdog: a train that stands still for no reason stops the run instead of letting it idle on.
+
+A train *stands for no reason* when it is on the line, before its destination, at speed 0, and not dwelling at
+a stop (SUMO has not registered a halt there). Held departures never reach this check (a held train is not
+on the line yet). Standing like that for longer than ``stall_timeout_s`` is a deadlock, a lock never granted, a
+controller that will not move: each such train gets a ``stalled`` event (where it stands and, if the route-lock
+port can say, what it waits for: ``locks.waiting_for(tr)``), and the run fails (:attr:`StallWatch.failure`;
+it stops, writes its outputs and exits 3).
+
+At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
+is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+from railsim.engine.events.log import EventLog
+from railsim.engine.settings import EngineSettings
+from railsim.engine.train import TrainRuntime
+
+END_STANDING_S = 60.0  # at the horizon, a train standing this long for no reason counts as stalled
+STANDSTILL_MPS = 1e-6
+
+
+class StallWatch:
+    """Times how long each train has stood for no reason; reports stalls."""
+
+    def __init__(self, events: EventLog, settings: EngineSettings, locks: Any) -> None:
+        self.events = events
+        self.settings = settings
+        self.locks = locks
+        self.standing_since: dict[str, tuple[float, TrainRuntime]] = {}
+        self.failure: str | None = None
+
+    def check(self, t: float, active: list[TrainRuntime]) -> None:
+        """Every step: update the standing clocks; stall the run if one ran past ``stall_timeout_s``."""
+        for tr in active:
+            if tr.plant.speed_mps > STANDSTILL_MPS or tr.sumo_stopped or tr.sumo_stopped_now:
+                self.standing_since.pop(tr.train_id, None)
+            elif tr.train_id not in self.standing_since:
+                self.standing_since[tr.train_id] = (t, tr)
+        self._report(t, self.settings.stall_timeout_s, "")
+
+    def at_end(self, t: float) -> None:
+        """At the horizon: trains standing for no reason (and not arrived) fail the run too."""
+        self._report(t, min(END_STANDING_S, self.settings.stall_timeout_s), " when the horizon ended")
+
+    def _report(self, t: float, limit_s: float, when: str) -> None:
+        if self.failure is not None:
+            return
+        stalled = [
+            (since, tr)
+            for since, tr in self.standing_since.values()
+            if tr.on_line and t - since >= limit_s and tr.arrived_s is None
+        ]
+        if not stalled:
+            return
+        waiting_for = getattr(self.locks, "waiting_for", None)  # the route-lock port may say what blocks a train
+        parts = []
+        for since, tr in stalled:
+            waits = list(waiting_for(tr)) if waiting_for is not None else []
+            self.events.record(
+                t,
+                "stalled",
+                tr.train_id,
+                chainage_m=round(tr.front_m, 3),
+                edge=tr.view.edges[tr.view.edge_at(tr.front_m)],
+                standing_s=round(t - since, 3),
+                waiting_for=";".join(waits) if waits else None,
+            )
+            parts.append(
+                f"{tr.train_id} at {tr.front_m:.0f} m" + (f" (waiting for {', '.join(waits)})" if waits else "")
+            )
+        self.failure = f"stalled{when}: {'; '.join(parts)} stood still for no reason for at least {limit_s:g} s"
