@@ -227,3 +227,50 @@ def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path:
     trace = [r for r in read_csv(out / "trace.csv") if r["train"] == second and float(r["t_s"]) <= t_grant]
     front_before_grant = max(float(r["chainage_m"]) for r in trace)
     assert front_before_grant <= sw.point_m - 20.0 + 0.5  # protection margin (EngineSettings) before the point
+
+
+def build_no_passing_place(folder: Path) -> tuple[Path, Path]:
+    """Single track A–M–B where M is a switch to a spur (so A–M and M–B are two sections) but no passing loop."""
+    nodes = (
+        '<node id="A" x="0" y="0"/>\n<node id="M" x="2500" y="0"/>\n<node id="B" x="5000" y="0"/>\n'
+        '<node id="C" x="4000" y="800"/>'
+    )
+    edges = [
+        _edge("AM", "A", "M"),
+        _edge("-AM", "M", "A"),
+        _edge("MB", "M", "B"),
+        _edge("-MB", "B", "M"),
+        _edge("MC", "M", "C", 16.0, shape="2500,0 3000,200 4000,800"),
+        _edge("-MC", "C", "M", 16.0, shape="4000,800 3000,200 2500,0"),
+    ]
+    net = _netconvert(folder, "spur", nodes, "\n".join(edges))
+    stops = _stops(
+        folder,
+        "spur",
+        [
+            ("a_out", "AM_0", 100, 400, "Aston"),
+            ("a_in", "-AM_0", 2000, 2300, "Aston"),
+            ("b_in", "MB_0", 2100, 2400, "Bury"),
+            ("b_out", "-MB_0", 100, 400, "Bury"),
+        ],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_a_deadlock_constructed_on_purpose_stops_the_run_naming_the_trains(tmp_path: Path) -> None:
+    """Both trains start at once on opposite sections with no place to pass: each holds its own section and waits
+    for the other's. The run stops with a ``deadlock`` event naming both trains and both sections, exit 3."""
+    net, stops = build_no_passing_place(tmp_path)
+    services = [_service("east", "a_out", "b_in", 0), _service("west", "b_out", "a_in", 0)]
+    scn = _scenario(tmp_path, "spur", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 3, res.stderr + res.stdout
+    assert "deadlock" in res.stderr and "east.000" in res.stderr and "west.000" in res.stderr
+    (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
+    detail = yaml.safe_load(ev["detail"])
+    assert sorted(detail["trains"]) == ["east.000", "west.000"]
+    assert sorted(detail["resources"]) == ["track:-AM", "track:-MB"]
+    s = read_summary(out)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["n_arrived"] == 0

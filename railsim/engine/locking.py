@@ -61,9 +61,10 @@ class RouteLocks:
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
 
-    def set_up_shared_track(self, graph: Any) -> None:
+    def set_up_shared_track(self, graph: Any, now_s: Callable[[], float]) -> None:
         """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
-        cross on different movements (see the module docstring)."""
+        cross on different movements (see the module docstring); ``now_s`` is the clock."""
+        self.now_s = now_s
         smap = section_map(graph)
         if not smap and not graph.graph.get("crossings"):
             return
@@ -209,6 +210,8 @@ class RouteLocks:
         ahead of its own, FIFO), excluding its own group."""
         out: dict[str, tuple[str, ...]] = {}
         for sid in self.waiting_for(tr):
+            if sid not in tr.locks:
+                continue  # a section: below
             own = tr.locks[sid]
             ahead: list[str] = list(self.interlocking.holder(sid) or ())
             for req in self.interlocking.queue(sid):

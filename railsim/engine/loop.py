@@ -13,12 +13,9 @@ Per step ``k`` at time ``t_k``::
     sumo.set_speeds; record; trains that arrived leave SUMO; sumo.step()
 
 The loop only orders phases; each concern is a port with a narrow interface, built in :meth:`Simulation.__init__`:
-:class:`~railsim.engine.fleet.Fleet` (trips), :class:`~railsim.engine.coupling.FormationBook`,
-:class:`~railsim.engine.locking.RouteLocks`, :class:`~railsim.engine.stops.StopBook`,
-:class:`~railsim.engine.insertion.Dispatcher`, :class:`~railsim.engine.knowledge.Knowledge` (comms),
-:class:`~railsim.engine.safety.SafetyMonitor`, :class:`~railsim.engine.control.ControlStage` and
-:class:`~railsim.engine.recording.RecordingPort`. Paper-specific behaviour plugs in as extensions chosen by the
-scenario (:mod:`railsim.engine.extensions`).
+``Fleet`` (trips), ``FormationBook``, ``RouteLocks``, ``StopBook``, ``Dispatcher``, ``Knowledge`` (comms),
+``SafetyMonitor``, ``StallWatch``, ``ControlStage`` and ``RecordingPort`` (one module each in this package).
+Paper-specific behaviour plugs in as extensions chosen by the scenario (:mod:`railsim.engine.extensions`).
 """
 
 from __future__ import annotations
@@ -137,8 +134,7 @@ class Simulation:
             self.locks.release_all,
         )
         self.formations.insert_behind = self.dispatcher.insert_behind
-        self.locks.set_up_shared_track(self.bundle.graph)
-        self.locks.now_s = lambda: self.layer.now_s
+        self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)

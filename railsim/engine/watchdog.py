@@ -7,6 +7,11 @@ controller that will not move: each such train gets a ``stalled`` event (where i
 port can say, what it waits for: ``locks.waiting_for(tr)``), and the run fails (:attr:`StallWatch.failure`;
 it stops, writes its outputs and exits 3).
 
+**Deadlocks** are named sooner and more precisely: once trains have stood for ``deadlock_confirm_s``, the
+route-lock port's wait-for graph (``locks.deadlock``: who holds or is queued ahead for the switch or section
+another train waits for) is searched for a cycle among them; a cycle is a ``deadlock`` event naming the trains
+and the resources, and the run fails the same way.
+
 At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
 is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
 """
@@ -20,6 +25,7 @@ from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 
 END_STANDING_S = 60.0  # at the horizon, a train standing this long for no reason counts as stalled
+DEADLOCK_CONFIRM_S = 30.0  # trains standing this long are searched for a circular wait
 STANDSTILL_MPS = 1e-6
 
 
@@ -40,7 +46,23 @@ class StallWatch:
                 self.standing_since.pop(tr.train_id, None)
             elif tr.train_id not in self.standing_since:
                 self.standing_since[tr.train_id] = (t, tr)
+        self._deadlock(t)
         self._report(t, self.settings.stall_timeout_s, "")
+
+    def _deadlock(self, t: float) -> None:
+        finder = getattr(self.locks, "deadlock", None)
+        if self.failure is not None or finder is None:
+            return
+        standing = [tr for since, tr in self.standing_since.values() if t - since >= DEADLOCK_CONFIRM_S]
+        found = finder(standing) if len(standing) > 1 else None
+        if found is None:
+            return
+        trains, resources = found
+        self.events.record(t, "deadlock", "interlocking", trains=trains, resources=resources)
+        self.failure = (
+            f"deadlock: {', '.join(trains)} wait for each other ({', '.join(resources)}) — no train can move; "
+            "cross them at a passing place or re-time them"
+        )
 
     def at_end(self, t: float) -> None:
         """At the horizon: trains standing for no reason (and not arrived) fail the run too."""
