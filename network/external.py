@@ -32,8 +32,14 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
 * **Routes** (:meth:`NetworkBundle.route_between`) choose, among the platforms of every station named, the
   combination with a path in the direction of travel and the shortest length (Dijkstra on metres). Routes
   listed in the bundle (``railsim network show``) are those between every ordered pair of stations (up to
-  :data:`MAX_LISTED_STATIONS` stations). A user net has no design chainage: station ``km`` is 0, there are no
-  gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
+  :data:`MAX_LISTED_STATIONS` stations).
+* **Line chainage** (what a generated world's line description gives: a ``line`` and a ``km`` per station, so
+  the line studies — sections, UIC 406 capacity, the train graph, the report — work on a user's net too):
+  :func:`line_chainage` takes the listed route along the most stations as the ``main`` line, km = distance
+  along that route from its first station's platform centre (its direction of travel is ``up``, the opposite
+  ``down``), and places the stations left on ``branch1``, ``branch2``... from the nearest station already
+  placed. Nets with more stations than :data:`MAX_LISTED_STATIONS` get none (``line`` "", ``km`` 0). There are
+  no gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
 * **Not interlocked**: single-track sections *between* switches (the switch locks protect the points, not the
   line beyond them: opposing trains must cross at loops by timetable; SUMO's collision check reports a head-on)
@@ -69,7 +75,7 @@ import re
 import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -78,7 +84,7 @@ import networkx as nx
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.topology import NetworkBundle, PlatformInfo, StationInfo, SwitchInfo
+from network.topology import NetworkBundle, PlatformInfo, RouteInfo, StationInfo, SwitchInfo
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -259,9 +265,8 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
         raise ConfigError(
             net_file,
             None,
-            "no rail edges: no lane allows any of "
-            + ", ".join(RAIL_VCLASSES)
-            + f" (the lanes allow: {', '.join(found) if found else 'nothing'})",
+            "no rail edges (vClass " + "/".join(RAIL_VCLASSES) + "): no lane allows any of them"
+            f" (the lanes allow: {', '.join(found) if found else 'nothing'})",
         )
     if vclass is not None:
         if counts[vclass] == 0:
@@ -655,7 +660,67 @@ def load_net(
             except ValueError:
                 continue
             routes[r.id] = r
-    return dataclasses.replace(bundle, routes=routes)
+    else:
+        log.info(
+            "%s: %d stations: no routes listed and no line chainage (more than %d)",
+            name,
+            len(stations),
+            MAX_LISTED_STATIONS,
+        )
+    placed = line_chainage(list(stations), routes.values())
+    stations = {
+        sid: dataclasses.replace(st, line=placed[sid][0], km=placed[sid][1]) if sid in placed else st
+        for sid, st in stations.items()
+    }
+    return dataclasses.replace(bundle, routes=routes, stations=stations)
+
+
+def _stations_along(route: RouteInfo) -> list[tuple[str, float]]:
+    """``(station, platform centre [route chainage m])`` of every station whose platform the route runs along,
+    in route order (first platform of a station only)."""
+    out: dict[str, float] = {}
+    for rs in route.stops:
+        out.setdefault(rs.station_id, 0.5 * (rs.start_m + rs.end_m))
+    return list(out.items())
+
+
+def line_chainage(station_order: Sequence[str], routes: Iterable[RouteInfo]) -> dict[str, tuple[str, float]]:
+    """``{station: (line id, km)}``: a chainage for a net that has none, from its routes (module docstring).
+
+    The **main line** is the route along the most stations (ties: the one starting at the station listed first,
+    then the longer one); its stations get ``km`` = platform centre minus the first station's centre, in km
+    (so its direction of travel is ``up``, the other ``down``). Then, while stations are left, the route along
+    the most of them becomes branch ``branch<k>``: each new station is placed from the nearest already placed
+    station on that route, in the direction the placed stations run on it (``+`` if fewer than two).
+    """
+    index = {sid: i for i, sid in enumerate(station_order)}
+    along = [(r, _stations_along(r)) for r in routes]
+    placed: dict[str, tuple[str, float]] = {}
+    k = 0
+    while True:
+        best = None
+        for r, seq in along:
+            new = sum(1 for sid, _ in seq if sid not in placed)
+            if new == 0 or len(seq) < 2:
+                continue
+            key = (new, -index.get(seq[0][0], len(index)), r.length_m, r.id)
+            if best is None or key > best[0]:
+                best = (key, seq)
+        if best is None:
+            return placed
+        seq = best[1]
+        line_id = "main" if k == 0 else f"branch{k}"
+        known = [(c, placed[sid][1]) for sid, c in seq if sid in placed]
+        if not known:
+            known = [(seq[0][1], 0.0)]
+        sign = 1.0
+        if len(known) >= 2 and known[-1][1] < known[0][1]:
+            sign = -1.0
+        for sid, c in seq:
+            if sid not in placed:
+                c0, km0 = min(known, key=lambda ck: abs(ck[0] - c))
+                placed[sid] = (line_id, round(km0 + sign * (c - c0) / 1000.0, 6))
+        k += 1
 
 
 def sumo_args(bundle: NetworkBundle) -> tuple[str, ...]:

@@ -78,13 +78,26 @@ def summary(bundle: Any) -> str:
             f"diverging {sw.diverging_speed_mps * 3.6:g} km/h"
         )
     lines.append("")
-    lines.append(f"routes ({len(bundle.routes)}):")
+    lines.append(f"routes ({len(bundle.routes)}; km = first stop to last stop along the route):")
     for r in bundle.routes.values():
         sws = ", ".join(f"{s.switch_id}({s.leg}) @{s.point_m:.0f} m" for s in r.switches) or "no switches"
         lines.append(
-            f"  {r.id:<36} {r.length_m / 1000:8.3f} km  {len(r.edges):3d} edges  {len(r.stops):2d} stops  {sws}"
+            f"  {r.id:<36} {route_distance_m(r) / 1000:8.3f} km  {len(r.edges):3d} edges  {len(r.stops):2d} stops  "
+            f"{sws}"
         )
     return "\n".join(lines)
+
+
+def route_distance_m(route: Any) -> float:
+    """Metres a train runs on ``route`` (id ``"a->b"`` or ``"a->b via ..."``): from its stopping mark at the
+    first station to its stopping mark at the last, along the route. Not ``length_m``, which counts the
+    whole first and last edges (a 2.8 km service on two long edges would read 6.5 km)."""
+    first, _, last = route.id.split(" via ")[0].partition("->")
+    starts = [s for s in route.stops if s.station_id == first]
+    ends = [s for s in route.stops if s.station_id == last]
+    if not starts or not ends:
+        return float(route.length_m)
+    return float(ends[-1].end_m - starts[0].end_m)
 
 
 def cmd_show(args: argparse.Namespace) -> int:
