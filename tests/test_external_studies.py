@@ -114,6 +114,8 @@ def test_network_show_prints_stop_to_stop_distances(nets: dict, cache: Path) -> 
     net, stops = nets["junction"]
     res = run_railsim(["network", "show", str(net), "-a", str(stops)], cache_dir=cache)
     assert res.returncode == 0, res.stderr
+    x2 = next(ln for ln in res.stdout.splitlines() if ln.strip().startswith("x2 "))
+    assert "main     km   1.300" in x2  # the line chainage
     line = next(ln for ln in res.stdout.splitlines() if ln.strip().startswith("x1->x2 "))
     # X1 and X2 are 1.3 km apart on the 6 km edge U1: the route is 1.3 km, its whole edges 6 km
     assert " 1.300 km" in line

@@ -53,7 +53,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 def summary(bundle: Any) -> str:
     """Readable text summary of a NetworkBundle (stations, switches, routes)."""
     lines = [f"world {bundle.name}", f"  net:   {bundle.net_file}", f"  stops: {bundle.stops_file}"]
-    external = bundle.graph.graph.get("kind") == "external"  # a user's net: no chainage, platforms = trainStops
+    external = bundle.graph.graph.get("kind") == "external"  # a user's net: derived line km, platforms = trainStops
     if external:
         lines.append(f"  rail vClass {bundle.vclass}; rail signals: {bundle.n_rail_signals} ({bundle.signals})")
     lines += ["", f"stations ({len(bundle.stations)}):"]
@@ -63,7 +63,8 @@ def summary(bundle: Any) -> str:
                 f"{p.stop_id} on {p.edge} {p.start_pos_m:.0f}-{p.end_pos_m:.0f} m heading {p.direction}"
                 for p in st.platforms
             )
-            lines.append(f"  {st.id:<24} {st.name!r:<26} {plats}")
+            km = f"{st.line:<8} km {st.km:7.3f}" if st.line else "no line km"
+            lines.append(f"  {st.id:<24} {st.name!r:<26} {km}  {plats}")
     else:
         lines.append(f"  {'id':<48} {'line':<10} {'km':>9} {'platform':>9}  turnback")
         for st in bundle.stations.values():  # main line first, then each branch, by chainage
