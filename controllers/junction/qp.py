@@ -459,7 +459,7 @@ class _OrderQP:
             eps_abs=qp.osqp_eps,
             eps_rel=qp.osqp_eps,
             max_iter=4000,
-            polish=True,
+            polishing=True,
             scaling=10,
         )
         z = np.empty(n_var)

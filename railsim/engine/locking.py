@@ -15,6 +15,8 @@ import logging
 from collections.abc import Callable
 from typing import Any
 
+import networkx as nx
+
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.log import EventLog
@@ -101,6 +103,55 @@ class RouteLocks:
             if sid not in tr.released:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    # ------------------------------------------------------------------ who waits for whom
+    def held_by(self, tr: TrainRuntime) -> list[str]:
+        """Switches whose lock ``tr`` (or its group) holds and has not released."""
+        return [sid for sid, req in tr.locks.items() if sid not in tr.released and self.interlocking.is_granted(req)]
+
+    def waiting_for(self, tr: TrainRuntime) -> list[str]:
+        """Switches ``tr`` has asked for and not been granted yet."""
+        return [
+            sid for sid, req in tr.locks.items() if sid not in tr.released and not self.interlocking.is_granted(req)
+        ]
+
+    def blockers(self, tr: TrainRuntime) -> dict[str, tuple[str, ...]]:
+        """For each switch ``tr`` waits for: the trains it waits behind (the lock holder and the requests queued
+        ahead of its own, FIFO), excluding its own group."""
+        out: dict[str, tuple[str, ...]] = {}
+        for sid in self.waiting_for(tr):
+            own = tr.locks[sid]
+            ahead: list[str] = list(self.interlocking.holder(sid) or ())
+            for req in self.interlocking.queue(sid):
+                if req is own:
+                    break
+                ahead.extend(req.holder_ids)
+            out[sid] = tuple(dict.fromkeys(h for h in ahead if h not in own.holder_ids))
+        return out
+
+    def deadlock(self, trains: list[TrainRuntime]) -> tuple[list[str], list[str]] | None:
+        """A circular wait among ``trains``: ``(train ids in the cycle, switches involved)``, or None.
+
+        Train A waits for B when B holds (or is queued ahead for) a switch A asked for. A cycle in that graph can
+        never resolve by itself: the interlocking serves each switch first-in-first-out and nobody releases a
+        lock without moving past the switch.
+        """
+        by_id = {tr.train_id: tr for tr in trains}
+        waits: dict[str, dict[str, str]] = {}  # train -> {blocking train: switch}
+        for tr in trains:
+            for sid, others in self.blockers(tr).items():
+                for other in others:
+                    if other in by_id:
+                        waits.setdefault(tr.train_id, {})[other] = sid
+        graph = nx.DiGraph()
+        for a in sorted(waits):  # insertion order keeps the search deterministic
+            for b in sorted(waits[a]):
+                graph.add_edge(a, b, switch=waits[a][b])
+        try:
+            edges = nx.find_cycle(graph)
+        except nx.NetworkXNoCycle:
+            return None
+        return [a for a, _ in edges], sorted({graph.edges[a, b]["switch"] for a, b in edges})
 
     def authority_end_m(self, tr: TrainRuntime) -> float:
         """Route chainage where the train's movement authority ends (before the first switch not locked for it)."""
