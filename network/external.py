@@ -4,7 +4,9 @@ Users already have SUMO rail networks: OpenStreetMap imports made with netconver
 inherited studies. :func:`load_net` reads one **read-only** and discovers what the engine needs, in the same
 :class:`~network.topology.NetworkBundle` contract as our generated worlds (see :mod:`network.topology`):
 
-* **Rail edges** are the normal edges with a lane that allows the chosen rail vClass (``vclass``; by default
+* **Rail edges** are the normal edges with a lane that allows the chosen rail vClass and not ``passenger``
+  cars (a road lane: SUMO's default "allow everything", or an OSM street type that forgets to disallow
+  ``subway``; a ``tram`` may share a street lane) (``vclass``; by default
   the rail class allowed on the most stop lanes, then on the most edges, preferring ``rail_urban``). Only
   ``rail, rail_urban, rail_electric, rail_fast, subway, tram`` are train classes railsim drives (SUMO 1.28 has
   no ``monorail``: OSM monorails import as ``rail_urban``).
@@ -249,6 +251,17 @@ def _turn(a: float, b: float) -> float:
     return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
 
 
+def _rail_lane(lane: Any, vclass: str) -> bool:
+    """A lane railsim's trains (``vclass``) may use: it allows the class and is not a road lane.
+
+    A road lane is one that also allows ``passenger`` cars: SUMO lanes without an ``allow`` list allow every
+    class, and OSM imports' road types disallow only some rail classes (a street in SUMO's A10KW OSM net
+    allows ``subway`` and ``rail_fast``), so "allows a rail class" alone would make streets into track. Trams
+    run on streets: for ``tram`` a shared lane counts.
+    """
+    return bool(lane.allows(vclass)) and (vclass == "tram" or not lane.allows("passenger"))
+
+
 def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where) -> str:
     src = where[0]
     if vclass is not None:
@@ -259,14 +272,15 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
                 f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}",
             )
     edges = net.getEdges(withInternal=False)
-    counts = {vc: sum(1 for e in edges if any(ln.allows(vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
+    counts = {vc: sum(1 for e in edges if any(_rail_lane(ln, vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
     if not any(counts.values()):
         found = sorted({p for e in edges for ln in e.getLanes() for p in ln.getPermissions()})
         raise ConfigError(
             net_file,
             None,
-            "no rail edges (vClass " + "/".join(RAIL_VCLASSES) + "): no lane allows any of them"
-            f" (the lanes allow: {', '.join(found) if found else 'nothing'})",
+            "no rail edges (vClass " + "/".join(RAIL_VCLASSES) + "): no lane allows any of them "
+            "without also allowing passenger cars"
+            f" (the lanes allow: {', '.join(found[:8]) + (', ...' if len(found) > 8 else '') if found else 'nothing'})",
         )
     if vclass is not None:
         if counts[vclass] == 0:
@@ -282,7 +296,7 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
         ln = _lane(net, st.lane)
         if ln is not None:
             for vc in RAIL_VCLASSES:
-                lane_ok[vc] += int(ln.allows(vc))
+                lane_ok[vc] += int(_rail_lane(ln, vc))
     return max(RAIL_VCLASSES, key=lambda vc: (lane_ok[vc], counts[vc], -RAIL_VCLASSES.index(vc)))
 
 
@@ -309,7 +323,7 @@ def _via_chain(net: Any, conn: Any) -> list[list[Any]]:
 def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
     g = nx.DiGraph(name=name, kind="external", vclass=vclass, gradients={}, points={})
     for e in net.getEdges(withInternal=False):
-        lanes = [ln for ln in e.getLanes() if ln.allows(vclass)]
+        lanes = [ln for ln in e.getLanes() if _rail_lane(ln, vclass)]
         if not lanes:
             continue
         ln = lanes[0]
@@ -345,7 +359,7 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             usable = [
                 c
                 for c in conns
-                if c.getDirection() != "t" and c.getFromLane().allows(vclass) and c.getToLane().allows(vclass)
+                if c.getDirection() != "t" and _rail_lane(c.getFromLane(), vclass) and _rail_lane(c.getToLane(), vclass)
             ]
             if not usable:
                 continue
@@ -454,7 +468,7 @@ def _stations(
         if lane is None:
             raise ConfigError(st.file, f"{where}.lane", f"expected a lane of the network, got {st.lane!r}")
         edge_id = lane.getEdge().getID()
-        if edge_id not in g or not lane.allows(vclass):
+        if edge_id not in g or not _rail_lane(lane, vclass):
             if st.tag == "busStop":
                 log.debug("skipping busStop %s on non-rail lane %s", st.id, st.lane)
                 continue
