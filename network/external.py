@@ -257,9 +257,12 @@ def _rail_lane(lane: Any, vclass: str) -> bool:
     A road lane is one that also allows ``passenger`` cars: SUMO lanes without an ``allow`` list allow every
     class, and OSM imports' road types disallow only some rail classes (a street in SUMO's A10KW OSM net
     allows ``subway`` and ``rail_fast``), so "allows a rail class" alone would make streets into track. Trams
-    run on streets: for ``tram`` a shared lane counts.
+    run on streets: for ``tram`` a lane shared with cars counts unless it is open to every class (SUMO's
+    default, recognised by ``ship``, which no street lists).
     """
-    return bool(lane.allows(vclass)) and (vclass == "tram" or not lane.allows("passenger"))
+    if not lane.allows(vclass):
+        return False
+    return not lane.allows("ship") if vclass == "tram" else not lane.allows("passenger")
 
 
 def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where) -> str:

@@ -141,6 +141,15 @@ def test_road_only_net_is_refused(cache: Path, tmp_path: Path) -> None:
     msg = _error(["network", "show", str(road)], cache)
     assert msg.startswith(f"railsim: error: {road}: no rail edges (vClass rail_urban/subway/rail/")
     assert "the lanes allow: bus, passenger" in msg
+    # a street open to every class but pedestrians (SUMO's default permissions; OSM street types that forget
+    # subway) is a road too, not track
+    street = _netconvert(
+        tmp_path,
+        "street",
+        '<node id="a" x="0" y="0"/><node id="b" x="500" y="0"/>',
+        '<edge id="s" from="a" to="b" numLanes="1" speed="13.9" disallow="pedestrian"/>',
+    )
+    assert _error(["network", "show", str(street)], cache).startswith(f"railsim: error: {street}: no rail edges (")
 
 
 def test_validate_rejects_what_run_rejects(nets: dict, cache: Path, tmp_path: Path) -> None:
