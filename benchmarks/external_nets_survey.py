@@ -158,7 +158,7 @@ def _outcome(rc: int, err: str, summary: Path | None = None) -> str:
 
 
 def survey_one(net: Path, out: Path, duration_s: float) -> Row:
-    name = net.parent.name if net.name == "net.net.xml" else net.name.removesuffix(".net.xml")
+    name = net.parent.name  # one net per folder, named by its folder
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     adds = _stop_files(net)
