@@ -369,7 +369,37 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             via = _via_chain(net, usable[0])
             cost = sum(v[1] for v in via) + g.nodes[tid]["length_m"]
             g.add_edge(eid, tid, node=e.getToNode().getID(), via=via, switch=None, leg=None, cost_m=cost)
+            g.edges[eid, tid]["link"] = usable[0]  # removed again by _mark_crossings (sumolib objects stay out)
+    _mark_crossings(g)
     return g
+
+
+def _mark_crossings(g: nx.DiGraph) -> None:
+    """Foe movements inside one node that share no track (a flat crossing): ``g.graph["crossings"]``.
+
+    SUMO's own foe matrix of the node says which connections intersect (netconvert computes it from the geometry);
+    movements that share an edge or its bidi partner are not crossings — a diverge/merge is a switch and head-on
+    running on one track is single track, both protected by their own resources. The result maps a node id to
+    its crossing movements, each a ``(from edge, to edge)`` pair with the pairs it conflicts with.
+    """
+    by_node: dict[str, list[tuple[str, str, Any]]] = {}
+    for a, b, attrs in g.edges(data=True):
+        by_node.setdefault(attrs["node"], []).append((a, b, attrs.pop("link")))
+    crossings: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = {}
+    for node_id, moves in sorted(by_node.items()):
+        for i, (a, b, c1) in enumerate(moves):
+            track1 = {a, b, g.nodes[a]["bidi"], g.nodes[b]["bidi"]}
+            for c, d, c2 in moves[i + 1 :]:
+                if c in track1 or d in track1:
+                    continue
+                node = c1.getFrom().getToNode()
+                i1, i2 = node.getLinkIndex(c1), node.getLinkIndex(c2)
+                if i1 < 0 or i2 < 0 or not (node.areFoes(i1, i2) or node.areFoes(i2, i1)):
+                    continue
+                foes = crossings.setdefault(node_id, {})
+                foes.setdefault((a, b), []).append((c, d))
+                foes.setdefault((c, d), []).append((a, b))
+    g.graph["crossings"] = crossings
 
 
 def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str]:

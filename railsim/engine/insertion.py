@@ -49,6 +49,8 @@ class Dispatcher:
         self.handshake = handshake
         self.release_locks = release_locks
         self.on_inserted: list[InsertHook] = []  # extensions: (t, train, start chainage)
+        # before inserting: (t, train, start chainage) -> a reason to hold the departure, or None
+        self.admission: list[Callable[[float, TrainRuntime, float], str | None]] = []
         self.bridge: Any = None  # the SUMO bridge, wired when the run starts
         self._held: set[str] = set()  # trips whose departure was held (logged once each)
 
@@ -92,6 +94,19 @@ class Dispatcher:
                 if tr.train_id not in self._held:
                     self._held.add(tr.train_id)
                     self.events.record(self.layer.now_s, "departure_held", tr.train_id, approaching=blocker)
+                self.layer.at(
+                    self.layer.now_s + self.settings.departure_retry_s,
+                    self._inserter(tr),
+                    "departure_retry",
+                    tr.train_id,
+                )
+                return
+        for admit in self.admission:  # the interlocking reserves what the train starts in (single track)
+            reason = admit(self.layer.now_s, tr, depart_m)
+            if reason is not None:
+                if tr.train_id not in self._held:
+                    self._held.add(tr.train_id)
+                    self.events.record(self.layer.now_s, "departure_held", tr.train_id, reason=reason)
                 self.layer.at(
                     self.layer.now_s + self.settings.departure_retry_s,
                     self._inserter(tr),

@@ -7,6 +7,16 @@ released when the train's rear is ``clearance_m`` past the point. A coupled foll
 its leader's request (one lock for the formation). Passing a switch without its lock is a ``switch_violation``
 event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
 planner requests in its planned order).
+
+**Single track and flat crossings** (:mod:`railsim.engine.single_track`, :mod:`railsim.engine.events.tracks`): a section of bidi
+track that trains use in both directions is a resource held one direction at a time. A train requests it
+``lock_request_distance_m`` before its protection point (the switch in front of the section, if any); until it
+is reserved the train's authority ends ``protection_margin_m`` before that point, and it does not ask for the
+switch in front of the section either (a train waiting for a section must not hold or stand on the switch the
+oncoming train needs to leave). A train starting inside a section reserves it before it is inserted (the
+dispatcher holds the departure until then). It releases the section when its rear is ``clearance_m`` past the
+section's end. So a single-track section is entered only when it is reserved to the next passing place. A flat
+crossing (two routes crossing inside one SUMO node) is the same kind of resource with one movement at a time.
 """
 
 from __future__ import annotations
@@ -20,8 +30,10 @@ import networkx as nx
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.log import EventLog
+from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import EngineSettings
+from railsim.engine.single_track import RouteSection, contested, route_crossings, route_sections, section_map
 from railsim.engine.train import TrainRuntime
 
 log = logging.getLogger(__name__)
@@ -44,10 +56,76 @@ class RouteLocks:
         self.events = events
         self.settings = settings
         self.managed_by: Callable[[str, str], bool] = lambda _train, _switch: False
+        self.tracks: TrackSections | None = None
+        self.now_s: Callable[[], float] = lambda: 0.0  # the clock's time, wired by the loop
+        self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
+        self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
+
+    def set_up_shared_track(self, graph: Any) -> None:
+        """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
+        cross on different movements (see the module docstring)."""
+        smap = section_map(graph)
+        if not smap and not graph.graph.get("crossings"):
+            return
+        per_train = {
+            tid: sorted(
+                route_sections(tr.trip.route, smap) + route_crossings(tr.trip.route, graph), key=lambda x: x.start_m
+            )
+            for tid, tr in self.fleet.trains.items()
+        }
+        shared = contested(per_train)
+        if not shared:
+            return
+        self.tracks = TrackSections(self.events, sorted(shared))
+        for tid, sections in per_train.items():
+            mine = [x for x in sections if x.section_id in shared]
+            if mine:
+                self.sections[tid] = mine
+                self.section_requests[tid] = {}
+
+    # ------------------------------------------------------------------ single track
+    def _sections_bookkeeping(self, t: float, tr: TrainRuntime) -> None:
+        assert self.tracks is not None
+        reqs = self.section_requests[tr.train_id]
+        rear = tr.front_m - tr.trip.vehicle.length_m
+        for sec in self.sections[tr.train_id]:
+            req = reqs.get(sec.section_id)
+            if req is None:
+                if sec.end_m > tr.front_m and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m:
+                    reqs[sec.section_id] = self.tracks.request(t, (tr.train_id,), sec.section_id, sec.direction)
+            elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
+                self.tracks.release(t, tr.train_id, req)
+
+    def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
+        """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
+        if self.tracks is None or tr.train_id not in self.sections:
+            return None
+        reqs = self.section_requests[tr.train_id]
+        for sec in self.sections[tr.train_id]:
+            if sec.start_m - self.settings.protection_margin_m <= depart_m < sec.end_m:
+                req = reqs.get(sec.section_id)
+                if req is None:
+                    req = reqs[sec.section_id] = self.tracks.request(t, (tr.train_id,), sec.section_id, sec.direction)
+                if not req.granted:
+                    others = ", ".join(self.tracks.waiting_ahead(req)) or "another train"
+                    return f"single-track section {sec.section_id} is reserved for {others}"
+        return None
+
+    def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
+        """True if a section right behind this switch point is not yet reserved for the train."""
+        reqs = self.section_requests.get(tr.train_id, {})
+        for sec in self.sections.get(tr.train_id, ()):
+            if sec.guard_m == point_m and sec.start_m > point_m - 1e-6:
+                req = reqs.get(sec.section_id)
+                if req is None or not req.granted:
+                    return True
+        return False
 
     def bookkeeping(self, t: float, tr: TrainRuntime) -> None:
         """Request locks ahead, detect a pass without a lock, release behind the rear."""
         length = tr.trip.vehicle.length_m
+        if tr.train_id in self.sections:
+            self._sections_bookkeeping(t, tr)
         for rs in tr.trip.route.switches:
             sid = rs.switch_id
             if sid in tr.released:
@@ -58,6 +136,7 @@ class RouteLocks:
                 sid not in tr.locks
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and not self.managed_by(tr.train_id, sid)
+                and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
             ):
                 holders = self._lock_group(tr, rs)
                 if holders is not None:
@@ -98,7 +177,11 @@ class RouteLocks:
         return tuple(group)
 
     def release_all(self, tr: TrainRuntime) -> None:
-        """A train that arrived or left the line gives up every lock it still holds."""
+        """A train that arrived or left the line gives up every lock and section it still holds."""
+        if self.tracks is not None:
+            for req in self.section_requests.get(tr.train_id, {}).values():
+                if tr.train_id not in req.released_by:
+                    self.tracks.release(self.now_s(), tr.train_id, req)
         for sid in list(tr.locks):
             if sid not in tr.released:
                 self.interlocking.release(tr.train_id, sid)
@@ -106,14 +189,20 @@ class RouteLocks:
 
     # ------------------------------------------------------------------ who waits for whom
     def held_by(self, tr: TrainRuntime) -> list[str]:
-        """Switches whose lock ``tr`` (or its group) holds and has not released."""
-        return [sid for sid, req in tr.locks.items() if sid not in tr.released and self.interlocking.is_granted(req)]
+        """Switches and sections ``tr`` (or its group) holds and has not released."""
+        out = [sid for sid, req in tr.locks.items() if sid not in tr.released and self.interlocking.is_granted(req)]
+        out += [
+            sid
+            for sid, req in self.section_requests.get(tr.train_id, {}).items()
+            if req.granted and tr.train_id not in req.released_by
+        ]
+        return out
 
     def waiting_for(self, tr: TrainRuntime) -> list[str]:
-        """Switches ``tr`` has asked for and not been granted yet."""
-        return [
-            sid for sid, req in tr.locks.items() if sid not in tr.released and not self.interlocking.is_granted(req)
-        ]
+        """Switches and sections ``tr`` has asked for and not been granted yet."""
+        out = [sid for sid, req in tr.locks.items() if sid not in tr.released and not self.interlocking.is_granted(req)]
+        out += [sid for sid, req in self.section_requests.get(tr.train_id, {}).items() if not req.granted]
+        return out
 
     def blockers(self, tr: TrainRuntime) -> dict[str, tuple[str, ...]]:
         """For each switch ``tr`` waits for: the trains it waits behind (the lock holder and the requests queued
@@ -127,6 +216,10 @@ class RouteLocks:
                     break
                 ahead.extend(req.holder_ids)
             out[sid] = tuple(dict.fromkeys(h for h in ahead if h not in own.holder_ids))
+        if self.tracks is not None:
+            for sec_id, sec_req in self.section_requests.get(tr.train_id, {}).items():
+                if not sec_req.granted:
+                    out[sec_id] = self.tracks.waiting_ahead(sec_req)
         return out
 
     def deadlock(self, trains: list[TrainRuntime]) -> tuple[list[str], list[str]] | None:
@@ -154,8 +247,16 @@ class RouteLocks:
         return [a for a, _ in edges], sorted({graph.edges[a, b]["switch"] for a, b in edges})
 
     def authority_end_m(self, tr: TrainRuntime) -> float:
-        """Route chainage where the train's movement authority ends (before the first switch not locked for it)."""
+        """Route chainage where the train's movement authority ends: before the first switch not locked for it,
+        or the protection point of the first single-track section not reserved for it."""
         end = tr.view.length_m - 1.0
+        if tr.train_id in self.sections:
+            reqs = self.section_requests[tr.train_id]
+            for sec in self.sections[tr.train_id]:
+                req = reqs.get(sec.section_id)
+                if sec.end_m > tr.front_m and sec.guard_m > tr.front_m - 1e-6 and (req is None or not req.granted):
+                    end = min(end, sec.guard_m - self.settings.protection_margin_m)
+                    break
         for rs in tr.trip.route.switches:
             if rs.point_m <= tr.front_m - 1e-6 or rs.switch_id in tr.released:
                 continue

@@ -135,6 +135,9 @@ class Simulation:
             self.locks.release_all,
         )
         self.formations.insert_behind = self.dispatcher.insert_behind
+        self.locks.set_up_shared_track(self.bundle.graph)
+        self.locks.now_s = lambda: self.layer.now_s
+        self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
         self.control = ControlStage(

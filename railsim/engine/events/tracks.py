@@ -1,0 +1,102 @@
+"""Single-track sections as interlocking resources: one direction at a time, reserved before entry.
+
+A single-track section is a maximal run of ``bidi`` track between passing places (switch nodes): trains in the
+same direction may be in it together (moving-block separation keeps them apart), a train in the opposite
+direction may not. A train reserves the section before its protection point and releases it when its rear has
+left; a reservation is granted when nobody holds the section in the other direction **and** no earlier request
+for the other direction waits (first come, first served between directions, so a stream of trains one way
+cannot starve the other).
+
+Reservations are immediate (no throw): :meth:`TrackSections.request` grants at once if it can, else queues;
+every :meth:`TrackSections.release` re-examines the queue. Events (subject = section id): ``section_requested``,
+``section_reserved``, ``section_released``.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from railsim.engine.events.log import EventLog
+
+
+@dataclass(eq=False)
+class SectionRequest:
+    """One train's (or coupled group's) request for a section in one direction."""
+
+    holder_ids: tuple[str, ...]
+    section_id: str
+    direction: int
+    requested_s: float
+    granted_s: float | None = None
+    released_by: set[str] = field(default_factory=set)
+
+    @property
+    def granted(self) -> bool:
+        return self.granted_s is not None
+
+
+@dataclass
+class _Section:
+    holders: list[SectionRequest] = field(default_factory=list)
+    queue: list[SectionRequest] = field(default_factory=list)
+
+
+class TrackSections:
+    """Every single-track section of a run that trains use in both directions."""
+
+    def __init__(self, events: EventLog, section_ids: list[str]) -> None:
+        self.events = events
+        self._sections = {sid: _Section() for sid in section_ids}
+
+    def __contains__(self, section_id: str) -> bool:
+        return section_id in self._sections
+
+    def request(self, t_s: float, holder_ids: tuple[str, ...], section_id: str, direction: int) -> SectionRequest:
+        req = SectionRequest(holder_ids, section_id, direction, t_s)
+        sec = self._sections[section_id]
+        sec.queue.append(req)
+        self.events.record(t_s, "section_requested", section_id, trains=list(holder_ids), direction=direction)
+        self._serve(t_s, section_id)
+        return req
+
+    def release(self, t_s: float, train_id: str, req: SectionRequest) -> None:
+        """``train_id`` has left the section (its rear is past the end); the request ends when all its holders did."""
+        sec = self._sections[req.section_id]
+        req.released_by.add(train_id)
+        if req.granted and set(req.holder_ids) <= req.released_by and req in sec.holders:
+            sec.holders.remove(req)
+            self.events.record(t_s, "section_released", req.section_id, trains=list(req.holder_ids))
+            self._serve(t_s, req.section_id)
+        elif not req.granted and set(req.holder_ids) <= req.released_by and req in sec.queue:
+            sec.queue.remove(req)  # withdrawn before it was granted (the train left the line)
+            self._serve(t_s, req.section_id)
+
+    def _serve(self, t_s: float, section_id: str) -> None:
+        sec = self._sections[section_id]
+        for req in list(sec.queue):
+            if any(h.direction != req.direction for h in sec.holders):
+                continue
+            if any(w.direction != req.direction and w.requested_s < req.requested_s for w in sec.queue):
+                continue  # an earlier request for the other direction goes first
+            sec.queue.remove(req)
+            sec.holders.append(req)
+            req.granted_s = t_s
+            self.events.record(
+                t_s, "section_reserved", section_id, trains=list(req.holder_ids), direction=req.direction
+            )
+
+    def holders(self, section_id: str) -> tuple[str, ...]:
+        """Trains holding ``section_id`` (any direction)."""
+        return tuple(h for req in self._sections[section_id].holders for h in req.holder_ids)
+
+    def waiting_ahead(self, req: SectionRequest) -> tuple[str, ...]:
+        """Trains ``req`` waits for: holders in the other direction and earlier requests for the other direction."""
+        sec = self._sections[req.section_id]
+        out = [h for r in sec.holders if r.direction != req.direction for h in r.holder_ids]
+        out += [
+            h
+            for r in sec.queue
+            if r.direction != req.direction and r.requested_s < req.requested_s
+            for h in r.holder_ids
+        ]
+        return tuple(dict.fromkeys(x for x in out if x not in req.holder_ids))

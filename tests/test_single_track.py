@@ -1,0 +1,229 @@
+"""Single track is one direction at a time (issue 16): opposing trains on nets built here with netconvert.
+
+* **no passing loop** — one bidi line A–B with a station at each end: both trains are due at the same time; the
+  second is held at its platform (``departure_held`` naming the section) until the first has left the section,
+  then runs; both arrive, 0 collisions (ours and SUMO's).
+* **passing loop** — the two trains enter the single track from opposite ends at the same moment; they cross at
+  the loop: each single-track section is reserved in one direction at a time, and a train waiting for a section
+  stops before the loop's switch, not on it.
+
+Section sets are checked without SUMO too (:mod:`railsim.engine.single_track`).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tests.helpers import read_csv, read_summary, run_railsim
+from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _stops, _write, build_passing_loop
+
+
+def build_single_line(folder: Path) -> tuple[Path, Path]:
+    """A 4 km single-track line (bidi edges, two pieces joined at a plain node) with stations at both ends."""
+    nodes = '<node id="A" x="0" y="0"/>\n<node id="M" x="2000" y="0"/>\n<node id="B" x="4000" y="0"/>'
+    edges = [_edge("AM", "A", "M"), _edge("-AM", "M", "A"), _edge("MB", "M", "B"), _edge("-MB", "B", "M")]
+    net = _netconvert(folder, "single", nodes, "\n".join(edges))
+    stops = _stops(
+        folder,
+        "single",
+        [
+            ("a_out", "AM_0", 100, 400, "Aston"),
+            ("b_in", "MB_0", 1600, 1900, "Bury"),
+            ("b_out", "-MB_0", 100, 400, "Bury"),
+            ("a_in", "-AM_0", 1600, 1900, "Aston"),
+        ],
+    )
+    return net, stops
+
+
+def _scenario(folder: Path, name: str, net: Path, stops: Path, services: list[dict]) -> Path:
+    raw = {"name": name, "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON, "services": services}
+    return _write(folder, f"{name}.yaml", yaml.safe_dump(raw, sort_keys=False))
+
+
+def test_sections_of_a_line_and_a_loop(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from network.external import load_net
+    from railsim.engine.single_track import contested, route_sections, section_map
+
+    monkeypatch.setenv("RAILSIM_CACHE", str(tmp_path / "cache"))
+    line = load_net(*build_single_line(tmp_path)[:1], [build_single_line(tmp_path)[1]])
+    smap = section_map(line.graph)
+    assert {smap[e][0] for e in ("AM", "-AM", "MB", "-MB")} == {"track:-AM"}  # one section: M is a plain node
+    assert smap["AM"][1] == smap["MB"][1] != smap["-AM"][1]
+    east, west = line.route_between("aston", "bury"), line.route_between("bury", "aston")
+    (e,) = route_sections(east, smap)
+    (w,) = route_sections(west, smap)
+    assert (e.start_m, e.end_m) == (0.0, pytest.approx(east.length_m)) and e.direction != w.direction
+    assert contested({"e": [e], "w": [w]}) == {"track:-AM"} and contested({"e": [e], "e2": [e]}) == set()
+    loop = load_net(*build_passing_loop(tmp_path)[:1], [build_passing_loop(tmp_path)[1]])
+    lmap = section_map(loop.graph)
+    assert len({lmap[x][0] for x in lmap}) == 4  # portal track, two loop tracks, bravo track: switches end them
+    r = loop.route_between("portal", "bravo")
+    secs = route_sections(r, lmap)
+    assert [s.section_id for s in secs] == ["track:-AW", "track:-L1", "track:-EB"]
+    w_point = next(s.point_m for s in r.switches if s.switch_id == "W")
+    assert secs[1].guard_m == w_point < secs[1].start_m  # the loop track is protected at the switch in front
+
+
+@pytest.mark.sumo
+def test_no_passing_loop_second_train_waits_at_the_entry(tmp_path: Path) -> None:
+    net, stops = build_single_line(tmp_path)
+    services = [_service("east", "aston", "bury", 0), _service("west", "bury", "aston", 0)]
+    scn = _scenario(tmp_path, "single_line", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    held = [e for e in events if e["kind"] == "departure_held"]
+    assert len(held) == 1 and held[0]["subject"] == "west.000" and "track:-AM" in held[0]["detail"]
+    trips = {r["service"]: r for r in read_csv(out / "trips.csv")}
+    released = [float(e["t_s"]) for e in events if e["kind"] == "section_released"]
+    # the west train left only after the east train had released the whole section
+    assert float(trips["west"]["departure_s"]) >= released[0] > float(trips["east"]["departure_s"])
+
+
+@pytest.mark.sumo
+def test_opposing_trains_cross_at_the_passing_loop(tmp_path: Path) -> None:
+    net, stops = build_passing_loop(tmp_path)
+    services = [_service("east", "portal", "bravo", 0), _service("west", "bravo_w", "Portal", 0, via=["Mid"])]
+    scn = _scenario(tmp_path, "loop", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    assert s["switch_violations"] == 0
+    events = read_csv(out / "events.csv")
+    reserved = [(e["subject"], e["detail"]) for e in events if e["kind"] == "section_reserved"]
+    assert any("east.000" in d for sid, d in reserved if sid == "track:-EB")
+    assert any("west.000" in d for sid, d in reserved if sid == "track:-AW")
+    # never both directions at once: replay the reservations and releases of every section
+    holders: dict[str, set[str]] = {}
+    for e in events:
+        if e["kind"] in ("section_reserved", "section_released"):
+            train = yaml.safe_load(e["detail"])["trains"][0]
+            bucket = holders.setdefault(e["subject"], set())
+            if e["kind"] == "section_reserved":
+                assert not bucket, f"{e['subject']} reserved for {train} while {bucket} held it"
+                bucket.add(train)
+            else:
+                bucket.discard(train)
+
+
+def build_diamond(folder: Path) -> tuple[Path, Path]:
+    """Two lines crossing flat at node X (no connection between them: a diamond crossing, not a junction)."""
+    import subprocess
+
+    from network.generator import netconvert_binary
+
+    nodes = (
+        '<node id="W" x="0" y="0"/>\n<node id="X" x="2000" y="0"/>\n<node id="E" x="4000" y="0"/>\n'
+        '<node id="S" x="2000" y="-2000"/>\n<node id="N" x="2000" y="2000"/>'
+    )
+    edges = [_edge("WX", "W", "X"), _edge("XE", "X", "E"), _edge("SX", "S", "X"), _edge("XN", "X", "N")]
+    nod = _write(folder, "diamond.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
+    edg = _write(folder, "diamond.edg.xml", "<edges>\n" + "\n".join(edges) + "\n</edges>")
+    con = _write(
+        folder,
+        "diamond.con.xml",
+        '<connections>\n<connection from="WX" to="XE"/>\n<connection from="SX" to="XN"/>\n</connections>',
+    )
+    net = folder / "diamond.net.xml"
+    cmd = [str(netconvert_binary()), "-n", str(nod), "-e", str(edg), "-x", str(con), "-o", str(net)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    stops = _stops(
+        folder,
+        "diamond",
+        [
+            ("w", "WX_0", 100, 400, "West"),
+            ("e", "XE_0", 1600, 1900, "East"),
+            ("s", "SX_0", 100, 400, "South"),
+            ("n", "XN_0", 1600, 1900, "North"),
+        ],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_routes_crossing_inside_one_node_take_turns(tmp_path: Path) -> None:
+    from network.external import load_net
+
+    net, stops = build_diamond(tmp_path)
+    bundle = load_net(net, [stops])
+    assert bundle.switches == {}  # no connection between the lines: only the crossing protects them
+    assert set(bundle.graph.graph["crossings"]["X"]) == {("WX", "XE"), ("SX", "XN")}
+    services = [_service("we", "west", "east", 0), _service("sn", "south", "north", 0)]
+    scn = _scenario(tmp_path, "diamond", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    reserved = [yaml.safe_load(e["detail"])["trains"][0] for e in events if e["kind"] == "section_reserved"]
+    assert sorted(reserved) == ["sn.000", "we.000"]  # each took the crossing once, one after the other
+    kinds = [(e["kind"], e["subject"]) for e in events if e["subject"] == "crossing:X"]
+    first_release = kinds.index(("section_released", "crossing:X"))
+    assert [k for k, _ in kinds[:first_release]].count("section_reserved") == 1
+
+
+def build_merge(folder: Path) -> tuple[Path, Path]:
+    """Two lines merging at switch J onto one track (a Y): the flank case."""
+    import subprocess
+
+    from network.generator import netconvert_binary
+
+    nodes = (
+        '<node id="A" x="0" y="0"/>\n<node id="B" x="0" y="600"/>\n<node id="J" x="2000" y="0"/>\n'
+        '<node id="Z" x="5000" y="0"/>'
+    )
+    branch = "0,600 1200,600 2000,0"
+    edges = [_edge("AJ", "A", "J"), _edge("BJ", "B", "J", 16.0, shape=branch), _edge("JZ", "J", "Z")]
+    nod = _write(folder, "merge.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
+    edg = _write(folder, "merge.edg.xml", "<edges>\n" + "\n".join(edges) + "\n</edges>")
+    net = folder / "merge.net.xml"
+    cmd = [str(netconvert_binary()), "-n", str(nod), "-e", str(edg), "-o", str(net)]
+    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    stops = _stops(
+        folder,
+        "merge",
+        [("a", "AJ_0", 100, 400, "Ash"), ("b", "BJ_0", 100, 400, "Birch"), ("z", "JZ_0", 2600, 2900, "Zed")],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path: Path) -> None:
+    """Both trains reach the merge at about the same time: the one without the lock stands at least the protection
+    margin before the switch point (it never fouls the route set for the other), then follows; 0 collisions."""
+    net, stops = build_merge(tmp_path)
+    services = [_service("main", "ash", "zed", 0), _service("branch", "birch", "zed", 0)]
+    scn = _scenario(tmp_path, "merge", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    assert s["switch_violations"] == 0
+    events = read_csv(out / "events.csv")
+    grants = [e for e in events if e["kind"] == "lock_granted"]
+    assert len(grants) == 2
+    second = yaml.safe_load(grants[1]["detail"])["holders"][0]
+    assert yaml.safe_load(grants[1]["detail"])["waited_s"] > 10.0  # it really had to wait for the other
+    t_grant = float(grants[1]["t_s"])
+    from network.external import load_net
+
+    bundle = load_net(net, [stops])
+    origin = "ash" if second.startswith("main") else "birch"
+    route = bundle.route_between(origin, "zed")
+    (sw,) = route.switches
+    trace = [r for r in read_csv(out / "trace.csv") if r["train"] == second and float(r["t_s"]) <= t_grant]
+    front_before_grant = max(float(r["chainage_m"]) for r in trace)
+    assert front_before_grant <= sw.point_m - 20.0 + 0.5  # protection margin (EngineSettings) before the point
