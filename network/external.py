@@ -43,9 +43,9 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
   placed. Nets with more stations than :data:`MAX_LISTED_STATIONS` get none (``line`` "", ``km`` 0). There are
   no gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
-* **Not interlocked**: single-track sections *between* switches (the switch locks protect the points, not the
-  line beyond them: opposing trains must cross at loops by timetable; SUMO's collision check reports a head-on)
-  and flat crossings.
+* **Flat crossings**: foe movements inside one node that share no track, from SUMO's own foe matrix
+  (``graph.graph["crossings"]``, :func:`_mark_crossings`); the engine interlocks them, and single track, as
+  route resources (README, "Interlocking").
 
 **Rail signals** (``signals``). Measured with SUMO 1.28 (``shared/notes/sumo_rail_findings.md``): fixed-block
 signals hold virtually coupled followers back; moving-block arbitration is not platoon-aware (a crossing
