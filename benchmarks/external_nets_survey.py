@@ -13,7 +13,8 @@ For each net the survey writes a tiny scenario (``OUT_DIR/<net>/scenario.yaml``)
 net has one, and the next longest — then runs ``railsim validate`` and ``railsim run`` in child processes and
 records the outcome:
 
-* ``arrived n/m`` (+ ``collisions`` ours / ``sumo_collisions`` SUMO's when non-zero) for a run that finished;
+* ``arrived n/m, stops k/l`` (trains that reached their last station, stops served of those scheduled; +
+  ``collisions`` ours / ``sumo_collisions`` SUMO's when non-zero) for a run that finished;
 * ``refused: <message>`` for a clean refusal (exit 2, one line), at load, validate or run;
 * ``crash (exit N): <last stderr line>`` for anything else (a traceback, a SUMO crash, a timeout).
 
@@ -145,7 +146,7 @@ def _outcome(rc: int, err: str, summary: Path | None = None) -> str:
         import json
 
         s = json.loads(summary.read_text())
-        text = f"arrived {s.get('n_arrived')}/{s.get('n_trains')}"
+        text = f"arrived {s.get('n_arrived')}/{s.get('n_trains')}, stops {s.get('n_stops_served')}/{s.get('n_stops_scheduled')}"
         for key in ("collisions", "sumo_collisions", "switch_violations"):
             if s.get(key):
                 text += f", {key} {s[key]}"
