@@ -4,7 +4,9 @@ Users already have SUMO rail networks: OpenStreetMap imports made with netconver
 inherited studies. :func:`load_net` reads one **read-only** and discovers what the engine needs, in the same
 :class:`~network.topology.NetworkBundle` contract as our generated worlds (see :mod:`network.topology`):
 
-* **Rail edges** are the normal edges with a lane that allows the chosen rail vClass (``vclass``; by default
+* **Rail edges** are the normal edges with a lane that allows the chosen rail vClass and not ``passenger``
+  cars (a road lane: SUMO's default "allow everything", or an OSM street type that forgets to disallow
+  ``subway``; a ``tram`` may share a street lane) (``vclass``; by default
   the rail class allowed on the most stop lanes, then on the most edges, preferring ``rail_urban``). Only
   ``rail, rail_urban, rail_electric, rail_fast, subway, tram`` are train classes railsim drives (SUMO 1.28 has
   no ``monorail``: OSM monorails import as ``rail_urban``).
@@ -32,12 +34,18 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
 * **Routes** (:meth:`NetworkBundle.route_between`) choose, among the platforms of every station named, the
   combination with a path in the direction of travel and the shortest length (Dijkstra on metres). Routes
   listed in the bundle (``railsim network show``) are those between every ordered pair of stations (up to
-  :data:`MAX_LISTED_STATIONS` stations). A user net has no design chainage: station ``km`` is 0, there are no
-  gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
+  :data:`MAX_LISTED_STATIONS` stations).
+* **Line chainage** (what a generated world's line description gives: a ``line`` and a ``km`` per station, so
+  the line studies — sections, UIC 406 capacity, the train graph, the report — work on a user's net too):
+  :func:`line_chainage` takes the listed route along the most stations as the ``main`` line, km = distance
+  along that route from its first station's platform centre (its direction of travel is ``up``, the opposite
+  ``down``), and places the stations left on ``branch1``, ``branch2``... from the nearest station already
+  placed. Nets with more stations than :data:`MAX_LISTED_STATIONS` get none (``line`` "", ``km`` 0). There are
+  no gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
-* **Not interlocked**: single-track sections *between* switches (the switch locks protect the points, not the
-  line beyond them: opposing trains must cross at loops by timetable; SUMO's collision check reports a head-on)
-  and flat crossings.
+* **Flat crossings**: foe movements inside one node that share no track, from SUMO's own foe matrix
+  (``graph.graph["crossings"]``, :func:`_mark_crossings`); the engine interlocks them, and single track, as
+  route resources (README, "Interlocking").
 
 **Rail signals** (``signals``). Measured with SUMO 1.28 (``shared/notes/sumo_rail_findings.md``): fixed-block
 signals hold virtually coupled followers back; moving-block arbitration is not platoon-aware (a crossing
@@ -69,7 +77,7 @@ import re
 import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Sequence
+from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -78,7 +86,7 @@ import networkx as nx
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.topology import NetworkBundle, PlatformInfo, StationInfo, SwitchInfo
+from network.topology import NetworkBundle, PlatformInfo, RouteInfo, StationInfo, SwitchInfo
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -243,6 +251,20 @@ def _turn(a: float, b: float) -> float:
     return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
 
 
+def _rail_lane(lane: Any, vclass: str) -> bool:
+    """A lane railsim's trains (``vclass``) may use: it allows the class and is not a road lane.
+
+    A road lane is one that also allows ``passenger`` cars: SUMO lanes without an ``allow`` list allow every
+    class, and OSM imports' road types disallow only some rail classes (a street in SUMO's A10KW OSM net
+    allows ``subway`` and ``rail_fast``), so "allows a rail class" alone would make streets into track. Trams
+    run on streets: for ``tram`` a lane shared with cars counts unless it is open to every class (SUMO's
+    default, recognised by ``ship``, which no street lists).
+    """
+    if not lane.allows(vclass):
+        return False
+    return not lane.allows("ship") if vclass == "tram" else not lane.allows("passenger")
+
+
 def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where) -> str:
     src = where[0]
     if vclass is not None:
@@ -253,15 +275,15 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
                 f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}",
             )
     edges = net.getEdges(withInternal=False)
-    counts = {vc: sum(1 for e in edges if any(ln.allows(vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
+    counts = {vc: sum(1 for e in edges if any(_rail_lane(ln, vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
     if not any(counts.values()):
         found = sorted({p for e in edges for ln in e.getLanes() for p in ln.getPermissions()})
         raise ConfigError(
             net_file,
             None,
-            "no rail edges: no lane allows any of "
-            + ", ".join(RAIL_VCLASSES)
-            + f" (the lanes allow: {', '.join(found) if found else 'nothing'})",
+            "no rail edges (vClass " + "/".join(RAIL_VCLASSES) + "): no lane allows any of them "
+            "without also allowing passenger cars"
+            f" (the lanes allow: {', '.join(found[:8]) + (', ...' if len(found) > 8 else '') if found else 'nothing'})",
         )
     if vclass is not None:
         if counts[vclass] == 0:
@@ -277,7 +299,7 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
         ln = _lane(net, st.lane)
         if ln is not None:
             for vc in RAIL_VCLASSES:
-                lane_ok[vc] += int(ln.allows(vc))
+                lane_ok[vc] += int(_rail_lane(ln, vc))
     return max(RAIL_VCLASSES, key=lambda vc: (lane_ok[vc], counts[vc], -RAIL_VCLASSES.index(vc)))
 
 
@@ -304,7 +326,7 @@ def _via_chain(net: Any, conn: Any) -> list[list[Any]]:
 def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
     g = nx.DiGraph(name=name, kind="external", vclass=vclass, gradients={}, points={})
     for e in net.getEdges(withInternal=False):
-        lanes = [ln for ln in e.getLanes() if ln.allows(vclass)]
+        lanes = [ln for ln in e.getLanes() if _rail_lane(ln, vclass)]
         if not lanes:
             continue
         ln = lanes[0]
@@ -340,7 +362,7 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             usable = [
                 c
                 for c in conns
-                if c.getDirection() != "t" and c.getFromLane().allows(vclass) and c.getToLane().allows(vclass)
+                if c.getDirection() != "t" and _rail_lane(c.getFromLane(), vclass) and _rail_lane(c.getToLane(), vclass)
             ]
             if not usable:
                 continue
@@ -479,7 +501,7 @@ def _stations(
         if lane is None:
             raise ConfigError(st.file, f"{where}.lane", f"expected a lane of the network, got {st.lane!r}")
         edge_id = lane.getEdge().getID()
-        if edge_id not in g or not lane.allows(vclass):
+        if edge_id not in g or not _rail_lane(lane, vclass):
             if st.tag == "busStop":
                 log.debug("skipping busStop %s on non-rail lane %s", st.id, st.lane)
                 continue
@@ -685,7 +707,67 @@ def load_net(
             except ValueError:
                 continue
             routes[r.id] = r
-    return dataclasses.replace(bundle, routes=routes)
+    else:
+        log.info(
+            "%s: %d stations: no routes listed and no line chainage (more than %d)",
+            name,
+            len(stations),
+            MAX_LISTED_STATIONS,
+        )
+    placed = line_chainage(list(stations), routes.values())
+    stations = {
+        sid: dataclasses.replace(st, line=placed[sid][0], km=placed[sid][1]) if sid in placed else st
+        for sid, st in stations.items()
+    }
+    return dataclasses.replace(bundle, routes=routes, stations=stations)
+
+
+def _stations_along(route: RouteInfo) -> list[tuple[str, float]]:
+    """``(station, platform centre [route chainage m])`` of every station whose platform the route runs along,
+    in route order (first platform of a station only)."""
+    out: dict[str, float] = {}
+    for rs in route.stops:
+        out.setdefault(rs.station_id, 0.5 * (rs.start_m + rs.end_m))
+    return list(out.items())
+
+
+def line_chainage(station_order: Sequence[str], routes: Iterable[RouteInfo]) -> dict[str, tuple[str, float]]:
+    """``{station: (line id, km)}``: a chainage for a net that has none, from its routes (module docstring).
+
+    The **main line** is the route along the most stations (ties: the one starting at the station listed first,
+    then the longer one); its stations get ``km`` = platform centre minus the first station's centre, in km
+    (so its direction of travel is ``up``, the other ``down``). Then, while stations are left, the route along
+    the most of them becomes branch ``branch<k>``: each new station is placed from the nearest already placed
+    station on that route, in the direction the placed stations run on it (``+`` if fewer than two).
+    """
+    index = {sid: i for i, sid in enumerate(station_order)}
+    along = [(r, _stations_along(r)) for r in routes]
+    placed: dict[str, tuple[str, float]] = {}
+    k = 0
+    while True:
+        best = None
+        for r, seq in along:
+            new = sum(1 for sid, _ in seq if sid not in placed)
+            if new == 0 or len(seq) < 2:
+                continue
+            key = (new, -index.get(seq[0][0], len(index)), r.length_m, r.id)
+            if best is None or key > best[0]:
+                best = (key, seq)
+        if best is None:
+            return placed
+        seq = best[1]
+        line_id = "main" if k == 0 else f"branch{k}"
+        known = [(c, placed[sid][1]) for sid, c in seq if sid in placed]
+        if not known:
+            known = [(seq[0][1], 0.0)]
+        sign = 1.0
+        if len(known) >= 2 and known[-1][1] < known[0][1]:
+            sign = -1.0
+        for sid, c in seq:
+            if sid not in placed:
+                c0, km0 = min(known, key=lambda ck: abs(ck[0] - c))
+                placed[sid] = (line_id, round(km0 + sign * (c - c0) / 1000.0, 6))
+        k += 1
 
 
 def sumo_args(bundle: NetworkBundle) -> tuple[str, ...]:

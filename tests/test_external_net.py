@@ -355,8 +355,9 @@ def test_network_show_prints_stations_switches_and_route_lengths(nets: dict, cac
 
     with pytest.MonkeyPatch.context() as mp:
         mp.setenv("RAILSIM_CACHE", str(cache))
-        length_km = load_net(net, [stops]).route_between("portal", "bravo").length_m / 1000
-    assert f"{length_km:8.3f} km" in line
+        route = load_net(net, [stops]).route_between("portal", "bravo")
+    distance_km = (route.stop("bravo").end_m - route.stop("portal").end_m) / 1000  # first stop to last stop
+    assert f"{distance_km:8.3f} km" in line and distance_km < route.length_m / 1000
 
 
 def _error(args: list[str], cache: Path) -> str:
@@ -393,7 +394,7 @@ def test_errors_name_the_file_and_field(nets: dict, use_cache: Path, tmp_path: P
         '<node id="a" x="0" y="0"/><node id="b" x="500" y="0"/>',
         _edge("r", "a", "b", allow="passenger bus"),
     )
-    assert _load_error(road).startswith(f"{road}: no rail edges: no lane allows any of rail_urban")
+    assert _load_error(road).startswith(f"{road}: no rail edges (vClass rail_urban/subway/")
     garbage = _write(tmp_path, "garbage.net.xml", "this is not xml <")
     assert _load_error(garbage).startswith(f"{garbage}: not a SUMO network")
     future = tmp_path / "future.net.xml"

@@ -147,8 +147,9 @@ def _fake_build(stations: list[str], switches: list[str], calls: list[Any]) -> A
 def test_world_check_passes(monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str]) -> None:
     calls: list[Any] = []
     monkeypatch.setattr(world, "_network_build", lambda: _fake_build(STATIONS, ["bijin_up"], calls))
+    monkeypatch.setattr(world, "_simulation", lambda: lambda scn, out, **kw: calls.append(("engine", out)))
     assert cli.main(["validate", str(REPO / VALID)]) == 0
-    assert calls == [("chongqing_line3", {})]
+    assert calls == [("chongqing_line3", {}), ("engine", None)]  # run's own checks after the world check
     assert capsys.readouterr().out == "ok: cq3_peak_test: 2 services, 53 trips, 2 formations\n"
 
 

@@ -14,7 +14,8 @@ sections (``bijin → jiangbei-airport-t2`` vs ``bijin → shuangfengqiao``).
 ``arrival_s``       when it halted at ``to_station`` (``stops.csv`` arrival)
 ``running_time_s``  ``arrival_s − departure_s``
 ``length_m``        route metres between the two stopping marks (the train front at each halt)
-``from_km/to_km``   line km of the two stations (platform centres, the world's design chainage)
+``from_km/to_km``   line km of the two stations (platform centres: the world's design chainage; on a user's
+                    net the chainage :func:`network.external.line_chainage` gives it)
 ``headway_s``       ``departure_s`` minus the departure of the train that left the same section (same two
                     stations, same direction) just before; NaN for the first train on that section
 ``formation``       the formation id when the trip ran this section inside a virtually coupled formation
@@ -192,15 +193,15 @@ class LineFrame:
                 run, None, "expected scenario.resolved.yaml in the run folder (written by railsim run), found none"
             )
         scn = scenario_mod.load(resolved)
-        if scn.world.kind == "net":
-            raise ConfigError(
-                resolved,
-                "world",
-                "line sections need a world built from a line description "
-                "(stations with km); a ready SUMO net has none",
-            )
-        name_or_path, params = scn.world.build_args()
-        bundle = network.build(name_or_path, **params)
+        if scn.world.kind == "net":  # a user's net: line chainage from its routes (network.external.line_chainage)
+            from network.external import load_world
+
+            bundle = load_world(scn.world, resolved)
+            scn = scenario_mod.with_station_ids(scn, bundle.station_aliases)
+            _require_chainage(scn, bundle, resolved)
+        else:
+            name_or_path, params = scn.world.build_args()
+            bundle = network.build(name_or_path, **params)
         frames = {svc.id: _service_frame(svc, bundle) for svc in scn.services}
         return cls(run, scn, bundle, frames)
 
@@ -211,6 +212,21 @@ class LineFrame:
     def length_m(self, service: str) -> float:
         """Train length of ``service``'s vehicle [m]."""
         return float(self.scenario.vehicle_of(service).length_m)
+
+
+def _require_chainage(scn: Any, bundle: Any, source: Path) -> None:
+    """A user's net gets line km only up to ``network.external.MAX_LISTED_STATIONS`` stations."""
+    from network.external import MAX_LISTED_STATIONS
+
+    for i, svc in enumerate(scn.services):
+        for sid in (svc.from_station, svc.to_station):
+            if not bundle.stations[sid].line:
+                raise ConfigError(
+                    source,
+                    f"services[{i}]",
+                    f"station {sid!r} has no line km: {bundle.name} has {len(bundle.stations)} stations, line "
+                    f"chainage is computed for nets with up to {MAX_LISTED_STATIONS}",
+                )
 
 
 def _service_frame(svc: Any, bundle: Any) -> ServiceFrame:

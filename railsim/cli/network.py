@@ -53,7 +53,7 @@ def cmd_build(args: argparse.Namespace) -> int:
 def summary(bundle: Any) -> str:
     """Readable text summary of a NetworkBundle (stations, switches, routes)."""
     lines = [f"world {bundle.name}", f"  net:   {bundle.net_file}", f"  stops: {bundle.stops_file}"]
-    external = bundle.graph.graph.get("kind") == "external"  # a user's net: no chainage, platforms = trainStops
+    external = bundle.graph.graph.get("kind") == "external"  # a user's net: derived line km, platforms = trainStops
     if external:
         lines.append(f"  rail vClass {bundle.vclass}; rail signals: {bundle.n_rail_signals} ({bundle.signals})")
     lines += ["", f"stations ({len(bundle.stations)}):"]
@@ -63,7 +63,8 @@ def summary(bundle: Any) -> str:
                 f"{p.stop_id} on {p.edge} {p.start_pos_m:.0f}-{p.end_pos_m:.0f} m heading {p.direction}"
                 for p in st.platforms
             )
-            lines.append(f"  {st.id:<24} {st.name!r:<26} {plats}")
+            km = f"{st.line:<8} km {st.km:7.3f}" if st.line else "no line km"
+            lines.append(f"  {st.id:<24} {st.name!r:<26} {km}  {plats}")
     else:
         lines.append(f"  {'id':<48} {'line':<10} {'km':>9} {'platform':>9}  turnback")
         for st in bundle.stations.values():  # main line first, then each branch, by chainage
@@ -78,13 +79,26 @@ def summary(bundle: Any) -> str:
             f"diverging {sw.diverging_speed_mps * 3.6:g} km/h"
         )
     lines.append("")
-    lines.append(f"routes ({len(bundle.routes)}):")
+    lines.append(f"routes ({len(bundle.routes)}; km = first stop to last stop along the route):")
     for r in bundle.routes.values():
         sws = ", ".join(f"{s.switch_id}({s.leg}) @{s.point_m:.0f} m" for s in r.switches) or "no switches"
         lines.append(
-            f"  {r.id:<36} {r.length_m / 1000:8.3f} km  {len(r.edges):3d} edges  {len(r.stops):2d} stops  {sws}"
+            f"  {r.id:<36} {route_distance_m(r) / 1000:8.3f} km  {len(r.edges):3d} edges  {len(r.stops):2d} stops  "
+            f"{sws}"
         )
     return "\n".join(lines)
+
+
+def route_distance_m(route: Any) -> float:
+    """Metres a train runs on ``route`` (id ``"a->b"`` or ``"a->b via ..."``): from its stopping mark at the
+    first station to its stopping mark at the last, along the route. Not ``length_m``, which counts the
+    whole first and last edges (a 2.8 km service on two long edges would read 6.5 km)."""
+    first, _, last = route.id.split(" via ")[0].partition("->")
+    starts = [s for s in route.stops if s.station_id == first]
+    ends = [s for s in route.stops if s.station_id == last]
+    if not starts or not ends:
+        return float(route.length_m)
+    return float(ends[-1].end_m - starts[0].end_m)
 
 
 def cmd_show(args: argparse.Namespace) -> int:

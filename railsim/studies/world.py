@@ -10,8 +10,14 @@ A shipped world or a line description is built with ``network.build``; a ``net``
 read as it is (:func:`network.external.load_world`: stations from its trainStops). Mismatches raise
 :class:`railsim.errors.ConfigError` from :func:`railsim.scenario.check_against_world`, naming file and field.
 
-It lives here, not in :mod:`railsim.cli`, because studies may not import the command line; its natural home is
-:mod:`railsim.scenario`, next to ``check_against_world``.
+:func:`run_checks` adds everything ``railsim run`` checks before its first step, by building the engine's
+:class:`railsim.engine.Simulation` without an output folder and never running it (routes, reversals, coupling
+stations, formation trip references, insertion positions, the interlocking): one set of checks and one message
+per mistake for ``validate`` and ``run``. SUMO is not started.
+
+It lives here, not in :mod:`railsim.cli`, because studies may not import the command line; the world check's
+natural home is :mod:`railsim.scenario`, next to ``check_against_world``, but the scenario layer may not import
+the engine that :func:`run_checks` needs.
 """
 
 from __future__ import annotations
@@ -44,4 +50,21 @@ def world_check(scn: scenario_mod.Scenario) -> str | None:
     scenario_mod.check_against_world(
         scn, bundle.stations.keys(), bundle.switches.keys(), getattr(bundle, "station_aliases", None)
     )
+    return None
+
+
+def _simulation() -> Callable[..., Any]:
+    """``railsim.engine.Simulation``: the one place the checks reach the engine (tests replace it)."""
+    from railsim.engine import Simulation
+
+    return Simulation
+
+
+def run_checks(scn: scenario_mod.Scenario) -> str | None:
+    """:func:`world_check`, then every check ``railsim run`` makes before its first step (module docstring).
+    Returns a reason when the checks were skipped; raises ConfigError naming file and field."""
+    skipped = world_check(scn)
+    if skipped:
+        return skipped
+    _simulation()(scn, None, progress=False)
     return None

@@ -7,7 +7,8 @@ planner is given the engine's numbers, so that its plans are ones the engine let
 
 from __future__ import annotations
 
-from typing import Any, Iterable
+from collections.abc import Iterable
+from typing import Any
 
 from controllers.base import Observation, OwnState, PredecessorState
 from controllers.junction.model import JunctionParams

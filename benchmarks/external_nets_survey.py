@@ -1,0 +1,205 @@
+"""Survey: does railsim run on other people's SUMO rail nets? One row per net: validate, run, outcome.
+
+    .venv/bin/python benchmarks/external_nets_survey.py NETS_DIR --out OUT_DIR [--duration-s 1800]
+
+``NETS_DIR`` holds SUMO nets (``*.net.xml``, searched recursively; e.g. a few of SUMO's own ``tests/sumo/rail``
+nets and the ``tools/game/rail`` nets of the eclipse-sumo package). A net's additional files are the
+``*.add.xml`` files next to it that hold ``trainStop``/``busStop`` elements. A net with fewer than two stations
+railsim can route between gets **survey stops**: a ``trainStop`` on the first and the last edge of the longest
+rail path (by metres) and one in the middle, written to ``OUT_DIR/<net>/survey.stops.add.xml``.
+
+For each net the survey writes a tiny scenario (``OUT_DIR/<net>/scenario.yaml``): up to three ATO services
+(one trip each) on the listed routes through the most stations — the longest, its opposite direction if the
+net has one, and the next longest — then runs ``railsim validate`` and ``railsim run`` in child processes and
+records the outcome:
+
+* ``arrived n/m, stops k/l`` (trains that reached their last station, stops served of those scheduled; +
+  ``collisions`` ours / ``sumo_collisions`` SUMO's when non-zero) for a run that finished;
+* ``refused: <message>`` for a clean refusal (exit 2, one line), at load, validate or run;
+* ``crash (exit N): <last stderr line>`` for anything else (a traceback, a SUMO crash, a timeout).
+
+It prints a Markdown table (net × outcome) and writes it to ``OUT_DIR/survey.md``. The nets are not part of
+the repository: fetch them yourself (SUMO's source, ``tests/sumo/rail/*/net.net.xml``).
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import networkx as nx
+import yaml
+
+ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+
+from network.external import load_net  # noqa: E402
+from railsim.errors import ConfigError  # noqa: E402
+
+MAX_SERVICES = 3
+STOP_LENGTH_M = 150.0  # survey platform length (or the whole edge if shorter)
+
+
+@dataclass
+class Row:
+    net: str
+    stations: str
+    validate: str
+    run: str
+
+
+def _stop_files(net: Path) -> list[Path]:
+    return sorted(
+        p
+        for p in net.parent.glob("*.add.xml")
+        if "<trainStop" in (text := p.read_text(errors="replace")) or "<busStop" in text
+    )
+
+
+def _short(text: str, n: int = 160) -> str:
+    text = " ".join(text.split())
+    return text if len(text) <= n else text[: n - 1] + "…"
+
+
+def _survey_stops(net: Path, folder: Path) -> Path:
+    """trainStops on the first, middle and last edge of the longest rail path of ``net`` (in metres)."""
+    bundle = load_net(net, [])
+    g = bundle.graph
+    best: tuple[float, list[str]] = (0.0, [])
+    for src in g.nodes:
+        dist, paths = nx.single_source_dijkstra(g, src, weight="cost_m")
+        for dst, d in dist.items():
+            if d > best[0] and len(paths[dst]) >= 2:
+                best = (d, paths[dst])
+    path = best[1]
+    if not path:
+        raise ConfigError(net, None, "survey: no rail path of two edges or more to put stops on")
+    picks = [path[0], path[len(path) // 2], path[-1]] if len(path) >= 3 else [path[0], path[-1]]
+    lines = []
+    for k, edge in enumerate(dict.fromkeys(picks)):
+        length = float(g.nodes[edge]["length_m"])
+        lane = min(_lanes(bundle, edge))
+        start = max(0.0, length - STOP_LENGTH_M - 1.0)
+        end = max(start + 1.0, length - 1.0)
+        lines.append(
+            f'  <trainStop id="survey_{k}" lane="{lane}" startPos="{start:.1f}" endPos="{end:.1f}" name="S{k}"/>'
+        )
+    out = folder / "survey.stops.add.xml"
+    out.write_text("<additional>\n" + "\n".join(lines) + "\n</additional>\n", encoding="utf-8")
+    return out
+
+
+def _lanes(bundle: Any, edge: str) -> set[str]:
+    """Lane ids of ``edge`` that allow the bundle's rail vClass (read from SUMO's net with sumolib)."""
+    import sumolib
+
+    net = sumolib.net.readNet(str(bundle.net_file))
+    return {ln.getID() for ln in net.getEdge(edge).getLanes() if ln.allows(bundle.vclass)}
+
+
+def _pick_routes(bundle: Any) -> list[tuple[str, str]]:
+    """Up to MAX_SERVICES (from, to) station pairs: the longest listed route, its opposite, the next longest."""
+    ranked = sorted(bundle.routes.values(), key=lambda r: (-len({s.station_id for s in r.stops}), -r.length_m, r.id))
+    pairs: list[tuple[str, str]] = []
+    for r in ranked:
+        a, _, b = r.id.partition("->")
+        for pair in ((a, b), (b, a)):
+            if pair not in pairs and f"{pair[0]}->{pair[1]}" in bundle.routes:
+                pairs.append(pair)
+        if len(pairs) >= MAX_SERVICES:
+            break
+    return pairs[:MAX_SERVICES]
+
+
+def _scenario(name: str, net: Path, adds: list[Path], pairs: list[tuple[str, str]], duration_s: float) -> dict:
+    return {
+        "name": f"survey_{name}",
+        "world": {"net": str(net), "additional": [str(p) for p in adds]},
+        "simulation": {"step_s": 0.5, "duration_s": duration_s, "seed": 1},
+        "vehicles": {"unit": {"preset": "cq3_6car"}},
+        "controllers": {"ato": {"type": "ato"}, "sep": {"type": "separation"}},
+        "roles": {"ato": "ato", "separation": "sep"},
+        "services": [
+            {"id": f"s{k}", "from": a, "to": b, "vehicle": "unit", "departures": {"times": [60.0 * k]}, "dwell_s": 20}
+            for k, (a, b) in enumerate(pairs)
+        ],
+    }
+
+
+def _railsim(args: list[str], timeout_s: float) -> tuple[int, str]:
+    cmd = [sys.executable, "-m", "railsim.cli.main", *args]
+    try:
+        proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout_s, cwd=ROOT, env=dict(os.environ))
+    except subprocess.TimeoutExpired:
+        return -1, f"timeout after {timeout_s:g} s"
+    lines = [ln for ln in proc.stderr.splitlines() if ln.strip()]
+    return proc.returncode, lines[-1] if lines else ""
+
+
+def _outcome(rc: int, err: str, summary: Path | None = None) -> str:
+    if rc in (0, 1) and summary is not None and summary.exists():
+        import json
+
+        s = json.loads(summary.read_text())
+        text = f"arrived {s.get('n_arrived')}/{s.get('n_trains')}, stops {s.get('n_stops_served')}/{s.get('n_stops_scheduled')}"
+        for key in ("collisions", "sumo_collisions", "switch_violations"):
+            if s.get(key):
+                text += f", {key} {s[key]}"
+        return text
+    if rc == 0:
+        return "ok"
+    if rc == 2 and "Traceback" not in err:
+        return "refused: " + _short(err.removeprefix("railsim: error: "))
+    return f"crash (exit {rc}): {_short(err)}"
+
+
+def survey_one(net: Path, out: Path, duration_s: float) -> Row:
+    name = net.parent.name  # one net per folder, named by its folder
+    folder = out / name
+    folder.mkdir(parents=True, exist_ok=True)
+    adds = _stop_files(net)
+    try:
+        bundle = load_net(net, adds)
+        pairs = _pick_routes(bundle)
+        if not pairs:
+            adds = [*adds, _survey_stops(net, folder)]
+            bundle = load_net(net, adds)
+            pairs = _pick_routes(bundle)
+    except ConfigError as exc:
+        return Row(name, "-", "refused at load: " + _short(str(exc)), "-")
+    stations = f"{len(bundle.stations)} ({'survey stops' if any(p.name.startswith('survey') for p in adds) else 'own'})"
+    if not pairs:
+        return Row(name, stations, "no route between any two stations", "-")
+    path = folder / "scenario.yaml"
+    path.write_text(yaml.safe_dump(_scenario(name, net, adds, pairs, duration_s), sort_keys=False), encoding="utf-8")
+    rc, err = _railsim(["validate", str(path)], 600)
+    validate = "ok" if rc == 0 else _outcome(rc, err)
+    run_dir = folder / "run"
+    rc, err = _railsim(["run", str(path), "--out", str(run_dir), "--no-progress"], 1200)
+    return Row(name, stations, validate, _outcome(rc, err, run_dir / "summary.json"))
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("nets", type=Path, help="folder of SUMO nets (*.net.xml, searched recursively)")
+    ap.add_argument("--out", type=Path, required=True, help="folder for scenarios, runs and survey.md")
+    ap.add_argument("--duration-s", type=float, default=1800.0, help="simulated horizon of each run [s]")
+    args = ap.parse_args(argv)
+    rows = [survey_one(net, args.out, args.duration_s) for net in sorted(args.nets.rglob("*.net.xml"))]
+    table = ["| net | stations | validate | run |", "|---|---|---|---|"] + [
+        f"| {r.net} | {r.stations} | {r.validate} | {r.run} |" for r in rows
+    ]
+    text = "\n".join(table)
+    args.out.mkdir(parents=True, exist_ok=True)
+    (args.out / "survey.md").write_text(text + "\n", encoding="utf-8")
+    print(text)
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
