@@ -274,3 +274,38 @@ def test_a_deadlock_constructed_on_purpose_stops_the_run_naming_the_trains(tmp_p
     assert sorted(detail["resources"]) == ["track:-AM", "track:-MB"]
     s = read_summary(out)
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["n_arrived"] == 0
+
+
+@pytest.mark.sumo
+def test_no_train_is_inserted_between_a_train_and_the_switch_it_holds(tmp_path: Path) -> None:
+    """The train behind already holds the switch ahead: a departure in between would wait for that lock in front
+    of its holder for ever. The dispatcher holds it (reason names the holder) until the holder has passed."""
+    nodes = (
+        '<node id="A" x="0" y="0"/>\n<node id="J" x="1800" y="0"/>\n<node id="Z" x="5000" y="0"/>\n'
+        '<node id="C" x="4000" y="900"/>'
+    )
+    edges = [_edge("AJ", "A", "J"), _edge("JZ", "J", "Z"), _edge("JC", "J", "C", 16.0, shape="1800,0 4000,900")]
+    net = _netconvert(tmp_path, "hold", nodes, "\n".join(edges))
+    stops = _stops(
+        tmp_path,
+        "hold",
+        [("p1", "AJ_0", 100, 400, "First"), ("p2", "AJ_0", 1000, 1300, "Second"), ("z", "JZ_0", 2600, 2900, "Zed")],
+    )
+    services = [_service("first", "p1", "z", 0, skip=["second"]), _service("second", "p2", "z", 20)]
+    scn = _scenario(tmp_path, "hold", net, stops, services)
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    held = [e for e in events if e["kind"] == "departure_held" and e["subject"] == "second.000"]
+    assert held and "first.000 holds the route through here (switch J" in held[0]["detail"]
+    trips = {r["service"]: r for r in read_csv(out / "trips.csv")}
+    t_dep = float(trips["second"]["departure_s"])
+    first_at = [
+        float(r["chainage_m"])
+        for r in read_csv(out / "trace.csv")
+        if r["train"] == "first.000" and abs(float(r["t_s"]) - t_dep) < 1.0
+    ]
+    assert first_at and min(first_at) > 1300.0  # it departed only once the holder had passed its platform

@@ -104,6 +104,13 @@ class FormationBook:
         f = self.of_follower.get(train_id)
         return self.manager.state(f.id) if f is not None else "free"
 
+    def partners(self, a_id: str, b_id: str) -> bool:
+        """True if the two trains are leader and follower of one formation (either way round)."""
+        fa, fb = self.of_follower.get(a_id), self.of_follower.get(b_id)
+        return (fa is not None and self.leader_of(fa).train_id == b_id) or (
+            fb is not None and self.leader_of(fb).train_id == a_id
+        )
+
     def leader_of(self, f: Any) -> TrainRuntime:
         return self.fleet.trains[self.fleet.trips_by_service[f.leader.service][f.leader.trip].trip_id]
 

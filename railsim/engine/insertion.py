@@ -244,6 +244,19 @@ class Dispatcher:
                 return f"track occupied by {other.train_id}"
             if rear_o - other.front_m < needed:
                 return f"approaching train {other.train_id} could not stop"
+            held = self._locked_ahead_of(other, rear_o)
+            if held is not None and not self.formations.partners(tr.train_id, other.train_id):
+                # the train behind holds the route through this spot: a train put in between would wait for that
+                # lock in front of its holder, for ever (a deadlock by insertion)
+                return f"{other.train_id} holds the route through here (switch {held})"
+        return None
+
+    @staticmethod
+    def _locked_ahead_of(other: TrainRuntime, chainage_m: float) -> str | None:
+        """A switch beyond ``chainage_m`` (``other``'s route frame) whose lock ``other`` holds, or None."""
+        for rs in other.trip.route.switches:
+            if rs.point_m > chainage_m and rs.switch_id in other.locks and rs.switch_id not in other.released:
+                return rs.switch_id
         return None
 
     def leave(self, tr: TrainRuntime) -> None:
