@@ -32,12 +32,19 @@ def _write(folder: Path, name: str, text: str) -> Path:
     return path
 
 
-def _netconvert(folder: Path, name: str, nodes: str, edges: str) -> Path:
+def _netconvert(folder: Path, name: str, nodes: str, edges: str, connections: str = "") -> Path:
+    """Build ``name.net.xml`` from plain XML; ``connections`` (``<connection .../>`` lines) restricts the links."""
     nod = _write(folder, f"{name}.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
     edg = _write(folder, f"{name}.edg.xml", f"<edges>\n{edges}\n</edges>")
     net = folder / f"{name}.net.xml"
+    extra = []
+    if connections:
+        extra = ["-x", str(_write(folder, f"{name}.con.xml", f"<connections>\n{connections}\n</connections>"))]
     proc = subprocess.run(
-        [str(netconvert()), "-n", str(nod), "-e", str(edg), "-o", str(net)], capture_output=True, text=True, timeout=120
+        [str(netconvert()), "-n", str(nod), "-e", str(edg), *extra, "-o", str(net)],
+        capture_output=True,
+        text=True,
+        timeout=120,
     )
     assert proc.returncode == 0, proc.stderr
     return net

@@ -44,6 +44,17 @@ def _scenario(folder: Path, name: str, net: Path, stops: Path, services: list[di
     return _write(folder, f"{name}.yaml", yaml.safe_dump(raw, sort_keys=False))
 
 
+def _run(
+    folder: Path, name: str, net: Path, stops: Path, services: list[dict], exit_code: int = 0
+) -> tuple[Path, dict, str]:
+    """``railsim run`` the services in a child process; assert the exit code; (output folder, summary, stderr)."""
+    out = folder / "out"
+    scn = _scenario(folder, name, net, stops, services)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    assert res.returncode == exit_code, res.stderr + res.stdout
+    return out, read_summary(out), res.stderr
+
+
 def test_sections_of_a_line_and_a_loop(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from network.external import load_net
     from railsim.engine.single_track import contested, route_sections, section_map
@@ -72,11 +83,7 @@ def test_sections_of_a_line_and_a_loop(tmp_path: Path, monkeypatch: pytest.Monke
 def test_no_passing_loop_second_train_waits_at_the_entry(tmp_path: Path) -> None:
     net, stops = build_single_line(tmp_path)
     services = [_service("east", "aston", "bury", 0), _service("west", "bury", "aston", 0)]
-    scn = _scenario(tmp_path, "single_line", net, stops, services)
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr + res.stdout
-    s = read_summary(out)
+    out, s, stderr = _run(tmp_path, "single_line", net, stops, services)
     assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
     events = read_csv(out / "events.csv")
     held = [e for e in events if e["kind"] == "departure_held"]
@@ -91,11 +98,7 @@ def test_no_passing_loop_second_train_waits_at_the_entry(tmp_path: Path) -> None
 def test_opposing_trains_cross_at_the_passing_loop(tmp_path: Path) -> None:
     net, stops = build_passing_loop(tmp_path)
     services = [_service("east", "portal", "bravo", 0), _service("west", "bravo_w", "Portal", 0, via=["Mid"])]
-    scn = _scenario(tmp_path, "loop", net, stops, services)
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr + res.stdout
-    s = read_summary(out)
+    out, s, stderr = _run(tmp_path, "loop", net, stops, services)
     assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
     assert s["switch_violations"] == 0
     events = read_csv(out / "events.csv")
@@ -117,26 +120,13 @@ def test_opposing_trains_cross_at_the_passing_loop(tmp_path: Path) -> None:
 
 def build_diamond(folder: Path) -> tuple[Path, Path]:
     """Two lines crossing flat at node X (no connection between them: a diamond crossing, not a junction)."""
-    import subprocess
-
-    from network.generator import netconvert_binary
-
     nodes = (
         '<node id="W" x="0" y="0"/>\n<node id="X" x="2000" y="0"/>\n<node id="E" x="4000" y="0"/>\n'
         '<node id="S" x="2000" y="-2000"/>\n<node id="N" x="2000" y="2000"/>'
     )
     edges = [_edge("WX", "W", "X"), _edge("XE", "X", "E"), _edge("SX", "S", "X"), _edge("XN", "X", "N")]
-    nod = _write(folder, "diamond.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
-    edg = _write(folder, "diamond.edg.xml", "<edges>\n" + "\n".join(edges) + "\n</edges>")
-    con = _write(
-        folder,
-        "diamond.con.xml",
-        '<connections>\n<connection from="WX" to="XE"/>\n<connection from="SX" to="XN"/>\n</connections>',
-    )
-    net = folder / "diamond.net.xml"
-    cmd = [str(netconvert_binary()), "-n", str(nod), "-e", str(edg), "-x", str(con), "-o", str(net)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
+    only = '<connection from="WX" to="XE"/>\n<connection from="SX" to="XN"/>'
+    net = _netconvert(folder, "diamond", nodes, "\n".join(edges), connections=only)
     stops = _stops(
         folder,
         "diamond",
@@ -159,11 +149,7 @@ def test_routes_crossing_inside_one_node_take_turns(tmp_path: Path) -> None:
     assert bundle.switches == {}  # no connection between the lines: only the crossing protects them
     assert set(bundle.graph.graph["crossings"]["X"]) == {("WX", "XE"), ("SX", "XN")}
     services = [_service("we", "west", "east", 0), _service("sn", "south", "north", 0)]
-    scn = _scenario(tmp_path, "diamond", net, stops, services)
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr + res.stdout
-    s = read_summary(out)
+    out, s, stderr = _run(tmp_path, "diamond", net, stops, services)
     assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
     events = read_csv(out / "events.csv")
     reserved = [yaml.safe_load(e["detail"])["trains"][0] for e in events if e["kind"] == "section_reserved"]
@@ -175,22 +161,13 @@ def test_routes_crossing_inside_one_node_take_turns(tmp_path: Path) -> None:
 
 def build_merge(folder: Path) -> tuple[Path, Path]:
     """Two lines merging at switch J onto one track (a Y): the flank case."""
-    import subprocess
-
-    from network.generator import netconvert_binary
-
     nodes = (
         '<node id="A" x="0" y="0"/>\n<node id="B" x="0" y="600"/>\n<node id="J" x="2000" y="0"/>\n'
         '<node id="Z" x="5000" y="0"/>'
     )
     branch = "0,600 1200,600 2000,0"
     edges = [_edge("AJ", "A", "J"), _edge("BJ", "B", "J", 16.0, shape=branch), _edge("JZ", "J", "Z")]
-    nod = _write(folder, "merge.nod.xml", f"<nodes>\n{nodes}\n</nodes>")
-    edg = _write(folder, "merge.edg.xml", "<edges>\n" + "\n".join(edges) + "\n</edges>")
-    net = folder / "merge.net.xml"
-    cmd = [str(netconvert_binary()), "-n", str(nod), "-e", str(edg), "-o", str(net)]
-    proc = subprocess.run(cmd, capture_output=True, text=True, timeout=120)
-    assert proc.returncode == 0, proc.stderr
+    net = _netconvert(folder, "merge", nodes, "\n".join(edges))
     stops = _stops(
         folder,
         "merge",
@@ -205,11 +182,7 @@ def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path:
     margin before the switch point (it never fouls the route set for the other), then follows; 0 collisions."""
     net, stops = build_merge(tmp_path)
     services = [_service("main", "ash", "zed", 0), _service("branch", "birch", "zed", 0)]
-    scn = _scenario(tmp_path, "merge", net, stops, services)
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr + res.stdout
-    s = read_summary(out)
+    out, s, stderr = _run(tmp_path, "merge", net, stops, services)
     assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
     assert s["switch_violations"] == 0
     events = read_csv(out / "events.csv")
@@ -263,16 +236,12 @@ def test_a_deadlock_constructed_on_purpose_stops_the_run_naming_the_trains(tmp_p
     for the other's. The run stops with a ``deadlock`` event naming both trains and both sections, exit 3."""
     net, stops = build_no_passing_place(tmp_path)
     services = [_service("east", "a_out", "b_in", 0), _service("west", "b_out", "a_in", 0)]
-    scn = _scenario(tmp_path, "spur", net, stops, services)
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 3, res.stderr + res.stdout
-    assert "deadlock" in res.stderr and "east.000" in res.stderr and "west.000" in res.stderr
+    out, s, stderr = _run(tmp_path, "spur", net, stops, services, exit_code=3)
+    assert "deadlock" in stderr and "east.000" in stderr and "west.000" in stderr
     (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
     detail = yaml.safe_load(ev["detail"])
     assert sorted(detail["trains"]) == ["east.000", "west.000"]
     assert sorted(detail["resources"]) == ["track:-AM", "track:-MB"]
-    s = read_summary(out)
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["n_arrived"] == 0
 
 
@@ -292,11 +261,7 @@ def test_no_train_is_inserted_between_a_train_and_the_switch_it_holds(tmp_path: 
         [("p1", "AJ_0", 100, 400, "First"), ("p2", "AJ_0", 1000, 1300, "Second"), ("z", "JZ_0", 2600, 2900, "Zed")],
     )
     services = [_service("first", "p1", "z", 0, skip=["second"]), _service("second", "p2", "z", 20)]
-    scn = _scenario(tmp_path, "hold", net, stops, services)
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr + res.stdout
-    s = read_summary(out)
+    out, s, stderr = _run(tmp_path, "hold", net, stops, services)
     assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
     events = read_csv(out / "events.csv")
     held = [e for e in events if e["kind"] == "departure_held" and e["subject"] == "second.000"]
