@@ -15,7 +15,10 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
   starts, ``stops`` = the platforms on it), graph edges = SUMO
   connections between allowed lanes, with their internal lanes (``via``, so route chainage equals SUMO's
   odometer). Turnaround connections (``dir="t"``, and any connection onto an edge's own ``bidi`` partner) are
-  left out: **trains do not reverse mid-route**; a service that needs a reversal is split into two services.
+  left out of the graph, so a *service* route never reverses; the turnarounds SUMO can drive (a connection
+  from an edge onto its own ``bidi`` partner) are kept aside in ``graph.graph["reversals"]``
+  (``{edge: [bidi edge, via]}``): the turnback of a unit between two trips (``railsim.engine.turnback``)
+  reverses there, the way SUMO reverses a train (it flips the train on the bidi edge when it stands).
 * **Switches** are SUMO nodes where a track *diverges* (one incoming rail edge with connections to two or more
   outgoing ones) or *merges* (two or more incoming edges connected to one outgoing edge); there is one
   :class:`~network.topology.SwitchInfo` per direction of travel. The **normal leg** is the straightest one
@@ -91,7 +94,7 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-EXTERNAL_VERSION = "1"  # bump when the way a net is read changes (invalidates the cache)
+EXTERNAL_VERSION = "2"  # bump when the way a net is read changes (invalidates the cache)
 RAIL_VCLASSES = ("rail_urban", "subway", "rail", "rail_electric", "rail_fast", "tram")  # auto preference order
 SIGNAL_MODES = ("strip", "keep")
 DEFAULT_THROW_TIME_S = 6.0  # a typical electric point machine (a SUMO net records no throw time)
@@ -324,7 +327,7 @@ def _via_chain(net: Any, conn: Any) -> list[list[Any]]:
 
 
 def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
-    g = nx.DiGraph(name=name, kind="external", vclass=vclass, gradients={}, points={})
+    g = nx.DiGraph(name=name, kind="external", vclass=vclass, gradients={}, points={}, reversals={})
     for e in net.getEdges(withInternal=False):
         lanes = [ln for ln in e.getLanes() if _rail_lane(ln, vclass)]
         if not lanes:
@@ -357,7 +360,12 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
         bidi = g.nodes[eid]["bidi"]
         for to_edge, conns in e.getOutgoing().items():
             tid = to_edge.getID()
-            if tid not in g or tid == bidi:
+            if tid == bidi and tid in g:
+                turn = [c for c in conns if _rail_lane(c.getFromLane(), vclass) and _rail_lane(c.getToLane(), vclass)]
+                if turn:
+                    g.graph["reversals"][eid] = [tid, _via_chain(net, turn[0])]
+                continue
+            if tid not in g:
                 continue
             usable = [
                 c

@@ -20,8 +20,13 @@ How a line becomes a SUMO net (facts measured in ``shared/notes/sumo_rail_findin
   Every edge is shortened, also the first one of a line (whose start then lies 0.1 m inside the design
   extent): single-track bidi edge pairs must have equal lengths, or netconvert averages them.
   Explicit connections also rule out any movement we did not intend (no reversal, no branch-to-branch).
-* **Turnbacks** need no reversal edges: the engine ends a trip and starts the next from the opposite
-  platform. Crossovers are kept in the topology only.
+* **Turnback tracks.** Every free line end whose outer station has ``turnback: true`` gets a single-track
+  (``bidi``) turnback track of :data:`TURNBACK_TRACK_M` beyond the end of the line's overrun: the arriving
+  track runs into it, a turnaround connection at its far end lets SUMO reverse a unit there, and its partner
+  runs back onto the departing track. The track graph gets its two edges (``direction="turnback"``, with
+  ``bidi`` partners, so the interlocking treats it as a single-track section) and the turnaround in
+  ``graph.graph["reversals"]``; service routes never use it, rotations do (``railsim.engine.turnback``).
+  Intermediate turnback stations' crossovers are kept in the topology only.
 
 The result is read back from the .net.xml with sumolib (lane lengths, speeds, internal lanes), so the track
 graph and the routes reflect what SUMO will actually simulate.
@@ -52,12 +57,13 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = "2"
+GENERATOR_VERSION = "3"
 INTERNAL_LANE_M = 0.1  # length of every internal junction lane (what netconvert gives a straight rail node)
 ALLOW = "rail rail_urban rail_fast rail_electric subway"
 TRACK_WIDTH_M = 3.0
 BRANCH_OFFSET_M = 60.0  # lateral drawing offset of a branch from its parent (geometry only)
 DIRECTIONS = ("up", "down")
+TURNBACK_TRACK_M = 180.0  # a turnback track beyond a terminus: a 6/8-car unit (≤ 120 m) plus margin
 
 
 def netconvert_binary() -> Path:
@@ -93,6 +99,23 @@ class _Piece:
         return f"{self.line}_{direction}_{self.index}"
 
 
+@dataclass(frozen=True)
+class _TurnbackTrack:
+    """A bidi turnback track beyond a free line end (module docstring)."""
+
+    line: str
+    station: str
+    out: str  # edge from the line end into the track
+    back: str  # its bidi partner, back to the line
+    node: str  # the line end
+    far: str  # the track's far end (the turnaround)
+    x_m: float  # design chainage of the line end
+    sign: float  # +1 beyond the high end, -1 beyond the low end
+    arrive_edge: str
+    depart_edge: str
+    speed_mps: float
+
+
 @dataclass
 class _Switch:
     spec: SwitchSpec
@@ -119,6 +142,7 @@ class _Plan:
         self._build_pieces()
         self._assign_speeds()
         self._build_switches()
+        self.tails = self._turnback_tracks()
 
     # -- break points -------------------------------------------------------------------------------------
     def _stations_of(self, line: str) -> tuple[Station, ...]:
@@ -275,6 +299,49 @@ class _Plan:
                     )
                 )
 
+    def _turnback_tracks(self) -> list[_TurnbackTrack]:
+        """One turnback track per free line end whose outer station turns trains back (module docstring)."""
+        d = self.desc
+        ends: list[tuple[str, str]] = [(d.main_line_id, "lo"), (d.main_line_id, "hi")]
+        ends += [(b.id, "hi" if b.side == "up" else "lo") for b in d.branches]
+        tails: list[_TurnbackTrack] = []
+        for line, end in ends:
+            stations = self._stations_of(line)
+            outer = stations[-1] if end == "hi" else stations[0]
+            if not outer.turnback:
+                continue
+            pieces = self.pieces[line]
+            piece = pieces[-1] if end == "hi" else pieces[0]
+            node = piece.node_b if end == "hi" else piece.node_a
+            x_m = piece.b_m if end == "hi" else piece.a_m
+            sign = 1.0 if end == "hi" else -1.0
+            far = f"{line}_tb_{end}"
+            self.node_xy[far] = (x_m + sign * TURNBACK_TRACK_M, self.line_y[line])
+            arriving, departing = ("up", "down") if end == "hi" else ("down", "up")
+            tails.append(
+                _TurnbackTrack(
+                    line,
+                    outer.id,
+                    f"{line}_tb_{end}",
+                    f"-{line}_tb_{end}",
+                    node,
+                    far,
+                    x_m,
+                    sign,
+                    piece.edge_id(arriving),
+                    piece.edge_id(departing),
+                    min(piece.speed_mps.values()),
+                )
+            )
+        return tails
+
+    def tail_connections(self) -> list[tuple[str, str, str]]:
+        """(from edge, to edge, node) of the turnback tracks: in, the turnaround, out."""
+        out = []
+        for t in self.tails:
+            out += [(t.arrive_edge, t.out, t.node), (t.out, t.back, t.far), (t.back, t.depart_edge, t.node)]
+        return out
+
     # -- edges and connections in travel order --------------------------------------------------------------
     def edges(self) -> list[tuple[str, _Piece, str, str, str]]:
         """(edge id, piece, direction, from node, to node) for every edge."""
@@ -319,10 +386,18 @@ def write_plain_xml(plan: _Plan, folder: Path) -> tuple[Path, Path, Path]:
             f'speed="{p.speed_mps[direction]:.6f}" allow="{ALLOW}" spreadType="{spread}" '
             f'width="{TRACK_WIDTH_M}" length="{_fmt(length)}"/>'
         )
+    for t in plan.tails:
+        for eid, fn, tn in ((t.out, t.node, t.far), (t.back, t.far, t.node)):
+            edg.append(
+                f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
+                f'speed="{t.speed_mps:.6f}" allow="{ALLOW}" spreadType="center" '
+                f'width="{TRACK_WIDTH_M}" length="{_fmt(TURNBACK_TRACK_M - INTERNAL_LANE_M)}"/>'
+            )
     edg.append("</edges>")
     speed_of = {eid: p.speed_mps[direction] for eid, p, direction, _, _ in plan.edges()}
+    speed_of.update({e: t.speed_mps for t in plan.tails for e in (t.out, t.back)})
     con = ["<connections>"]
-    for e_in, e_out, _, _ in plan.connections():
+    for e_in, e_out in [(a, b) for a, b, _, _ in plan.connections()] + [(a, b) for a, b, _ in plan.tail_connections()]:
         v = min(speed_of[e_in], speed_of[e_out])
         con.append(
             f'  <connection from={quoteattr(e_in)} to={quoteattr(e_out)} fromLane="0" toLane="0" '
@@ -436,7 +511,7 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
     lanes, vias, signals = read_net(net_file)
     if signals:  # pragma: no cover - plain XML never yields them; guard the invariant anyway
         raise AssertionError(f"generated net has rail_signal nodes: {signals}")
-    wanted = {(a, b) for a, b, _, _ in plan.connections()}
+    wanted = {(a, b) for a, b, _, _ in plan.connections()} | {(a, b) for a, b, _ in plan.tail_connections()}
     if set(vias) != wanted:  # pragma: no cover - explicit connections leave netconvert no choice
         raise AssertionError(f"netconvert connections differ from the plan: {set(vias) ^ wanted}")
 
@@ -481,6 +556,7 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
     for a, b, node, _ in plan.connections():
         sw, leg = sw_by_conn.get((a, b), (None, None))  # type: ignore[assignment]
         graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
+    graph.graph["reversals"] = _add_turnback_tracks(plan, graph, lanes, vias)
     graph.graph["gradients"] = {
         line: [[g.from_km * 1000.0, g.to_km * 1000.0, g.permille] for g in desc.gradients if g.line == line]
         for line in desc.line_ids()
@@ -498,14 +574,15 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
     end_names = _end_names(plan)
     for direction in DIRECTIONS:
         nodes = [n for n, a in graph.nodes(data=True) if a["direction"] == direction]
-        sources = [n for n in nodes if graph.in_degree(n) == 0]
-        sinks = [n for n in nodes if graph.out_degree(n) == 0]
+        one_way = graph.subgraph(nodes)  # the turnback tracks link the directions; through routes do not
+        sources = [n for n in nodes if one_way.in_degree(n) == 0]
+        sinks = [n for n in nodes if one_way.out_degree(n) == 0]
         for src in sources:
-            reach = nx.descendants(graph, src)
+            reach = nx.descendants(one_way, src)
             for dst in sinks:
                 if dst in reach:
                     rid = f"{end_names[graph.nodes[src]['from_node']]}->{end_names[graph.nodes[dst]['to_node']]}"
-                    routes[rid] = make_route(graph, rid, nx.shortest_path(graph, src, dst))
+                    routes[rid] = make_route(graph, rid, nx.shortest_path(one_way, src, dst))
     topology_file = folder / f"{desc.name}.topology.json"
     bundle = NetworkBundle(
         desc.name,
@@ -531,6 +608,41 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
     for tmp in (nod, edg, con):
         tmp.unlink()
     return bundle
+
+
+def _add_turnback_tracks(
+    plan: _Plan, graph: nx.DiGraph, lanes: dict[str, tuple[float, float]], vias: dict[tuple[str, str], list[list]]
+) -> dict[str, list[object]]:
+    """The turnback tracks' edges and links in the track graph; returns the reversals (module docstring)."""
+    reversals: dict[str, list[object]] = {}
+    for t in plan.tails:
+        out_e, back_e, node, far, x_m, sign = t.out, t.back, t.node, t.far, t.x_m, t.sign
+        for eid, partner, fn, tn, start, s in (
+            (out_e, back_e, node, far, x_m + sign * INTERNAL_LANE_M, sign),
+            (back_e, out_e, far, node, x_m + sign * (TURNBACK_TRACK_M - INTERNAL_LANE_M), -sign),
+        ):
+            length, speed = lanes[eid]
+            graph.add_node(
+                eid,
+                line=t.line,
+                direction="turnback",
+                length_m=length,
+                speed_mps=speed,
+                from_node=fn,
+                to_node=tn,
+                design_start_m=start,
+                design_sign=int(s),
+                station=None,
+                stop_id=None,
+                stop_start_pos_m=None,
+                stop_end_pos_m=None,
+                bidi=partner,
+            )
+        arrive, depart = t.arrive_edge, t.depart_edge
+        graph.add_edge(arrive, out_e, node=node, via=vias[(arrive, out_e)], switch=None, leg=None)
+        graph.add_edge(back_e, depart, node=node, via=vias[(back_e, depart)], switch=None, leg=None)
+        reversals[out_e] = [back_e, vias[(out_e, back_e)]]
+    return reversals
 
 
 def _end_names(plan: _Plan) -> dict[str, str]:

@@ -62,12 +62,13 @@ class Dispatcher:
         self.admission: list[Callable[[float, TrainRuntime, float], str | None]] = []
         self.bridge: Any = None  # the SUMO bridge, wired when the run starts
         self._held: dict[str, str] = {}  # trip -> the reason its departure is held (logged when it changes)
+        self.chained: Callable[[str], bool] = lambda _trip: False  # rotations: trips their unit's turnback starts
 
     def schedule_departures(self) -> None:
         """Schedule every departure; check that same-origin formations fit (ConfigError naming the formation)."""
         for tr in self.fleet.trains.values():
-            if self.formations.couples_on_departure(tr.train_id):
-                continue  # inserted behind its leader (module docstring)
+            if self.formations.couples_on_departure(tr.train_id) or self.chained(tr.train_id):
+                continue  # inserted behind its leader (module docstring), or started by its unit's turnback
             self.layer.at(tr.trip.depart_s, self._inserter(tr), "departure_due", tr.train_id)
         for leader in self.fleet.trains.values():
             for f, follower in self._starting_behind(leader):
@@ -177,7 +178,7 @@ class Dispatcher:
         route_id = trip.route.id if k == 0 else f"{trip.route.id}@{k}"
         self.bridge.add_route(route_id, trip.route.edges[k:])
         self.bridge.add_train(
-            tr.train_id,
+            tr.sumo_id,
             route_id,
             trip.vehicle_name,
             depart_m - tr.view.edge_start_m[k],
@@ -191,7 +192,7 @@ class Dispatcher:
         for hook in self.on_inserted:
             hook(self.layer.now_s, tr, depart_m)
         self.handshake(tr)
-        tr.depart_chainage_m = depart_m
+        tr.depart_chainage_m = tr.start_front_m = depart_m
         tr.inserted_s = self.layer.now_s
         self._held.pop(tr.train_id, None)
         self.events.record(
@@ -218,7 +219,12 @@ class Dispatcher:
         """End of the run: one ``never_inserted`` event per trip that never entered the world; their ids."""
         ids = [tr.train_id for tr in self.fleet.trains.values() if tr.status == "scheduled"]
         for tid in ids:
-            reason = self._held.get(tid, "its departure never came (its leader never stood at its origin)")
+            default = (
+                "its unit never arrived from its previous trip"
+                if self.chained(tid)
+                else "its departure never came (its leader never stood at its origin)"
+            )
+            reason = self._held.get(tid, default)
             self.events.record(t, "never_inserted", tid, reason=reason)
         return ids
 
@@ -264,7 +270,7 @@ class Dispatcher:
         if tr.status not in ("inserting", "running"):
             return
         self.release_locks(tr)
-        self.bridge.remove(tr.train_id)
+        self.bridge.remove(tr.sumo_id)
         tr.status = "removed"
         self.formations.on_off_line(self.layer.now_s, tr)
         self.events.record(self.layer.now_s, "train_left", tr.train_id, chainage_m=round(tr.front_m, 3))

@@ -47,6 +47,7 @@ from railsim.engine.settings import (
 )
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
+from railsim.engine.turnback import Turnbacks
 from railsim.engine.watchdog import StallWatch
 from railsim.physics import dynamics
 from railsim.record.recorder import Recorder
@@ -115,6 +116,13 @@ class Simulation:
         self.fleet = Fleet(scenario.source)
         self.fleet.build(scenario, self.bundle, self.dt, self.step_method)
         self.trains = self.fleet.trains
+        # rotations: chain trips into units and give each unit's next trip its turnback (before any port reads
+        # the routes)
+        self.turnbacks = (
+            Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
+            if scenario.rotations is not None
+            else None
+        )
         self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
         for k, f in enumerate(scenario.formations):
             self.formations.add(f, f"formations[{k}]")
@@ -134,6 +142,8 @@ class Simulation:
             self.locks.release_all,
         )
         self.formations.insert_behind = self.dispatcher.insert_behind
+        if self.turnbacks is not None:
+            self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
@@ -209,6 +219,8 @@ class Simulation:
             bar = tqdm(total=int(self.duration_s), unit="sim-s", desc=self.scenario.name, leave=False)
         with SumoBridge(self._sumo_config()) as bridge:
             self.bridge = self.dispatcher.bridge = bridge
+            if self.turnbacks is not None:
+                self.turnbacks.bridge = bridge
             self.stops.skip_next_stop = bridge.skip_next_stop
             t = bridge.time_s
             last_bar = t
@@ -269,15 +281,15 @@ class Simulation:
         self.layer.advance_to(t)
         bridge = self.bridge
         present = set(bridge.present_ids())
-        active = [tr for tr in self.fleet.active() if tr.train_id in present]
+        active = [tr for tr in self.fleet.active() if tr.sumo_id in present]
         for tr in self.fleet.active():
-            if tr.status == "inserting" and tr.train_id in present:
+            if tr.status == "inserting" and tr.sumo_id in present:
                 tr.status = "running"
                 tr.departed_s = t
                 self.events.record(t, "train_departed", tr.train_id, station=tr.trip.origin.station_id)
         if not active:
             return
-        ids = [tr.train_id for tr in active]
+        ids = [tr.sumo_id for tr in active]
         truth = self._read_truth(t, active, ids)
         self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
 
@@ -306,9 +318,13 @@ class Simulation:
         speeds = [self.control.control(t, tr, ahead[tr.train_id]) for tr in active]
         bridge.set_speeds(ids, speeds)
         self.recording.step(t, active, ahead, reports)
-        for tr in active:  # trains that finished this step leave SUMO now
+        for tr in active:  # trains that finished this step leave SUMO now, or their unit runs its next trip
             if tr.status == "arrived":
-                bridge.remove(tr.train_id)
+                nxt = None if self.turnbacks is None else self.turnbacks.successor(tr)
+                if nxt is None:
+                    bridge.remove(tr.sumo_id)
+                else:
+                    self.turnbacks.handover(t, tr)  # type: ignore[union-attr]
                 self.formations.on_off_line(t, tr)
                 tr.status = "removed"
 
@@ -330,6 +346,7 @@ class Simulation:
                     target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
                 )
             tr.sumo_stopped_now = bool(truth.stopped[i])
+            tr.sumo_edge = truth.edge_ids[i]
         return truth
 
     # ------------------------------------------------------------------ results
@@ -339,6 +356,8 @@ class Simulation:
         from railsim.engine.sumo import version as sumo_version
 
         extra = {e.summary_key: e.summary() for e in self.extensions if getattr(e, "summary_key", None)}
+        if self.turnbacks is not None:
+            extra["fleet"] = self.turnbacks.summary()
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,

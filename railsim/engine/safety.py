@@ -143,7 +143,9 @@ class SafetyMonitor:
             prev = last.get(tr.train_id)
             sumo_m: float | None = tr.front_m
             railsim_m = tr.front_m
-            if prev is not None:  # SUMO moved it by its speed: at most max(v before, v now)·dt, never back
+            if (
+                prev is not None and not tr.reversing
+            ):  # SUMO moved it by its speed: at most max(v before, v now)·dt, never back
                 max_advance_m = max(prev[1], v_now) * dt_s
                 advance_m = tr.front_m - prev[0]
                 if not -tol <= advance_m <= max_advance_m + tol:

@@ -52,6 +52,9 @@ class StopBook:
         stop, offset = self.current(tr)
         if stop is None:
             return
+        if stop.kind == "reversal":
+            self._reversal(t, tr, stop)
+            return
         stopped_now = tr.sumo_stopped_now
         v = tr.plant.speed_mps
         mark = stop.mark_m - offset
@@ -62,6 +65,9 @@ class StopBook:
             tr.sumo_stopped = False
             self._record(tr, stop, tr.halted_s, t, tr.halt_error_m)
             self.events.record(t, "stop_departed", tr.train_id, station=stop.station_id)
+            if stop.is_origin and tr.departed_s is None:  # a unit's next trip leaves its origin platform
+                tr.departed_s = t
+                self.events.record(t, "train_departed", tr.train_id, station=stop.station_id)
             self.formations.on_departed_station(tr, stop)
             tr.next_stop += 1
             tr.halted_s = None
@@ -87,7 +93,10 @@ class StopBook:
         if tr.halted_s is None:  # SUMO saw the halt before we did (same step)
             tr.halted_s = t
             tr.halt_error_m = tr.front_m - mark
-        tr.stops_served += 1
+        if stop.is_origin:  # a unit after its reversal: it boards where it stands, no stopping error
+            tr.halt_error_m = None
+        if not stop.is_origin:
+            tr.stops_served += 1
         self.events.record(t, "stop_registered", tr.train_id, station=stop.station_id)
         if stop.is_destination:
             tr.arrived_s = tr.halted_s
@@ -95,6 +104,27 @@ class StopBook:
             self._record(tr, stop, tr.halted_s, None, tr.halt_error_m)
             self.events.record(t, "train_arrived", tr.train_id, station=stop.station_id)
             self.release_locks(tr)
+
+    def _reversal(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
+        """A unit reverses (``railsim.engine.turnback``): it halts on the reversal edge, SUMO flips it onto the
+        ``bidi`` edge (``stop.stop_id``), and it stands at least ``stop.dwell_s`` before it runs on."""
+        if tr.halted_s is None:
+            if tr.plant.speed_mps == 0.0 and stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6:
+                tr.halted_s = t
+                tr.reversing = True
+                self.events.record(t, "reversal_halt", tr.train_id, station=stop.station_id)
+            elif tr.front_m > stop.window_end_m + self.settings.missed_stop_tolerance_m:
+                self.events.record(
+                    t, "reversal_missed", tr.train_id, overrun_m=round(tr.front_m - stop.window_end_m, 3)
+                )
+                log.error("%s ran past its reversal point at %s", tr.train_id, stop.station_id)
+                tr.next_stop += 1
+            return
+        if tr.sumo_edge == stop.stop_id and t - tr.halted_s >= stop.dwell_s:
+            self.events.record(t, "reversed", tr.train_id, station=stop.station_id, edge=stop.stop_id)
+            tr.reversing = False
+            tr.halted_s = None
+            tr.next_stop += 1
 
     def _missed(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
         self.events.record(
@@ -104,7 +134,7 @@ class StopBook:
             "%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id, tr.front_m - stop.window_end_m
         )
         self._record(tr, stop, None, None, None, missed=True)
-        self.skip_next_stop(tr.train_id)
+        self.skip_next_stop(tr.sumo_id)
         tr.next_stop += 1
         tr.halted_s = None
         if stop.is_destination:

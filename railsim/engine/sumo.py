@@ -268,19 +268,20 @@ class SumoBridge:
                 departPos=f"{depart_pos_m:.3f}",
                 departSpeed=f"{depart_speed_mps:.6f}",
             )
-            for stop in stops:
-                libsumo.vehicle.setBusStop(
-                    train_id,
-                    stop.stop_id,
-                    duration=-1073741824.0 if stop.duration_s is None else float(stop.duration_s),
-                    until=-1073741824.0 if stop.until_s is None else float(stop.until_s),
-                    flags=_STOP_BUS_STOP,
-                )
+            _set_stops(train_id, stops)
             if controlled:
                 libsumo.vehicle.setSpeedMode(train_id, 32)
                 self._controlled.add(train_id)
         except libsumo.TraCIException as exc:
             raise SimulationError(f"SUMO rejected train {train_id!r}: {exc}") from None
+
+    def reroute(self, train_id: str, edges: Sequence[str], stops: Sequence[StopSpec]) -> None:
+        """Give a standing train a new route from the edge it is on (a unit's next trip) and its stops."""
+        try:
+            libsumo.vehicle.setRoute(train_id, list(edges))
+            _set_stops(train_id, stops)
+        except libsumo.TraCIException as exc:
+            raise SimulationError(f"SUMO rejected the next route of {train_id!r}: {exc}") from None
 
     def remove(self, train_id: str) -> None:
         try:
@@ -351,6 +352,18 @@ class SumoBridge:
     def stop_states(self, train_id: str) -> list[tuple[str, float, float]]:
         """Remaining stops of a train as ``(stop_id, duration_s, until_s)`` (for checks and debugging)."""
         return [(s.stoppingPlaceID, s.duration, s.until) for s in libsumo.vehicle.getStops(train_id)]
+
+
+def _set_stops(train_id: str, stops: Sequence[StopSpec]) -> None:
+    """Hand SUMO a train's station stops (trainStops are busStops to SUMO's stop logic)."""
+    for stop in stops:
+        libsumo.vehicle.setBusStop(
+            train_id,
+            stop.stop_id,
+            duration=-1073741824.0 if stop.duration_s is None else float(stop.duration_s),
+            until=-1073741824.0 if stop.until_s is None else float(stop.until_s),
+            flags=_STOP_BUS_STOP,
+        )
 
 
 def version() -> str:

@@ -73,9 +73,15 @@ class TrainRuntime:
     exact_plant: ExactPlant | None = None  # set by a plant extension (multipoint, monorail) at insertion
 
     train_id: str = ""  # = trip.trip_id (a plain field: it is read millions of times per run)
+    sumo_id: str = ""  # the SUMO vehicle: the trip id, or the unit id when trips are chained (rotations)
+    unit_id: str | None = None  # the rolling-stock unit running this trip (rotations), else None
+    sumo_edge: str = ""  # SUMO's edge of the train this step
+    reversing: bool = False  # standing at its reversal stop while SUMO flips it (railsim.engine.turnback)
+    start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
 
     def __post_init__(self) -> None:
         self.train_id = self.trip.trip_id
+        self.sumo_id = self.trip.trip_id
 
     @property
     def on_line(self) -> bool:

@@ -12,8 +12,9 @@ A *service* in a scenario (``from: yudong, to: jiangbei-airport-t2, departures: 
   empty line (:func:`plan_free_run`). Delay = actual − planned, so delay measures what the other trains, the
   interlocking and the communication did to this train, not a guessed timetable.
 
-Turnbacks: a trip ends at its destination platform; a return working is a separate trip from the opposite
-platform (the line world has no reversal edges; see ``network/``'s docstring).
+Turnbacks: without rotations a trip ends at its destination platform and a return working is a separate train
+from the opposite platform; with rotations the unit reverses and runs its next trip (``railsim.engine.turnback``
+prepends the reversal to that trip's route and stops).
 """
 
 from __future__ import annotations
@@ -37,6 +38,7 @@ class TripStop:
     dwell_s: float
     is_origin: bool = False
     is_destination: bool = False
+    kind: str = "station"  # or "reversal": where a unit reverses before its trip (railsim.engine.turnback)
 
 
 @dataclass
@@ -59,7 +61,14 @@ class Trip:
 
     @property
     def origin(self) -> TripStop:
-        return self.stops[0]
+        """The platform the trip departs from (after its unit's reversal stop, if it starts with one)."""
+        first = self.stops[0]
+        return first if first.kind == "station" else self.stops[1]
+
+    @property
+    def n_stops_scheduled(self) -> int:
+        """Stops the trip serves after leaving its origin (its unit's reversal and the origin not counted)."""
+        return sum(1 for s in self.stops if s.kind == "station" and not s.is_origin)
 
     @property
     def destination(self) -> TripStop:

@@ -190,7 +190,7 @@ class Recorder:
                     "time_coupled_s": tr.coupled_s,
                     "max_jerk_mps3": tr.max_jerk_mps3,
                     "stops_served": tr.stops_served,
-                    "stops_scheduled": len(trip.stops) - 1,
+                    "stops_scheduled": trip.n_stops_scheduled,
                     "fallbacks": tr.fallbacks,
                     "max_message_age_s": tr.stale_max_s,
                     "status": tr.status,
@@ -251,7 +251,7 @@ class Recorder:
             "n_never_inserted": len(never_inserted),
             "never_inserted": never_inserted,
             "n_stops_served": sum(tr.stops_served for tr in trains),
-            "n_stops_scheduled": sum(len(tr.trip.stops) - 1 for tr in trains),
+            "n_stops_scheduled": sum(tr.trip.n_stops_scheduled for tr in trains),
             "n_stops_missed": sum(1 for s in self.stops if s["missed"]),
             # one collision truth: railsim's (on the chainage the desync check keeps equal to SUMO's) and SUMO's
             # own check count together; the detail keeps them apart

@@ -370,6 +370,7 @@ class Scenario:
     cooperative: CooperativeSpec = field(default_factory=CooperativeSpec)
     plants: dict[str, PlantSpec] = field(default_factory=dict)  # vehicle name -> non-default plant
     junction: JunctionSpec | None = None
+    rotations: RotationSpec | None = None
 
     def service(self, service_id: str) -> ServiceSpec:
         """The service called ``service_id`` (KeyError if none)."""
@@ -389,3 +390,22 @@ class Scenario:
     def vehicle_of(self, service_id: str) -> VehicleParams:
         """The vehicle that runs ``service_id``."""
         return self.vehicles[self.service(service_id).vehicle]
+
+
+@dataclass(frozen=True)
+class RotationSpec:
+    """Rolling-stock rotations (vehicle blocks): which trips one unit runs, one after the other.
+
+    ``units`` is ``None`` for ``auto`` (first-in-first-out at each terminal: the unit that arrived first and
+    has had its minimum turnback takes the next departure) or ``{unit id: (trip id, …)}`` in running order.
+    Between two trips a unit reverses (``railsim.engine.turnback``); it may leave no earlier than its
+    arrival + the minimum turnback time of that station (driver / cab change).
+    """
+
+    units: dict[str, tuple[str, ...]] | None = None
+    turnback_min_s: float = 120.0
+    turnback_min_by_station: dict[str, float] = field(default_factory=dict)
+
+    def turnback_min_at(self, station_id: str) -> float:
+        """The minimum turnback time at ``station_id`` [s]."""
+        return float(self.turnback_min_by_station.get(station_id, self.turnback_min_s))

@@ -13,6 +13,7 @@ where every section can check its references against what came before::
     faults                            (validate_faults: needs services)
     outputs                           (validate_setup: needs simulation)
     junction                          (validate_formations: needs services and formations)
+    rotations                         (validate_rotations: needs services)
     controller parameters             (validate_vehicles.check_controllers, last: reads the registry)
 
 Each section returns ``(spec, raw)``; the specs become the :class:`~railsim.scenario.model.Scenario`, the
@@ -31,13 +32,23 @@ from railsim.scenario import (
     validate_formations,
     validate_services,
     validate_setup,
+    validate_rotations,
     validate_vehicles,
 )
 from railsim.scenario.model import Scenario
 from railsim.scenario.validate import Checker, require_top_mapping
 
 _TOP_REQUIRED = ("name", "world", "simulation", "vehicles", "controllers", "roles", "services")
-_TOP_OPTIONAL = ("description", "formations", "events", "faults", "outputs", "cooperative", "junction")
+_TOP_OPTIONAL = (
+    "description",
+    "formations",
+    "events",
+    "faults",
+    "outputs",
+    "cooperative",
+    "junction",
+    "rotations",
+)
 
 
 def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> Scenario:
@@ -70,6 +81,9 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
     junction = None
     if top.get("junction") is not None:
         junction, raw["junction"] = validate_formations.junction(ck, top["junction"], services, formations)
+    rotation_spec = None
+    if top.get("rotations") is not None:
+        rotation_spec, raw["rotations"] = validate_rotations.rotations(ck, top["rotations"], services)
     # Last, because it depends on code outside this package (the controller registry).
     validate_vehicles.check_controllers(ck, ctrls, services, vehicles)
 
@@ -91,4 +105,5 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
         cooperative=cooperative,
         plants=plants,
         junction=junction,
+        rotations=rotation_spec,
     )

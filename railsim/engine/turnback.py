@@ -1,0 +1,316 @@
+"""Turnbacks and rotations: one unit (one SUMO vehicle) runs a chain of trips and reverses between them.
+
+Without rotations every trip is its own train: inserted at its origin, removed at its destination. With a
+``rotations:`` section (:class:`railsim.scenario.model.RotationSpec`) trips are chained into **units**:
+
+* **Chaining.** ``units: auto`` chains first-in-first-out at each station from the *planned* times: each
+  departure, in time order, takes the unit that arrived there first among those whose planned arrival plus the
+  station's minimum turnback is no later than the departure, and that can reverse from its arrival track onto
+  the departure track; otherwise a new unit starts it. An explicit list is checked the same way (a
+  :class:`ConfigError` when the world has no way to turn a unit round there).
+* **Reversal, the way SUMO does it.** SUMO reverses a rail vehicle whose route continues from an edge onto that
+  edge's ``bidi`` partner through a turnaround connection: the moment it stands on the first edge, SUMO puts it
+  on the partner with its front where its rear was, facing the other way (measured on SUMO 1.28: the flip is
+  immediate at standstill anywhere on the edge, and the odometer then reads as if the train had run to the
+  edge's end, through the turnaround and back to its new front). The world's usable turnarounds are
+  ``graph.graph["reversals"]`` (``network.external``). The turnback path is the shortest path from the arrival
+  track to the departure platform's track with exactly one such reversal: on a **bidi platform track** the unit
+  reverses where it stands; with a **turnback track beyond the platform** it runs into the track, stops short of
+  its end, reverses and runs back to the departure platform (crossover switches on the way are locked as on any
+  route).
+* **The successor's route** is that path followed by the trip's own route; its first stop is a *reversal stop*
+  (:data:`REVERSAL`) on the edge before the turnaround. Because the route chainage runs through the
+  turnaround's internal lane like SUMO's odometer, the successor's chainage stays equal to SUMO's position
+  across the flip (the desync check runs throughout; only the "advance ≤ speed·dt" part is waived while the
+  unit stands at its reversal stop).
+* **Handover.** When a trip arrives and its unit has a next trip, the SUMO vehicle stays: it gets the
+  successor's route and stops (the origin stop held ``until`` max(scheduled departure, arrival + minimum
+  turnback)), and the successor is on the line at once, standing. A late incoming unit therefore delays the
+  next trip by exactly what it lacks of its turnback minimum (knock-on), and the successor's ``departed_s`` is
+  its departure from the origin platform.
+
+The port answers the loop (``successor``/``handover``), the dispatcher (``chained``: trips it does not insert)
+and the summary (:meth:`Turnbacks.summary`: units, peak units in service, km per unit, turnback times achieved
+against the minimum, late starts caused by the incoming unit).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import logging
+from collections.abc import Callable
+from typing import Any
+
+import networkx as nx
+
+from network.topology import make_route
+from railsim.engine.events.log import EventLog
+from railsim.engine.fleet import Fleet
+from railsim.engine.routeview import route_view
+from railsim.engine.settings import DWELL_REGISTRATION_S
+from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import TripStop
+from railsim.errors import ConfigError
+
+log = logging.getLogger(__name__)
+
+REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses
+REVERSAL_HOLD_S = 5.0  # a reversing unit stands at least this long after SUMO flipped it (cab change)
+TURNBACK_SEARCH_M = 5000.0  # a turnback path longer than this is not a turnback
+END_MARGIN_M = 1.0  # a unit stops this far short of the end of a turnback track
+
+
+def reversal_graph(graph: nx.DiGraph) -> nx.DiGraph:
+    """The track graph plus one arc per usable turnaround (``reversal=True``), for turnback paths only."""
+    g = graph.copy()
+    for edge, (bidi, via) in graph.graph.get("reversals", {}).items():
+        if edge in g and bidi in g:
+            g.add_edge(edge, bidi, node=None, via=via, switch=None, leg=None, reversal=True)
+    return g
+
+
+def _arc_m(g: nx.DiGraph) -> Callable[[str, str, dict[str, Any]], float]:
+    return lambda a, b, d: float(g.nodes[b]["length_m"]) + sum(float(v[1]) for v in d.get("via", ()))
+
+
+def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | None:
+    """Shortest edge path ``from_edge`` → ``to_edge`` through exactly one reversal arc (None if there is none)."""
+    reversals = {a: b for a, b, rev in g.edges(data="reversal") if rev}
+    if not reversals:
+        return None
+    weight = _arc_m(g)
+    plain = nx.subgraph_view(g, filter_edge=lambda a, b: not g.edges[a, b].get("reversal"))
+    ahead = nx.single_source_dijkstra(plain, from_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
+    back = nx.single_source_dijkstra(plain.reverse(copy=False), to_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
+    best: tuple[float, list[str]] | None = None
+    for a, b in sorted(reversals.items()):
+        if a not in ahead[0] or b not in back[0]:
+            continue
+        total = ahead[0][a] + back[0][b]
+        if best is None or total < best[0] - 1e-9:
+            best = (total, ahead[1][a] + list(reversed(back[1][b])))
+    return None if best is None else best[1]
+
+
+class Turnbacks:
+    """Units, their chains of trips, and the handover between two trips of a unit (module docstring)."""
+
+    def __init__(self, fleet: Fleet, graph: nx.DiGraph, spec: Any, events: EventLog, source: Any) -> None:
+        self.fleet = fleet
+        self.spec = spec
+        self.events = events
+        self.source = source
+        self.graph = reversal_graph(graph)
+        self.units: dict[str, list[str]] = {}  # unit id -> trip ids in running order
+        self.next_of: dict[str, str] = {}  # trip id -> the unit's next trip
+        self.prev_of: dict[str, str] = {}
+        self.turnbacks: list[dict[str, Any]] = []  # one row per handover
+        self._paths: dict[tuple[str, str], list[str] | None] = {}
+        self.bridge: Any = None  # the SUMO bridge, wired when the run starts
+        self._chain()
+        for uid, trips in self.units.items():
+            for tid in trips:
+                self.fleet.trains[tid].sumo_id = uid
+                self.fleet.trains[tid].unit_id = uid
+        for tid, pid in self.prev_of.items():
+            self._reroute(self.fleet.trains[tid], self.fleet.trains[pid])
+
+    # ------------------------------------------------------------------ chaining
+    def _path(self, pred: TrainRuntime, succ: TrainRuntime) -> list[str] | None:
+        key = (pred.trip.route.edges[-1], succ.trip.route.edges[0])
+        if key not in self._paths:
+            self._paths[key] = turnback_path(self.graph, *key)
+        return self._paths[key]
+
+    def _ready_s(self, tr: TrainRuntime) -> float:
+        dest = tr.trip.destination.station_id
+        return tr.trip.planned_arrival_s.get(dest, tr.trip.depart_s) + self.spec.turnback_min_at(dest)
+
+    def _chain(self) -> None:
+        trains = self.fleet.trains
+        if self.spec.units is not None:
+            for uid, chain in self.spec.units.items():
+                for k in range(1, len(chain)):
+                    pred, succ = trains[chain[k - 1]], trains[chain[k]]
+                    ends, starts = pred.trip.destination.station_id, succ.trip.origin.station_id
+                    if ends != starts:
+                        raise ConfigError(
+                            self.source,
+                            f"rotations.units.{uid}[{k}]",
+                            f"trip {succ.train_id!r} starts at {starts!r}, but the unit ends {pred.train_id!r} at {ends!r}",
+                        )
+                    if self._path(pred, succ) is None:
+                        raise ConfigError(
+                            self.source,
+                            f"rotations.units.{uid}[{k}]",
+                            f"the world has no turnaround from {pred.trip.route.edges[-1]!r} (where {pred.train_id} "
+                            f"arrives) to {succ.trip.route.edges[0]!r} (where {succ.train_id} departs)",
+                        )
+                    self.next_of[pred.train_id], self.prev_of[succ.train_id] = succ.train_id, pred.train_id
+                self.units[uid] = list(chain)
+            return
+        waiting: dict[str, list[TrainRuntime]] = {}  # station -> units' last trips, in arrival order
+        order = sorted(trains.values(), key=lambda tr: (tr.trip.depart_s, tr.train_id))
+        for tr in order:
+            pool = waiting.setdefault(tr.trip.origin.station_id, [])
+            pick = next(
+                (p for p in pool if self._ready_s(p) <= tr.trip.depart_s + 1e-9 and self._path(p, tr) is not None),
+                None,
+            )
+            if pick is None:
+                uid = f"unit{len(self.units) + 1:02d}"
+                self.units[uid] = [tr.train_id]
+            else:
+                pool.remove(pick)
+                uid = next(u for u, c in self.units.items() if c[-1] == pick.train_id)
+                self.units[uid].append(tr.train_id)
+                self.next_of[pick.train_id], self.prev_of[tr.train_id] = tr.train_id, pick.train_id
+            dest_pool = waiting.setdefault(tr.trip.destination.station_id, [])
+            dest_pool.append(tr)
+            dest_pool.sort(key=lambda p: (p.trip.planned_arrival_s.get(p.trip.destination.station_id, 0.0), p.train_id))
+
+    def chained(self, train_id: str) -> bool:
+        """True for a trip that starts by its unit's reversal (the dispatcher does not insert it)."""
+        return train_id in self.prev_of
+
+    # ------------------------------------------------------------------ the successor's route
+    def _reroute(self, succ: TrainRuntime, pred: TrainRuntime) -> None:
+        path = self._path(pred, succ)
+        assert path is not None  # _chain only chains trips it found a path for
+        trip = succ.trip
+        edges = path + list(trip.route.edges[1:])
+        route = make_route(self.graph, f"{pred.trip.route.edges[-1]}~>{trip.route.id}", edges)
+        k0 = len(path) - 1  # the old route's first edge in the new route
+        shift_m = route.edge_start_m[k0] - trip.route.edge_start_m[0]
+        kr = next(i for i in range(len(edges) - 1) if self.graph.edges[edges[i], edges[i + 1]].get("reversal"))
+        end_m = route.edge_start_m[kr] + self.graph.nodes[edges[kr]]["length_m"]
+        length_m = trip.vehicle.length_m
+        reversal = TripStop(
+            station_id=trip.origin.station_id,
+            stop_id=edges[kr + 1],  # the edge SUMO puts the unit on when it reverses
+            mark_m=end_m - END_MARGIN_M,
+            window_start_m=route.edge_start_m[kr] + length_m,
+            window_end_m=end_m,
+            dwell_s=REVERSAL_HOLD_S,
+            kind=REVERSAL,
+        )
+        moved = tuple(
+            dataclasses.replace(
+                s,
+                mark_m=s.mark_m + shift_m,
+                window_start_m=s.window_start_m + shift_m,
+                window_end_m=s.window_end_m + shift_m,
+            )
+            for s in trip.stops
+        )
+        trip.route = route
+        trip.stops = (reversal, *moved)
+        succ.view = route_view(route)
+        succ.next_stop = 0
+
+    # ------------------------------------------------------------------ run time
+    def successor(self, tr: TrainRuntime) -> TrainRuntime | None:
+        nxt = self.next_of.get(tr.train_id)
+        return None if nxt is None else self.fleet.trains[nxt]
+
+    def handover(self, t: float, pred: TrainRuntime) -> TrainRuntime:
+        """``pred`` arrived; its unit starts the next trip where it stands (module docstring)."""
+        from railsim.engine.sumo import StopSpec
+
+        succ = self.fleet.trains[self.next_of[pred.train_id]]
+        trip = succ.trip
+        lane_pos_m = pred.front_m - pred.view.edge_start_m[-1]
+        front_m = succ.view.edge_start_m[0] + lane_pos_m
+        rev = trip.stops[0]
+        if front_m >= rev.window_start_m - 1e-6:  # it stands on the reversal edge already: it reverses here
+            trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
+        arrival_s = pred.arrived_s if pred.arrived_s is not None else t
+        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id)
+        until_s = max(trip.depart_s, arrival_s + min_s)
+        stops = [
+            StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S, until_s=until_s)
+            if s.is_origin
+            else StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s)
+            for s in trip.stops
+            if s.kind != REVERSAL
+        ]
+        self.bridge.reroute(succ.sumo_id, trip.route.edges, stops)
+        odometer_m = pred.front_m - pred.depart_chainage_m
+        succ.depart_chainage_m = front_m - odometer_m
+        succ.front_m = succ.start_front_m = front_m
+        succ.plant = pred.plant
+        succ.status = "running"
+        succ.inserted_s = t
+        succ.next_stop = 0
+        self.turnbacks.append(
+            {
+                "unit": succ.unit_id,
+                "station": pred.trip.destination.station_id,
+                "from_trip": pred.train_id,
+                "to_trip": succ.train_id,
+                "arrived_s": arrival_s,
+                "scheduled_departure_s": trip.depart_s,
+                "min_s": min_s,
+                "earliest_departure_s": until_s,
+                "knock_on_s": max(0.0, arrival_s + min_s - trip.depart_s),
+            }
+        )
+        self.events.record(
+            t,
+            "unit_turnback",
+            succ.train_id,
+            unit=succ.unit_id,
+            after=pred.train_id,
+            station=pred.trip.destination.station_id,
+            earliest_departure_s=round(until_s, 3),
+        )
+        return succ
+
+    # ------------------------------------------------------------------ results
+    def summary(self) -> dict[str, Any]:
+        """Fleet and turnback KPIs (module docstring)."""
+        trains = self.fleet.trains
+        spans: list[tuple[float, int]] = []
+        km: dict[str, float] = {}
+        for uid, chain in self.units.items():
+            first, last = trains[chain[0]], trains[chain[-1]]
+            start = first.inserted_s
+            end = last.arrived_s if last.arrived_s is not None else None
+            km[uid] = round(sum(_run_m(trains[tid]) for tid in chain) / 1000.0, 3)
+            if start is not None:
+                spans += [(start, 1), (end if end is not None else float("inf"), -1)]
+        peak = cur = 0
+        for _, d in sorted(spans, key=lambda x: (x[0], x[1])):
+            cur += d
+            peak = max(peak, cur)
+        rows: list[dict[str, Any]] = []
+        for row in self.turnbacks:
+            succ = trains[row["to_trip"]]
+            dep = succ.departed_s
+            achieved = None if dep is None else dep - row["arrived_s"]
+            rows.append(
+                {
+                    **{k: (round(v, 3) if isinstance(v, float) else v) for k, v in row.items()},
+                    "departed_s": None if dep is None else round(dep, 3),
+                    "achieved_s": None if achieved is None else round(achieved, 3),
+                }
+            )
+        achieved_ok = all(r["achieved_s"] is None or r["achieved_s"] >= r["min_s"] - 1e-6 for r in rows)
+        late = [r for r in rows if r["knock_on_s"] > 0.0]
+        return {
+            "units_used": len(self.units),
+            "peak_units_in_service": peak,
+            "km_per_unit": km,
+            "trips_per_unit": {u: len(c) for u, c in self.units.items()},
+            "turnbacks": rows,
+            "turnback_min_respected": achieved_ok,
+            "late_starts_from_incoming_unit": len(late),
+            "knock_on_delay_s": round(sum(r["knock_on_s"] for r in late), 3),
+        }
+
+
+def _run_m(tr: TrainRuntime) -> float:
+    """How far a trip's train ran (0 if it never ran)."""
+    if tr.inserted_s is None:
+        return 0.0
+    return max(0.0, tr.front_m - tr.start_front_m)

@@ -1,0 +1,167 @@
+"""Turnbacks and rotations in SUMO (issue 17): a unit reverses and runs its next trip.
+
+Two small nets built with netconvert:
+
+* a single-track line whose terminal platforms are on ``bidi`` track: the unit reverses where it stands;
+* a double-track line ending in a turnback track beyond the platform: the unit runs into it, SUMO reverses it,
+  it runs back to the departure platform.
+
+Every run below is checked by the engine's own desync check (railsim's chainage against SUMO's edge and lane
+position every step; a disagreement exits 3), so exit 0 is itself the statement "position and direction agree
+with SUMO after the reversal". The tests then check what a planner would: the reversal happened on the bidi
+edge, the minimum turnback was respected, ``auto`` chains like the equivalent explicit list, and a late incoming
+unit delays its next trip by exactly what it lacks of its turnback minimum.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import yaml
+
+from tests.helpers import read_csv, read_summary, run_railsim
+from tests.test_external_net import _COMMON, _edge, _netconvert, _stops, _write
+from tests.test_single_track import build_single_line
+
+STEP_S = float(_COMMON["simulation"]["step_s"])  # type: ignore[index]
+
+
+def build_tail_track(folder: Path) -> tuple[Path, Path]:
+    """Double track Aston–Bury (3 km) and a 300 m bidi turnback track beyond Bury's platforms."""
+    nodes = '<node id="A" x="0" y="0"/>\n<node id="B" x="3000" y="0"/>\n<node id="X" x="3300" y="0"/>'
+    edges = [
+        _edge("u1", "A", "B", spread="right"),
+        _edge("d1", "B", "A", spread="right"),
+        _edge("T", "B", "X"),
+        _edge("-T", "X", "B"),
+    ]
+    cons = '<connection from="u1" to="T"/>\n<connection from="-T" to="d1"/>\n<connection from="T" to="-T"/>'
+    net = _netconvert(folder, "tail", nodes, "\n".join(edges), cons)
+    stops = _stops(
+        folder,
+        "tail",
+        [
+            ("a_out", "u1_0", 100, 400, "Aston"),
+            ("b_in", "u1_0", 2600, 2900, "Bury"),
+            ("b_out", "d1_0", 100, 400, "Bury"),
+            ("a_in", "d1_0", 2600, 2900, "Aston"),
+        ],
+    )
+    return net, stops
+
+
+def _service(sid: str, a: str, b: str, times: list[float]) -> dict:
+    return {"id": sid, "from": a, "to": b, "vehicle": "cq6", "departures": {"times": times}, "dwell_s": 30}
+
+
+def _invoke(folder: Path, net: Path, stops: Path, services: list[dict], rotations: object) -> tuple[Path, object]:
+    """``railsim run`` the services with ``rotations`` in a child process: (output folder, process result)."""
+    folder.mkdir(parents=True, exist_ok=True)
+    raw = {
+        "name": folder.name,
+        "world": {"net": str(net), "additional": [str(stops)]},
+        **_COMMON,
+        "services": services,
+        "rotations": rotations,
+    }
+    raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
+    scn = _write(folder, "scenario.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = folder / "out"
+    return out, run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+
+
+def _run(folder: Path, net: Path, stops: Path, services: list[dict], rotations: object) -> Path:
+    out, res = _invoke(folder, net, stops, services, rotations)
+    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
+    return out
+
+
+def _events(out: Path, kind: str) -> list[dict]:
+    return [r for r in read_csv(out / "events.csv") if r["kind"] == kind]
+
+
+SHUTTLE = [_service("out", "Aston", "Bury", [0, 900]), _service("back", "Bury", "Aston", [400, 1300])]
+
+
+def test_a_unit_reverses_on_a_bidi_platform_and_runs_the_day(tmp_path: Path) -> None:
+    net, stops = build_single_line(tmp_path)
+    out = _run(tmp_path, net, stops, SHUTTLE, {"units": "auto", "turnback_min_s": 60})
+    fleet = read_summary(out)["fleet"]
+    assert fleet["units_used"] == 1 and fleet["trips_per_unit"] == {"unit01": 4}
+    reversed_ = _events(out, "reversed")
+    # the unit is flipped onto the bidi partner of the edge it arrived on, at each of the three turnbacks
+    assert [r["subject"] for r in reversed_] == ["back.000", "out.001", "back.001"]
+    assert [yaml.safe_load(r["detail"])["edge"] for r in reversed_] == ["-MB", "AM", "-MB"]
+    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    assert all(r["arrival_s"] != "" for r in trips.values())
+    for row in fleet["turnbacks"]:
+        assert row["achieved_s"] >= row["min_s"]
+        # nobody was late: each next trip leaves on time (within one step of its scheduled departure)
+        assert abs(row["departed_s"] - row["scheduled_departure_s"]) <= STEP_S + 1e-9
+    assert read_summary(out)["collisions"] == 0
+
+
+def test_a_unit_turns_back_via_a_turnback_track_beyond_the_platform(tmp_path: Path) -> None:
+    net, stops = build_tail_track(tmp_path)
+    services = [_service("out", "Aston", "Bury", [0]), _service("back", "Bury", "Aston", [600])]
+    out = _run(tmp_path, net, stops, services, {"units": "auto", "turnback_min_s": 120})
+    (rev,) = _events(out, "reversed")
+    assert yaml.safe_load(rev["detail"])["edge"] == "-T"  # it reversed on the turnback track, not at the platform
+    (halt,) = _events(out, "reversal_halt")
+    (arrived,) = [r for r in _events(out, "train_arrived") if r["subject"] == "out.000"]
+    assert float(halt["t_s"]) > float(arrived["t_s"]) + 10.0  # it ran from the platform into the track first
+    fleet = read_summary(out)["fleet"]
+    assert fleet["units_used"] == 1
+    (row,) = fleet["turnbacks"]
+    assert row["achieved_s"] >= row["min_s"] and abs(row["departed_s"] - 600.0) <= STEP_S + 1e-9
+
+
+def test_auto_chains_like_the_explicit_list(tmp_path: Path) -> None:
+    net, stops = build_single_line(tmp_path)
+    auto = _run(tmp_path / "auto", net, stops, SHUTTLE, {"units": "auto", "turnback_min_s": 60})
+    listed = {"unit01": ["out.000", "back.000", "out.001", "back.001"]}
+    explicit = _run(tmp_path / "explicit", net, stops, SHUTTLE, {"units": listed, "turnback_min_s": 60})
+    a, e = read_summary(auto)["fleet"], read_summary(explicit)["fleet"]
+    assert a["trips_per_unit"] == e["trips_per_unit"] == {"unit01": 4}
+    assert [(r["from_trip"], r["to_trip"]) for r in a["turnbacks"]] == [
+        (r["from_trip"], r["to_trip"]) for r in e["turnbacks"]
+    ]
+    assert (auto / "trips.csv").read_text() == (explicit / "trips.csv").read_text()
+
+
+def test_auto_starts_a_new_unit_when_the_turnback_minimum_does_not_fit(tmp_path: Path) -> None:
+    net, stops = build_tail_track(tmp_path)
+    services = [_service("out", "Aston", "Bury", [0]), _service("back", "Bury", "Aston", [200])]
+    out = _run(tmp_path, net, stops, services, {"units": "auto", "turnback_min_s": 120})
+    fleet = read_summary(out)["fleet"]  # arrives ~150 s, +120 s > 200 s: a second unit takes "back"
+    assert fleet["units_used"] == 2 and fleet["turnbacks"] == []
+
+
+def test_a_late_incoming_unit_delays_its_next_trip_by_what_it_lacks(tmp_path: Path) -> None:
+    net, stops = build_tail_track(tmp_path)
+    services = [_service("out", "Aston", "Bury", [0]), _service("back", "Bury", "Aston", [200])]
+    rot = {"units": {"u1": ["out.000", "back.000"]}, "turnback_min_s": 120}
+    out = _run(tmp_path, net, stops, services, rot)
+    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    arrival_s = float(trips["out.000"]["arrival_s"])
+    departure_s = float(trips["back.000"]["departure_s"])
+    expected_s = arrival_s + 120.0  # the knock-on: arrival + minimum turnback, not the timetable's 200 s
+    assert expected_s > 200.0 + 30.0
+    assert expected_s - 1e-9 <= departure_s <= expected_s + 2 * STEP_S
+    (row,) = read_summary(out)["fleet"]["turnbacks"]
+    assert abs(row["knock_on_s"] - (expected_s - 200.0)) < 1e-6
+    assert read_summary(out)["fleet"]["late_starts_from_incoming_unit"] == 1
+
+
+def test_rotations_that_do_not_chain_or_cannot_turn_are_refused(tmp_path: Path) -> None:
+    net, stops = build_tail_track(tmp_path)
+    services = [_service("out", "Aston", "Bury", [0, 900]), _service("back", "Bury", "Aston", [600])]
+    # out.001 starts at Aston, but out.000 leaves its unit at Bury
+    _, res = _invoke(tmp_path / "a", net, stops, services, {"units": {"u1": ["out.000", "out.001"]}})
+    assert res.returncode == 2  # type: ignore[attr-defined]
+    assert "rotations.units.u1[1]" in res.stderr and "ends 'out.000' at 'bury'" in res.stderr  # type: ignore[attr-defined]
+    # back.000 -> out.001 chains on paper, but Aston has no turnaround: the world cannot turn the unit there
+    no_turn = {"units": {"u1": ["out.000", "back.000", "out.001"]}}
+    _, res = _invoke(tmp_path / "b", net, stops, services, no_turn)
+    assert res.returncode == 2  # type: ignore[attr-defined]
+    assert "rotations.units.u1[2]" in res.stderr and "no turnaround" in res.stderr  # type: ignore[attr-defined]
