@@ -64,6 +64,8 @@ TRACK_WIDTH_M = 3.0
 BRANCH_OFFSET_M = 60.0  # lateral drawing offset of a branch from its parent (geometry only)
 DIRECTIONS = ("up", "down")
 TURNBACK_TRACK_M = 180.0  # a turnback track beyond a terminus: a 6/8-car unit (≤ 120 m) plus margin
+POCKET_SPEED_MPS = 30.0 / 3.6  # estimated: pocket switches like the other Line 3 turnouts (data pack, S15)
+POCKET_THROW_S = 15.0  # estimated: as the Bijin switches in the shipped world
 
 
 def netconvert_binary() -> Path:
@@ -114,6 +116,8 @@ class _TurnbackTrack:
     arrive_edge: str
     depart_edge: str
     speed_mps: float
+    through_arrive: str | None = None  # a pocket: the arriving track's continuation past the pocket's switch
+    through_depart: str | None = None  # a pocket: the departing track's feed from beyond the switch
 
 
 @dataclass
@@ -142,7 +146,7 @@ class _Plan:
         self._build_pieces()
         self._assign_speeds()
         self._build_switches()
-        self.tails = self._turnback_tracks()
+        self.tails = self._turnback_tracks() + self._pocket_tracks()
 
     # -- break points -------------------------------------------------------------------------------------
     def _stations_of(self, line: str) -> tuple[Station, ...]:
@@ -334,6 +338,50 @@ class _Plan:
                 )
             )
         return tails
+
+    def _pocket_tracks(self) -> list[_TurnbackTrack]:
+        """A pocket track between the tracks beyond each ``pocket:`` station's platform, and its two switches."""
+        out: list[_TurnbackTrack] = []
+        for line in self.desc.line_ids():
+            pieces = self.pieces[line]
+            for st in self._stations_of(line):
+                if st.pocket is None:
+                    continue
+                i = next(k for k, p in enumerate(pieces) if p.a_m <= st.km * 1000.0 <= p.b_m)
+                low = st.pocket == "low"
+                if (low and i == 0) or (not low and i == len(pieces) - 1):
+                    raise ConfigError(
+                        self.desc.source, f"{st.path}.pocket", f"no track beyond {st.id} on its {st.pocket} side"
+                    )
+                here, beyond = pieces[i], pieces[i - 1 if low else i + 1]
+                arriving, departing = ("down", "up") if low else ("up", "down")
+                node, x_m, sign = (here.node_a, here.a_m, -1.0) if low else (here.node_b, here.b_m, 1.0)
+                far = f"{st.id}_pk_end"
+                self.node_xy[far] = (x_m + sign * TURNBACK_TRACK_M, self.line_y[line])
+                pk = _TurnbackTrack(
+                    line,
+                    st.id,
+                    f"{st.id}_pk",
+                    f"-{st.id}_pk",
+                    node,
+                    far,
+                    x_m,
+                    sign,
+                    here.edge_id(arriving),
+                    here.edge_id(departing),
+                    POCKET_SPEED_MPS,
+                    beyond.edge_id(arriving),
+                    beyond.edge_id(departing),
+                )
+                out.append(pk)
+                for sid, direction, kind, normal, trunk, reverse in (
+                    (f"{st.id}_pk_in", arriving, "diverge", pk.through_arrive, pk.arrive_edge, pk.out),
+                    (f"{st.id}_pk_out", departing, "merge", pk.through_depart, pk.depart_edge, pk.back),
+                ):
+                    spec = SwitchSpec(sid, POCKET_THROW_S, POCKET_SPEED_MPS * 3.6, None, st.path)
+                    speed = beyond.speed_mps[direction]
+                    self.switches.append(_Switch(spec, direction, node, kind, str(normal), reverse, trunk, speed))
+        return out
 
     def tail_connections(self) -> list[tuple[str, str, str]]:
         """(from edge, to edge, node) of the turnback tracks: in, the turnaround, out."""
@@ -556,7 +604,7 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
     for a, b, node, _ in plan.connections():
         sw, leg = sw_by_conn.get((a, b), (None, None))  # type: ignore[assignment]
         graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
-    graph.graph["reversals"] = _add_turnback_tracks(plan, graph, lanes, vias)
+    graph.graph["reversals"] = _add_turnback_tracks(plan, graph, lanes, vias, sw_by_conn)
     graph.graph["gradients"] = {
         line: [[g.from_km * 1000.0, g.to_km * 1000.0, g.permille] for g in desc.gradients if g.line == line]
         for line in desc.line_ids()
@@ -611,7 +659,11 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
 
 
 def _add_turnback_tracks(
-    plan: _Plan, graph: nx.DiGraph, lanes: dict[str, tuple[float, float]], vias: dict[tuple[str, str], list[list]]
+    plan: _Plan,
+    graph: nx.DiGraph,
+    lanes: dict[str, tuple[float, float]],
+    vias: dict[tuple[str, str], list[list]],
+    sw_by_conn: dict[tuple[str, str], tuple[str, str]],
 ) -> dict[str, list[object]]:
     """The turnback tracks' edges and links in the track graph; returns the reversals (module docstring)."""
     reversals: dict[str, list[object]] = {}
@@ -639,8 +691,9 @@ def _add_turnback_tracks(
                 bidi=partner,
             )
         arrive, depart = t.arrive_edge, t.depart_edge
-        graph.add_edge(arrive, out_e, node=node, via=vias[(arrive, out_e)], switch=None, leg=None)
-        graph.add_edge(back_e, depart, node=node, via=vias[(back_e, depart)], switch=None, leg=None)
+        for a, b in ((arrive, out_e), (back_e, depart)):
+            sw, leg = sw_by_conn.get((a, b), (None, None))
+            graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
         reversals[out_e] = [back_e, vias[(out_e, back_e)]]
     return reversals
 

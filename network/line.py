@@ -23,6 +23,8 @@ Schema (units in the key names; chainage ``km``, lengths ``_m``, speeds ``_kmh``
     to_km: 54.29                     #   -/+ overrun_m
     stations:                        # main-line stations, strictly increasing chainage
       - {id: yudong, name: Yudong, km: 0.0, platform_length_m: 220, turnback: true, basis: "..."}
+      - {id: jiugongli, km: 12.565, pocket: low}   # a turnback pocket track beyond the platform, on the
+                                                   #   low-km side (trains from the high side turn there)
     speed_limits:                    # lower lane speeds on a stretch (edges are split at the boundaries)
       - {line: main, from_km: 53.67, to_km: 54.29, speed_kmh: 30, direction: up, basis: "..."}
     gradients:                       # per mille, positive = rising in the up direction; default 0
@@ -58,9 +60,10 @@ Readings that matter:
   station 2.037 km beyond a junction station at km 52.668 sits at km 54.705. Route chainage along any
   through-route then equals design chainage minus the route origin.
 * **Up direction = increasing chainage.** Gradients are given for the up direction and negated for down.
-* **Turnbacks.** A station with ``turnback: true`` (and optional crossovers) lets a train reverse: the
-  engine ends the trip and starts the next one from the opposite platform, so the network has no reversal
-  edges; crossovers are recorded for the timetable and the interlocking only.
+* **Turnbacks.** A terminus with ``turnback: true`` gets a turnback track beyond the line end; an
+  intermediate station with ``pocket: low|high`` gets a pocket track between the tracks beyond its platform on
+  that side (two switches: off the arriving track, onto the departing one). Rotations reverse units there
+  (``network.generator``, ``railsim.engine.turnback``). Crossovers are recorded for the timetable only.
 * **Single track** builds one bidirectional track (SUMO bidi edges) and does not support branches yet.
 """
 
@@ -94,6 +97,7 @@ class Station:
     platform_length_m: float
     turnback: bool
     path: str  # field path in the description, for error messages
+    pocket: str | None = None  # "low" | "high": a turnback pocket track beyond the platform on that side
 
 
 @dataclass(frozen=True)
@@ -283,7 +287,7 @@ def _describe(value: Any) -> str:
     return repr(value)
 
 
-_STATION_KEYS = ("id", "name", "km", "platform_length_m", "turnback", "basis", "name_zh")
+_STATION_KEYS = ("id", "name", "km", "platform_length_m", "turnback", "pocket", "basis", "name_zh")
 _SWITCH_KEYS = ("id", "throw_time_s", "diverging_speed_kmh", "normal_speed_kmh", "basis")
 _BRANCH_KEYS = (
     "id",
@@ -338,7 +342,9 @@ def _stations(r: _Reader, key: str, default_platform_m: float, used_ids: dict[st
                 "km", f"expected a chainage greater than {r.field(key)}[{i - 1}].km ({out[-1].km:g}), got {km!r}"
             )
         plat = s.number("platform_length_m", default_platform_m, positive=True)
-        st = Station(sid, str(s.get("name", sid)), km, plat, s.boolean("turnback", False), path)
+        pocket = s.choice("pocket", ("low", "high")) if s.get("pocket", None) is not None else None
+        turnback = s.boolean("turnback", False) or pocket is not None
+        st = Station(sid, str(s.get("name", sid)), km, plat, turnback, path, pocket)
         if out:
             prev = out[-1]
             gap_m = (st.km - prev.km) * 1000.0 - (st.platform_length_m + prev.platform_length_m) / 2.0

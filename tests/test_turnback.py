@@ -17,9 +17,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+import pytest
 import yaml
 
-from tests.helpers import read_csv, read_summary, run_railsim
+from tests.helpers import DATA, read_csv, read_summary, run_railsim
 from tests.test_external_net import _COMMON, _edge, _netconvert, _stops, _write
 from tests.test_single_track import build_single_line
 
@@ -165,3 +166,118 @@ def test_rotations_that_do_not_chain_or_cannot_turn_are_refused(tmp_path: Path) 
     _, res = _invoke(tmp_path / "b", net, stops, services, no_turn)
     assert res.returncode == 2  # type: ignore[attr-defined]
     assert "rotations.units.u1[2]" in res.stderr and "no turnaround" in res.stderr  # type: ignore[attr-defined]
+
+
+def _mini_with_pocket(folder: Path) -> Path:
+    """``mini_y`` with a pocket track beyond C on its low side (so trains from E can turn at C)."""
+    text = (DATA / "lines" / "mini_y.yaml").read_text(encoding="utf-8")
+    text = text.replace("{id: c, name: C, km: 3.3}", "{id: c, name: C, km: 3.3, pocket: low}")
+    assert "pocket: low" in text
+    return _write(folder, "mini_pocket.yaml", text)
+
+
+def test_a_short_turn_in_a_pocket_track_between_through_trains(tmp_path: Path) -> None:
+    line = _mini_with_pocket(tmp_path)
+    raw = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
+    raw["world"] = {"line": str(line)}
+    raw["services"] = [
+        {"id": "short_down", "from": "e", "to": "c", "vehicle": "cq6", "departures": {"times": [0]}, "dwell_s": 20},
+        {"id": "short_up", "from": "c", "to": "e", "vehicle": "cq6", "departures": {"times": [420]}, "dwell_s": 20},
+        # through trains pass C on both tracks while the unit turns
+        {"id": "up", "from": "a", "to": "e", "vehicle": "cq6", "departures": {"times": [120, 300]}, "dwell_s": 20},
+        {"id": "down", "from": "e", "to": "a", "vehicle": "cq6", "departures": {"times": [150]}, "dwell_s": 20},
+    ]
+    raw["formations"] = []
+    raw["rotations"] = {"units": {"u1": ["short_down.000", "short_up.000"]}, "turnback_min_s": 120}
+    scn = _write(tmp_path, "pocket.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    s = read_summary(out)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    (rev,) = _events(out, "reversed")
+    assert yaml.safe_load(rev["detail"])["edge"] == "-c_pk"
+    # the unit took both pocket switches on their reverse leg; the through trains passed them on the normal leg
+    legs = {
+        (r["subject"], yaml.safe_load(r["detail"])["leg"], tuple(yaml.safe_load(r["detail"])["holders"]))
+        for r in _events(out, "lock_granted")
+        if r["subject"] in ("c_pk_in", "c_pk_out")
+    }
+    assert ("c_pk_in", "reverse", ("short_up.000",)) in legs and ("c_pk_out", "reverse", ("short_up.000",)) in legs
+    assert any(leg == "normal" for _, leg, _ in legs)
+    # the exit route is set only when the unit leaves the pocket, not while it waits there
+    (granted_out,) = [
+        r for r in _events(out, "lock_requested") if r["subject"] == "c_pk_out" and "short_up" in r["detail"]
+    ]
+    assert float(granted_out["t_s"]) >= float(rev["t_s"])
+    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    assert all(r["arrival_s"] != "" for r in trips.values())
+    # on time, or a little late when the through train ahead still holds the junction beyond C (lock queue)
+    assert 420.0 - 1e-9 <= float(trips["short_up.000"]["departure_s"]) <= 420.0 + 30.0
+
+
+def test_rotation_sections_that_are_wrong_say_which_field() -> None:
+    from railsim.errors import ConfigError
+    from railsim.scenario import from_mapping
+
+    base = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
+    base["formations"] = []
+    base["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    cases = {
+        "nonsense": ("rotations", "'auto' or a mapping"),
+        "{units: auto, turnback_min_s: -5}": ("rotations.turnback_min_s", "number >= 0"),
+        "{units: {u1: [main_up.000, main_up.000]}}": ("rotations.units.u1[1]", "already run by unit"),
+        "{units: {u1: [main_up.001, main_up.000]}}": ("rotations.units.u1[1]", "departs before"),
+        "{units: {u1: [no_such_trip]}}": ("rotations.units.u1[0]", "expected a trip id"),
+        "{unit: auto}": ("rotations.unit", "did you mean 'units'"),
+    }
+    for text, (field, words) in cases.items():
+        raw = {**base, "rotations": yaml.safe_load(text)}
+        try:
+            from_mapping(raw, "scn.yaml")
+        except ConfigError as err:
+            assert err.field == field and words in err.message, (text, err.field, err.message)
+        else:
+            raise AssertionError(f"{text} was accepted")
+    ok = from_mapping({**base, "rotations": "auto"}, "scn.yaml")
+    assert ok.rotations is not None and ok.rotations.units is None and ok.rotations.turnback_min_at("a") == 120.0
+
+
+def _terminal_scenarios(folder: Path) -> dict[str, Path]:
+    """Aston -> Bury every h, Bury -> Aston every h 300 s later, on the turnback-track net; with and without units."""
+    net, stops = build_tail_track(folder)
+
+    def svc(sid: str, a: str, b: str, first: float, last: float) -> dict:
+        dep = {"first": first, "last": last, "headway_s": 120}
+        return {"id": sid, "from": a, "to": b, "vehicle": "cq6", "departures": dep, "dwell_s": 30}
+
+    out = {}
+    for name, rotations in (("units", {"units": "auto", "turnback_min_s": 60}), ("trains", None)):
+        raw = {
+            "name": f"terminal_{name}",
+            "world": {"net": str(net), "additional": [str(stops)]},
+            **_COMMON,
+            "services": [svc("out", "Aston", "Bury", 0, 1200), svc("back", "Bury", "Aston", 300, 1500)],
+        }
+        raw["simulation"] = {**raw["simulation"], "duration_s": 3600}  # type: ignore[dict-item]
+        if rotations:
+            raw["rotations"] = rotations
+        out[name] = _write(folder, f"{name}.yaml", yaml.safe_dump(raw, sort_keys=False))
+    return out
+
+
+@pytest.mark.slow
+def test_min_headway_where_the_terminal_not_the_line_sets_it(tmp_path: Path) -> None:
+    """The line (moving block, 3 km) runs every 40 s when each trip is its own train; when units must turn back
+    through the one turnback track, the track's cycle (in, reverse, out) sets the headway: shorter headways pile up
+    knock-on delay at the terminal."""
+    from railsim.studies.headway import find_min_headway
+
+    scns = _terminal_scenarios(tmp_path)
+    paths = ["services[0].departures.headway_s", "services[1].departures.headway_s"]
+    line = find_min_headway(scns["trains"], paths, 40, 100, tol_s=10, confirm_seeds=[], progress=False)
+    assert line.min_headway_s == 40 and line.at_lower_bound
+    terminal = find_min_headway(scns["units"], paths, 40, 100, tol_s=10, confirm_seeds=[], progress=False)
+    assert terminal.min_headway_s is not None and terminal.min_headway_s >= 60
+    worst = max((p for p in terminal.probes if not p.feasible), key=lambda p: p.headway_s)
+    assert "delay" in worst.reason  # the knock-on through the turnback track, not a collision or a stall

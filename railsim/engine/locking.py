@@ -21,6 +21,7 @@ crossing (two routes crossing inside one SUMO node) is the same kind of resource
 
 from __future__ import annotations
 
+import dataclasses
 import logging
 from collections.abc import Callable
 from typing import Any
@@ -32,8 +33,15 @@ from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
-from railsim.engine.settings import EngineSettings
-from railsim.engine.single_track import RouteSection, contested, route_crossings, route_sections, section_map
+from railsim.engine.settings import INF, EngineSettings
+from railsim.engine.single_track import (
+    REVERSING,
+    RouteSection,
+    contested,
+    route_crossings,
+    route_sections,
+    section_map,
+)
 from railsim.engine.train import TrainRuntime
 
 log = logging.getLogger(__name__)
@@ -78,8 +86,13 @@ class RouteLocks:
         if not shared:
             return
         self.tracks = TrackSections(self.events, sorted(shared))
-        for tid, sections in per_train.items():
-            mine = [x for x in sections if x.section_id in shared]
+        for k, (tid, sections) in enumerate(per_train.items()):
+            # a train reversing in a section gets a direction nobody else has: it holds the section alone
+            mine = [
+                dataclasses.replace(x, direction=2 + k) if x.direction == REVERSING else x
+                for x in sections
+                if x.section_id in shared
+            ]
             if mine:
                 self.sections[tid] = mine
                 self.section_requests[tid] = {}
@@ -122,20 +135,33 @@ class RouteLocks:
                     return True
         return False
 
-    def bookkeeping(self, t: float, tr: TrainRuntime) -> None:
-        """Request locks ahead, detect a pass without a lock, release behind the rear."""
+    def bookkeeping(self, t: float, tr: TrainRuntime, ahead: Any = None) -> None:
+        """Request locks ahead, detect a pass without a lock, release behind the rear.
+
+        Locks are requested in the order trains reach the switch: while another train (``ahead``, ground truth
+        in this train's frame; not a formation partner) stands between this train and a switch point, this train
+        does not request that switch — granted first, it would hold the points the train in front needs, and
+        neither could ever move (a unit waiting at a platform for its pocket track, a through train behind it)."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr)
+        # switches behind where the train came on the line are not its business (a unit's next trip comes on
+        # the line before its origin platform: it starts with its turnback)
+        start_m = tr.trip.depart_chainage_m if tr.trip.stops[0].kind == "station" else tr.start_front_m
+        # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
+        request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
+        if ahead is not None and not self.formations.partners(tr.train_id, ahead.train_id):
+            request_until_m = min(request_until_m, ahead.rear_m)
         for rs in tr.trip.route.switches:
             sid = rs.switch_id
             if sid in tr.released:
                 continue
-            if rs.point_m < tr.trip.depart_chainage_m - length:
+            if rs.point_m < start_m - length:
                 continue
             if (
                 sid not in tr.locks
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
+                and rs.point_m <= request_until_m
                 and not self.managed_by(tr.train_id, sid)
                 and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
             ):

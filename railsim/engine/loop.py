@@ -307,7 +307,7 @@ class Simulation:
         for tr in active:
             self.stops.bookkeeping(t, tr)
             self.formations.bookkeeping(t, tr, ahead[tr.train_id])
-            self.locks.bookkeeping(t, tr)
+            self.locks.bookkeeping(t, tr, ahead[tr.train_id])
         for comms_hook in self._before_comms:
             comms_hook(t, active)
         reports = {tr.train_id: Knowledge.report(t, tr) for tr in active}  # the state at t, before the plant step

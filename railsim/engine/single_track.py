@@ -12,6 +12,10 @@ cross a section with different orientations meet head-on.
 front of the section if the section begins at a switch (a train waiting for a section must not stand on the
 switch another train needs to leave the section), else the section's start.
 
+A route that runs both ways through a section reverses inside it (a unit on a turnback track, a bidi platform):
+its direction is :data:`REVERSING`, and each such train holds the section alone (the route locks give it a
+direction of its own), since a second train in a turnback track would meet it head-on after the flip.
+
 **Crossings** (:func:`route_crossings`): movements through one SUMO node that SUMO's foe matrix says intersect
 while sharing no track (``graph.graph["crossings"]``, from :mod:`network.external`) are one resource per node,
 held by one movement at a time (trains on the same movement may follow each other through). It spans the node's
@@ -26,6 +30,7 @@ from typing import Any
 import networkx as nx
 
 ADJACENT_SWITCH_M = 60.0  # a switch point this close before a section's start protects the section
+REVERSING = -1  # the direction of a route that reverses inside a section (a unit turning back): it needs it alone
 
 
 @dataclass(frozen=True)
@@ -74,6 +79,8 @@ def route_sections(route: Any, smap: dict[str, tuple[str, int]]) -> list[RouteSe
         j = i
         while j + 1 < len(edges) and smap.get(edges[j + 1], ("", 0))[0] == sid:
             j += 1
+            if smap[edges[j]][1] != direction:  # it runs both ways in it: it reverses there
+                direction = REVERSING
         start = float(starts[i])
         end = float(starts[j + 1]) if j + 1 < len(edges) else float(route.length_m)
         guard = start
@@ -91,7 +98,7 @@ def contested(per_train: dict[str, list[RouteSection]]) -> set[str]:
     for sections in per_train.values():
         for s in sections:
             seen.setdefault(s.section_id, set()).add(s.direction)
-    return {sid for sid, dirs in seen.items() if len(dirs) > 1}
+    return {sid for sid, dirs in seen.items() if len(dirs) > 1 or REVERSING in dirs}
 
 
 def route_crossings(route: Any, graph: nx.DiGraph) -> list[RouteSection]:

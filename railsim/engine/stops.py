@@ -106,24 +106,28 @@ class StopBook:
             self.release_locks(tr)
 
     def _reversal(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
-        """A unit reverses (``railsim.engine.turnback``): it halts on the reversal edge, SUMO flips it onto the
-        ``bidi`` edge (``stop.stop_id``), and it stands at least ``stop.dwell_s`` before it runs on."""
+        """A unit reverses (``railsim.engine.turnback``): it halts on the reversal edge and SUMO flips it onto the
+        ``bidi`` edge (``stop.stop_id``) — SUMO decides the moment (at standstill by its own threshold), so the
+        flip itself counts as the halt. It then stands at least ``stop.dwell_s`` and until ``tr.hold_until_s``
+        (a unit early for its next departure waits here, off the platform) before it runs on."""
+        flipped = tr.sumo_edge == stop.stop_id
         if tr.halted_s is None:
-            if tr.plant.speed_mps == 0.0 and stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6:
+            in_window = stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6
+            if flipped or (tr.plant.speed_mps == 0.0 and in_window):
                 tr.halted_s = t
-                tr.reversing = True
                 self.events.record(t, "reversal_halt", tr.train_id, station=stop.station_id)
             elif tr.front_m > stop.window_end_m + self.settings.missed_stop_tolerance_m:
                 self.events.record(
                     t, "reversal_missed", tr.train_id, overrun_m=round(tr.front_m - stop.window_end_m, 3)
                 )
                 log.error("%s ran past its reversal point at %s", tr.train_id, stop.station_id)
-                tr.next_stop += 1
             return
-        if tr.sumo_edge == stop.stop_id and t - tr.halted_s >= stop.dwell_s:
+        hold_until_s = max(tr.halted_s + stop.dwell_s, tr.hold_until_s or 0.0)
+        if flipped and t >= hold_until_s:
             self.events.record(t, "reversed", tr.train_id, station=stop.station_id, edge=stop.stop_id)
             tr.reversing = False
             tr.halted_s = None
+            tr.hold_until_s = None
             tr.next_stop += 1
 
     def _missed(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:

@@ -76,7 +76,8 @@ class TrainRuntime:
     sumo_id: str = ""  # the SUMO vehicle: the trip id, or the unit id when trips are chained (rotations)
     unit_id: str | None = None  # the rolling-stock unit running this trip (rotations), else None
     sumo_edge: str = ""  # SUMO's edge of the train this step
-    reversing: bool = False  # standing at its reversal stop while SUMO flips it (railsim.engine.turnback)
+    reversing: bool = False  # on its way to / at its reversal stop: SUMO may flip it (railsim.engine.turnback)
+    hold_until_s: float | None = None  # a reversing unit stands at least until then (early for its departure)
     start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
 
     def __post_init__(self) -> None:

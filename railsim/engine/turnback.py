@@ -58,6 +58,7 @@ REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses
 REVERSAL_HOLD_S = 5.0  # a reversing unit stands at least this long after SUMO flipped it (cab change)
 TURNBACK_SEARCH_M = 5000.0  # a turnback path longer than this is not a turnback
 END_MARGIN_M = 1.0  # a unit stops this far short of the end of a turnback track
+BOARDING_MARGIN_S = 60.0  # a reversed unit is at its departure platform this long before it departs
 
 
 def reversal_graph(graph: nx.DiGraph) -> nx.DiGraph:
@@ -242,6 +243,8 @@ class Turnbacks:
         succ.status = "running"
         succ.inserted_s = t
         succ.next_stop = 0
+        succ.reversing = True
+        succ.hold_until_s = until_s - _positioning_s(succ)  # wait off the platform while early
         self.turnbacks.append(
             {
                 "unit": succ.unit_id,
@@ -307,6 +310,17 @@ class Turnbacks:
             "late_starts_from_incoming_unit": len(late),
             "knock_on_delay_s": round(sum(r["knock_on_s"] for r in late), 3),
         }
+
+
+def _positioning_s(tr: TrainRuntime) -> float:
+    """How long before its departure a reversed unit leaves its reversal point: the run to its origin platform
+    (accelerate to the stretch's lowest limit, run, brake) plus :data:`BOARDING_MARGIN_S`."""
+    rev, origin = tr.trip.stops[0], tr.trip.origin
+    distance_m = max(0.0, origin.mark_m - rev.window_end_m)
+    veh = tr.trip.vehicle
+    v = min(tr.trip.route.speed_at(rev.window_end_m), tr.trip.route.speed_at(origin.mark_m), veh.max_speed_mps)
+    accel = veh.traction_max_force_n / veh.effective_mass_kg
+    return distance_m / v + v / (2.0 * accel) + v / (2.0 * veh.service_decel_mps2) + BOARDING_MARGIN_S
 
 
 def _run_m(tr: TrainRuntime) -> float:

@@ -42,7 +42,8 @@ class StallWatch:
     def check(self, t: float, active: list[TrainRuntime]) -> None:
         """Every step: update the standing clocks; stall the run if one ran past ``stall_timeout_s``."""
         for tr in active:
-            if tr.plant.speed_mps > STANDSTILL_MPS or tr.sumo_stopped or tr.sumo_stopped_now:
+            held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
+            if tr.plant.speed_mps > STANDSTILL_MPS or tr.sumo_stopped or tr.sumo_stopped_now or held:
                 self.standing_since.pop(tr.train_id, None)
             elif tr.train_id not in self.standing_since:
                 self.standing_since[tr.train_id] = (t, tr)

@@ -225,6 +225,37 @@ def formation_table(formations: pd.DataFrame) -> pd.DataFrame:
     return formations[list(cols)].rename(columns=cols)
 
 
+def fleet_markdown(fleet: Mapping[str, Any]) -> list[str]:
+    """The rotations section of a run report: fleet size, km per unit, turnback times against the minimum."""
+    km = pd.Series(fleet.get("km_per_unit", {}), dtype=float)
+    rows = pd.DataFrame(fleet.get("turnbacks", []))
+    lines = [
+        "## Fleet and turnbacks (rotations)",
+        f"Units used: **{fleet['units_used']}**; peak units in service: **{fleet['peak_units_in_service']}**; "
+        f"km per unit: mean {km.mean():.1f}, max {km.max():.1f}. Late starts caused by a late incoming unit: "
+        f"{fleet['late_starts_from_incoming_unit']} ({fleet['knock_on_delay_s']:.0f} s in total). Minimum "
+        f"turnback respected: {'yes' if fleet['turnback_min_respected'] else '**no**'}.",
+    ]
+    if len(rows):
+        done = rows.dropna(subset=["achieved_s"])
+        table = (
+            done.groupby("station")
+            .agg(
+                turnbacks=("achieved_s", "size"),
+                min_s=("min_s", "first"),
+                achieved_min_s=("achieved_s", "min"),
+                achieved_median_s=("achieved_s", "median"),
+                knock_on_s=("knock_on_s", "sum"),
+            )
+            .reset_index()
+        )
+        table.columns = pd.Index(
+            ["station", "turnbacks", "minimum [s]", "achieved min [s]", "achieved median [s]", "knock-on [s]"]
+        )
+        lines.append(md_table(table, {"turnbacks": 0}))
+    return lines
+
+
 def _figure_md(paths: Sequence[Path], base: Path, caption: str, alt: str, svg_link: bool) -> str:
     png = next(p for p in paths if p.suffix == ".png")
     svg = next((p for p in paths if p.suffix == ".svg"), None)
@@ -275,6 +306,9 @@ def run_report_markdown(run_dir: Path | str, figures_dir: Path | None = None, sv
             "## Formations (virtual coupling)",
             md_table(formation_table(formations), {"gap error p95 [m]": 2, "gap error max [m]": 2}),
         ]
+
+    if summary.get("fleet"):
+        parts += fleet_markdown(summary["fleet"])
 
     parts.append("## Figures")
     figures = [
