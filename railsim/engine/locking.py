@@ -251,8 +251,10 @@ class RouteLocks:
 
     def authority_end_m(self, tr: TrainRuntime) -> float:
         """Route chainage where the train's movement authority ends: before the first switch not locked for it,
-        or the protection point of the first single-track section not reserved for it."""
-        end = tr.view.length_m - 1.0
+        or the protection point of the first single-track section not reserved for it. At the end of its trip the
+        authority reaches the route's end, and at least the overlap beyond the destination platform (a platform
+        ending within the overlap of the route's end would otherwise cut the train's stopping window short)."""
+        end = max(tr.view.length_m - 1.0, tr.trip.destination.window_end_m + self.settings.protection_margin_m)
         if tr.train_id in self.sections:
             reqs = self.section_requests[tr.train_id]
             for sec in self.sections[tr.train_id]:

@@ -79,7 +79,7 @@ class Simulation:
         self.dt = float(sim.step_s)
         self.duration_s = float(sim.duration_s)
         self.step_method = sim.step_method
-        self.settings = settings or EngineSettings()
+        self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
         self.rng = np.random.default_rng(self.seed)
 
@@ -209,7 +209,7 @@ class Simulation:
             bar = tqdm(total=int(self.duration_s), unit="sim-s", desc=self.scenario.name, leave=False)
         with SumoBridge(self._sumo_config()) as bridge:
             self.bridge = self.dispatcher.bridge = bridge
-            self.stops.skip_next_stop = bridge.skip_next_stop
+            self.stops.drop_stop = bridge.drop_stop
             t = bridge.time_s
             last_bar = t
             while t <= self.duration_s + 1e-9:

@@ -37,7 +37,16 @@ from railsim.scenario.model import Scenario
 from railsim.scenario.validate import Checker, require_top_mapping
 
 _TOP_REQUIRED = ("name", "world", "simulation", "vehicles", "controllers", "roles", "services")
-_TOP_OPTIONAL = ("description", "formations", "events", "faults", "outputs", "cooperative", "junction")
+_TOP_OPTIONAL = (
+    "description",
+    "formations",
+    "events",
+    "faults",
+    "outputs",
+    "cooperative",
+    "junction",
+    "interlocking",
+)
 
 
 def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> Scenario:
@@ -67,6 +76,9 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
         raw["cooperative"] = coop_raw
     faults, raw["faults"] = validate_faults.faults(ck, top.get("faults") or {}, services)
     outputs, raw["outputs"] = validate_setup.outputs(ck, top.get("outputs") or {}, sim)
+    interlocking, interlocking_raw = validate_setup.interlocking(ck, top.get("interlocking") or {})
+    if interlocking_raw:  # only when given: the resolved copy of older scenarios stays as it was
+        raw["interlocking"] = interlocking_raw
     junction = None
     if top.get("junction") is not None:
         junction, raw["junction"] = validate_formations.junction(ck, top["junction"], services, formations)
@@ -91,4 +103,5 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
         cooperative=cooperative,
         plants=plants,
         junction=junction,
+        interlocking=interlocking,
     )
