@@ -322,3 +322,57 @@ def test_no_train_is_inserted_between_a_train_and_the_switch_it_holds(tmp_path: 
         if r["train"] == "first.000" and abs(float(r["t_s"]) - t_dep) < 1.0
     ]
     assert first_at and min(first_at) > 1300.0  # it departed only once the holder had passed its platform
+
+
+def build_short_loop(folder: Path) -> tuple[Path, Path]:
+    """Single track A–M1 and M2–B (bidi) joined by a loop of one-way tracks: eastbound L1 (curved, ~190 m, with a
+    platform) and westbound L2 (straight, 100 m: shorter than a train plus the overlap, so a westbound train
+    waiting at M1 still stands with its rear in the M2–B section)."""
+    nodes = (
+        '<node id="A" x="0" y="0"/>\n<node id="M1" x="3000" y="0"/>\n<node id="M2" x="3100" y="0"/>\n'
+        '<node id="B" x="5100" y="0"/>'
+    )
+    edges = [
+        _edge("AM", "A", "M1"),
+        _edge("-AM", "M1", "A"),
+        _edge("L1", "M1", "M2", 16.0, spread="right", shape="3000,0 3030,-70 3070,-70 3100,0"),
+        _edge("L2", "M2", "M1", 16.0, spread="right"),
+        _edge("MB", "M2", "B"),
+        _edge("-MB", "B", "M2"),
+    ]
+    net = _netconvert(folder, "shortloop", nodes, "\n".join(edges))
+    stops = _stops(
+        folder,
+        "shortloop",
+        [
+            ("x_out", "AM_0", 100, 400, "West"),
+            ("z_out", "AM_0", 1000, 1300, "Mid"),
+            ("loop", "L1_0", 60, -1, "Loop"),
+            ("b_in", "MB_0", 1600, 1900, "East"),
+            ("b_out", "-MB_0", 100, 400, "East"),
+            ("a_in", "-AM_0", 2600, 2900, "West"),
+        ],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_a_deadlock_through_a_train_standing_behind_another_is_found(tmp_path: Path) -> None:
+    """Three trains, a circular wait that only the occupancy of the track closes: ``zed`` (east) waits on the loop
+    for the M2–B section that ``west`` holds; ``west`` stands on the short loop track (its rear still in M2–B)
+    waiting for the A–M1 section, which ``ex`` holds — ``ex`` stands in it right behind ``zed`` on its way to the
+    loop platform and needs nothing else. Without the ``ahead:`` edge this was a 300 s stall, not a deadlock."""
+    net, stops = build_short_loop(tmp_path)
+    services = [
+        _service("zed", "z_out", "b_in", 0),
+        _service("ex", "x_out", "loop", 0),
+        _service("west", "b_out", "a_in", 0),
+    ]
+    out, s, stderr = _run(tmp_path, "occ", net, stops, services, exit_code=3)
+    assert "deadlock" in stderr
+    (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
+    detail = yaml.safe_load(ev["detail"])
+    assert sorted(detail["trains"]) == ["ex.000", "west.000", "zed.000"]
+    assert "ahead:zed.000" in detail["resources"]
+    assert float(ev["t_s"]) < 300.0  # found by the deadlock search, long before the stall timeout
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0

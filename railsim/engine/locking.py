@@ -225,20 +225,27 @@ class RouteLocks:
                     out[sec_id] = self.tracks.waiting_ahead(sec_req)
         return out
 
-    def deadlock(self, trains: list[TrainRuntime]) -> tuple[list[str], list[str]] | None:
-        """A circular wait among ``trains``: ``(train ids in the cycle, switches involved)``, or None.
+    def deadlock(
+        self, trains: list[TrainRuntime], behind: dict[str, str] | None = None
+    ) -> tuple[list[str], list[str]] | None:
+        """A circular wait among ``trains``: ``(train ids in the cycle, resources involved)``, or None.
 
-        Train A waits for B when B holds (or is queued ahead for) a switch A asked for. A cycle in that graph can
-        never resolve by itself: the interlocking serves each switch first-in-first-out and nobody releases a
-        lock without moving past the switch.
+        Train A waits for B when B holds (or is queued ahead for) a switch or section A asked for, or when A stands
+        right behind B (``behind``: standing train -> the standing train directly ahead of it, from the occupancy
+        of the track; the resource is named ``ahead:B``). A cycle in that graph can never resolve by itself: the
+        interlocking serves each resource first-in-first-out, nobody releases a lock without moving past it, and
+        a train cannot move through the train standing in front of it.
         """
         by_id = {tr.train_id: tr for tr in trains}
-        waits: dict[str, dict[str, str]] = {}  # train -> {blocking train: switch}
+        waits: dict[str, dict[str, str]] = {}  # train -> {blocking train: resource}
         for tr in trains:
             for sid, others in self.blockers(tr).items():
                 for other in others:
                     if other in by_id:
                         waits.setdefault(tr.train_id, {})[other] = sid
+        for a, b in (behind or {}).items():
+            if a in by_id and b in by_id:
+                waits.setdefault(a, {}).setdefault(b, f"ahead:{b}")
         graph = nx.DiGraph()
         for a in sorted(waits):  # insertion order keeps the search deterministic
             for b in sorted(waits[a]):

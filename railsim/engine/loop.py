@@ -288,7 +288,7 @@ class Simulation:
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
         self.safety.sumo_reported(t, bridge.collisions())
-        self.watchdog.check(t, active)
+        self.watchdog.check(t, active, ahead)
 
         for hook in self._before_bookkeeping:
             hook(t)
