@@ -2,8 +2,9 @@
 authority reaches, and when it releases (the engine side of :mod:`railsim.engine.events.interlocking`).
 
 Every switch on a train's route is requested ``lock_request_distance_m`` before its point; until the lock is
-granted the train's movement authority ends ``protection_margin_m`` before the switch point; the lock is
-released when the train's rear is ``clearance_m`` past the point. A coupled follower on the same leg rides on
+granted the train's movement authority ends ``protection_margin_m`` before the switch point (the **overlap**: a
+scenario sets it with ``interlocking.overlap_m``; the authority also reaches that far beyond the destination
+platform's end); the lock is released when the train's rear is ``clearance_m`` past the point. A coupled follower on the same leg rides on
 its leader's request (one lock for the formation). Passing a switch without its lock is a ``switch_violation``
 event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
 planner requests in its planned order).
