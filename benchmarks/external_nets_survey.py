@@ -3,10 +3,10 @@
     .venv/bin/python benchmarks/external_nets_survey.py NETS_DIR --out OUT_DIR [--duration-s 1800]
 
 ``NETS_DIR`` holds SUMO nets (``*.net.xml``, searched recursively; e.g. a few of SUMO's own ``tests/sumo/rail``
-nets and the ``tools/game/rail`` nets of the eclipse-sumo package). A net's additional files are the
-``*.add.xml`` files next to it that hold ``trainStop``/``busStop`` elements. A net with fewer than two stations
-railsim can route between gets **survey stops**: a ``trainStop`` on the first and the last edge of the longest
-rail path (by metres) and one in the middle, written to ``OUT_DIR/<net>/survey.stops.add.xml``.
+nets and the ``tools/game/rail`` nets of the eclipse-sumo package). A net's additional files are the ``*.add.xml``
+files next to it that hold ``trainStop``/``busStop`` elements. A net with fewer than two stations railsim can route
+between gets **survey stops**: a ``trainStop`` on the first and the last edge of the longest rail path (by metres)
+and one in the middle (edges of at least 20 m), written to ``OUT_DIR/<net>/survey.stops.add.xml``.
 
 For each net the survey writes a tiny scenario (``OUT_DIR/<net>/scenario.yaml``): up to three ATO services
 (one trip each) on the listed routes through the most stations — the longest, its opposite direction if the
@@ -43,6 +43,7 @@ from railsim.errors import ConfigError  # noqa: E402
 
 MAX_SERVICES = 3
 STOP_LENGTH_M = 150.0  # survey platform length (or the whole edge if shorter)
+MIN_STOP_EDGE_M = 20.0  # survey stops go on edges at least this long
 
 
 @dataclass
@@ -76,8 +77,8 @@ def _survey_stops(net: Path, folder: Path) -> Path:
         for dst, d in dist.items():
             if d > best[0] and len(paths[dst]) >= 2:
                 best = (d, paths[dst])
-    path = best[1]
-    if not path:
+    path = [e for e in best[1] if float(g.nodes[e]["length_m"]) >= MIN_STOP_EDGE_M]  # no stop on a 0.2 m stub
+    if len(path) < 2:
         raise ConfigError(net, None, "survey: no rail path of two edges or more to put stops on")
     picks = [path[0], path[len(path) // 2], path[-1]] if len(path) >= 3 else [path[0], path[-1]]
     lines = []

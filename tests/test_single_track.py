@@ -39,17 +39,23 @@ def build_single_line(folder: Path) -> tuple[Path, Path]:
     return net, stops
 
 
-def _scenario(folder: Path, name: str, net: Path, stops: Path, services: list[dict]) -> Path:
+def _scenario(folder: Path, name: str, net: Path, stops: Path, services: list[dict], extra: dict | None = None) -> Path:
     raw = {"name": name, "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON, "services": services}
-    return _write(folder, f"{name}.yaml", yaml.safe_dump(raw, sort_keys=False))
+    return _write(folder, f"{name}.yaml", yaml.safe_dump({**raw, **(extra or {})}, sort_keys=False))
 
 
 def _run(
-    folder: Path, name: str, net: Path, stops: Path, services: list[dict], exit_code: int = 0
+    folder: Path,
+    name: str,
+    net: Path,
+    stops: Path,
+    services: list[dict],
+    exit_code: int = 0,
+    extra: dict | None = None,
 ) -> tuple[Path, dict, str]:
     """``railsim run`` the services in a child process; assert the exit code; (output folder, summary, stderr)."""
     out = folder / "out"
-    scn = _scenario(folder, name, net, stops, services)
+    scn = _scenario(folder, name, net, stops, services, extra)
     res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
     assert res.returncode == exit_code, res.stderr + res.stdout
     return out, read_summary(out), res.stderr
@@ -177,12 +183,15 @@ def build_merge(folder: Path) -> tuple[Path, Path]:
 
 
 @pytest.mark.sumo
-def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path: Path) -> None:
-    """Both trains reach the merge at about the same time: the one without the lock stands at least the protection
-    margin before the switch point (it never fouls the route set for the other), then follows; 0 collisions."""
+@pytest.mark.parametrize("overlap_m", [None, 80.0])
+def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path: Path, overlap_m: float | None) -> None:
+    """Both trains reach the merge at about the same time: the one without the lock stands at least the overlap
+    (``interlocking.overlap_m``, default 20 m) before the switch point (it never fouls the route set for the
+    other), then follows; 0 collisions."""
     net, stops = build_merge(tmp_path)
     services = [_service("main", "ash", "zed", 0), _service("branch", "birch", "zed", 0)]
-    out, s, stderr = _run(tmp_path, "merge", net, stops, services)
+    extra = None if overlap_m is None else {"interlocking": {"overlap_m": overlap_m}}
+    out, s, stderr = _run(tmp_path, "merge", net, stops, services, extra=extra)
     assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
     assert s["switch_violations"] == 0
     events = read_csv(out / "events.csv")
@@ -199,7 +208,46 @@ def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path:
     (sw,) = route.switches
     trace = [r for r in read_csv(out / "trace.csv") if r["train"] == second and float(r["t_s"]) <= t_grant]
     front_before_grant = max(float(r["chainage_m"]) for r in trace)
-    assert front_before_grant <= sw.point_m - 20.0 + 0.5  # protection margin (EngineSettings) before the point
+    overlap = 20.0 if overlap_m is None else overlap_m  # EngineSettings.protection_margin_m by default
+    assert front_before_grant <= sw.point_m - overlap + 0.5
+
+
+@pytest.mark.sumo
+@pytest.mark.parametrize("overlap_m", [None, 80.0])
+def test_a_train_waiting_for_the_points_stands_the_overlap_before_them(tmp_path: Path, overlap_m: float | None) -> None:
+    """A slow train (15 km/h) holds the merge for minutes; the branch train comes up and stands where its authority
+    ends: ``overlap_m`` (default 20 m) before the switch point, minus the ATO's 5 m authority margin."""
+    net, stops = build_merge(tmp_path)
+    services = [
+        {**_service("main", "ash", "zed", 0), "vehicle": "slow"},
+        _service("branch", "birch", "zed", 120),
+    ]
+    extra: dict = {"vehicles": {"cq6": {"preset": "cq3_6car"}, "slow": {"preset": "cq3_6car", "max_speed_kmh": 15}}}
+    if overlap_m is not None:
+        extra["interlocking"] = {"overlap_m": overlap_m}
+    out, s, stderr = _run(tmp_path, "slowmerge", net, stops, services, extra=extra)
+    assert s["n_arrived"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    from network.external import load_net
+
+    (sw,) = load_net(net, [stops]).route_between("birch", "zed").switches
+    standing = [
+        float(r["chainage_m"])
+        for r in read_csv(out / "trace.csv")
+        if r["train"] == "branch.000" and float(r["speed_mps"]) == 0.0 and 1000.0 < float(r["chainage_m"]) < sw.point_m
+    ]
+    assert len(standing) > 30  # it stood for more than half a minute
+    overlap = 20.0 if overlap_m is None else overlap_m
+    assert sw.point_m - overlap - 5.5 <= min(standing) <= max(standing) <= sw.point_m - overlap - 4.5
+
+
+def test_a_bad_overlap_is_refused_naming_the_field(tmp_path: Path) -> None:
+    net, stops = build_merge(tmp_path)
+    services = [_service("main", "ash", "zed", 0)]
+    scn = _scenario(tmp_path, "bad", net, stops, services, {"interlocking": {"overlap_m": -5}})
+    res = run_railsim(["validate", str(scn)], cache_dir=tmp_path / "c", timeout=120)
+    assert res.returncode == 2 and "Traceback" not in res.stderr
+    (line,) = [ln for ln in res.stderr.splitlines() if ln.strip()]
+    assert "bad.yaml" in line and "interlocking.overlap_m" in line
 
 
 def build_no_passing_place(folder: Path) -> tuple[Path, Path]:
@@ -274,3 +322,57 @@ def test_no_train_is_inserted_between_a_train_and_the_switch_it_holds(tmp_path: 
         if r["train"] == "first.000" and abs(float(r["t_s"]) - t_dep) < 1.0
     ]
     assert first_at and min(first_at) > 1300.0  # it departed only once the holder had passed its platform
+
+
+def build_short_loop(folder: Path) -> tuple[Path, Path]:
+    """Single track A–M1 and M2–B (bidi) joined by a loop of one-way tracks: eastbound L1 (curved, ~190 m, with a
+    platform) and westbound L2 (straight, 100 m: shorter than a train plus the overlap, so a westbound train
+    waiting at M1 still stands with its rear in the M2–B section)."""
+    nodes = (
+        '<node id="A" x="0" y="0"/>\n<node id="M1" x="3000" y="0"/>\n<node id="M2" x="3100" y="0"/>\n'
+        '<node id="B" x="5100" y="0"/>'
+    )
+    edges = [
+        _edge("AM", "A", "M1"),
+        _edge("-AM", "M1", "A"),
+        _edge("L1", "M1", "M2", 16.0, spread="right", shape="3000,0 3030,-70 3070,-70 3100,0"),
+        _edge("L2", "M2", "M1", 16.0, spread="right"),
+        _edge("MB", "M2", "B"),
+        _edge("-MB", "B", "M2"),
+    ]
+    net = _netconvert(folder, "shortloop", nodes, "\n".join(edges))
+    stops = _stops(
+        folder,
+        "shortloop",
+        [
+            ("x_out", "AM_0", 100, 400, "West"),
+            ("z_out", "AM_0", 1000, 1300, "Mid"),
+            ("loop", "L1_0", 60, -1, "Loop"),
+            ("b_in", "MB_0", 1600, 1900, "East"),
+            ("b_out", "-MB_0", 100, 400, "East"),
+            ("a_in", "-AM_0", 2600, 2900, "West"),
+        ],
+    )
+    return net, stops
+
+
+@pytest.mark.sumo
+def test_a_deadlock_through_a_train_standing_behind_another_is_found(tmp_path: Path) -> None:
+    """Three trains, a circular wait that only the occupancy of the track closes: ``zed`` (east) waits on the loop
+    for the M2–B section that ``west`` holds; ``west`` stands on the short loop track (its rear still in M2–B)
+    waiting for the A–M1 section, which ``ex`` holds — ``ex`` stands in it right behind ``zed`` on its way to the
+    loop platform and needs nothing else. Without the ``ahead:`` edge this was a 300 s stall, not a deadlock."""
+    net, stops = build_short_loop(tmp_path)
+    services = [
+        _service("zed", "z_out", "b_in", 0),
+        _service("ex", "x_out", "loop", 0),
+        _service("west", "b_out", "a_in", 0),
+    ]
+    out, s, stderr = _run(tmp_path, "occ", net, stops, services, exit_code=3)
+    assert "deadlock" in stderr
+    (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
+    detail = yaml.safe_load(ev["detail"])
+    assert sorted(detail["trains"]) == ["ex.000", "west.000", "zed.000"]
+    assert "ahead:zed.000" in detail["resources"]
+    assert float(ev["t_s"]) < 300.0  # found by the deadlock search, long before the stall timeout
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0

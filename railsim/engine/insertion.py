@@ -169,7 +169,11 @@ class Dispatcher:
         from railsim.engine.sumo import StopSpec
 
         stops = [
-            StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s)
+            StopSpec(
+                s.stop_id,
+                duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s,
+                lane_stop_m=s.lane_stop_m,
+            )
             for s in trip.stops[1:]
         ]
         # SUMO inserts a vehicle on its route's first edge: a train starting further along (a start offset in

@@ -2,8 +2,9 @@
 authority reaches, and when it releases (the engine side of :mod:`railsim.engine.events.interlocking`).
 
 Every switch on a train's route is requested ``lock_request_distance_m`` before its point; until the lock is
-granted the train's movement authority ends ``protection_margin_m`` before the switch point; the lock is
-released when the train's rear is ``clearance_m`` past the point. A coupled follower on the same leg rides on
+granted the train's movement authority ends ``protection_margin_m`` before the switch point (the **overlap**: a
+scenario sets it with ``interlocking.overlap_m``; the authority also reaches that far beyond the destination
+platform's end); the lock is released when the train's rear is ``clearance_m`` past the point. A coupled follower on the same leg rides on
 its leader's request (one lock for the formation). Passing a switch without its lock is a ``switch_violation``
 event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
 planner requests in its planned order).
@@ -251,20 +252,27 @@ class RouteLocks:
                     out[sec_id] = self.tracks.waiting_ahead(sec_req)
         return out
 
-    def deadlock(self, trains: list[TrainRuntime]) -> tuple[list[str], list[str]] | None:
-        """A circular wait among ``trains``: ``(train ids in the cycle, switches involved)``, or None.
+    def deadlock(
+        self, trains: list[TrainRuntime], behind: dict[str, str] | None = None
+    ) -> tuple[list[str], list[str]] | None:
+        """A circular wait among ``trains``: ``(train ids in the cycle, resources involved)``, or None.
 
-        Train A waits for B when B holds (or is queued ahead for) a switch A asked for. A cycle in that graph can
-        never resolve by itself: the interlocking serves each switch first-in-first-out and nobody releases a
-        lock without moving past the switch.
+        Train A waits for B when B holds (or is queued ahead for) a switch or section A asked for, or when A stands
+        right behind B (``behind``: standing train -> the standing train directly ahead of it, from the occupancy
+        of the track; the resource is named ``ahead:B``). A cycle in that graph can never resolve by itself: the
+        interlocking serves each resource first-in-first-out, nobody releases a lock without moving past it, and
+        a train cannot move through the train standing in front of it.
         """
         by_id = {tr.train_id: tr for tr in trains}
-        waits: dict[str, dict[str, str]] = {}  # train -> {blocking train: switch}
+        waits: dict[str, dict[str, str]] = {}  # train -> {blocking train: resource}
         for tr in trains:
             for sid, others in self.blockers(tr).items():
                 for other in others:
                     if other in by_id:
                         waits.setdefault(tr.train_id, {})[other] = sid
+        for a, b in (behind or {}).items():
+            if a in by_id and b in by_id:
+                waits.setdefault(a, {}).setdefault(b, f"ahead:{b}")
         graph = nx.DiGraph()
         for a in sorted(waits):  # insertion order keeps the search deterministic
             for b in sorted(waits[a]):
@@ -277,8 +285,10 @@ class RouteLocks:
 
     def authority_end_m(self, tr: TrainRuntime) -> float:
         """Route chainage where the train's movement authority ends: before the first switch not locked for it,
-        or the protection point of the first single-track section not reserved for it."""
-        end = tr.view.length_m - 1.0
+        or the protection point of the first single-track section not reserved for it. At the end of its trip the
+        authority reaches the route's end, and at least the overlap beyond the destination platform (a platform
+        ending within the overlap of the route's end would otherwise cut the train's stopping window short)."""
+        end = max(tr.view.length_m - 1.0, tr.trip.destination.window_end_m + self.settings.protection_margin_m)
         if tr.train_id in self.sections:
             reqs = self.section_requests[tr.train_id]
             for sec in self.sections[tr.train_id]:

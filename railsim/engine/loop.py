@@ -80,7 +80,7 @@ class Simulation:
         self.dt = float(sim.step_s)
         self.duration_s = float(sim.duration_s)
         self.step_method = sim.step_method
-        self.settings = settings or EngineSettings()
+        self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
         self.rng = np.random.default_rng(self.seed)
 
@@ -221,7 +221,7 @@ class Simulation:
             self.bridge = self.dispatcher.bridge = bridge
             if self.turnbacks is not None:
                 self.turnbacks.bridge = bridge
-            self.stops.skip_next_stop = bridge.skip_next_stop
+            self.stops.drop_stop = bridge.drop_stop
             t = bridge.time_s
             last_bar = t
             while t <= self.duration_s + 1e-9:
@@ -300,7 +300,7 @@ class Simulation:
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
         self.safety.sumo_reported(t, bridge.collisions())
-        self.watchdog.check(t, active)
+        self.watchdog.check(t, active, ahead)
 
         for hook in self._before_bookkeeping:
             hook(t)

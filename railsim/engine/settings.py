@@ -1,12 +1,13 @@
 """The engine's operating rules (not any one controller's): distances and times the loop and its ports use.
 
-A scenario's ``engine:`` section may override :class:`EngineSettings`; the named constants below are rules that
-are not (yet) scenario knobs.
+A scenario's ``interlocking:`` section overrides some of :class:`EngineSettings` (:meth:`with_interlocking`: the
+overlap is ``protection_margin_m``); the named constants below are rules that are not (yet) scenario knobs.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
+from typing import Any
 
 INF = float("inf")
 INSERTION_REACTION_S = 1.0  # a train approaching a departure needs this long to react before it brakes
@@ -25,7 +26,7 @@ class EngineSettings:
     """Operating rules of the engine (not of any one controller); scenario ``engine:`` may override."""
 
     lock_request_distance_m: float = 1500.0
-    protection_margin_m: float = 20.0
+    protection_margin_m: float = 20.0  # the overlap: authority ends this far before what is not reserved
     clearance_m: float = 10.0
     max_message_age_s: float = 2.0
     decouple_distance_m: float = 2000.0
@@ -38,3 +39,12 @@ class EngineSettings:
     departure_retry_s: float = 1.0  # ... and is tried again after this long
     desync_tolerance_m: float = 0.05  # railsim's chainage and SUMO's lane position may differ this much
     stall_timeout_s: float = 300.0  # a train standing this long with no reason (no stop, no hold) stalls the run
+
+    def with_interlocking(self, spec: Any) -> EngineSettings:
+        """These settings with a scenario's ``interlocking:`` knobs (an ``InterlockingSpec``) applied."""
+        changes: dict[str, float] = {}
+        if spec.overlap_m is not None:
+            changes["protection_margin_m"] = float(spec.overlap_m)
+        if spec.stall_timeout_s is not None:
+            changes["stall_timeout_s"] = float(spec.stall_timeout_s)
+        return replace(self, **changes) if changes else self

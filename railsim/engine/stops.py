@@ -5,7 +5,9 @@ keeps the dwell. This port watches both: the halt (our plant at 0 inside the win
 (front − mark; a coupled follower's mark is behind its leader's, see :meth:`FormationBook.mark_offset_m`);
 SUMO's registration counts the stop served (and ends the trip at the destination); SUMO releasing the train
 ends the dwell (departure); a front beyond the window's end by more than the tolerance is a missed stop. SUMO
-registering a *moving* train as stopped is logged as an error event (``stop_registered_moving``).
+registering a *moving* train as stopped is logged as an error event (``stop_registered_moving``). A stop at a
+platform shorter than the train (:mod:`railsim.engine.trips`) is served with the front at the platform end and
+recorded as a ``stop_short_platform`` event (platform and train length), not as a missed stop.
 """
 
 from __future__ import annotations
@@ -39,7 +41,8 @@ class StopBook:
         self.settings = settings
         self.record_stop = record_stop
         self.release_locks = release_locks
-        self.skip_next_stop: Callable[[str], None] = lambda _train: None  # the SUMO bridge's, wired at run
+        # the SUMO bridge's (train, stop id, lane window), wired at run
+        self.drop_stop: Callable[[str, str, tuple[float, float] | None], None] = lambda _t, _s, _w: None
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop the train is heading for or standing at, and how far behind its mark it halts."""
@@ -98,6 +101,15 @@ class StopBook:
         if not stop.is_origin:
             tr.stops_served += 1
         self.events.record(t, "stop_registered", tr.train_id, station=stop.station_id)
+        if stop.short_platform:  # served, with the front at the platform end and the rest of the train behind it
+            self.events.record(
+                t,
+                "stop_short_platform",
+                tr.train_id,
+                station=stop.station_id,
+                platform_m=round(stop.platform_m, 3),
+                train_m=tr.trip.vehicle.length_m,
+            )
         if stop.is_destination:
             tr.arrived_s = tr.halted_s
             tr.status = "arrived"
@@ -138,7 +150,7 @@ class StopBook:
             "%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id, tr.front_m - stop.window_end_m
         )
         self._record(tr, stop, None, None, None, missed=True)
-        self.skip_next_stop(tr.sumo_id)
+        self.drop_stop(tr.sumo_id, stop.stop_id, stop.lane_stop_m)
         tr.next_stop += 1
         tr.halted_s = None
         if stop.is_destination:

@@ -72,6 +72,9 @@ class StopSpec:
     stop_id: str
     duration_s: float | None = None
     until_s: float | None = None
+    # (start, end) lane positions [m]: stop on the trainStop's lane in this window instead of at the trainStop
+    # (a platform shorter than the train: SUMO registers a trainStop only with the whole train on it)
+    lane_stop_m: tuple[float, float] | None = None
 
 
 @dataclass
@@ -293,12 +296,24 @@ class SumoBridge:
     def set_length(self, train_id: str, length_m: float) -> None:
         libsumo.vehicle.setLength(train_id, float(length_m))
 
-    def skip_next_stop(self, train_id: str) -> None:
-        """Drop the next pending stop (used when a train overran a platform: logged by the engine)."""
+    def drop_stop(self, train_id: str, stop_id: str, lane_stop_m: tuple[float, float] | None = None) -> None:
+        """Drop the pending stop ``stop_id`` (or its ``lane_stop_m`` window) if it is still the train's next one (a train overran the platform: logged by
+        the engine). SUMO itself drops a stop a train has run past, so the next stop is compared first: dropping
+        blindly would remove the stop after it (the destination — the train would then never arrive)."""
         try:
-            libsumo.vehicle.replaceStop(train_id, 0, "")
+            pending = libsumo.vehicle.getStops(train_id, 1)
+            if not pending:
+                return
+            nxt = pending[0]
+            if lane_stop_m is None:
+                same = nxt.stoppingPlaceID == stop_id
+            else:
+                same = not nxt.stoppingPlaceID and nxt.lane == libsumo.busstop.getLaneID(stop_id)
+                same = same and abs(nxt.endPos - lane_stop_m[1]) < 1e-3
+            if same:
+                libsumo.vehicle.replaceStop(train_id, 0, "")
         except libsumo.TraCIException as exc:
-            log.warning("could not drop next stop of %s: %s", train_id, exc)
+            log.warning("could not drop stop %s of %s: %s", stop_id, train_id, exc)
 
     # ---------------------------------------------------------------- state
     def present_ids(self) -> list[str]:
@@ -355,14 +370,24 @@ class SumoBridge:
 
 
 def _set_stops(train_id: str, stops: Sequence[StopSpec]) -> None:
-    """Hand SUMO a train's station stops (trainStops are busStops to SUMO's stop logic)."""
+    """Hand SUMO a train's station stops (trainStops are busStops to SUMO's stop logic; a platform shorter than
+    the train is a stop on its lane, ``lane_stop_m``, which SUMO registers where a trainStop would not)."""
     for stop in stops:
-        libsumo.vehicle.setBusStop(
+        duration = -1073741824.0 if stop.duration_s is None else float(stop.duration_s)
+        until = -1073741824.0 if stop.until_s is None else float(stop.until_s)
+        if stop.lane_stop_m is None:
+            libsumo.vehicle.setBusStop(train_id, stop.stop_id, duration, until, flags=_STOP_BUS_STOP)
+            continue
+        lane = libsumo.busstop.getLaneID(stop.stop_id)
+        start_m, end_m = stop.lane_stop_m
+        libsumo.vehicle.setStop(
             train_id,
-            stop.stop_id,
-            duration=-1073741824.0 if stop.duration_s is None else float(stop.duration_s),
-            until=-1073741824.0 if stop.until_s is None else float(stop.until_s),
-            flags=_STOP_BUS_STOP,
+            libsumo.lane.getEdgeID(lane),
+            pos=end_m,
+            laneIndex=int(lane.rsplit("_", 1)[1]),
+            duration=duration,
+            until=until,
+            startPos=start_m,
         )
 
 

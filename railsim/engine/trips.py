@@ -6,7 +6,11 @@ A *service* in a scenario (``from: yudong, to: jiangbei-airport-t2, departures: 
 * its :class:`network.RouteInfo` (SUMO edges, route chainage of every edge, platforms, limits, switches);
 * the stops it serves (the origin is where it is inserted, the destination is where its trip ends);
 * the stopping mark of each stop: the train front halts 1 m before the platform end, so the whole train stands
-  on the platform (SUMO accepts a halt with the front in ``[startPos + length, endPos]``);
+  on the platform (SUMO accepts a halt with the front in ``[startPos + length, endPos]``). A **platform shorter
+  than the train** (common on other people's nets: ``endPos="-10"`` stops on short edges) cannot hold the whole
+  train: there the front halts at the platform end, in a window of :data:`SHORT_PLATFORM_WINDOW_M` that ends at
+  the platform end (never before the platform's edge begins), and SUMO is given that window as a stop on the
+  lane (``lane_stop_m``), because it would never register a trainStop the train does not fit on;
 * the dwell at each intermediate stop;
 * the **planned** (timetable) times, from a free run of the same train with the same ATO and physics on an
   empty line (:func:`plan_free_run`). Delay = actual − planned, so delay measures what the other trains, the
@@ -24,6 +28,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
+SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
 
 
 @dataclass(frozen=True)
@@ -39,6 +44,15 @@ class TripStop:
     is_origin: bool = False
     is_destination: bool = False
     kind: str = "station"  # or "reversal": where a unit reverses before its trip (railsim.engine.turnback)
+    # a platform shorter than the train: (start, end) lane positions [m] of the window on the platform's edge,
+    # handed to SUMO as a stop on the lane; None for a platform the whole train fits on (SUMO's trainStop)
+    lane_stop_m: tuple[float, float] | None = None
+    platform_m: float = 0.0  # platform length [m]
+
+    @property
+    def short_platform(self) -> bool:
+        """The train is longer than the platform: it stands with its front at the platform end."""
+        return self.lane_stop_m is not None
 
 
 @dataclass
@@ -100,14 +114,16 @@ def make_stops(
         is_dest = rs.station_id == to_station
         if rs.station_id in skip and not (is_origin or is_dest):
             continue
-        mark = rs.end_m - STOP_MARK_BEFORE_END_M
+        mark, window_start, lane_stop = _stop_window(rs, length_m)
         stops.append(
             TripStop(
                 station_id=rs.station_id,
                 stop_id=rs.stop_id,
                 mark_m=mark,
-                window_start_m=rs.start_m + length_m,
+                window_start_m=window_start,
                 window_end_m=rs.end_m,
+                lane_stop_m=lane_stop,
+                platform_m=rs.end_m - rs.start_m,
                 dwell_s=0.0 if (is_origin or is_dest) else float(dwell_by_station.get(rs.station_id, dwell_default_s)),
                 is_origin=is_origin,
                 is_destination=is_dest,
@@ -116,6 +132,16 @@ def make_stops(
         if is_dest:
             break
     return tuple(stops)
+
+
+def _stop_window(rs: Any, length_m: float) -> tuple[float, float, tuple[float, float] | None]:
+    """``(mark, window start, lane stop)`` of one platform for a train ``length_m`` long (module docstring)."""
+    if rs.end_m - rs.start_m >= length_m:
+        return rs.end_m - STOP_MARK_BEFORE_END_M, rs.start_m + length_m, None
+    edge_start_m = rs.start_m - rs.start_pos_m
+    start = max(rs.start_m, rs.end_m - SHORT_PLATFORM_WINDOW_M)
+    mark = max(rs.end_m - STOP_MARK_BEFORE_END_M, 0.5 * (start + rs.end_m))
+    return mark, start, (start - edge_start_m, rs.end_pos_m)
 
 
 def plan_free_run(

@@ -229,9 +229,12 @@ class Turnbacks:
         min_s = self.spec.turnback_min_at(pred.trip.destination.station_id)
         until_s = max(trip.depart_s, arrival_s + min_s)
         stops = [
-            StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S, until_s=until_s)
-            if s.is_origin
-            else StopSpec(s.stop_id, duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s)
+            StopSpec(
+                s.stop_id,
+                duration_s=DWELL_REGISTRATION_S if s.is_origin or s.is_destination else s.dwell_s,
+                until_s=until_s if s.is_origin else None,
+                lane_stop_m=s.lane_stop_m,
+            )
             for s in trip.stops
             if s.kind != REVERSAL
         ]

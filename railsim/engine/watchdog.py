@@ -9,8 +9,11 @@ it stops, writes its outputs and exits 3).
 
 **Deadlocks** are named sooner and more precisely: once trains have stood for ``deadlock_confirm_s``, the
 route-lock port's wait-for graph (``locks.deadlock``: who holds or is queued ahead for the switch or section
-another train waits for) is searched for a cycle among them; a cycle is a ``deadlock`` event naming the trains
-and the resources, and the run fails the same way.
+another train waits for, plus **occupancy**: a standing train waits for the standing train directly ahead of it
+within :data:`OCCUPANCY_WAIT_M`) is searched for a cycle among them; a cycle is a ``deadlock`` event naming the
+trains and the resources (``ahead:T`` for "stands behind train T"), and the run fails the same way. Occupancy
+closes cycles the locks alone do not show: a train that holds a single-track section stands behind a train that
+waits for the section's opposing train, which waits for that section.
 
 At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
 is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
@@ -18,14 +21,17 @@ is shorter): a run whose trains did not arrive because they stood still never en
 
 from __future__ import annotations
 
+from collections.abc import Mapping
 from typing import Any
 
 from railsim.engine.events.log import EventLog
+from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 
 END_STANDING_S = 60.0  # at the horizon, a train standing this long for no reason counts as stalled
 DEADLOCK_CONFIRM_S = 30.0  # trains standing this long are searched for a circular wait
+OCCUPANCY_WAIT_M = 400.0  # a standing train this close behind a standing train waits for it (front-to-rear gap)
 STANDSTILL_MPS = 1e-6
 
 
@@ -39,23 +45,31 @@ class StallWatch:
         self.standing_since: dict[str, tuple[float, TrainRuntime]] = {}
         self.failure: str | None = None
 
-    def check(self, t: float, active: list[TrainRuntime]) -> None:
-        """Every step: update the standing clocks; stall the run if one ran past ``stall_timeout_s``."""
+    def check(self, t: float, active: list[TrainRuntime], ahead: Mapping[str, Ahead | None] | None = None) -> None:
+        """Every step: update the standing clocks; stall the run if one ran past ``stall_timeout_s``. ``ahead``
+        is the occupancy's train directly ahead of each active train (for the deadlock search)."""
         for tr in active:
             held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
             if tr.plant.speed_mps > STANDSTILL_MPS or tr.sumo_stopped or tr.sumo_stopped_now or held:
                 self.standing_since.pop(tr.train_id, None)
             elif tr.train_id not in self.standing_since:
                 self.standing_since[tr.train_id] = (t, tr)
-        self._deadlock(t)
+        self._deadlock(t, ahead or {})
         self._report(t, self.settings.stall_timeout_s, "")
 
-    def _deadlock(self, t: float) -> None:
+    def _deadlock(self, t: float, ahead: Mapping[str, Ahead | None]) -> None:
         finder = getattr(self.locks, "deadlock", None)
         if self.failure is not None or finder is None:
             return
         standing = [tr for since, tr in self.standing_since.values() if t - since >= DEADLOCK_CONFIRM_S]
-        found = finder(standing) if len(standing) > 1 else None
+        if len(standing) < 2:
+            return
+        behind = {}
+        for tr in standing:
+            a = ahead.get(tr.train_id)
+            if a is not None and a.gap_m <= OCCUPANCY_WAIT_M:
+                behind[tr.train_id] = a.train_id
+        found = finder(standing, behind)
         if found is None:
             return
         trains, resources = found

@@ -16,6 +16,7 @@ How the pieces fit (one dataclass per YAML section, nested like the file)::
     ├── events: (EventSpec, ...)      timed commands; their kinds live in railsim.scenario.events
     ├── faults: FaultSpec             comm ChannelSpecs (DelaySpec, OutageSpecs), sensor/actuator noise, bias
     ├── outputs: OutputSpec           trace stride, SUMO outputs, table formats
+    ├── interlocking: InterlockingSpec overlap, stall timeout (optional)
     ├── cooperative: CooperativeSpec  graph-coupled group (Paper C)
     └── junction: JunctionSpec | None trains planned through a junction (Paper E)
 
@@ -349,6 +350,19 @@ class OutputSpec:
 
 
 @dataclass(frozen=True)
+class InterlockingSpec:
+    """Interlocking knobs (README, "Interlocking"); None keeps the engine's default.
+
+    ``overlap_m``: the distance between the end of a train's movement authority and the first point, single-track
+    section or crossing not reserved for it (and beyond the destination platform's end): what a train may overrun
+    its stopping point by without fouling a route set for another train. ``stall_timeout_s``: how long a train
+    may stand for no reason before the run stops as stalled."""
+
+    overlap_m: float | None = None
+    stall_timeout_s: float | None = None
+
+
+@dataclass(frozen=True)
 class Scenario:
     """A validated scenario. ``source`` is the file it came from (not compared: a resolved copy elsewhere is
     the same scenario); ``raw`` is the resolved mapping (see module docstring)."""
@@ -371,6 +385,7 @@ class Scenario:
     plants: dict[str, PlantSpec] = field(default_factory=dict)  # vehicle name -> non-default plant
     junction: JunctionSpec | None = None
     rotations: RotationSpec | None = None
+    interlocking: InterlockingSpec = field(default_factory=InterlockingSpec)
 
     def service(self, service_id: str) -> ServiceSpec:
         """The service called ``service_id`` (KeyError if none)."""

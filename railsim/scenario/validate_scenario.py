@@ -48,6 +48,7 @@ _TOP_OPTIONAL = (
     "cooperative",
     "junction",
     "rotations",
+    "interlocking",
 )
 
 
@@ -78,6 +79,9 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
         raw["cooperative"] = coop_raw
     faults, raw["faults"] = validate_faults.faults(ck, top.get("faults") or {}, services)
     outputs, raw["outputs"] = validate_setup.outputs(ck, top.get("outputs") or {}, sim)
+    interlocking, interlocking_raw = validate_setup.interlocking(ck, top.get("interlocking") or {})
+    if interlocking_raw:  # only when given: the resolved copy of older scenarios stays as it was
+        raw["interlocking"] = interlocking_raw
     junction = None
     if top.get("junction") is not None:
         junction, raw["junction"] = validate_formations.junction(ck, top["junction"], services, formations)
@@ -106,4 +110,5 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
         plants=plants,
         junction=junction,
         rotations=rotation_spec,
+        interlocking=interlocking,
     )

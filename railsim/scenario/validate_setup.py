@@ -18,6 +18,7 @@ from railsim.scenario.model import (
     OUTPUT_FORMATS,
     STEP_METHODS,
     SUMO_OUTPUTS,
+    InterlockingSpec,
     OutputSpec,
     SimulationSpec,
     WorldSpec,
@@ -89,3 +90,14 @@ def outputs(ck: Checker, value: Any, sim: SimulationSpec) -> tuple[OutputSpec, d
     formats = ck.subset(m.get("formats", ["csv"]), "outputs.formats", OUTPUT_FORMATS)
     spec = OutputSpec(trace_stride_s=stride, sumo=tuple(sumo), formats=tuple(formats))
     return spec, {"trace_stride_s": stride, "sumo": sumo, "formats": formats}
+
+
+def interlocking(ck: Checker, value: Any) -> tuple[InterlockingSpec, dict[str, Any]]:
+    """``interlocking:`` → an :class:`InterlockingSpec`; only the keys given (the engine keeps its defaults)."""
+    m = ck.mapping(value, "interlocking", (), ("overlap_m", "stall_timeout_s"))
+    raw: dict[str, Any] = {}
+    if "overlap_m" in m:
+        raw["overlap_m"] = ck.number(m["overlap_m"], "interlocking.overlap_m", ge=0.0)
+    if "stall_timeout_s" in m:
+        raw["stall_timeout_s"] = ck.number(m["stall_timeout_s"], "interlocking.stall_timeout_s", gt=0.0)
+    return InterlockingSpec(**raw), raw

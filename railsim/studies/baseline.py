@@ -70,7 +70,10 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
             while k < len(trips) and trips[k][0] <= t:
                 dep, trip_id, vname, route, stops = trips[k]
                 bridge.add_route(route.id, route.edges)
-                specs = [StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s) for s in stops[1:]]
+                specs = [
+                    StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s, lane_stop_m=s.lane_stop_m)
+                    for s in stops[1:]
+                ]
                 bridge.add_train(
                     trip_id, route.id, vname, stops[0].mark_m - route.edge_start_m[0], specs, controlled=False
                 )
