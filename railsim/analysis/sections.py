@@ -287,7 +287,8 @@ def section_table(run_dir: str | Path, frame: LineFrame | None = None) -> pd.Dat
                 zip(grp["station"].astype(str), grp["arrival_s"].astype(float), grp["departure_s"].astype(float)),
                 key=lambda r: order.get(r[0], 1e9),
             ):
-                if st in order and not math.isnan(arr):
+                # a unit's next trip records its origin stop too (it reached the platform after its reversal)
+                if st in order and not math.isnan(arr) and st != seq[0][0]:
                     seq.append((st, arr, dep))
         served[tid] = seq
 

@@ -55,7 +55,7 @@ class RecordingPort:
                     "t_s": t,
                     "train": tr.train_id,
                     "service": tr.trip.service_id,
-                    "chainage_m": tr.front_m,
+                    "chainage_m": tr.front_m - tr.trip.frame_shift_m,  # in the service's own route frame
                     "speed_mps": speed,
                     "applied_accel_mps2": accel,
                     "command_mps2": tr.last_cmd_mps2,

@@ -71,6 +71,9 @@ class Trip:
     planned_arrival_s: dict[str, float] = field(default_factory=dict)  # station -> planned arrival
     planned_departure_s: dict[str, float] = field(default_factory=dict)
     start_offset_m: float = 0.0  # starts this far beyond the origin's mark (experiments that begin in motion)
+    # a unit's next trip: its route starts with the turnback, this much longer than the service's own route
+    # before its first edge (the trace reports chainage in the service's frame: turnback moves lie behind it)
+    frame_shift_m: float = 0.0
     start_speed_mps: float = 0.0
 
     @property

@@ -206,6 +206,7 @@ class Turnbacks:
         )
         trip.route = route
         trip.stops = (reversal, *moved)
+        trip.frame_shift_m = shift_m
         succ.view = route_view(route)
         succ.next_stop = 0
 

@@ -227,6 +227,8 @@ def formation_table(formations: pd.DataFrame) -> pd.DataFrame:
 
 def fleet_markdown(fleet: Mapping[str, Any]) -> list[str]:
     """The rotations section of a run report: fleet size, km per unit, turnback times against the minimum."""
+    import pandas as pd
+
     km = pd.Series(fleet.get("km_per_unit", {}), dtype=float)
     rows = pd.DataFrame(fleet.get("turnbacks", []))
     lines = [
