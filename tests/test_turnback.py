@@ -281,3 +281,15 @@ def test_min_headway_where_the_terminal_not_the_line_sets_it(tmp_path: Path) -> 
     assert terminal.min_headway_s is not None and terminal.min_headway_s >= 60
     worst = max((p for p in terminal.probes if not p.feasible), key=lambda p: p.headway_s)
     assert "delay" in worst.reason  # the knock-on through the turnback track, not a collision or a stall
+
+
+def test_a_unit_with_nothing_to_run_within_its_layover_leaves_service(tmp_path: Path) -> None:
+    net, stops = build_tail_track(tmp_path)
+    services = [_service("out", "Aston", "Bury", [0]), _service("back", "Bury", "Aston", [1500])]
+    short = {"units": "auto", "turnback_min_s": 60, "max_layover_s": 600}  # ready ~210 s, next departure 1500 s
+    long = {**short, "max_layover_s": 3600}
+    assert read_summary(_run(tmp_path / "short", net, stops, services, short))["fleet"]["units_used"] == 2
+    out = _run(tmp_path / "long", net, stops, services, long)
+    assert read_summary(out)["fleet"]["units_used"] == 1
+    (row,) = read_summary(out)["fleet"]["turnbacks"]
+    assert row["departed_s"] >= 1500.0  # it waited in the turnback track for its departure

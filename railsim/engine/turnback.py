@@ -6,7 +6,9 @@ Without rotations every trip is its own train: inserted at its origin, removed a
 * **Chaining.** ``units: auto`` chains first-in-first-out at each station from the *planned* times: each
   departure, in time order, takes the unit that arrived there first among those whose planned arrival plus the
   station's minimum turnback is no later than the departure, and that can reverse from its arrival track onto
-  the departure track; otherwise a new unit starts it. An explicit list is checked the same way (a
+  the departure track; otherwise a new unit starts it. A unit that would wait longer than ``max_layover_s`` for
+  its next departure leaves service at its arrival instead (it goes to the depot: it does not block a turnback
+  track for hours between the peaks). An explicit list is checked the same way (a
   :class:`ConfigError` when the world has no way to turn a unit round there).
 * **Reversal, the way SUMO does it.** SUMO reverses a rail vehicle whose route continues from an edge onto that
   edge's ``bidi`` partner through a turnaround connection: the moment it stands on the first edge, SUMO puts it
@@ -154,6 +156,8 @@ class Turnbacks:
         order = sorted(trains.values(), key=lambda tr: (tr.trip.depart_s, tr.train_id))
         for tr in order:
             pool = waiting.setdefault(tr.trip.origin.station_id, [])
+            for gone in [p for p in pool if tr.trip.depart_s - self._ready_s(p) > self.spec.max_layover_s]:
+                pool.remove(gone)  # nothing to run within its layover: it leaves service (to the depot)
             pick = next(
                 (p for p in pool if self._ready_s(p) <= tr.trip.depart_s + 1e-9 and self._path(p, tr) is not None),
                 None,

@@ -420,6 +420,7 @@ class RotationSpec:
     units: dict[str, tuple[str, ...]] | None = None
     turnback_min_s: float = 120.0
     turnback_min_by_station: dict[str, float] = field(default_factory=dict)
+    max_layover_s: float = 1800.0  # auto: a unit ready longer than this before a departure leaves service instead
 
     def turnback_min_at(self, station_id: str) -> float:
         """The minimum turnback time at ``station_id`` [s]."""

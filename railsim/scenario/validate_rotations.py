@@ -7,6 +7,8 @@ Accepted forms::
       units: auto                        # or {unit id: [trip id, trip id, ...]} in running order
       turnback_min_s: 180                # default minimum turnback (driver / cab change) [s]
       turnback_min_by_station: {yudong: 240}
+      max_layover_s: 1800                # auto: a unit that would wait longer for its next departure (from
+                                         #   arrival + turnback minimum) leaves service instead (the depot)
 
 An explicit list names each trip once, in departure order. That each trip starts at the station where the one
 before it ended, and that the world lets a unit reverse there, is checked against the world when the run is
@@ -22,7 +24,7 @@ from railsim.scenario.model import RotationSpec, ServiceSpec
 from railsim.scenario.validate import Checker
 from railsim.scenario.validate_services import trip_name
 
-_KEYS = ("units", "turnback_min_s", "turnback_min_by_station")
+_KEYS = ("units", "turnback_min_s", "turnback_min_by_station", "max_layover_s")
 
 
 def rotations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple[RotationSpec, Any]:
@@ -36,6 +38,7 @@ def rotations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple
     raw_by = ck.free_mapping(m.get("turnback_min_by_station") or {}, f"{path}.turnback_min_by_station")
     for sid, secs in raw_by.items():
         by_station[sid] = ck.number(secs, f"{path}.turnback_min_by_station.{sid}", ge=0.0)
+    layover_s = ck.number(m.get("max_layover_s", 1800.0), f"{path}.max_layover_s", ge=0.0)
     units_raw = m.get("units", "auto")
     units: dict[str, tuple[str, ...]] | None = None
     if units_raw != "auto":
@@ -57,10 +60,13 @@ def rotations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple
                 if departs[tid] <= departs[prev]:
                     raise ck.fail(f"{upath}[{k}]", f"trip {tid!r} departs before {prev!r}, the trip before it")
             units[uid] = tuple(chain)
-    spec = RotationSpec(units=units, turnback_min_s=default_s, turnback_min_by_station=by_station)
+    spec = RotationSpec(
+        units=units, turnback_min_s=default_s, turnback_min_by_station=by_station, max_layover_s=layover_s
+    )
     raw = {
         "units": "auto" if units is None else {u: list(c) for u, c in units.items()},
         "turnback_min_s": default_s,
         "turnback_min_by_station": dict(by_station),
+        "max_layover_s": layover_s,
     }
     return spec, raw
