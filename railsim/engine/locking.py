@@ -98,6 +98,16 @@ class RouteLocks:
                 self.sections[tid] = mine
                 self.section_requests[tid] = {}
 
+    def wanted_by_others(self, tr: TrainRuntime) -> bool:
+        """True if another train waits for a single-track section ``tr`` holds (a unit waiting in a turnback
+        track moves on to its departure platform rather than keep the next unit out)."""
+        if self.tracks is None:
+            return False
+        for sid, req in self.section_requests.get(tr.train_id, {}).items():
+            if req.granted and any(h != tr.train_id for h in self.tracks.queued(sid)):
+                return True
+        return False
+
     # ------------------------------------------------------------------ single track
     def _sections_bookkeeping(self, t: float, tr: TrainRuntime) -> None:
         assert self.tracks is not None

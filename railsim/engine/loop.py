@@ -145,6 +145,7 @@ class Simulation:
         if self.turnbacks is not None:
             self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
+        self.stops.track_wanted = self.locks.wanted_by_others
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)

@@ -43,6 +43,8 @@ class StopBook:
         self.release_locks = release_locks
         # the SUMO bridge's (train, stop id, lane window), wired at run
         self.drop_stop: Callable[[str, str, tuple[float, float] | None], None] = lambda _t, _s, _w: None
+        # RouteLocks.wanted_by_others: another unit waits for the turnback track this unit holds
+        self.track_wanted: Callable[[TrainRuntime], bool] = lambda _train: False
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop the train is heading for or standing at, and how far behind its mark it halts."""
@@ -121,7 +123,8 @@ class StopBook:
         """A unit reverses (``railsim.engine.turnback``): it halts on the reversal edge and SUMO flips it onto the
         ``bidi`` edge (``stop.stop_id``) — SUMO decides the moment (at standstill by its own threshold), so the
         flip itself counts as the halt. It then stands at least ``stop.dwell_s`` and until ``tr.hold_until_s``
-        (a unit early for its next departure waits here, off the platform) before it runs on."""
+        (a unit early for its next departure waits here, off the platform, unless another unit waits for this
+        turnback track: then it goes on to wait at its platform) before it runs on."""
         flipped = tr.sumo_edge == stop.stop_id
         if tr.halted_s is None:
             in_window = stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6
@@ -135,6 +138,8 @@ class StopBook:
                 log.error("%s ran past its reversal point at %s", tr.train_id, stop.station_id)
             return
         hold_until_s = max(tr.halted_s + stop.dwell_s, tr.hold_until_s or 0.0)
+        if tr.hold_until_s is not None and t >= tr.halted_s + stop.dwell_s and self.track_wanted(tr):
+            hold_until_s = t  # another unit waits for this turnback track: wait at the platform instead
         if flipped and t >= hold_until_s:
             self.events.record(t, "reversed", tr.train_id, station=stop.station_id, edge=stop.stop_id)
             tr.reversing = False

@@ -85,6 +85,10 @@ class TrackSections:
                 t_s, "section_reserved", section_id, trains=list(req.holder_ids), direction=req.direction
             )
 
+    def queued(self, section_id: str) -> tuple[str, ...]:
+        """Trains waiting for ``section_id`` (not yet granted)."""
+        return tuple(h for req in self._sections[section_id].queue for h in req.holder_ids)
+
     def holders(self, section_id: str) -> tuple[str, ...]:
         """Trains holding ``section_id`` (any direction)."""
         return tuple(h for req in self._sections[section_id].holders for h in req.holder_ids)
