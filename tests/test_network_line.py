@@ -79,7 +79,7 @@ BAD_CASES = [
         "unknown_key",
         lambda d: d["stations"][0].update(colour="red"),
         "stations[0].colour",
-        "expected one of id, name, km, platform_length_m, turnback, basis, name_zh, got unknown key 'colour'",
+        "expected one of id, name, km, platform_length_m, turnback, pocket, basis, name_zh, got unknown key 'colour'",
     ),
     ("wrong_type", lambda d: d.update(line_speed_kmh="fast"), "line_speed_kmh", "expected a number > 0, got 'fast'"),
     (

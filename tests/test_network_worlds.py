@@ -100,6 +100,30 @@ def test_line3_branch_stations_at_bijin_plus_km_from_bijin(cq: network.NetworkBu
     assert "jiangbei-airport-t2" not in {s.station_id for s in cq.routes["yudong->jurenba"].stops}
 
 
+def _bijin(switches: tuple) -> list:
+    """The Bijin switch of a route (the pocket switches at Jiugongli and Liugongli lie on every route too)."""
+    return [s for s in switches if s.switch_id.startswith("bijin")]
+
+
+def test_line3_turns_units_beyond_its_termini_and_in_two_pockets(cq: network.NetworkBundle) -> None:
+    rev = cq.graph.graph["reversals"]
+    assert set(rev) == {"main_tb_lo", "main_tb_hi", "konggang_tb_hi", "jiugongli_pk", "liugongli_pk"}
+    for track, (partner, via) in rev.items():
+        assert cq.graph.nodes[track]["bidi"] == partner and cq.graph.nodes[partner]["bidi"] == track
+        assert cq.graph.nodes[track]["length_m"] == pytest.approx(180.0 - 0.1)  # TURNBACK_TRACK_M minus a lane
+        assert len(via) == 1  # the turnaround's one internal lane
+    # a pocket is entered from the arriving track and left onto the departing one through locked points
+    sw_in, sw_out = cq.switches["jiugongli_pk_in"], cq.switches["jiugongli_pk_out"]
+    assert (sw_in.kind, sw_in.reverse_edge, sw_out.kind, sw_out.reverse_edge) == (
+        "diverge",
+        "jiugongli_pk",
+        "merge",
+        "-jiugongli_pk",
+    )
+    assert sw_in.trunk_edge == cq.stations["jiugongli"].platform("down").edge
+    assert sw_out.trunk_edge == cq.stations["jiugongli"].platform("up").edge
+
+
 def test_bijin_is_a_junction_whose_legs_lead_to_t2_and_jurenba(cq: network.NetworkBundle) -> None:
     g = cq.graph
     up, down = cq.switches["bijin_up"], cq.switches["bijin_down"]
@@ -118,14 +142,14 @@ def test_bijin_is_a_junction_whose_legs_lead_to_t2_and_jurenba(cq: network.Netwo
     assert down.normal_edge in nx.descendants(g, cq.stations["jiangbei-airport-t2"].platform("down").edge)
     assert down.reverse_edge in nx.descendants(g, cq.stations["jurenba"].platform("down").edge)
     # routes record the switch and leg, with the diverging speed on the reverse leg
-    (sw,) = cq.routes["yudong->jurenba"].switches
+    (sw,) = _bijin(cq.routes["yudong->jurenba"].switches)
     assert (sw.switch_id, sw.leg) == ("bijin_up", "reverse")
     r = cq.routes["yudong->jurenba"]
     assert r.speed_at(sw.point_m + 10.0) == pytest.approx(30 / 3.6)
     assert sw.point_m > r.stop("bijin").end_m
-    (sw_t2,) = cq.routes["yudong->jiangbei-airport-t2"].switches
+    (sw_t2,) = _bijin(cq.routes["yudong->jiangbei-airport-t2"].switches)
     assert (sw_t2.switch_id, sw_t2.leg) == ("bijin_up", "normal")
-    (sw_dn,) = cq.routes["jurenba->yudong"].switches
+    (sw_dn,) = _bijin(cq.routes["jurenba->yudong"].switches)
     assert sw_dn.switch_id == "bijin_down" and sw_dn.point_m < cq.routes["jurenba->yudong"].stop("bijin").start_m
 
 
@@ -300,9 +324,11 @@ def test_cli_build_writes_files_and_show_prints_summary(tmp_path: Path) -> None:
     for suffix in (".net.xml", ".stops.add.xml", ".topology.json"):
         assert (out / f"chongqing_line3{suffix}").is_file()
     topo = json.loads((out / "chongqing_line3.topology.json").read_text(encoding="utf-8"))
-    assert len(topo["stations"]) == 45 and set(topo["switches"]) == {"bijin_up", "bijin_down"}
+    pockets = {f"{s}_pk_{d}" for s in ("jiugongli", "liugongli") for d in ("in", "out")}
+    assert len(topo["stations"]) == 45 and set(topo["switches"]) == {"bijin_up", "bijin_down"} | pockets
     assert topo["stations"]["bijin"]["km"] == 52.668
-    assert topo["routes"]["yudong->jurenba"]["switches"][0]["leg"] == "reverse"
+    legs = {s["switch_id"]: s["leg"] for s in topo["routes"]["yudong->jurenba"]["switches"]}
+    assert legs["bijin_up"] == "reverse" and legs["jiugongli_pk_out"] == legs["liugongli_pk_out"] == "normal"
     proc = subprocess.run(
         [railsim, "network", "show", "y_junction"], capture_output=True, text=True, env=env, timeout=120
     )

@@ -150,9 +150,11 @@ class RouteLocks:
         """Request locks ahead, detect a pass without a lock, release behind the rear.
 
         Locks are requested in the order trains reach the switch: while another train (``ahead``, ground truth
-        in this train's frame; not a formation partner) stands between this train and a switch point, this train
-        does not request that switch — granted first, it would hold the points the train in front needs, and
-        neither could ever move (a unit waiting at a platform for its pocket track, a through train behind it)."""
+        in this train's frame) stands between this train and a switch point, this train does not request that
+        switch — granted first, it would hold the points the train in front needs, and neither could ever move (a
+        unit waiting at a platform for its pocket track and a through train behind it; a follower that decouples
+        before the points to take the other leg, its leader held up behind a third train). The one exception is a
+        coupled follower taking the points on its leader's leg: it rides on its leader's request."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr)
@@ -161,8 +163,7 @@ class RouteLocks:
         start_m = tr.trip.depart_chainage_m if tr.trip.stops[0].kind == "station" else tr.start_front_m
         # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
         request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
-        if ahead is not None and not self.formations.partners(tr.train_id, ahead.train_id):
-            request_until_m = min(request_until_m, ahead.rear_m)
+        behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
         for rs in tr.trip.route.switches:
             sid = rs.switch_id
             if sid in tr.released:
@@ -173,6 +174,7 @@ class RouteLocks:
                 sid not in tr.locks
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
+                and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
                 and not self.managed_by(tr.train_id, sid)
                 and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
             ):
@@ -193,6 +195,15 @@ class RouteLocks:
             if sid in tr.locks and tr.front_m - length > rs.point_m + self.settings.clearance_m:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    def _rides_with(self, tr: TrainRuntime, leader: TrainRuntime, rs: Any) -> bool:
+        """True if ``tr`` is coupled behind ``leader`` and takes switch ``rs`` on the leader's leg."""
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is None or self.formations.leader_of(f) is not leader:
+            return False
+        if self.formations.manager.state(f.id) not in COUPLED_STATES:
+            return False
+        return any(s.switch_id == rs.switch_id and s.leg == rs.leg for s in leader.trip.route.switches)
 
     def _lock_group(self, tr: TrainRuntime, rs: Any) -> tuple[str, ...] | None:
         """Who requests: a coupled follower on the same leg rides on its leader's request."""

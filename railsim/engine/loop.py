@@ -116,13 +116,8 @@ class Simulation:
         self.fleet = Fleet(scenario.source)
         self.fleet.build(scenario, self.bundle, self.dt, self.step_method)
         self.trains = self.fleet.trains
-        # rotations: chain trips into units and give each unit's next trip its turnback (before any port reads
-        # the routes)
-        self.turnbacks = (
-            Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
-            if scenario.rotations is not None
-            else None
-        )
+        # rotations: trips chained into units, each next trip given its turnback (before any port reads routes)
+        self.turnbacks = Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
         self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
         for k, f in enumerate(scenario.formations):
             self.formations.add(f, f"formations[{k}]")
@@ -142,8 +137,7 @@ class Simulation:
             self.locks.release_all,
         )
         self.formations.insert_behind = self.dispatcher.insert_behind
-        if self.turnbacks is not None:
-            self.dispatcher.chained = self.turnbacks.chained
+        self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
         self.stops.track_wanted = self.locks.wanted_by_others
         self.dispatcher.admission.append(self.locks.admit)
@@ -200,9 +194,7 @@ class Simulation:
     def _channels(self, scenario: Any) -> dict[str, Channel]:
         channels = {}
         for name, spec in scenario.faults.comm.items():
-            delay = DelaySpec.from_mapping(
-                _delay_mapping(spec.delay), str(scenario.source), f"faults.comm.{name}.delay_s"
-            )
+            delay = DelaySpec.from_scenario(spec.delay, str(scenario.source), f"faults.comm.{name}.delay_s")
             outages = tuple(Outage(o.start_s, o.end_s, frozenset(o.trains) if o.trains else None) for o in spec.outages)
             channels[name] = Channel(self.layer, name, delay, float(spec.loss_prob), outages)
         return channels
@@ -220,8 +212,7 @@ class Simulation:
             bar = tqdm(total=int(self.duration_s), unit="sim-s", desc=self.scenario.name, leave=False)
         with SumoBridge(self._sumo_config()) as bridge:
             self.bridge = self.dispatcher.bridge = bridge
-            if self.turnbacks is not None:
-                self.turnbacks.bridge = bridge
+            self.turnbacks.bridge = bridge
             self.stops.drop_stop = bridge.drop_stop
             t = bridge.time_s
             last_bar = t
@@ -321,11 +312,8 @@ class Simulation:
         self.recording.step(t, active, ahead, reports)
         for tr in active:  # trains that finished this step leave SUMO now, or their unit runs its next trip
             if tr.status == "arrived":
-                nxt = None if self.turnbacks is None else self.turnbacks.successor(tr)
-                if nxt is None:
+                if self.turnbacks.handover(t, tr) is None:  # no next trip for its unit
                     bridge.remove(tr.sumo_id)
-                else:
-                    self.turnbacks.handover(t, tr)  # type: ignore[union-attr]
                 self.formations.on_off_line(t, tr)
                 tr.status = "removed"
 
@@ -357,7 +345,7 @@ class Simulation:
         from railsim.engine.sumo import version as sumo_version
 
         extra = {e.summary_key: e.summary() for e in self.extensions if getattr(e, "summary_key", None)}
-        if self.turnbacks is not None:
+        if self.turnbacks.units:
             extra["fleet"] = self.turnbacks.summary()
         return RunSnapshot(
             scenario_name=self.scenario.name,
@@ -381,17 +369,6 @@ class Simulation:
 
     def write(self, out_dir: Path) -> dict[str, Path]:
         return self.recorder.write(out_dir, self.snapshot())
-
-
-_DELAY_KEYS = {"value": "value_s", "low": "low_s", "high": "high_s", "mean": "mean_s", "sd": "std_s"}
-
-
-def _delay_mapping(delay: Any) -> dict[str, Any]:
-    """Scenario delay spec (``dist`` + ``value|low,high|mean,sd`` in seconds) → the comms layer's field names."""
-    out: dict[str, Any] = {"dist": delay.dist}
-    for key, value in dict(delay.params).items():
-        out[_DELAY_KEYS.get(str(key), str(key))] = value
-    return out
 
 
 def run(

@@ -31,7 +31,7 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   next trip by exactly what it lacks of its turnback minimum (knock-on), and the successor's ``departed_s`` is
   its departure from the origin platform.
 
-The port answers the loop (``successor``/``handover``), the dispatcher (``chained``: trips it does not insert)
+The port answers the loop (``handover``), the dispatcher (``chained``: trips it does not insert)
 and the summary (:meth:`Turnbacks.summary`: units, peak units in service, km per unit, turnback times achieved
 against the minimum, late starts caused by the incoming unit).
 """
@@ -99,17 +99,20 @@ class Turnbacks:
     """Units, their chains of trips, and the handover between two trips of a unit (module docstring)."""
 
     def __init__(self, fleet: Fleet, graph: nx.DiGraph, spec: Any, events: EventLog, source: Any) -> None:
+        """``spec`` is the scenario's :class:`RotationSpec`, or None: no units (every trip its own train)."""
         self.fleet = fleet
         self.spec = spec
         self.events = events
         self.source = source
-        self.graph = reversal_graph(graph)
+        self.graph = reversal_graph(graph) if spec is not None else graph
         self.units: dict[str, list[str]] = {}  # unit id -> trip ids in running order
         self.next_of: dict[str, str] = {}  # trip id -> the unit's next trip
         self.prev_of: dict[str, str] = {}
         self.turnbacks: list[dict[str, Any]] = []  # one row per handover
         self._paths: dict[tuple[str, str], list[str] | None] = {}
         self.bridge: Any = None  # the SUMO bridge, wired when the run starts
+        if spec is None:
+            return
         self._chain()
         for uid, trips in self.units.items():
             for tid in trips:
@@ -215,14 +218,13 @@ class Turnbacks:
         succ.next_stop = 0
 
     # ------------------------------------------------------------------ run time
-    def successor(self, tr: TrainRuntime) -> TrainRuntime | None:
-        nxt = self.next_of.get(tr.train_id)
-        return None if nxt is None else self.fleet.trains[nxt]
-
-    def handover(self, t: float, pred: TrainRuntime) -> TrainRuntime:
-        """``pred`` arrived; its unit starts the next trip where it stands (module docstring)."""
+    def handover(self, t: float, pred: TrainRuntime) -> TrainRuntime | None:
+        """``pred`` arrived; its unit starts the next trip where it stands (module docstring). None if its unit
+        has no next trip (it leaves the line)."""
         from railsim.engine.sumo import StopSpec
 
+        if pred.train_id not in self.next_of:
+            return None
         succ = self.fleet.trains[self.next_of[pred.train_id]]
         trip = succ.trip
         lane_pos_m = pred.front_m - pred.view.edge_start_m[-1]

@@ -63,6 +63,9 @@ _DELAY_PARAMS: dict[str, tuple[str, ...]] = {
 _MAX_REDRAWS = 64  # P(64 rejections) ≤ 2^-64 because mean_s ≥ 0
 
 
+_SCENARIO_KEYS = {"value": "value_s", "low": "low_s", "high": "high_s", "mean": "mean_s", "sd": "std_s"}
+
+
 @dataclass(frozen=True)
 class DelaySpec:
     """A message delay distribution; every parameter in seconds.
@@ -100,6 +103,14 @@ class DelaySpec:
             raise ConfigError(None, "delay.high_s", f"expected >= low_s = {self.low_s}, got {self.high_s}")
         if self.dist == "lognormal" and self.mean_s == 0.0:
             raise ConfigError(None, "delay.mean_s", "a lognormal delay needs mean_s > 0")
+
+    @classmethod
+    def from_scenario(cls, delay: Any, source: str | None = None, field_path: str = "delay") -> DelaySpec:
+        """Build from a scenario's delay spec (``dist`` + ``value|low,high|mean,sd`` in seconds)."""
+        data: dict[str, Any] = {"dist": delay.dist}
+        for key, value in dict(delay.params).items():
+            data[_SCENARIO_KEYS.get(str(key), str(key))] = value
+        return cls.from_mapping(data, source, field_path)
 
     @classmethod
     def from_mapping(cls, data: dict[str, Any], source: str | None = None, field_path: str = "delay") -> DelaySpec:
