@@ -62,6 +62,7 @@ from controllers.base import Command, Observation
 from controllers.junction import baselines
 from controllers.junction.model import JunctionParams, SwitchState
 from controllers.junction.planner import (
+    OPTIMISERS,
     JunctionPlan,
     PlannerError,
     TrainState,
@@ -71,8 +72,15 @@ from controllers.junction.planner import (
     replan,
 )
 from controllers.junction.pso import improved_pso_params, plain_pso_params
+from controllers.junction.qp import QpOrderParams
 from controllers.junction.simulate import measure
-from railsim.engine.extensions.paper004_readings import safe_gap_m, switch_interval_s, turnout_start
+from railsim.engine.extensions.paper004_readings import (
+    engine_corrected_params,
+    interlocking_model,
+    safe_gap_m,
+    switch_interval_s,
+    turnout_start,
+)
 from railsim.engine.extensions.paper004_tracking import PlannedTrain
 from railsim.errors import ConfigError
 
@@ -154,6 +162,16 @@ class JunctionCoordinator:
                 if "throw_time_s" not in spec.params
                 else probe
             )
+            self.qp: QpOrderParams | None = None
+            if self.method == "qp_order":
+                # the model the engine flies: the guard of the followers' CACC, the turnout zone, the interlocking
+                self.params = engine_corrected_params(ports, list(self.members), self.params, spec.params)
+                self.qp = QpOrderParams(
+                    zone_m=self._turnout_m() + max(lengths),
+                    interlocking=interlocking_model(
+                        ports, list(self.members), self._turnout_m(), max(lengths), throw_s
+                    ),
+                )
             base = improved_pso_params() if self.method != "plain_pso" else plain_pso_params()
             # the first plan may take longer (1000 iterations, ~0.4 s); re-plans keep the online budget (200)
             self.pso = dataclasses.replace(base, **{"max_iterations": 1000, **spec.pso})
@@ -169,7 +187,7 @@ class JunctionCoordinator:
         self.frozen = False
         self.formed = False
         self.formed_s = math.nan
-        self.replanning = self.method in ("improved_pso", "plain_pso")
+        self.replanning = self.method in OPTIMISERS
         self.last_plan_s = -math.inf
         self.plans: list[dict[str, Any]] = []
         self.traj_t: list[float] = []
@@ -201,6 +219,10 @@ class JunctionCoordinator:
             F[0],
         )
 
+    def _turnout_m(self) -> float:
+        """Length of the turnout speed restriction in front of the switch points (the planner's switch lies there)."""
+        return max((m.point_m[sid] - m.switch_m[sid] for m in self.members.values() for sid in m.legs), default=0.0)
+
     # ------------------------------------------------------------------ queries from the engine
     def manages_lock(self, train_id: str, switch_id: str) -> bool:
         """True if this coordinator (not the engine's distance rule) requests ``switch_id`` for ``train_id``."""
@@ -223,7 +245,7 @@ class JunctionCoordinator:
         p = self.params
         if m.handed_over:
             return 0.0  # the platoon leader past F: hold the coupled speed until the others are through
-        if self.plan is None and self.method in ("improved_pso", "plain_pso"):
+        if self.plan is None and self.method in OPTIMISERS:
             return None
         if self.method in ("naive1", "naive2"):
             return self._naive_command(m, own_pos_m, own_v_mps)
@@ -394,6 +416,7 @@ class JunctionCoordinator:
                 self.method,  # type: ignore[arg-type]
                 self.pso,
                 self.rng,
+                qp=self.qp,
             )
         except PlannerError as exc:
             raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}") from None
@@ -440,6 +463,7 @@ class JunctionCoordinator:
                 self.replan_pso,
                 self.rng,
                 keep_order=self.frozen,
+                qp=self.qp,
             )
         except PlannerError as exc:
             self.ports.events.record(t, "junction_plan_failed", "junction", error=str(exc))
