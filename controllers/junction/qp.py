@@ -98,7 +98,7 @@ class InterlockingModel:
 class QpOrderParams:
     """Settings of :func:`solve_qp_order` (units in the names)."""
 
-    speed_floor_mps: float = 1.0  # least planned speed (hard, where reachable)
+    speed_floor_mps: float = 2.0  # least planned speed (hard, where reachable): a crawl is fragile to track
     zone_m: float = 0.0  # turnout speed limit held this far past the planner switch point
     headway_margin_s: float = 1.0  # extra on every switch interval
     speed_margin_mps: float = 0.2  # below each switch limit (on top of the model's switch_speed_margin_mps)

@@ -389,7 +389,7 @@ class JunctionCoordinator:
         return out
 
     def _first_plan(self, t: float, trains: list[TrainRuntime]) -> None:
-        states, _ = self._ground_states(t, trains)
+        states, fronts = self._ground_states(t, trains)
         self.t0_s = t
         truth = []
         for tr in trains:
@@ -420,7 +420,7 @@ class JunctionCoordinator:
             )
         except PlannerError as exc:
             raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}") from None
-        self._adopt(t, new, trains)
+        self._adopt(t, new, trains, states, fronts)
 
     def _maybe_replan(self, t: float, trains: list[TrainRuntime]) -> None:
         if not self.replanning or self.plan is None:
@@ -449,7 +449,7 @@ class JunctionCoordinator:
                     break
         if not due:
             return
-        states, _ = self._ground_states(t, trains)
+        states, fronts = self._ground_states(t, trains)
         if any(s.distance_to_switch_m < 0.0 for s in states):
             return  # a train is inside a turnout (between restriction start and point): keep the current plan
         try:
@@ -475,16 +475,33 @@ class JunctionCoordinator:
             self.ports.events.record(t, "junction_plan_rejected", "junction", violation=round(new.violation, 4))
             self.last_plan_s = t
             return
-        self._adopt(t, new, trains)
+        self._adopt(t, new, trains, states, fronts)
 
-    def _adopt(self, t: float, new: JunctionPlan, trains: list[TrainRuntime]) -> None:
+    def _adopt(
+        self,
+        t: float,
+        new: JunctionPlan,
+        trains: list[TrainRuntime],
+        states: list[TrainState],
+        fronts: dict[str, float],
+    ) -> None:
+        """Adopt a plan: every train's tracking reference, the record, the lock order.
+
+        The PSO methods start each reference from the train's true front and speed (the original coordinator).
+        ``qp_order`` starts it where the plan starts — the ground's front and speed the planner was given — so
+        the reference *is* the planned trajectory and the feedback pulls the train onto it (a train slower than
+        the ground believed is not handed a reference that decelerates it further by the plan's accelerations).
+        """
         self.plan = new
         self.last_plan_s = t
+        speed = {s.train_id: s.speed_mps for s in states}
         for tr in trains:
             tp = new.train(tr.train_id)
-            self.members[tr.train_id].set_reference(
-                self.params.min_speed_mps, t, tr.front_m, tr.plant.speed_mps, tp.segments
-            )
+            if self.method == "qp_order":
+                front, v0 = fronts[tr.train_id], speed[tr.train_id]
+            else:
+                front, v0 = tr.front_m, tr.plant.speed_mps
+            self.members[tr.train_id].set_reference(self.params.min_speed_mps, t, front, v0, tp.segments)
         self.plans.append(
             {
                 "t_s": t,
