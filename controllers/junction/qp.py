@@ -100,6 +100,9 @@ class QpOrderParams:
 
     speed_floor_mps: float = 2.0  # least planned speed (hard, where reachable): a crawl is fragile to track
     zone_m: float = 0.0  # turnout speed limit held this far past the planner switch point
+    approach_decel_mps2: float = 0.0  # a turnout limit is approached on this braking curve (0: |a_min|)
+    approach_hold_m: float = 0.0  # ... and reached this far before the turnout
+    line_speed_margin_mps: float = 0.0  # planned speeds stay this far below v_max (room for the ATO's cruise law)
     headway_margin_s: float = 1.0  # extra on every switch interval
     speed_margin_mps: float = 0.2  # below each switch limit (on top of the model's switch_speed_margin_mps)
     rbd_margin_m: float = 3.0  # extra on the guard's spacing (linearisation, interior instants)
@@ -110,7 +113,8 @@ class QpOrderParams:
     slack_weight: float = 100.0  # price of one unit of constraint violation (above every multiplier: exact)
     prox_weight: float = 0.05  # initial proximal weight on |E − Ē|² (the step control)
     max_iterations: int = 30  # QP solves per order (the chosen order, a re-plan)
-    screen_iterations: int = 10  # QP solves per order when all orders are screened
+    replan_iterations: int = 20  # QP solves of a warm-started re-plan (its order kept while it stays feasible)
+    screen_iterations: int = 40  # QP solves per order when all orders are searched (the first plan)
     feasible_tol: float = 0.02  # soft-constraint violation [s, m/s] small enough to stop (margins absorb it)
     converge_merit: float = 0.3  # merit improvement (cost units, λ4 = 1 per train-second) below which to stop
     osqp_eps: float = 1.0e-4
@@ -121,6 +125,9 @@ class QpOrderParams:
             require(name, getattr(self, name) > 0.0, "a number > 0", getattr(self, name))
         for name in (
             "zone_m",
+            "approach_decel_mps2",
+            "line_speed_margin_mps",
+            "approach_hold_m",
             "headway_margin_s",
             "speed_margin_mps",
             "rbd_margin_m",
@@ -131,7 +138,7 @@ class QpOrderParams:
         ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("slack_weight", self.slack_weight > 0.0, "a number > 0", self.slack_weight)
-        for name in ("max_iterations", "screen_iterations"):
+        for name in ("max_iterations", "replan_iterations", "screen_iterations"):
             require(name, int(getattr(self, name)) >= 1, "an integer >= 1", getattr(self, name))
 
 
@@ -268,6 +275,7 @@ class _OrderSCP:
             seg = np.clip(np.searchsorted(self.bp[fol], ys, side="right") - 1, 0, self.nb[fol] - 2)
             self.guard.append((lead, fol, ys, seg))
         self._soft_cache: tuple[bytes, tuple[np.ndarray, np.ndarray, list[str]]] | None = None
+        self.timetable_T_s = math.nan  # the coupling instant of the first iterate (set by _timetable_E)
         self._build_static()
 
     # ------------------------------------------------------------------ constant parts
@@ -290,7 +298,7 @@ class _OrderSCP:
             reach_hi = E0 + 2.0 * p.accel_max_mps2 * bp
             floor = qp.speed_floor_mps**2
             lb = np.maximum(np.minimum(floor, reach_hi), p.min_speed_mps**2)
-            ub = np.full(nb, p.line_speed_mps**2)
+            ub = np.full(nb, (p.line_speed_mps - qp.line_speed_margin_mps) ** 2)
             for kk, x, lim in self.zone_caps:
                 if kk != k:
                     continue
@@ -299,6 +307,12 @@ class _OrderSCP:
                 if after.size:
                     inside[after[0]] = True
                 ub = np.where(inside, np.minimum(ub, lim * lim), ub)
+                # approached on a braking curve gentler than the ATO's, at the limit speed for the last
+                # approach_hold_m (the ATO's speed law lags its own curve: a plan braking on it would be capped)
+                b_app = qp.approach_decel_mps2 if qp.approach_decel_mps2 > 0.0 else abs(p.accel_min_mps2)
+                x_hold = x - qp.approach_hold_m
+                curve = lim * lim + 2.0 * b_app * np.maximum(x_hold - bp, 0.0)
+                ub = np.where(bp < x, np.minimum(ub, curve), ub)
             ub = np.maximum(ub, reach_lo + 1e-6)
             lb = np.minimum(lb, ub)
             lb[0] = ub[0] = E0
@@ -335,10 +349,14 @@ class _OrderSCP:
             P[o : o + nb, o : o + nb] = Pk
         rr, cc, vv = (np.concatenate(rows_r), np.concatenate(rows_c), np.concatenate(rows_v))
         self.A_lin = sp.csc_matrix((vv, (rr, cc)), shape=(r, self.nE))
+        lin = self.A_lin.tocoo()
+        self._lin_coo = (lin.row, lin.col, lin.data)
         self.lin_lo = np.array(lo)
         self.lin_hi = np.array(hi)
         self.n_lin = r
         self.P_comfort = P.tocsc()
+        pc = sp.triu(self.P_comfort).tocoo()  # OSQP reads the upper triangle
+        self._comfort_coo = (pc.row, pc.col, pc.data)
 
     # ------------------------------------------------------------------ exact functions and linearisations
     def split(self, z: np.ndarray) -> list[np.ndarray]:
@@ -413,20 +431,15 @@ class _OrderSCP:
                 af = np.where(ys >= self.bp[fol][-1] - 1e-9, 0.0, af)
                 vf = np.sqrt(np.maximum(Ef, 1e-9))
                 s_tilde = ys - self.d_m[fol]
-                # leader speed where its front will be: iterate the fixed point once from the reference
-                y0 = s_tilde + self.d_m[lead] + p.pred_length_m + 20.0
-                _, _, El0, _ = tat(lead, y0)
-                vl0 = np.sqrt(np.maximum(El0, 1e-9))
 
                 def rbd(vf_: np.ndarray, af_: np.ndarray, vl_: np.ndarray) -> np.ndarray:
                     return relative_braking_distance_m(vf_, vl_, b_rbd, b_rbd, T_rbd, af_, p.rbd_margin_m)
 
-                need = rbd(vf, af, vl0)
-                y = s_tilde + self.d_m[lead] + p.pred_length_m + need + qp.rbd_margin_m
-                _, _, El, _ = tat(lead, y)
-                vl = np.sqrt(np.maximum(El, 1e-9))
-                need = rbd(vf, af, vl)
-                y = s_tilde + self.d_m[lead] + p.pred_length_m + need + qp.rbd_margin_m
+                # the leader's speed where its front will be: read at the spacing the reference run needs
+                y0 = s_tilde + self.d_m[lead] + p.pred_length_m + qp.rbd_margin_m
+                _, _, El0, _ = tat(lead, y0 + rbd(vf, af, np.zeros_like(vf)))
+                need = rbd(vf, af, np.sqrt(np.maximum(El0, 1e-9)))
+                y = y0 + need
                 tl, Jl, El, Wl = tat(lead, y)
                 vl = np.sqrt(np.maximum(El, 1e-9))
                 h = 1e-4
@@ -511,45 +524,59 @@ class _OrderSCP:
         iF = self.off[self.lead + 1] - 1
         S, ST = E_SCALE, T_SCALE
         col = np.concatenate([np.full(nE, S), np.full(nE, ST)])  # x = col · w
-        # linearised segment times: t_{j+1} − t_j − α E_j − β E_{j+1} = Δt̄ − α Ē_j − β Ē_{j+1}; t_0 = 0
-        rr: list[np.ndarray] = []
-        cc: list[np.ndarray] = []
-        vv: list[np.ndarray] = []
+        # every block as COO triplets, one sparse matrix at the end (scipy's block stacking is slow at this size)
+        R: list[np.ndarray] = [self._lin_coo[0]]
+        Cc: list[np.ndarray] = [self._lin_coo[1]]
+        V: list[np.ndarray] = [S * self._lin_coo[2]]
+        r = self.n_lin
         rhs: list[np.ndarray] = []
-        r = 0
+        # linearised segment times: t_{j+1} − t_j − α E_j − β E_{j+1} = Δt̄ − α Ē_j − β Ē_{j+1}; t_0 = 0
+        r_t0 = r
         for k, E in enumerate(self.split(z)):
-            kin = _Kinematics(self.bp[k], E)
-            dt, al, be = kin.segment_rows()
+            dt, al, be = _Kinematics(self.bp[k], E).segment_rows()
             o = self.off[k]
             ms = dt.size
             idx = np.arange(ms)
             ri = r + 1 + idx
-            rr += [np.array([r]), ri, ri, ri, ri]
-            cc += [np.array([nE + o]), nE + o + idx + 1, nE + o + idx, o + idx, o + idx + 1]
-            vv += [np.array([1.0]), np.ones(ms), -np.ones(ms), -al, -be]
+            R += [np.array([r]), ri, ri, ri, ri]
+            Cc += [np.array([nE + o]), nE + o + idx + 1, nE + o + idx, o + idx, o + idx + 1]
+            V += [np.array([ST]), np.full(ms, ST), np.full(ms, -ST), -S * al, -S * be]
             rhs += [np.array([0.0]), dt - al * E[:-1] - be * E[1:]]
             r += ms + 1
-        A_t = sp.csc_matrix((np.concatenate(vv), (np.concatenate(rr), np.concatenate(cc))), shape=(r, 2 * nE))
         b_t = np.concatenate(rhs)
-        H = self.P_comfort + sp.csc_matrix(([curv], ([iF], [iF])), shape=(nE, nE)) + 2.0 * prox * sp.identity(nE)
-        Hx = sp.block_diag([H, sp.csc_matrix((nE, nE))])
-        eps_s = 1e-3
-        Cs = sp.diags(col)
-        P = sp.block_diag([Cs @ Hx @ Cs, eps_s * sp.identity(m)], format="csc")
+        n_t = r - r_t0
+        # soft rows: c + Jc (x' − x̄) + σ ≥ 0
+        ii, jj = np.nonzero(Jc)
+        R += [r + ii, r + np.arange(m)]
+        Cc += [jj, 2 * nE + np.arange(m)]
+        V += [Jc[ii, jj] * col[jj], np.ones(m)]
+        r += m
+        # boxes: E and slacks
+        R += [r + np.arange(nE), r + nE + np.arange(m)]
+        Cc += [np.arange(nE), 2 * nE + np.arange(m)]
+        V += [np.ones(nE), np.ones(m)]
+        r += nE + m
+        nv = 2 * nE + m
+        A = sp.csc_matrix((np.concatenate(V), (np.concatenate(R), np.concatenate(Cc))), shape=(r, nv))
+        lo = np.concatenate([self.lin_lo, b_t, -c + Jc @ xbar, self.lb / S, np.zeros(m)])
+        hi = np.concatenate([self.lin_hi, b_t, np.full(m, np.inf), self.ub / S, np.full(m, np.inf)])
+        assert lo.size == r and n_t == b_t.size
+        # ½ x'ᵀ(P_comfort + curv·e_F e_Fᵀ + 2·prox·I) x' + (g − curv·x̄_F e_F − 2·prox·Ē)ᵀ x' + μ Σ σ + ½ ε Σ σ²
+        pr, pc, pv = self._comfort_coo
+        P = sp.csc_matrix(
+            (
+                np.concatenate([S * S * pv, np.full(nE, S * S * 2.0 * prox), [S * S * curv], np.full(m, 1e-3)]),
+                (
+                    np.concatenate([pr, np.arange(nE), [iF], 2 * nE + np.arange(m)]),
+                    np.concatenate([pc, np.arange(nE), [iF], 2 * nE + np.arange(m)]),
+                ),
+            ),
+            shape=(nv, nv),
+        )
         qx = g.copy()
         qx[:nE] -= 2.0 * prox * z
         qx[iF] -= curv * z[iF]
         q = np.concatenate([col * qx, np.full(m, qp.slack_weight)])
-        blocks = [
-            sp.hstack([S * self.A_lin, sp.csc_matrix((self.n_lin, nE + m))]),
-            sp.hstack([A_t @ Cs, sp.csc_matrix((r, m))]),
-            sp.hstack([sp.csc_matrix(Jc) @ Cs, sp.identity(m, format="csc")]),
-            sp.hstack([sp.identity(nE), sp.csc_matrix((nE, nE + m))]),
-            sp.hstack([sp.csc_matrix((m, 2 * nE)), sp.identity(m)]),
-        ]
-        A = sp.vstack(blocks, format="csc")
-        lo = np.concatenate([self.lin_lo, b_t, -c + Jc @ xbar, self.lb / S, np.zeros(m)])
-        hi = np.concatenate([self.lin_hi, b_t, np.full(m, np.inf), self.ub / S, np.full(m, np.inf)])
         solver = osqp.OSQP()
         solver.setup(
             P, q, A, lo, hi, verbose=False, eps_abs=qp.osqp_eps, eps_rel=qp.osqp_eps, max_iter=4000, polishing=True
@@ -642,6 +669,22 @@ def order_lower_bound(problem: Problem, order: tuple[int, ...]) -> float:
     )
 
 
+def _respects_locks(problem: Problem, order: tuple[int, ...]) -> bool:
+    """True unless a planned train holding a granted lock on a switch would pass it after another user of it."""
+    ids = [tr.train_id for tr in problem.trains]
+    rank = {k: i for i, k in enumerate(order)}
+    for sid, st in problem.switch_states.items():
+        if st.locked_for is None or st.locked_for not in ids:
+            continue
+        holder = ids.index(st.locked_for)
+        users = problem.switch_users.get(sid)
+        if users is None or holder not in users.tolist():
+            continue
+        if any(rank[int(k)] < rank[holder] for k in users):
+            return False
+    return True
+
+
 def _interval(problem: Problem, a: int, b: int) -> float:
     """Least time between ``a`` and ``b`` at the merge switch: ``t_ls`` if they meet on different legs anywhere."""
     p = problem.params
@@ -650,43 +693,112 @@ def _interval(problem: Problem, a: int, b: int) -> float:
     return p.throw_time_s if (differ or p.headway_all_consecutive) else p.min_time_gap_s
 
 
+def _profile(
+    s: np.ndarray, E0: float, cap: np.ndarray, cruise: float, a_up: float, a_down: float, tail: tuple[float, float]
+) -> np.ndarray:
+    """``E = v²`` on the fine grid ``s``: from ``E0`` towards ``cruise²`` (accelerating at ``a_up`` or braking at
+    ``a_down``), never above the caps ``cap`` (approached on a braking curve) and reaching ``tail = (position, E)``
+    on a braking curve at its end (from there on held)."""
+    ds = np.diff(s)
+    E = np.empty(s.size)
+    E[0] = E0
+    for i in range(1, s.size):  # forward: towards the cruise speed within the acceleration bounds
+        step = 2.0 * (a_up if E[i - 1] < cruise * cruise else -a_down) * ds[i - 1]
+        E[i] = min(E[i - 1] + step, cruise * cruise) if step > 0 else max(E[i - 1] + step, cruise * cruise)
+    x_t, E_t = tail
+    cap = np.where(s >= x_t, E_t, cap)
+    for i in range(s.size - 2, -1, -1):  # backward: braking curves to every cap (and to the tail's speed)
+        cap[i] = min(cap[i], cap[i + 1] + 2.0 * a_down * ds[i])
+    return np.minimum(E, cap)
+
+
+def _run_time(s: np.ndarray, E: np.ndarray, x: float) -> float:
+    """Time to run from ``s[0]`` to ``x`` with ``E`` linear in distance between grid points."""
+    v = np.sqrt(np.maximum(E, 1e-6))
+    dt = 2.0 * np.diff(s) / (v[:-1] + v[1:])
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    return float(np.interp(x, s, t))
+
+
 def _timetable_E(scp: _OrderSCP) -> np.ndarray:
-    """First iterate of an order: a timetable of merge passages chained by the switch intervals, then per train a
-    ``v²`` profile through cruise speeds that meet it and the common coupled speed at its slot (clipped to bounds)."""
+    """First iterate of an order: a timetable, then per train the ``v²`` profile that keeps it.
+
+    Merge passages: each train's earliest (the fastest profile: line speed, braking curves to its turnout limits),
+    pushed later along the order by the switch intervals; the coupling instant ``T``: the last train's earliest
+    arrival at its slot after its passage. Each train then runs, on a fine grid, towards the cruise speed (found by
+    bisection) that meets its passage time, and after the merge switch towards the one that meets its slot at
+    ``T``, ending at the common coupled speed ``v_c`` on a braking curve; the profile is read at the breakpoints
+    and clipped to the bounds. Feasibility is left to the SCP; this only puts it in the right region.
+    """
     pb, p, qp = scp.pb, scp.p, scp.qp
     order = scp.order
-    cap = [min(p.limit_speed_mps(s.leg) for s in tr.switches) - 0.5 for tr in pb.trains]
+    a_up, a_down = 0.8 * p.accel_max_mps2, 0.8 * abs(p.accel_min_mps2)
+    floor = qp.speed_floor_mps + 0.5
+    grids, caps = [], []
+    for k in range(scp.n):
+        s = np.linspace(0.0, scp.d_F[k], max(int(scp.d_F[k] / 2.0), 20) + 1)
+        ub = np.interp(s, scp.bp[k], scp.ub[scp.off[k] : scp.off[k + 1]])
+        for kk, x, lim in scp.zone_caps:  # the caps hold over the zone, not only at breakpoints
+            if kk == k:
+                ub = np.where((s >= x - 1e-9) & (s <= x + qp.zone_m), np.minimum(ub, lim * lim), ub)
+        grids.append(s)
+        caps.append(ub)
+
+    def timed(k: int, x: float, target: float, E0: float, tail: tuple[float, float]) -> np.ndarray:
+        s, cap = grids[k], caps[k]
+        lo, hi = floor, p.line_speed_mps
+        fast = _profile(s, E0, cap.copy(), hi, a_up, a_down, tail)
+        if _run_time(s, fast, x) >= target:
+            return fast
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            if _run_time(s, _profile(s, E0, cap.copy(), mid, a_up, a_down, tail), x) > target:
+                lo = mid
+            else:
+                hi = mid
+        return _profile(s, E0, cap.copy(), hi, a_up, a_down, tail)
+
+    none = (math.inf, 0.0)
     tau: dict[int, float] = {}
     prev = None
     for k in order:
-        v_run = max(min(cap[k], max(scp.v0[k], 0.5 * (scp.v0[k] + cap[k]))), 2.0)
-        t = scp.d_m[k] / v_run
+        s = grids[k]
+        t = _run_time(s, _profile(s, scp.v0[k] ** 2, caps[k].copy(), p.line_speed_mps, a_up, a_down, none), scp.d_m[k])
         if prev is not None:
             t = max(t, tau[prev] + _interval(pb, prev, k) + qp.headway_margin_s + 1.0)
         tau[k] = t
         prev = k
     lead, last = order[0], order[-1]
-    F_tilde = scp.d_F[lead] - scp.d_m[lead]
-    dist_last = scp.slot.get(last, scp.d_F[last]) - scp.d_m[last]
-    T = tau[last] + max(dist_last, 1.0) / 8.0
-    v_c = float(np.clip(F_tilde / max(T - tau[lead], 1.0), qp.speed_floor_mps + 0.5, cap[lead]))
+    first = {k: timed(k, scp.d_m[k], tau[k], scp.v0[k] ** 2, none) for k in range(scp.n)}
+    end_last = scp.slot.get(last, scp.d_F[last])
+    E_m = float(np.interp(scp.d_m[last], grids[last], first[last]))
+    s = grids[last]
+    after = _profile(s, E_m, caps[last].copy(), p.line_speed_mps, a_up, a_down, none)
+    T = tau[last] + _run_time(s, after, end_last) - _run_time(s, after, scp.d_m[last]) + 2.0
+    scp.timetable_T_s = T
+    v_c = float(np.clip((scp.d_F[lead] - scp.d_m[lead]) / max(T - tau[lead], 1.0), floor, p.normal_speed_mps))
     z = np.empty(scp.nE)
     for k in range(scp.n):
-        bp = scp.bp[k]
-        w = float(np.clip(scp.d_m[k] / tau[k], qp.speed_floor_mps + 0.5, cap[k]))
+        s = grids[k]
         end = scp.slot.get(k, scp.d_F[k])
-        run = end - scp.d_m[k]
-        u2 = float(np.clip(2.0 * run / max(T - tau[k], 1.0) - v_c, qp.speed_floor_mps + 0.5, p.line_speed_mps - 1.0))
-        wp = [0.0, 0.3 * scp.d_m[k], scp.d_m[k], scp.d_m[k] + 0.5 * run, end, max(scp.d_F[k], end + 1.0)]
-        sp_ = [scp.v0[k], w, w, u2, v_c, v_c]
-        target = np.interp(bp, wp, np.square(sp_))
-        E = np.empty(bp.size)
-        E[0] = scp.v0[k] ** 2
+        E_pass = float(np.interp(scp.d_m[k], s, first[k]))
+        # after the merge switch: a timed profile on the grid shifted to start there, stitched to the first one
+        mask = s >= scp.d_m[k]
+        sub = s[mask] - scp.d_m[k]
+        grids_k = grids[k]
+        grids[k] = np.concatenate([[0.0], sub[sub > 0.0]])
+        caps_k = caps[k]
+        caps[k] = np.interp(grids[k] + scp.d_m[k], grids_k, caps_k)
+        later = timed(k, end - scp.d_m[k], T - tau[k], E_pass, (end - scp.d_m[k], v_c * v_c))
+        grids[k], caps[k] = grids_k, caps_k
+        prof = first[k].copy()
+        prof[mask] = np.interp(s[mask] - scp.d_m[k], np.concatenate([[0.0], sub[sub > 0.0]]), later)
+        E = np.interp(scp.bp[k], s, prof)
         lo, hi = scp.lb[scp.off[k] : scp.off[k + 1]], scp.ub[scp.off[k] : scp.off[k + 1]]
-        for j in range(1, bp.size):
-            ell = bp[j] - bp[j - 1]
+        for j in range(1, E.size):  # the acceleration bounds at the breakpoints
+            ell = scp.bp[k][j] - scp.bp[k][j - 1]
             E[j] = float(
-                np.clip(target[j], E[j - 1] + 2.0 * p.accel_min_mps2 * ell, E[j - 1] + 2.0 * p.accel_max_mps2 * ell)
+                np.clip(E[j], E[j - 1] + 2.0 * p.accel_min_mps2 * ell, E[j - 1] + 2.0 * p.accel_max_mps2 * ell)
             )
             E[j] = float(np.clip(E[j], lo[j], hi[j]))
         z[scp.off[k] : scp.off[k + 1]] = E
@@ -752,12 +864,15 @@ def solve_qp_order(
         r = rollout(problem, warm_x[None, :])
         warm_order = tuple(int(k) for k in r.order[0])
     if warm_order is not None:
-        consider(warm_order, warm_x, qp.max_iterations)
+        consider(warm_order, warm_x, qp.replan_iterations if warm_x is not None else qp.max_iterations)
         if problem.frozen_order is not None and best is not None and best[0] > 0.0 and warm_x is not None:
             consider(warm_order, None, qp.max_iterations)  # the warm start failed: the timetable of the frozen order
     if problem.frozen_order is None and (best is None or best[0] > 0.0):
         # screen every order with a short SCP, then finish the best one
-        orders = sorted(itertools.permutations(range(n)), key=lambda o: (order_lower_bound(problem, o), o))
+        orders = sorted(
+            (o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)),
+            key=lambda o: (order_lower_bound(problem, o), o),
+        )
         for order in orders:
             if best is not None and best[0] <= 0.0 and order_lower_bound(problem, order) >= best[1]:
                 continue

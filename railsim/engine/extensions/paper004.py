@@ -96,6 +96,9 @@ K_S_PER_S2 = 0.25
 DEVIATION_M = 5.0  # re-plan at once beyond these tracking errors (spec §7.3)
 DEVIATION_MPS = 0.5
 MIN_REPLAN_GAP_S = 0.5
+# qp_order plans stay inside the ATO's envelope (its speed law a = 0.4/s·(v_target − v) lags its targets):
+ATO_CRUISE_MARGIN_MPS = 3.0  # below v_max, where the law caps full acceleration
+APPROACH_HOLD_M = 20.0  # at the turnout speed this far before a turnout (braking into it at half the ATO's rate)
 
 
 @dataclass
@@ -166,11 +169,14 @@ class JunctionCoordinator:
             if self.method == "qp_order":
                 # the model the engine flies: the guard of the followers' CACC, the turnout zone, the interlocking
                 self.params = engine_corrected_params(ports, list(self.members), self.params, spec.params)
+                il = interlocking_model(ports, list(self.members), self._turnout_m(), max(lengths), throw_s)
                 self.qp = QpOrderParams(
                     zone_m=self._turnout_m() + max(lengths),
-                    interlocking=interlocking_model(
-                        ports, list(self.members), self._turnout_m(), max(lengths), throw_s
-                    ),
+                    # inside the ATO's envelope: its braking curve into a turnout and its cruise law below v_max
+                    approach_decel_mps2=0.5 * il.brake_decel_mps2,
+                    approach_hold_m=APPROACH_HOLD_M,
+                    line_speed_margin_mps=ATO_CRUISE_MARGIN_MPS,
+                    interlocking=il,
                 )
             base = improved_pso_params() if self.method != "plain_pso" else plain_pso_params()
             # the first plan may take longer (1000 iterations, ~0.4 s); re-plans keep the online budget (200)
@@ -249,11 +255,45 @@ class JunctionCoordinator:
             return None
         if self.method in ("naive1", "naive2"):
             return self._naive_command(m, own_pos_m, own_v_mps)
-        s_ref, v_ref = m.reference(t)
+        s_ref, v_ref, rate = self._reference(m, t)
         s = own_pos_m - m.ref_front_m
-        a_ff = m.accel_at(s_ref)
+        a_ff = m.accel_at(s_ref) * rate * rate
         u = a_ff + K_V_PER_S * (v_ref - own_v_mps) + K_S_PER_S2 * (s_ref - s)
         return float(np.clip(u, p.accel_min_mps2, p.accel_max_mps2))
+
+    def _reference(self, m: PlannedTrain, t: float) -> tuple[float, float, float]:
+        """Reference distance, speed and time rate of a planned train at ``t``.
+
+        PSO methods: the plan's reference at the clock time. ``qp_order`` flies the plan *in the leader's time*:
+        a follower's reference is read at the plan instant at which the platoon leader's reference is where the
+        ground knows the leader to be (its t2g report, extrapolated), and its speed is scaled by the rate at which
+        the leader runs through its plan. A leader held back (by its ATO's braking curve, a late lock) holds the
+        whole plan back with it, and one ahead of it moves it forward, so the platoon's geometry — switch
+        intervals, slots at F — is kept; the leader's own feedback pulls it back onto the clock.
+        """
+        if self.method != "qp_order" or not self.order or m.train_id == self.order[0]:
+            s_ref, v_ref = m.reference(t)
+            return s_ref, v_ref, 1.0
+        lead = self.members[self.order[0]]
+        if lead.handed_over:
+            s_ref, v_ref = m.reference(t)
+            return s_ref, v_ref, 1.0
+        front, v_lead = self._ground_front(self.ports.trains[lead.train_id], t)
+        tau = lead.time_at(front - lead.ref_front_m)
+        t_eff = lead.ref_t0_s + tau
+        _, v_lead_ref = lead.reference(t_eff)
+        rate = float(np.clip(v_lead / max(v_lead_ref, 0.5), 0.5, 1.5))
+        s_ref, v_ref = m.reference(t_eff)
+        return s_ref, v_ref * rate, rate
+
+    def _ground_front(self, tr: TrainRuntime, t: float) -> tuple[float, float]:
+        """A train's front and speed as the ground knows them: its last t2g report extrapolated at constant speed."""
+        ch = self.ports.channels.get("t2g")
+        msg = ch.latest("ground", tr.train_id) if ch is not None else None
+        if msg is None:
+            return tr.front_m, tr.plant.speed_mps
+        _route, pos, v, _acc, stamp = msg.payload[:5]
+        return float(pos) + float(v) * max(0.0, t - float(stamp)), float(v)
 
     def commands(
         self,
@@ -378,12 +418,14 @@ class JunctionCoordinator:
             lock = il.lock(sid)
             holders = tuple(lock.holder_ids) if lock is not None else ()
             foreign = [h for h in holders if h not in self.members]
+            # qp_order also learns which planned train holds a granted lock (it must pass that switch first)
+            own = [h for h in holders if h in self.members] if self.method == "qp_order" else []
             out.append(
                 SwitchState(
                     sid,
                     il.position(sid),  # type: ignore[arg-type]
                     locked_until_s=math.inf if foreign else 0.0,
-                    locked_for=foreign[0] if foreign else None,
+                    locked_for=foreign[0] if foreign else (own[0] if own else None),
                 )
             )
         return out
@@ -429,11 +471,13 @@ class JunctionCoordinator:
             self.replanning = False  # the first train is through the merge switch: track the last plan to F
             self.ports.events.record(t, "junction_replanning_ended", "junction", reason="a train passed sw2")
             return
-        due = t - self.last_plan_s >= self.spec.replan_s - 1e-9
+        # qp_order's plans are flyable as made: it re-plans on a tracking deviation only (a periodic re-plan from
+        # the ground's extrapolated states restarts the plan from slightly wrong states and drifts it later)
+        due = self.method != "qp_order" and t - self.last_plan_s >= self.spec.replan_s - 1e-9
         if not due and t - self.last_plan_s >= MIN_REPLAN_GAP_S:
             for tr in trains:
                 m = self.members[tr.train_id]
-                s_ref, v_ref = m.reference(t)
+                s_ref, v_ref, _ = self._reference(m, t)
                 if (
                     abs(tr.front_m - m.ref_front_m - s_ref) > DEVIATION_M
                     or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS
@@ -501,7 +545,10 @@ class JunctionCoordinator:
                 front, v0 = fronts[tr.train_id], speed[tr.train_id]
             else:
                 front, v0 = tr.front_m, tr.plant.speed_mps
-            self.members[tr.train_id].set_reference(self.params.min_speed_mps, t, front, v0, tp.segments)
+            if self.method == "qp_order":
+                self.members[tr.train_id].set_reference_exact(self.params.min_speed_mps, t, front, v0, tp.segments)
+            else:
+                self.members[tr.train_id].set_reference(self.params.min_speed_mps, t, front, v0, tp.segments)
         self.plans.append(
             {
                 "t_s": t,
