@@ -113,7 +113,7 @@ class QpOrderParams:
     slack_weight: float = 100.0  # price of one unit of constraint violation (above every multiplier: exact)
     prox_weight: float = 0.05  # initial proximal weight on |E − Ē|² (the step control)
     max_iterations: int = 30  # QP solves per order (the chosen order, a re-plan)
-    replan_iterations: int = 20  # QP solves of a warm-started re-plan (its order kept while it stays feasible)
+    replan_iterations: int = 8  # QP solves of a warm-started re-plan (in the previous plan's order)
     screen_iterations: int = 40  # QP solves per order when all orders are searched (the first plan)
     feasible_tol: float = 0.02  # soft-constraint violation [s, m/s] small enough to stop (margins absorb it)
     converge_merit: float = 0.3  # merit improvement (cost units, λ4 = 1 per train-second) below which to stop
@@ -826,9 +826,11 @@ def solve_qp_order(
 ) -> QpOrderResult:
     """Enumerate the passing orders, solve each by trust-region SCP over OSQP QPs, verify with the rollout.
 
-    ``warm_x`` (distance encoding, e.g. the previous plan shifted by :func:`.planner._warm_start`) is tried first,
-    in its own order; if its result is feasible the other orders are not solved (the online re-plan). Else every
-    order is solved from its timetable. ``problem.frozen_order`` restricts the search to that order.
+    Without ``warm_x`` (the first plan) every passing order consistent with the granted locks is solved from its
+    timetable (``screen_iterations`` QPs each, the best one then up to ``max_iterations``). With ``warm_x`` (a
+    re-plan: the previous plan shifted by :func:`.planner._warm_start`) only the previous plan's order is
+    polished, ``replan_iterations`` QPs from the warm start — the online budget; an infeasible result is returned
+    as such (the coordinator keeps the previous plan). ``problem.frozen_order`` fixes the order.
     """
     qp = params or QpOrderParams()
     t0 = time.perf_counter()
@@ -863,11 +865,13 @@ def solve_qp_order(
     elif warm_x is not None:
         r = rollout(problem, warm_x[None, :])
         warm_order = tuple(int(k) for k in r.order[0])
-    if warm_order is not None:
-        consider(warm_order, warm_x, qp.replan_iterations if warm_x is not None else qp.max_iterations)
-        if problem.frozen_order is not None and best is not None and best[0] > 0.0 and warm_x is not None:
-            consider(warm_order, None, qp.max_iterations)  # the warm start failed: the timetable of the frozen order
-    if problem.frozen_order is None and (best is None or best[0] > 0.0):
+    if warm_x is not None and warm_order is not None:
+        # the online re-plan: polish the previous plan in its order; if that fails it is reported infeasible and
+        # the caller keeps flying the previous plan (the orders were searched at the first plan)
+        consider(warm_order, warm_x, qp.replan_iterations)
+    elif warm_order is not None:
+        consider(warm_order, None, qp.max_iterations)  # a frozen order without a previous plan
+    if warm_x is None and problem.frozen_order is None:
         # screen every order with a short SCP, then finish the best one
         orders = sorted(
             (o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)),
