@@ -40,6 +40,15 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    switch (the braking curve of :func:`controllers.junction.baselines.approach_speed_cap`) and waits for its
    lock through the interlocking's movement authority.
 
+``qp_order`` (issue 18, :mod:`controllers.junction.qp`) runs the same machinery with these differences, each one
+a cause of a missed coupling measured in SUMO: its model is the engine's (the followers' guard with the coupled
+controller's numbers, the interlocking's release-throw-grant rule, turnouts held over the train's length and
+approached inside the ATO's envelope: :func:`.paper004_readings.engine_corrected_params`,
+:func:`.paper004_readings.interlocking_model`); a granted lock fixes the order at its switch; the reference is the
+plan's exact trajectory started from the state the planner was given; followers fly the plan in the *leader's*
+time (:meth:`JunctionCoordinator._reference`); and it re-plans on a tracking deviation only, polishing the previous
+plan in its order.
+
 Measured outcome: the coordinator records every planned train's path position and speed at every step from
 the first plan on and scores them with :func:`controllers.junction.simulate.measure` — the same code that
 scores the numpy reproduction — so "coupled at F" means the spec's Eq. 2–3 at the moment the leader reaches F.
