@@ -130,7 +130,7 @@ def test_naive_baselines_pass_in_their_priority_order(tmp_path: Path, method: st
 @pytest.mark.parametrize(
     "junction,field,message",
     [
-        ({"method": "genetic"}, "junction.method", "expected one of improved_pso, plain_pso, naive1, naive2"),
+        ({"method": "genetic"}, "junction.method", "expected one of improved_pso, plain_pso, qp_order, naive1, naive2"),
         ({"trains": ["train1", "nobody"]}, "junction.trains[1]", "expected a trip id or a one-trip service id"),
         ({"params": {"segment_lenght_m": 10}}, "junction.params.segment_lenght_m", "unknown field"),
         ({"params": {"accel_max_mps2": -1}}, "junction.params.accel_max_mps2", "expected a number > 0"),

@@ -40,14 +40,11 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    switch (the braking curve of :func:`controllers.junction.baselines.approach_speed_cap`) and waits for its
    lock through the interlocking's movement authority.
 
-``qp_order`` (issue 18, :mod:`controllers.junction.qp`) runs the same machinery with these differences, each one
-a cause of a missed coupling measured in SUMO: its model is the engine's (the followers' guard with the coupled
-controller's numbers, the interlocking's release-throw-grant rule, turnouts held over the train's length and
-approached inside the ATO's envelope: :func:`.paper004_readings.engine_corrected_params`,
-:func:`.paper004_readings.interlocking_model`); a granted lock fixes the order at its switch; the reference is the
-plan's exact trajectory started from the state the planner was given; followers fly the plan in the *leader's*
-time (:meth:`JunctionCoordinator._reference`); and it re-plans on a tracking deviation only, polishing the previous
-plan in its order.
+``qp_order`` (issue 18, :mod:`controllers.junction.qp`) differs where SUMO runs showed missed couplings: its model
+is the engine's (:func:`.paper004_readings.engine_corrected_params`, :func:`.paper004_readings.interlocking_model`,
+turnouts held over the train's length, approached inside the ATO's envelope); a granted lock fixes the order at
+its switch; the reference is the plan's exact trajectory from the planner's initial state; followers fly the plan in
+the leader's time (:func:`.paper004_tracking.leader_time_reference`); it re-plans on deviations only.
 
 Measured outcome: the coordinator records every planned train's path position and speed at every step from
 the first plan on and scores them with :func:`controllers.junction.simulate.measure` — the same code that
@@ -90,7 +87,8 @@ from railsim.engine.extensions.paper004_readings import (
     switch_interval_s,
     turnout_start,
 )
-from railsim.engine.extensions.paper004_tracking import PlannedTrain
+from railsim.engine.extensions.paper004_ground import SWITCHES, ground_front, ground_states, switch_states
+from railsim.engine.extensions.paper004_tracking import PlannedTrain, leader_time_reference
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -99,7 +97,6 @@ if TYPE_CHECKING:  # pragma: no cover
 
 log = logging.getLogger(__name__)
 
-SWITCHES = ("sw1", "sw2")
 K_V_PER_S = 1.0  # tracking gains (critically damped double integrator, ω = 0.5 rad/s)
 K_S_PER_S2 = 0.25
 DEVIATION_M = 5.0  # re-plan at once beyond these tracking errors (spec §7.3)
@@ -271,38 +268,15 @@ class JunctionCoordinator:
         return float(np.clip(u, p.accel_min_mps2, p.accel_max_mps2))
 
     def _reference(self, m: PlannedTrain, t: float) -> tuple[float, float, float]:
-        """Reference distance, speed and time rate of a planned train at ``t``.
-
-        PSO methods: the plan's reference at the clock time. ``qp_order`` flies the plan *in the leader's time*:
-        a follower's reference is read at the plan instant at which the platoon leader's reference is where the
-        ground knows the leader to be (its t2g report, extrapolated), and its speed is scaled by the rate at which
-        the leader runs through its plan. A leader held back (by its ATO's braking curve, a late lock) holds the
-        whole plan back with it, and one ahead of it moves it forward, so the platoon's geometry — switch
-        intervals, slots at F — is kept; the leader's own feedback pulls it back onto the clock.
-        """
+        """Reference distance, speed and time rate of a planned train at ``t``: the clock's for the PSO methods and
+        the platoon leader; ``qp_order``'s followers fly the plan in the leader's time (:func:`leader_time_reference`)."""
         if self.method != "qp_order" or not self.order or m.train_id == self.order[0]:
-            s_ref, v_ref = m.reference(t)
-            return s_ref, v_ref, 1.0
+            return (*m.reference(t), 1.0)
         lead = self.members[self.order[0]]
         if lead.handed_over:
-            s_ref, v_ref = m.reference(t)
-            return s_ref, v_ref, 1.0
-        front, v_lead = self._ground_front(self.ports.trains[lead.train_id], t)
-        tau = lead.time_at(front - lead.ref_front_m)
-        t_eff = lead.ref_t0_s + tau
-        _, v_lead_ref = lead.reference(t_eff)
-        rate = float(np.clip(v_lead / max(v_lead_ref, 0.5), 0.5, 1.5))
-        s_ref, v_ref = m.reference(t_eff)
-        return s_ref, v_ref * rate, rate
-
-    def _ground_front(self, tr: TrainRuntime, t: float) -> tuple[float, float]:
-        """A train's front and speed as the ground knows them: its last t2g report extrapolated at constant speed."""
-        ch = self.ports.channels.get("t2g")
-        msg = ch.latest("ground", tr.train_id) if ch is not None else None
-        if msg is None:
-            return tr.front_m, tr.plant.speed_mps
-        _route, pos, v, _acc, stamp = msg.payload[:5]
-        return float(pos) + float(v) * max(0.0, t - float(stamp)), float(v)
+            return (*m.reference(t), 1.0)
+        front, v_lead = ground_front(self.ports.channels, self.ports.trains[lead.train_id], t)
+        return leader_time_reference(m, lead, front, v_lead)
 
     def commands(
         self,
@@ -402,45 +376,11 @@ class JunctionCoordinator:
         )
         self.traj_v.append([tr.plant.speed_mps for tr in trains])
 
-    def _ground_states(self, t: float, trains: list[TrainRuntime]) -> tuple[list[TrainState], dict[str, float]]:
-        """What the ground knows of each planned train now: last t2g report extrapolated at constant speed."""
-        ch = self.ports.channels.get("t2g")
-        states, fronts = [], {}
-        for tr in trains:
-            msg = ch.latest("ground", tr.train_id) if ch is not None else None
-            if msg is not None:
-                _route, pos, v, _acc, stamp = msg.payload[:5]
-            elif ch is None:
-                pos, v, stamp = tr.front_m, tr.plant.speed_mps, t  # no radio modelled: the ground sees the truth
-            else:
-                pos, v, stamp = tr.depart_chainage_m, tr.trip.start_speed_mps, tr.inserted_s or 0.0
-            front = float(pos) + float(v) * max(0.0, t - float(stamp))
-            fronts[tr.train_id] = front
-            track, dist = self.members[tr.train_id].track(front)
-            states.append(TrainState(tr.train_id, track, dist, max(float(v), self.params.min_speed_mps)))  # type: ignore[arg-type]
-        return states, fronts
-
     def _switch_states(self) -> list[SwitchState]:
-        il = self.ports.interlocking
-        out = []
-        for sid in SWITCHES:
-            lock = il.lock(sid)
-            holders = tuple(lock.holder_ids) if lock is not None else ()
-            foreign = [h for h in holders if h not in self.members]
-            # qp_order also learns which planned train holds a granted lock (it must pass that switch first)
-            own = [h for h in holders if h in self.members] if self.method == "qp_order" else []
-            out.append(
-                SwitchState(
-                    sid,
-                    il.position(sid),  # type: ignore[arg-type]
-                    locked_until_s=math.inf if foreign else 0.0,
-                    locked_for=foreign[0] if foreign else (own[0] if own else None),
-                )
-            )
-        return out
+        return switch_states(self.ports.interlocking, self.members, self.method == "qp_order")
 
     def _first_plan(self, t: float, trains: list[TrainRuntime]) -> None:
-        states, fronts = self._ground_states(t, trains)
+        states, fronts = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
         self.t0_s = t
         truth = []
         for tr in trains:
@@ -502,7 +442,7 @@ class JunctionCoordinator:
                     break
         if not due:
             return
-        states, fronts = self._ground_states(t, trains)
+        states, fronts = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
         if any(s.distance_to_switch_m < 0.0 for s in states):
             return  # a train is inside a turnout (between restriction start and point): keep the current plan
         try:

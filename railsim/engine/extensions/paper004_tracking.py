@@ -113,3 +113,19 @@ class PlannedTrain:
         if tau >= self.ref_t[-1]:
             return float(self.ref_s[-1] + self.ref_v[-1] * (tau - self.ref_t[-1])), float(self.ref_v[-1])
         return float(np.interp(tau, self.ref_t, self.ref_s)), float(np.interp(tau, self.ref_t, self.ref_v))
+
+
+def leader_time_reference(m: PlannedTrain, lead: PlannedTrain, lead_front_m: float, lead_speed_mps: float) -> tuple:
+    """A follower's reference ``(s, v, rate)`` read in the platoon leader's time (``qp_order``).
+
+    The plan instant is the one at which the leader's reference is where the leader is known to be; the speed is
+    scaled by the rate at which the leader runs through its plan (clipped to [0.5, 1.5]). A leader held back (by
+    its ATO's braking curve, a late lock) holds the whole plan back with it, one ahead of it moves it forward, so
+    the platoon's geometry — switch intervals, slots at F — is kept while the leader's own feedback pulls it back
+    onto the clock.
+    """
+    t_eff = lead.ref_t0_s + lead.time_at(lead_front_m - lead.ref_front_m)
+    _, v_lead_ref = lead.reference(t_eff)
+    rate = float(np.clip(lead_speed_mps / max(v_lead_ref, 0.5), 0.5, 1.5))
+    s_ref, v_ref = m.reference(t_eff)
+    return s_ref, v_ref * rate, rate
