@@ -130,7 +130,7 @@ def test_naive_baselines_pass_in_their_priority_order(tmp_path: Path, method: st
 @pytest.mark.parametrize(
     "junction,field,message",
     [
-        ({"method": "genetic"}, "junction.method", "expected one of improved_pso, plain_pso, naive1, naive2"),
+        ({"method": "genetic"}, "junction.method", "expected one of improved_pso, plain_pso, qp_order, naive1, naive2"),
         ({"trains": ["train1", "nobody"]}, "junction.trains[1]", "expected a trip id or a one-trip service id"),
         ({"params": {"segment_lenght_m": 10}}, "junction.params.segment_lenght_m", "unknown field"),
         ({"params": {"accel_max_mps2": -1}}, "junction.params.accel_max_mps2", "expected a number > 0"),
@@ -169,3 +169,19 @@ def test_switch_interval_reading_closed_form() -> None:
     release = (10.0 + 20.0 + 10.0) / 10.0
     sighting = (15.0**2 / (2 * 1.2) + 20.0) / 15.0
     assert got == pytest.approx(release + 10.0 + sighting)
+
+
+def test_qp_order_couples_at_F_in_sumo_without_collisions_or_switch_violations(tmp_path: Path) -> None:
+    """The deterministic planner online (issue 18): the plan it makes is one the engine lets the trains fly — the
+    interlocking grants each lock before the train's braking point, the followers' guard never caps them — so
+    the platoon is coupled at F (Eqs. 2–3 measured on the SUMO trajectories when the leader reaches F)."""
+    out = tmp_path / "qp"
+    s = _run(_variant(tmp_path, "qp", method="qp_order"), out, seed=3)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0
+    assert s["switch_violations"] == 0
+    j = s["junction"]
+    assert j["method"] == "qp_order" and j["initial_plan_feasible"] is True
+    assert j["coupled_at_F"] is True, j
+    assert j["max_gap_error_m"] <= 5.0 and j["max_speed_diff_mps"] <= 0.5
+    assert set(j["handover_s"]) == set(j["order"])
+    assert not _events(out, "emergency_brake_on")  # nobody was braked by an authority end or the guard

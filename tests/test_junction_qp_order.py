@@ -81,3 +81,100 @@ def test_impossible_switch_interval_is_reported_not_raised():
     p = plan(trains, (), LAYOUT, params, method="qp_order")
     assert not p.feasible
     assert p.violation > 0.0 and any(v > 0.0 for v in p.violations.values())
+
+
+def test_time_along_a_profile_and_its_gradient_match_closed_forms():
+    """Constant speed: t(y) = y/v exactly; the gradient of t in E = v² matches central differences everywhere."""
+    from controllers.junction.qp import _Kinematics
+
+    bp = np.array([0.0, 15.0, 40.0, 60.0])
+    k = _Kinematics(bp, np.full(4, 100.0))
+    t, _, _, ey, _ = k.at(np.array([0.0, 7.5, 40.0, 59.0, 90.0]))
+    assert np.allclose(t, np.array([0.0, 7.5, 40.0, 59.0, 90.0]) / 10.0)
+    assert np.allclose(ey, 100.0)
+    E = np.array([100.0, 64.0, 90.0, 49.0])
+    ys = np.array([5.0, 15.0, 33.0, 60.0, 75.0])
+    # the full gradient: local rows (t at the segment start + the run inside) chained through the breakpoint times
+    kin = _Kinematics(bp, E)
+    _, Jt, JE, _, _ = kin.at(ys)
+    _, al, be = kin.segment_rows()
+    G = np.zeros((bp.size, bp.size))  # d t_bp / dE
+    for j in range(bp.size - 1):
+        G[j + 1] = G[j]
+        G[j + 1, j] += al[j]
+        G[j + 1, j + 1] += be[j]
+    grad = JE + Jt @ G
+    h = 1e-5
+    for i in range(bp.size):
+        Ep, Em = E.copy(), E.copy()
+        Ep[i] += h
+        Em[i] -= h
+        fd = (_Kinematics(bp, Ep).at(ys)[0] - _Kinematics(bp, Em).at(ys)[0]) / (2 * h)
+        assert np.allclose(grad[:, i], fd, atol=1e-7)
+
+
+def _corrected_table3(sc: int):
+    from controllers.junction.qp import InterlockingModel, QpOrderParams
+    from controllers.junction.simulate import table3_scenario
+
+    params = sumo_corrected_params(switch_speed_margin_mps=0.3)
+    il = InterlockingModel(release_after_m=40.0, throw_s=10.0, grant_before_m=17.0, brake_decel_mps2=0.96)
+    trains, layout = table3_scenario(sc)
+    return trains, layout, params, QpOrderParams(zone_m=30.0, interlocking=il)
+
+
+@pytest.mark.parametrize("sc", [1, 3])
+def test_table3_under_the_corrected_model_couples_and_keeps_guard_and_interlocking_in_simulation(sc):
+    """The model SUMO flies (t_ls 21.6 s, 20 m trains, the RBD guard, the engine's interlocking rule): the plan is
+    feasible, and an independent time-stepped run of it (Δt = 0.05 s) couples at F, keeps the turnout limit over
+    the whole zone, never lets a follower inside the guard's spacing and never needs a switch before the
+    interlocking could have released and thrown it."""
+    trains, layout, params, qp = _corrected_table3(sc)
+    p = plan(trains, (), layout, params, method="qp_order", qp=qp)
+    assert p.feasible, p.violations
+    problem = build_problem(trains, (), layout, params)
+    t, s, v = simulate_plan(problem, _x(problem, p), dt_s=0.05)
+    out = measure(problem, t, s, v)
+    assert out.coupled_at_F, out
+    assert out.switch_speed_excess_mps <= 1e-6 and out.headway_shortfall_s <= 1e-6
+    il = qp.interlocking
+    L = params.pred_length_m
+    for k, tr in enumerate(problem.trains):
+        for sw in tr.switches:  # the turnout limit from the switch point until the rear has cleared the turnout
+            inside = (s[:, k] >= sw.distance_m) & (s[:, k] <= sw.distance_m + qp.zone_m)
+            assert np.all(v[inside, k] <= params.limit_speed_mps(sw.leg) - 0.3 + 0.05)
+    idx = {tid: i for i, tid in enumerate(tr.train_id for tr in problem.trains)}
+    order = [idx[tid] for tid in p.order]
+    s_tilde = s - problem.merge_distance_m[None, :]
+    for a, b in zip(order, order[1:]):  # the guard on shared track (both past the merge switch)
+        both = (s_tilde[:, a] >= 0.0) & (s_tilde[:, b] >= 0.0) & (t <= out.coupling_time_s)
+        gap = s_tilde[both, a] - s_tilde[both, b] - L
+        acc = np.gradient(v[:, b], t)[both]
+        need = relative_braking_distance_m(v[both, b], v[both, a], 1.5, 1.5, 0.2, acc, 10.0)
+        assert np.all(gap >= need - 0.5), float(np.min(gap - need))
+    for sid in ("sw1", "sw2"):  # interlocking: release behind the leader, throw, grant before the braking point
+        users = [k for k in order if any(sw.switch_id == sid for sw in problem.trains[k].switches)]
+        for a, b in zip(users, users[1:]):
+            xa = next(sw for sw in problem.trains[a].switches if sw.switch_id == sid)
+            xb = next(sw for sw in problem.trains[b].switches if sw.switch_id == sid)
+            if xa.leg == xb.leg:
+                continue
+            t_rel = float(np.interp(xa.distance_m + il.release_after_m, s[:, a], t))
+            brake_at = xb.distance_m - il.grant_before_m - v[:, b] ** 2 / (2.0 * il.brake_decel_mps2)
+            t_brake = float(t[np.argmax(s[:, b] >= brake_at)])
+            assert t_brake >= t_rel + il.throw_s, (sid, t_brake, t_rel)
+
+
+def test_replan_from_the_previous_plan_keeps_its_order_and_stays_feasible():
+    trains, layout, params, qp = _corrected_table3(1)
+    first = plan(trains, (), layout, params, method="qp_order", qp=qp)
+    problem = build_problem(trains, (), layout, params)
+    t, s, v = simulate_plan(problem, _x(problem, first), dt_s=0.1, horizon_s=4.0)
+    moved = [
+        TrainState(tr.train_id, tr.track, tr.distance_to_switch_m - float(s[-1, k]), float(v[-1, k]))
+        for k, tr in enumerate(trains)
+    ]
+    again = replan(first, moved, (), layout, params, method="qp_order", qp=qp)
+    assert again.feasible, again.violations
+    assert again.order == first.order
+    assert abs((again.coupling_time_s + 4.0) - first.coupling_time_s) < 3.0  # the same plan, seen 4 s later

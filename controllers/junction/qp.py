@@ -1,53 +1,57 @@
-"""``qp_order``: a deterministic junction planner — enumerate the passing orders, solve each as a convex QP (OSQP).
+"""``qp_order``: a deterministic junction planner — enumerate the passing orders, solve each by sequential convex QPs.
 
 Why (issue 18). The improved PSO searches accelerations over distance segments and lets the passing order emerge.
-With the constraints SUMO really imposes — a 21.6 s switch interval and the coupled follower's
-relative-braking-distance guard (:func:`controllers.braking.relative_braking_distance_m`) — its swarm rarely finds
-a feasible plan. Spec 004 §6 #27 suggests the alternative used here: the order is a discrete choice (n! ≤ 24
-for n ≤ 4), and *for a fixed order* what is left is nearly convex.
+With the constraints SUMO really imposes — a switch interval of ~21.6 s, an interlocking that frees a switch only
+behind the leader's rear, and the coupled follower's relative-braking-distance guard
+(:func:`controllers.braking.relative_braking_distance_m`) — its swarm rarely finds a feasible plan. Spec 004
+§6 #27 suggests the alternative used here: the order is a discrete choice (n! ≤ 24 for n ≤ 4), and *for a fixed
+order* what is left is a smooth problem that sequential convex programming solves reliably.
 
-Model for one order (time domain, fixed grid ``Δt = step_s``)
-    Per train ``k`` the decision is a piecewise-constant acceleration ``u_k[i]`` on ``[iΔt, (i+1)Δt)``; position and
-    speed along its own path are QP variables tied by the exact double-integrator equalities
-    ``v[i+1] = v[i] + u[i]Δt``, ``s[i+1] = s[i] + v[i]Δt + u[i]Δt²/2`` (spec Eqs. 9–10, 14–15). Hard: Eq. 36
-    (``a_min ≤ u ≤ a_max``), Eq. 38 (``v_eps ≤ v ≤ v_max``) and a comfort jerk bound ``|u[i+1] − u[i]| ≤ J·Δt``.
-    The horizon ends at the **coupling instant** ``N·Δt``: from then on every train holds its speed (segment H).
+Variables: kinetic energy per unit mass over distance
+    The plan's own encoding is one constant acceleration per distance segment (:mod:`.model`). With
+    ``E = v²`` at the segment boundaries, ``a_j = (E_{j+1} − E_j)/(2ℓ_j)`` — so the decision variables here are
+    the ``E_k[j]`` of every train ``k`` at every breakpoint ``j`` of its grid, and the plan handed back is the
+    *exact* acceleration vector of the model: no conversion between grids, no loss. In these variables
 
-    Soft (each group ``g`` gets one slack ``σ_g ≥ 0`` priced ``slack_weight`` per unit, so a QP always solves and
-    an impossible input ends as ``feasible=False`` with violations, never as an exception):
+    * the acceleration bounds (Eq. 36), the speed bounds (Eq. 38) and the turnout speed limits (Eq. 37, held from
+      the switch point over ``zone_m`` — the turnout plus the train's length, as the ATO enforces it) are
+      **linear** and hard;
+    * the speed at any point is linear (``v²`` is linear in distance inside a segment);
+    * the time to reach a point, ``t(y) = Σ 2ℓ_j/(√E_j + √E_{j+1})``, is a **convex** function of ``E`` — the only
+      non-linear ingredient, together with the guard's ``v_f²``.
 
-    * Eq. 37, switch speed: the speed at the grid points around the switch passage ≤ leg limit − margin;
-    * Eq. 39, switch interval: consecutive trains of the order at each switch pass ``t_ls`` apart (legs differ) or
-      ``min_time_gap_s`` (same leg), plus the switch's own lock/throw state for the first one;
-    * the guard: for every pair on shared track, from the leader's passage of their first common switch on,
-      ``s̃_lead − s̃_fol − L ≥ RBD(v_fol, u_fol, v_lead) + rbd_margin_m`` at every grid point;
-    * Eqs. 2–3 at the coupling instant: each follower at its slot ``S_m`` behind its predecessor (``S_m`` of Eq. 1,
-      linear in the speeds when the closing speed is ≥ 0, which the speed-equality band guarantees), speeds equal
-      within ``coupling_speed_tol_mps``, and the leader not yet past F (``T_c`` ≥ the coupling instant).
+Constraints of one order ``π`` (each soft, ``c(E) ≥ 0`` with one slack priced ``slack_weight`` per unit, so every
+QP solves and an impossible input ends as ``feasible=False`` with named violations, never an exception)
 
-    Passage times are the only non-convex part: ``t_k(x) ≈ τ̄ − (s_k(τ̄) − x)/v̄`` linearised at the previous
-    iterate's passage ``τ̄`` (``s_k(τ̄)`` is linear in the variables), and the guard's RBD is linearised in
-    ``(v_fol, u_fol, v_lead)``. Sequential convex programming re-linearises at each solution until the passage
-    times move less than ``converge_s``.
+    * switch interval (Eq. 39, the model's ``t_ls``): consecutive trains of ``π`` at a switch, legs differing:
+      ``t_f(x_f) − t_l(x_l) ≥ t_ls + headway_margin_s``; the switch's own lock/throw state for the first one;
+    * the **interlocking as the engine runs it** (optional, :class:`InterlockingModel`): the leader's front must
+      have run ``release_after_m`` past its switch point (turnout + its length + clearance: the lock is released),
+      and the throw done, before the follower reaches the point where its ATO would start braking for the end of
+      its movement authority (``grant_before_m`` plus its braking distance ``v²/(2 b)`` before its switch point);
+      a leader that crawls after the switch releases late — the fixed ``t_ls`` does not see that, this does;
+    * the guard: for every pair on shared track (leader earlier in ``π``), at every follower breakpoint and
+      segment midpoint on the shared track, the leader's front must already be ``L + RBD(v_f, a_f, v_l) +
+      rbd_margin_m`` ahead: ``t_l(s̃_f + L + RBD) ≤ t_f(s̃_f)``;
+    * Eqs. 2–3 at the coupling instant ``T_c = t_lead(F)``: follower ``r`` of ``π`` reaches its slot (``r`` margins
+      ``S_m`` behind F) within ``coupling_gap_tol_m`` of ``T_c`` and at the leader's speed within
+      ``coupling_speed_tol_mps``; from its slot on it holds that speed (segment H).
 
-Objective (the game's cost, spec §2.6): ``f_c = Σ_k [λ4(t_1k + t_2k) + λ2·2D/(v_k − V_δ)] + pair terms``.
-    ``t_1k + t_2k = T_c`` for every train and ``T_c = NΔt + (d_F − s_lead[N])/v_lead[N]``: the QP minimises
-    ``nλ4·T_c`` linearised plus ``λ2·2D/(v_k[N] − V_δ)`` by its second-order expansion (convex), plus small
-    penalties on ``u`` and ``Δu`` (smoothness). The pair terms are held at their minimum by the constraints.
+Objective (the game's cost, spec §2.6): ``n λ4 T_c + n λ2 · 2D/(v_c − V_δ)`` (every train's ``t_1k + t_2k = T_c``;
+``v_c`` the leader's speed at F), plus small penalties on accelerations and their changes (comfort), plus the
+slacks. The pair terms of ``f_c`` are held near their minimum by the coupling constraints.
 
-Coupling instant. Feasibility is (nearly) monotone in ``N`` and the cost falls with ``N`` while the leader still
-has ≥ Δt to run to F at ``N``; the search starts from a guess (the warm start's, else a kinematic one), steps
-up until feasible, then jumps by the leader's remaining time until it is < Δt.
+Sequential convex programming: at the iterate ``Ē`` every time is linearised (value and gradient are exact,
+:func:`_times_at`), the guard's ``RBD`` too, the ``Γ2`` term by its second-order expansion; the QP (OSQP) is
+solved inside a trust region ``|E − Ē| ≤ Δ``; the step is accepted when the exact merit (objective + slack price ×
+violation) falls, and ``Δ`` grows or shrinks (a classical ℓ1 trust-region SQP). The first iterate of an order is a
+timetable (:func:`_timetable_E`); a re-plan starts from the previous plan shifted by the distance run (warm start)
+and only re-enumerates the orders when that order has become infeasible.
 
-Orders. All ``n!`` passing orders at the merge switch (only the frozen one when ``problem.frozen_order`` is set),
-visited by a kinematic lower bound on ``f_c`` (earliest passages chained by the switch intervals) and skipped once
-the bound exceeds the best verified cost. Every QP result is converted to the distance-segment encoding of
-:mod:`.model` (``a_j = (v_{j+1}² − v_j²)/(2ℓ_j)`` through the QP's speeds at the breakpoints — exact in speed at
-every breakpoint) and **verified with** :func:`controllers.junction.model.rollout`: a plan is feasible only if the
-planner's own model, guard included, says so. The best order is the feasible one with the least rolled-out
-``f_c`` (else the least violation); Shapley shares come from :func:`.planner.decode` as for the other methods.
-
-Everything is deterministic (no random numbers; OSQP is deterministic for fixed data).
+Orders are visited by a kinematic lower bound on ``f_c`` (:func:`order_lower_bound`) and skipped once the bound
+exceeds the best verified cost. Every result is **verified with** :func:`controllers.junction.model.rollout` (and,
+when given, the exact interlocking rule): a plan is feasible only if the planner's own model says so. Everything is
+deterministic (no random numbers; OSQP is deterministic for fixed data).
 """
 
 from __future__ import annotations
@@ -55,59 +59,86 @@ from __future__ import annotations
 import itertools
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 import osqp
 import scipy.sparse as sp
 
-from controllers.braking import require
+from controllers.braking import relative_braking_distance_m, require
 from controllers.junction.model import Problem, rollout, safety_margin_m
+
+
+E_SCALE = 100.0  # m²/s²: E = v² enters the QP as E / E_SCALE (conditioning)
+T_SCALE = 10.0  # s: breakpoint times enter the QP as t / T_SCALE
+
+
+@dataclass(frozen=True)
+class InterlockingModel:
+    """The engine's switch rule, in the planner's distances (see the module docstring).
+
+    ``release_after_m``: distance the leader's front runs past its (planner) switch point until the lock is
+    released (turnout + train length + clearance). ``throw_s``: the throw that follows. ``grant_before_m``: the
+    follower must hold its lock when its front is this far before its switch point *plus* its braking distance
+    ``v²/(2·brake_decel_mps2)`` (the ATO's end-of-authority braking point).
+    """
+
+    release_after_m: float
+    throw_s: float
+    grant_before_m: float
+    brake_decel_mps2: float
+
+    def __post_init__(self) -> None:
+        for name in ("release_after_m", "throw_s", "grant_before_m"):
+            require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
+        require("brake_decel_mps2", self.brake_decel_mps2 > 0.0, "a number > 0", self.brake_decel_mps2)
 
 
 @dataclass(frozen=True)
 class QpOrderParams:
     """Settings of :func:`solve_qp_order` (units in the names)."""
 
-    step_s: float = 1.0  # Δt of the time grid
-    jerk_max_mps3: float = 1.0  # comfort bound |Δu| ≤ J·Δt
-    speed_floor_mps: float = 3.0  # least planned speed once reachable (see _OrderQP.solve)
-    accel_weight: float = 0.01  # Σ u² (per s of grid)
-    smooth_weight: float = 0.1  # Σ (Δu)²
-    slack_weight: float = 1000  # price of one unit of constraint violation (above every dual: exact)
-    proximal_weight: float = 0.001  # Σ (v − v̄)² on the speeds: damps the SCP step, helps ADMM
-    osqp_eps: float = 1.0e-4  # OSQP's absolute and relative tolerances (the solution is polished)
-    headway_margin_s: float = 0.5  # extra on every switch interval (grid and conversion error)
-    speed_margin_mps: float = 0.1  # below each switch limit
-    rbd_margin_m: float = 2.0  # extra on the guard's spacing (linearisation and conversion error)
-    coupling_speed_tol_mps: float = 0.1  # |Δv| at the coupling instant
+    speed_floor_mps: float = 2.0  # least planned speed (hard, where reachable): a crawl is fragile to track
+    zone_m: float = 0.0  # turnout speed limit held this far past the planner switch point
+    approach_decel_mps2: float = 0.0  # a turnout limit is approached on this braking curve (0: |a_min|)
+    approach_hold_m: float = 0.0  # ... and reached this far before the turnout
+    line_speed_margin_mps: float = 0.0  # planned speeds stay this far below v_max (room for the ATO's cruise law)
+    headway_margin_s: float = 1.0  # extra on every switch interval
+    speed_margin_mps: float = 0.2  # below each switch limit (on top of the model's switch_speed_margin_mps)
+    rbd_margin_m: float = 3.0  # extra on the guard's spacing (linearisation, interior instants)
     coupling_gap_tol_m: float = 1.0  # |D − S_m| at the coupling instant
-    scp_iterations: int = 6  # re-linearisations per coupling instant
-    trust_s: float = 4.0  # a passage time moves at most this much per SCP step (soft)
-    converge_s: float = 0.25  # passage times moving less than this: converged
-    max_probes: int = 10  # coupling instants tried per order
-    lower_probes: int = 2  # earlier coupling instants tried after the first feasible one
-    max_horizon_s: float = 300.0
-    feasibility_tol: float = 1e-3  # total slack below which a QP counts as feasible
+    coupling_speed_tol_mps: float = 0.1  # |Δv| at the coupling instant
+    accel_weight: float = 0.02  # Σ a²·ℓ (comfort)
+    smooth_weight: float = 2.0  # Σ (Δa)² between neighbouring segments (comfort, trackability)
+    slack_weight: float = 100.0  # price of one unit of constraint violation (above every multiplier: exact)
+    prox_weight: float = 0.05  # initial proximal weight on |E − Ē|² (the step control)
+    max_iterations: int = 30  # QP solves per order (the chosen order, a re-plan)
+    replan_iterations: int = 8  # QP solves of a warm-started re-plan (in the previous plan's order)
+    screen_iterations: int = 40  # QP solves per order when all orders are searched (the first plan)
+    feasible_tol: float = 0.02  # soft-constraint violation [s, m/s] small enough to stop (margins absorb it)
+    converge_merit: float = 0.3  # merit improvement (cost units, λ4 = 1 per train-second) below which to stop
+    osqp_eps: float = 1.0e-4
+    interlocking: InterlockingModel | None = None
 
     def __post_init__(self) -> None:
-        for name in ("step_s", "jerk_max_mps3", "max_horizon_s", "trust_s", "converge_s", "feasibility_tol"):
+        for name in ("speed_floor_mps", "prox_weight", "feasible_tol", "converge_merit", "osqp_eps"):
             require(name, getattr(self, name) > 0.0, "a number > 0", getattr(self, name))
         for name in (
-            "speed_floor_mps",
-            "accel_weight",
-            "smooth_weight",
-            "proximal_weight",
-            "osqp_eps",
+            "zone_m",
+            "approach_decel_mps2",
+            "line_speed_margin_mps",
+            "approach_hold_m",
             "headway_margin_s",
             "speed_margin_mps",
             "rbd_margin_m",
-            "coupling_speed_tol_mps",
             "coupling_gap_tol_m",
+            "coupling_speed_tol_mps",
+            "accel_weight",
+            "smooth_weight",
         ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("slack_weight", self.slack_weight > 0.0, "a number > 0", self.slack_weight)
-        for name in ("scp_iterations", "max_probes", "lower_probes"):
+        for name in ("max_iterations", "replan_iterations", "screen_iterations"):
             require(name, int(getattr(self, name)) >= 1, "an integer >= 1", getattr(self, name))
 
 
@@ -118,414 +149,500 @@ class QpOrderResult:
     x: np.ndarray  # distance-segment accelerations (the encoding of .model)
     order: tuple[int, ...]  # passing order at the merge switch (train indices)
     cost: float  # rolled-out f_c
-    violation: float  # rolled-out Σ max(g, 0)
+    violation: float  # rolled-out Σ max(g, 0) plus the interlocking shortfall [s]
     feasible: bool
     iterations: int  # QP solves
     orders_solved: int
     wall_time_s: float
-    coupling_step: int  # N of the chosen plan (coupling instant = N·step_s)
+    violations: dict[str, float] = field(default_factory=dict)  # soft-constraint shortfall per kind (last QP)
 
 
-@dataclass
-class _Traj:
-    """A time-grid trajectory of all trains: positions/speeds (n, N+1), accelerations (n, N)."""
+class _Kinematics:
+    """One train's motion for ``E = v²`` at breakpoints ``bp``: arrival times at any positions and their gradients.
 
-    s: np.ndarray
-    v: np.ndarray
-    u: np.ndarray
+    Inside a segment the acceleration is constant (``v²`` linear in distance); beyond the last breakpoint the train
+    holds its speed; positions before the first breakpoint are clamped to it. The breakpoint times and their
+    gradients (a lower-triangular matrix) are computed once per iterate.
+    """
 
-    @property
-    def steps(self) -> int:
-        return self.u.shape[1]
+    def __init__(self, bp: np.ndarray, E: np.ndarray) -> None:
+        self.bp, self.E = bp, E
+        self.v = v = np.sqrt(E)
+        self.ell = ell = np.diff(bp)
+        vs = v[:-1] + v[1:]
+        self.t_bp = np.concatenate([[0.0], np.cumsum(2.0 * ell / vs)])
 
+    def segment_rows(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Linearised segment times: ``t_{j+1} − t_j ≈ Δt̄_j + α_j (E_j − Ē_j) + β_j (E_{j+1} − Ē_{j+1})``."""
+        vs = self.v[:-1] + self.v[1:]
+        g = -2.0 * self.ell / vs**2
+        return 2.0 * self.ell / vs, g / (2.0 * self.v[:-1]), g / (2.0 * self.v[1:])
 
-def _passage_time(tr: _Traj, k: int, x: float, dt: float) -> float:
-    """Time at which train ``k`` of the grid trajectory reaches ``x`` (exact within a step; constant speed after)."""
-    s, v, u = tr.s[k], tr.v[k], tr.u[k]
-    N = tr.steps
-    if x <= s[0]:
-        return 0.0
-    if x > s[N]:
-        return N * dt + (x - s[N]) / max(v[N], 1e-3)
-    i = min(int(np.searchsorted(s, x, side="right")) - 1, N - 1)
-    d = x - s[i]
-    if abs(u[i]) < 1e-9:
-        return i * dt + d / max(v[i], 1e-3)
-    disc = max(v[i] * v[i] + 2.0 * u[i] * d, 0.0)
-    return i * dt + (math.sqrt(disc) - v[i]) / u[i]
+    def at(self, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """At positions ``ys``: ``(t, dt/dt_bp, dt/dE, E(y), dE(y)/dE)``, gradients as dense rows × len(bp).
 
-
-def _resample(tr: _Traj, N: int, dt: float) -> _Traj:
-    """The same motion on a grid of ``N`` steps: truncated, or extended at constant speed."""
-    M = tr.steps
-    if N <= M:
-        return _Traj(tr.s[:, : N + 1].copy(), tr.v[:, : N + 1].copy(), tr.u[:, :N].copy())
-    extra = np.arange(1, N - M + 1) * dt
-    s = np.concatenate([tr.s, tr.s[:, -1:] + tr.v[:, -1:] * extra[None, :]], axis=1)
-    v = np.concatenate([tr.v, np.repeat(tr.v[:, -1:], N - M, axis=1)], axis=1)
-    u = np.concatenate([tr.u, np.zeros((tr.u.shape[0], N - M))], axis=1)
-    return _Traj(s, v, u)
-
-
-def trajectory_from_profile(problem: Problem, x: np.ndarray, N: int, dt: float) -> _Traj:
-    """Sample the distance-segment plan ``x`` (exact rollout) on a time grid of ``N`` steps (an SCP iterate)."""
-    r = rollout(problem, x[None, :])
-    n = problem.n_trains
-    times = np.arange(N + 1) * dt
-    s = np.empty((n, N + 1))
-    v = np.empty((n, N + 1))
-    for k in range(n):
-        nk = int(problem.n_segments[k])
-        tk = r.time_s[0, k, : nk + 1]
-        vk = np.maximum(r.speed_signed_mps[0, k, : nk + 1], problem.params.min_speed_mps)
-        bp = problem.breakpoints_m[k, : nk + 1]
-        s[k] = np.where(times <= tk[-1], np.interp(times, tk, bp), bp[-1] + vk[-1] * (times - tk[-1]))
-        v[k] = np.interp(times, tk, vk)
-    u = np.clip(np.diff(v, axis=1) / dt, *problem.bounds)
-    return _Traj(s, v, u)
-
-
-class _Rows:
-    """Sparse constraint rows ``l ≤ A·z ≤ u`` collected as COO triplets."""
-
-    def __init__(self) -> None:
-        self.r: list[np.ndarray] = []
-        self.c: list[np.ndarray] = []
-        self.v: list[np.ndarray] = []
-        self.lo: list[float] = []
-        self.hi: list[float] = []
-
-    def add(self, cols: list[int] | np.ndarray, vals: list[float] | np.ndarray, lo: float, hi: float) -> None:
-        row = len(self.lo)
-        cols = np.asarray(cols, dtype=int)
-        self.r.append(np.full(cols.size, row))
-        self.c.append(cols)
-        self.v.append(np.asarray(vals, dtype=float))
-        self.lo.append(lo)
-        self.hi.append(hi)
-
-    def add_block(self, rows_c: np.ndarray, rows_v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
-        """Many rows with the same number of entries: ``rows_c``/``rows_v`` are (R, m)."""
-        R = rows_c.shape[0]
-        base = len(self.lo)
-        self.r.append(np.repeat(np.arange(base, base + R), rows_c.shape[1]))
-        self.c.append(rows_c.ravel().astype(int))
-        self.v.append(rows_v.ravel().astype(float))
-        self.lo.extend(np.broadcast_to(lo, (R,)).tolist())
-        self.hi.extend(np.broadcast_to(hi, (R,)).tolist())
-
-    def matrix(self, n_cols: int) -> tuple[sp.csc_matrix, np.ndarray, np.ndarray]:
-        A = sp.csc_matrix(
-            (np.concatenate(self.v), (np.concatenate(self.r), np.concatenate(self.c))), shape=(len(self.lo), n_cols)
-        )
-        return A, np.array(self.lo), np.array(self.hi)
+        The time at a point is *local*: the time of the segment's start breakpoint (a QP variable) plus the run
+        inside the segment, so every row has at most three entries (a sparse, well-conditioned QP).
+        """
+        bp, E, v, ell = self.bp, self.E, self.v, self.ell
+        nb = bp.size
+        ys = np.clip(np.atleast_1d(np.asarray(ys, dtype=float)), bp[0], None)
+        rows = np.arange(ys.size)
+        beyond = ys >= bp[-1]
+        j = np.clip(np.searchsorted(bp, ys, side="right") - 1, 0, nb - 2)
+        d = np.where(beyond, 0.0, ys - bp[j])
+        w = d / ell[j]
+        ey = (1.0 - w) * E[j] + w * E[j + 1]
+        vy = np.sqrt(np.maximum(ey, 1e-9))
+        t = self.t_bp[j] + 2.0 * d / (v[j] + vy)
+        h = -2.0 * d / (v[j] + vy) ** 2
+        Jt = np.zeros((ys.size, nb))
+        Jt[rows, j] = 1.0
+        JE = np.zeros((ys.size, nb))
+        JE[rows, j] += h * (1.0 / (2.0 * v[j]) + (1.0 - w) / (2.0 * vy))
+        JE[rows, j + 1] += h * w / (2.0 * vy)
+        W = np.zeros((ys.size, nb))
+        W[rows, j] = 1.0 - w
+        W[rows, j + 1] = w
+        if np.any(beyond):
+            db = ys[beyond] - bp[-1]
+            t[beyond] = self.t_bp[-1] + db / v[-1]
+            Jt[beyond] = 0.0
+            Jt[beyond, -1] = 1.0
+            JE[beyond] = 0.0
+            JE[beyond, -1] = -db / (2.0 * E[-1] ** 1.5)
+            ey[beyond] = E[-1]
+            W[beyond] = 0.0
+            W[beyond, -1] = 1.0
+        return t, Jt, JE, ey, W
 
 
-class _OrderQP:
-    """The QP of one passing order: building, solving and re-linearising it (see the module docstring)."""
+class _OrderSCP:
+    """The problem of one passing order in the ``E`` variables: structure, linearisation, SCP (module docstring)."""
 
     def __init__(self, problem: Problem, order: tuple[int, ...], qp: QpOrderParams) -> None:
         self.pb = problem
         self.order = order
         self.qp = qp
-        p = problem.params
-        self.n = problem.n_trains
+        p = self.p = problem.params
+        n = self.n = problem.n_trains
+        self.nb = [int(problem.n_segments[k]) + 1 for k in range(n)]
+        self.bp = [problem.breakpoints_m[k, : self.nb[k]].copy() for k in range(n)]
+        self.off = np.concatenate([[0], np.cumsum(self.nb)]).astype(int)
+        self.nE = int(self.off[-1])
         self.v0 = np.array([tr.initial_speed_mps for tr in problem.trains])
         self.d_F = np.array([tr.distance_to_F_m for tr in problem.trains])
         self.d_m = problem.merge_distance_m
         rank = {k: i for i, k in enumerate(order)}
-        # consecutive users of each switch in the order's sequence, with the interval they need
-        self.switch_pairs: list[tuple[int, float, int, float, float]] = []  # (lead, x_lead, fol, x_fol, need_s)
-        self.switch_first: list[tuple[int, float, float]] = []  # (train, x, ready_s)
-        self.speed_points: list[tuple[int, float, float]] = []  # (train, x, limit)
+        self.lead = order[0]
+        self.margin0_m = float(safety_margin_m(p.normal_speed_mps, p.normal_speed_mps, p))
+        # slot of every follower (own coordinates) and the first breakpoint from which it holds its speed
+        self.slot: dict[int, float] = {}
+        F_tilde = self.d_F[self.lead] - self.d_m[self.lead]
+        for r, k in enumerate(order[1:], start=1):
+            self.slot[k] = float(self.d_m[k] + F_tilde - r * self.margin0_m)
+        # switch pairs: (kind, lead, x_lead, fol, x_fol, need_s); first users with a ready time
+        self.pairs: list[tuple[str, int, float, int, float, float]] = []
+        self.first: list[tuple[int, float, float]] = []
+        self.zone_caps: list[tuple[int, float, float]] = []  # (train, x, limit)
         for sid in problem.switch_ids:
             users = sorted(problem.switch_users[sid].tolist(), key=lambda k: rank[k])
-            info = {}
+            info = {k: next(s for s in problem.trains[k].switches if s.switch_id == sid) for k in users}
             for k in users:
-                sw = next(s for s in problem.trains[k].switches if s.switch_id == sid)
-                info[k] = sw
-                self.speed_points.append((k, sw.distance_m, p.limit_speed_mps(sw.leg) - qp.speed_margin_mps))
+                lim = p.limit_speed_mps(info[k].leg) - p.switch_speed_margin_mps - qp.speed_margin_mps
+                self.zone_caps.append((k, info[k].distance_m, lim))
             for a, b in zip(users, users[1:]):
                 differ = info[a].leg != info[b].leg or p.headway_all_consecutive
                 need = (p.throw_time_s if differ else p.min_time_gap_s) + qp.headway_margin_s
-                self.switch_pairs.append((a, info[a].distance_m, b, info[b].distance_m, need))
+                self.pairs.append(("switch_headway", a, info[a].distance_m, b, info[b].distance_m, need))
+                if differ and qp.interlocking is not None:
+                    self.pairs.append(("interlocking", a, info[a].distance_m, b, info[b].distance_m, 0.0))
             st = problem.switch_states.get(sid)
             if st is not None and users:
-                first = info[users[0]]
-                ready = st.locked_until_s + (p.throw_time_s if first.leg != st.position else 0.0)
+                f0 = info[users[0]]
+                ready = st.locked_until_s + (p.throw_time_s if f0.leg != st.position else 0.0)
                 if ready > 0.0:
-                    self.switch_first.append((users[0], first.distance_m, ready + qp.headway_margin_s))
-        # pairs on shared track (leader = earlier in the order) and the distance of their first common switch
-        self.shared: list[tuple[int, int, float]] = []
-        for i, j, _, _ in problem.shared_pairs:
-            lead, fol = (i, j) if rank[i] < rank[j] else (j, i)
-            common = [
-                s
-                for s in problem.trains[lead].switches
-                if s.switch_id in {t.switch_id for t in problem.trains[fol].switches}
-            ]
-            self.shared.append((lead, fol, common[0].distance_m))
-        v_ref = p.normal_speed_mps
-        self.margin0_m = float(safety_margin_m(v_ref, v_ref, p))  # S_m at equal speeds
-        self.margin_slope_s = float(safety_margin_m(v_ref, v_ref + 1.0, p)) - self.margin0_m  # ∂S_m/∂(v_f − v_l)
+                    self.first.append((users[0], f0.distance_m, ready + qp.headway_margin_s))
+        # guard pairs: (leader, follower, follower positions on shared track)
+        self.guard: list[tuple[int, int, np.ndarray, np.ndarray]] = []
+        for i, j, ii, jj in problem.shared_pairs:
+            lead, fol, jf = (i, j, jj) if rank[i] < rank[j] else (j, i, ii)
+            pts = self.bp[fol][jf]
+            mids = 0.5 * (pts[:-1] + pts[1:])
+            ys = np.concatenate([pts, mids])
+            if fol in self.slot:
+                ys = ys[ys <= self.slot[fol] + 1e-9]
+            seg = np.clip(np.searchsorted(self.bp[fol], ys, side="right") - 1, 0, self.nb[fol] - 2)
+            self.guard.append((lead, fol, ys, seg))
+        self._soft_cache: tuple[bytes, tuple[np.ndarray, np.ndarray, list[str]]] | None = None
+        self.timetable_T_s = math.nan  # the coupling instant of the first iterate (set by _timetable_E)
+        self._build_static()
 
-    # -------------------------------------------------------------- variable layout
-    def _idx(self, N: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        block = 3 * N + 2
-        base = np.arange(self.n)[:, None] * block
-        s = base + np.arange(N + 1)[None, :]
-        v = base + N + 1 + np.arange(N + 1)[None, :]
-        u = base + 2 * N + 2 + np.arange(N)[None, :]
-        return s, v, u
-
-    def _lin_point(
-        self, tr: _Traj, k: int, x: float, N: int, S: np.ndarray, V: np.ndarray, U: np.ndarray
-    ) -> tuple[list[int], list[float], float, float, list[int]]:
-        """Linearised passage time of train ``k`` at ``x``: ``t ≈ Σ c·z + const``; also the grid speeds around it."""
-        dt = self.qp.step_s
-        tau = _passage_time(tr, k, x, dt)
-        if tau < N * dt:
-            i0 = min(int(tau // dt), N - 1)
-            f = tau - i0 * dt
-            vbar = max(tr.v[k, i0] + tr.u[k, i0] * f, 0.3)
-            cols = [S[k, i0], V[k, i0], U[k, i0]]
-            coef = [-1.0 / vbar, -f / vbar, -0.5 * f * f / vbar]
-            speed_idx = [V[k, i0], V[k, i0 + 1]]
-        else:
-            f = tau - N * dt
-            vbar = max(tr.v[k, N], 0.3)
-            cols = [S[k, N], V[k, N]]
-            coef = [-1.0 / vbar, -f / vbar]
-            speed_idx = [V[k, N]]
-        return cols, coef, tau + x / vbar, tau, speed_idx
-
-    def solve(self, tr: _Traj) -> tuple[_Traj, float, float]:
-        """One QP linearised at ``tr`` (N = its steps). Returns the new trajectory, the total slack, the f_c model."""
-        qp, p = self.qp, self.pb.params
-        n, dt, N = self.n, qp.step_s, tr.steps
-        S, V, U = self._idx(N)
-        n_state = n * (3 * N + 2)
-        groups: dict[str, int] = {}
-
-        def slack(name: str) -> int:
-            return n_state + groups.setdefault(name, len(groups))
-
-        rows = _Rows()
-        # dynamics (exact double integrator on the grid) and initial state
-        for k in range(n):
-            i = np.arange(N)
-            rows.add_block(
-                np.stack([V[k, i + 1], V[k, i], U[k, i]], axis=1),
-                np.tile([1.0, -1.0, -dt], (N, 1)),
-                np.zeros(N),
-                np.zeros(N),
-            )
-            rows.add_block(
-                np.stack([S[k, i + 1], S[k, i], V[k, i], U[k, i]], axis=1),
-                np.tile([1.0, -1.0, -dt, -0.5 * dt * dt], (N, 1)),
-                np.zeros(N),
-                np.zeros(N),
-            )
-            rows.add([S[k, 0]], [1.0], 0.0, 0.0)
-            rows.add([V[k, 0]], [1.0], self.v0[k], self.v0[k])
-            # speed floor (reachable from v0 at half the traction bound): a train that must wait does so by running
-            # slowly over a distance, which the distance-segment encoding can represent — not by a dip to a crawl
-            # inside one segment, which it cannot
-            reach = self.v0[k] + 0.5 * p.accel_max_mps2 * dt * np.arange(1, N + 1)
-            floor = np.maximum(np.minimum(qp.speed_floor_mps, reach), p.min_speed_mps + 0.05)
-            rows.add_block(V[k, 1:, None], np.ones((N, 1)), floor, np.full(N, p.line_speed_mps - qp.speed_margin_mps))
-            rows.add_block(U[k, :, None], np.ones((N, 1)), np.full(N, p.accel_min_mps2), np.full(N, p.accel_max_mps2))
-            if N > 1:
-                rows.add_block(
-                    np.stack([U[k, 1:], U[k, :-1]], axis=1),
-                    np.tile([1.0, -1.0], (N - 1, 1)),
-                    np.full(N - 1, -qp.jerk_max_mps3 * dt),
-                    np.full(N - 1, qp.jerk_max_mps3 * dt),
-                )
-        inf = np.inf
-        # Eq. 37: speed at the switch passage
-        for k, x, lim in self.speed_points:
-            cols, vals, const, tau, sidx = self._lin_point(tr, k, x, N, S, V, U)
-            for c in sidx:
-                rows.add([c, slack("switch_speed")], [-1.0, 1.0], -lim, inf)
-            # trust region: the linearised passage time stays within trust_s of the iterate's
-            g = slack("trust")
-            rows.add(cols + [g], vals + [1.0], tau - qp.trust_s - const, inf)
-            rows.add(cols + [g], [-c for c in vals] + [1.0], -tau - qp.trust_s + const, inf)
-        # Eq. 39: switch intervals between consecutive trains, and the switch's own state
-        for a, xa, b, xb, need in self.switch_pairs:
-            ca, va, consta, _, _ = self._lin_point(tr, a, xa, N, S, V, U)
-            cb, vb, constb, _, _ = self._lin_point(tr, b, xb, N, S, V, U)
-            rows.add(cb + ca + [slack("switch_headway")], vb + [-c for c in va] + [1.0], need - constb + consta, inf)
-        for k, x, ready in self.switch_first:
-            c, vals, const, _, _ = self._lin_point(tr, k, x, N, S, V, U)
-            rows.add(c + [slack("switch_state")], vals + [1.0], ready - const, inf)  # type: ignore[operator]  # `c` is an int earlier in this function
-        # the guard's relative braking distance on shared track (linearised at the iterate)
-        T, b = p.rbd_reaction_s, p.rbd_decel_mps2
-        if T > 0.0:
-            for lead, fol, x_common in self.shared:
-                i_start = min(int(_passage_time(tr, lead, x_common, dt) // dt), N)
-                i = np.arange(i_start, N + 1)
-                if i.size == 0:
+    # ------------------------------------------------------------------ constant parts
+    def _build_static(self) -> None:
+        p, qp = self.p, self.qp
+        rows_r: list[np.ndarray] = []
+        rows_c: list[np.ndarray] = []
+        rows_v: list[np.ndarray] = []
+        lo: list[float] = []
+        hi: list[float] = []
+        P = sp.lil_matrix((self.nE, self.nE))
+        self.lb = np.empty(self.nE)
+        self.ub = np.empty(self.nE)
+        r = 0
+        for k in range(self.n):
+            o, nb, bp = int(self.off[k]), self.nb[k], self.bp[k]
+            ell = np.diff(bp)
+            E0 = self.v0[k] ** 2
+            reach_lo = np.maximum(E0 + 2.0 * p.accel_min_mps2 * bp, 0.0)  # slowest reachable E
+            reach_hi = E0 + 2.0 * p.accel_max_mps2 * bp
+            floor = qp.speed_floor_mps**2
+            lb = np.maximum(np.minimum(floor, reach_hi), p.min_speed_mps**2)
+            ub = np.full(nb, (p.line_speed_mps - qp.line_speed_margin_mps) ** 2)
+            for kk, x, lim in self.zone_caps:
+                if kk != k:
                     continue
-                vf, vl = tr.v[fol, i], tr.v[lead, i]
-                af = np.append(tr.u[fol, i[i < N]], np.zeros(int(np.sum(i == N))))
-                w = vf + af * T
-                need = T * vf + 0.5 * af * T * T + w * w / (2.0 * b) - vl * vl / (2.0 * b) + p.rbd_margin_m
-                d_vf = T + w / b
-                d_af = 0.5 * T * T + T * w / b
-                d_vl = -vl / b
-                # s_l − d_l − s_f + d_f − L − [need + d_vf(v_f − v̄_f) + d_af(u_f − ū_f) + d_vl(v_l − v̄_l)] + σ ≥ extra
-                lo = (
-                    qp.rbd_margin_m
-                    + p.pred_length_m
-                    + self.d_m[lead]
-                    - self.d_m[fol]
-                    + need
-                    - d_vf * vf
-                    - d_af * af
-                    - d_vl * vl
-                )
-                u_cols = np.where(i < N, U[fol, np.minimum(i, N - 1)], S[fol, i])  # placeholder where no u
-                u_vals = np.where(i < N, -d_af, 0.0)
-                g = slack("relative_braking")
-                rows.add_block(
-                    np.stack([S[lead, i], S[fol, i], V[fol, i], V[lead, i], u_cols, np.full(i.size, g)], axis=1),
-                    np.stack([np.ones(i.size), -np.ones(i.size), -d_vf, -d_vl, u_vals, np.ones(i.size)], axis=1),
-                    lo,
-                    np.full(i.size, inf),
-                )
-        # Eqs. 2-3 at the coupling instant N; the leader is not yet past F
-        lead0 = self.order[0]
-        rows.add([S[lead0, N], slack("coupling_gap")], [-1.0, 1.0], -self.d_F[lead0], inf)
-        tol_v, tol_d = qp.coupling_speed_tol_mps, qp.coupling_gap_tol_m
-        for a, f in zip(self.order, self.order[1:]):
-            g = slack("coupling_speed")
-            rows.add([V[a, N], V[f, N], g], [1.0, -1.0, 1.0], -tol_v, inf)
-            rows.add([V[a, N], V[f, N], g], [-1.0, 1.0, 1.0], -tol_v, inf)
-            # D − S_m = (s_a − d_a) − (s_f − d_f) − margin0 − slope·(v_f − v_a)
-            g = slack("coupling_gap")
-            base = self.d_m[a] - self.d_m[f] + self.margin0_m
-            cols = [S[a, N], S[f, N], V[f, N], V[a, N], g]
-            rows.add(cols, [1.0, -1.0, -self.margin_slope_s, self.margin_slope_s, 1.0], base - tol_d, inf)
-            rows.add(cols, [-1.0, 1.0, self.margin_slope_s, -self.margin_slope_s, 1.0], -base - tol_d, inf)
-        n_var = n_state + len(groups)
-        for gi in range(len(groups)):
-            rows.add([n_state + gi], [1.0], 0.0, inf)
-        A, lo, hi = rows.matrix(n_var)
-        # objective: f_c model (linearised T_c, 2nd-order Γ2) + smoothness + slack prices
-        Pd = np.zeros(n_var)
-        q = np.zeros(n_var)
-        off_r: list[int] = []
-        off_c: list[int] = []
-        off_v: list[float] = []
-        for k in range(n):
-            Pd[U[k]] += 2.0 * qp.accel_weight * dt
-            if N > 1:
-                Pd[U[k, 1:]] += 2.0 * qp.smooth_weight
-                Pd[U[k, :-1]] += 2.0 * qp.smooth_weight
-                off_r += U[k, :-1].tolist()
-                off_c += U[k, 1:].tolist()
-                off_v += [-2.0 * qp.smooth_weight] * (N - 1)
-        c2 = p.weight_speed * 2.0 * p.braking_distance_m
-        for k in range(n):
-            vb = max(tr.v[k, N] - p.speed_error_mps, 0.3)
-            g1, g2 = -c2 / vb**2, 2.0 * c2 / vb**3  # type: ignore[operator]  # vb is a float here
-            Pd[V[k, N]] += g2
-            q[V[k, N]] += g1 - g2 * tr.v[k, N]
-        vl = max(tr.v[lead0, N], 0.3)
-        wt = n * p.weight_time
-        q[S[lead0, N]] += -wt / vl
-        q[V[lead0, N]] += -wt * (self.d_F[lead0] - tr.s[lead0, N]) / vl**2
-        q[n_state:] = qp.slack_weight
-        mu = 2.0 * qp.proximal_weight
-        Pd[V.ravel()] += mu
-        q[V.ravel()] -= mu * tr.v.ravel()
+                inside = (bp >= x - 1e-9) & (bp <= x + qp.zone_m + 1e-9)
+                after = np.nonzero(bp > x + qp.zone_m + 1e-9)[0]
+                if after.size:
+                    inside[after[0]] = True
+                ub = np.where(inside, np.minimum(ub, lim * lim), ub)
+                # approached on a braking curve gentler than the ATO's, at the limit speed for the last
+                # approach_hold_m (the ATO's speed law lags its own curve: a plan braking on it would be capped)
+                b_app = qp.approach_decel_mps2 if qp.approach_decel_mps2 > 0.0 else abs(p.accel_min_mps2)
+                x_hold = x - qp.approach_hold_m
+                curve = lim * lim + 2.0 * b_app * np.maximum(x_hold - bp, 0.0)
+                ub = np.where(bp < x, np.minimum(ub, curve), ub)
+            ub = np.maximum(ub, reach_lo + 1e-6)
+            lb = np.minimum(lb, ub)
+            lb[0] = ub[0] = E0
+            self.lb[o : o + nb] = lb
+            self.ub[o : o + nb] = ub
+            # acceleration rows: a_min ≤ (E_{j+1} − E_j)/(2ℓ) ≤ a_max
+            m = nb - 1
+            ridx = r + np.arange(m)
+            rows_r += [ridx, ridx]
+            rows_c += [o + np.arange(m), o + 1 + np.arange(m)]
+            rows_v += [-1.0 / (2.0 * ell), 1.0 / (2.0 * ell)]
+            lo += [p.accel_min_mps2] * m
+            hi += [p.accel_max_mps2] * m
+            r += m
+            # a follower holds its speed from its slot's segment on
+            if k in self.slot:
+                j0 = max(int(np.searchsorted(bp, self.slot[k], side="right")) - 1, 1)
+                for j in range(j0, nb - 1):
+                    rows_r.append(np.array([r, r]))
+                    rows_c.append(np.array([o + j, o + j + 1]))
+                    rows_v.append(np.array([1.0, -1.0]))
+                    lo.append(0.0)
+                    hi.append(0.0)
+                    r += 1
+            # comfort: Σ w_a a²ℓ + Σ w_s (Δa)²
+            A = sp.lil_matrix((m, nb))
+            A[np.arange(m), np.arange(m)] = -1.0 / (2.0 * ell)
+            A[np.arange(m), np.arange(m) + 1] = 1.0 / (2.0 * ell)
+            A = A.tocsr()
+            Pk = 2.0 * qp.accel_weight * (A.T @ sp.diags(ell) @ A)
+            if m > 1:
+                D = sp.diags([-1.0, 1.0], [0, 1], shape=(m - 1, m)) @ A
+                Pk = Pk + 2.0 * qp.smooth_weight * (D.T @ D)
+            P[o : o + nb, o : o + nb] = Pk
+        rr, cc, vv = (np.concatenate(rows_r), np.concatenate(rows_c), np.concatenate(rows_v))
+        self.A_lin = sp.csc_matrix((vv, (rr, cc)), shape=(r, self.nE))
+        lin = self.A_lin.tocoo()
+        self._lin_coo = (lin.row, lin.col, lin.data)
+        self.lin_lo = np.array(lo)
+        self.lin_hi = np.array(hi)
+        self.n_lin = r
+        self.P_comfort = P.tocsc()
+        pc = sp.triu(self.P_comfort).tocoo()  # OSQP reads the upper triangle
+        self._comfort_coo = (pc.row, pc.col, pc.data)
+
+    # ------------------------------------------------------------------ exact functions and linearisations
+    def split(self, z: np.ndarray) -> list[np.ndarray]:
+        return [z[self.off[k] : self.off[k + 1]] for k in range(self.n)]
+
+    def soft(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """Soft constraints ``c(z) ≥ 0``: values, Jacobian over ``[E…, t…]`` (m × 2nE) and kind names.
+
+        The last evaluation is cached (the SCP evaluates each accepted iterate twice: merit, then linearisation).
+        """
+        key = z.tobytes()
+        if self._soft_cache is not None and self._soft_cache[0] == key:
+            return self._soft_cache[1]
+        out = self._soft(z)
+        self._soft_cache = (key, out)
+        return out
+
+    def _soft(self, z: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        p, qp = self.p, self.qp
+        Es = self.split(z)
+        kin = [_Kinematics(self.bp[k], Es[k]) for k in range(self.n)]
+        vals: list[float] = []
+        rows: list[np.ndarray] = []
+        kinds: list[str] = []
+
+        nX = 2 * self.nE
+
+        def tat(k: int, ys: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+            """Time at ``ys`` and its row over all QP variables ``[E…, t…]``; E there and its row."""
+            t, Jt, JE, Ey, W = kin[k].at(ys)
+            a, b = self.off[k], self.off[k + 1]
+            Jf = np.zeros((len(ys), nX))
+            Jf[:, a:b] = JE
+            Jf[:, self.nE + a : self.nE + b] = Jt
+            Wf = np.zeros((len(ys), nX))
+            Wf[:, a:b] = W
+            return t, Jf, Ey, Wf
+
+        il = qp.interlocking
+        for kind, a, xa, b, xb, need in self.pairs:
+            if kind == "switch_headway":
+                ta, Ja, _, _ = tat(a, np.array([xa]))
+                tb, Jb, _, _ = tat(b, np.array([xb]))
+                vals.append(float(tb[0] - ta[0] - need))
+                rows.append(Jb[0] - Ja[0])
+            else:
+                assert il is not None
+                ta, Ja, _, _ = tat(a, np.array([xa + il.release_after_m]))
+                _, _, Eb, _ = tat(b, np.array([max(xb - il.grant_before_m, 0.0)]))
+                yb = xb - il.grant_before_m - float(Eb[0]) / (2.0 * il.brake_decel_mps2)
+                if yb < 0.0:  # already inside its braking distance: the lock is granted or out of our hands
+                    vals.append(1.0)
+                    rows.append(np.zeros(nX))
+                else:
+                    tb, Jb, _, _ = tat(b, np.array([yb]))
+                    vals.append(float(tb[0] - ta[0] - il.throw_s - qp.headway_margin_s))
+                    rows.append(Jb[0] - Ja[0])
+            kinds.append(kind)
+        for k, x, ready in self.first:
+            t, J, _, _ = tat(k, np.array([x]))
+            vals.append(float(t[0] - ready))
+            rows.append(J[0])
+            kinds.append("switch_state")
+        # guard
+        T_rbd, b_rbd = p.rbd_reaction_s, p.rbd_decel_mps2
+        if T_rbd > 0.0:
+            for lead, fol, ys, seg in self.guard:
+                tf, Jf, Ef, Wf = tat(fol, ys)
+                Ek = Es[fol]
+                ell = np.diff(self.bp[fol])
+                af = (Ek[seg + 1] - Ek[seg]) / (2.0 * ell[seg])
+                af = np.where(ys >= self.bp[fol][-1] - 1e-9, 0.0, af)
+                vf = np.sqrt(np.maximum(Ef, 1e-9))
+                s_tilde = ys - self.d_m[fol]
+
+                def rbd(vf_: np.ndarray, af_: np.ndarray, vl_: np.ndarray) -> np.ndarray:
+                    return relative_braking_distance_m(vf_, vl_, b_rbd, b_rbd, T_rbd, af_, p.rbd_margin_m)
+
+                # the leader's speed where its front will be: read at the spacing the reference run needs
+                y0 = s_tilde + self.d_m[lead] + p.pred_length_m + qp.rbd_margin_m
+                _, _, El0, _ = tat(lead, y0 + rbd(vf, af, np.zeros_like(vf)))
+                need = rbd(vf, af, np.sqrt(np.maximum(El0, 1e-9)))
+                y = y0 + need
+                tl, Jl, El, Wl = tat(lead, y)
+                vl = np.sqrt(np.maximum(El, 1e-9))
+                h = 1e-4
+                dn_dvf = (rbd(vf + h, af, vl) - rbd(vf - h, af, vl)) / (2 * h)
+                dn_daf = (rbd(vf, af + h, vl) - rbd(vf, af - h, vl)) / (2 * h)
+                dn_dEl = -1.0 / (2.0 * b_rbd)
+                # d need / dz: through v_f (E_f at y), a_f (E_f at the segment ends) and v_l (E_l at y)
+                dneed = (dn_dvf / (2.0 * vf))[:, None] * Wf + dn_dEl * Wl
+                o = self.off[fol]
+                inside = ys < self.bp[fol][-1] - 1e-9
+                cols_a = o + seg
+                rr = np.arange(ys.size)
+                dneed[rr[inside], cols_a[inside]] += -dn_daf[inside] / (2.0 * ell[seg[inside]])
+                dneed[rr[inside], cols_a[inside] + 1] += dn_daf[inside] / (2.0 * ell[seg[inside]])
+                c = tf - tl
+                Jc = Jf - Jl - dneed / vl[:, None]
+                vals += c.tolist()
+                rows += list(Jc)
+                kinds += ["relative_braking"] * ys.size
+        # coupling at T_c = t_lead(F)
+        lead = self.lead
+        tL, JL, EL, WL = tat(lead, np.array([self.d_F[lead]]))
+        vbar = max(math.sqrt(EL[0]), 1.0)
+        tol_t = qp.coupling_gap_tol_m / vbar
+        tol_E = 2.0 * vbar * qp.coupling_speed_tol_mps
+        for k, y in self.slot.items():
+            tk, Jk, Ek, Wk = tat(k, np.array([y]))
+            dt_ = float(tk[0] - tL[0])
+            vals += [tol_t - dt_, tol_t + dt_]
+            rows += [-(Jk[0] - JL[0]), Jk[0] - JL[0]]
+            dE = float(Ek[0] - EL[0])
+            sc = 1.0 / (2.0 * vbar)  # rows in m/s, not m²/s² (conditioning)
+            vals += [sc * (tol_E - dE), sc * (tol_E + dE)]
+            rows += [-sc * (Wk[0] - WL[0]), sc * (Wk[0] - WL[0])]
+            kinds += ["coupling_gap", "coupling_gap", "coupling_speed", "coupling_speed"]
+        return np.array(vals), (np.array(rows) if rows else np.zeros((0, nX))), kinds
+
+    def times(self, z: np.ndarray) -> np.ndarray:
+        """Breakpoint times of every train (the QP's ``t`` variables at their exact values for ``z``)."""
+        return np.concatenate([_Kinematics(self.bp[k], E).t_bp for k, E in enumerate(self.split(z))])
+
+    def objective(self, z: np.ndarray) -> tuple[float, np.ndarray, float]:
+        """Exact ``n λ4 T_c + n λ2 Γ2(v_c)`` + comfort; its gradient over ``[E…, t…]`` (without comfort) and Γ2's
+        curvature in the leader's ``E`` at F (``T_c`` is the leader's last breakpoint time: a QP variable)."""
+        p = self.p
+        lead = self.lead
+        kin = _Kinematics(self.bp[lead], self.split(z)[lead])
+        n = self.n
+        c2 = n * p.weight_speed * 2.0 * p.braking_distance_m
+        iF = self.off[lead + 1] - 1
+        v = math.sqrt(z[iF])
+        den = max(v - p.speed_error_mps, 0.05)
+        d1 = -c2 / den**2  # d/dv
+        d2 = 2.0 * c2 / den**3
+        g = np.zeros(2 * self.nE)
+        g[self.nE + iF] = n * p.weight_time
+        g[iF] = d1 / (2.0 * v)
+        curv = max((d2 - d1 / v) / (4.0 * v * v), 0.0)
+        comfort = float(0.5 * z @ (self.P_comfort @ z))
+        return float(n * p.weight_time * kin.t_bp[-1] + c2 / den + comfort), g, curv
+
+    def merit(self, z: np.ndarray) -> tuple[float, float]:
+        f, _, _ = self.objective(z)
+        c, _, _ = self.soft(z)
+        viol = float(np.sum(np.maximum(-c, 0.0)))
+        return f + self.qp.slack_weight * viol, viol
+
+    # ------------------------------------------------------------------ one QP and the SCP loop
+    def _qp_step(self, z: np.ndarray, prox: float) -> tuple[np.ndarray | None, float]:
+        """Solve the linearised QP at ``z`` with the proximal term ``prox·|E' − E|²``; returns (E', predicted merit).
+
+        Variables ``[E…, t…, σ…]`` (E and t scaled to O(1)): ``t`` at every breakpoint, tied to ``E`` by the
+        linearised segment times, so every constraint row is short. The proximal term is the step control (a
+        Levenberg–Marquardt-style trust region) and makes the QP strongly convex in ``E``.
+        """
+        qp = self.qp
+        nE = self.nE
+        xbar = np.concatenate([z, self.times(z)])
+        c, Jc, _ = self.soft(z)
+        f, g, curv = self.objective(z)
+        m = c.size
+        iF = self.off[self.lead + 1] - 1
+        S, ST = E_SCALE, T_SCALE
+        col = np.concatenate([np.full(nE, S), np.full(nE, ST)])  # x = col · w
+        # every block as COO triplets, one sparse matrix at the end (scipy's block stacking is slow at this size)
+        R: list[np.ndarray] = [self._lin_coo[0]]
+        Cc: list[np.ndarray] = [self._lin_coo[1]]
+        V: list[np.ndarray] = [S * self._lin_coo[2]]
+        r = self.n_lin
+        rhs: list[np.ndarray] = []
+        # linearised segment times: t_{j+1} − t_j − α E_j − β E_{j+1} = Δt̄ − α Ē_j − β Ē_{j+1}; t_0 = 0
+        r_t0 = r
+        for k, E in enumerate(self.split(z)):
+            dt, al, be = _Kinematics(self.bp[k], E).segment_rows()
+            o = self.off[k]
+            ms = dt.size
+            idx = np.arange(ms)
+            ri = r + 1 + idx
+            R += [np.array([r]), ri, ri, ri, ri]
+            Cc += [np.array([nE + o]), nE + o + idx + 1, nE + o + idx, o + idx, o + idx + 1]
+            V += [np.array([ST]), np.full(ms, ST), np.full(ms, -ST), -S * al, -S * be]
+            rhs += [np.array([0.0]), dt - al * E[:-1] - be * E[1:]]
+            r += ms + 1
+        b_t = np.concatenate(rhs)
+        n_t = r - r_t0
+        # soft rows: c + Jc (x' − x̄) + σ ≥ 0
+        ii, jj = np.nonzero(Jc)
+        R += [r + ii, r + np.arange(m)]
+        Cc += [jj, 2 * nE + np.arange(m)]
+        V += [Jc[ii, jj] * col[jj], np.ones(m)]
+        r += m
+        # boxes: E and slacks
+        R += [r + np.arange(nE), r + nE + np.arange(m)]
+        Cc += [np.arange(nE), 2 * nE + np.arange(m)]
+        V += [np.ones(nE), np.ones(m)]
+        r += nE + m
+        nv = 2 * nE + m
+        A = sp.csc_matrix((np.concatenate(V), (np.concatenate(R), np.concatenate(Cc))), shape=(r, nv))
+        lo = np.concatenate([self.lin_lo, b_t, -c + Jc @ xbar, self.lb / S, np.zeros(m)])
+        hi = np.concatenate([self.lin_hi, b_t, np.full(m, np.inf), self.ub / S, np.full(m, np.inf)])
+        assert lo.size == r and n_t == b_t.size
+        # ½ x'ᵀ(P_comfort + curv·e_F e_Fᵀ + 2·prox·I) x' + (g − curv·x̄_F e_F − 2·prox·Ē)ᵀ x' + μ Σ σ + ½ ε Σ σ²
+        pr, pc, pv = self._comfort_coo
         P = sp.csc_matrix(
             (
-                np.concatenate([Pd, off_v]),
-                (np.concatenate([np.arange(n_var), off_r]), np.concatenate([np.arange(n_var), off_c])),
+                np.concatenate([S * S * pv, np.full(nE, S * S * 2.0 * prox), [S * S * curv], np.full(m, 1e-3)]),
+                (
+                    np.concatenate([pr, np.arange(nE), [iF], 2 * nE + np.arange(m)]),
+                    np.concatenate([pc, np.arange(nE), [iF], 2 * nE + np.arange(m)]),
+                ),
             ),
-            shape=(n_var, n_var),
+            shape=(nv, nv),
         )
+        qx = g.copy()
+        qx[:nE] -= 2.0 * prox * z
+        qx[iF] -= curv * z[iF]
+        q = np.concatenate([col * qx, np.full(m, qp.slack_weight)])
         solver = osqp.OSQP()
         solver.setup(
-            P,
-            q,
-            A,
-            lo,
-            hi,
-            verbose=False,
-            eps_abs=qp.osqp_eps,
-            eps_rel=qp.osqp_eps,
-            max_iter=4000,
-            polishing=True,
-            scaling=10,
+            P, q, A, lo, hi, verbose=False, eps_abs=qp.osqp_eps, eps_rel=qp.osqp_eps, max_iter=4000, polishing=True
         )
-        z = np.empty(n_var)
-        z[S.ravel()] = tr.s.ravel()
-        z[V.ravel()] = tr.v.ravel()
-        z[U.ravel()] = tr.u.ravel()
-        z[n_state:] = 0.0
-        solver.warm_start(x=z)
+        solver.warm_start(x=np.concatenate([xbar / col, np.maximum(-c, 0.0)]))
         res = solver.solve(raise_error=False)
         if res.x is None or not np.all(np.isfinite(res.x)):
-            return tr, math.inf, math.inf
-        zx = res.x
-        new = _Traj(zx[S], zx[V], np.clip(zx[U], p.accel_min_mps2, p.accel_max_mps2))
-        real = [n_state + gi for name, gi in groups.items() if name != "trust"]
-        total_slack = float(np.sum(np.maximum(zx[real], 0.0)))
-        v_c = float(np.mean(new.v[:, N]))
-        T_c = N * dt + max(self.d_F[lead0] - new.s[lead0, N], 0.0) / max(new.v[lead0, N], 0.1)
-        model_cost = n * p.weight_time * T_c + sum(c2 / max(new.v[k, N] - p.speed_error_mps, 0.1) for k in range(n))
-        del v_c
-        return new, total_slack, model_cost
+            return None, math.inf
+        xn = col * res.x[: 2 * nE]
+        zn = np.clip(xn[:nE], self.lb, self.ub)
+        d = xn - xbar
+        pred = (
+            f + float(g @ d) + 0.5 * curv * d[iF] ** 2 + qp.slack_weight * float(np.sum(np.maximum(-(c + Jc @ d), 0.0)))
+        )
+        pred += float(0.5 * zn @ (self.P_comfort @ zn) - 0.5 * z @ (self.P_comfort @ z))
+        return zn, pred
 
-    def passages(self, tr: _Traj) -> np.ndarray:
-        dt = self.qp.step_s
-        pts = [x for _, x, _ in self.speed_points]
-        ks = [k for k, _, _ in self.speed_points]
-        return np.array([_passage_time(tr, k, x, dt) for k, x in zip(ks, pts)])
+    def scp(self, z: np.ndarray, max_iterations: int) -> tuple[np.ndarray, int]:
+        """Proximal SCP from ``z``; returns (last accepted iterate, QP solves).
 
-    def scp(self, tr: _Traj) -> tuple[_Traj, float, bool, int]:
-        """Re-linearise and solve until the passage times settle.
-
-        Returns (trajectory, total slack of the last QP, converged, QP solves)."""
-        before = self.passages(tr)
-        slack, solves, converged = math.inf, 0, False
-        for _ in range(self.qp.scp_iterations):
-            tr, slack, _cost = self.solve(tr)
+        A step is accepted when the exact merit falls by at least a tenth of the QP's prediction; the proximal
+        weight then falls (longer steps), else it rises. The loop ends when an accepted iterate violates the soft
+        constraints by less than ``feasible_tol`` (their margins absorb that) and improved the merit by less than
+        ``converge_merit`` — or after ``max_iterations`` QPs.
+        """
+        qp = self.qp
+        prox = qp.prox_weight
+        phi, viol = self.merit(z)
+        solves = 0
+        for _ in range(max_iterations):
+            zn, pred = self._qp_step(z, prox)
             solves += 1
-            if not math.isfinite(slack):
-                break
-            after = self.passages(tr)
-            converged = bool(np.max(np.abs(after - before)) < self.qp.converge_s)
-            if converged:
-                break
-            before = after
-        return tr, slack, converged, solves
+            if zn is None:
+                prox *= 4.0
+                continue
+            phi_n, viol_n = self.merit(zn)
+            predicted = phi - pred
+            actual = phi - phi_n
+            if actual > 0.0 and (predicted <= 1e-12 or actual >= 0.1 * predicted):
+                z, phi, viol = zn, phi_n, viol_n
+                if actual >= 0.25 * predicted:
+                    prox = max(prox * 0.3, 1e-7)
+                if viol <= qp.feasible_tol and actual < qp.converge_merit:
+                    break
+            else:
+                if viol <= qp.feasible_tol and predicted < qp.converge_merit:
+                    break
+                prox *= 4.0
+        return z, solves
 
+    # ------------------------------------------------------------------ conversions
+    def to_x(self, z: np.ndarray) -> np.ndarray:
+        x = np.empty(self.pb.dimension)
+        for k, E in enumerate(self.split(z)):
+            a = np.diff(E) / (2.0 * np.diff(self.bp[k]))
+            x[self.pb.dim_slices[k]] = np.clip(a, *self.pb.bounds)
+        return x
 
-def profile_from_trajectory(problem: Problem, tr: _Traj, dt: float) -> np.ndarray:
-    """Distance-segment accelerations through the trajectory's speeds at every breakpoint (exact in speed there).
-
-    Beyond the grid's end the trains hold their last speed (the coupled running after the coupling instant).
-    """
-    x = np.empty(problem.dimension)
-    v_min = problem.params.min_speed_mps
-    for k in range(problem.n_trains):
-        nk = int(problem.n_segments[k])
-        bp = problem.breakpoints_m[k, : nk + 1]
-        s, v, u = tr.s[k], tr.v[k], tr.u[k]
-        N = tr.steps
-        i = np.clip(np.searchsorted(s, bp, side="right") - 1, 0, N - 1)
-        d = bp - s[i]
-        v2 = np.where(bp > s[N], v[N] ** 2, v[i] ** 2 + 2.0 * u[i] * d)
-        v2[0] = problem.trains[k].initial_speed_mps ** 2
-        v2 = np.maximum(v2, v_min**2)
-        acc = np.diff(v2) / (2.0 * np.diff(bp))
-        x[problem.dim_slices[k]] = np.clip(acc, *problem.bounds)
-    return x
+    def from_x(self, x: np.ndarray) -> np.ndarray:
+        z = np.empty(self.nE)
+        for k in range(self.n):
+            a = x[self.pb.dim_slices[k]]
+            E = self.v0[k] ** 2 + np.concatenate([[0.0], np.cumsum(2.0 * a * np.diff(self.bp[k]))])
+            lo, hi = self.lb[self.off[k] : self.off[k + 1]], self.ub[self.off[k] : self.off[k + 1]]
+            z[self.off[k] : self.off[k + 1]] = np.clip(E, lo, hi)
+        return z
 
 
 def order_lower_bound(problem: Problem, order: tuple[int, ...]) -> float:
@@ -539,11 +656,9 @@ def order_lower_bound(problem: Problem, order: tuple[int, ...]) -> float:
         v0, vm, a = tr.initial_speed_mps, p.line_speed_mps, p.accel_max_mps2
         d_acc = (vm * vm - v0 * v0) / (2.0 * a)
         earliest.append((vm - v0) / a + (d - d_acc) / vm if d >= d_acc else (math.sqrt(v0 * v0 + 2.0 * a * d) - v0) / a)
-    legs = {k: next(s.leg for s in problem.trains[k].switches if s.switch_id == ms) for k in order}
     t = earliest[order[0]]
     for a, b in zip(order, order[1:]):
-        need = p.throw_time_s if (legs[a] != legs[b] or p.headway_all_consecutive) else p.min_time_gap_s
-        t = max(earliest[b], t + need)
+        t = max(earliest[b], t + _interval(problem, a, b))
     last = order[-1]
     run = problem.trains[last].distance_to_F_m - problem.merge_distance_m[last]
     slot = (len(order) - 1) * float(safety_margin_m(p.line_speed_mps, p.line_speed_mps, p))
@@ -554,157 +669,222 @@ def order_lower_bound(problem: Problem, order: tuple[int, ...]) -> float:
     )
 
 
-def _timetable_iterate(problem: Problem, order: tuple[int, ...], dt: float) -> tuple[_Traj, int]:
-    """First linearisation point for ``order`` and a coupling-instant guess.
+def _respects_locks(problem: Problem, order: tuple[int, ...]) -> bool:
+    """True unless a planned train holding a granted lock on a switch would pass it after another user of it."""
+    ids = [tr.train_id for tr in problem.trains]
+    rank = {k: i for i, k in enumerate(order)}
+    for sid, st in problem.switch_states.items():
+        if st.locked_for is None or st.locked_for not in ids:
+            continue
+        holder = ids.index(st.locked_for)
+        users = problem.switch_users.get(sid)
+        if users is None or holder not in users.tolist():
+            continue
+        if any(rank[int(k)] < rank[holder] for k in users):
+            return False
+    return True
 
-    A timetable: each train's nominal merge time at its present speed (capped at its lowest switch limit), pushed
-    later along the order by the switch intervals; each train then changes speed (at 80 % of its bounds) to the
-    constant speed that meets its merge time and holds it. The guess is the last train's merge time plus its run
-    to F at that speed.
-    """
+
+def _interval(problem: Problem, a: int, b: int) -> float:
+    """Least time between ``a`` and ``b`` at the merge switch: ``t_ls`` if they meet on different legs anywhere."""
     p = problem.params
-    n = problem.n_trains
-    ms = problem.merge_switch_id
-    cap = [min(p.limit_speed_mps(s.leg) for s in tr.switches) for tr in problem.trains]
-    legs = {k: next(s.leg for s in problem.trains[k].switches if s.switch_id == ms) for k in order}
-    t_m: dict[int, float] = {}
+    legs_a = {s.switch_id: s.leg for s in problem.trains[a].switches}
+    differ = any(s.switch_id in legs_a and legs_a[s.switch_id] != s.leg for s in problem.trains[b].switches)
+    return p.throw_time_s if (differ or p.headway_all_consecutive) else p.min_time_gap_s
+
+
+def _profile(
+    s: np.ndarray, E0: float, cap: np.ndarray, cruise: float, a_up: float, a_down: float, tail: tuple[float, float]
+) -> np.ndarray:
+    """``E = v²`` on the fine grid ``s``: from ``E0`` towards ``cruise²`` (accelerating at ``a_up`` or braking at
+    ``a_down``), never above the caps ``cap`` (approached on a braking curve) and reaching ``tail = (position, E)``
+    on a braking curve at its end (from there on held)."""
+    ds = np.diff(s)
+    E = np.empty(s.size)
+    E[0] = E0
+    for i in range(1, s.size):  # forward: towards the cruise speed within the acceleration bounds
+        step = 2.0 * (a_up if E[i - 1] < cruise * cruise else -a_down) * ds[i - 1]
+        E[i] = min(E[i - 1] + step, cruise * cruise) if step > 0 else max(E[i - 1] + step, cruise * cruise)
+    x_t, E_t = tail
+    cap = np.where(s >= x_t, E_t, cap)
+    for i in range(s.size - 2, -1, -1):  # backward: braking curves to every cap (and to the tail's speed)
+        cap[i] = min(cap[i], cap[i + 1] + 2.0 * a_down * ds[i])
+    return np.minimum(E, cap)
+
+
+def _run_time(s: np.ndarray, E: np.ndarray, x: float) -> float:
+    """Time to run from ``s[0]`` to ``x`` with ``E`` linear in distance between grid points."""
+    v = np.sqrt(np.maximum(E, 1e-6))
+    dt = 2.0 * np.diff(s) / (v[:-1] + v[1:])
+    t = np.concatenate([[0.0], np.cumsum(dt)])
+    return float(np.interp(x, s, t))
+
+
+def _timetable_E(scp: _OrderSCP) -> np.ndarray:
+    """First iterate of an order: a timetable, then per train the ``v²`` profile that keeps it.
+
+    Merge passages: each train's earliest (the fastest profile: line speed, braking curves to its turnout limits),
+    pushed later along the order by the switch intervals; the coupling instant ``T``: the last train's earliest
+    arrival at its slot after its passage. Each train then runs, on a fine grid, towards the cruise speed (found by
+    bisection) that meets its passage time, and after the merge switch towards the one that meets its slot at
+    ``T``, ending at the common coupled speed ``v_c`` on a braking curve; the profile is read at the breakpoints
+    and clipped to the bounds. Feasibility is left to the SCP; this only puts it in the right region.
+    """
+    pb, p, qp = scp.pb, scp.p, scp.qp
+    order = scp.order
+    a_up, a_down = 0.8 * p.accel_max_mps2, 0.8 * abs(p.accel_min_mps2)
+    floor = qp.speed_floor_mps + 0.5
+    grids, caps = [], []
+    for k in range(scp.n):
+        s = np.linspace(0.0, scp.d_F[k], max(int(scp.d_F[k] / 2.0), 20) + 1)
+        ub = np.interp(s, scp.bp[k], scp.ub[scp.off[k] : scp.off[k + 1]])
+        for kk, x, lim in scp.zone_caps:  # the caps hold over the zone, not only at breakpoints
+            if kk == k:
+                ub = np.where((s >= x - 1e-9) & (s <= x + qp.zone_m), np.minimum(ub, lim * lim), ub)
+        grids.append(s)
+        caps.append(ub)
+
+    def timed(k: int, x: float, target: float, E0: float, tail: tuple[float, float]) -> np.ndarray:
+        s, cap = grids[k], caps[k]
+        lo, hi = floor, p.line_speed_mps
+        fast = _profile(s, E0, cap.copy(), hi, a_up, a_down, tail)
+        if _run_time(s, fast, x) >= target:
+            return fast
+        for _ in range(30):
+            mid = 0.5 * (lo + hi)
+            if _run_time(s, _profile(s, E0, cap.copy(), mid, a_up, a_down, tail), x) > target:
+                lo = mid
+            else:
+                hi = mid
+        return _profile(s, E0, cap.copy(), hi, a_up, a_down, tail)
+
+    none = (math.inf, 0.0)
+    tau: dict[int, float] = {}
     prev = None
     for k in order:
-        tr = problem.trains[k]
-        v0, a_up = tr.initial_speed_mps, 0.5 * p.accel_max_mps2
-        v_run = max(min(cap[k], math.sqrt(v0 * v0 + 2.0 * a_up * problem.merge_distance_m[k])), v0)
-        t = (v_run - v0) / a_up + (problem.merge_distance_m[k] - (v_run**2 - v0**2) / (2.0 * a_up)) / v_run
+        s = grids[k]
+        t = _run_time(s, _profile(s, scp.v0[k] ** 2, caps[k].copy(), p.line_speed_mps, a_up, a_down, none), scp.d_m[k])
         if prev is not None:
-            need = p.throw_time_s if (legs[prev] != legs[k] or p.headway_all_consecutive) else 2.0 * p.min_time_gap_s
-            t = max(t, t_m[prev] + need + 1.0)
-        t_m[k] = t
+            t = max(t, tau[prev] + _interval(pb, prev, k) + qp.headway_margin_s + 1.0)
+        tau[k] = t
         prev = k
-    last = order[-1]
-    v_last = max(min(problem.merge_distance_m[last] / t_m[last], cap[last]), 1.0)
-    N = max(
-        int(
-            math.ceil(
-                (t_m[last] + (problem.trains[last].distance_to_F_m - problem.merge_distance_m[last]) / v_last) / dt
+    lead, last = order[0], order[-1]
+    first = {k: timed(k, scp.d_m[k], tau[k], scp.v0[k] ** 2, none) for k in range(scp.n)}
+    end_last = scp.slot.get(last, scp.d_F[last])
+    E_m = float(np.interp(scp.d_m[last], grids[last], first[last]))
+    s = grids[last]
+    after = _profile(s, E_m, caps[last].copy(), p.line_speed_mps, a_up, a_down, none)
+    T = tau[last] + _run_time(s, after, end_last) - _run_time(s, after, scp.d_m[last]) + 2.0
+    scp.timetable_T_s = T
+    v_c = float(np.clip((scp.d_F[lead] - scp.d_m[lead]) / max(T - tau[lead], 1.0), floor, p.normal_speed_mps))
+    z = np.empty(scp.nE)
+    for k in range(scp.n):
+        s = grids[k]
+        end = scp.slot.get(k, scp.d_F[k])
+        E_pass = float(np.interp(scp.d_m[k], s, first[k]))
+        # after the merge switch: a timed profile on the grid shifted to start there, stitched to the first one
+        mask = s >= scp.d_m[k]
+        sub = s[mask] - scp.d_m[k]
+        grids_k = grids[k]
+        grids[k] = np.concatenate([[0.0], sub[sub > 0.0]])
+        caps_k = caps[k]
+        caps[k] = np.interp(grids[k] + scp.d_m[k], grids_k, caps_k)
+        later = timed(k, end - scp.d_m[k], T - tau[k], E_pass, (end - scp.d_m[k], v_c * v_c))
+        grids[k], caps[k] = grids_k, caps_k
+        prof = first[k].copy()
+        prof[mask] = np.interp(s[mask] - scp.d_m[k], np.concatenate([[0.0], sub[sub > 0.0]]), later)
+        E = np.interp(scp.bp[k], s, prof)
+        lo, hi = scp.lb[scp.off[k] : scp.off[k + 1]], scp.ub[scp.off[k] : scp.off[k + 1]]
+        for j in range(1, E.size):  # the acceleration bounds at the breakpoints
+            ell = scp.bp[k][j] - scp.bp[k][j - 1]
+            E[j] = float(
+                np.clip(E[j], E[j - 1] + 2.0 * p.accel_min_mps2 * ell, E[j - 1] + 2.0 * p.accel_max_mps2 * ell)
             )
-        ),
-        2,
-    )
-    v = np.empty((n, N + 1))
-    u = np.zeros((n, N))
-    for k, tr in enumerate(problem.trains):
-        target = float(np.clip(problem.merge_distance_m[k] / t_m[k], 1.0, cap[k]))
-        vk = tr.initial_speed_mps
-        v[k, 0] = vk
-        for i in range(N):
-            a = float(np.clip((target - vk) / dt, 0.8 * p.accel_min_mps2, 0.8 * p.accel_max_mps2))
-            u[k, i] = a
-            vk += a * dt
-            v[k, i + 1] = vk
-    s = np.concatenate([np.zeros((n, 1)), np.cumsum(v[:, :-1] * dt + 0.5 * u * dt * dt, axis=1)], axis=1)
-    return _Traj(s, v, u), N
+            E[j] = float(np.clip(E[j], lo[j], hi[j]))
+        z[scp.off[k] : scp.off[k + 1]] = E
+    return z
 
 
-def _solve_order(
-    problem: Problem, order: tuple[int, ...], qp: QpOrderParams, warm: _Traj | None, guess: int | None
-) -> tuple[_Traj, int, bool, int]:
-    """Coupling-instant search for one order (module docstring).
-
-    Returns (last trajectory — the best feasible one if any, N, whether it is QP-feasible and converged, solves).
-    """
-    oq = _OrderQP(problem, order, qp)
-    dt = qp.step_s
-    n_max = int(qp.max_horizon_s / dt)
-    if warm is not None and guess is not None:
-        base, N = warm, guess
-    else:
-        base, N = _timetable_iterate(problem, order, dt)
-    N = min(N, n_max)
-    solves = 0
-    best: tuple[_Traj, int] | None = None
-    last = (base, N)
-    tried_lower, lowered = False, 0
-    for _ in range(qp.max_probes):
-        tr, slack, converged, k = oq.scp(_resample(base, N, dt))
-        solves += k
-        last = (tr, N)
-        if slack <= qp.feasibility_tol and converged:
-            best = (tr, N)
-            base = tr
-            lead = order[0]
-            remaining_s = (oq.d_F[lead] - tr.s[lead, N]) / max(tr.v[lead, N], 0.1)
-            jump = int(remaining_s // dt)
-            if jump >= 1 and N + jump <= n_max and not tried_lower:
-                N += jump
-                continue
-            # the leader is at F at the coupling instant: try an earlier one (a shorter T_c) while that is feasible
-            if lowered >= qp.lower_probes:
-                break
-            lowered += 1
-            tried_lower = True
-            N = max(N - max(2, int(0.1 * N)), 2)
-        else:
-            if tried_lower or N >= n_max:
-                break
-            base = tr if math.isfinite(slack) else base
-            N = min(max(N + 2, int(math.ceil(N * 1.2))), n_max)
-    if best is None:
-        return last[0], last[1], False, solves
-    return best[0], best[1], True, solves
+def _verify(problem: Problem, scp: _OrderSCP, z: np.ndarray) -> tuple[np.ndarray, float, float, dict[str, float]]:
+    """Plan ``x`` of ``z``, its rolled-out cost and violation (model + interlocking shortfall), violations by kind."""
+    x = scp.to_x(z)
+    r = rollout(problem, x[None, :])
+    viol = float(r.violation[0])
+    kinds = {name: float(v[0]) for name, v in r.terms.items()}
+    if scp.qp.interlocking is not None:
+        c, _, names = scp.soft(scp.from_x(x))
+        short = sum(max(-(ci + scp.qp.headway_margin_s), 0.0) for ci, nm in zip(c, names) if nm == "interlocking")
+        kinds["interlocking"] = short
+        viol += short
+    if tuple(int(k) for k in r.order[0]) != scp.order and problem.frozen_order is None:
+        viol = max(viol, 1e-9)  # the plan does not realise the order it was built for
+    return x, float(r.cost[0]), viol, kinds
 
 
 def solve_qp_order(
     problem: Problem, params: QpOrderParams | None = None, warm_x: np.ndarray | None = None
 ) -> QpOrderResult:
-    """Enumerate the passing orders, solve each by SCP over OSQP QPs, verify with the rollout, keep the best.
+    """Enumerate the passing orders, solve each by trust-region SCP over OSQP QPs, verify with the rollout.
 
-    ``warm_x`` (distance encoding, e.g. the previous plan shifted by :func:`.planner._warm_start`) is tried first:
-    its order leads the enumeration and its trajectory is the first linearisation point and coupling-instant
-    guess. ``problem.frozen_order`` restricts the enumeration to that order (a re-plan past the point of no
-    return).
+    Without ``warm_x`` (the first plan) every passing order consistent with the granted locks is solved from its
+    timetable (``screen_iterations`` QPs each, the best one then up to ``max_iterations``). With ``warm_x`` (a
+    re-plan: the previous plan shifted by :func:`.planner._warm_start`) only the previous plan's order is
+    polished, ``replan_iterations`` QPs from the warm start — the online budget; an infeasible result is returned
+    as such (the coordinator keeps the previous plan). ``problem.frozen_order`` fixes the order.
     """
     qp = params or QpOrderParams()
     t0 = time.perf_counter()
     n = problem.n_trains
-    dt = qp.step_s
-    warm_tr: _Traj | None = None
-    warm_order: tuple[int, ...] | None = None
-    guess: int | None = None
-    if warm_x is not None:
-        r = rollout(problem, warm_x[None, :])
-        if np.isfinite(r.coupling_time_s[0]):
-            warm_order = tuple(int(k) for k in r.order[0])
-            guess = max(int(round(r.coupling_time_s[0] / dt)), 2)
-            warm_tr = trajectory_from_profile(problem, warm_x, guess, dt)
-    if problem.frozen_order is not None:
-        orders = [tuple(problem.frozen_order)]
-    else:
-        orders = sorted(itertools.permutations(range(n)), key=lambda o: (order_lower_bound(problem, o), o))
-        if warm_order is not None and warm_order in orders:
-            orders.remove(warm_order)
-            orders.insert(0, warm_order)
-    best: tuple[float, float, np.ndarray, tuple[int, ...], int] | None = None  # (violation, cost, x, order, N)
+    best: tuple[float, float, np.ndarray, tuple[int, ...], dict[str, float]] | None = None
     solves = solved = 0
-    for order in orders:
-        if best is not None and best[0] <= 0.0 and order_lower_bound(problem, order) >= best[1]:
-            continue
-        use_warm = warm_tr if order == warm_order or problem.frozen_order is not None else None
-        tr, N, _ok, k = _solve_order(problem, order, qp, use_warm, guess if use_warm is not None else None)
+    states: dict[tuple[int, ...], tuple[_OrderSCP, np.ndarray]] = {}
+
+    def consider(order: tuple[int, ...], z0: np.ndarray | None, iterations: int, resume: bool = False) -> None:
+        nonlocal best, solves, solved
+        if resume:
+            scp, z = states[order]
+        else:
+            scp = _OrderSCP(problem, order, qp)
+            z = scp.from_x(z0) if z0 is not None else _timetable_E(scp)
+            solved += 1
+        z, k = scp.scp(z, iterations)
+        states[order] = (scp, z)
         solves += k
-        solved += 1
-        x = profile_from_trajectory(problem, tr, dt)
-        r = rollout(problem, x[None, :])
-        viol, cost = float(r.violation[0]), float(r.cost[0])
-        if tuple(int(k) for k in r.order[0]) != order and problem.frozen_order is None:
-            viol = max(viol, 1e-9)  # the plan does not realise the order it was built for
-        key = (viol, cost)
+        x, cost, viol, kinds = _verify(problem, scp, z)
         if (
             best is None
-            or (key[0] <= 0.0 and (best[0] > 0.0 or key[1] < best[1]))
-            or (best[0] > 0.0 and key[0] < best[0])
+            or best[3] == order
+            or (viol <= 0.0 and (best[0] > 0.0 or cost < best[1]))
+            or (best[0] > 0.0 and viol < best[0])
         ):
-            best = (viol, cost, x, order, N)
+            best = (viol, cost, x, order, kinds)
+
+    warm_order: tuple[int, ...] | None = None
+    if problem.frozen_order is not None:
+        warm_order = tuple(problem.frozen_order)
+    elif warm_x is not None:
+        r = rollout(problem, warm_x[None, :])
+        warm_order = tuple(int(k) for k in r.order[0])
+    if warm_x is not None and warm_order is not None:
+        # the online re-plan: polish the previous plan in its order; if that fails it is reported infeasible and
+        # the caller keeps flying the previous plan (the orders were searched at the first plan)
+        consider(warm_order, warm_x, qp.replan_iterations)
+    elif warm_order is not None:
+        consider(warm_order, None, qp.max_iterations)  # a frozen order without a previous plan
+    if warm_x is None and problem.frozen_order is None:
+        # screen every order with a short SCP, then finish the best one
+        orders = sorted(
+            (o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)),
+            key=lambda o: (order_lower_bound(problem, o), o),
+        )
+        for order in orders:
+            if best is not None and best[0] <= 0.0 and order_lower_bound(problem, order) >= best[1]:
+                continue
+            consider(order, None, qp.screen_iterations)
+        assert best is not None
+        consider(best[3], None, qp.max_iterations, resume=True)
     assert best is not None
-    viol, cost, x, order, N = best
+    viol, cost, x, order, kinds = best
     return QpOrderResult(
         x=x,
         order=order,
@@ -714,5 +894,5 @@ def solve_qp_order(
         iterations=solves,
         orders_solved=solved,
         wall_time_s=time.perf_counter() - t0,
-        coupling_step=N,
+        violations=kinds,
     )

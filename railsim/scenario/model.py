@@ -229,14 +229,14 @@ class CooperativeSpec:
     edges: tuple[CooperativeEdge, ...] = ()
 
 
-JUNCTION_METHODS = ("improved_pso", "plain_pso", "naive1", "naive2")
+JUNCTION_METHODS = ("improved_pso", "plain_pso", "qp_order", "naive1", "naive2")
 
 
 @dataclass(frozen=True)
 class JunctionSpec:
     """Trains coordinated through a junction by the cooperative-game planner (Paper E, spec 004 §7).
 
-    ``trains`` are trip ids; ``method`` is the planner (improved/plain PSO) or a naive baseline; the ground
+    ``trains`` are trip ids; ``method`` is the planner (improved/plain PSO, ``qp_order``) or a naive baseline; the ground
     re-plans every ``replan_s`` seconds; ``target_gap_m`` is the coupled gap handed to the formations after
     the junction (``None``: the planner's standstill gap ``S_0``); ``params``/``pso``/``replan_pso`` override
     :class:`controllers.junction.model.JunctionParams` and :class:`controllers.junction.pso.PSOParams` fields.

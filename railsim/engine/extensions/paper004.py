@@ -40,6 +40,12 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    switch (the braking curve of :func:`controllers.junction.baselines.approach_speed_cap`) and waits for its
    lock through the interlocking's movement authority.
 
+``qp_order`` (issue 18, :mod:`controllers.junction.qp`) differs where SUMO runs showed missed couplings: its model
+is the engine's (:func:`.paper004_readings.engine_corrected_params`, :func:`.paper004_readings.interlocking_model`,
+turnouts held over the train's length, approached inside the ATO's envelope); a granted lock fixes the order at
+its switch; the reference is the plan's exact trajectory from the planner's initial state; followers fly the plan in
+the leader's time (:func:`.paper004_tracking.leader_time_reference`); it re-plans on deviations only.
+
 Measured outcome: the coordinator records every planned train's path position and speed at every step from
 the first plan on and scores them with :func:`controllers.junction.simulate.measure` — the same code that
 scores the numpy reproduction — so "coupled at F" means the spec's Eq. 2–3 at the moment the leader reaches F.
@@ -62,6 +68,7 @@ from controllers.base import Command, Observation
 from controllers.junction import baselines
 from controllers.junction.model import JunctionParams, SwitchState
 from controllers.junction.planner import (
+    OPTIMISERS,
     JunctionPlan,
     PlannerError,
     TrainState,
@@ -71,9 +78,17 @@ from controllers.junction.planner import (
     replan,
 )
 from controllers.junction.pso import improved_pso_params, plain_pso_params
+from controllers.junction.qp import QpOrderParams
 from controllers.junction.simulate import measure
-from railsim.engine.extensions.paper004_readings import safe_gap_m, switch_interval_s, turnout_start
-from railsim.engine.extensions.paper004_tracking import PlannedTrain
+from railsim.engine.extensions.paper004_readings import (
+    engine_corrected_params,
+    interlocking_model,
+    safe_gap_m,
+    switch_interval_s,
+    turnout_start,
+)
+from railsim.engine.extensions.paper004_ground import SWITCHES, ground_front, ground_states, switch_states
+from railsim.engine.extensions.paper004_tracking import PlannedTrain, leader_time_reference
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -82,12 +97,14 @@ if TYPE_CHECKING:  # pragma: no cover
 
 log = logging.getLogger(__name__)
 
-SWITCHES = ("sw1", "sw2")
 K_V_PER_S = 1.0  # tracking gains (critically damped double integrator, ω = 0.5 rad/s)
 K_S_PER_S2 = 0.25
 DEVIATION_M = 5.0  # re-plan at once beyond these tracking errors (spec §7.3)
 DEVIATION_MPS = 0.5
 MIN_REPLAN_GAP_S = 0.5
+# qp_order plans stay inside the ATO's envelope (its speed law a = 0.4/s·(v_target − v) lags its targets):
+ATO_CRUISE_MARGIN_MPS = 3.0  # below v_max, where the law caps full acceleration
+APPROACH_HOLD_M = 20.0  # at the turnout speed this far before a turnout (braking into it at half the ATO's rate)
 
 
 @dataclass
@@ -154,6 +171,19 @@ class JunctionCoordinator:
                 if "throw_time_s" not in spec.params
                 else probe
             )
+            self.qp: QpOrderParams | None = None
+            if self.method == "qp_order":
+                # the model the engine flies: the guard of the followers' CACC, the turnout zone, the interlocking
+                self.params = engine_corrected_params(ports, list(self.members), self.params, spec.params)
+                il = interlocking_model(ports, list(self.members), self._turnout_m(), max(lengths), throw_s)
+                self.qp = QpOrderParams(
+                    zone_m=self._turnout_m() + max(lengths),
+                    # inside the ATO's envelope: its braking curve into a turnout and its cruise law below v_max
+                    approach_decel_mps2=0.5 * il.brake_decel_mps2,
+                    approach_hold_m=APPROACH_HOLD_M,
+                    line_speed_margin_mps=ATO_CRUISE_MARGIN_MPS,
+                    interlocking=il,
+                )
             base = improved_pso_params() if self.method != "plain_pso" else plain_pso_params()
             # the first plan may take longer (1000 iterations, ~0.4 s); re-plans keep the online budget (200)
             self.pso = dataclasses.replace(base, **{"max_iterations": 1000, **spec.pso})
@@ -169,7 +199,7 @@ class JunctionCoordinator:
         self.frozen = False
         self.formed = False
         self.formed_s = math.nan
-        self.replanning = self.method in ("improved_pso", "plain_pso")
+        self.replanning = self.method in OPTIMISERS
         self.last_plan_s = -math.inf
         self.plans: list[dict[str, Any]] = []
         self.traj_t: list[float] = []
@@ -201,6 +231,10 @@ class JunctionCoordinator:
             F[0],
         )
 
+    def _turnout_m(self) -> float:
+        """Length of the turnout speed restriction in front of the switch points (the planner's switch lies there)."""
+        return max((m.point_m[sid] - m.switch_m[sid] for m in self.members.values() for sid in m.legs), default=0.0)
+
     # ------------------------------------------------------------------ queries from the engine
     def manages_lock(self, train_id: str, switch_id: str) -> bool:
         """True if this coordinator (not the engine's distance rule) requests ``switch_id`` for ``train_id``."""
@@ -223,15 +257,26 @@ class JunctionCoordinator:
         p = self.params
         if m.handed_over:
             return 0.0  # the platoon leader past F: hold the coupled speed until the others are through
-        if self.plan is None and self.method in ("improved_pso", "plain_pso"):
+        if self.plan is None and self.method in OPTIMISERS:
             return None
         if self.method in ("naive1", "naive2"):
             return self._naive_command(m, own_pos_m, own_v_mps)
-        s_ref, v_ref = m.reference(t)
+        s_ref, v_ref, rate = self._reference(m, t)
         s = own_pos_m - m.ref_front_m
-        a_ff = m.accel_at(s_ref)
+        a_ff = m.accel_at(s_ref) * rate * rate
         u = a_ff + K_V_PER_S * (v_ref - own_v_mps) + K_S_PER_S2 * (s_ref - s)
         return float(np.clip(u, p.accel_min_mps2, p.accel_max_mps2))
+
+    def _reference(self, m: PlannedTrain, t: float) -> tuple[float, float, float]:
+        """Reference distance, speed and time rate of a planned train at ``t``: the clock's for the PSO methods and
+        the platoon leader; ``qp_order``'s followers fly the plan in the leader's time (:func:`leader_time_reference`)."""
+        if self.method != "qp_order" or not self.order or m.train_id == self.order[0]:
+            return (*m.reference(t), 1.0)
+        lead = self.members[self.order[0]]
+        if lead.handed_over:
+            return (*m.reference(t), 1.0)
+        front, v_lead = ground_front(self.ports.channels, self.ports.trains[lead.train_id], t)
+        return leader_time_reference(m, lead, front, v_lead)
 
     def commands(
         self,
@@ -331,43 +376,11 @@ class JunctionCoordinator:
         )
         self.traj_v.append([tr.plant.speed_mps for tr in trains])
 
-    def _ground_states(self, t: float, trains: list[TrainRuntime]) -> tuple[list[TrainState], dict[str, float]]:
-        """What the ground knows of each planned train now: last t2g report extrapolated at constant speed."""
-        ch = self.ports.channels.get("t2g")
-        states, fronts = [], {}
-        for tr in trains:
-            msg = ch.latest("ground", tr.train_id) if ch is not None else None
-            if msg is not None:
-                _route, pos, v, _acc, stamp = msg.payload[:5]
-            elif ch is None:
-                pos, v, stamp = tr.front_m, tr.plant.speed_mps, t  # no radio modelled: the ground sees the truth
-            else:
-                pos, v, stamp = tr.depart_chainage_m, tr.trip.start_speed_mps, tr.inserted_s or 0.0
-            front = float(pos) + float(v) * max(0.0, t - float(stamp))
-            fronts[tr.train_id] = front
-            track, dist = self.members[tr.train_id].track(front)
-            states.append(TrainState(tr.train_id, track, dist, max(float(v), self.params.min_speed_mps)))  # type: ignore[arg-type]
-        return states, fronts
-
     def _switch_states(self) -> list[SwitchState]:
-        il = self.ports.interlocking
-        out = []
-        for sid in SWITCHES:
-            lock = il.lock(sid)
-            holders = tuple(lock.holder_ids) if lock is not None else ()
-            foreign = [h for h in holders if h not in self.members]
-            out.append(
-                SwitchState(
-                    sid,
-                    il.position(sid),  # type: ignore[arg-type]
-                    locked_until_s=math.inf if foreign else 0.0,
-                    locked_for=foreign[0] if foreign else None,
-                )
-            )
-        return out
+        return switch_states(self.ports.interlocking, self.members, self.method == "qp_order")
 
     def _first_plan(self, t: float, trains: list[TrainRuntime]) -> None:
-        states, _ = self._ground_states(t, trains)
+        states, fronts = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
         self.t0_s = t
         truth = []
         for tr in trains:
@@ -394,10 +407,11 @@ class JunctionCoordinator:
                 self.method,  # type: ignore[arg-type]
                 self.pso,
                 self.rng,
+                qp=self.qp,
             )
         except PlannerError as exc:
             raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}") from None
-        self._adopt(t, new, trains)
+        self._adopt(t, new, trains, states, fronts)
 
     def _maybe_replan(self, t: float, trains: list[TrainRuntime]) -> None:
         if not self.replanning or self.plan is None:
@@ -406,11 +420,13 @@ class JunctionCoordinator:
             self.replanning = False  # the first train is through the merge switch: track the last plan to F
             self.ports.events.record(t, "junction_replanning_ended", "junction", reason="a train passed sw2")
             return
-        due = t - self.last_plan_s >= self.spec.replan_s - 1e-9
+        # qp_order's plans are flyable as made: it re-plans on a tracking deviation only (a periodic re-plan from
+        # the ground's extrapolated states restarts the plan from slightly wrong states and drifts it later)
+        due = self.method != "qp_order" and t - self.last_plan_s >= self.spec.replan_s - 1e-9
         if not due and t - self.last_plan_s >= MIN_REPLAN_GAP_S:
             for tr in trains:
                 m = self.members[tr.train_id]
-                s_ref, v_ref = m.reference(t)
+                s_ref, v_ref, _ = self._reference(m, t)
                 if (
                     abs(tr.front_m - m.ref_front_m - s_ref) > DEVIATION_M
                     or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS
@@ -426,7 +442,7 @@ class JunctionCoordinator:
                     break
         if not due:
             return
-        states, _ = self._ground_states(t, trains)
+        states, fronts = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
         if any(s.distance_to_switch_m < 0.0 for s in states):
             return  # a train is inside a turnout (between restriction start and point): keep the current plan
         try:
@@ -440,6 +456,7 @@ class JunctionCoordinator:
                 self.replan_pso,
                 self.rng,
                 keep_order=self.frozen,
+                qp=self.qp,
             )
         except PlannerError as exc:
             self.ports.events.record(t, "junction_plan_failed", "junction", error=str(exc))
@@ -451,16 +468,36 @@ class JunctionCoordinator:
             self.ports.events.record(t, "junction_plan_rejected", "junction", violation=round(new.violation, 4))
             self.last_plan_s = t
             return
-        self._adopt(t, new, trains)
+        self._adopt(t, new, trains, states, fronts)
 
-    def _adopt(self, t: float, new: JunctionPlan, trains: list[TrainRuntime]) -> None:
+    def _adopt(
+        self,
+        t: float,
+        new: JunctionPlan,
+        trains: list[TrainRuntime],
+        states: list[TrainState],
+        fronts: dict[str, float],
+    ) -> None:
+        """Adopt a plan: every train's tracking reference, the record, the lock order.
+
+        The PSO methods start each reference from the train's true front and speed (the original coordinator).
+        ``qp_order`` starts it where the plan starts — the ground's front and speed the planner was given — so
+        the reference *is* the planned trajectory and the feedback pulls the train onto it (a train slower than
+        the ground believed is not handed a reference that decelerates it further by the plan's accelerations).
+        """
         self.plan = new
         self.last_plan_s = t
+        speed = {s.train_id: s.speed_mps for s in states}
         for tr in trains:
             tp = new.train(tr.train_id)
-            self.members[tr.train_id].set_reference(
-                self.params.min_speed_mps, t, tr.front_m, tr.plant.speed_mps, tp.segments
-            )
+            if self.method == "qp_order":
+                front, v0 = fronts[tr.train_id], speed[tr.train_id]
+            else:
+                front, v0 = tr.front_m, tr.plant.speed_mps
+            if self.method == "qp_order":
+                self.members[tr.train_id].set_reference_exact(self.params.min_speed_mps, t, front, v0, tp.segments)
+            else:
+                self.members[tr.train_id].set_reference(self.params.min_speed_mps, t, front, v0, tp.segments)
         self.plans.append(
             {
                 "t_s": t,

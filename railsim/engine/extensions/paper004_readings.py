@@ -10,8 +10,11 @@ from __future__ import annotations
 from collections.abc import Iterable
 from typing import Any
 
+import dataclasses
+
 from controllers.base import Observation, OwnState, PredecessorState
 from controllers.junction.model import JunctionParams
+from controllers.junction.qp import InterlockingModel
 from railsim.engine.extensions.paper004_tracking import PlannedTrain
 
 
@@ -89,3 +92,61 @@ def turnout_start(tr: Any, point_m: float) -> float:
         if a < point_m <= b + 0.5 and v < line - 1e-6:
             return a
     return point_m
+
+
+def engine_corrected_params(
+    ports: Any, train_ids: list[str], p: JunctionParams, given: dict[str, Any]
+) -> JunctionParams:
+    """The planner model with the followers' relative-braking-distance guard switched on (``qp_order``).
+
+    *Reading:* the guard's numbers are the coupled controller's own — its safety margin, the leader's and the
+    follower's emergency braking (the smaller of the planned trains'), and a dead time of the control step plus
+    the t2t message age (the guard extrapolates the leader over the age). Fields the scenario gives win.
+    """
+    margins, decels = [], []
+    for tid in train_ids:
+        tr = ports.trains[tid]
+        decels.append(tr.trip.vehicle.emergency_decel_mps2)
+        ctl = tr.controllers.get("coupled")
+        margin = getattr(getattr(ctl, "params", None), "safety_margin_m", None)
+        if margin is not None:
+            margins.append(float(margin))
+    ch = ports.channels.get("t2t")
+    age = float(ch.delay.mean_delay_s) if ch is not None else 0.1
+    values = {
+        "rbd_reaction_s": ports.dt_s + age,
+        "rbd_decel_mps2": min(decels),
+        "rbd_margin_m": max(margins, default=10.0),
+    }
+    values = {k: v for k, v in values.items() if k not in given}
+    return dataclasses.replace(p, **values)
+
+
+def interlocking_model(
+    ports: Any, train_ids: list[str], turnout_m: float, length_m: float, throw_s: float
+) -> InterlockingModel:
+    """The engine's switch rule in the planner's distances (``qp_order``; see :class:`InterlockingModel`).
+
+    The lock is released when the leader's rear is ``clearance_m`` past the switch point: its front has then run
+    ``turnout + L + clearance`` past the planner's switch point (the turnout start). A train without the lock
+    has its authority end ``protection_margin_m`` before the switch point and its ATO aims ``authority_margin_m``
+    short of that, braking at ``b_plan`` (the ATO's planning deceleration); it must hold its lock before that
+    braking point, one control step of reaction included.
+    """
+    st = ports.settings
+    ato_margins, b_plan = [5.0], []
+    for tid in train_ids:
+        tr = ports.trains[tid]
+        ap = getattr(tr.controllers.get("ato"), "params", None)
+        if ap is not None:
+            ato_margins.append(float(ap.authority_margin_m))
+            b_plan.append(float(ap.planning_decel_fraction) * tr.trip.vehicle.service_decel_mps2)
+        else:
+            b_plan.append(tr.trip.vehicle.service_decel_mps2)
+    v_max = max(ports.trains[t].trip.vehicle.max_speed_mps for t in train_ids)
+    return InterlockingModel(
+        release_after_m=turnout_m + length_m + st.clearance_m,
+        throw_s=throw_s,
+        grant_before_m=max(st.protection_margin_m + max(ato_margins) - turnout_m, 0.0) + v_max * ports.dt_s,
+        brake_decel_mps2=min(b_plan),
+    )
