@@ -137,7 +137,10 @@ def _delay_step(worst: Any, stops: Any, ev: Any) -> Binding:
     if waits:
         w, sw = max(waits)
         return Binding("switch lock", f"{sw} ({a} → {b})", tid, delay, size, f"waited {w:.0f} s for the lock")
+    # the train ahead runs the same way: it stopped at a before it stopped at b (a station id names both platforms)
+    at_a = stops[stops["station"] == a].set_index("trip_id")["arrival_s"]
     ahead = stops[(stops["station"] == b) & (stops["trip_id"] != tid) & (stops["arrival_s"] <= t1)]
+    ahead = ahead[ahead["trip_id"].map(at_a).lt(ahead["arrival_s"])]
     who = str(ahead.loc[ahead["arrival_s"].idxmax(), "trip_id"]) if len(ahead) else "?"
     return Binding(
         "separation",

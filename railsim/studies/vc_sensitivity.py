@@ -26,7 +26,7 @@ from typing import Any
 
 TARGET_GAPS_M = (60.0,)
 T2T_DELAYS_S = (1.0,)
-EVERY = (2, 8)
+EVERY = (2,)
 
 
 @dataclass(frozen=True)

@@ -24,8 +24,9 @@ search and is not what the Airport/Jurenba pattern describes).
 Jurenba units kept fixed clock times and their phase moved from probe to probe). Every regime is searched on the
 same grid (``lo_s + k·tol_s`` up to ``hi_s``) with the same feasibility definition
 (:func:`railsim.studies.headway.feasibility`: no collision, every stop served, every trip arrived, max arrival delay
-≤ ``max_delay_s``); with ``scan`` (default) every grid point is probed, so a non-monotone probe cannot hide; the
-answer stays conservative (every longer probe feasible) and is confirmed with a second seed. For the **first
+≤ ``max_delay_s``); with ``scan`` (default) every grid point of (a) and (b) is probed, so a non-monotone probe cannot
+hide (the control bisects the same grid: each of its probes is compared with (a)'s verdict there); the answer stays
+conservative (every longer probe feasible) and is confirmed with a second seed. For the **first
 infeasible probe** (the largest infeasible headway) :func:`railsim.studies.binding.binding_constraint` names the
 rule and place that broke it.
 
@@ -292,7 +293,7 @@ def vc_vs_mb(
                 confirm_seeds=None if confirm else [],
                 keep_runs=True,
                 progress=progress,
-                scan=scan,
+                scan=scan and r.key != "control",  # the control bisects: each of its probes checks (a)'s verdict
             )
             h = search.min_headway_s
         res = RegimeResult(r, h, search, None)
@@ -551,7 +552,7 @@ def write_report(
         + f". Headway of {', '.join(services)} (set together) "
         + (
             f"searched on one grid for every regime, [{lo_s:g}, {hi_s:g}] s every {tol_s:g} s "
-            + ("(every grid point probed)" if scan else "(bisection)")
+            + ("(every grid point probed for (a) and (b); (c) bisects the same grid)" if scan else "(bisection)")
             + f"; feasible = no collision, every stop served, every trip arrived, max arrival delay ≤ {max_delay_s:g} s; "
             "the answer is the smallest probed headway with every longer probe feasible, confirmed with a second seed."
             if searched
