@@ -1,9 +1,12 @@
 """``railsim study vc-vs-mb`` end to end on the mini Y line (a small probe budget), and its bad-input exits.
 
-The two regimes are the mini line's coupled pair (vc) and the same scenario without formations (mb). What is
-pinned: the command finishes, the minimum headways come from real probes on the search grid, the report and the
-JSON agree, the regime with the formation carries more trains than paths on the trunk, and mistakes exit 2 with
-one line naming the file and field.
+The regimes are the mini line's coupled pair (vc: the branch unit departs relative to the main line's and a
+``pairs`` formation couples it to its reference unit), the same scenario without formations (mb) and the control
+(vc with relative braking off). What is pinned: the command finishes, every regime is probed on the same grid
+points, the minimum headways come from real probes, the control agrees with moving block (same answer, same
+verdict at every probe, per-trip running times within a step), every answer has its analytic floor beside it and
+the floor is below it, the report and the JSON agree, the regime with the formation carries more trains than paths
+on the trunk, and mistakes exit 2 with one line naming the file and field.
 """
 
 from __future__ import annotations
@@ -28,6 +31,17 @@ def _scenarios(tmp: Path) -> tuple[Path, Path]:
             svc["departures"] = {"first": 0, "last": 240, "headway_s": 120}
         if svc["id"] == "main_down":
             svc["departures"] = {"first": 30, "last": 150, "headway_s": 120}
+        if svc["id"] == "br_up":  # due when main_up trip 1 is planned to leave b (its origin departure + 125.5 s)
+            svc["departures"] = {"after": {"service": "main_up", "first_trip": 1, "every": 10, "offset_s": 125.5}}
+    raw["formations"] = [
+        {
+            "id": "pair",
+            "pairs": {"leader": "main_up", "follower": "br_up"},
+            "target_gap_m": 30,
+            "couple": {"on_departure": True},
+            "decouple": {"before_switch": "c_up"},
+        }
+    ]
     vc = tmp / "mini_vc.yaml"
     vc.write_text(yaml.safe_dump(raw, sort_keys=False))
     mb_raw = copy.deepcopy(raw)
@@ -56,9 +70,7 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
         "main_up,main_down",
         "--lo",
         "60",
-        "--mb-hi",
-        "120",
-        "--vc-hi",
+        "--hi",
         "120",
         "--tol",
         "30",
@@ -72,11 +84,16 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     assert "Traceback" not in res.stderr
     data = json.loads((out / "vc_vs_mb.json").read_text())
     md = (out / "vc_vs_mb.md").read_text()
-    for key in ("mb", "vc"):
+    for key in ("mb", "vc", "control"):
         r = data[key]
         probes = r["search"]["probes"]
         probed = {p["headway_s"] for p in probes}
-        assert r["headway_s"] in {60.0, 90.0, 120.0} and r["headway_s"] in probed
+        assert probed == {60.0, 90.0, 120.0}  # one grid, every point probed, for every regime
+        assert r["headway_s"] in probed
+        # the floor is sustained capacity: a run of a few trains may undercut it by holding them (≤ the threshold)
+        assert 0.0 < r["floor"]["cycle_s"] <= r["floor"]["strict_s"] and r["floor"]["cycle_s"] < r["headway_s"] + 60
+        assert r["floor"]["critical"]["station"] in {"a", "b", "c", "d", "e", "f", "g"}
+        assert r["conditions"]["max_delay_s"] == 120.0 and "main_up" in r["conditions"]["offered_trains_per_h"]
         assert all(p["feasible"] for p in probes if p["headway_s"] >= r["headway_s"])
         m = r["metrics"]
         assert m["collisions"] == 0 and m["stops_missed"] == 0
@@ -87,10 +104,18 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     assert data["mb"]["metrics"]["up.trains_per_h"] == data["mb"]["metrics"]["up.paths_per_h"]
     assert data["vc"]["metrics"]["formations_coupled"] == "1/1"
     assert data["mb"]["metrics"]["formations_coupled"] == "0/0"
+    # the control experiment: relative braking off reproduces moving block
+    check = data["control_check"]
+    assert check["same_headway"] and check["probes_differing"] == [] and check["probes_compared"] == 3
+    assert check["trips_compared"] == data["mb"]["metrics"]["trains"] and check["trips_only_one_side"] == 0
+    assert check["max_running_time_diff_s"] <= 0.5  # within a step (0.5 s)
+    assert data["control"]["metrics"]["formations_coupled"] == "0/1"
+    assert "(c) = (a)" in md and "## Analytic floors" in md and "## Conditions" in md
     # the Markdown table shows the JSON's numbers
     row = next(line for line in md.splitlines() if line.startswith("| minimum feasible headway"))
     assert row == (
-        f"| minimum feasible headway [s] | {data['mb']['headway_s']:,.1f} | {data['vc']['headway_s']:,.1f} |"
+        f"| minimum feasible headway [s] | {data['mb']['headway_s']:,.1f} | {data['vc']['headway_s']:,.1f} | "
+        f"{data['control']['headway_s']:,.1f} |"
     )
     assert "UIC 406 occupancy per section" in md
     # a re-run finds every probe already done and gives the same answer

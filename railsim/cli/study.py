@@ -1,10 +1,11 @@
 """``railsim study``: line studies, one subcommand each (today ``vc-vs-mb``).
 
-    railsim study vc-vs-mb --out DIR [--mb SCENARIO] [--vc SCENARIO] [--services a,b] [--headway S] [--workers N]
+    railsim study vc-vs-mb --out DIR [--mb SCENARIO] [--vc SCENARIO] [--services a,b] [--lo S --hi S --tol S]
+                           [--headway S] [--workers N | --dask ADDRESS] [--sensitivity] [--no-control] [--bisect]
 
 ``vc-vs-mb`` is a thin layer over :func:`railsim.studies.vc_vs_mb.vc_vs_mb` (moving block vs virtual coupling on
 one line; the regimes, the search and the report are described in :mod:`railsim.studies.vc_vs_mb`). It prints one
-line per regime and the report's path; exits 0 when both regimes have a feasible headway, 1 otherwise, 2 on bad
+line per regime and the report's path; exits 0 when every regime has a feasible headway, 1 otherwise, 2 on bad
 input. ``railsim study`` alone prints the list of studies.
 """
 
@@ -35,11 +36,16 @@ def add_commands(sub: Any) -> None:
         default=",".join(DEFAULT_SERVICES),
         help="services whose headway is searched, comma-separated (default: %(default)s)",
     )
-    q.add_argument("--lo", type=float, default=60.0, help="lower end of the headway search [s] (default 60)")
-    q.add_argument("--mb-hi", type=float, default=240.0, help="upper end for moving block [s] (default 240)")
-    q.add_argument("--vc-hi", type=float, default=150.0, help="upper end for virtual coupling [s] (default 150)")
-    q.add_argument("--tol", type=float, default=10.0, help="search tolerance [s] (default 10)")
+    q.add_argument("--lo", type=float, default=70.0, help="lower end of the headway grid [s] (default 70)")
+    q.add_argument("--hi", type=float, default=200.0, help="upper end of the headway grid [s] (default 200)")
+    q.add_argument("--tol", type=float, default=10.0, help="grid step [s] (default 10)")
     q.add_argument("--max-delay", type=float, default=120.0, help="feasible: max arrival delay [s] (default 120)")
+    q.add_argument("--bisect", action="store_true", help="bisect the grid instead of probing every point")
+    q.add_argument("--no-control", action="store_true", help="skip regime (c), the control experiment")
+    q.add_argument(
+        "--sensitivity", action="store_true", help="add the sensitivity block (target gap, t2t delay, formation share)"
+    )
+    q.add_argument("--dask", default=None, metavar="ADDRESS", help="run probes on this Dask scheduler")
     q.add_argument("--headway", type=float, default=None, help="skip the search: run both regimes at this headway")
     q.add_argument("--no-confirm", action="store_true", help="no confirmation probe with a second seed")
     q.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
@@ -62,13 +68,16 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
         vc_scenario=args.vc,
         services=services,
         lo_s=args.lo,
-        mb_hi_s=args.mb_hi,
-        vc_hi_s=args.vc_hi,
+        hi_s=args.hi,
         tol_s=args.tol,
         max_delay_s=args.max_delay,
         workers=args.workers,
+        dask_address=args.dask,
         headway_s=args.headway,
         confirm=not args.no_confirm,
+        scan=not args.bisect,
+        control=not args.no_control,
+        sensitivity=args.sensitivity,
         progress=False if args.no_progress else None,
     )
     for r in results.values():

@@ -58,6 +58,11 @@ The schema (every key; ``#`` comments give type, range and default)::
         to: jurenba
         vehicle: cq6
         departures: {times: ["07:31", "07:36:30", 900.0]}
+      - id: branch                        # departures relative to another service (a list or grid one):
+        from: liugongli                   #   trip k leaves at t_i + phase·(t_{i+1} − t_i) + offset_s,
+        to: jurenba                       #   i = first_trip + k·every (trips before t = 0 are dropped)
+        vehicle: cq6
+        departures: {after: {service: airport, every: 4, first_trip: 0, offset_s: 1659.5, phase: 0.0}}
     formations:                           # optional, default []
       - id: pair1
         leader: {service: airport, trip: 0}     # trip = 0-based index into that service's sorted departures
@@ -66,6 +71,9 @@ The schema (every key; ``#`` comments give type, range and default)::
         couple: {at_station: liugongli}         # or {at_s: 0} or {on_departure: true}; omitted: only by events
         decouple: {before_switch: bijin_up}     # or {at_s: 3000} or {at_station: bijin}; omitted: never
         coupling_timeout_s: 300                 # > 0; default 300
+      - {id: vc, pairs: {leader: airport, follower: branch}, target_gap_m: 30, couple: {on_departure: true}}
+                                                # one formation vc0, vc1, ... per branch trip with the airport
+                                                # trip it departs after (the follower must be timed `after:` it)
     events:                               # optional timed commands, default []
       - {at_s: 600, type: couple, formation: pair1}    # type: couple | decouple
     faults:                               # optional

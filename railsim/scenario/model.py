@@ -12,6 +12,7 @@ How the pieces fit (one dataclass per YAML section, nested like the file)::
     ├── vehicles: {name: VehicleParams}        (railsim.physics.vehicle; plants: {name: PlantSpec})
     ├── controllers: {name: ControllerSpec}    + roles: {role: controller instance}
     ├── services: (ServiceSpec, ...)  route, departures_s, trip_ids ("airport.000"), dwell times
+    │                                 (departures_after: RelativeDeparturesSpec when timed against a service)
     ├── formations: (FormationSpec, ...)       two TripRefs, a target gap, couple/decouple TriggerSpecs
     ├── events: (EventSpec, ...)      timed commands; their kinds live in railsim.scenario.events
     ├── faults: FaultSpec             comm ChannelSpecs (DelaySpec, OutageSpecs), sensor/actuator noise, bias
@@ -111,6 +112,23 @@ class ControllerSpec:
 
 
 @dataclass(frozen=True)
+class RelativeDeparturesSpec:
+    """Departures defined against another service's (``departures: {after: {...}}``): trip ``k`` of the dependent
+    service departs its origin at ``t_i + phase·(t_{i+1} − t_i) + offset_s`` with ``i = first_trip + k·every`` and
+    ``t`` the reference service's origin departures (the last reference trip uses the interval before it). Changing
+    the reference's headway re-times the dependent service consistently (one dependent trip per ``every`` reference
+    trips, at the same phase). A dependent trip that would depart before t = 0 (negative ``offset_s``) is dropped;
+    ``reference_trips`` holds the reference trip of each remaining dependent trip."""
+
+    service: str  # the reference service id
+    every: int = 1
+    first_trip: int = 0
+    offset_s: float = 0.0
+    phase: float = 0.0  # fraction of the reference interval, in [0, 1)
+    reference_trips: tuple[int, ...] = ()  # resolved: the reference trip index of each dependent trip
+
+
+@dataclass(frozen=True)
 class ServiceSpec:
     """A line service: a route between two stations and the trips that run it.
 
@@ -134,6 +152,7 @@ class ServiceSpec:
     start_speed_mps: float = 0.0  # ... at this speed (0: a normal departure from the platform)
     start_before_switch: str | None = None  # or: the front starts start_distance_m before this switch's point
     start_distance_m: float = 0.0
+    departures_after: RelativeDeparturesSpec | None = None  # set when the departures are relative to a service
 
     def dwell_s(self, station: str) -> float:
         """Scheduled dwell at ``station`` [s]."""

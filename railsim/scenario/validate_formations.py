@@ -1,7 +1,9 @@
 """Validating trains that run together: formations (virtual coupling), cooperative groups, junction plans.
 
 * ``formations`` pair a leader trip and a follower trip (:class:`TripRef`) with a target gap and optional
-  couple/decouple triggers (:class:`TriggerSpec`: at a time, at a station, on departure, before a switch).
+  couple/decouple triggers (:class:`TriggerSpec`: at a time, at a station, on departure, before a switch);
+  ``pairs: {leader: <service>, follower: <service>}`` stands for one formation per follower trip when the follower
+  service departs relative to the leader service (``departures: {after: ...}``).
   A train follows in at most one formation, and following may not loop back to itself.
 * ``cooperative`` is a graph-coupled group (Paper C): edges ``x_a − x_b → d_m`` within ``[lower_m, upper_m]``
   with activity windows.
@@ -31,7 +33,7 @@ from railsim.scenario.model import (
     TriggerSpec,
     TripRef,
 )
-from railsim.scenario.validate import Checker, short_repr
+from railsim.scenario.validate import Checker, did_you_mean, short_repr
 from railsim.scenario.validate_services import trip_name, trip_ref
 
 COUPLE_TRIGGERS = ("at_s", "at_station", "on_departure")
@@ -49,52 +51,89 @@ def formations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tupl
     trip_ids_of = {s.id: s.trip_ids for s in services}
     for i, body in enumerate(value):
         path = f"formations[{i}]"
-        m = ck.mapping(
-            body, path, ("id", "leader", "follower", "target_gap_m"), ("couple", "decouple", "coupling_timeout_s")
-        )
-        fid = ck.ident(m["id"], f"{path}.id")
-        if any(f.id == fid for f in specs):
-            raise ck.fail(f"{path}.id", f"expected a unique formation id, got {fid!r} twice")
-        leader = trip_ref(ck, m["leader"], f"{path}.leader", services)
-        follower = trip_ref(ck, m["follower"], f"{path}.follower", services)
-        follower_name = trip_ids_of[follower.service][follower.trip]
-        if follower == leader:
-            raise ck.fail(f"{path}.follower", f"expected a train other than the leader, got {follower_name}")
-        if follower in follower_of:
-            raise ck.fail(
-                f"{path}.follower",
-                f"expected a train that follows in at most one formation, got {follower_name} "
-                f"(already the follower in {follower_of[follower]!r})",
-            )
-        # Following must not loop back: walking leaders from the leader may not reach the follower.
-        node: TripRef | None = leader
-        while node is not None:
-            if node == follower:
+        for fid, leader, follower, m in _entries(ck, body, path, services):
+            if any(f.id == fid for f in specs):
+                raise ck.fail(f"{path}.id", f"expected a unique formation id, got {fid!r} twice")
+            follower_name = trip_ids_of[follower.service][follower.trip]
+            if follower == leader:
+                raise ck.fail(f"{path}.follower", f"expected a train other than the leader, got {follower_name}")
+            if follower in follower_of:
                 raise ck.fail(
-                    f"{path}.follower", f"expected formations without a cycle, got {follower_name} following itself"
+                    f"{path}.follower",
+                    f"expected a train that follows in at most one formation, got {follower_name} "
+                    f"(already the follower in {follower_of[follower]!r})",
                 )
-            node = leader_of.get(node)
-        follower_of[follower] = fid
-        leader_of[follower] = leader
-        gap = ck.number(m["target_gap_m"], f"{path}.target_gap_m", gt=0.0)
-        timeout = ck.number(
-            m.get("coupling_timeout_s", DEFAULT_COUPLING_TIMEOUT_S), f"{path}.coupling_timeout_s", gt=0.0
-        )
-        raw: dict[str, Any] = {
-            "id": fid,
-            "leader": {"service": leader.service, "trip": leader.trip},
-            "follower": {"service": follower.service, "trip": follower.trip},
-            "target_gap_m": gap,
-        }
-        couple = decouple = None
-        if m.get("couple") is not None:
-            couple, raw["couple"] = trigger(ck, m["couple"], f"{path}.couple", COUPLE_TRIGGERS)
-        if m.get("decouple") is not None:
-            decouple, raw["decouple"] = trigger(ck, m["decouple"], f"{path}.decouple", DECOUPLE_TRIGGERS)
-        raw["coupling_timeout_s"] = timeout
-        specs.append(FormationSpec(fid, leader, follower, gap, couple, decouple, timeout))
-        raws.append(raw)
+            # Following must not loop back: walking leaders from the leader may not reach the follower.
+            node: TripRef | None = leader
+            while node is not None:
+                if node == follower:
+                    raise ck.fail(
+                        f"{path}.follower",
+                        f"expected formations without a cycle, got {follower_name} following itself",
+                    )
+                node = leader_of.get(node)
+            follower_of[follower] = fid
+            leader_of[follower] = leader
+            gap = ck.number(m["target_gap_m"], f"{path}.target_gap_m", gt=0.0)
+            timeout = ck.number(
+                m.get("coupling_timeout_s", DEFAULT_COUPLING_TIMEOUT_S), f"{path}.coupling_timeout_s", gt=0.0
+            )
+            raw: dict[str, Any] = {
+                "id": fid,
+                "leader": {"service": leader.service, "trip": leader.trip},
+                "follower": {"service": follower.service, "trip": follower.trip},
+                "target_gap_m": gap,
+            }
+            couple = decouple = None
+            if m.get("couple") is not None:
+                couple, raw["couple"] = trigger(ck, m["couple"], f"{path}.couple", COUPLE_TRIGGERS)
+            if m.get("decouple") is not None:
+                decouple, raw["decouple"] = trigger(ck, m["decouple"], f"{path}.decouple", DECOUPLE_TRIGGERS)
+            raw["coupling_timeout_s"] = timeout
+            specs.append(FormationSpec(fid, leader, follower, gap, couple, decouple, timeout))
+            raws.append(raw)
     return tuple(specs), raws
+
+
+_OPTIONAL = ("couple", "decouple", "coupling_timeout_s")
+
+
+def _entries(
+    ck: Checker, body: Any, path: str, services: Sequence[ServiceSpec]
+) -> list[tuple[str, TripRef, TripRef, dict[str, Any]]]:
+    """One formation entry → ``(id, leader, follower, fields)`` per formation it stands for.
+
+    An entry names two trips (``leader``/``follower``: ``{service, trip}``), or two services (``pairs: {leader,
+    follower}``) when the follower service's departures are relative to the leader service
+    (``departures: {after: {service: <leader>, ...}}``): every follower trip then forms a formation ``<id><k>``
+    with the reference trip it departs after — as many formations as the headway gives trips, so a headway search
+    keeps every branch unit coupled. The resolved scenario lists the expanded formations."""
+    if isinstance(body, dict) and "pairs" in body:
+        m = ck.mapping(body, path, ("id", "pairs", "target_gap_m"), _OPTIONAL)
+        fid = ck.ident(m["id"], f"{path}.id")
+        p = ck.mapping(m["pairs"], f"{path}.pairs", ("leader", "follower"))
+        by_id = {s.id: s for s in services}
+        for key in ("leader", "follower"):
+            if not isinstance(p[key], str) or p[key] not in by_id:
+                hint = did_you_mean(p[key], by_id) if isinstance(p[key], str) else ""
+                raise ck.fail(
+                    f"{path}.pairs.{key}", f"expected a service id ({', '.join(by_id)}), got {short_repr(p[key])}{hint}"
+                )
+        lead, follow = by_id[p["leader"]], by_id[p["follower"]]
+        rule = follow.departures_after
+        if rule is None or rule.service != lead.id:
+            raise ck.fail(
+                f"{path}.pairs.follower",
+                f"expected a service whose departures are relative to {lead.id!r} "
+                f"(departures: {{after: {{service: {lead.id}}}}}), got {follow.id!r}",
+            )
+        refs = rule.reference_trips
+        return [(f"{fid}{k}", TripRef(lead.id, i), TripRef(follow.id, k), m) for k, i in enumerate(refs)]
+    m = ck.mapping(body, path, ("id", "leader", "follower", "target_gap_m"), _OPTIONAL)
+    fid = ck.ident(m["id"], f"{path}.id")
+    leader = trip_ref(ck, m["leader"], f"{path}.leader", services)
+    follower = trip_ref(ck, m["follower"], f"{path}.follower", services)
+    return [(fid, leader, follower, m)]
 
 
 def trigger(ck: Checker, value: Any, path: str, kinds: Sequence[str]) -> tuple[TriggerSpec, dict[str, Any]]:

@@ -1,8 +1,14 @@
 """Validating ``services``: routes, departures (clock times or headway grids), dwell times, and trip names.
 
-A service runs trips between two stations; its departures are either a list (``{times: [...]}``) or a
+A service runs trips between two stations; its departures are a list (``{times: [...]}``), a
 grid (``{first, last, headway_s}`` → ``first + k·headway_s`` up to ``last``, with a 1 µs tolerance so
-float arithmetic cannot drop the last trip). A departure string is a clock time relative to
+float arithmetic cannot drop the last trip), or **relative to another service** (``{after: {service, every,
+first_trip, offset_s, phase}}``, :class:`~railsim.scenario.model.RelativeDeparturesSpec`): one trip per ``every``
+trips of the reference service, ``offset_s`` after the reference trip's origin departure plus ``phase`` of the
+interval to the next reference trip (trips that would depart before t = 0 are dropped). A study that changes the reference's headway (an override of its
+``headway_s``) thereby re-times the dependent service too — the Jurenba branch units of Line 3 keep their place in
+the Airport pattern at every probed headway. The reference must itself be timetabled by a list or a grid (no
+chains), so relative services are validated after the others. A departure string is a clock time relative to
 ``simulation.start_time``; a number is already seconds from t = 0. Trip ``k`` of service ``airport`` is
 called ``airport.000`` (at least three digits, more for long services).
 
@@ -26,6 +32,7 @@ from railsim.scenario.model import (
     DEFAULT_DWELL_S,
     MAX_TRIPS_PER_SERVICE,
     ControllerSpec,
+    RelativeDeparturesSpec,
     ServiceSpec,
     SimulationSpec,
     TripRef,
@@ -49,17 +56,24 @@ def services(
     """``services:`` → the services in file order (ids unique); ``roles`` are the scenario-wide roles."""
     if not isinstance(value, list) or not value:
         raise ck.expect("services", "a non-empty list of services", value)
-    specs: list[ServiceSpec] = []
-    raws: list[Any] = []
-    seen: set[str] = set()
-    for i, body in enumerate(value):
-        spec, raw = service(ck, body, f"services[{i}]", sim, vehicles, ctrls, roles)
-        if spec.id in seen:
-            raise ck.fail(f"services[{i}].id", f"expected a unique service id, got {spec.id!r} twice")
-        seen.add(spec.id)
-        specs.append(spec)
-        raws.append(raw)
-    return tuple(specs), raws
+    by_index: dict[int, tuple[ServiceSpec, dict[str, Any]]] = {}
+    known: dict[str, ServiceSpec] = {}
+    relative = [i for i, body in enumerate(value) if _is_relative(body)]
+    # services timed by a list or a grid first: the relative ones refer to them
+    for i in [i for i in range(len(value)) if i not in relative] + relative:
+        spec, raw = service(ck, value[i], f"services[{i}]", sim, vehicles, ctrls, roles, known)
+        if spec.id in known:
+            later = max(i, next(j for j, (s, _) in by_index.items() if s.id == spec.id))
+            raise ck.fail(f"services[{later}].id", f"expected a unique service id, got {spec.id!r} twice")
+        known[spec.id] = spec
+        by_index[i] = (spec, raw)
+    ordered = [by_index[i] for i in range(len(value))]
+    return tuple(s for s, _ in ordered), [r for _, r in ordered]
+
+
+def _is_relative(body: Any) -> bool:
+    """True if a raw service body times its departures relative to another service (``departures: {after:}``)."""
+    return isinstance(body, dict) and isinstance(body.get("departures"), dict) and "after" in body["departures"]
 
 
 def service(
@@ -70,8 +84,10 @@ def service(
     vehicles: Mapping[str, VehicleParams],
     ctrls: Mapping[str, ControllerSpec],
     roles: Mapping[str, str],
+    known: Mapping[str, ServiceSpec] | None = None,
 ) -> tuple[ServiceSpec, dict[str, Any]]:
-    """One service; a departure after ``duration_s`` is logged, not rejected (a study may look at an hour)."""
+    """One service; a departure after ``duration_s`` is logged, not rejected (a study may look at an hour).
+    ``known`` are the services validated so far (the references of relative departures)."""
     m = ck.mapping(
         body, path, ("id", "from", "to", "vehicle", "departures"), ("via", "dwell_s", "skip", "roles", "start")
     )
@@ -91,7 +107,11 @@ def service(
         raise ck.fail(
             f"{path}.vehicle", f"expected one of the vehicles ({', '.join(vehicles)}), got {short_repr(vehicle)}{hint}"
         )
-    departures, dep_raw = departure_times(ck, m["departures"], f"{path}.departures", sim)
+    after = None
+    if _is_relative(m):
+        departures, dep_raw, after = relative_departures(ck, m["departures"], f"{path}.departures", known or {})
+    else:
+        departures, dep_raw = departure_times(ck, m["departures"], f"{path}.departures", sim)
     dwell_default, dwell_stations, dwell_raw = dwell(ck, m.get("dwell_s", DEFAULT_DWELL_S), f"{path}.dwell_s")
     own_roles, own_raw = check_roles(ck, m.get("roles") or {}, ctrls, f"{path}.roles", required=False)
     start_in = ck.mapping(
@@ -136,6 +156,7 @@ def service(
         start_speed_mps=start_kmh / 3.6,
         start_before_switch=start_switch,
         start_distance_m=start_distance,
+        departures_after=after,
     )
     raw = {
         "id": sid,
@@ -202,6 +223,52 @@ def departure_times(
         )
     times = tuple(first + k * headway for k in range(n))  # type: ignore[assignment]
     return times, {"first": m["first"], "last": m["last"], "headway_s": headway}  # type: ignore[return-value]
+
+
+def relative_departures(
+    ck: Checker, value: Any, path: str, known: Mapping[str, ServiceSpec]
+) -> tuple[tuple[float, ...], dict[str, Any], RelativeDeparturesSpec]:
+    """``departures: {after: {service, every, first_trip, offset_s, phase}}`` → sorted seconds from t = 0, the
+    resolved raw form and the rule (module docstring). ``known`` are the services it may refer to."""
+    m = ck.mapping(value, path, ("after",))
+    apath = f"{path}.after"
+    a = ck.mapping(m["after"], apath, ("service",), ("every", "first_trip", "offset_s", "phase"))
+    ref_id = a["service"]
+    if not isinstance(ref_id, str) or ref_id not in known:
+        hint = did_you_mean(ref_id, known) if isinstance(ref_id, str) else ""
+        raise ck.fail(
+            f"{apath}.service",
+            f"expected a service timetabled by times or first/last/headway_s ({', '.join(known) or 'none'}), "
+            f"got {short_repr(ref_id)}{hint}",
+        )
+    every = a.get("every", 1)
+    if isinstance(every, bool) or not isinstance(every, int) or every < 1:
+        raise ck.expect(f"{apath}.every", "an integer >= 1", every)
+    ref = known[ref_id].departures_s
+    first = a.get("first_trip", 0)
+    if isinstance(first, bool) or not isinstance(first, int) or not 0 <= first < len(ref):
+        raise ck.fail(
+            f"{apath}.first_trip",
+            f"expected a trip index in [0, {len(ref) - 1}] of service {ref_id!r}, got {short_repr(first)}",
+        )
+    offset = ck.number(a.get("offset_s", 0.0), f"{apath}.offset_s")
+    phase = ck.number(a.get("phase", 0.0), f"{apath}.phase", ge=0.0)
+    if phase >= 1.0:
+        raise ck.fail(f"{apath}.phase", f"expected a fraction of the reference interval in [0, 1), got {phase:g}")
+    if phase > 0.0 and len(ref) < 2:
+        raise ck.fail(f"{apath}.phase", f"service {ref_id!r} has one trip: there is no interval to take a phase of")
+    times, refs = [], []
+    for i in range(first, len(ref), every):
+        interval = (ref[i + 1] - ref[i]) if i + 1 < len(ref) else (ref[i] - ref[i - 1] if i > 0 else 0.0)
+        t = ref[i] + phase * interval + offset
+        if t >= 0.0:  # a negative offset drops the trips that would depart before t = 0
+            times.append(t)
+            refs.append(i)
+    if not times:
+        raise ck.fail(f"{apath}.offset_s", f"every departure after {ref_id!r} falls before t = 0 (offset {offset:g} s)")
+    rule = RelativeDeparturesSpec(ref_id, every, first, offset, phase, tuple(refs))
+    raw = {"after": {"service": ref_id, "every": every, "first_trip": first, "offset_s": offset, "phase": phase}}
+    return tuple(times), raw, rule
 
 
 def dwell(ck: Checker, value: Any, path: str) -> tuple[float, dict[str, float], Any]:

@@ -24,7 +24,8 @@ feasible: the answer is ``lo`` and may be smaller, ``at_lower_bound``), then rep
 ``(a, b)`` where ``b`` is that conservative frontier and ``a`` the largest probed headway below it (infeasible by
 construction): one midpoint per round with one worker (bisection), ``workers`` evenly spaced points per round
 otherwise (the probes of a round run in parallel). A probe feasible below an infeasible one is reported in
-``non_monotone`` and does not lower the answer. When the bracket is one grid step wide, the answer is **confirmed**
+``non_monotone`` and does not lower the answer. With ``scan`` every grid point is probed in the first round instead
+(a study comparing regimes probes them all on the same points, and no non-monotone probe goes unseen). When the bracket is one grid step wide, the answer is **confirmed**
 by re-running it with each of ``confirm_seeds`` (default: seed + 1; the random parts of a run are comm delays and
 losses); if a confirmation fails, that headway counts as infeasible and the search goes on above it.
 
@@ -222,6 +223,7 @@ def find_min_headway(
     out_dir: str | Path | None = None,
     keep_runs: bool = False,
     progress: bool | None = None,
+    scan: bool = False,
 ) -> HeadwaySearchResult:
     """Smallest feasible headway in ``[lo_s, hi_s]`` to ``tol_s`` (module docstring: criteria, search, answer).
 
@@ -229,6 +231,7 @@ def find_min_headway(
     well. ``seed`` defaults to the scenario's; ``confirm_seeds`` to ``[seed + 1]`` (``[]``: no confirmation).
     Probes run through :func:`railsim.studies.sweep.run_case`, ``workers`` at a time (or on ``dask_address``). With
     ``out_dir`` every probe row is kept in ``out_dir/rows`` and reused by a later call with the same arguments.
+    ``scan`` probes every grid point in the first round (no bisection), so every non-monotone probe is seen.
     """
     from railsim import scenario
 
@@ -313,7 +316,7 @@ def find_min_headway(
 
     try:
         top = len(grid) - 1
-        run([top, 0], [seed], 0)
+        run(list(range(top, -1, -1)) if scan else [top, 0], [seed], 0)
         confirmed: set[int] = set()
         round_no = 0
         while True:

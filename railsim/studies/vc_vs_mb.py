@@ -1,49 +1,44 @@
 """Line studies: virtual coupling vs moving block on one line, side by side (``railsim study vc-vs-mb``).
 
 The question our users bring: *how many trains per hour does the line carry with virtual coupling, and what does
-it cost?* The study runs the same service pattern under two operating regimes and reports them side by side:
+it cost?* — and the questions a planner asks back: is the comparison fair, is the number plausible, and under which
+conditions does it hold? The study runs one service pattern under three regimes:
 
-* **(a) moving block** — every train is an independent moving-block train: the ``separation`` controller keeps
-  the absolute braking distance (plus margin) to whatever runs ahead, so every unit occupies its own path.
-  Default scenario: ``scenarios/chongqing_line3_peak_mb.yaml`` (Jurenba up units on their own 600 s timetable
-  from Liugongli, interleaved with the Airport units on the trunk).
-* **(b) virtual coupling** — the Airport/Jurenba units run virtually coupled on the trunk (relative braking
-  distance, the ``coupled`` CACC role, 30 m target gap at standstill), couple when leaving Liugongli and decouple
-  before the Bijin switch; a formation occupies *one* path and carries both units' passengers. Default scenario:
-  ``scenarios/chongqing_line3_peak.yaml`` (the demo; every fourth Airport up unit leads a Jurenba unit).
+* **(a) moving block** — every train an independent moving-block train: the ``separation`` controller keeps the
+  absolute braking distance (plus margin) to whatever runs ahead. Default: ``scenarios/chongqing_line3_peak_mb.yaml``.
+* **(b) virtual coupling** — the same scenario plus formations: the Airport/Jurenba up units run virtually coupled
+  Liugongli → Bijin (relative braking distance, the ``coupled`` CACC role, 30 m target gap at standstill) and
+  decouple before the Bijin switch; a formation occupies *one* path. Default:
+  ``scenarios/chongqing_line3_peak_vc.yaml`` (a ``pairs`` formation: one per Jurenba unit at any headway).
+* **(c) the control** — (b) with relative braking switched off (:func:`control_overrides`: no formation couples,
+  the ``coupled`` role is the separation controller). If (c) reproduces (a) — same answer, the same verdict at
+  every probe, per-trip running times within a step — the two scenarios differ only in the separation rule and
+  (b) − (a) is the effect of relative braking; the report says which.
 
-Reading chosen for (b): relative braking distance applies **inside formations only**; consecutive independent
-trains (one Airport unit behind another) keep the moving-block absolute braking distance in both regimes. Coupling
-every consecutive trunk train into one endless platoon is a different operating concept (no timetable headway
-left to search) and is not what the data's Airport/Jurenba pattern describes. So the regimes differ exactly where
-the issue puts the difference: whether a Jurenba unit needs a path of its own on the trunk.
+Relative braking applies **inside formations only**; consecutive independent trains keep the absolute braking
+distance in every regime (coupling every trunk train into one endless platoon leaves no timetable headway to
+search and is not what the Airport/Jurenba pattern describes).
 
-For each regime the study
+**Fair search.** The branch services depart *relative* to the searched Airport services (``departures: {after:
+...}``, :mod:`railsim.scenario.validate_services`), so every probed headway keeps the same pattern (before, the
+Jurenba units kept fixed clock times and their phase moved from probe to probe). Every regime is searched on the
+same grid (``lo_s + k·tol_s`` up to ``hi_s``) with the same feasibility definition
+(:func:`railsim.studies.headway.feasibility`: no collision, every stop served, every trip arrived, max arrival delay
+≤ ``max_delay_s``); with ``scan`` (default) every grid point of (a) and (b) is probed, so a non-monotone probe cannot
+hide (the control bisects the same grid: each of its probes is compared with (a)'s verdict there); the answer stays
+conservative (every longer probe feasible) and is confirmed with a second seed. For the **first
+infeasible probe** (the largest infeasible headway) :func:`railsim.studies.binding.binding_constraint` names the
+rule and place that broke it.
 
-1. searches the **minimum feasible headway** of the Airport service (both directions set together; override paths
-   ``services[i].departures.headway_s`` of the services named in ``services``) with
-   :func:`railsim.studies.headway.find_min_headway` (feasible = no collision, every stop served, every trip arrived,
-   arrival delay at most ``max_delay_s``). The other services keep their timetable: the Jurenba down units and,
-   in (a), the Jurenba up units run their own 600 s pattern; in (b) the Jurenba up units are re-timed to their
-   leader. The (b) formations name Airport trips 0, 4, … 24, which exist for every headway ≤ 150 s in the
-   07:30–08:30 window, so (b) is searched up to 150 s;
-2. keeps the search's own probe **at that headway** (full outputs in ``DIR/<regime>/search/runs/<case_id>``; with
-   ``headway_s`` given, a run in ``DIR/<regime>/run``) and reads it back:
-   capacity per direction (:func:`railsim.analysis.capacity.analyse_run`: trains/h, paths/h, passengers/h over the busiest
-   hour of the busiest section, UIC 406 occupancy), running time per service, traction energy (``trips.csv``
-   ``energy_kwh``), gap statistics (the smallest true gap per trip; the coupled gap error of the formations);
-3. writes ``DIR/vc_vs_mb.md`` with the two columns, the probe tables and the time-distance graphs
-   (:func:`railsim.report.plots.line.time_distance`), and ``DIR/vc_vs_mb.json``.
+**Beside each answer**: the analytic floors of the regime (:mod:`railsim.studies.floor`: braking distance, train or
+formation length, margin, approach, dwell and clearing at the critical station; strict and cycle floors of the
+pattern) with the simulated/floor ratio; the **conditions** (offered trains/h per service, dwell, delay threshold,
+comm delay/loss, target gap, formation share); optionally a **sensitivity** block
+(:mod:`railsim.studies.vc_sensitivity`: target gap, t2t delay, formation share). At each answer the search's own
+probe is read back (capacity per direction by :func:`railsim.analysis.capacity.analyse_run`, running time, energy,
+gaps) and drawn as time-distance graphs; ``DIR/vc_vs_mb.md`` and ``DIR/vc_vs_mb.json`` hold it all.
 
-``headway_s`` skips the search and runs both regimes at that headway (a quick look; the report says so).
-
-Caveat for (a): its Jurenba up units keep fixed clock times (every 600 s from 07:30 at Liugongli) while the Airport
-headway is varied, so the phase between the two patterns changes from probe to probe; a Jurenba unit that leaves
-Liugongli just ahead of an Airport unit delays it, and feasibility is then *not monotone* in the headway. The search
-(:mod:`railsim.studies.headway`) lists such probes and answers conservatively (every probed headway above the answer is
-feasible). A planner would re-time the Jurenba units for every Airport headway; the scenario schema has no
-"departure relative to another service" yet, and the headway search sets plain override paths, so the study does
-not.
+``headway_s`` skips the search and runs every regime at that headway (a quick look; the report says so).
 """
 
 from __future__ import annotations
@@ -55,23 +50,21 @@ from pathlib import Path
 from typing import Any
 
 from railsim.errors import ConfigError
-from railsim.record import output
 
 ROOT = Path(__file__).resolve().parents[2]  # the repository (railsim/studies/<this file>)
 DEFAULT_MB = ROOT / "scenarios" / "chongqing_line3_peak_mb.yaml"
-DEFAULT_VC = ROOT / "scenarios" / "chongqing_line3_peak.yaml"
+DEFAULT_VC = ROOT / "scenarios" / "chongqing_line3_peak_vc.yaml"
 DEFAULT_SERVICES = ("airport_up", "airport_down")
 
 
 @dataclass(frozen=True)
 class Regime:
-    """One side of the comparison: a scenario, the headway search range and a label."""
+    """One side of the comparison: a scenario, the overrides that make the regime, and a label."""
 
-    key: str  # "mb" | "vc"
+    key: str  # "mb" | "vc" | "control"
     label: str
     scenario: Path
-    lo_s: float
-    hi_s: float
+    overrides: dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass
@@ -83,6 +76,10 @@ class RegimeResult:
     metrics: dict[str, Any] = field(default_factory=dict)
     plots: list[Path] = field(default_factory=list)
     capacity_md: str = ""
+    binding: Any = None  # railsim.studies.binding.Binding of the first infeasible probe
+    binding_headway_s: float | None = None
+    floor: Any = None  # railsim.studies.floor.RegimeFloor
+    conditions: dict[str, Any] = field(default_factory=dict)
 
 
 def headway_paths(scenario_path: Path, services: Sequence[str]) -> list[str]:
@@ -108,6 +105,65 @@ def headway_paths(scenario_path: Path, services: Sequence[str]) -> list[str]:
             )
         paths.append(f"services[{i}].departures.headway_s")
     return paths
+
+
+def control_overrides(vc_scenario: Path) -> dict[str, Any]:
+    """Regime (c), the control: the VC scenario with relative braking switched off — no formation couples (every
+    ``formations[i].couple`` removed, so each follower keeps the moving-block separation of the ``separation``
+    role) and the ``coupled`` role itself set to the separation controller. The formations stay registered and the
+    timetable is untouched, so (c) differs from (b) only in the separation rule of the formation followers."""
+    from railsim import scenario
+    from railsim.scenario.loading import parse_yaml, read_text
+
+    raw = parse_yaml(read_text(Path(vc_scenario), str(vc_scenario)), str(vc_scenario))
+    forms = raw.get("formations") if isinstance(raw, dict) else None
+    n = len(forms) if isinstance(forms, list) else 0
+    if n == 0:
+        raise ConfigError(vc_scenario, "formations", "expected the virtual-coupling scenario to have formations")
+    overrides: dict[str, Any] = {f"formations[{i}].couple": None for i in range(n)}
+    overrides["roles.coupled"] = scenario.load(vc_scenario).roles["separation"]
+    return overrides
+
+
+def conditions(scn: Any, search: Any, max_delay_s: float, delay_stat: str) -> dict[str, Any]:
+    """The traffic and system conditions behind a regime's number: offered trains/h per service at the answer,
+    dwell times, the delay threshold, comm delay/loss, target gaps and the formation share."""
+    from railsim.studies.floor import _mean_delay_s
+
+    comm = {}
+    for name, ch in scn.faults.comm.items():
+        comm[name] = {
+            "delay": ch.delay.dist + " " + ", ".join(f"{k} {v:g}" for k, v in ch.delay.params.items()) + " s",
+            "mean_delay_s": _mean_delay_s(ch.delay),
+            "loss_prob": ch.loss_prob,
+        }
+    svc0 = scn.services[0]
+    shares = {
+        s.id: f"1 per {s.departures_after.every} {s.departures_after.service}"
+        for s in scn.services
+        if s.departures_after is not None
+    }
+    return {
+        "offered_trains_per_h": dict(search.trains_per_hour_by_service) if search is not None else {},
+        "offered_trains_per_h_by_direction": dict(search.trains_per_hour) if search is not None else {},
+        "dwell_default_s": svc0.dwell_default_s,
+        "dwell_by_station_s": dict(svc0.dwell_by_station),
+        "max_delay_s": max_delay_s,
+        "delay_stat": delay_stat,
+        "comm": comm,
+        "target_gap_m": sorted({f.target_gap_m for f in scn.formations if f.couple is not None}),
+        "formations": sum(1 for f in scn.formations if f.couple is not None),
+        "relative_departures": shares,
+        "step_s": scn.simulation.step_s,
+        "seed": scn.simulation.seed,
+    }
+
+
+def first_infeasible(search: Any) -> Any:
+    """The probe that limits the answer: the largest infeasible probed headway (the first infeasible one coming down
+    the grid; a failed confirmation counts), or None when every probe was feasible."""
+    bad = [p for p in search.probes if not p.feasible]
+    return max(bad, key=lambda p: (p.headway_s, -p.seed)) if bad else None
 
 
 # --------------------------------------------------------------------------------------------------------------
@@ -170,37 +226,55 @@ def _time_distance(run_dir: Path, stem: Path) -> list[Path]:
 # --------------------------------------------------------------------------------------------------------------
 
 
+def regimes(mb_scenario: Path, vc_scenario: Path, control: bool = True) -> list[Regime]:
+    """(a) moving block, (b) virtual coupling and, with ``control``, (c) the control (:func:`control_overrides`)."""
+    out = [
+        Regime("mb", "(a) moving block", mb_scenario),
+        Regime("vc", "(b) virtual coupling", vc_scenario),
+    ]
+    if control:
+        out.append(Regime("control", "(c) VC, relative braking off", vc_scenario, control_overrides(vc_scenario)))
+    return out
+
+
 def vc_vs_mb(
     out_dir: str | Path,
     *,
     mb_scenario: str | Path = DEFAULT_MB,
     vc_scenario: str | Path = DEFAULT_VC,
     services: Sequence[str] = DEFAULT_SERVICES,
-    lo_s: float = 60.0,
-    mb_hi_s: float = 240.0,
-    vc_hi_s: float = 150.0,
+    lo_s: float = 70.0,
+    hi_s: float = 200.0,
     tol_s: float = 10.0,
     max_delay_s: float = 120.0,
     workers: int = 1,
+    dask_address: str | None = None,
     headway_s: float | None = None,
     confirm: bool = True,
+    scan: bool = True,
+    control: bool = True,
+    sensitivity: bool = False,
     progress: bool | None = None,
 ) -> dict[str, RegimeResult]:
-    """Run the VC-vs-moving-block study into ``out_dir`` (module docstring); returns the two regimes' results."""
+    """Run the VC-vs-moving-block study into ``out_dir`` (module docstring); returns the regimes' results."""
     from railsim import scenario
+    from railsim.studies.binding import binding_constraint
+    from railsim.studies.floor import regime_floor
     from railsim.studies.headway import find_min_headway
     from railsim.studies.sweep import case_id, run_case
+    from railsim.studies.vc_report import write_report
 
     out = Path(out_dir)
-    regimes = [
-        Regime("mb", "(a) moving block", Path(mb_scenario), lo_s, mb_hi_s),
-        Regime("vc", "(b) virtual coupling", Path(vc_scenario), lo_s, vc_hi_s),
-    ]
+    regs = regimes(Path(mb_scenario), Path(vc_scenario), control)
     if headway_s is not None and not (headway_s > 0 and math.isfinite(headway_s)):
         raise ConfigError("<study>", "headway_s", f"expected a number of seconds > 0, got {headway_s!r}")
-    paths = {r.key: headway_paths(r.scenario, services) for r in regimes}  # validates both files first
+    paths = {r.key: headway_paths(r.scenario, services) for r in regs}  # validates the files first
+    if paths["mb"] != paths["vc"]:
+        raise ConfigError(
+            vc_scenario, "services", f"expected the headway services at the same places as in {mb_scenario}"
+        )
     results: dict[str, RegimeResult] = {}
-    for r in regimes:
+    for r in regs:
         folder = out / r.key
         search = None
         h = headway_s
@@ -208,21 +282,35 @@ def vc_vs_mb(
             search = find_min_headway(
                 r.scenario,
                 paths[r.key],
-                r.lo_s,
-                r.hi_s,
+                lo_s,
+                hi_s,
                 tol_s=tol_s,
                 max_delay_s=max_delay_s,
+                overrides=r.overrides,
                 workers=workers,
+                dask_address=dask_address,
                 out_dir=folder / "search",
                 confirm_seeds=None if confirm else [],
                 keep_runs=True,
                 progress=progress,
+                scan=scan and r.key != "control",  # the control bisects: each of its probes checks (a)'s verdict
             )
             h = search.min_headway_s
         res = RegimeResult(r, h, search, None)
+        seed = int(scenario.load(r.scenario, r.overrides).simulation.seed)
+        at = h if h is not None else hi_s
+        scn_at = scenario.load(r.scenario, {**r.overrides, **{p: at for p in paths[r.key]}})
+        res.floor = regime_floor(scn_at, tuple(services))
+        res.conditions = conditions(scn_at, search, max_delay_s, "max")
+        if search is not None:
+            bad = first_infeasible(search)
+            if bad is not None:
+                bad_dir = folder / "search" / "runs" / bad.case_id
+                res.binding_headway_s = bad.headway_s
+                if (bad_dir / "summary.json").is_file():
+                    res.binding = binding_constraint(bad_dir)
         if h is not None:
-            seed = int(scenario.load(r.scenario).simulation.seed)
-            overrides = {p: h for p in paths[r.key]}
+            overrides = {**r.overrides, **{p: h for p in paths[r.key]}}
             run_dir = folder / "search" / "runs" / case_id(overrides, seed)  # the search's own probe at h
             if not (run_dir / "summary.json").is_file():
                 run_dir = folder / "run"
@@ -235,116 +323,78 @@ def vc_vs_mb(
             res.metrics, res.capacity_md = run_metrics(run_dir)
             res.plots = _time_distance(run_dir, out / f"{r.key}_time_distance")
         results[r.key] = res
-    write_report(out, results, services, tol_s, max_delay_s, searched=headway_s is None)
+    control_check = compare_control(
+        results, out, paths["mb"], seed_of=lambda r: int(scenario.load(r.scenario).simulation.seed)
+    )
+    sens = None
+    if sensitivity and headway_s is None:
+        from railsim.studies.vc_sensitivity import run_sensitivity
+
+        sens = run_sensitivity(
+            out / "sensitivity",
+            results,
+            paths["mb"],
+            lo_s=lo_s,
+            hi_s=hi_s,
+            tol_s=tol_s,
+            max_delay_s=max_delay_s,
+            workers=workers,
+            dask_address=dask_address,
+            progress=progress,
+        )
+    write_report(
+        out,
+        results,
+        services,
+        lo_s,
+        hi_s,
+        tol_s,
+        max_delay_s,
+        searched=headway_s is None,
+        control=control_check,
+        sensitivity=sens,
+        scan=scan,
+    )
     return results
 
 
-def _fmt(v: Any) -> str:
-    if v is None or (isinstance(v, float) and math.isnan(v)):
-        return "–"
-    if isinstance(v, float):
-        return f"{v:,.3f}" if abs(v) < 10 else f"{v:,.1f}"
-    return str(v)
+def compare_control(
+    results: dict[str, RegimeResult], out: Path, paths: Sequence[str], seed_of: Any
+) -> dict[str, Any] | None:
+    """(a) against (c): the same answer, the same feasibility at every probed headway, and per-trip running times at
+    (a)'s answer (``trips.csv`` ``travel_time_s``; both runs are kept by the scan)."""
+    import pandas as pd
 
+    from railsim.studies.sweep import case_id
 
-ROWS = [
-    ("minimum feasible headway [s]", "headway_s"),
-    ("trains (units) run", "trains"),
-    ("collisions", "collisions"),
-    ("stops missed", "stops_missed"),
-    ("up: trains/h, busiest section", "up.trains_per_h"),
-    ("up: paths/h", "up.paths_per_h"),
-    ("up: passengers/h", "up.pax_per_h"),
-    ("up: busiest section", "up.busiest_section"),
-    ("up: max UIC 406 occupancy", "up.max_occupancy"),
-    ("up: at section", "up.max_occupancy_section"),
-    ("down: trains/h, busiest section", "down.trains_per_h"),
-    ("down: paths/h", "down.paths_per_h"),
-    ("down: passengers/h", "down.pax_per_h"),
-    ("down: max UIC 406 occupancy", "down.max_occupancy"),
-    ("down: at section", "down.max_occupancy_section"),
-    ("arrival delay max / mean [s]", "delay"),
-    ("traction energy, all trips [kWh]", "energy_kwh_total"),
-    ("smallest true gap, whole run [m]", "min_gap_m"),
-    ("median of per-trip smallest gap [m]", "trip_min_gap_p50_m"),
-    ("formations coupled", "formations_coupled"),
-    ("coupled gap error p95, worst formation [m]", "coupled_gap_error_p95_m"),
-]
-
-
-def write_report(
-    out: Path,
-    results: dict[str, RegimeResult],
-    services: Sequence[str],
-    tol_s: float,
-    max_delay_s: float,
-    searched: bool = True,
-) -> Path:
-    """``vc_vs_mb.md`` and ``vc_vs_mb.json`` in ``out``."""
-    out.mkdir(parents=True, exist_ok=True)
-    cols = [results[k] for k in ("mb", "vc") if k in results]
-    lines = [
-        "# Virtual coupling vs moving block",
-        "",
-        f"Scenarios: (a) `{cols[0].regime.scenario.name}`, (b) `{cols[1].regime.scenario.name}`. Headway of "
-        f"{', '.join(services)} (both set together) "
-        + (
-            f"searched in [{cols[0].regime.lo_s:g}, {cols[0].regime.hi_s:g}] s for (a) and "
-            f"[{cols[1].regime.lo_s:g}, {cols[1].regime.hi_s:g}] s for (b), tolerance {tol_s:g} s, feasible = "
-            f"no collision, every stop served, every trip arrived, max arrival delay ≤ {max_delay_s:g} s; "
-            "each regime then run once at its minimum headway."
-            if searched
-            else "given (no search): both regimes run at the same headway."
-        ),
-        "In (b) relative braking distance applies inside the Airport/Jurenba formations only; consecutive "
-        "independent trains keep the moving-block absolute braking distance (see railsim/study.py). Capacity "
-        "over the busiest hour of the busiest section per direction; a formation is one path carrying both "
-        "units' passengers.",
-        "",
-        "| | " + " | ".join(r.regime.label for r in cols) + " |",
-        "|---|" + "---:|" * len(cols),
-    ]
-    for label, key in ROWS:
-        vals = []
-        for r in cols:
-            if key == "headway_s":
-                vals.append(_fmt(r.headway_s) if r.headway_s is not None else "none feasible")
-            elif key == "delay":
-                vals.append(f"{_fmt(r.metrics.get('delay_max_s'))} / {_fmt(r.metrics.get('delay_mean_s'))}")
-            else:
-                vals.append(_fmt(r.metrics.get(key)))
-        lines.append(f"| {label} | " + " | ".join(vals) + " |")
-    run_keys = sorted({k for r in cols for k in r.metrics if k.startswith(("running_time_min.", "energy_kwh_per"))})
-    for key in run_keys:
-        name = key.replace("running_time_min.", "mean running time [min] ").replace(
-            "energy_kwh_per_trip.", "traction energy per trip [kWh] "
+    a, c = results.get("mb"), results.get("control")
+    if a is None or c is None:
+        return None
+    check: dict[str, Any] = {"same_headway": a.headway_s == c.headway_s}
+    if a.search is not None and c.search is not None:
+        fa = {(p.headway_s, p.seed): p.feasible for p in a.search.probes}
+        fc = {(p.headway_s, p.seed): p.feasible for p in c.search.probes}
+        common = sorted(set(fa) & set(fc))
+        check["probes_compared"] = len(common)
+        check["probes_differing"] = [k[0] for k in common if fa[k] != fc[k]]
+    h = a.headway_s
+    if h is not None and a.run_dir is not None:
+        c_dir = (
+            out
+            / "control"
+            / "search"
+            / "runs"
+            / case_id({**c.regime.overrides, **{p: h for p in paths}}, seed_of(c.regime))
         )
-        lines.append(f"| {name} | " + " | ".join(_fmt(r.metrics.get(key)) for r in cols) + " |")
-    for r in cols:
-        lines += ["", f"## {r.regime.label}", ""]
-        if r.search is not None:
-            lines += [r.search.to_markdown(), ""]
-        for p in r.plots:
-            if p.suffix == ".png":
-                lines.append(f"![{r.regime.label} {p.stem}]({p.relative_to(out) if p.is_relative_to(out) else p})")
-        if r.capacity_md:
-            lines += ["", r.capacity_md.replace("## Capacity", f"### Capacity at {_fmt(r.headway_s)} s", 1)]
-        if r.run_dir is not None:
-            lines.append(f"Run outputs: `{r.run_dir.relative_to(out) if r.run_dir.is_relative_to(out) else r.run_dir}`")
-    md = out / "vc_vs_mb.md"
-    output.write_bytes(md, ("\n".join(lines) + "\n").encode("utf-8"))
-    output.write_json(
-        out / "vc_vs_mb.json",
-        {
-            r.regime.key: {
-                "label": r.regime.label,
-                "scenario": str(r.regime.scenario),
-                "headway_s": r.headway_s,
-                "metrics": r.metrics,
-                "search": r.search.to_dict() if r.search is not None else None,
-                "run_dir": str(r.run_dir) if r.run_dir else None,
-            }
-            for r in cols
-        },
-    )
-    return md
+        if (c_dir / "trips.csv").is_file():
+            ta = pd.read_csv(a.run_dir / "trips.csv").set_index("trip_id")
+            tc = pd.read_csv(c_dir / "trips.csv").set_index("trip_id")
+            both = ta.index.intersection(tc.index)
+            diff = (ta.loc[both, "travel_time_s"] - tc.loc[both, "travel_time_s"]).abs()
+            check.update(
+                at_headway_s=h,
+                trips_compared=int(len(both)),
+                trips_only_one_side=int(len(ta.index.symmetric_difference(tc.index))),
+                max_running_time_diff_s=float(diff.max()) if len(diff) else math.nan,
+            )
+    return check
