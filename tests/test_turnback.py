@@ -293,3 +293,125 @@ def test_a_unit_with_nothing_to_run_within_its_layover_leaves_service(tmp_path: 
     assert read_summary(out)["fleet"]["units_used"] == 1
     (row,) = read_summary(out)["fleet"]["turnbacks"]
     assert row["departed_s"] >= 1500.0  # it waited in the turnback track for its departure
+
+
+# ---------------------------------------------------------------------- a coupled pair across a turnback
+def _pair_services(back_s: float) -> list[dict]:
+    return [
+        _service("outA", "Aston", "Bury", [0]),
+        _service("outB", "Aston", "Bury", [0]),
+        _service("backA", "Bury", "Aston", [back_s]),
+        _service("backB", "Bury", "Aston", [back_s]),
+    ]
+
+
+def _pair_run(folder: Path, net: Path, stops: Path, back_leader: str, back_s: float) -> tuple[Path, object]:
+    """outA+outB coupled Aston → Bury; each unit turns back; the back pair couples again with ``back_leader``
+    leading (the other back trip follows)."""
+    back_follower = "backB" if back_leader == "backA" else "backA"
+
+    def pair(fid: str, lead: str, fol: str) -> dict:
+        return {
+            "id": fid,
+            "leader": {"service": lead, "trip": 0},
+            "follower": {"service": fol, "trip": 0},
+            "target_gap_m": 30,
+            "couple": {"on_departure": True},
+        }
+
+    folder.mkdir(parents=True, exist_ok=True)
+    raw = {
+        "name": folder.name,
+        "world": {"net": str(net), "additional": [str(stops)]},
+        **_COMMON,
+        "services": _pair_services(back_s),
+        "rotations": {
+            "units": {"u1": ["outA.000", "backA.000"], "u2": ["outB.000", "backB.000"]},
+            "turnback_min_s": 60,
+        },
+        "formations": [pair("there", "outA", "outB"), pair("back", back_leader, back_follower)],
+    }
+    raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
+    scn = _write(folder, "scenario.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = folder / "out"
+    return out, run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+
+
+def _check_pair_back(out: Path, leader: str, follower: str) -> None:
+    summary = read_summary(out)
+    assert summary["collisions"] == 0 and summary["fleet"]["turnback_min_respected"]
+    coupled = [r["subject"] for r in _events(out, "coupled")]
+    assert coupled == ["there", "back"]  # coupled on the way there, and again after the turnback
+    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    lead, fol = trips[f"{leader}.000"], trips[f"{follower}.000"]
+    assert lead["arrival_s"] != "" and fol["arrival_s"] != ""
+    # they leave together, the follower right behind its leader (it waited for the leader's departure) ...
+    assert 0.0 <= float(fol["departure_s"]) - float(lead["departure_s"]) <= 10.0
+    # ... and run coupled to the end: the follower arrives within a few seconds of its leader
+    assert 0.0 < float(fol["arrival_s"]) - float(lead["arrival_s"]) <= 15.0
+
+
+def test_a_coupled_pair_cannot_reverse_in_place_on_one_bidi_track(tmp_path: Path) -> None:
+    """Measured: when two units reverse one behind the other on one bidi platform track, SUMO 1.28 keeps them on
+    the lane in their old order and reports them colliding (1595 reports in this case, railsim's own gap 30 m)
+    until they leave the edge. The engine refuses the formation before the run, naming it."""
+    net, stops = build_single_line(tmp_path)
+    _, bad = _pair_run(tmp_path, net, stops, "backB", 900.0)
+    assert bad.returncode == 2, bad.stderr + bad.stdout  # type: ignore[attr-defined]
+    assert "formations.back" in bad.stderr and "one behind the other on one bidi track" in bad.stderr  # type: ignore[attr-defined]
+
+
+def test_a_coupled_pair_turns_back_through_a_turnback_track_first_in_first_out(tmp_path: Path) -> None:
+    net, stops = build_tail_track(tmp_path)
+    out, res = _pair_run(tmp_path / "ok", net, stops, "backA", 900.0)
+    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
+    _check_pair_back(out, "backA", "backB")
+    # the unit of outB comes round second: naming it the leader is refused before the run, with the fix
+    _, bad = _pair_run(tmp_path / "bad", net, stops, "backB", 900.0)
+    assert bad.returncode == 2  # type: ignore[attr-defined]
+    assert "formations.back" in bad.stderr and "make 'backA.000' the leader" in bad.stderr  # type: ignore[attr-defined]
+
+
+def test_a_unit_turned_in_a_pocket_couples_behind_a_through_train(tmp_path: Path) -> None:
+    """The day's Jurenba case on the mini line: a unit turns in the pocket beyond C and leaves coupled behind a
+    through train. It waits in the pocket until the through train stands at C (coming out earlier would put it in
+    front), comes out behind it, and the through train stays at C after its dwell until the two are coupled."""
+    line = _mini_with_pocket(tmp_path)
+    raw = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
+    raw["world"] = {"line": str(line)}
+    raw["services"] = [
+        {"id": "short_down", "from": "e", "to": "c", "vehicle": "cq6", "departures": {"times": [0]}, "dwell_s": 20},
+        {"id": "short_up", "from": "c", "to": "e", "vehicle": "cq6", "departures": {"times": [400]}, "dwell_s": 20},
+        {"id": "up", "from": "a", "to": "e", "vehicle": "cq6", "departures": {"times": [200]}, "dwell_s": 20},
+    ]
+    raw["formations"] = [
+        {
+            "id": "pair",
+            "leader": {"service": "up", "trip": 0},
+            "follower": {"service": "short_up", "trip": 0},
+            "target_gap_m": 30,
+            "couple": {"on_departure": True},
+        }
+    ]
+    raw["rotations"] = {"units": {"u1": ["short_down.000", "short_up.000"]}, "turnback_min_s": 120}
+    scn = _write(tmp_path, "pocket_pair.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    s = read_summary(out)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    assert [r["subject"] for r in _events(out, "coupled")] == ["pair"]
+    stops = {(r["trip_id"], r["station"]): r for r in read_csv(out / "stops.csv")}
+    leader_at_c = stops[("up.000", "c")]
+    # the unit left the pocket only once the through train stood at C
+    (rev,) = _events(out, "reversed")
+    assert float(rev["t_s"]) >= float(leader_at_c["arrival_s"])
+    # the through train waited for it after its dwell (logged), and the two left C together
+    (held,) = _events(out, "departure_held_for_follower")
+    assert held["subject"] == "up.000"
+    assert float(leader_at_c["departure_s"]) - float(leader_at_c["arrival_s"]) > 20.0 + STEP_S
+    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    gap_s = float(trips["short_up.000"]["departure_s"]) - float(leader_at_c["departure_s"])
+    assert 0.0 <= gap_s <= 10.0
+    # coupled to E: it arrives right behind its leader
+    assert 0.0 < float(trips["short_up.000"]["arrival_s"]) - float(trips["up.000"]["arrival_s"]) <= 15.0

@@ -7,6 +7,17 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   behind its leader once the leader stands at the follower's origin; a formation whose leader approaches the
   switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
   the coupled controller's effective target) and the closing speed; coupled time is counted.
+* **Across a turnback** (rotations): a formation whose follower is a trip its unit's turnback starts
+  (``chained``) couples ``on_departure`` without an insertion: the follower's unit comes round by itself, runs
+  to its platform as a free train and stops behind its leader at separation distance; then the couple request
+  goes out (:meth:`_couples_after_turnback`) and the coupled controller closes to the target gap, where the
+  follower halts behind its leader like any coupled follower. Until its leader
+  stands at that platform the follower's unit waits at its reversal point (:meth:`waits_for_leader`): a leader
+  that comes through from elsewhere finds the platform free and the follower comes out behind it; the leader
+  stays at the platform after its dwell until the two are coupled (:meth:`holds_departure`; at most one
+  coupling timeout), so the pair leaves together. Which unit leads
+  is the scenario's choice, checked against the order the units stand in after the turnback
+  (:meth:`railsim.engine.turnback.Turnbacks.check_formation_order`).
 * **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
   mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
   tail clears it (:meth:`tail_m`).
@@ -30,6 +41,10 @@ from railsim.errors import ConfigError
 
 FollowerHook = Callable[[float, TrainRuntime, Any, Ahead], None]
 COUPLED_STATES = ("coupling", "coupled")
+STANDING_MPS = 0.01  # a follower slower than this stands
+# a unit that comes round by its turnback asks to couple once it stands this close behind its leader's rear: the
+# separation controller stops it within its margin (50 m on Line 3) plus the standstill braking allowance
+COUPLE_REACH_M = 150.0
 
 
 def trig(trigger: Any, kind: str) -> bool:
@@ -51,6 +66,9 @@ class FormationBook:
         # wired by the loop: insert a train behind another (the dispatcher), a train's current stop (stops)
         self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], bool] = _unwired
         self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = _unwired
+        self.chained: Callable[[str], bool] = lambda _trip: False  # rotations: trips their unit's turnback starts
+        self._asked_after_turnback: set[str] = set()  # formations whose couple request went out after a turnback
+        self._held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell ended (held for the follower)
 
     # ------------------------------------------------------------------ registration
     def add(self, f: Any, where: str = "formations") -> None:
@@ -94,9 +112,80 @@ class FormationBook:
             if trig(f.decouple, "at_s"):
                 self.manager.request_decouple(f.id, at_s=float(f.decouple.at_s))
 
+    def leader_id(self, train_id: str) -> str | None:
+        """The trip ``train_id`` follows in a formation, or None."""
+        f = self.of_follower.get(train_id)
+        return None if f is None else self.leader_of(f).train_id
+
+    def on_departure_pairs(self) -> list[tuple[str, TrainRuntime, TrainRuntime]]:
+        """(scenario field, leader, follower) of every formation that couples on departure."""
+        return [
+            (f"formations.{f.id}", self.leader_of(f), self.follower_of(f))
+            for f in self.of_follower.values()
+            if trig(f.couple, "on_departure")
+        ]
+
     def couples_on_departure(self, train_id: str) -> bool:
         f = self.of_follower.get(train_id)
         return f is not None and trig(f.couple, "on_departure")
+
+    def waits_for_leader(self, tr: TrainRuntime) -> bool:
+        """True while chained ``tr`` must stay at its reversal point: it couples on departure behind a leader that
+        has yet to stand at ``tr``'s origin platform (it would otherwise come out in front of it). False once the
+        leader stands there, or has left it (``tr`` then follows late), or has no stop there."""
+        f = self.of_follower.get(tr.train_id)
+        if f is None or not trig(f.couple, "on_departure") or not self.chained(tr.train_id):
+            return False
+        leader = self.leader_of(f)
+        if leader.status in ("scheduled", "inserting"):
+            return True
+        if leader.status != "running":
+            return False
+        stop, _ = self.current_stop(leader)
+        origin = tr.trip.origin.station_id
+        if stop is None or not any(s.station_id == origin for s in leader.trip.stops[leader.next_stop :]):
+            return False
+        return not (stop.station_id == origin and leader.sumo_stopped)
+
+    def holds_departure(self, t: float, tr: TrainRuntime) -> bool:
+        """True while leader ``tr`` must stay at the platform where a chained follower couples behind it on
+        departure: until the pair is coupled, the attempt failed, or one coupling timeout has passed since its own
+        dwell ended (a pair leaves together; a follower that cannot come never keeps it for long)."""
+        stop, _ = self.current_stop(tr)
+        for f in self.of_leader.get(tr.train_id, ()):
+            fol = self.follower_of(f)
+            if not (trig(f.couple, "on_departure") and self.chained(fol.train_id)):
+                continue
+            if stop is None or stop.station_id != fol.trip.origin.station_id or fol.departed_s is not None:
+                continue
+            state = self.manager.state(f.id)
+            if fol.status not in ("scheduled", "running") or state == "coupled":
+                continue
+            if f.id in self._asked_after_turnback and state != "coupling":
+                continue  # the attempt failed: the leader goes
+            if t - self._held_since_s.setdefault(f.id, t) >= float(f.coupling_timeout_s):
+                continue
+            return True
+        return False
+
+    def _couples_after_turnback(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> bool:
+        """True once for an ``on_departure`` formation of a chained follower: both units ran their turnback and the
+        follower stands right behind its leader (the separation controller stopped it there); the coupled
+        controller then closes the last metres (its closing speed is meant for that, not for a run to the
+        platform)."""
+        return (
+            trig(f.couple, "on_departure")
+            and self.chained(follower.train_id)
+            and f.id not in self._asked_after_turnback
+            and leader.status == "running"
+            and follower.status == "running"
+            and not leader.reversing
+            and not follower.reversing
+            and a is not None
+            and a.train_id == leader.train_id
+            and a.gap_m <= COUPLE_REACH_M
+            and follower.plant.speed_mps < STANDING_MPS
+        )
 
     # ------------------------------------------------------------------ queries
     def state(self, train_id: str) -> str:
@@ -187,7 +276,11 @@ class FormationBook:
         """See the module docstring (insert waiting followers, decouple before switches, feed the state machine)."""
         for f in self.of_leader.get(tr.train_id, ()):  # tr is a leader
             follower = self.follower_of(f)
-            if follower.status == "scheduled" and trig(f.couple, "on_departure"):
+            if (
+                follower.status == "scheduled"
+                and trig(f.couple, "on_departure")
+                and not self.chained(follower.train_id)
+            ):
                 stop, _ = self.current_stop(tr)
                 if stop is not None and tr.sumo_stopped and stop.station_id == follower.trip.origin.station_id:
                     if self.insert_behind(follower, tr, float(f.target_gap_m)):
@@ -209,6 +302,9 @@ class FormationBook:
             for hook in self.follower_hooks:
                 hook(t, tr, f, a)
         leader = self.leader_of(f)
+        if self._couples_after_turnback(tr, leader, f, a):
+            self._asked_after_turnback.add(f.id)
+            self.manager.request_couple(f.id)
         if a is not None and a.train_id == leader.train_id:
             # the state machine judges the error against the controller's effective target (gap policy: larger
             # than the standstill target at speed), expressed around the formation's own target

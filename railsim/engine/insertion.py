@@ -29,8 +29,9 @@ from railsim.engine.coupling import FormationBook
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
 from railsim.engine.fleet import Fleet
-from railsim.engine.settings import DWELL_REGISTRATION_S, INSERTION_REACTION_S, EngineSettings
+from railsim.engine.settings import INSERTION_REACTION_S, EngineSettings
 from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import sumo_stops
 from railsim.errors import ConfigError, SimulationError
 from railsim.physics import dynamics
 
@@ -104,6 +105,7 @@ class Dispatcher:
             follower = self.formations.follower_of(f)
             if (
                 self.formations.couples_on_departure(follower.train_id)
+                and not self.chained(follower.train_id)  # its unit comes round by its turnback
                 and follower.trip.origin.station_id == leader.trip.origin.station_id
             ):
                 out.append((f, follower))
@@ -166,16 +168,7 @@ class Dispatcher:
             else:  # the formation book tries again while the leader stands there
                 self._log_held(tr, reason)
             return False
-        from railsim.engine.sumo import StopSpec
-
-        stops = [
-            StopSpec(
-                s.stop_id,
-                duration_s=DWELL_REGISTRATION_S if s.is_destination else s.dwell_s,
-                lane_stop_m=s.lane_stop_m,
-            )
-            for s in trip.stops[1:]
-        ]
+        stops = sumo_stops(trip.stops[1:])  # it is inserted at its origin: SUMO holds it at the others
         # SUMO inserts a vehicle on its route's first edge: a train starting further along (a start offset in
         # motion) gets the route trimmed to begin at the edge that holds its start chainage
         k = tr.view.edge_at(depart_m)

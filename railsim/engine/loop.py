@@ -121,6 +121,8 @@ class Simulation:
         self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
         for k, f in enumerate(scenario.formations):
             self.formations.add(f, f"formations[{k}]")
+        self.formations.chained = self.turnbacks.chained
+        self.turnbacks.check_formation_order(self.formations.on_departure_pairs(), self.formations.leader_id)
         self.locks = RouteLocks(self.fleet, self.interlocking, self.formations, self.events, self.settings)
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
         self.stops = StopBook(
@@ -140,6 +142,8 @@ class Simulation:
         self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
         self.stops.track_wanted = self.locks.wanted_by_others
+        self.stops.wait_for_leader = self.formations.waits_for_leader
+        self.stops.hold_departure = self.formations.holds_departure
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)

@@ -45,6 +45,11 @@ class StopBook:
         self.drop_stop: Callable[[str, str, tuple[float, float] | None], None] = lambda _t, _s, _w: None
         # RouteLocks.wanted_by_others: another unit waits for the turnback track this unit holds
         self.track_wanted: Callable[[TrainRuntime], bool] = lambda _train: False
+        # FormationBook.waits_for_leader: a unit that couples behind a leader at its origin waits for it
+        self.wait_for_leader: Callable[[TrainRuntime], bool] = lambda _train: False
+        # FormationBook.holds_departure: a leader stays at a platform until the unit coupling behind it is there
+        self.hold_departure: Callable[[float, TrainRuntime], bool] = lambda _t, _train: False
+        self._held: set[tuple[str, int]] = set()  # (train, stop index) whose hold was logged
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop the train is heading for or standing at, and how far behind its mark it halts."""
@@ -67,6 +72,11 @@ class StopBook:
             self._registered(t, tr, stop, mark, v)
             return
         if tr.sumo_stopped and not stopped_now:  # dwell over: departure
+            if self.hold_departure(t, tr):  # SUMO's dwell is over; it stays (the ATO holds it) for its follower
+                if (tr.train_id, tr.next_stop) not in self._held:
+                    self._held.add((tr.train_id, tr.next_stop))
+                    self.events.record(t, "departure_held_for_follower", tr.train_id, station=stop.station_id)
+                return
             tr.sumo_stopped = False
             self._record(tr, stop, tr.halted_s, t, tr.halt_error_m)
             self.events.record(t, "stop_departed", tr.train_id, station=stop.station_id)
@@ -124,7 +134,8 @@ class StopBook:
         ``bidi`` edge (``stop.stop_id``) — SUMO decides the moment (at standstill by its own threshold), so the
         flip itself counts as the halt. It then stands at least ``stop.dwell_s`` and until ``tr.hold_until_s``
         (a unit early for its next departure waits here, off the platform, unless another unit waits for this
-        turnback track: then it goes on to wait at its platform) before it runs on."""
+        turnback track: then it goes on to wait at its platform) before it runs on. A unit that couples on
+        departure behind a leader waits here until that leader stands at its platform (``wait_for_leader``)."""
         flipped = tr.sumo_edge == stop.stop_id
         if tr.halted_s is None:
             in_window = stop.window_start_m - 1e-6 <= tr.front_m <= stop.window_end_m + 1e-6
@@ -137,6 +148,8 @@ class StopBook:
                 )
                 log.error("%s ran past its reversal point at %s", tr.train_id, stop.station_id)
             return
+        if self.wait_for_leader(tr):
+            return  # it comes out behind its leader, once the leader stands at the platform
         hold_until_s = max(tr.halted_s + stop.dwell_s, tr.hold_until_s or 0.0)
         if tr.hold_until_s is not None and t >= tr.halted_s + stop.dwell_s and self.track_wanted(tr):
             hold_until_s = t  # another unit waits for this turnback track: wait at the platform instead

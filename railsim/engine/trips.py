@@ -29,6 +29,7 @@ from typing import Any
 
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
+REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses (railsim.engine.turnback)
 
 
 @dataclass(frozen=True)
@@ -43,7 +44,7 @@ class TripStop:
     dwell_s: float
     is_origin: bool = False
     is_destination: bool = False
-    kind: str = "station"  # or "reversal": where a unit reverses before its trip (railsim.engine.turnback)
+    kind: str = "station"  # or REVERSAL: where a unit reverses before its trip (railsim.engine.turnback)
     # a platform shorter than the train: (start, end) lane positions [m] of the window on the platform's edge,
     # handed to SUMO as a stop on the lane; None for a platform the whole train fits on (SUMO's trainStop)
     lane_stop_m: tuple[float, float] | None = None
@@ -53,6 +54,26 @@ class TripStop:
     def short_platform(self) -> bool:
         """The train is longer than the platform: it stands with its front at the platform end."""
         return self.lane_stop_m is not None
+
+
+def sumo_stops(stops: Sequence[TripStop], origin_until_s: float | None = None) -> list[Any]:
+    """The stops SUMO holds a train at (:class:`railsim.engine.sumo.StopSpec`): the origin and the destination
+    for :data:`~railsim.engine.settings.DWELL_REGISTRATION_S` (the engine registers the halt; the departure is
+    the engine's), every other platform for its dwell; the origin held ``until`` ``origin_until_s`` if given. A
+    reversal is no SUMO stop: SUMO turns the unit round by itself (``railsim.engine.turnback``)."""
+    from railsim.engine.settings import DWELL_REGISTRATION_S
+    from railsim.engine.sumo import StopSpec  # the bridge imports libsumo: only when a run needs it
+
+    return [
+        StopSpec(
+            s.stop_id,
+            duration_s=DWELL_REGISTRATION_S if s.is_origin or s.is_destination else s.dwell_s,
+            until_s=origin_until_s if s.is_origin else None,
+            lane_stop_m=s.lane_stop_m,
+        )
+        for s in stops
+        if s.kind != REVERSAL
+    ]
 
 
 @dataclass

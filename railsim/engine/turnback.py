@@ -49,14 +49,12 @@ from network.topology import make_route
 from railsim.engine.events.log import EventLog
 from railsim.engine.fleet import Fleet
 from railsim.engine.routeview import route_view
-from railsim.engine.settings import DWELL_REGISTRATION_S
 from railsim.engine.train import TrainRuntime
-from railsim.engine.trips import TripStop
+from railsim.engine.trips import REVERSAL, TripStop, sumo_stops
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses
 REVERSAL_HOLD_S = 5.0  # a reversing unit stands at least this long after SUMO flipped it (cab change)
 TURNBACK_SEARCH_M = 5000.0  # a turnback path longer than this is not a turnback
 END_MARGIN_M = 1.0  # a unit stops this far short of the end of a turnback track
@@ -181,6 +179,47 @@ class Turnbacks:
         """True for a trip that starts by its unit's reversal (the dispatcher does not insert it)."""
         return train_id in self.prev_of
 
+    def _in_place(self, succ: TrainRuntime) -> bool:
+        """True if the unit that starts chained trip ``succ`` reverses where it stands (a bidi platform), not on a
+        track beyond it: its route (the turnback path first) turns round on its very first edge."""
+        edges = succ.trip.route.edges
+        return len(edges) > 1 and bool(self.graph.edges[edges[0], edges[1]].get("reversal"))
+
+    def check_formation_order(
+        self, pairs: list[tuple[str, TrainRuntime, TrainRuntime]], leader_id: Callable[[str], str | None]
+    ) -> None:
+        """A formation of two trips that both start by a turnback must name as leader the unit that stands in front
+        afterwards: the first to arrive, when the units turn on a track beyond the platform (first in, first out).
+        Two units cannot both reverse where they stand on one bidi track (a SUMO limit, measured: the message
+        says so). ``pairs``: (scenario field, leader, follower); ``leader_id(trip)``: the trip's leader in a
+        formation (the arrival order of a coupled pair)."""
+        for where, lead, fol in pairs:
+            if not (self.chained(lead.train_id) and self.chained(fol.train_id)):
+                continue
+            pl, pf = self.fleet.trains[self.prev_of[lead.train_id]], self.fleet.trains[self.prev_of[fol.train_id]]
+            st_l, st_f = pl.trip.destination.station_id, pf.trip.destination.station_id
+            if st_l != st_f:
+                continue  # the leader comes through from elsewhere: the follower waits for it (FormationBook)
+            # arrival order: planned arrival, a coupled pair's follower behind its leader
+            key_l = (pl.trip.planned_arrival_s.get(st_l, pl.trip.depart_s), int(leader_id(pl.train_id) == pf.train_id))
+            key_f = (pf.trip.planned_arrival_s.get(st_l, pf.trip.depart_s), int(leader_id(pf.train_id) == pl.train_id))
+            first, last = (pl, pf) if key_l <= key_f else (pf, pl)
+            if self._in_place(lead) and self._in_place(fol):
+                raise ConfigError(
+                    self.source,
+                    where,
+                    f"both units would reverse where they stand at {st_l!r}, one behind the other on one bidi track: "
+                    "SUMO 1.28 then keeps them on the lane in their old order and reports them colliding until they "
+                    "leave it; turn them on a track beyond the platform, or run the trips as separate trains",
+                )
+            if first is not pl:  # first in, first out through the track beyond the platform
+                raise ConfigError(
+                    self.source,
+                    where,
+                    f"after the turnback at {st_l!r} the unit of {self.next_of[first.train_id]!r} stands in front "
+                    f"(first in, first out): make {self.next_of[first.train_id]!r} the leader",
+                )
+
     # ------------------------------------------------------------------ the successor's route
     def _reroute(self, succ: TrainRuntime, pred: TrainRuntime) -> None:
         path = self._path(pred, succ)
@@ -221,8 +260,6 @@ class Turnbacks:
     def handover(self, t: float, pred: TrainRuntime) -> TrainRuntime | None:
         """``pred`` arrived; its unit starts the next trip where it stands (module docstring). None if its unit
         has no next trip (it leaves the line)."""
-        from railsim.engine.sumo import StopSpec
-
         if pred.train_id not in self.next_of:
             return None
         succ = self.fleet.trains[self.next_of[pred.train_id]]
@@ -235,16 +272,7 @@ class Turnbacks:
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
         min_s = self.spec.turnback_min_at(pred.trip.destination.station_id)
         until_s = max(trip.depart_s, arrival_s + min_s)
-        stops = [
-            StopSpec(
-                s.stop_id,
-                duration_s=DWELL_REGISTRATION_S if s.is_origin or s.is_destination else s.dwell_s,
-                until_s=until_s if s.is_origin else None,
-                lane_stop_m=s.lane_stop_m,
-            )
-            for s in trip.stops
-            if s.kind != REVERSAL
-        ]
+        stops = sumo_stops(trip.stops, origin_until_s=until_s)
         self.bridge.reroute(succ.sumo_id, trip.route.edges, stops)
         odometer_m = pred.front_m - pred.depart_chainage_m
         succ.depart_chainage_m = front_m - odometer_m

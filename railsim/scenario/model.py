@@ -114,7 +114,7 @@ class ControllerSpec:
 @dataclass(frozen=True)
 class RelativeDeparturesSpec:
     """Departures defined against another service's (``departures: {after: {...}}``): trip ``k`` of the dependent
-    service departs its origin at ``t_i + phase·(t_{i+1} − t_i) + offset_s`` with ``i = first_trip + k·every`` and
+    service departs its origin at ``t_i + phase·(t_{i+1} − t_i) + offset_s`` with ``i = first_trip + k·every ≤ last_trip`` and
     ``t`` the reference service's origin departures (the last reference trip uses the interval before it). Changing
     the reference's headway re-times the dependent service consistently (one dependent trip per ``every`` reference
     trips, at the same phase). A dependent trip that would depart before t = 0 (negative ``offset_s``) is dropped;
@@ -125,6 +125,7 @@ class RelativeDeparturesSpec:
     first_trip: int = 0
     offset_s: float = 0.0
     phase: float = 0.0  # fraction of the reference interval, in [0, 1)
+    last_trip: int | None = None  # the last reference trip index taken (None: to the reference's last trip)
     reference_trips: tuple[int, ...] = ()  # resolved: the reference trip index of each dependent trip
 
 

@@ -3,8 +3,8 @@
 A service runs trips between two stations; its departures are a list (``{times: [...]}``), a
 grid (``{first, last, headway_s}`` → ``first + k·headway_s`` up to ``last``, with a 1 µs tolerance so
 float arithmetic cannot drop the last trip), or **relative to another service** (``{after: {service, every,
-first_trip, offset_s, phase}}``, :class:`~railsim.scenario.model.RelativeDeparturesSpec`): one trip per ``every``
-trips of the reference service, ``offset_s`` after the reference trip's origin departure plus ``phase`` of the
+first_trip, last_trip, offset_s, phase}}``, :class:`~railsim.scenario.model.RelativeDeparturesSpec`): one trip per ``every``
+trips of the reference service (from ``first_trip`` to ``last_trip``), ``offset_s`` after the reference trip's origin departure plus ``phase`` of the
 interval to the next reference trip (trips that would depart before t = 0 are dropped). A study that changes the reference's headway (an override of its
 ``headway_s``) thereby re-times the dependent service too — the Jurenba branch units of Line 3 keep their place in
 the Airport pattern at every probed headway. The reference must itself be timetabled by a list or a grid (no
@@ -228,11 +228,11 @@ def departure_times(
 def relative_departures(
     ck: Checker, value: Any, path: str, known: Mapping[str, ServiceSpec]
 ) -> tuple[tuple[float, ...], dict[str, Any], RelativeDeparturesSpec]:
-    """``departures: {after: {service, every, first_trip, offset_s, phase}}`` → sorted seconds from t = 0, the
+    """``departures: {after: {service, every, first_trip, last_trip, offset_s, phase}}`` → sorted seconds from t = 0, the
     resolved raw form and the rule (module docstring). ``known`` are the services it may refer to."""
     m = ck.mapping(value, path, ("after",))
     apath = f"{path}.after"
-    a = ck.mapping(m["after"], apath, ("service",), ("every", "first_trip", "offset_s", "phase"))
+    a = ck.mapping(m["after"], apath, ("service",), ("every", "first_trip", "last_trip", "offset_s", "phase"))
     ref_id = a["service"]
     if not isinstance(ref_id, str) or ref_id not in known:
         hint = did_you_mean(ref_id, known) if isinstance(ref_id, str) else ""
@@ -251,6 +251,13 @@ def relative_departures(
             f"{apath}.first_trip",
             f"expected a trip index in [0, {len(ref) - 1}] of service {ref_id!r}, got {short_repr(first)}",
         )
+    last = a.get("last_trip")
+    if last is not None and (isinstance(last, bool) or not isinstance(last, int) or not first <= last < len(ref)):
+        raise ck.fail(
+            f"{apath}.last_trip",
+            f"expected a trip index in [{first}, {len(ref) - 1}] of service {ref_id!r} (>= first_trip), "
+            f"got {short_repr(last)}",
+        )
     offset = ck.number(a.get("offset_s", 0.0), f"{apath}.offset_s")
     phase = ck.number(a.get("phase", 0.0), f"{apath}.phase", ge=0.0)
     if phase >= 1.0:
@@ -258,7 +265,7 @@ def relative_departures(
     if phase > 0.0 and len(ref) < 2:
         raise ck.fail(f"{apath}.phase", f"service {ref_id!r} has one trip: there is no interval to take a phase of")
     times, refs = [], []
-    for i in range(first, len(ref), every):
+    for i in range(first, len(ref) if last is None else last + 1, every):
         interval = (ref[i + 1] - ref[i]) if i + 1 < len(ref) else (ref[i] - ref[i - 1] if i > 0 else 0.0)
         t = ref[i] + phase * interval + offset
         if t >= 0.0:  # a negative offset drops the trips that would depart before t = 0
@@ -266,8 +273,10 @@ def relative_departures(
             refs.append(i)
     if not times:
         raise ck.fail(f"{apath}.offset_s", f"every departure after {ref_id!r} falls before t = 0 (offset {offset:g} s)")
-    rule = RelativeDeparturesSpec(ref_id, every, first, offset, phase, tuple(refs))
+    rule = RelativeDeparturesSpec(ref_id, every, first, offset, phase, last, tuple(refs))
     raw = {"after": {"service": ref_id, "every": every, "first_trip": first, "offset_s": offset, "phase": phase}}
+    if last is not None:
+        raw["after"]["last_trip"] = last
     return tuple(times), raw, rule
 
 
