@@ -8,10 +8,10 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
   the coupled controller's effective target) and the closing speed; coupled time is counted.
 * **Across a turnback** (rotations): a formation whose follower is a trip its unit's turnback starts
-  (``chained``) couples ``on_departure`` without an insertion: the follower's unit comes round by itself, runs
-  to its platform as a free train and stops behind its leader at separation distance; then the couple request
-  goes out (:meth:`_couples_after_turnback`) and the coupled controller closes to the target gap, where the
-  follower halts behind its leader like any coupled follower. Until its leader
+  (``chained``) couples ``on_departure`` without an insertion: the follower's unit comes round by itself and
+  runs to its platform as a free train; within reach of its leader standing there the couple request goes out
+  (:meth:`_couples_after_turnback`) and the follower halts at the target gap behind it like any coupled
+  follower. Until its leader
   stands at that platform the follower's unit waits at its reversal point (:meth:`waits_for_leader`): a leader
   that comes through from elsewhere finds the platform free and the follower comes out behind it; the leader
   stays at the platform after its dwell until the two are coupled (:meth:`holds_departure`; at most one
@@ -41,9 +41,8 @@ from railsim.errors import ConfigError
 
 FollowerHook = Callable[[float, TrainRuntime, Any, Ahead], None]
 COUPLED_STATES = ("coupling", "coupled")
-STANDING_MPS = 0.01  # a follower slower than this stands
-# a unit that comes round by its turnback asks to couple once it stands this close behind its leader's rear: the
-# separation controller stops it within its margin (50 m on Line 3) plus the standstill braking allowance
+# a unit that comes round by its turnback asks to couple once it is this close behind its leader's rear, before
+# the separation controller (margin 50 m on Line 3) would stop it further back
 COUPLE_REACH_M = 150.0
 
 
@@ -169,11 +168,13 @@ class FormationBook:
         return False
 
     def _couples_after_turnback(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> bool:
-        """True once for an ``on_departure`` formation of a chained follower: both units ran their turnback and the
-        follower stands right behind its leader (the separation controller stopped it there); the coupled
-        controller then closes the last metres (its closing speed is meant for that, not for a run to the
-        platform)."""
-        return (
+        """True once for an ``on_departure`` formation of a chained follower: both units ran their turnback, the
+        leader stands at the follower's origin platform and the follower, on its way there, is within
+        :data:`COUPLE_REACH_M` of its rear. Asked then, the follower halts at the target gap behind the leader (a
+        coupled follower's mark); asked later, it could already stand registered at the platform further back,
+        where a dwelling train does not move up. The coupled controller's closing speed is meant for these last
+        metres, not for the run to the platform."""
+        if not (
             trig(f.couple, "on_departure")
             and self.chained(follower.train_id)
             and f.id not in self._asked_after_turnback
@@ -181,11 +182,14 @@ class FormationBook:
             and follower.status == "running"
             and not leader.reversing
             and not follower.reversing
+            and leader.sumo_stopped
             and a is not None
             and a.train_id == leader.train_id
             and a.gap_m <= COUPLE_REACH_M
-            and follower.plant.speed_mps < STANDING_MPS
-        )
+        ):
+            return False
+        stop, _ = self.current_stop(leader)
+        return stop is not None and stop.station_id == follower.trip.origin.station_id
 
     # ------------------------------------------------------------------ queries
     def state(self, train_id: str) -> str:
