@@ -415,3 +415,20 @@ def test_a_unit_turned_in_a_pocket_couples_behind_a_through_train(tmp_path: Path
     assert 0.0 <= gap_s <= 10.0
     # coupled to E: it arrives right behind its leader
     assert 0.0 < float(trips["short_up.000"]["arrival_s"]) - float(trips["up.000"]["arrival_s"]) <= 15.0
+
+
+def test_a_train_behind_a_unit_at_its_turnback_does_not_brake_for_a_ghost(tmp_path: Path) -> None:
+    """At a handover the unit's next trip is a new train to the ground; before its first report arrives the ground
+    places it where it came on the line (its platform), not where its unit was first inserted. Found in the
+    service day: every handover with a train approaching behind gave that train a one-step emergency brake (374 in
+    the day) because the ground placed the new trip at its unit's first insertion point."""
+    net, stops = build_tail_track(tmp_path)
+    services = [_service("out", "Aston", "Bury", [0, 150]), _service("back", "Bury", "Aston", [900])]
+    out = _run(tmp_path, net, stops, services, {"units": {"u1": ["out.000", "back.000"]}, "turnback_min_s": 120})
+    (handover,) = _events(out, "unit_turnback")
+    arrived = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    # out.001 was on its way behind when out.000's unit turned (the dangerous moment) ...
+    assert float(arrived["out.001"]["arrival_s"]) > float(handover["t_s"]) + 30.0
+    # ... and never had to brake for it
+    assert _events(out, "emergency_brake_on") == []
+    assert read_summary(out)["collisions"] == 0

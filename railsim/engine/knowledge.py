@@ -94,14 +94,15 @@ class Knowledge:
         msg = ch.latest(receiver, other.train_id) if ch is not None else None
         if msg is None:
             # no message yet: a registration report — a follower placed behind its leader knows where the leader
-            # stood; the ground knows where each train was inserted (stale and behind the truth: conservative)
+            # stood; the ground knows where each train came on the line (inserted, or handed over to its unit's
+            # next trip: ``start_front_m``; stale and behind the truth: conservative)
             reg = self.registration.get((observer.train_id, other.train_id))
             route_id, pos, v, acc, stamp = (
                 reg
                 if reg is not None
                 else (
                     other.trip.route.id,
-                    other.depart_chainage_m,
+                    other.start_front_m,
                     other.trip.start_speed_mps,
                     0.0,
                     other.inserted_s or 0.0,

@@ -27,7 +27,7 @@ def ground_front(channels: dict[str, Any], tr: Any, t: float) -> tuple[float, fl
     elif ch is None:
         pos, v, stamp = tr.front_m, tr.plant.speed_mps, t
     else:
-        pos, v, stamp = tr.depart_chainage_m, tr.trip.start_speed_mps, tr.inserted_s or 0.0
+        pos, v, stamp = tr.start_front_m, tr.trip.start_speed_mps, tr.inserted_s or 0.0
     return float(pos) + float(v) * max(0.0, t - float(stamp)), float(v)
 
 
