@@ -75,6 +75,7 @@ class Trip:
     # before its first edge (the trace reports chainage in the service's frame: turnback moves lie behind it)
     frame_shift_m: float = 0.0
     start_speed_mps: float = 0.0
+    kind: str = "service"  # or "depot_out" / "depot_in": an empty run of a unit (railsim.engine.depot)
 
     @property
     def origin(self) -> TripStop:
