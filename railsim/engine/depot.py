@@ -22,8 +22,10 @@ With ``rotations: {depots: ...}`` (:class:`railsim.scenario.model.RotationSpec`)
 * **When.** A depot-out run is planned (free run, like every trip) to arrive at the origin platform the
   station's minimum turnback (and :data:`DEPOT_OUT_SLACK_S`) before the first departure; a depot-in run leaves the minimum turnback after the
   last trip's planned arrival (``Turnbacks.handover`` holds both to max(plan, arrival + minimum)). The dispatcher
-  inserts a depot-out run on the lead like any departure (held while the lead or the line is occupied); a
-  depot-in run ends with its unit removed at the far end of the lead.
+  inserts a depot-out run on the lead like any departure (held while the lead or the line is occupied), never
+  before the run starts (a first trip too early for that starts late); a depot-in run ends with its unit
+  removed at the far end of the lead. ``late_first_departures`` counts units whose first trip left more than a
+  minute after its scheduled departure.
 * **In the outputs** a depot run is a trip of service ``depot_out`` / ``depot_in`` (``Trip.kind``): in
   ``trips.csv``, ``stops.csv``, the trace and the train graph, locking switches like any route, and counted in
   its unit's km, but not in the service counts of ``summary.json`` (trips, stops) nor in its turnback rows.
@@ -51,6 +53,7 @@ log = logging.getLogger(__name__)
 DEPOT_OUT = "depot_out"
 DEPOT_IN = "depot_in"
 AUTO = "auto"
+LATE_FIRST_S = 60.0  # a first trip leaving later than this after its schedule is a late start from the depot
 DEPOT_OUT_SLACK_S = 60.0  # a depot-out run is planned this much earlier still: switch throws, the lead's release
 
 
@@ -218,6 +221,9 @@ class Depots:
         tr = self.fleet.add(trip, scenario, dt_s, step_method)
         if arrive_by_s is not None:  # shift the plan so that it arrives when the unit must be ready
             shift_s = arrive_by_s - trip.planned_arrival_s[to_station]
+            if shift_s < 0.0:  # not before the run starts: the first trip starts late (its delay shows it)
+                log.warning("%s would leave its depot %.1f s before the run starts; it leaves at 0 s", uid, -shift_s)
+                shift_s = 0.0
             trip.depart_s += shift_s
             for times in (trip.planned_arrival_s, trip.planned_departure_s):
                 times.update({k: v + shift_s for k, v in times.items()})
@@ -252,8 +258,13 @@ class Depots:
                     }
                 )
             empty_km[uid] = round(km, 3)
+        late = 0
+        for run in self.runs.values():
+            first = trains[self.turnbacks.next_of[run["out"]]]
+            late += first.departed_s is not None and first.departed_s > first.trip.depart_s + LATE_FIRST_S
         return {
             "depot_runs": len(rows),
+            "late_first_departures": late,
             "depot_runs_arrived": sum(1 for r in rows if r["arrived_s"] is not None),
             "empty_km_per_unit": empty_km,
             "units_per_depot": {"start_of_day": dict(sorted(start.items())), "end_of_day": dict(sorted(end.items()))},
