@@ -116,6 +116,15 @@ def test_the_nearest_depot_or_the_named_one_and_reversals_at_the_terminus(
     # West joins at km 0.75, East at km 5.6: twice that, the leads and the turnbacks at A
     empty_km = fleet["empty_km_per_unit"]["unit01"]
     assert 1.5 < empty_km < 4.0 if expected == "west" else 11.2 < empty_km < 14.0
+    # the train graph places the depot runs between A and the depot (km 0.75 or 5.6), in their directions
+    from railsim.report.plots.line_data import load_line_run
+
+    paths = load_line_run(out).paths
+    run_out, run_in = paths["unit01.depot_out"], paths["unit01.depot_in"]
+    assert (run_out.direction, run_in.direction) == ("down", "up")
+    depot_km = 0.75 if expected == "west" else 5.6
+    assert run_out.km[0] == pytest.approx(depot_km) and run_in.km[-1] == pytest.approx(depot_km)
+    assert abs(run_out.km[-1]) < 0.12  # at A's platform (its centre is km 0, the stopping mark 109 m from it)
 
 
 @pytest.mark.parametrize(
