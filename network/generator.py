@@ -511,27 +511,19 @@ def write_plain_xml(plan: _Plan, folder: Path) -> tuple[Path, Path, Path]:
         nod.append(f'  <node id={quoteattr(nid)} x="{_fmt(x)}" y="{_fmt(y)}" type="priority"/>')
     nod.append("</nodes>")
     edg = ["<edges>"]
-    for eid, p, direction, fn, tn in plan.edges():
-        length = (p.b_m - p.a_m) - INTERNAL_LANE_M
-        edg.append(
-            f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
-            f'speed="{p.speed_mps[direction]:.6f}" allow="{ALLOW}" spreadType="{spread}" '
-            f'width="{TRACK_WIDTH_M}" length="{_fmt(length)}"/>'
-        )
+    rows = [(eid, fn, tn, p.speed_mps[direction], spread, p.b_m - p.a_m) for eid, p, direction, fn, tn in plan.edges()]
     for t in plan.tails:
         for eid, fn, tn in ((t.out, t.node, t.far), (t.back, t.far, t.node)):
-            edg.append(
-                f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
-                f'speed="{t.speed_mps:.6f}" allow="{ALLOW}" spreadType="center" '
-                f'width="{TRACK_WIDTH_M}" length="{_fmt(TURNBACK_TRACK_M - INTERNAL_LANE_M)}"/>'
-            )
+            rows.append((eid, fn, tn, t.speed_mps, "center", TURNBACK_TRACK_M))
     for lead in plan.leads:
         for eid, fn, tn in ((lead.into, lead.node, lead.far), (lead.out, lead.far, lead.node)):
-            edg.append(
-                f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
-                f'speed="{lead.speed_mps:.6f}" allow="{ALLOW}" spreadType="center" '
-                f'width="{TRACK_WIDTH_M}" length="{_fmt(lead.depot.length_m - INTERNAL_LANE_M)}"/>'
-            )
+            rows.append((eid, fn, tn, lead.speed_mps, "center", lead.depot.length_m))
+    for eid, fn, tn, speed, spread_type, design_m in rows:
+        edg.append(
+            f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
+            f'speed="{speed:.6f}" allow="{ALLOW}" spreadType="{spread_type}" '
+            f'width="{TRACK_WIDTH_M}" length="{_fmt(design_m - INTERNAL_LANE_M)}"/>'
+        )
     edg.append("</edges>")
     speed_of = {eid: p.speed_mps[direction] for eid, p, direction, _, _ in plan.edges()}
     speed_of.update({e: t.speed_mps for t in plan.tails for e in (t.out, t.back)})
@@ -780,29 +772,58 @@ def _add_turnback_tracks(
             (out_e, back_e, node, far, x_m + sign * INTERNAL_LANE_M, sign),
             (back_e, out_e, far, node, x_m + sign * (TURNBACK_TRACK_M - INTERNAL_LANE_M), -sign),
         ):
-            length, speed = lanes[eid]
-            graph.add_node(
-                eid,
-                line=t.line,
-                direction="turnback",
-                length_m=length,
-                speed_mps=speed,
-                from_node=fn,
-                to_node=tn,
-                design_start_m=start,
-                design_sign=int(s),
-                station=None,
-                stop_id=None,
-                stop_start_pos_m=None,
-                stop_end_pos_m=None,
-                bidi=partner,
-            )
-        arrive, depart = t.arrive_edge, t.depart_edge
-        for a, b in ((arrive, out_e), (back_e, depart)):
-            sw, leg = sw_by_conn.get((a, b), (None, None))
-            graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
+            _add_side_edge(graph, eid, partner, t.line, "turnback", fn, tn, lanes[eid], start, int(s))
+        for a, b in ((t.arrive_edge, out_e), (back_e, t.depart_edge)):
+            _add_link(graph, a, b, node, vias, sw_by_conn)
         reversals[out_e] = [back_e, vias[(out_e, back_e)]]
     return reversals
+
+
+def _add_side_edge(
+    graph: nx.DiGraph,
+    eid: str,
+    partner: str,
+    line: str,
+    direction: str,
+    from_node: str,
+    to_node: str,
+    lane: tuple[float, float],
+    design_start_m: float,
+    design_sign: int,
+    stop: tuple[str, str, float, float] | None = None,
+) -> None:
+    """One edge of a bidi side track (turnback, pocket, depot lead) in the track graph; ``stop`` = (station,
+    trainStop id, start and end position on the lane) of a trainStop on it."""
+    station, stop_id, start_pos, end_pos = stop if stop is not None else (None, None, None, None)
+    graph.add_node(
+        eid,
+        line=line,
+        direction=direction,
+        length_m=lane[0],
+        speed_mps=lane[1],
+        from_node=from_node,
+        to_node=to_node,
+        design_start_m=design_start_m,
+        design_sign=design_sign,
+        station=station,
+        stop_id=stop_id,
+        stop_start_pos_m=start_pos,
+        stop_end_pos_m=end_pos,
+        bidi=partner,
+    )
+
+
+def _add_link(
+    graph: nx.DiGraph,
+    a: str,
+    b: str,
+    node: str,
+    vias: dict[tuple[str, str], list[list]],
+    sw_by_conn: dict[tuple[str, str], tuple[str, str]],
+) -> None:
+    """The connection a -> b in the track graph, with the switch and leg it sets (if any)."""
+    sw, leg = sw_by_conn.get((a, b), (None, None))
+    graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
 
 
 def _add_depot_leads(
@@ -822,26 +843,11 @@ def _add_depot_leads(
             (lead.into, lead.out, lead.node, lead.far),
             (lead.out, lead.into, lead.far, lead.node),
         ):
-            length, speed = lanes[eid]
-            graph.add_node(
-                eid,
-                line=dp.line,
-                direction="depot",
-                length_m=length,
-                speed_mps=speed,
-                from_node=fn,
-                to_node=tn,
-                design_start_m=x_m,  # the lead runs off to the side: its whole length sits at the depot's km
-                design_sign=0,
-                station=dp.id,
-                stop_id=stop_of[eid],
-                stop_start_pos_m=DEPOT_STOP_MARGIN_M,
-                stop_end_pos_m=length - DEPOT_STOP_MARGIN_M,
-                bidi=partner,
-            )
+            stop = (dp.id, stop_of[eid], DEPOT_STOP_MARGIN_M, lanes[eid][0] - DEPOT_STOP_MARGIN_M)
+            # the lead runs off to the side: its whole length sits at the depot's km (design sign 0)
+            _add_side_edge(graph, eid, partner, dp.line, "depot", fn, tn, lanes[eid], x_m, 0, stop)
         for a, b, node in lead.connections():
-            sw, leg = sw_by_conn.get((a, b), (None, None))
-            graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
+            _add_link(graph, a, b, node, vias, sw_by_conn)
         depots[dp.id] = {
             "name": dp.name,
             "line": dp.line,
