@@ -87,6 +87,12 @@ def test_a_unit_runs_depot_out_trip_turnback_trip_depot_in(tmp_path: Path) -> No
     granted = {(r["subject"], _detail(r)["leg"], tuple(_detail(r)["holders"])) for r in _events(out, "lock_granted")}
     assert ("yard_up", "reverse", ("unit01.depot_out",)) in granted
     assert ("yard_down", "reverse", ("unit01.depot_in",)) in granted
+    # the lead is a single-track section: each run reserved it before it used it
+    reserved = [(r["subject"], _detail(r)["trains"]) for r in _events(out, "section_reserved")]
+    assert ("track:-yard_lead", ["unit01.depot_out"]) in reserved and (
+        "track:-yard_lead",
+        ["unit01.depot_in"],
+    ) in reserved
     # the unit's km include both depot runs (about 1 km each: the lead and the stretch to C)
     assert 1.5 < fleet["empty_km_per_unit"]["unit01"] < 3.0
     assert fleet["km_per_unit"]["unit01"] > fleet["empty_km_per_unit"]["unit01"] + 2 * 2.5
