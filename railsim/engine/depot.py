@@ -19,9 +19,11 @@ With ``rotations: {depots: ...}`` (:class:`railsim.scenario.model.RotationSpec`)
   (``by_unit`` per unit). An id the world does not have, a unit that does not exist, or a named depot from
   which the unit's station cannot be reached is a :class:`ConfigError` naming the field (exit 2); with
   ``auto`` a unit no depot reaches keeps its old start and end (counted in the summary).
-* **When.** A depot-out run is planned (free run, like every trip) to arrive at the origin platform the
-  station's minimum turnback (and :data:`DEPOT_OUT_SLACK_S`) before the first departure; a depot-in run leaves the minimum turnback after the
-  last trip's planned arrival (``Turnbacks.handover`` holds both to max(plan, arrival + minimum)). The dispatcher
+* **When.** A depot-out run is planned (free run, like every trip) to arrive at its platform
+  :data:`DEPOT_OUT_SLACK_S` before the first departure, and the station's minimum turnback earlier still when it
+  turns back there; a depot-in run leaves at the last trip's planned arrival, or the minimum turnback after it
+  when it turns back first (``Turnbacks.handover`` holds both to max(plan, arrival + minimum); a unit that runs
+  on where it stands has no minimum: it does not block a through platform). The dispatcher
   inserts a depot-out run on the lead like any departure (held while the lead or the line is occupied), never
   before the run starts (a first trip too early for that starts late); a depot-in run ends with its unit
   removed at the far end of the lead. ``late_first_departures`` counts units whose first trip left more than a
@@ -178,10 +180,14 @@ class Depots:
             log.warning("unit %s: no depot reaches its first origin or last destination; it runs no depot runs", uid)
             return
         origin = first.trip.origin.station_id
-        ready_s = first.trip.depart_s - self.spec.turnback_min_at(origin) - DEPOT_OUT_SLACK_S
+        turns = out[1][-1] != first.trip.route.edges[0]  # it reaches the opposite platform: it turns back there
+        turn_s = self.spec.turnback_min_at(origin) if turns else 0.0
+        ready_s = first.trip.depart_s - turn_s - DEPOT_OUT_SLACK_S
         run_out = self._run(DEPOT_OUT, uid, out[1], out[0], origin, first.trip, scenario, dt_s, step_method, ready_s)
         dest = last.trip.destination.station_id
-        leave_s = last.trip.planned_arrival_s.get(dest, last.trip.depart_s) + self.spec.turnback_min_at(dest)
+        turns = back[1][0] != last.trip.route.edges[-1]
+        leave_s = last.trip.planned_arrival_s.get(dest, last.trip.depart_s)
+        leave_s += self.spec.turnback_min_at(dest) if turns else 0.0
         run_in = self._run(DEPOT_IN, uid, back[1], dest, back[0], last.trip, scenario, dt_s, step_method, None, leave_s)
         self.turnbacks.link(run_out, first)
         self.turnbacks.link(last, run_in)

@@ -251,7 +251,8 @@ class Turnbacks:
         if reverses and front_m >= rev.window_start_m - 1e-6:  # on the reversal edge already: it reverses here
             trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
-        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id)
+        # a unit that runs on where it stands (into or out of a depot run) does not turn back: no minimum
+        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses else 0.0
         until_s = max(trip.depart_s, arrival_s + min_s)
         # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration
         origin_s = DWELL_REGISTRATION_S if reverses else max(DWELL_REGISTRATION_S, until_s - t)
