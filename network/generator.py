@@ -27,6 +27,15 @@ How a line becomes a SUMO net (facts measured in ``shared/notes/sumo_rail_findin
   ``bidi`` partners, so the interlocking treats it as a single-track section) and the turnaround in
   ``graph.graph["reversals"]``; service routes never use it, rotations do (``railsim.engine.turnback``).
   Intermediate turnback stations' crossovers are kept in the topology only.
+* **Depot leads.** Each ``depots:`` entry gets a bidi lead track (``<id>_lead`` into the depot,
+  ``-<id>_lead`` out of it; :attr:`network.line.Depot.length_m` long, drawn off to the side) joined at one
+  node to both running tracks. Per running track one switch (``<id>_up``, ``<id>_down``, an interlocking
+  resource with the depot's throw time and speed, like the pocket switches) carries three movements: through
+  (normal), into the lead and out of the lead (reverse). A trainStop on each lead edge (``<id>.in`` at the far
+  end of the track in, ``<id>.out`` at the line end of the track out) is where a unit ends and starts its day;
+  the track graph's lead nodes carry ``station=<id>`` and ``direction="depot"`` (through routes never use
+  them) and ``graph.graph["depots"]`` maps each depot id to its name, line, km, the edge a unit starts on
+  (``start_edge``) and the one it ends on (``end_edge``) (``railsim.engine.depot``).
 
 The result is read back from the .net.xml with sumolib (lane lengths, speeds, internal lanes), so the track
 graph and the routes reflect what SUMO will actually simulate.
@@ -44,7 +53,7 @@ from xml.sax.saxutils import quoteattr
 
 import networkx as nx
 
-from network.line import PLATFORM_CLEARANCE_M, Branch, LineDescription, Station, SwitchSpec
+from network.line import PLATFORM_CLEARANCE_M, Branch, Depot, LineDescription, Station, SwitchSpec
 from network.topology import (
     NetworkBundle,
     PlatformInfo,
@@ -57,7 +66,7 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = "3"
+GENERATOR_VERSION = "4"  # 4: depot leads
 INTERNAL_LANE_M = 0.1  # length of every internal junction lane (what netconvert gives a straight rail node)
 ALLOW = "rail rail_urban rail_fast rail_electric subway"
 TRACK_WIDTH_M = 3.0
@@ -66,6 +75,8 @@ DIRECTIONS = ("up", "down")
 TURNBACK_TRACK_M = 180.0  # a turnback track beyond a terminus: a 6/8-car unit (≤ 120 m) plus margin
 POCKET_SPEED_MPS = 30.0 / 3.6  # estimated: pocket switches like the other Line 3 turnouts (data pack, S15)
 POCKET_THROW_S = 15.0  # estimated: as the Bijin switches in the shipped world
+DEPOT_STOP_MARGIN_M = 5.0  # a depot lead's trainStops end this far from the lead's ends
+DEPOT_DRAW_OFFSET_M = 40.0  # the lead's far end lies this far to the side of the line (drawing only)
 
 
 def netconvert_binary() -> Path:
@@ -120,6 +131,32 @@ class _TurnbackTrack:
     through_depart: str | None = None  # a pocket: the departing track's feed from beyond the switch
 
 
+@dataclass(frozen=True)
+class _DepotLead:
+    """A depot's bidi lead track and the running-track edges it joins at ``node`` (module docstring)."""
+
+    depot: Depot
+    node: str
+    far: str
+    into: str  # node -> far: units end their day on it
+    out: str  # far -> node: units start their day on it
+    up_in: str  # running-track edges meeting at the node
+    up_out: str
+    down_in: str
+    down_out: str
+    speed_mps: float
+
+    def connections(self) -> list[tuple[str, str, str]]:
+        """(from edge, to edge, node): into the lead from both tracks, out of it onto both."""
+        n = self.node
+        return [
+            (self.up_in, self.into, n),
+            (self.down_in, self.into, n),
+            (self.out, self.up_out, n),
+            (self.out, self.down_out, n),
+        ]
+
+
 @dataclass
 class _Switch:
     spec: SwitchSpec
@@ -147,6 +184,7 @@ class _Plan:
         self._assign_speeds()
         self._build_switches()
         self.tails = self._turnback_tracks() + self._pocket_tracks()
+        self.leads = self._depot_leads()
 
     # -- break points -------------------------------------------------------------------------------------
     def _stations_of(self, line: str) -> tuple[Station, ...]:
@@ -190,6 +228,7 @@ class _Plan:
         for sl in d.speed_limits:
             if sl.line == line:
                 pts += [(sl.from_km * 1000.0, f"{sl.path}.from_km"), (sl.to_km * 1000.0, f"{sl.path}.to_km")]
+        pts += [(dp.km * 1000.0, f"{dp.path}.km") for dp in d.depots if dp.line == line]
         # a break point inside a platform would put the trainStop on two edges
         for x, origin in pts:
             for s in stations:
@@ -383,11 +422,56 @@ class _Plan:
                     self.switches.append(_Switch(spec, direction, node, kind, str(normal), reverse, trunk, speed))
         return out
 
+    def _depot_leads(self) -> list[_DepotLead]:
+        """A lead track per depot, joined to both running tracks by one switch each (module docstring)."""
+        out: list[_DepotLead] = []
+        for dp in self.desc.depots:
+            x_m = dp.km * 1000.0
+            pieces = self.pieces[dp.line]
+            i = next(k for k, p in enumerate(pieces) if abs(p.a_m - x_m) < 0.5)  # a break point is there
+            low, high = pieces[i - 1], pieces[i]
+            far = f"{dp.id}_depot"
+            self.node_xy[far] = (x_m, self.line_y[dp.line] - DEPOT_DRAW_OFFSET_M)
+            speed = dp.speed_kmh / 3.6
+            lead = _DepotLead(
+                dp,
+                high.node_a,
+                far,
+                f"{dp.id}_lead",
+                f"-{dp.id}_lead",
+                low.edge_id("up"),
+                high.edge_id("up"),
+                high.edge_id("down"),
+                low.edge_id("down"),
+                speed,
+            )
+            out.append(lead)
+            for direction, trunk, normal, beyond in (
+                ("up", lead.up_in, lead.up_out, high),
+                ("down", lead.down_in, lead.down_out, low),
+            ):
+                spec = SwitchSpec(f"{dp.id}_{direction}", dp.throw_time_s, dp.speed_kmh, None, dp.path)
+                sw = _Switch(
+                    spec, direction, lead.node, "diverge", normal, lead.into, trunk, beyond.speed_mps[direction]
+                )
+                self.switches.append(sw)
+        return out
+
+    def lead_switch_legs(self) -> dict[tuple[str, str], tuple[str, str]]:
+        """(lead out, running track) -> (switch, leg): leaving a depot sets the running track's switch reverse."""
+        return {
+            (lead.out, track): (f"{lead.depot.id}_{direction}", "reverse")
+            for lead in self.leads
+            for direction, track in (("up", lead.up_out), ("down", lead.down_out))
+        }
+
     def tail_connections(self) -> list[tuple[str, str, str]]:
         """(from edge, to edge, node) of the turnback tracks: in, the turnaround, out."""
         out = []
         for t in self.tails:
             out += [(t.arrive_edge, t.out, t.node), (t.out, t.back, t.far), (t.back, t.depart_edge, t.node)]
+        for lead in self.leads:
+            out += lead.connections()
         return out
 
     # -- edges and connections in travel order --------------------------------------------------------------
@@ -427,23 +511,23 @@ def write_plain_xml(plan: _Plan, folder: Path) -> tuple[Path, Path, Path]:
         nod.append(f'  <node id={quoteattr(nid)} x="{_fmt(x)}" y="{_fmt(y)}" type="priority"/>')
     nod.append("</nodes>")
     edg = ["<edges>"]
-    for eid, p, direction, fn, tn in plan.edges():
-        length = (p.b_m - p.a_m) - INTERNAL_LANE_M
-        edg.append(
-            f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
-            f'speed="{p.speed_mps[direction]:.6f}" allow="{ALLOW}" spreadType="{spread}" '
-            f'width="{TRACK_WIDTH_M}" length="{_fmt(length)}"/>'
-        )
+    rows = [(eid, fn, tn, p.speed_mps[direction], spread, p.b_m - p.a_m) for eid, p, direction, fn, tn in plan.edges()]
     for t in plan.tails:
         for eid, fn, tn in ((t.out, t.node, t.far), (t.back, t.far, t.node)):
-            edg.append(
-                f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
-                f'speed="{t.speed_mps:.6f}" allow="{ALLOW}" spreadType="center" '
-                f'width="{TRACK_WIDTH_M}" length="{_fmt(TURNBACK_TRACK_M - INTERNAL_LANE_M)}"/>'
-            )
+            rows.append((eid, fn, tn, t.speed_mps, "center", TURNBACK_TRACK_M))
+    for lead in plan.leads:
+        for eid, fn, tn in ((lead.into, lead.node, lead.far), (lead.out, lead.far, lead.node)):
+            rows.append((eid, fn, tn, lead.speed_mps, "center", lead.depot.length_m))
+    for eid, fn, tn, speed, spread_type, design_m in rows:
+        edg.append(
+            f'  <edge id={quoteattr(eid)} from={quoteattr(fn)} to={quoteattr(tn)} numLanes="1" '
+            f'speed="{speed:.6f}" allow="{ALLOW}" spreadType="{spread_type}" '
+            f'width="{TRACK_WIDTH_M}" length="{_fmt(design_m - INTERNAL_LANE_M)}"/>'
+        )
     edg.append("</edges>")
     speed_of = {eid: p.speed_mps[direction] for eid, p, direction, _, _ in plan.edges()}
     speed_of.update({e: t.speed_mps for t in plan.tails for e in (t.out, t.back)})
+    speed_of.update({e: lead.speed_mps for lead in plan.leads for e in (lead.into, lead.out)})
     con = ["<connections>"]
     for e_in, e_out in [(a, b) for a, b, _, _ in plan.connections()] + [(a, b) for a, b, _ in plan.tail_connections()]:
         v = min(speed_of[e_in], speed_of[e_out])
@@ -518,9 +602,22 @@ def write_stops(plan: _Plan, path: Path) -> dict[str, list[PlatformInfo]]:
                 f'startPos="{_fmt(start)}" endPos="{_fmt(end)}" name={quoteattr(station.name)}/>'
             )
             platforms.setdefault(station.id, []).append(PlatformInfo(direction, stop_id, eid, start, end))
+    for dl in plan.leads:
+        for eid, stop_id in depot_stops(dl):
+            lead_m = dl.depot.length_m - INTERNAL_LANE_M
+            lines.append(
+                f"  <trainStop id={quoteattr(stop_id)} lane={quoteattr(eid + '_0')} "
+                f'startPos="{_fmt(DEPOT_STOP_MARGIN_M)}" endPos="{_fmt(lead_m - DEPOT_STOP_MARGIN_M)}" '
+                f"name={quoteattr(dl.depot.name)}/>"
+            )
     lines.append("</additional>")
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
     return platforms
+
+
+def depot_stops(lead: _DepotLead) -> list[tuple[str, str]]:
+    """(lead edge, trainStop id) of a depot: where units end their day, where they start it."""
+    return [(lead.into, f"{lead.depot.id}.in"), (lead.out, f"{lead.depot.id}.out")]
 
 
 def read_net(net_file: Path) -> tuple[dict[str, tuple[float, float]], dict[tuple[str, str], list[list]], list[str]]:
@@ -605,6 +702,8 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
         sw, leg = sw_by_conn.get((a, b), (None, None))  # type: ignore[assignment]
         graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
     graph.graph["reversals"] = _add_turnback_tracks(plan, graph, lanes, vias, sw_by_conn)
+    sw_by_conn.update(plan.lead_switch_legs())
+    graph.graph["depots"] = _add_depot_leads(plan, graph, lanes, vias, sw_by_conn)
     graph.graph["gradients"] = {
         line: [[g.from_km * 1000.0, g.to_km * 1000.0, g.permille] for g in desc.gradients if g.line == line]
         for line in desc.line_ids()
@@ -673,29 +772,91 @@ def _add_turnback_tracks(
             (out_e, back_e, node, far, x_m + sign * INTERNAL_LANE_M, sign),
             (back_e, out_e, far, node, x_m + sign * (TURNBACK_TRACK_M - INTERNAL_LANE_M), -sign),
         ):
-            length, speed = lanes[eid]
-            graph.add_node(
-                eid,
-                line=t.line,
-                direction="turnback",
-                length_m=length,
-                speed_mps=speed,
-                from_node=fn,
-                to_node=tn,
-                design_start_m=start,
-                design_sign=int(s),
-                station=None,
-                stop_id=None,
-                stop_start_pos_m=None,
-                stop_end_pos_m=None,
-                bidi=partner,
-            )
-        arrive, depart = t.arrive_edge, t.depart_edge
-        for a, b in ((arrive, out_e), (back_e, depart)):
-            sw, leg = sw_by_conn.get((a, b), (None, None))
-            graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
+            _add_side_edge(graph, eid, partner, t.line, "turnback", fn, tn, lanes[eid], start, int(s))
+        for a, b in ((t.arrive_edge, out_e), (back_e, t.depart_edge)):
+            _add_link(graph, a, b, node, vias, sw_by_conn)
         reversals[out_e] = [back_e, vias[(out_e, back_e)]]
     return reversals
+
+
+def _add_side_edge(
+    graph: nx.DiGraph,
+    eid: str,
+    partner: str,
+    line: str,
+    direction: str,
+    from_node: str,
+    to_node: str,
+    lane: tuple[float, float],
+    design_start_m: float,
+    design_sign: int,
+    stop: tuple[str, str, float, float] | None = None,
+) -> None:
+    """One edge of a bidi side track (turnback, pocket, depot lead) in the track graph; ``stop`` = (station,
+    trainStop id, start and end position on the lane) of a trainStop on it."""
+    station, stop_id, start_pos, end_pos = stop if stop is not None else (None, None, None, None)
+    graph.add_node(
+        eid,
+        line=line,
+        direction=direction,
+        length_m=lane[0],
+        speed_mps=lane[1],
+        from_node=from_node,
+        to_node=to_node,
+        design_start_m=design_start_m,
+        design_sign=design_sign,
+        station=station,
+        stop_id=stop_id,
+        stop_start_pos_m=start_pos,
+        stop_end_pos_m=end_pos,
+        bidi=partner,
+    )
+
+
+def _add_link(
+    graph: nx.DiGraph,
+    a: str,
+    b: str,
+    node: str,
+    vias: dict[tuple[str, str], list[list]],
+    sw_by_conn: dict[tuple[str, str], tuple[str, str]],
+) -> None:
+    """The connection a -> b in the track graph, with the switch and leg it sets (if any)."""
+    sw, leg = sw_by_conn.get((a, b), (None, None))
+    graph.add_edge(a, b, node=node, via=vias[(a, b)], switch=sw, leg=leg)
+
+
+def _add_depot_leads(
+    plan: _Plan,
+    graph: nx.DiGraph,
+    lanes: dict[str, tuple[float, float]],
+    vias: dict[tuple[str, str], list[list]],
+    sw_by_conn: dict[tuple[str, str], tuple[str, str]],
+) -> dict[str, dict[str, object]]:
+    """The depot leads' edges and links in the track graph; returns ``graph.graph["depots"]`` (module docstring)."""
+    depots: dict[str, dict[str, object]] = {}
+    for lead in plan.leads:
+        dp = lead.depot
+        x_m = dp.km * 1000.0
+        stop_of = dict(depot_stops(lead))
+        for eid, partner, fn, tn in (
+            (lead.into, lead.out, lead.node, lead.far),
+            (lead.out, lead.into, lead.far, lead.node),
+        ):
+            stop = (dp.id, stop_of[eid], DEPOT_STOP_MARGIN_M, lanes[eid][0] - DEPOT_STOP_MARGIN_M)
+            # the lead runs off to the side: its whole length sits at the depot's km (design sign 0)
+            _add_side_edge(graph, eid, partner, dp.line, "depot", fn, tn, lanes[eid], x_m, 0, stop)
+        for a, b, node in lead.connections():
+            _add_link(graph, a, b, node, vias, sw_by_conn)
+        depots[dp.id] = {
+            "name": dp.name,
+            "line": dp.line,
+            "km": dp.km,
+            "start_edge": lead.out,
+            "end_edge": lead.into,
+            "basis": dp.basis,
+        }
+    return depots
 
 
 def _end_names(plan: _Plan) -> dict[str, str]:

@@ -33,6 +33,9 @@ Schema (units in the key names; chainage ``km``, lengths ``_m``, speeds ``_kmh``
       - {id: yudong_xo, station: yudong, speed_kmh: 30}
     points:                          # named locations kept in every route passing them (e.g. coupling point F)
       - {id: F, line: trunk, km: 2.8}
+    depots:                          # depot lead tracks (units start and end their day there, see below)
+      - {id: daojiao, name: Daojiao, between: [yuhulu, xuetangwan], length_m: 300, throw_time_s: 15,
+         speed_kmh: 30, basis: "..."}  # or `line: main, km: 4.5` instead of `between`
     branches:
       - id: konggang                 # line id of the branch
         name: Konggang branch
@@ -64,6 +67,12 @@ Readings that matter:
   intermediate station with ``pocket: low|high`` gets a pocket track between the tracks beyond its platform on
   that side (two switches: off the arriving track, onto the departing one). Rotations reverse units there
   (``network.generator``, ``railsim.engine.turnback``). Crossovers are recorded for the timetable only.
+* **Depots.** A depot is a bidi *lead track* (``length_m``, default :data:`DEFAULT_DEPOT_TRACK_M`) joined to
+  both running tracks at one point: in the middle of the gap between two adjacent stations of one line
+  (``between``) or at a chainage (``line``/``km``, outside every platform). One switch per running track
+  (``<id>_up``, ``<id>_down``; ``throw_time_s``, ``speed_kmh``) takes a unit into or out of the lead. Where
+  the depot itself lies is not modelled: a unit appears at the lead's running-line end and disappears at its
+  far end (``railsim.engine.depot``).
 * **Single track** builds one bidirectional track (SUMO bidi edges) and does not support branches yet.
 """
 
@@ -136,6 +145,21 @@ class Point:
 
 
 @dataclass(frozen=True)
+class Depot:
+    """A depot's lead track, joined to both running tracks of ``line`` at ``km`` (module docstring)."""
+
+    id: str
+    name: str
+    line: str
+    km: float
+    length_m: float
+    throw_time_s: float
+    speed_kmh: float
+    basis: str
+    path: str
+
+
+@dataclass(frozen=True)
 class SwitchSpec:
     id: str
     throw_time_s: float
@@ -182,6 +206,7 @@ class LineDescription:
     points: tuple[Point, ...]
     branches: tuple[Branch, ...]
     source: str
+    depots: tuple[Depot, ...] = ()
 
     def line_ids(self) -> list[str]:
         return [self.main_line_id] + [b.id for b in self.branches]
@@ -322,9 +347,14 @@ _TOP_KEYS = (
     "crossovers",
     "points",
     "branches",
+    "depots",
     "basis",
     "sources",
 )
+_DEPOT_KEYS = ("id", "name", "between", "line", "km", "length_m", "throw_time_s", "speed_kmh", "basis")
+DEFAULT_DEPOT_TRACK_M = 300.0  # estimated: one 6/8-car unit (<= 120 m) and room to stop short of the end
+DEFAULT_DEPOT_THROW_S = 15.0  # estimated: as the Bijin switches
+DEFAULT_DEPOT_SPEED_KMH = 30.0  # estimated: as the other Line 3 turnouts (S15)
 
 
 def _stations(r: _Reader, key: str, default_platform_m: float, used_ids: dict[str, str]) -> tuple[Station, ...]:
@@ -593,6 +623,7 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         if not lo <= km <= hi:
             raise rr.error("km", f"expected a chainage within line {line!r} [{lo:g}, {hi:g}], got {km!r}")
         points.append(Point(rr.ident("id"), line, km, rr.path))
+    depots = _depots(r, source, main_id, extents, used, [(main_id, stations)] + [(b.id, b.stations) for b in branches])
 
     return LineDescription(
         name=name,
@@ -613,7 +644,65 @@ def parse_description(data: Any, source: str | Path) -> LineDescription:
         points=tuple(points),
         branches=tuple(branches),
         source=source,
+        depots=depots,
     )
+
+
+def _depots(
+    r: _Reader,
+    source: str,
+    main_id: str,
+    extents: dict[str, tuple[float, float]],
+    used: dict[str, str],
+    lines: list[tuple[str, tuple[Station, ...]]],
+) -> tuple[Depot, ...]:
+    """The ``depots`` list (module docstring): where each lead track joins the line."""
+    out: list[Depot] = []
+    for i, raw in enumerate(r.seq("depots")):
+        rr = _Reader(source, raw, f"depots[{i}]", _DEPOT_KEYS)
+        did = rr.ident("id")
+        if did in used or any(d.id == did for d in out):
+            raise rr.error("id", f"expected an id not used by a station or another depot, got {did!r}")
+        between = rr.get("between", None)
+        if between is not None:
+            if rr.get("km", None) is not None:
+                raise rr.error("km", "expected either between or km, got both")
+            line, km = _between(rr, between, lines)
+        else:
+            line = rr.get("line", main_id)
+            if line not in extents:
+                raise rr.error("line", f"expected one of {', '.join(extents)}, got {_describe(line)}")
+            km = rr.number("km")
+            lo, hi = extents[line]
+            if not lo < km < hi:
+                raise rr.error("km", f"expected a chainage inside line {line!r} ({lo:g} < km < {hi:g}), got {km!r}")
+        out.append(
+            Depot(
+                did,
+                str(rr.get("name", did)),
+                str(line),
+                km,
+                rr.number("length_m", DEFAULT_DEPOT_TRACK_M, positive=True),
+                rr.number("throw_time_s", DEFAULT_DEPOT_THROW_S, minimum=0.0),
+                rr.number("speed_kmh", DEFAULT_DEPOT_SPEED_KMH, positive=True),
+                str(rr.get("basis", "")),
+                rr.path,
+            )
+        )
+    return tuple(out)
+
+
+def _between(rr: _Reader, between: Any, lines: list[tuple[str, tuple[Station, ...]]]) -> tuple[str, float]:
+    """(line, km) of the middle of the gap between two adjacent stations (the generator's edge break there)."""
+    if not (isinstance(between, list) and len(between) == 2):
+        raise rr.error("between", f"expected two adjacent station ids [a, b], got {_describe(between)}")
+    for line, stations in lines:
+        for s1, s2 in zip(stations, stations[1:]):
+            if {s1.id, s2.id} == set(between):
+                end1 = s1.km * 1000.0 + s1.platform_length_m / 2
+                start2 = s2.km * 1000.0 - s2.platform_length_m / 2
+                return line, 0.5 * (end1 + start2) / 1000.0
+    raise rr.error("between", f"expected two adjacent stations of one line, got {between!r}")
 
 
 def load_description(path: str | Path) -> tuple[LineDescription, Any]:

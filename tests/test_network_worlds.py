@@ -56,9 +56,9 @@ def test_line3_has_45_stations_with_a_stop_per_direction(cq: network.NetworkBund
             assert p.end_pos_m - p.start_pos_m == pytest.approx(220.0)
             stop_ids.add(p.stop_id)
     assert len(stop_ids) == 90
-    # the stops file holds exactly those trainStops, each on the lane of its edge
+    # the stops file holds exactly those trainStops, each on the lane of its edge, and one per depot lead edge
     text = cq.stops_file.read_text(encoding="utf-8")
-    assert text.count("<trainStop ") == 90
+    assert text.count("<trainStop ") == 90 + 2 * len(cq.graph.graph["depots"])
 
 
 def test_line3_main_stations_match_dataset_chainage_in_both_directions(cq: network.NetworkBundle) -> None:
@@ -325,10 +325,12 @@ def test_cli_build_writes_files_and_show_prints_summary(tmp_path: Path) -> None:
         assert (out / f"chongqing_line3{suffix}").is_file()
     topo = json.loads((out / "chongqing_line3.topology.json").read_text(encoding="utf-8"))
     pockets = {f"{s}_pk_{d}" for s in ("jiugongli", "liugongli") for d in ("in", "out")}
-    assert len(topo["stations"]) == 45 and set(topo["switches"]) == {"bijin_up", "bijin_down"} | pockets
+    depots = {f"{d}_{t}" for d in ("daojiao", "tongjiayuanzi-depot", "huancheng-north-road") for t in ("up", "down")}
+    assert len(topo["stations"]) == 45 and set(topo["switches"]) == {"bijin_up", "bijin_down"} | pockets | depots
     assert topo["stations"]["bijin"]["km"] == 52.668
     legs = {s["switch_id"]: s["leg"] for s in topo["routes"]["yudong->jurenba"]["switches"]}
     assert legs["bijin_up"] == "reverse" and legs["jiugongli_pk_out"] == legs["liugongli_pk_out"] == "normal"
+    assert legs["daojiao_up"] == legs["tongjiayuanzi-depot_up"] == legs["huancheng-north-road_up"] == "normal"
     proc = subprocess.run(
         [railsim, "network", "show", "y_junction"], capture_output=True, text=True, env=env, timeout=120
     )
@@ -353,3 +355,35 @@ def test_single_track_builds_bidi_edges_with_exact_chainage(tmp_path: Path) -> N
     assert _centre(up.stop("b")) - _centre(up.stop("a")) == pytest.approx(1234.0, abs=1e-3)
     assert _centre(down.stop("b")) - _centre(down.stop("c")) == pytest.approx(2500.0 - 1234.0, abs=1e-3)
     assert up.length_m == pytest.approx(down.length_m)
+
+
+def test_line3_depot_leads_join_both_tracks_between_their_stations(cq: network.NetworkBundle) -> None:
+    """The data pack's three depots (locations sourced, connections estimated): each lead is a bidi pair whose
+    track out of the depot feeds both running tracks and whose track in is fed by both, at the km of the middle
+    of the gap between its two stations, through that depot's two switches on their reverse leg."""
+    g = cq.graph
+    between = {
+        "daojiao": ("yuhulu", "xuetangwan"),
+        "tongjiayuanzi-depot": ("longtousi", "tongjiayuanzi"),
+        "huancheng-north-road": ("gaobaohu", "guanyue-road"),
+    }
+    assert set(g.graph["depots"]) == set(between)
+    for did, (a, b) in between.items():
+        d = g.graph["depots"][did]
+        assert cq.stations[a].km < d["km"] < cq.stations[b].km and d["line"] == cq.stations[a].line
+        start, end = d["start_edge"], d["end_edge"]
+        assert g.nodes[start]["bidi"] == end and g.nodes[end]["bidi"] == start
+        assert g.nodes[start]["station"] == g.nodes[end]["station"] == did
+        onto = {g.nodes[e]["direction"]: g.edges[start, e] for e in g.successors(start)}
+        into = {g.nodes[e]["direction"]: g.edges[e, end] for e in g.predecessors(end)}
+        for direction in ("up", "down"):
+            assert (onto[direction]["switch"], onto[direction]["leg"]) == (f"{did}_{direction}", "reverse")
+            assert (into[direction]["switch"], into[direction]["leg"]) == (f"{did}_{direction}", "reverse")
+        assert "estimated" in d["basis"] and "sourced" in d["basis"]
+    # no through route enters a depot lead
+    assert not any(
+        e in (v["start_edge"], v["end_edge"])
+        for r in cq.routes.values()
+        for e in r.edges
+        for v in g.graph["depots"].values()
+    )

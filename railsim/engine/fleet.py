@@ -92,15 +92,21 @@ class Fleet:
                     start_offset_m=start_offset,
                     start_speed_mps=float(svc.start_speed_mps),
                 )
-                factory = _ato_factory(scenario, dict(svc.roles), vehicle)
-                arr, depm = plan_free_run(trip, factory, dt_s, step_method)
-                trip.planned_arrival_s.update(arr)
-                trip.planned_departure_s.update(depm)
-                ctrls = {role: _controller(scenario, role, trip.roles, vehicle) for role in ROLES}
-                ctrls["ato_closing"] = _closing_ato(scenario, trip.roles, vehicle)
-                self.trains[trip_id] = TrainRuntime(trip=trip, view=route_view(route), controllers=ctrls)
+                self.add(trip, scenario, dt_s, step_method)
                 trips.append(trip)
             self.trips_by_service[svc.id] = trips
+
+    def add(self, trip: Trip, scenario: Any, dt_s: float, step_method: str) -> TrainRuntime:
+        """Plan ``trip`` (free run from its ``depart_s``), give it its controllers and add it to the fleet."""
+        factory = _ato_factory(scenario, dict(trip.roles), trip.vehicle)
+        arr, depm = plan_free_run(trip, factory, dt_s, step_method)
+        trip.planned_arrival_s.update(arr)
+        trip.planned_departure_s.update(depm)
+        ctrls = {role: _controller(scenario, role, trip.roles, trip.vehicle) for role in ROLES}
+        ctrls["ato_closing"] = _closing_ato(scenario, trip.roles, trip.vehicle)
+        tr = TrainRuntime(trip=trip, view=route_view(trip.route), controllers=ctrls)
+        self.trains[trip.trip_id] = tr
+        return tr
 
     def _start_offset(self, svc: Any, route: Any, stops: tuple[Any, ...]) -> float:
         """How far beyond the origin's stopping mark the trip starts (0 for a start at the platform)."""

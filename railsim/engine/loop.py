@@ -32,6 +32,7 @@ from railsim.engine.control import ControlStage, Disturbances
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events import Channel, DelaySpec, EventLayer, FormationManager, Interlocking, Outage, Switch
 from railsim.engine.extensions import ExtensionContext, install_all
+from railsim.engine.depot import Depots
 from railsim.engine.fleet import Fleet
 from railsim.engine.insertion import Dispatcher
 from railsim.engine.knowledge import Knowledge
@@ -118,6 +119,8 @@ class Simulation:
         self.trains = self.fleet.trains
         # rotations: trips chained into units, each next trip given its turnback (before any port reads routes)
         self.turnbacks = Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
+        # depot runs: each unit's day starts with a run out of a depot and ends with one into a depot
+        self.depots = Depots(self.fleet, self.turnbacks, self.bundle, scenario, self.dt, self.step_method)
         self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
         for k, f in enumerate(scenario.formations):
             self.formations.add(f, f"formations[{k}]")
@@ -351,6 +354,8 @@ class Simulation:
         extra = {e.summary_key: e.summary() for e in self.extensions if getattr(e, "summary_key", None)}
         if self.turnbacks.units:
             extra["fleet"] = self.turnbacks.summary()
+            if self.depots.runs or self.depots.unreached:
+                extra["fleet"].update(self.depots.summary())
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,

@@ -56,18 +56,22 @@ class TripStop:
         return self.lane_stop_m is not None
 
 
-def sumo_stops(stops: Sequence[TripStop], origin_until_s: float | None = None) -> list[Any]:
+def sumo_stops(
+    stops: Sequence[TripStop], origin_until_s: float | None = None, origin_duration_s: float | None = None
+) -> list[Any]:
     """The stops SUMO holds a train at (:class:`railsim.engine.sumo.StopSpec`): the origin and the destination
     for :data:`~railsim.engine.settings.DWELL_REGISTRATION_S` (the engine registers the halt; the departure is
-    the engine's), every other platform for its dwell; the origin held ``until`` ``origin_until_s`` if given. A
-    reversal is no SUMO stop: SUMO turns the unit round by itself (``railsim.engine.turnback``)."""
+    the engine's) or the origin for ``origin_duration_s`` if given, every other platform for its dwell; the origin
+    held ``until`` ``origin_until_s`` if given. A reversal is no SUMO stop: SUMO turns the unit round by itself
+    (``railsim.engine.turnback``)."""
     from railsim.engine.settings import DWELL_REGISTRATION_S
     from railsim.engine.sumo import StopSpec  # the bridge imports libsumo: only when a run needs it
 
+    origin_s = DWELL_REGISTRATION_S if origin_duration_s is None else origin_duration_s
     return [
         StopSpec(
             s.stop_id,
-            duration_s=DWELL_REGISTRATION_S if s.is_origin or s.is_destination else s.dwell_s,
+            duration_s=origin_s if s.is_origin else (DWELL_REGISTRATION_S if s.is_destination else s.dwell_s),
             until_s=origin_until_s if s.is_origin else None,
             lane_stop_m=s.lane_stop_m,
         )
@@ -96,6 +100,7 @@ class Trip:
     # before its first edge (the trace reports chainage in the service's frame: turnback moves lie behind it)
     frame_shift_m: float = 0.0
     start_speed_mps: float = 0.0
+    kind: str = "service"  # or "depot_out" / "depot_in": an empty run of a unit (railsim.engine.depot)
 
     @property
     def origin(self) -> TripStop:

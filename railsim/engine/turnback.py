@@ -49,6 +49,7 @@ from network.topology import make_route
 from railsim.engine.events.log import EventLog
 from railsim.engine.fleet import Fleet
 from railsim.engine.routeview import route_view
+from railsim.engine.settings import DWELL_REGISTRATION_S
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import REVERSAL, TripStop, sumo_stops
 from railsim.errors import ConfigError
@@ -175,6 +176,23 @@ class Turnbacks:
             dest_pool.append(tr)
             dest_pool.sort(key=lambda p: (p.trip.planned_arrival_s.get(p.trip.destination.station_id, 0.0), p.train_id))
 
+    def link(self, pred: TrainRuntime, succ: TrainRuntime) -> None:
+        """Chain ``succ`` right after ``pred`` in the unit one of them already belongs to (a depot run,
+        ``railsim.engine.depot``). The unit turns back between them (the caller checked a turnback path exists),
+        or, when ``pred`` ends on the edge ``succ`` starts from, ``succ`` departs where the unit stands."""
+        uid = pred.unit_id or succ.unit_id
+        assert uid is not None
+        chain = self.units[uid]
+        if succ.unit_id == uid:  # a run before the unit's first trip
+            chain.insert(0, pred.train_id)
+        else:
+            chain.append(succ.train_id)
+        self.next_of[pred.train_id], self.prev_of[succ.train_id] = succ.train_id, pred.train_id
+        for tr in (pred, succ):
+            tr.sumo_id = tr.unit_id = uid
+        if pred.trip.route.edges[-1] != succ.trip.route.edges[0]:
+            self._reroute(succ, pred)
+
     def chained(self, train_id: str) -> bool:
         """True for a trip that starts by its unit's reversal (the dispatcher does not insert it)."""
         return train_id in self.prev_of
@@ -267,12 +285,16 @@ class Turnbacks:
         lane_pos_m = pred.front_m - pred.view.edge_start_m[-1]
         front_m = succ.view.edge_start_m[0] + lane_pos_m
         rev = trip.stops[0]
-        if front_m >= rev.window_start_m - 1e-6:  # it stands on the reversal edge already: it reverses here
+        reverses = rev.kind == REVERSAL  # else it departs where it stands (``link``)
+        if reverses and front_m >= rev.window_start_m - 1e-6:  # on the reversal edge already: it reverses here
             trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
-        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id)
+        # a unit that runs on where it stands (into or out of a depot run) does not turn back: no minimum
+        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses else 0.0
         until_s = max(trip.depart_s, arrival_s + min_s)
-        stops = sumo_stops(trip.stops, origin_until_s=until_s)
+        # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration
+        origin_s = DWELL_REGISTRATION_S if reverses else max(DWELL_REGISTRATION_S, until_s - t)
+        stops = sumo_stops(trip.stops, origin_until_s=until_s, origin_duration_s=origin_s)
         self.bridge.reroute(succ.sumo_id, trip.route.edges, stops)
         odometer_m = pred.front_m - pred.depart_chainage_m
         succ.depart_chainage_m = front_m - odometer_m
@@ -281,8 +303,8 @@ class Turnbacks:
         succ.status = "running"
         succ.inserted_s = t
         succ.next_stop = 0
-        succ.reversing = True
-        succ.hold_until_s = until_s - _positioning_s(succ)  # wait off the platform while early
+        succ.reversing = reverses
+        succ.hold_until_s = until_s - _positioning_s(succ) if reverses else None  # wait off the platform while early
         self.turnbacks.append(
             {
                 "unit": succ.unit_id,
@@ -326,6 +348,8 @@ class Turnbacks:
             peak = max(peak, cur)
         rows: list[dict[str, Any]] = []
         for row in self.turnbacks:
+            if trains[row["from_trip"]].trip.kind != "service" or trains[row["to_trip"]].trip.kind != "service":
+                continue  # into or out of a depot run: the depot block counts those (railsim.engine.depot)
             succ = trains[row["to_trip"]]
             dep = succ.departed_s
             achieved = None if dep is None else dep - row["arrived_s"]

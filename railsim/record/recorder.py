@@ -235,9 +235,11 @@ class Recorder:
     # ------------------------------------------------------------------ summary
     def summary(self, run: RunSnapshot) -> dict[str, Any]:
         trains = list(run.trains)
+        # service counts leave out a unit's empty depot runs (railsim.engine.depot); safety counts every train
+        service = [tr for tr in trains if tr.trip.kind == "service"]
         min_gaps = [tr.min_gap_m for tr in trains if math.isfinite(tr.min_gap_m)]
         running_times: dict[str, list[float]] = {}
-        for tr in trains:
+        for tr in service:
             if tr.arrived_s is not None and tr.departed_s is not None:
                 running_times.setdefault(tr.trip.service_id, []).append(tr.arrived_s - tr.departed_s)
         formations = self.formation_rows(run)
@@ -245,13 +247,13 @@ class Recorder:
         return {
             "scenario": run.scenario_name,
             "seed": run.seed,
-            "n_trains": len(trains),
-            "n_inserted": sum(1 for tr in trains if tr.inserted_s is not None),
-            "n_arrived": sum(1 for tr in trains if tr.arrived_s is not None),
+            "n_trains": len(service),
+            "n_inserted": sum(1 for tr in service if tr.inserted_s is not None),
+            "n_arrived": sum(1 for tr in service if tr.arrived_s is not None),
             "n_never_inserted": len(never_inserted),
             "never_inserted": never_inserted,
-            "n_stops_served": sum(tr.stops_served for tr in trains),
-            "n_stops_scheduled": sum(tr.trip.n_stops_scheduled for tr in trains),
+            "n_stops_served": sum(tr.stops_served for tr in service),
+            "n_stops_scheduled": sum(tr.trip.n_stops_scheduled for tr in service),
             "n_stops_missed": sum(1 for s in self.stops if s["missed"]),
             # one collision truth: railsim's (on the chainage the desync check keeps equal to SUMO's) and SUMO's
             # own check count together; the detail keeps them apart

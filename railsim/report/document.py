@@ -255,6 +255,31 @@ def fleet_markdown(fleet: Mapping[str, Any]) -> list[str]:
             ["station", "turnbacks", "minimum [s]", "achieved min [s]", "achieved median [s]", "knock-on [s]"]
         )
         lines.append(md_table(table, {"turnbacks": 0}))
+    if "depot_runs" in fleet:
+        lines += depot_markdown(fleet)
+    return lines
+
+
+def depot_markdown(fleet: Mapping[str, Any]) -> list[str]:
+    """Depot runs (``railsim.engine.depot``): runs, empty km per unit, units per depot at the start/end of the day."""
+    import pandas as pd
+
+    empty = pd.Series(fleet.get("empty_km_per_unit", {}), dtype=float)
+    per = fleet.get("units_per_depot", {})
+    start, end = per.get("start_of_day", {}), per.get("end_of_day", {})
+    table = pd.DataFrame(
+        [{"depot": d, "units at start": start.get(d, 0), "units at end": end.get(d, 0)} for d in sorted({*start, *end})]
+    )
+    missing = fleet.get("units_without_depot_runs", [])
+    lines = [
+        "### Depot runs",
+        f"Depot runs: **{fleet['depot_runs']}** ({fleet['depot_runs_arrived']} arrived); empty km per unit: mean "
+        f"{empty.mean():.1f}, max {empty.max():.1f}, total {empty.sum():.1f}. First trips that left late after their "
+        f"depot-out run: {fleet['late_first_departures']}."
+        + (f" Units no depot reaches (no depot runs): {', '.join(missing)}." if missing else ""),
+    ]
+    if len(table):
+        lines.append(md_table(table, {"units at start": 0, "units at end": 0}))
     return lines
 
 

@@ -434,13 +434,17 @@ class RotationSpec:
     ``units`` is ``None`` for ``auto`` (first-in-first-out at each terminal: the unit that arrived first and
     has had its minimum turnback takes the next departure) or ``{unit id: (trip id, …)}`` in running order.
     Between two trips a unit reverses (``railsim.engine.turnback``); it may leave no earlier than its
-    arrival + the minimum turnback time of that station (driver / cab change).
+    arrival + the minimum turnback time of that station (driver / cab change). With ``depot`` each unit starts
+    its day with a run out of a depot and ends it with a run into one (``railsim.engine.depot``).
     """
 
     units: dict[str, tuple[str, ...]] | None = None
     turnback_min_s: float = 120.0
     turnback_min_by_station: dict[str, float] = field(default_factory=dict)
     max_layover_s: float = 1800.0  # auto: a unit ready longer than this before a departure leaves service instead
+    # depot runs (railsim.engine.depot): None = none; "auto" = the nearest depot by track; else a depot id
+    depot: str | None = None
+    depot_by_unit: dict[str, str] = field(default_factory=dict)  # unit id -> depot id (overrides ``depot``)
 
     def turnback_min_at(self, station_id: str) -> float:
         """The minimum turnback time at ``station_id`` [s]."""

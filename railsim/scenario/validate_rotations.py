@@ -9,10 +9,14 @@ Accepted forms::
       turnback_min_by_station: {yudong: 240}
       max_layover_s: 1800                # auto: a unit that would wait longer for its next departure (from
                                          #   arrival + turnback minimum) leaves service instead (the depot)
+      depots: auto                       # depot runs: each unit leaves a depot before its first trip and
+                                         #   returns to one after its last; auto = the nearest by track, or a
+                                         #   depot id, or {depot: auto|id, by_unit: {unit id: depot id}}
 
 An explicit list names each trip once, in departure order. That each trip starts at the station where the one
 before it ended, and that the world lets a unit reverse there, is checked against the world when the run is
-set up (``railsim.engine.turnback``: stations may be named by name or id, resolved by the world).
+set up (``railsim.engine.turnback``: stations may be named by name or id, resolved by the world), and so are
+depot ids (``railsim.engine.depot``: a ConfigError naming ``rotations.depots...``, exit 2).
 """
 
 from __future__ import annotations
@@ -24,7 +28,7 @@ from railsim.scenario.model import RotationSpec, ServiceSpec
 from railsim.scenario.validate import Checker
 from railsim.scenario.validate_services import trip_name
 
-_KEYS = ("units", "turnback_min_s", "turnback_min_by_station", "max_layover_s")
+_KEYS = ("units", "turnback_min_s", "turnback_min_by_station", "max_layover_s", "depots")
 
 
 def rotations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple[RotationSpec, Any]:
@@ -60,13 +64,39 @@ def rotations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tuple
                 if departs[tid] <= departs[prev]:
                     raise ck.fail(f"{upath}[{k}]", f"trip {tid!r} departs before {prev!r}, the trip before it")
             units[uid] = tuple(chain)
+    depot, by_unit = _depots(ck, m.get("depots"), f"{path}.depots")
     spec = RotationSpec(
-        units=units, turnback_min_s=default_s, turnback_min_by_station=by_station, max_layover_s=layover_s
+        units=units,
+        turnback_min_s=default_s,
+        turnback_min_by_station=by_station,
+        max_layover_s=layover_s,
+        depot=depot,
+        depot_by_unit=by_unit,
     )
-    raw = {
+    raw: dict[str, Any] = {
         "units": "auto" if units is None else {u: list(c) for u, c in units.items()},
         "turnback_min_s": default_s,
         "turnback_min_by_station": dict(by_station),
         "max_layover_s": layover_s,
     }
+    if depot is not None:
+        raw["depots"] = {"depot": depot, "by_unit": dict(by_unit)}
     return spec, raw
+
+
+def _depots(ck: Checker, value: Any, path: str) -> tuple[str | None, dict[str, str]]:
+    """``depots``: None (no depot runs), ``auto``, a depot id, or ``{depot: ..., by_unit: {...}}``."""
+    if value is None:
+        return None, {}
+    if isinstance(value, str):
+        value = {"depot": value}
+    m = ck.mapping(value, path, (), ("depot", "by_unit"), what="'auto', a depot id or a mapping")
+    depot = m.get("depot", "auto")
+    if not isinstance(depot, str) or not depot:
+        raise ck.expect(f"{path}.depot", "'auto' or a depot id", depot)
+    by_unit: dict[str, str] = {}
+    for uid, did in ck.free_mapping(m.get("by_unit") or {}, f"{path}.by_unit", "{unit id: depot id}").items():
+        if not isinstance(did, str) or not did:
+            raise ck.expect(f"{path}.by_unit.{uid}", "a depot id", did)
+        by_unit[str(uid)] = did
+    return depot, by_unit

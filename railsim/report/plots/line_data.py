@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -17,6 +18,8 @@ from railsim.errors import ConfigError
 from railsim.report import export
 
 DIRECTIONS = ("up", "down")
+DEPOT_SERVICES = ("depot_out", "depot_in")  # a unit's empty runs out of and into a depot (railsim.engine.depot)
+DEPOT_COLOUR = "#999999"
 PALETTE = ("#0072B2", "#D55E00", "#009E73", "#CC79A7", "#56B4E9", "#E69F00", "#000000", "#F0E442")
 
 
@@ -131,20 +134,28 @@ def load_line_run(run_dir: Path | str) -> LineRun:
     t0 = float(frame.scenario.simulation.start_time_s)
     paths: dict[str, TrainPath] = {}
     service_of = dict(zip(trips["trip_id"].astype(str), trips["service"].astype(str)))
+    trip_of = {str(r.trip_id): r for r in trips.itertuples(index=False)}
     for tid, grp in trace.groupby(trace["train"].astype(str), sort=False):
         svc = service_of.get(tid, str(grp["service"].iloc[0]))
         sf = frame.services.get(svc)
-        if sf is None:
-            continue
         grp = grp.sort_values("t_s", kind="mergesort")
+        if sf is not None:
+            direction, km = sf.direction, np.asarray(sf.km_of(grp["chainage_m"].to_numpy(float)), dtype=float)
+        elif svc in DEPOT_SERVICES and tid in trip_of:
+            placed = _depot_run_km(grp, trip_of[tid], bundle)
+            if placed is None:
+                continue
+            direction, km = placed
+        else:
+            continue
         fs = grp["formation_state"]
         state = np.where(fs.isna(), "", fs.astype(str)).astype(str)  # all-empty columns read back as NaN
         paths[tid] = TrainPath(
             tid,
             svc,
-            sf.direction,
+            direction,
             t0 + grp["t_s"].to_numpy(float),
-            np.asarray(sf.km_of(grp["chainage_m"].to_numpy(float)), dtype=float),
+            km,
             grp["speed_mps"].to_numpy(float),
             pd.to_numeric(grp["gap_m"]).to_numpy(float),
             state,
@@ -162,4 +173,25 @@ def load_line_run(run_dir: Path | str) -> LineRun:
         if key not in families:
             families[key] = PALETTE[len(families) % len(PALETTE)]
         colours[svc.id] = families[key]
+    colours.update({svc: DEPOT_COLOUR for svc in DEPOT_SERVICES})
     return LineRun(run, frame, t0, stations, dict(sorted(paths.items())), colours)
+
+
+def _depot_run_km(grp: pd.DataFrame, trip: Any, bundle: Any) -> tuple[str, np.ndarray] | None:
+    """(direction, line km of each trace sample) of a depot run: it runs along the line without reversing of its
+    own, so its km moves 1 km per 1000 m of route chainage from the station at its platform end (anchored when it
+    arrives there, or leaves it) towards its depot's km, where the lead begins (held there on the lead)."""
+    depots = bundle.graph.graph.get("depots", {})
+    out = trip.service == "depot_out"
+    depot, station = (str(trip.origin), str(trip.destination)) if out else (str(trip.destination), str(trip.origin))
+    at_s = pd.to_numeric(trip.arrival_s if out else trip.departure_s, errors="coerce")
+    if depot not in depots or station not in bundle.stations or not np.isfinite(at_s):
+        return None
+    t, c = grp["t_s"].to_numpy(float), grp["chainage_m"].to_numpy(float)
+    km_station, km_depot = float(bundle.stations[station].km), float(depots[depot]["km"])
+    toward = 1.0 if km_depot >= km_station else -1.0
+    from_station_m = (np.interp(at_s, t, c) - c) if out else (c - np.interp(at_s, t, c))
+    km = km_station + toward * from_station_m / 1000.0
+    km = np.minimum(km, km_depot) if toward > 0 else np.maximum(km, km_depot)
+    moves_up = (toward < 0) if out else (toward > 0)
+    return ("up" if moves_up else "down"), km
