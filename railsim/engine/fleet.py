@@ -92,7 +92,7 @@ class Fleet:
                     start_offset_m=start_offset,
                     start_speed_mps=float(svc.start_speed_mps),
                 )
-                factory = _ato_factory(scenario, dict(svc.roles), vehicle)
+                factory = ato_factory(scenario, dict(svc.roles), vehicle)
                 arr, depm = plan_free_run(trip, factory, dt_s, step_method)
                 trip.planned_arrival_s.update(arr)
                 trip.planned_departure_s.update(depm)
@@ -135,7 +135,7 @@ def _controller(scenario: Any, role: str, trip_roles: dict[str, str], vehicle: A
     return ctl.create(spec.type, dict(spec.params or {}), vehicle)
 
 
-def _ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any) -> Callable[[], Any]:
+def ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any) -> Callable[[], Any]:
     return lambda: _controller(scenario, "ato", roles, vehicle)
 
 

@@ -75,6 +75,7 @@ class Trip:
     # before its first edge (the trace reports chainage in the service's frame: turnback moves lie behind it)
     frame_shift_m: float = 0.0
     start_speed_mps: float = 0.0
+    departure_delay_s: float = 0.0  # a primary delay (railsim.engine.primary_delays): leaves this much late
 
     @property
     def origin(self) -> TripStop:

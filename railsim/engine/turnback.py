@@ -234,7 +234,7 @@ class Turnbacks:
             trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
         min_s = self.spec.turnback_min_at(pred.trip.destination.station_id)
-        until_s = max(trip.depart_s, arrival_s + min_s)
+        until_s = max(trip.depart_s + trip.departure_delay_s, arrival_s + min_s)  # a primary late start too
         stops = [
             StopSpec(
                 s.stop_id,
