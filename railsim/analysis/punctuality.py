@@ -4,7 +4,8 @@ The measures the industry uses, on the run's stop arrivals (every station after 
 left out) and, for the delay minutes, on each trip's arrival at its destination:
 
 * **punctuality** — the share of arrivals no more than 1, 3 and 5 min late (``within_1min`` …), over all
-  stations and per station along the line (``by_station``: the share within 3 min);
+  stations and per station along the line (``by_station``: the share within 3 min, in line order), and the
+  delay CDF on :data:`CDF_GRID_S` (``cdf.le_0060s``: the share at most 60 s late);
 * **mean and p95 arrival delay** [s] (early arrivals count as 0 late);
 * **delay minutes at the destination**, split into **primary** (what the train's own injected disturbances
   alone cost it: its free run with them) and **secondary** (the rest: knock-on from other trains — waiting
@@ -28,6 +29,7 @@ import numpy as np
 import pandas as pd
 
 PUNCTUALITY_MIN = (1, 3, 5)  # thresholds of the punctuality shares [min]
+CDF_GRID_S = (0, 30, 60, 90, 120, 180, 240, 300, 420, 600, 900, 1200, 1800)  # the delay CDF's points [s]
 RECOVERED_S = 60.0  # an arrival with at most this much secondary delay counts as recovered
 
 
@@ -55,12 +57,26 @@ def kpis(delays: pd.DataFrame, incidents: Sequence[Mapping[str, Any]] = ()) -> d
     out["mean_secondary_s"] = (
         float(np.mean(np.maximum(arrived["secondary_s"].to_numpy(float), 0.0))) if len(late) else None
     )
+    out["cdf"] = {f"le_{t:04d}s": float(np.mean(late <= t)) if len(late) else None for t in CDF_GRID_S}
+    groups = dict(list(arrived.groupby("station", sort=False)))
     out["by_station"] = {
-        str(st): float(np.mean(np.maximum(g["arrival_delay_s"].to_numpy(float), 0.0) <= 180.0))
-        for st, g in arrived.groupby("station", sort=False)
+        st: float(np.mean(np.maximum(groups[st]["arrival_delay_s"].to_numpy(float), 0.0) <= 180.0))
+        for st in line_order(arrived)
     }
-    out["recovery_s"] = recovery_times(arrived, [float(i["planned_s"]) for i in incidents])
+    rec = recovery_times(arrived, [float(i["planned_s"]) for i in incidents])
+    out["recovery_s"] = rec
+    out["recovery_max_s"] = max(rec) if rec else None
+    out["recovery_mean_s"] = float(np.mean(rec)) if rec else None
     return out
+
+
+def line_order(arrived: pd.DataFrame) -> list[str]:
+    """Stations in the order the trip serving most of them reaches them, then any others (first seen first)."""
+    if arrived.empty:
+        return []
+    longest = arrived.groupby("trip_id", sort=False).size().idxmax()
+    order = [str(s) for s in arrived[arrived["trip_id"] == longest].sort_values("arrival_s")["station"]]
+    return order + [str(s) for s in dict.fromkeys(arrived["station"]) if str(s) not in order]
 
 
 def destination_rows(arrived: pd.DataFrame) -> pd.DataFrame:
