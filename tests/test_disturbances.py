@@ -220,3 +220,46 @@ def test_unknown_station_is_a_config_error_exit_2(tmp_path: Path) -> None:
     path = _write(tmp_path, "bad", _with({"dwell": [{"dist": "exponential", "mean_s": 3, "stations": ["s9"]}]}))
     res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 2 and "disturbances.dwell[0].stations" in res.stderr and "Traceback" not in res.stderr
+
+
+@pytest.mark.sumo
+def test_knock_on_through_a_rotation_is_secondary_delay(tmp_path: Path) -> None:
+    """The shuttle's first trip leaves 400 s late (an incident at its origin); its unit needs 60 s to turn, so
+    the return trip scheduled at 400 s cannot leave before arrival + 60 s: that late start is the return trip's
+    secondary delay (it had no disturbance of its own) on top of its undisturbed delay, to a step or two, and the
+    fleet block counts it."""
+    from tests.test_single_track import build_single_line
+    from tests.test_turnback import SHUTTLE, _run
+
+    net, stops = build_single_line(tmp_path)
+    services = copy.deepcopy(SHUTTLE)
+    out = _run(tmp_path, net, stops, services, {"units": "auto", "turnback_min_s": 60})  # undisturbed reference
+    free = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    assert abs(float(free["back.000"]["departure_s"]) - 400.0) <= DT_S  # on time without the incident
+
+    from tests.test_external_net import _COMMON, _write
+
+    raw = {
+        "name": "rotation_knock_on",
+        "world": {"net": str(net), "additional": [str(stops)]},
+        **_COMMON,
+        "services": services,
+        "rotations": {"units": "auto", "turnback_min_s": 60},
+        "disturbances": {"incidents": [{"trip": "out.000", "station": "Aston", "hold_s": 400}]},
+    }
+    raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
+    scn = _write(tmp_path, "disturbed.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out2 = tmp_path / "disturbed"
+    res = run_railsim(["run", str(scn), "--out", str(out2), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr
+    trips = {r["trip_id"]: r for r in read_csv(out2 / "trips.csv")}
+    assert abs(float(trips["out.000"]["departure_s"]) - 400.0) <= DT_S  # the primary late start
+    late_start_s = float(trips["out.000"]["arrival_s"]) + 60.0 - 400.0  # what the unit lacks for back.000
+    assert late_start_s > 200.0  # the unit is late for its next trip: the knock-on regime
+    back = [r for r in read_csv(out2 / "delays.csv") if r["trip_id"] == "back.000"]
+    assert back and all(float(r["primary_s"]) == 0.0 for r in back)
+    last = back[-1]
+    # on top of what the return trip is late without any disturbance (its unit starts off the plan's mark)
+    structural_s = float(free["back.000"]["delay_s"])
+    assert abs(float(last["secondary_s"]) - structural_s - late_start_s) <= 2 * DT_S, (last, late_start_s)
+    assert read_summary(out2)["fleet"]["late_starts_from_incoming_unit"] >= 1

@@ -120,7 +120,15 @@ class Simulation:
         self.primary = (  # disturbances: drawn on the planned trips, injected below (own streams from the seed)
             None
             if scenario.disturbances is None
-            else PrimaryDelays(scenario.disturbances, self.fleet, scenario, self.seed, self.duration_s, self.dt)
+            else PrimaryDelays(
+                scenario.disturbances,
+                self.fleet,
+                scenario,
+                self.seed,
+                self.duration_s,
+                self.dt,
+                self.bundle.station_aliases,
+            )
         )
         # rotations: trips chained into units, each next trip given its turnback (before any port reads routes)
         self.turnbacks = Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)

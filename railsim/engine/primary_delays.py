@@ -34,6 +34,7 @@ import dataclasses
 import math
 import zlib
 from dataclasses import dataclass, field
+from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -93,9 +94,16 @@ class PrimaryDelays:
     """Draws (at construction), injects (:meth:`apply`) and accounts for (:meth:`rows`) the primary delays."""
 
     def __init__(
-        self, spec: DisturbanceSpec, fleet: Fleet, scenario: Any, seed: int, horizon_s: float, dt_s: float
+        self,
+        spec: DisturbanceSpec,
+        fleet: Fleet,
+        scenario: Any,
+        seed: int,
+        horizon_s: float,
+        dt_s: float,
+        aliases: Mapping[str, str] | None = None,
     ) -> None:
-        self.spec = spec
+        self.spec = with_station_ids(spec, aliases or {})
         self.seed = int(seed)
         self.trips: dict[str, TripPrimary] = {}
         self.events: list[tuple[float, str, str, float]] = []  # (planned time, trip, station, hold) of incidents
@@ -277,6 +285,26 @@ class PrimaryDelays:
                 {"planned_s": t, "trip": tid, "station": st, "hold_s": h} for t, tid, st, h in sorted(self.events)
             ],
         }
+
+
+def with_station_ids(spec: DisturbanceSpec, aliases: Mapping[str, str]) -> DisturbanceSpec:
+    """``spec`` with stations named by an alias (an external net's station name or stop id) replaced by ids."""
+    if not aliases:
+        return spec
+
+    def ids(names: tuple[str, ...]) -> tuple[str, ...]:
+        return tuple(aliases.get(n, n) for n in names)
+
+    return dataclasses.replace(
+        spec,
+        dwell=tuple(dataclasses.replace(r, stations=ids(r.stations)) for r in spec.dwell),
+        incidents=tuple(
+            dataclasses.replace(
+                i, stations=ids(i.stations), station=None if i.station is None else aliases.get(i.station, i.station)
+            )
+            for i in spec.incidents
+        ),
+    )
 
 
 def scaled_vehicle(vehicle: Any, factor: float) -> Any:
