@@ -263,3 +263,16 @@ def test_knock_on_through_a_rotation_is_secondary_delay(tmp_path: Path) -> None:
     structural_s = float(free["back.000"]["delay_s"])
     assert abs(float(last["secondary_s"]) - structural_s - late_start_s) <= 2 * DT_S, (last, late_start_s)
     assert read_summary(out2)["fleet"]["late_starts_from_incoming_unit"] >= 1
+
+
+def test_resolved_section_loads_back_unchanged() -> None:
+    section = {
+        "dwell": [{"dist": "empirical", "values_s": [0, 10], "stations": ["s2"], "until_s": 600}],
+        "departure": [{"dist": "constant", "value_s": 5, "services": ["a"]}],
+        "running_time": {"low": 0.9},
+        "incidents": [{"trip": "a.001", "station": "s3", "hold_s": 60}, {"rate_per_h": 1, "hold_s": 30}],
+    }
+    scn = S.from_mapping(_with(section), source="line.yaml")
+    again = S.from_mapping(copy.deepcopy(scn.raw), source="line.yaml")
+    assert again.raw == scn.raw and again.disturbances == scn.disturbances
+    assert scn.raw["disturbances"]["running_time"] == {"low": 0.9, "high": 1.0, "services": []}
