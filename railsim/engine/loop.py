@@ -27,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from railsim.engine import timed
+from railsim.engine import primary_delays, timed
 from railsim.engine.control import ControlStage, Disturbances
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events import Channel, DelaySpec, EventLayer, FormationManager, Interlocking, Outage, Switch
@@ -37,7 +37,6 @@ from railsim.engine.insertion import Dispatcher
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead, Body, Occupancy
-from railsim.engine.primary_delays import DELAY_COLUMNS, PrimaryDelays
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import (
@@ -117,19 +116,7 @@ class Simulation:
         self.fleet = Fleet(scenario.source)
         self.fleet.build(scenario, self.bundle, self.dt, self.step_method)
         self.trains = self.fleet.trains
-        self.primary = (  # disturbances: drawn on the planned trips, injected below (own streams from the seed)
-            None
-            if scenario.disturbances is None
-            else PrimaryDelays(
-                scenario.disturbances,
-                self.fleet,
-                scenario,
-                self.seed,
-                self.duration_s,
-                self.dt,
-                self.bundle.station_aliases,
-            )
-        )
+        self.primary = primary_delays.draw(scenario, self.fleet, self.seed, self.dt, self.bundle.station_aliases)
         # rotations: trips chained into units, each next trip given its turnback (before any port reads routes)
         self.turnbacks = Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
         self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
@@ -150,8 +137,7 @@ class Simulation:
             self.knowledge.handshake,
             self.locks.release_all,
         )
-        if self.primary is not None:
-            self.primary.apply(self.fleet, self.formations.couples_on_departure)
+        primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
         self.formations.insert_behind = self.dispatcher.insert_behind
         self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
@@ -363,10 +349,7 @@ class Simulation:
         extra = {e.summary_key: e.summary() for e in self.extensions if getattr(e, "summary_key", None)}
         if self.turnbacks.units:
             extra["fleet"] = self.turnbacks.summary()
-        tables = {}
-        if self.primary is not None:
-            extra["disturbances"] = self.primary.summary()
-            tables["delays"] = (self.primary.rows(self.recorder.stops, self.trains), DELAY_COLUMNS)
+        extra.update(primary_delays.summary(self.primary))
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,
@@ -385,7 +368,7 @@ class Simulation:
             versions={"railsim": __version__, "sumo": sumo_version(), "numpy": np.__version__},
             extra_summary=extra,
             failure=self.failure(),
-            extra_tables=tables,
+            extra_tables=primary_delays.tables(self.primary, self.recorder.stops, self.trains),
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:

@@ -287,6 +287,35 @@ class PrimaryDelays:
         }
 
 
+# ---- the loop's four calls (each a no-op without a disturbances: section) -----------------------------------
+
+
+def draw(scenario: Any, fleet: Fleet, seed: int, dt_s: float, aliases: Mapping[str, str]) -> PrimaryDelays | None:
+    """The run's primary delays, drawn right after the fleet is built; None without a ``disturbances:`` section."""
+    if scenario.disturbances is None:
+        return None
+    horizon_s = float(scenario.simulation.duration_s)
+    return PrimaryDelays(scenario.disturbances, fleet, scenario, seed, horizon_s, dt_s, aliases)
+
+
+def apply(primary: PrimaryDelays | None, fleet: Fleet, couples_on_departure: Any) -> None:
+    """Inject them (:meth:`PrimaryDelays.apply`) once the formations are known."""
+    if primary is not None:
+        primary.apply(fleet, couples_on_departure)
+
+
+def summary(primary: PrimaryDelays | None) -> dict[str, Any]:
+    """``{"disturbances": what was injected}`` for ``summary.json``, or nothing."""
+    return {} if primary is None else {"disturbances": primary.summary()}
+
+
+def tables(
+    primary: PrimaryDelays | None, stop_records: list[dict[str, Any]], trains: dict[str, Any]
+) -> dict[str, tuple[list[dict[str, Any]], list[str]]]:
+    """``{"delays": (rows, columns)}`` for ``delays.csv``, or nothing."""
+    return {} if primary is None else {"delays": (primary.rows(stop_records, trains), DELAY_COLUMNS)}
+
+
 def with_station_ids(spec: DisturbanceSpec, aliases: Mapping[str, str]) -> DisturbanceSpec:
     """``spec`` with stations named by an alias (an external net's station name or stop id) replaced by ids."""
     if not aliases:
