@@ -71,7 +71,7 @@ def compare_robustness(
         lines.append(f"- {label}: stability limit {f'{lim:g} s' if lim is not None else 'none among the probes'}")
     lines.append("")
     for label, res in results.items():
-        lines.append(markdown({**res, "plots": []}, title=label).replace("## ", "### ", 1))
+        lines.append(markdown({**res, "plots": []}).replace("## ", "### ", 1))
     for p in plots:
         lines.append(f"![{p.stem}](robustness/{p.name})")
     text = "\n".join(lines) + "\n"
