@@ -70,7 +70,7 @@ def compare_robustness(
         lim = res.get("stability_limit_s")
         lines.append(f"- {label}: stability limit {f'{lim:g} s' if lim is not None else 'none among the probes'}")
     lines.append("")
-    for label, res in results.items():
+    for res in results.values():
         lines.append(markdown({**res, "plots": []}).replace("## ", "### ", 1))
     for p in plots:
         lines.append(f"![{p.stem}](robustness/{p.name})")
