@@ -276,3 +276,33 @@ def test_resolved_section_loads_back_unchanged() -> None:
     again = S.from_mapping(copy.deepcopy(scn.raw), source="line.yaml")
     assert again.raw == scn.raw and again.disturbances == scn.disturbances
     assert scn.raw["disturbances"]["running_time"] == {"low": 0.9, "high": 1.0, "services": []}
+
+
+def test_station_order_is_the_line_order_not_the_alphabet() -> None:
+    import pandas as pd
+
+    from railsim.analysis.punctuality import kpis
+    from railsim.studies.robustness import station_order
+
+    rows = [
+        ("t1", st, t, t - 10.0 * k) for k, (st, t) in enumerate([("zeta", 100.0), ("alpha", 200.0), ("mid", 300.0)])
+    ]
+    rows += [("t2", "alpha", 260.0, 250.0)]
+    frame = pd.DataFrame(
+        [
+            {
+                "trip_id": tid,
+                "station": st,
+                "arrival_s": t,
+                "arrival_delay_s": t - p,
+                "primary_s": 0.0,
+                "secondary_s": t - p,
+                "missed": False,
+            }
+            for tid, st, t, p in rows
+        ]
+    )
+    out = kpis(frame)
+    assert out["station_order"] == "zeta,alpha,mid" and list(out["by_station"]) == ["zeta", "alpha", "mid"]
+    flat = {f"robustness.by_station.{s}": v for s, v in sorted(out["by_station"].items())}
+    assert station_order({**flat, "robustness.station_order": out["station_order"]}) == ["zeta", "alpha", "mid"]

@@ -59,10 +59,11 @@ def kpis(delays: pd.DataFrame, incidents: Sequence[Mapping[str, Any]] = ()) -> d
     )
     out["cdf"] = {f"le_{t:04d}s": float(np.mean(late <= t)) if len(late) else None for t in CDF_GRID_S}
     groups = dict(list(arrived.groupby("station", sort=False)))
+    order = line_order(arrived)
     out["by_station"] = {
-        st: float(np.mean(np.maximum(groups[st]["arrival_delay_s"].to_numpy(float), 0.0) <= 180.0))
-        for st in line_order(arrived)
+        st: float(np.mean(np.maximum(groups[st]["arrival_delay_s"].to_numpy(float), 0.0) <= 180.0)) for st in order
     }
+    out["station_order"] = ",".join(order)  # JSON files sort their keys: the line order, kept as one scalar
     rec = recovery_times(arrived, [float(i["planned_s"]) for i in incidents])
     out["recovery_s"] = rec
     out["recovery_max_s"] = max(rec) if rec else None

@@ -17,7 +17,11 @@ def _as_group(rob: Mapping[str, Any]) -> dict[str, Any]:
         "headway_s": None,
         "intensity": 1.0,
         "cdf": {int(k[3:7]): v for k, v in (rob.get("cdf") or {}).items()},
-        "by_station": dict(rob.get("by_station") or {}),
+        "by_station": {
+            s: (rob.get("by_station") or {})[s]
+            for s in str(rob.get("station_order") or "").split(",")
+            if s in (rob.get("by_station") or {})
+        },
     }
 
 

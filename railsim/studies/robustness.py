@@ -234,9 +234,7 @@ def aggregate(plan: RobustnessPlan, spec: Any, folder: Path, base_spec: Any, bas
                 None if (sec is None or not prim) else (sec - base_sec) / prim  # prim > 0
             )
         kpis = {k: ci95([_num(r, k) for r in ok]) for k, _ in KPIS}
-        stations = (
-            [c[len("robustness.by_station.") :] for c in ok[0] if c.startswith("robustness.by_station.")] if ok else []
-        )
+        stations = station_order(ok[0]) if ok else []
         cdf_cols = sorted(c for c in (ok[0] if ok else {}) if c.startswith("robustness.cdf.le_"))
         out_groups.append(
             {
@@ -277,6 +275,13 @@ def verdict(stat: Mapping[str, Any]) -> bool | None:
     if mean + half < RECOVERING_BELOW:
         return True
     return False if mean - half > RECOVERING_BELOW else None
+
+
+def station_order(row: Mapping[str, Any]) -> list[str]:
+    """The stations of a row's ``robustness.by_station.*`` columns, in line order when the row has it."""
+    cols = [c[len("robustness.by_station.") :] for c in row if c.startswith("robustness.by_station.")]
+    order = [s for s in str(row.get("robustness.station_order") or "").split(",") if s in cols]
+    return order + [s for s in cols if s not in order]
 
 
 def _fmt(stat: Mapping[str, Any], digits: int = 2, pct: bool = False) -> str:
