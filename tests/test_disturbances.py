@@ -67,6 +67,11 @@ def test_single_incident_propagates_as_the_queue_argument_predicts(tmp_path: Pat
     assert math.isclose(rob["secondary_min"], secondary_min) and rob["primary_min"] == 5.0
     assert math.isclose(rob["propagation_factor"], secondary_min / 5.0)
     assert rob["within_5min"] < 1.0 and rob["recovery_s"][0] > 0.0
+    res = run_railsim(["report", str(tmp_path)])  # the run report shows the robustness section and its figures
+    assert res.returncode == 0, res.stderr
+    text = (tmp_path / "report.md").read_text(encoding="utf-8")
+    assert "## Robustness" in text and "| propagation factor (secondary ÷ primary) |" in text
+    assert (tmp_path / "report_figures" / "delay_cdf.png").stat().st_size > 1000
 
 
 def _write(tmp_path: Path, name: str, data: dict[str, Any]) -> Path:
