@@ -7,7 +7,8 @@
 
 :func:`run` is :func:`railsim.engine.run` (the step loop and its files) followed by
 :func:`railsim.analysis.registry.run` (each paper family's metrics from the files just written, stored in
-``summary.json`` under ``analyses``). ``railsim run``, sweeps and studies all call it.
+``summary.json`` under ``analyses``) and, for a run with ``disturbances:``, the punctuality KPIs
+(:mod:`railsim.analysis.punctuality`, under ``robustness``). ``railsim run``, sweeps and studies all call it.
 """
 
 from __future__ import annotations
@@ -16,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from railsim import engine
-from railsim.analysis import registry
+from railsim.analysis import punctuality, registry
 from railsim.record import output
 
 
@@ -30,6 +31,10 @@ def run(
     """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any)."""
     summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings)
     if out_dir is not None:
+        robustness = punctuality.run_kpis(Path(out_dir), summary)  # only a run with ``disturbances:``
+        if robustness is not None:
+            summary["robustness"] = robustness
+            output.write_json(Path(out_dir) / "summary.json", summary)
         results, tables = registry.run(scenario, Path(out_dir))
         if results:  # the papers' own metrics, from the files just written
             summary["analyses"] = results

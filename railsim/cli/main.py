@@ -10,6 +10,7 @@ notebook can do the same)::
     railsim reproduce EXPERIMENT --out DIR      re-run a paper experiment and draw its figures           cli.reproduce
     railsim plot RUN... [--kind K] [--out DIR]  figures of finished runs                                 cli.plot
     railsim sweep SWEEP --out DIR               many overridden runs of one scenario, one table          cli.sweep
+    railsim robustness SCENARIO --runs N ...    Monte-Carlo primary delays: punctuality, knock-on         cli.robustness
     railsim min-headway SCENARIO --path P ...   minimum feasible headway of a service pattern            cli.headway
     railsim export DIR [--format F]             a run's (or sweep's) tables as CSV/Parquet/JSON          cli.export
     railsim report DIR [--format md|html]       one-page report of a run or a sweep                      cli.report
@@ -30,7 +31,7 @@ import sys
 from collections.abc import Callable, Sequence
 from types import ModuleType
 
-from railsim.cli import export, headway, network, plot, report, reproduce, run, scenario, study, sweep
+from railsim.cli import export, headway, network, plot, report, reproduce, robustness, run, scenario, study, sweep
 from railsim.errors import EXIT_CONFIG_ERROR, EXIT_SIMULATION_ERROR, ConfigError, SimulationError
 
 # The command groups, in help order; each module has ``add_commands(subparsers)``.
@@ -41,6 +42,7 @@ COMMAND_GROUPS: tuple[ModuleType, ...] = (
     reproduce,
     plot,
     sweep,
+    robustness,
     headway,
     export,
     report,

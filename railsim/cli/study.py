@@ -2,11 +2,14 @@
 
     railsim study vc-vs-mb --out DIR [--mb SCENARIO] [--vc SCENARIO] [--services a,b] [--lo S --hi S --tol S]
                            [--headway S] [--workers N | --dask ADDRESS] [--sensitivity] [--no-control] [--bisect]
+                           [--disturbances FILE [--runs N] [--robust-headways 110,130,150] [--robustness-only]]
 
 ``vc-vs-mb`` is a thin layer over :func:`railsim.studies.vc_vs_mb.vc_vs_mb` (moving block vs virtual coupling on
 one line; the regimes, the search and the report are described in :mod:`railsim.studies.vc_vs_mb`). It prints one
 line per regime and the report's path; exits 0 when every regime has a feasible headway, 1 otherwise, 2 on bad
-input. ``railsim study`` alone prints the list of studies.
+input. With ``--disturbances FILE`` it adds the robustness comparison
+(:mod:`railsim.studies.vc_robustness`: the same seeds in both regimes) as a section of ``vc_vs_mb.md``;
+``--robustness-only`` runs only that. ``railsim study`` alone prints the list of studies.
 """
 
 from __future__ import annotations
@@ -15,6 +18,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.cli.robustness import add_robustness_options, float_list
 from railsim.errors import ConfigError
 from railsim.studies.vc_vs_mb import DEFAULT_MB, DEFAULT_SERVICES, DEFAULT_VC, vc_vs_mb
 
@@ -49,6 +53,15 @@ def add_commands(sub: Any) -> None:
     q.add_argument("--headway", type=float, default=None, help="skip the search: run both regimes at this headway")
     q.add_argument("--no-confirm", action="store_true", help="no confirmation probe with a second seed")
     q.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    q.add_argument(
+        "--disturbances",
+        default=None,
+        metavar="FILE",
+        help="add the robustness comparison: Monte-Carlo primary delays, same seeds in both regimes",
+    )
+    q.add_argument("--robust-headways", default="110,130,150", help="headways [s] of the robustness runs")
+    q.add_argument("--robustness-only", action="store_true", help="skip the capacity search (with --disturbances)")
+    add_robustness_options(q)
     q.set_defaults(func=cmd_vc_vs_mb)
     p.set_defaults(func=lambda args: (p.print_help(), 0)[1])
 
@@ -62,6 +75,11 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
     services = [s.strip() for s in args.services.split(",") if s.strip()]
     if not services:
         raise ConfigError("<command line>", "--services", "expected at least one service id")
+    if args.robustness_only and not args.disturbances:
+        raise ConfigError("<command line>", "--robustness-only", "expected --disturbances FILE with it")
+    if args.robustness_only:
+        print(_robustness(args, services))
+        return 0
     results = vc_vs_mb(
         args.out,
         mb_scenario=args.mb,
@@ -92,5 +110,32 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
                 else ""
             )
         )
+    if args.disturbances:
+        report = Path(args.out) / "vc_vs_mb.md"
+        report.write_text(report.read_text(encoding="utf-8") + "\n" + _robustness(args, services), encoding="utf-8")
     print(f"report: {Path(args.out) / 'vc_vs_mb.md'}")
     return 0 if all(r.headway_s is not None for r in results.values()) else 1
+
+
+def _robustness(args: argparse.Namespace, services: list[str]) -> str:
+    """The disturbed comparison (:func:`railsim.studies.vc_robustness.compare_robustness`); its report section."""
+    from railsim.studies.robustness import load_disturbances
+    from railsim.studies.vc_robustness import compare_robustness
+
+    text = compare_robustness(
+        args.out,
+        Path(args.mb),
+        Path(args.vc),
+        load_disturbances(Path(args.disturbances)),
+        float_list(args.robust_headways, "--robust-headways"),
+        services,
+        runs=args.runs,
+        first_seed=args.first_seed,
+        baseline_runs=args.baseline_runs,
+        intensities=float_list(args.intensities, "--intensities"),
+        workers=args.workers,
+        dask_address=args.dask,
+        progress=False if args.no_progress else None,
+    )
+    print(f"robustness: {Path(args.out) / 'robustness' / 'vc_vs_mb_robustness.md'}")
+    return text

@@ -111,6 +111,15 @@ class FormationBook:
             if trig(f.decouple, "at_s"):
                 self.manager.request_decouple(f.id, at_s=float(f.decouple.at_s))
 
+    def across_turnbacks(self, turnbacks: Any) -> None:
+        """Wire the rotations port: which trips start by a turnback; check the order of formations across one."""
+        self.chained = turnbacks.chained
+        turnbacks.check_formation_order(self.on_departure_pairs(), self.leader_id)
+
+    def turnback_waits(self) -> tuple[Callable[[TrainRuntime], bool], Callable[[float, TrainRuntime], bool]]:
+        """The two waits the stop book applies across a turnback: :meth:`waits_for_leader`, :meth:`holds_departure`."""
+        return self.waits_for_leader, self.holds_departure
+
     def leader_id(self, train_id: str) -> str | None:
         """The trip ``train_id`` follows in a formation, or None."""
         f = self.of_follower.get(train_id)

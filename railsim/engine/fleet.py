@@ -98,7 +98,7 @@ class Fleet:
 
     def add(self, trip: Trip, scenario: Any, dt_s: float, step_method: str) -> TrainRuntime:
         """Plan ``trip`` (free run from its ``depart_s``), give it its controllers and add it to the fleet."""
-        factory = _ato_factory(scenario, dict(trip.roles), trip.vehicle)
+        factory = ato_factory(scenario, dict(trip.roles), trip.vehicle)
         arr, depm = plan_free_run(trip, factory, dt_s, step_method)
         trip.planned_arrival_s.update(arr)
         trip.planned_departure_s.update(depm)
@@ -141,7 +141,7 @@ def _controller(scenario: Any, role: str, trip_roles: dict[str, str], vehicle: A
     return ctl.create(spec.type, dict(spec.params or {}), vehicle)
 
 
-def _ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any) -> Callable[[], Any]:
+def ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any) -> Callable[[], Any]:
     return lambda: _controller(scenario, "ato", roles, vehicle)
 
 

@@ -70,7 +70,9 @@ class Dispatcher:
         for tr in self.fleet.trains.values():
             if self.formations.couples_on_departure(tr.train_id) or self.chained(tr.train_id):
                 continue  # inserted behind its leader (module docstring), or started by its unit's turnback
-            self.layer.at(tr.trip.depart_s, self._inserter(tr), "departure_due", tr.train_id)
+            self.layer.at(
+                tr.trip.depart_s + tr.trip.departure_delay_s, self._inserter(tr), "departure_due", tr.train_id
+            )
         for leader in self.fleet.trains.values():
             for f, follower in self._starting_behind(leader):
                 leader_m = self._planned_start_m(leader)

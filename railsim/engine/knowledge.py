@@ -19,10 +19,21 @@ from typing import Any
 
 from controllers.base import PredecessorState
 from railsim.engine.coupling import FormationBook
+from railsim.engine.events import Channel, DelaySpec, Outage
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.train import TrainRuntime
 
 Report = tuple[Any, ...]
+
+
+def comm_channels(layer: EventLayer, scenario: Any) -> dict[str, Channel]:
+    """The scenario's radio channels (``faults.comm``: ``t2t``, ``t2g``) with their delays, losses and outages."""
+    channels = {}
+    for name, spec in scenario.faults.comm.items():
+        delay = DelaySpec.from_scenario(spec.delay, str(scenario.source), f"faults.comm.{name}.delay_s")
+        outages = tuple(Outage(o.start_s, o.end_s, frozenset(o.trains) if o.trains else None) for o in spec.outages)
+        channels[name] = Channel(layer, name, delay, float(spec.loss_prob), outages)
+    return channels
 
 
 class Knowledge:

@@ -27,15 +27,15 @@ from typing import Any
 
 import numpy as np
 
-from railsim.engine import timed
+from railsim.engine import primary_delays, timed
 from railsim.engine.control import ControlStage, Disturbances
 from railsim.engine.coupling import FormationBook
-from railsim.engine.events import Channel, DelaySpec, EventLayer, FormationManager, Interlocking, Outage, Switch
+from railsim.engine.events import EventLayer, FormationManager, Interlocking, Switch
 from railsim.engine.extensions import ExtensionContext, install_all
 from railsim.engine.depot import Depots
 from railsim.engine.fleet import Fleet
 from railsim.engine.insertion import Dispatcher
-from railsim.engine.knowledge import Knowledge
+from railsim.engine.knowledge import Knowledge, comm_channels
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead, Body, Occupancy
 from railsim.engine.recording import RecordingPort
@@ -99,7 +99,7 @@ class Simulation:
         self.interlocking = Interlocking(self.layer)
         for sw in self.bundle.switches.values():
             self.interlocking.add_switch(Switch(sw.id, throw_time_s=float(sw.throw_time_s)))
-        self.channels = self._channels(scenario)
+        self.channels = comm_channels(self.layer, scenario)
         faults = scenario.faults
         noise_rng = np.random.default_rng(self.rng.integers(2**63))
         actuator_rng = np.random.default_rng(self.rng.integers(2**63))
@@ -117,6 +117,7 @@ class Simulation:
         self.fleet = Fleet(scenario.source)
         self.fleet.build(scenario, self.bundle, self.dt, self.step_method)
         self.trains = self.fleet.trains
+        self.primary = primary_delays.draw(scenario, self.fleet, self.seed, self.dt, self.bundle.station_aliases)
         # rotations: trips chained into units, each next trip given its turnback (before any port reads routes)
         self.turnbacks = Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
         # depot runs: each unit's day starts with a run out of a depot and ends with one into a depot
@@ -124,8 +125,7 @@ class Simulation:
         self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
         for k, f in enumerate(scenario.formations):
             self.formations.add(f, f"formations[{k}]")
-        self.formations.chained = self.turnbacks.chained
-        self.turnbacks.check_formation_order(self.formations.on_departure_pairs(), self.formations.leader_id)
+        self.formations.across_turnbacks(self.turnbacks)
         self.locks = RouteLocks(self.fleet, self.interlocking, self.formations, self.events, self.settings)
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
         self.stops = StopBook(
@@ -141,12 +141,12 @@ class Simulation:
             self.knowledge.handshake,
             self.locks.release_all,
         )
+        primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
         self.formations.insert_behind = self.dispatcher.insert_behind
         self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
         self.stops.track_wanted = self.locks.wanted_by_others
-        self.stops.wait_for_leader = self.formations.waits_for_leader
-        self.stops.hold_departure = self.formations.holds_departure
+        self.stops.wait_for_leader, self.stops.hold_departure = self.formations.turnback_waits()
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
@@ -197,14 +197,6 @@ class Simulation:
         self.wall_s = 0.0
         self.end_s = 0.0
         self.bridge: Any = None
-
-    def _channels(self, scenario: Any) -> dict[str, Channel]:
-        channels = {}
-        for name, spec in scenario.faults.comm.items():
-            delay = DelaySpec.from_scenario(spec.delay, str(scenario.source), f"faults.comm.{name}.delay_s")
-            outages = tuple(Outage(o.start_s, o.end_s, frozenset(o.trains) if o.trains else None) for o in spec.outages)
-            channels[name] = Channel(self.layer, name, delay, float(spec.loss_prob), outages)
-        return channels
 
     # ------------------------------------------------------------------ main loop
     def run(self) -> dict[str, Any]:
@@ -356,6 +348,7 @@ class Simulation:
             extra["fleet"] = self.turnbacks.summary()
             if self.depots.runs or self.depots.unreached:
                 extra["fleet"].update(self.depots.summary())
+        extra.update(primary_delays.summary(self.primary))
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,
@@ -374,6 +367,7 @@ class Simulation:
             versions={"railsim": __version__, "sumo": sumo_version(), "numpy": np.__version__},
             extra_summary=extra,
             failure=self.failure(),
+            extra_tables=primary_delays.tables(self.primary, self.recorder.stops, self.trains),
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:

@@ -101,6 +101,7 @@ class Trip:
     frame_shift_m: float = 0.0
     start_speed_mps: float = 0.0
     kind: str = "service"  # or "depot_out" / "depot_in": an empty run of a unit (railsim.engine.depot)
+    departure_delay_s: float = 0.0  # a primary delay (railsim.engine.primary_delays): leaves this much late
 
     @property
     def origin(self) -> TripStop:

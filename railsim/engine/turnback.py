@@ -291,7 +291,7 @@ class Turnbacks:
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
         # a unit that runs on where it stands (into or out of a depot run) does not turn back: no minimum
         min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses else 0.0
-        until_s = max(trip.depart_s, arrival_s + min_s)
+        until_s = max(trip.depart_s + trip.departure_delay_s, arrival_s + min_s)  # a primary late start too
         # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration
         origin_s = DWELL_REGISTRATION_S if reverses else max(DWELL_REGISTRATION_S, until_s - t)
         stops = sumo_stops(trip.stops, origin_until_s=until_s, origin_duration_s=origin_s)

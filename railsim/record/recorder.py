@@ -19,6 +19,8 @@ Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.record.ou
                     winning controller role, true gap, formation state, and the coupled controller's solve time
                     and objective (when it reports them: ``Command.info["solve_time_s"]``, ``info["J"]``)
 ``summary.json``    totals (see :meth:`summary`)
+``delays.csv``      with ``disturbances:`` only (``RunSnapshot.extra_tables``): one row per trip and stop, arrival
+                    delay split into primary (injected) and secondary (knock-on) (railsim.engine.primary_delays)
 """
 
 from __future__ import annotations
@@ -310,4 +312,7 @@ class Recorder:
                 output.write_json(out_dir / spec.file_name, dict(run.versions))
             if spec.kind != "table":
                 files[spec.file_name] = out_dir / spec.file_name
+        for stem, (rows, cols) in sorted(run.extra_tables.items()):  # only the runs that have them
+            for p in output.write_table(out_dir, stem, rows, cols, formats):
+                files[p.name] = p
         return files

@@ -66,6 +66,8 @@ class RunSnapshot:
     versions: Mapping[str, str]
     extra_summary: dict[str, Any] = field(default_factory=dict)  # extensions' summaries (e.g. "junction")
     failure: str | None = None  # why the run stopped early (a desync, a stall), or None
+    # tables only some runs write (``delays.csv`` with ``disturbances:``): stem -> (rows, columns)
+    extra_tables: dict[str, tuple[list[dict[str, Any]], list[str]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)

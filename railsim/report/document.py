@@ -336,6 +336,10 @@ def run_report_markdown(run_dir: Path | str, figures_dir: Path | None = None, sv
 
     if summary.get("fleet"):
         parts += fleet_markdown(summary["fleet"])
+    if summary.get("robustness"):
+        from railsim.report.robustness import run_section
+
+        parts += run_section(summary, run, fig_dir)
 
     parts.append("## Figures")
     figures = [

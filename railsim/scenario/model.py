@@ -19,7 +19,8 @@ How the pieces fit (one dataclass per YAML section, nested like the file)::
     ├── outputs: OutputSpec           trace stride, SUMO outputs, table formats
     ├── interlocking: InterlockingSpec overlap, stall timeout (optional)
     ├── cooperative: CooperativeSpec  graph-coupled group (Paper C)
-    └── junction: JunctionSpec | None trains planned through a junction (Paper E)
+    ├── junction: JunctionSpec | None trains planned through a junction (Paper E)
+    └── disturbances: DisturbanceSpec | None   primary delays (railsim.scenario.disturbances)
 
 Conventions: units are in the names (``_s``, ``_m``, ``_mps``, ``_mps2``); times are seconds from t = 0;
 trains are named by trip id. The tuples of names below (:data:`ROLES`, :data:`STEP_METHODS`, ...) are the
@@ -36,6 +37,7 @@ from typing import Any
 import numpy as np
 
 from railsim.physics.vehicle import VehicleParams
+from railsim.scenario.disturbances import DisturbanceSpec
 
 ROLES = ("ato", "separation", "coupled", "ca")  # ca: collision avoidance on the train's own sensor
 REQUIRED_ROLES = ("ato", "separation")
@@ -406,6 +408,7 @@ class Scenario:
     junction: JunctionSpec | None = None
     rotations: RotationSpec | None = None
     interlocking: InterlockingSpec = field(default_factory=InterlockingSpec)
+    disturbances: DisturbanceSpec | None = None  # None: no section, nothing injected, no delay accounting
 
     def service(self, service_id: str) -> ServiceSpec:
         """The service called ``service_id`` (KeyError if none)."""

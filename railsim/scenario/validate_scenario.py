@@ -14,6 +14,7 @@ where every section can check its references against what came before::
     outputs                           (validate_setup: needs simulation)
     junction                          (validate_formations: needs services and formations)
     rotations                         (validate_rotations: needs services)
+    disturbances                      (validate_disturbances: needs services)
     controller parameters             (validate_vehicles.check_controllers, last: reads the registry)
 
 Each section returns ``(spec, raw)``; the specs become the :class:`~railsim.scenario.model.Scenario`, the
@@ -30,6 +31,7 @@ from railsim.scenario import (
     events as event_section,
     validate_faults,
     validate_formations,
+    validate_disturbances,
     validate_services,
     validate_setup,
     validate_rotations,
@@ -49,6 +51,7 @@ _TOP_OPTIONAL = (
     "junction",
     "rotations",
     "interlocking",
+    "disturbances",
 )
 
 
@@ -88,6 +91,9 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
     rotation_spec = None
     if top.get("rotations") is not None:
         rotation_spec, raw["rotations"] = validate_rotations.rotations(ck, top["rotations"], services)
+    disturbance_spec = None
+    if "disturbances" in top:  # present (even empty): the run accounts for primary and knock-on delays
+        disturbance_spec, raw["disturbances"] = validate_disturbances.disturbances(ck, top["disturbances"], services)
     # Last, because it depends on code outside this package (the controller registry).
     validate_vehicles.check_controllers(ck, ctrls, services, vehicles)
 
@@ -111,4 +117,5 @@ def validate(data: Any, source: str, base_dir: Path, src_path: Path | None) -> S
         junction=junction,
         rotations=rotation_spec,
         interlocking=interlocking,
+        disturbances=disturbance_spec,
     )
