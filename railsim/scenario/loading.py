@@ -10,7 +10,13 @@ Parsing uses a stricter YAML loader than PyYAML's ``SafeLoader``:
 
 * no YAML 1.1 base-60 numbers — ``start_time: 17:30`` stays the string "17:30", not the integer 1050;
 * ``1e3`` and ``1.0e9`` are floats (YAML 1.1 reads them as strings);
-* a duplicated mapping key is an error (PyYAML silently keeps the last one).
+* a duplicated mapping key is an error (PyYAML silently keeps the last one);
+* an integer of more than 100 digits is an error at its line and column (Python refuses to convert very long
+  digit strings, and no scenario value needs more).
+
+Before the loader runs, :func:`railsim.inputs.check_yaml_bounds` refuses nesting deeper than 50 levels and aliases
+that expand to more than 200,000 values, and :func:`read_text` reads only regular files of at most 4 MiB
+(:mod:`railsim.inputs`): no input file can hang, exhaust memory or overflow the stack.
 
 A syntax error names the line and column (both 1-based) and, when the cause is on an earlier line (an
 unclosed bracket), that place too::
@@ -32,6 +38,7 @@ from typing import Any
 import yaml
 
 from railsim.errors import ConfigError
+from railsim.inputs import check_yaml_bounds, read_input_text
 from railsim.scenario.model import Scenario
 from railsim.scenario.overrides import with_overrides
 from railsim.scenario.validate import require_top_mapping
@@ -88,9 +95,25 @@ def _construct_mapping_no_duplicates(loader: _Loader, node: yaml.MappingNode) ->
 
 _Loader.add_constructor("tag:yaml.org,2002:map", _construct_mapping_no_duplicates)
 
+_MAX_INT_DIGITS = 100
+
+
+def _construct_bounded_int(loader: _Loader, node: yaml.ScalarNode) -> int:
+    if sum(ch.isalnum() for ch in str(node.value)) > _MAX_INT_DIGITS:
+        raise yaml.constructor.ConstructorError(
+            None, None, f"expected an integer of at most {_MAX_INT_DIGITS} digits", node.start_mark
+        )
+    return int(loader.construct_yaml_int(node))
+
+
+_Loader.add_constructor(_INT_TAG, _construct_bounded_int)
+
 
 def parse_yaml(text: str, source: str) -> Any:
-    """Parse YAML ``text`` with the strict loader; a syntax error becomes a ``ConfigError`` at line/column."""
+    """Parse YAML ``text`` with the strict loader; a syntax error becomes a ``ConfigError`` at line/column.
+
+    The structure is bounded first (:func:`railsim.inputs.check_yaml_bounds`: depth, values after aliases)."""
+    check_yaml_bounds(text, source, _Loader)
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
     except yaml.MarkedYAMLError as exc:
@@ -107,17 +130,9 @@ def parse_yaml(text: str, source: str) -> Any:
 
 
 def read_text(path: Path, source: str) -> str:
-    """The UTF-8 text of ``path``; a missing, unreadable or binary file becomes a ``ConfigError``."""
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(source, None, "file not found") from None
-    except IsADirectoryError:
-        raise ConfigError(source, None, "expected a scenario file, got a directory") from None
-    except UnicodeDecodeError:
-        raise ConfigError(source, None, "expected UTF-8 text, got undecodable bytes") from None
-    except OSError as exc:
-        raise ConfigError(source, None, f"cannot read file: {exc.strerror or exc}") from None
+    """The UTF-8 text of the regular file ``path`` (:func:`railsim.inputs.read_input_text`), else a ``ConfigError``
+    naming ``source`` (never the file's content)."""
+    return read_input_text(path, source, "scenario file")
 
 
 # ---- the public API ---------------------------------------------------------------------------------------------
