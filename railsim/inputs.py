@@ -40,6 +40,7 @@ MAX_DEPTH = 50  # a scenario nests 7 levels deep at most (controllers.x.params.s
 MAX_VALUES = 200_000  # values after alias expansion; a service day's scenario has a few hundred
 EXCERPT_CHARS = 80  # the longest quote of a user value in a message
 
+
 class _Repr(reprlib.Repr):
     """``reprlib`` keeping a mapping's keys in the user's order (``reprlib`` sorts them)."""
 
@@ -48,9 +49,7 @@ class _Repr(reprlib.Repr):
             return "{}"
         if level <= 0:
             return "{...}"
-        items = [
-            f"{self.repr1(k, level - 1)}: {self.repr1(v, level - 1)}" for k, v in list(x.items())[: self.maxdict]
-        ]
+        items = [f"{self.repr1(k, level - 1)}: {self.repr1(v, level - 1)}" for k, v in list(x.items())[: self.maxdict]]
         return "{" + ", ".join(items) + (", ..." if len(x) > self.maxdict else "") + "}"
 
 

@@ -82,7 +82,8 @@ def plausible_number(value: float, path: str) -> str | None:
     if not math.isfinite(value):
         return f"a finite {quantity}{in_unit}"
     if abs(value) > bound:
-        return f"a {quantity}{in_unit} of magnitude at most {bound:g} (physically plausible)"
+        article = "an" if quantity[0] in "aeiou" else "a"
+        return f"{article} {quantity}{in_unit} of magnitude at most {bound:g} (physically plausible)"
     return None
 
 
