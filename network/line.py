@@ -79,7 +79,7 @@ from typing import Any
 import yaml
 
 from railsim.errors import ConfigError
-from railsim.inputs import check_yaml_bounds, describe_kind, excerpt, read_input_text
+from railsim.inputs import BoundedSafeLoader, YAMLLimitError, describe_kind, excerpt, limit_error, read_input_text
 
 _ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 _MISSING = object()
@@ -624,9 +624,10 @@ def load_description(path: str | Path) -> tuple[LineDescription, Any]:
     """Read and validate a line-description YAML file; returns the description and the raw mapping."""
     path = Path(path)
     text = read_input_text(path, str(path), "line description")
-    check_yaml_bounds(text, str(path))
     try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=BoundedSafeLoader)  # noqa: S506 - a SafeLoader with structural limits
+    except YAMLLimitError as exc:
+        raise limit_error(exc, str(path)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""

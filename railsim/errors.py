@@ -32,6 +32,7 @@ class ConfigError(Exception):
     def __init__(self, source: str | Path | None, field: str | None, message: str) -> None:
         self.source = str(source) if source is not None else None
         self.field = field
+        message = " ".join(message.split()) if "\n" in message else message  # one line, whatever went in
         self.message = message if len(message) <= MAX_MESSAGE_CHARS else message[: MAX_MESSAGE_CHARS - 3] + "..."
         super().__init__(self.__str__())
 

@@ -8,13 +8,15 @@ the order a file meets them:
    a device (``/dev/zero`` would be read forever), a socket or a pipe is refused with a message naming the path.
 2. **A size limit before reading** (:data:`MAX_INPUT_BYTES`): at most that many bytes are read, so even a file that
    grows while we read it costs bounded memory.
-3. **Bounded YAML structure before constructing** (:func:`check_yaml_bounds`). PyYAML's composer and constructor
+3. **Bounded YAML structure while parsing** (:class:`BoundedSafeLoader`). PyYAML's composer and constructor
    recurse once per nesting level (``[[[[…]]]]`` 5,000 deep is a ``RecursionError``), and aliases let 1 KB of text
-   stand for millions of values (the "billion laughs": ``&a [x,x,…]``, ``&b [*a,*a,…]``, …). The check walks
-   PyYAML's event stream — its parser keeps an explicit stack, so deep input cannot overflow it — and tracks, per
-   anchor, the number of values and the depth its node expands to. It refuses nesting deeper than
-   :data:`MAX_DEPTH`, more than :data:`MAX_VALUES` values after alias expansion, and an alias used inside its own
-   anchor (a recursive structure), each at the line and column where the limit is crossed.
+   stand for millions of values (the "billion laughs": ``&a [x,x,…]``, ``&b [*a,*a,…]``, …). The loader checks
+   each event of PyYAML's parser — which keeps an explicit stack, so deep input cannot overflow it — before the
+   composer sees it, tracking per anchor the number of values and the depth its node expands to. It refuses
+   nesting deeper than :data:`MAX_DEPTH`, more than :data:`MAX_VALUES` values after alias expansion, and an alias
+   used inside its own anchor (a recursive structure), each at the line and column where the limit is crossed
+   (:class:`YAMLLimitError`; :func:`limit_error` makes it the one-line ``ConfigError``). An integer of more than
+   :data:`MAX_INT_DIGITS` digits is refused the same way (Python will not convert a 5,000-digit string).
 4. **Bounded echo** (:func:`excerpt`): error messages quote a value through a bounded ``repr`` (``reprlib``: a few
    items per level, a few levels, long strings cut) and then at most :data:`EXCERPT_CHARS` characters, so quoting
    a value costs little however large it is, and a file's content is never printed whole.
@@ -112,63 +114,87 @@ def _where(mark: Any) -> str | None:
     return f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else None
 
 
-class _Frame:
-    """An open collection in the event stream: values and depth below it so far, its anchor."""
-
-    __slots__ = ("anchor", "values", "depth")
-
-    def __init__(self, anchor: str | None) -> None:
-        self.anchor = anchor
-        self.values = 0
-        self.depth = 0
+class YAMLLimitError(yaml.MarkedYAMLError):
+    """YAML beyond the structural limits (depth, values after aliases, a recursive alias), at its line/column."""
 
 
-def check_yaml_bounds(text: str, source: str, loader: type = yaml.SafeLoader) -> None:
-    """Refuse YAML ``text`` whose structure, aliases expanded, is deeper than :data:`MAX_DEPTH` or holds more than
-    :data:`MAX_VALUES` values, or that uses an alias inside its own anchor. Syntax errors are left to the loader
-    (this returns at the first one, so the loader reports it with its own line and column)."""
-    anchors: dict[str, tuple[int, int]] = {}  # anchor -> (values, depth) of its node
-    stack: list[_Frame] = [_Frame(None)]  # the document level at the bottom
-    try:
-        for event in yaml.parse(text, Loader=loader):
-            if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
-                if len(stack) > MAX_DEPTH:
-                    raise ConfigError(
-                        source, _where(event.start_mark), f"expected nesting at most {MAX_DEPTH} levels deep"
-                    )
-                stack.append(_Frame(event.anchor))
-                continue
-            if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
-                frame = stack.pop()
-                values, depth = 1 + frame.values, 1 + frame.depth
-                if frame.anchor is not None:
-                    anchors[frame.anchor] = (values, depth)
-            elif isinstance(event, yaml.ScalarEvent):
-                values, depth = 1, 0
-                if event.anchor is not None:
-                    anchors[event.anchor] = (values, depth)
-            elif isinstance(event, yaml.AliasEvent):
-                if any(f.anchor == event.anchor for f in stack):
-                    raise ConfigError(
-                        source, _where(event.start_mark), f"alias *{event.anchor} used inside its own anchor"
-                    )
-                values, depth = anchors.get(str(event.anchor), (1, 0))  # an undefined alias: the loader says so
-                if len(stack) - 1 + depth > MAX_DEPTH:
-                    raise ConfigError(
-                        source,
-                        _where(event.start_mark),
-                        f"expected nesting at most {MAX_DEPTH} levels deep (alias *{event.anchor} expanded)",
-                    )
-            else:
-                continue
-            top = stack[-1]
-            top.values += values
-            top.depth = max(top.depth, depth)
-            if sum(f.values for f in stack) > MAX_VALUES:
-                raise ConfigError(
-                    source,
-                    _where(event.start_mark),
-                    f"expected at most {MAX_VALUES} values with aliases expanded (an alias expands too far)",
-                )
-    except yaml.YAMLError:
-        return  # the loader reports syntax errors with their place
+class _Bounds:
+    """The structure seen so far in an event stream: open collections (values and depth below each, its anchor)
+    and, per anchor, the values and depth its node expands to."""
+
+    def __init__(self) -> None:
+        self.anchors: dict[str, tuple[int, int]] = {}
+        self.stack: list[list[Any]] = [[None, 0, 0]]  # [anchor, values, depth]; the document level at the bottom
+
+    def feed(self, event: yaml.Event) -> None:
+        stack = self.stack
+        if isinstance(event, (yaml.SequenceStartEvent, yaml.MappingStartEvent)):
+            if len(stack) > MAX_DEPTH:
+                self._fail(event, f"expected nesting at most {MAX_DEPTH} levels deep")
+            stack.append([event.anchor, 0, 0])
+            return
+        if isinstance(event, (yaml.SequenceEndEvent, yaml.MappingEndEvent)):
+            anchor, inner, inner_depth = stack.pop()
+            values, depth = 1 + inner, 1 + inner_depth
+            if anchor is not None:
+                self.anchors[anchor] = (values, depth)
+        elif isinstance(event, yaml.ScalarEvent):
+            values, depth = 1, 0
+            if event.anchor is not None:
+                self.anchors[event.anchor] = (values, depth)
+        elif isinstance(event, yaml.AliasEvent):
+            if any(frame[0] == event.anchor for frame in stack):
+                self._fail(event, f"expected no alias inside its own anchor, got *{event.anchor}")
+            values, depth = self.anchors.get(str(event.anchor), (1, 0))  # an undefined alias: the composer says so
+            if len(stack) - 1 + depth > MAX_DEPTH:
+                self._fail(event, f"expected nesting at most {MAX_DEPTH} levels deep (alias *{event.anchor} expanded)")
+        else:
+            if isinstance(event, yaml.DocumentStartEvent):  # every document starts afresh
+                self.anchors.clear()
+            return
+        top = stack[-1]
+        top[1] += values
+        top[2] = max(top[2], depth)
+        if sum(frame[1] for frame in stack) > MAX_VALUES:
+            self._fail(event, f"expected at most {MAX_VALUES} values with aliases expanded (an alias expands too far)")
+
+    @staticmethod
+    def _fail(event: yaml.Event, problem: str) -> None:
+        raise YAMLLimitError(problem=problem, problem_mark=event.start_mark)
+
+
+class BoundedSafeLoader(yaml.SafeLoader):
+    """``yaml.SafeLoader`` that checks every event against the limits *before* the composer sees it, in the same
+    single pass: the composer recurses at most :data:`MAX_DEPTH` levels and no alias graph beyond
+    :data:`MAX_VALUES` values is built. A breach raises :class:`YAMLLimitError` at its line and column."""
+
+    def __init__(self, stream: Any) -> None:
+        super().__init__(stream)
+        self._bounds = _Bounds()
+
+    def get_event(self) -> Any:
+        event = super().get_event()
+        self._bounds.feed(event)
+        return event
+
+
+MAX_INT_DIGITS = 100
+
+
+def _construct_bounded_int(loader: BoundedSafeLoader, node: yaml.ScalarNode) -> int:
+    """An int of at most :data:`MAX_INT_DIGITS` digits (Python refuses to convert very long digit strings)."""
+    if sum(ch.isalnum() for ch in str(node.value)) > MAX_INT_DIGITS:
+        raise YAMLLimitError(
+            problem=f"expected an integer of at most {MAX_INT_DIGITS} digits", problem_mark=node.start_mark
+        )
+    return int(loader.construct_yaml_int(node))
+
+
+BoundedSafeLoader.add_constructor("tag:yaml.org,2002:int", _construct_bounded_int)
+
+
+def limit_error(exc: YAMLLimitError, source: str) -> ConfigError:
+    """The one-line error for a :class:`YAMLLimitError` raised while loading ``source``."""
+    mark = exc.problem_mark
+    where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else None
+    return ConfigError(source, where, str(exc.problem))

@@ -24,15 +24,19 @@ from __future__ import annotations
 
 import argparse
 import sys
+from pathlib import Path
+from typing import Any
 
 from railsim import scenario as scenario_mod
 from railsim.studies.world import run_checks
 
 
 def validate(args: argparse.Namespace) -> int:
-    if is_sweep_file(args.scenario):
+    path = Path(args.scenario)
+    data = scenario_mod.parse_yaml(scenario_mod.read_text(path, args.scenario), args.scenario)
+    if is_sweep(data):
         return validate_sweep(args.scenario, args.world_check)
-    scn = scenario_mod.load(args.scenario)
+    scn = scenario_mod.from_mapping(data, source=path, base_dir=path.resolve().parent)  # = scenario.load(path)
     if args.world_check:
         skipped = run_checks(scn)
         if skipped:
@@ -41,18 +45,8 @@ def validate(args: argparse.Namespace) -> int:
     return 0
 
 
-def is_sweep_file(path: str) -> bool:
-    """True if ``path`` holds a sweep definition (a mapping with ``base:`` and no ``world:``), not a scenario.
-
-    A file that cannot be read or parsed is not a sweep: :func:`railsim.scenario.load` reports why."""
-    from pathlib import Path
-
-    from railsim.errors import ConfigError
-
-    try:
-        data = scenario_mod.parse_yaml(scenario_mod.read_text(Path(path), path), path)
-    except ConfigError:
-        return False
+def is_sweep(data: Any) -> bool:
+    """True if a parsed file is a sweep definition (a mapping with ``base:`` and no ``world:``), not a scenario."""
     return isinstance(data, dict) and "base" in data and "world" not in data
 
 

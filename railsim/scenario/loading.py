@@ -14,8 +14,8 @@ Parsing uses a stricter YAML loader than PyYAML's ``SafeLoader``:
 * an integer of more than 100 digits is an error at its line and column (Python refuses to convert very long
   digit strings, and no scenario value needs more).
 
-Before the loader runs, :func:`railsim.inputs.check_yaml_bounds` refuses nesting deeper than 50 levels and aliases
-that expand to more than 200,000 values, and :func:`read_text` reads only regular files of at most 4 MiB
+The loader is a :class:`railsim.inputs.BoundedSafeLoader`: it refuses nesting deeper than 50 levels and aliases
+that expand to more than 200,000 values as it parses, and :func:`read_text` reads only regular files of at most 4 MiB
 (:mod:`railsim.inputs`): no input file can hang, exhaust memory or overflow the stack.
 
 A syntax error names the line and column (both 1-based) and, when the cause is on an earlier line (an
@@ -38,7 +38,7 @@ from typing import Any
 import yaml
 
 from railsim.errors import ConfigError
-from railsim.inputs import check_yaml_bounds, read_input_text
+from railsim.inputs import BoundedSafeLoader, YAMLLimitError, limit_error, read_input_text
 from railsim.scenario.model import Scenario
 from railsim.scenario.overrides import with_overrides
 from railsim.scenario.validate import require_top_mapping
@@ -52,7 +52,7 @@ _INT_TAG = "tag:yaml.org,2002:int"
 _FLOAT_TAG = "tag:yaml.org,2002:float"
 
 
-class _Loader(yaml.SafeLoader):
+class _Loader(BoundedSafeLoader):
     """SafeLoader without YAML 1.1 base-60 numbers (``17:30`` stays a string), with ``1e3`` read as a float,
     and rejecting duplicate mapping keys (PyYAML silently keeps the last one)."""
 
@@ -95,27 +95,15 @@ def _construct_mapping_no_duplicates(loader: _Loader, node: yaml.MappingNode) ->
 
 _Loader.add_constructor("tag:yaml.org,2002:map", _construct_mapping_no_duplicates)
 
-_MAX_INT_DIGITS = 100
-
-
-def _construct_bounded_int(loader: _Loader, node: yaml.ScalarNode) -> int:
-    if sum(ch.isalnum() for ch in str(node.value)) > _MAX_INT_DIGITS:
-        raise yaml.constructor.ConstructorError(
-            None, None, f"expected an integer of at most {_MAX_INT_DIGITS} digits", node.start_mark
-        )
-    return int(loader.construct_yaml_int(node))
-
-
-_Loader.add_constructor(_INT_TAG, _construct_bounded_int)
-
 
 def parse_yaml(text: str, source: str) -> Any:
     """Parse YAML ``text`` with the strict loader; a syntax error becomes a ``ConfigError`` at line/column.
 
-    The structure is bounded first (:func:`railsim.inputs.check_yaml_bounds`: depth, values after aliases)."""
-    check_yaml_bounds(text, source, _Loader)
+    The structure is bounded while parsing (:class:`railsim.inputs.BoundedSafeLoader`: depth, values after aliases)."""
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+    except YAMLLimitError as exc:
+        raise limit_error(exc, source) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else None
@@ -125,6 +113,10 @@ def parse_yaml(text: str, source: str) -> Any:
             # The problem often surfaces a line later than its cause (an unclosed bracket): name both.
             problem += f" ({exc.context} at line {ctx.line + 1}, column {ctx.column + 1})"
         raise ConfigError(source, where, f"YAML syntax error: {problem}") from None
+    except yaml.reader.ReaderError as exc:  # a character YAML does not allow (NUL, a control character)
+        before = text[: exc.position]
+        where = f"line {before.count(chr(10)) + 1}, column {len(before) - before.rfind(chr(10))}"
+        raise ConfigError(source, where, f"YAML syntax error: {exc.reason} (character #x{exc.character:04x})") from None
     except yaml.YAMLError as exc:
         raise ConfigError(source, None, f"YAML syntax error: {exc}") from None
 
