@@ -229,13 +229,18 @@ class Checker:
         """
         self.plausible_tree(dict(values), path)
         cls = getattr(importlib.import_module(module), cls_name)
-        names = {f.name for f in dataclasses.fields(cls)}
+        types = {f.name: str(f.type) for f in dataclasses.fields(cls)}
+        names = set(types)
         for key in values:
             if key not in names:
                 raise self.fail(
                     f"{path}.{key}",
                     f"unknown field{did_you_mean(key, sorted(names))}; known: {', '.join(sorted(names))}",
                 )
+            if types[key] == "float":  # a number field: no strings ('inf' is one), no bools
+                self.number(values[key], f"{path}.{key}")
+            elif types[key] == "int":
+                self.integer(values[key], f"{path}.{key}")
         try:
             cls(**values)
         except (TypeError, ValueError) as exc:
