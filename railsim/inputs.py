@@ -160,7 +160,7 @@ class _Bounds:
 
     @staticmethod
     def _fail(event: yaml.Event, problem: str) -> None:
-        raise YAMLLimitError(problem=problem, problem_mark=event.start_mark)
+        raise YAMLLimitError(problem=problem, problem_mark=event.start_mark)  # type: ignore[arg-type]
 
 
 class BoundedSafeLoader(yaml.SafeLoader):
