@@ -363,16 +363,28 @@ def main(argv: list[str] | None = None) -> int:
             print("  " + p)
         picked = sample(fig.accepted_files, len(fig.accepted_files) if args.runs < 0 else args.runs)
         codes: dict[int, int] = {}
+        world_rejected = 0
+        run_problems = 0
         for path in picked:
             short = short_horizon(path)
+            res = run_railsim(["validate", str(short)], timeout=600)  # the world check: stations, routes, ...
+            if res.returncode != 0:
+                world_rejected += 1
+                if res.returncode != 2 or len(res.stderr.strip().splitlines()) != 1:
+                    print(f"  validate {path.name}: exit {res.returncode} {res.stderr.strip()[-300:]}")
+                continue
             res = run_railsim(["run", str(short), "--out", str(short.with_suffix("")), "--no-progress"], timeout=600)
             codes[res.returncode] = codes.get(res.returncode, 0) + 1
             bad = non_finite_cells(short.with_suffix("")) if short.with_suffix("").is_dir() else []
             if res.returncode not in (0, 1, 3) or bad or "Traceback" in res.stderr:
+                run_problems += 1
                 print(f"  run {path.name}: exit {res.returncode} {bad[:3]} {res.stderr.strip()[-300:]}")
         if picked:
-            print(f"runs {len(picked)}: exit codes {dict(sorted(codes.items()))}")
-    return 1 if fig.problems else 0
+            print(
+                f"picked {len(picked)}: refused by the world check {world_rejected}, runs {sum(codes.values())}: "
+                f"exit codes {dict(sorted(codes.items()))}"
+            )
+    return 1 if fig.problems or run_problems else 0
 
 
 def sample(items: list[Path], n: int) -> list[Path]:
