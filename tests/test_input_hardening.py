@@ -250,3 +250,13 @@ def test_sweep_validate_checks_every_case_with_run_checks(tmp_path: Path) -> Non
     assert "sweep.yaml: case 1 (services[0].from=s9, seed 3): " in line and "services[0].from" in line, line
     sweep.write_text(f"base: {CORRIDOR}\ncases:\n  - {{simulation.step_s: 1e-300}}\n", encoding="utf-8")
     assert "case 0 (simulation.step_s=1e-300, seed 3): " in _rejected(sweep)
+
+
+def test_paper_a_run_without_formations_gets_no_paper000_analysis() -> None:
+    """Deleting a Paper A scenario's formations is valid input; its finished run once failed with exit 2 because
+    the paper000 analysis (it scores formations) found nothing to score."""
+    from railsim import scenario
+    from railsim.analysis import registry
+
+    assert "paper000" in registry.applicable(scenario.load(PROFILE))
+    assert "paper000" not in registry.applicable(scenario.load(PROFILE, {"formations": []}))
