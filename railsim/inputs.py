@@ -110,10 +110,6 @@ def read_input_text(path: Path, source: str, what: str = "file") -> str:
         raise ConfigError(source, None, "expected UTF-8 text, got undecodable bytes") from None
 
 
-def _where(mark: Any) -> str | None:
-    return f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else None
-
-
 class YAMLLimitError(yaml.MarkedYAMLError):
     """YAML beyond the structural limits (depth, values after aliases, a recursive alias), at its line/column."""
 

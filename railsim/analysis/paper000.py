@@ -248,8 +248,8 @@ def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str
     for f in formations:
         lead_id, fol_id = _trip_of(raw, f["leader"]), _trip_of(raw, f["follower"])
         if lead_id not in series or fol_id not in series:
-            # a train that never ran (never inserted: an event, a summary line and exit 3) has nothing to score;
-            # the run's other formations still are
+            # a train without trace samples (not inserted yet; trips.csv gives its status, and one never inserted
+            # by the end is an event and exit 3) has nothing to score; the run's other formations still are
             continue
         lead, fol = series[lead_id], series[fol_id]
         common, il, jf = np.intersect1d(lead["t"], fol["t"], return_indices=True)
