@@ -88,6 +88,7 @@ from typing import Any
 import yaml
 
 from railsim.errors import ConfigError
+from railsim.inputs import BoundedSafeLoader, YAMLLimitError, describe_kind, excerpt, limit_error, read_input_text
 
 _ID_RE = re.compile(r"^[A-Za-z0-9][A-Za-z0-9_-]*$")
 _MISSING = object()
@@ -233,11 +234,14 @@ class _Reader:
         self.source = source
         self.path = path
         if not isinstance(data, Mapping):
-            raise ConfigError(source, path or None, f"expected a mapping, got {_describe(data)}")
+            got = describe_kind(data) if not path else _describe(data)  # the top level: a file's content, unquoted
+            raise ConfigError(source, path or None, f"expected a mapping, got {got}")
         for key in data:
             if key not in allowed:
                 raise ConfigError(
-                    source, _join(path, str(key)), f"expected one of {', '.join(allowed)}, got unknown key {str(key)!r}"
+                    source,
+                    _join(path, str(key)),
+                    f"expected one of {', '.join(allowed)}, got unknown key {excerpt(str(key))}",
                 )
         self.data = data
 
@@ -309,7 +313,7 @@ def _describe(value: Any) -> str:
         return "nothing"
     if isinstance(value, (dict, list)):
         return f"a {type(value).__name__}"
-    return repr(value)
+    return excerpt(value)
 
 
 _STATION_KEYS = ("id", "name", "km", "platform_length_m", "turnback", "pocket", "basis", "name_zh")
@@ -708,12 +712,11 @@ def _between(rr: _Reader, between: Any, lines: list[tuple[str, tuple[Station, ..
 def load_description(path: str | Path) -> tuple[LineDescription, Any]:
     """Read and validate a line-description YAML file; returns the description and the raw mapping."""
     path = Path(path)
+    text = read_input_text(path, str(path), "line description")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(path, None, f"cannot read the line description: {exc.strerror or exc}") from None
-    try:
-        data = yaml.safe_load(text)
+        data = yaml.load(text, Loader=BoundedSafeLoader)  # noqa: S506 - a SafeLoader with structural limits
+    except YAMLLimitError as exc:
+        raise limit_error(exc, str(path)) from None
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
         where = f" (line {mark.line + 1}, column {mark.column + 1})" if mark is not None else ""

@@ -5,13 +5,19 @@ Everything a user can get wrong (a scenario, a line description, an impossible p
 
     scenarios/peak.yaml: services[2].headway_s: expected a number > 0, got -150
 
-and never a traceback. Internal bugs stay ordinary exceptions (they deserve a traceback).
+and never a traceback. A message is cut at :data:`MAX_MESSAGE_CHARS` characters, a last guard against echoing a
+user's file (values are quoted through :func:`railsim.inputs.excerpt`, at most 80 characters, before that).
+Internal bugs stay ordinary exceptions: the CLI writes their traceback to a log file and exits with
+:data:`EXIT_INTERNAL_ERROR`.
 """
 
 from __future__ import annotations
 
 from pathlib import Path
 from typing import Any
+
+
+MAX_MESSAGE_CHARS = 1000
 
 
 class ConfigError(Exception):
@@ -26,7 +32,8 @@ class ConfigError(Exception):
     def __init__(self, source: str | Path | None, field: str | None, message: str) -> None:
         self.source = str(source) if source is not None else None
         self.field = field
-        self.message = message
+        message = " ".join(message.split()) if "\n" in message else message  # one line, whatever went in
+        self.message = message if len(message) <= MAX_MESSAGE_CHARS else message[: MAX_MESSAGE_CHARS - 3] + "..."
         super().__init__(self.__str__())
 
     def __str__(self) -> str:
@@ -44,6 +51,7 @@ class SimulationError(Exception):
 
 EXIT_CONFIG_ERROR = 2
 EXIT_SIMULATION_ERROR = 3
+EXIT_INTERNAL_ERROR = 4  # a bug in railsim: one line pointing to a log file with the traceback
 
 
 def require(name: str, ok: bool, expectation: str, value: Any) -> None:

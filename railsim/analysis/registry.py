@@ -40,10 +40,11 @@ class Analysis:
     name: str  # the paper family's name (the key in summary.json's ``analyses``)
     family: str  # the controllers sub-package whose types trigger it
     compute: Callable[[Path], tuple[dict[str, Any], str]]
+    needs_formations: bool = False  # scores formations: a run without any has nothing to score (not an error)
 
 
 ANALYSES: tuple[Analysis, ...] = (
-    Analysis("paper000", "mcf_dmpc", _paper000),
+    Analysis("paper000", "mcf_dmpc", _paper000, needs_formations=True),
     Analysis("paper003", "monorail", _paper003),
 )
 
@@ -59,7 +60,10 @@ def applicable_to_types(types: Iterable[str]) -> list[str]:
 
 def applicable(scenario: Any) -> list[str]:
     """Names of the analyses that apply to a scenario (by the families of the controller types it uses)."""
-    return applicable_to_types(spec.type for spec in scenario.controllers.values())
+    names = applicable_to_types(spec.type for spec in scenario.controllers.values())
+    if not scenario.formations:
+        names = [a.name for a in ANALYSES if a.name in names and not a.needs_formations]
+    return names
 
 
 def run(scenario: Any, out_dir: Path) -> tuple[dict[str, Any], list[str]]:

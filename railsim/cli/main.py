@@ -19,20 +19,32 @@ notebook can do the same)::
 :data:`COMMAND_GROUPS` lists those modules explicitly, in the order ``railsim --help`` shows them: each has
 ``add_commands(subparsers)`` and sets ``func`` on its parsers. A missing or misspelt module fails at import.
 
-User mistakes (:class:`railsim.errors.ConfigError`) print one line ``railsim: error: <file>: <field>: <message>``
-and exit with code 2; a simulation that cannot continue exits with code 3. Never a traceback for those.
+Exit codes, and nothing else: 0 ok; 1 a run finished with a collision; 2 bad input (a
+:class:`railsim.errors.ConfigError`, one line ``railsim: error: <file>: <field>: <message>``; argparse's usage
+errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`); 4 an internal
+error — a bug in railsim, including ``RecursionError`` and ``MemoryError``: one line naming the exception and a
+log file that holds the traceback (:func:`report_internal_error`), never a bare traceback on the terminal.
 """
 
 from __future__ import annotations
 
 import argparse
 import logging
+import os
 import sys
+import tempfile
+import traceback
 from collections.abc import Callable, Sequence
 from types import ModuleType
 
 from railsim.cli import export, headway, network, plot, report, reproduce, robustness, run, scenario, study, sweep
-from railsim.errors import EXIT_CONFIG_ERROR, EXIT_SIMULATION_ERROR, ConfigError, SimulationError
+from railsim.errors import (
+    EXIT_CONFIG_ERROR,
+    EXIT_INTERNAL_ERROR,
+    EXIT_SIMULATION_ERROR,
+    ConfigError,
+    SimulationError,
+)
 
 # The command groups, in help order; each module has ``add_commands(subparsers)``.
 COMMAND_GROUPS: tuple[ModuleType, ...] = (
@@ -79,6 +91,28 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("railsim: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 - the last guard: a bug must not print a bare traceback
+        return report_internal_error(exc, argv)
+
+
+def report_internal_error(exc: BaseException, argv: Sequence[str] | None) -> int:
+    """Write ``exc``'s traceback to a new log file (the temp folder, readable by the user only) and print one line
+    naming the exception and the file; returns :data:`EXIT_INTERNAL_ERROR`."""
+    lines = [f"railsim internal error; command line: {' '.join(sys.argv[:1] + list(argv or sys.argv[1:]))}\n"]
+    lines += traceback.format_exception(type(exc), exc, exc.__traceback__)
+    log_name = "(no log file)"
+    try:
+        fd, log_name = tempfile.mkstemp(prefix="railsim-error-", suffix=".log")
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            fh.writelines(lines)
+    except OSError:
+        pass
+    first = str(exc).splitlines()[0][:200] if str(exc) else ""
+    print(
+        f"railsim: internal error ({type(exc).__name__}: {first}); this is a bug in railsim, traceback in {log_name}",
+        file=sys.stderr,
+    )
+    return EXIT_INTERNAL_ERROR
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -24,10 +24,10 @@ The schema (every key; ``#`` comments give type, range and default)::
                                           #   {net: my.net.xml, additional: [stops.add.xml],   (a SUMO net:
                                           #    signals: strip, vclass: auto, throw_time_s: 6}   network.external)
     simulation:                           # required
-      step_s: 0.5                         # required, 0 < step_s <= 5
-      duration_s: 7200                    # required, > 0: simulated seconds after t = 0
+      step_s: 0.5                         # required, whole milliseconds, 0.001 <= step_s <= 5
+      duration_s: 7200                    # required, >= step_s, <= 1e7 steps: simulated seconds after t = 0
       start_time: "07:30"                 # clock time of t = 0, "HH:MM" or "HH:MM:SS"; default "00:00"
-      seed: 42                            # int >= 0; default 0
+      seed: 42                            # int in [0, 2**31 - 1] (SUMO's); default 0
       step_method: euler                  # euler | ballistic | forward; default euler (forward: x+ = x + v·T)
     vehicles:                             # required, name -> vehicle
       cq6: {preset: cq3_6car}             # a shipped preset (railsim.physics.vehicle.preset_names())...
@@ -97,7 +97,12 @@ Readings and conventions (where the schema alone is ambiguous):
   ``departures`` a *string* is a clock time ("07:35" or "07:35:30", hours up to 47 for after-midnight
   service) and is converted relative to ``simulation.start_time``; a *number* is already seconds from t = 0.
   A departure before t = 0 is an error; one after ``duration_s`` is only logged (a study may look at the
-  first hour of a longer timetable).
+  first hour of a longer timetable), but a horizon that reaches no departure at all is an error (nothing would
+  run).
+* **Plausible numbers.** Every number is finite and, by the unit in its field's name, physically plausible
+  (:mod:`.plausible`: ``_kmh`` at most 1,000, ``_mps2`` at most 100, ``_m`` at most 1,000 km, ...), free parameter
+  blocks (``controllers.*.params``, ``world.params``, ``junction.params``) included; a start speed is at most the
+  vehicle's maximum.
 * **Headway grids.** ``{first, last, headway_s}`` expands to ``first + k·headway_s`` for every k with the
   result ≤ ``last`` (``last`` is included when it falls on the grid, with a 1 µs tolerance for float
   arithmetic). Departures are sorted; two trips of one service may not depart at the same time.
@@ -142,6 +147,7 @@ How the package is laid out (one concept per module; dependencies point up the l
 
     model.py                the frozen spec dataclasses and the schema's vocabulary (no I/O)
     clock.py                "HH:MM[:SS]" <-> seconds after midnight
+    plausible.py            physically plausible magnitudes by the unit in a field's name
     validate.py             the Checker: primitive checks, error wording, "did you mean"
     validate_setup.py       world, simulation, outputs
     validate_vehicles.py    vehicles (and plants), controllers, roles, controller parameters
@@ -151,7 +157,8 @@ How the package is laid out (one concept per module; dependencies point up the l
     validate_faults.py      communication channels, sensor/actuator noise and bias
     validate_scenario.py    the walk over all sections -> Scenario
     overrides.py            dotted override paths (with_overrides)
-    loading.py              YAML reading (line/column errors), load/loads/from_mapping, resolved_yaml
+    loading.py              YAML reading (line/column errors, bounded structure: railsim.inputs), load/loads/
+                            from_mapping, resolved_yaml
     world.py                checks against the built world (check_against_world, with_station_ids)
 
 Everything the rest of railsim uses is re-exported here, so callers write ``from railsim import scenario``

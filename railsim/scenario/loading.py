@@ -10,7 +10,13 @@ Parsing uses a stricter YAML loader than PyYAML's ``SafeLoader``:
 
 * no YAML 1.1 base-60 numbers — ``start_time: 17:30`` stays the string "17:30", not the integer 1050;
 * ``1e3`` and ``1.0e9`` are floats (YAML 1.1 reads them as strings);
-* a duplicated mapping key is an error (PyYAML silently keeps the last one).
+* a duplicated mapping key is an error (PyYAML silently keeps the last one);
+* an integer of more than 100 digits is an error at its line and column (Python refuses to convert very long
+  digit strings, and no scenario value needs more).
+
+The loader is a :class:`railsim.inputs.BoundedSafeLoader`: it refuses nesting deeper than 50 levels and aliases
+that expand to more than 200,000 values as it parses, and :func:`read_text` reads only regular files of at most 4 MiB
+(:mod:`railsim.inputs`): no input file can hang, exhaust memory or overflow the stack.
 
 A syntax error names the line and column (both 1-based) and, when the cause is on an earlier line (an
 unclosed bracket), that place too::
@@ -32,6 +38,7 @@ from typing import Any
 import yaml
 
 from railsim.errors import ConfigError
+from railsim.inputs import BoundedSafeLoader, YAMLLimitError, limit_error, read_input_text
 from railsim.scenario.model import Scenario
 from railsim.scenario.overrides import with_overrides
 from railsim.scenario.validate import require_top_mapping
@@ -45,7 +52,7 @@ _INT_TAG = "tag:yaml.org,2002:int"
 _FLOAT_TAG = "tag:yaml.org,2002:float"
 
 
-class _Loader(yaml.SafeLoader):
+class _Loader(BoundedSafeLoader):
     """SafeLoader without YAML 1.1 base-60 numbers (``17:30`` stays a string), with ``1e3`` read as a float,
     and rejecting duplicate mapping keys (PyYAML silently keeps the last one)."""
 
@@ -90,9 +97,13 @@ _Loader.add_constructor("tag:yaml.org,2002:map", _construct_mapping_no_duplicate
 
 
 def parse_yaml(text: str, source: str) -> Any:
-    """Parse YAML ``text`` with the strict loader; a syntax error becomes a ``ConfigError`` at line/column."""
+    """Parse YAML ``text`` with the strict loader; a syntax error becomes a ``ConfigError`` at line/column.
+
+    The structure is bounded while parsing (:class:`railsim.inputs.BoundedSafeLoader`: depth, values after aliases)."""
     try:
         return yaml.load(text, Loader=_Loader)  # noqa: S506 - _Loader is a SafeLoader
+    except YAMLLimitError as exc:
+        raise limit_error(exc, source) from None
     except yaml.MarkedYAMLError as exc:
         mark = exc.problem_mark or exc.context_mark
         where = f"line {mark.line + 1}, column {mark.column + 1}" if mark is not None else None
@@ -102,22 +113,18 @@ def parse_yaml(text: str, source: str) -> Any:
             # The problem often surfaces a line later than its cause (an unclosed bracket): name both.
             problem += f" ({exc.context} at line {ctx.line + 1}, column {ctx.column + 1})"
         raise ConfigError(source, where, f"YAML syntax error: {problem}") from None
+    except yaml.reader.ReaderError as exc:  # a character YAML does not allow (NUL, a control character)
+        before = text[: exc.position]
+        where = f"line {before.count(chr(10)) + 1}, column {len(before) - before.rfind(chr(10))}"
+        raise ConfigError(source, where, f"YAML syntax error: {exc.reason} (character #x{exc.character:04x})") from None
     except yaml.YAMLError as exc:
         raise ConfigError(source, None, f"YAML syntax error: {exc}") from None
 
 
 def read_text(path: Path, source: str) -> str:
-    """The UTF-8 text of ``path``; a missing, unreadable or binary file becomes a ``ConfigError``."""
-    try:
-        return path.read_text(encoding="utf-8")
-    except FileNotFoundError:
-        raise ConfigError(source, None, "file not found") from None
-    except IsADirectoryError:
-        raise ConfigError(source, None, "expected a scenario file, got a directory") from None
-    except UnicodeDecodeError:
-        raise ConfigError(source, None, "expected UTF-8 text, got undecodable bytes") from None
-    except OSError as exc:
-        raise ConfigError(source, None, f"cannot read file: {exc.strerror or exc}") from None
+    """The UTF-8 text of the regular file ``path`` (:func:`railsim.inputs.read_input_text`), else a ``ConfigError``
+    naming ``source`` (never the file's content)."""
+    return read_input_text(path, source, "scenario file")
 
 
 # ---- the public API ---------------------------------------------------------------------------------------------

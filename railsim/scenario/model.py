@@ -54,6 +54,9 @@ DELAY_DISTS: dict[str, tuple[str, ...]] = {
     "exponential": ("mean",),
 }
 MAX_STEP_S = 5.0
+MIN_STEP_S = 0.001  # SUMO counts time in whole milliseconds
+MAX_STEPS = 10_000_000  # duration_s / step_s: two days at 0.02 s; more is a mistake, not a study
+MAX_SEED = 2**31 - 1  # SUMO's --seed is a 32-bit int
 MAX_TRIPS_PER_SERVICE = 10_000  # a whole day at a 10 s headway; more is a typo (and would exhaust memory)
 DEFAULT_DWELL_S = 30.0
 DEFAULT_COUPLING_TIMEOUT_S = 300.0

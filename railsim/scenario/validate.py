@@ -28,8 +28,11 @@ from pathlib import Path
 from typing import Any
 
 from railsim.errors import ConfigError
+from railsim.inputs import describe_kind, excerpt
 from railsim.scenario.clock import CLOCK_WHAT, parse_clock
+from railsim.scenario.plausible import as_float, plausible_number, walk_numbers
 
+MAX_COUNT = 10**9  # the largest count (trips, cars, every-n) any scenario field may hold
 _ID_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-]*$")
 
 
@@ -42,9 +45,9 @@ def join_path(path: str, key: Any) -> str:
 
 
 def short_repr(value: Any, limit: int = 60) -> str:
-    """``repr(value)``, cut to ``limit`` characters for messages."""
-    text = repr(value)
-    return text if len(text) <= limit else text[: limit - 3] + "..."
+    """``repr(value)`` for messages: bounded work and at most ``limit`` characters (:func:`railsim.inputs.excerpt`;
+    a value built from YAML aliases may be huge, and its message must not be)."""
+    return excerpt(value, limit)
 
 
 def did_you_mean(value: str, choices: Iterable[str]) -> str:
@@ -72,7 +75,7 @@ def require_top_mapping(data: Any, source: str) -> None:
     if data is None:
         raise ConfigError(source, None, "expected a scenario mapping, got an empty file")
     if not isinstance(data, dict):
-        raise ConfigError(source, None, f"expected a mapping at the top level, got {short_repr(data)}")
+        raise ConfigError(source, None, f"expected a mapping at the top level, got {describe_kind(data)}")
 
 
 # ---- the checker -----------------------------------------------------------------------------------------------
@@ -124,24 +127,38 @@ class Checker:
     def number(
         self, value: Any, path: str, gt: float | None = None, ge: float | None = None, le: float | None = None
     ) -> float:
-        """A finite int or float (not a bool) within the given bounds, as a float."""
+        """A finite int or float (not a bool) within the given bounds and physically plausible for the unit in the
+        field's name (:mod:`railsim.scenario.plausible`), as a float."""
         bound = bound_text(gt, ge, le)
         what = f"a number {bound}".rstrip()
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise self.expect(path, what, value)
-        x = float(value)
+        x = as_float(value)
         if not math.isfinite(x):
             raise self.expect(path, f"a finite number {bound}".rstrip(), value)
         if (gt is not None and not x > gt) or (ge is not None and not x >= ge) or (le is not None and not x <= le):
             raise self.expect(path, what, value)
+        implausible = plausible_number(x, path)
+        if implausible is not None:
+            raise self.expect(path, implausible, value)
         return x
 
-    def integer(self, value: Any, path: str, ge: int | None = None) -> int:
-        """An int (not a bool), at least ``ge``."""
+    def integer(self, value: Any, path: str, ge: int | None = None, le: int = MAX_COUNT) -> int:
+        """An int (not a bool), at least ``ge`` and at most ``le`` (a count: default :data:`MAX_COUNT`)."""
         what = f"an integer >= {ge}" if ge is not None else "an integer"
         if isinstance(value, bool) or not isinstance(value, int) or (ge is not None and value < ge):
             raise self.expect(path, what, value)
+        if value > le:
+            raise self.expect(path, f"an integer in [{ge}, {le}]" if ge is not None else f"an integer <= {le}", value)
         return int(value)
+
+    def plausible_tree(self, value: Any, path: str) -> None:
+        """Every number in a free parameter block (a controller's ``params``, a world's ``params``) finite and
+        plausible for the unit in its name; the block's own checks come after."""
+        for where, x in walk_numbers(value, path):
+            implausible = plausible_number(x, where)
+            if implausible is not None:
+                raise self.fail(where, f"expected {implausible}, got {x:g}")
 
     def string(
         self, value: Any, path: str, choices: Sequence[str] | None = None, what: str = "a non-empty string"
@@ -200,7 +217,7 @@ class Checker:
         p = p if p.is_absolute() else (self.base_dir / p)
         p = p.resolve()
         if not p.is_file():
-            raise self.fail(path, f"expected an existing file, got {text!r} (looked for {p})")
+            raise self.fail(path, f"expected an existing file, got {short_repr(text)} (looked for {p})")
         return p
 
     def dataclass_fields(self, values: Mapping[str, Any], path: str, module: str, cls_name: str) -> None:
@@ -210,14 +227,20 @@ class Checker:
         ``controllers.junction.model.JunctionParams``); a ``ValueError("field: reason")`` from the dataclass
         becomes an error at ``path.field``. The module is imported only when such a block is validated.
         """
+        self.plausible_tree(dict(values), path)
         cls = getattr(importlib.import_module(module), cls_name)
-        names = {f.name for f in dataclasses.fields(cls)}
+        types = {f.name: str(f.type) for f in dataclasses.fields(cls)}
+        names = set(types)
         for key in values:
             if key not in names:
                 raise self.fail(
                     f"{path}.{key}",
                     f"unknown field{did_you_mean(key, sorted(names))}; known: {', '.join(sorted(names))}",
                 )
+            if types[key] == "float":  # a number field: no strings ('inf' is one), no bools
+                self.number(values[key], f"{path}.{key}")
+            elif types[key] == "int":
+                self.integer(values[key], f"{path}.{key}")
         try:
             cls(**values)
         except (TypeError, ValueError) as exc:

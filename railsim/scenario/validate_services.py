@@ -68,6 +68,13 @@ def services(
         known[spec.id] = spec
         by_index[i] = (spec, raw)
     ordered = [by_index[i] for i in range(len(value))]
+    if not any(t <= sim.duration_s for s, _ in ordered for t in s.departures_s):
+        first = min((t for s, _ in ordered for t in s.departures_s), default=None)
+        raise ck.fail(
+            "simulation.duration_s",
+            f"expected a horizon that reaches the first departure ({'none' if first is None else f'{first:g} s'}); "
+            f"got {sim.duration_s:g} s: no train would run",
+        )
     return tuple(s for s, _ in ordered), [r for _, r in ordered]
 
 
@@ -118,7 +125,13 @@ def service(
         m.get("start") or {}, f"{path}.start", (), ("offset_m", "speed_kmh", "before_switch", "distance_m")
     )
     start_offset = ck.number(start_in.get("offset_m", 0.0), f"{path}.start.offset_m", ge=0.0)
+    max_kmh = vehicles[vehicle].max_speed_mps * 3.6
     start_kmh = ck.number(start_in.get("speed_kmh", 0.0), f"{path}.start.speed_kmh", ge=0.0)
+    if start_kmh > max_kmh + 1e-9:
+        raise ck.fail(
+            f"{path}.start.speed_kmh",
+            f"expected a speed in km/h at most the vehicle's max_speed_kmh ({max_kmh:g}), got {start_kmh:g}",
+        )
     start_switch = None
     start_distance = 0.0
     if "before_switch" in start_in or "distance_m" in start_in:

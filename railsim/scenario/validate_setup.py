@@ -14,7 +14,10 @@ import copy
 from typing import Any
 
 from railsim.scenario.model import (
+    MAX_SEED,
     MAX_STEP_S,
+    MAX_STEPS,
+    MIN_STEP_S,
     OUTPUT_FORMATS,
     STEP_METHODS,
     SUMO_OUTPUTS,
@@ -42,6 +45,7 @@ def world(ck: Checker, value: Any) -> tuple[WorldSpec, Any]:
         m = ck.mapping(value, "world", ("name",), ("params",))
         name = ck.string(m["name"], "world.name")
         params = dict(ck.free_mapping(m.get("params") or {}, "world.params"))
+        ck.plausible_tree(params, "world.params")
         return WorldSpec(kind="shipped", name=name, params=params), {"name": name, "params": copy.deepcopy(params)}
     if form == "line":
         m = ck.mapping(value, "world", ("line",))
@@ -72,10 +76,21 @@ def simulation(ck: Checker, value: Any) -> tuple[SimulationSpec, dict[str, Any]]
     """``simulation:`` → a :class:`SimulationSpec`; the raw keeps ``start_time`` as written."""
     m = ck.mapping(value, "simulation", ("step_s", "duration_s"), ("start_time", "seed", "step_method"))
     step_s = ck.number(m["step_s"], "simulation.step_s", gt=0.0, le=MAX_STEP_S)
+    if step_s < MIN_STEP_S or abs(step_s * 1000.0 - round(step_s * 1000.0)) > 1e-6:
+        what = f"a whole number of milliseconds >= {MIN_STEP_S:g} s (SUMO's time resolution)"
+        raise ck.expect("simulation.step_s", what, m["step_s"])
     duration_s = ck.number(m["duration_s"], "simulation.duration_s", gt=0.0)
+    if duration_s < step_s:
+        raise ck.expect("simulation.duration_s", f"a number >= step_s ({step_s:g}): at least one step", duration_s)
+    if duration_s / step_s > MAX_STEPS:
+        raise ck.fail(
+            "simulation.duration_s",
+            f"expected at most {MAX_STEPS:,} steps of {step_s:g} s (duration_s <= {MAX_STEPS * step_s:g} s), "
+            f"got {duration_s:g} s",
+        )
     start_text = m.get("start_time", "00:00")
     start_s = ck.clock(start_text, "simulation.start_time")
-    seed = ck.integer(m.get("seed", 0), "simulation.seed", ge=0)
+    seed = ck.integer(m.get("seed", 0), "simulation.seed", ge=0, le=MAX_SEED)
     method = ck.string(m.get("step_method", "euler"), "simulation.step_method", STEP_METHODS)
     spec = SimulationSpec(step_s=step_s, duration_s=duration_s, start_time_s=start_s, seed=seed, step_method=method)
     raw = {"step_s": step_s, "duration_s": duration_s, "start_time": start_text, "seed": seed, "step_method": method}

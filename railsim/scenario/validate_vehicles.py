@@ -217,6 +217,7 @@ def check_controllers(
                 f"controllers.{name}.type", f"expected a registered controller type ({known}), got {spec.type!r}{hint}"
             )
     for name, spec in ctrls.items():
+        ck.plausible_tree(spec.params, f"controllers.{name}.params")
         users = [vehicles[s.vehicle] for s in services if name in s.roles.values()]
         for params in {v.name: v for v in (users or vehicles.values())}.values():
             try:

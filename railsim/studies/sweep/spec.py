@@ -21,6 +21,7 @@ from pathlib import Path
 from typing import Any
 
 from railsim.errors import ConfigError
+from railsim.inputs import describe_kind
 from railsim.scenario import OVERRIDE_PATH_RE, parse_yaml, read_text
 
 SWEEP_KEYS = ("name", "description", "base", "grid", "link", "cases", "seeds", "timeout_s")
@@ -131,7 +132,7 @@ def load_sweep(path: str | Path) -> SweepSpec:
     v = _SweepValidator(src)
     data = parse_yaml(read_text(src, str(src)), str(src))
     if not isinstance(data, Mapping):
-        raise v.fail(None, f"expected a mapping with keys {', '.join(SWEEP_KEYS)}, got {_compact(data)}")
+        raise v.fail(None, f"expected a mapping with keys {', '.join(SWEEP_KEYS)}, got {describe_kind(data)}")
     for key in data:
         if key not in SWEEP_KEYS:
             raise v.fail(str(key), f"unknown key; expected one of {', '.join(SWEEP_KEYS)}")
@@ -270,18 +271,20 @@ def _base_seed(base: Path) -> int:
     return int(scenario.load(base).simulation.seed)
 
 
-def validate_cases(spec: SweepSpec, world_check: bool = True) -> None:
+def validate_cases(spec: SweepSpec, world_check: bool = True, full: bool = False) -> None:
     """Load every case's scenario (overrides applied) and check its world ids; ConfigError on the first bad case.
 
-    The error names the sweep file, the case (number and overrides) and the scenario field."""
+    ``full``: instead of the world ids alone, every check ``railsim run`` makes before its first step
+    (:func:`railsim.studies.world.run_checks`; ``railsim validate SWEEP.yaml``). The error names the sweep file,
+    the case (number and overrides) and the scenario field."""
     from railsim import scenario
-    from railsim.studies.world import world_check as check_world
+    from railsim.studies.world import run_checks, world_check as check_world
 
     for k, case in enumerate(spec.cases):
         try:
             scn = scenario.load(spec.base, case.overrides)
             if world_check:  # station/switch ids depend on the overridden services: every case (builds are cached)
-                check_world(scn)
+                (run_checks if full else check_world)(scn)
         except ConfigError as err:
             inner = str(err).replace("<overrides>", "override")
             raise ConfigError(spec.source, f"case {k} ({case.describe()})", inner) from None
