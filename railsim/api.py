@@ -17,6 +17,7 @@ from typing import Any
 
 from railsim import engine
 from railsim.analysis import registry
+from railsim.engine.interrupt import StopRequest
 from railsim.record import output
 
 
@@ -26,10 +27,15 @@ def run(
     seed: int | None = None,
     progress: bool | None = None,
     settings: engine.EngineSettings | None = None,
+    stop: StopRequest | None = None,
 ) -> dict[str, Any]:
-    """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any)."""
-    summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings)
-    if out_dir is not None:
+    """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any).
+
+    ``stop`` (:mod:`railsim.engine.interrupt`) ends the run cleanly once a signal is noted on it; an interrupted
+    run gets no paper analyses (its files stop at the time reached).
+    """
+    summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings, stop=stop)
+    if out_dir is not None and summary["status"] != "interrupted":
         results, tables = registry.run(scenario, Path(out_dir))
         if results:  # the papers' own metrics, from the files just written
             summary["analyses"] = results

@@ -2,7 +2,8 @@
 
 Exit codes: 0 the run went through; 1 a collision (railsim's or SUMO's); 2 bad input; 3 the run could not
 continue (a desync, a stall: one line from :class:`railsim.errors.SimulationError`) or a train was never
-inserted (the summary names it).
+inserted (the summary names it); 130/143 Ctrl-C (SIGINT)/SIGTERM stopped it — the outputs up to the simulated
+time reached are written and ``summary.json`` says ``status: interrupted`` (:mod:`railsim.engine.interrupt`).
 """
 
 from __future__ import annotations
@@ -55,12 +56,17 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from railsim import api as engine, scenario
+    from railsim.engine.interrupt import stop_on_signals
 
-    scn = scenario.load(args.scenario)
     out = Path(args.out)
     progress = False if args.no_progress else None
-    summary = engine.run(scn, out, seed=args.seed, progress=progress)
+    with stop_on_signals() as stop:
+        scn = scenario.load(args.scenario)
+        summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop)
     print(format_summary(summary, out))
+    if stop.signum is not None:
+        print(f"railsim: interrupted ({stop.reason}) at t = {summary['sim_s']:g} s; outputs so far in {out}/")
+        return stop.exit_code
     return exit_code(summary)
 
 

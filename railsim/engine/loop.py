@@ -20,6 +20,7 @@ Paper-specific behaviour plugs in as extensions chosen by the scenario (:mod:`ra
 
 from __future__ import annotations
 
+import logging
 import sys
 import time as _time
 from pathlib import Path
@@ -34,6 +35,7 @@ from railsim.engine.events import Channel, DelaySpec, EventLayer, FormationManag
 from railsim.engine.extensions import ExtensionContext, install_all
 from railsim.engine.fleet import Fleet
 from railsim.engine.insertion import Dispatcher
+from railsim.engine.interrupt import StopRequest
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead, Body, Occupancy
@@ -57,6 +59,7 @@ from railsim.record.snapshot import RunSnapshot
 __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]
 
 PROGRESS_EVERY_S = 10  # progress bar update interval [simulated s]
+log = logging.getLogger(__name__)
 
 
 class Simulation:
@@ -69,6 +72,7 @@ class Simulation:
         seed: int | None = None,
         progress: bool | None = None,
         settings: EngineSettings | None = None,
+        stop: StopRequest | None = None,
     ) -> None:
         from network.external import load_world, sumo_args
         from railsim import scenario as scn_mod
@@ -82,6 +86,7 @@ class Simulation:
         self.step_method = sim.step_method
         self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
+        self.stop = stop or StopRequest()  # a signal noted by the CLI ends the run between two steps
         self.rng = np.random.default_rng(self.seed)
 
         self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
@@ -209,30 +214,42 @@ class Simulation:
         if self.progress:
             from tqdm import tqdm
 
-            bar = tqdm(total=int(self.duration_s), unit="sim-s", desc=self.scenario.name, leave=False)
+            # the run ends when every trip has finished (or at the horizon): count trips, show simulated time
+            bar = tqdm(total=len(self.trains), unit="trip", desc=self.scenario.name, leave=False)
         with SumoBridge(self._sumo_config()) as bridge:
             self.bridge = self.dispatcher.bridge = bridge
             self.turnbacks.bridge = bridge
             self.stops.drop_stop = bridge.drop_stop
             t = bridge.time_s
             last_bar = t
-            while t <= self.duration_s + 1e-9:
+            log.info("simulating %s: %d trips, horizon %g s", self.scenario.name, len(self.trains), self.duration_s)
+            while t <= self.duration_s + 1e-9 and self.stop.signum is None:
                 self._step(t)
                 bridge.step()
                 self.steps += 1
                 t = bridge.time_s
                 if bar is not None and t - last_bar >= PROGRESS_EVERY_S:
-                    bar.update(int(t - last_bar))
+                    self._progress(bar, t)
                     last_bar = t
                 if self.fleet.all_done() or self.failure() is not None:
                     break
             self.end_s = t
-            self.dispatcher.report_never_inserted(t)
-            self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
+            if self.stop.reason is not None:
+                log.warning("%s: stopping at t = %g s; writing what the run has", self.stop.reason, t)
+            else:
+                self.dispatcher.report_never_inserted(t)
+                self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
         if bar is not None:
+            self._progress(bar, self.end_s)
             bar.close()
         self.wall_s = _time.perf_counter() - t_wall
         return self.recorder.summary(self.snapshot())
+
+    def _progress(self, bar: Any, t: float) -> None:
+        """Trips finished so far (the bar's total is the number of trips) and the simulated time."""
+        bar.n = self.fleet.n_finished()
+        bar.set_postfix_str(f"t={t:.0f}/{self.duration_s:.0f} s", refresh=False)
+        bar.refresh()
 
     def failure(self) -> str | None:
         """Why the run had to stop (a desync, a stall), one line; None while all is well."""
@@ -315,7 +332,6 @@ class Simulation:
                 if self.turnbacks.handover(t, tr) is None:  # no next trip for its unit
                     bridge.remove(tr.sumo_id)
                 self.formations.on_off_line(t, tr)
-                tr.status = "removed"
 
     def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> Any:
         """Route chainage from SUMO's odometer; adopt SUMO's speed where it held a train (a stop)."""
@@ -365,6 +381,7 @@ class Simulation:
             versions={"railsim": __version__, "sumo": sumo_version(), "numpy": np.__version__},
             extra_summary=extra,
             failure=self.failure(),
+            interrupted_by=self.stop.reason,
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:
@@ -377,14 +394,22 @@ def run(
     seed: int | None = None,
     progress: bool | None = None,
     settings: EngineSettings | None = None,
+    stop: StopRequest | None = None,
 ) -> dict[str, Any]:
     """Run ``scenario`` (a :class:`railsim.scenario.Scenario`) and write its outputs to ``out_dir``.
 
     Returns the summary dictionary (also written as ``summary.json``). :func:`railsim.api.run` adds the paper
-    families' analyses of the files written; use that one unless you want the bare engine.
+    families' analyses of the files written; use that one unless you want the bare engine. ``stop`` ends the run
+    cleanly between two steps once a signal is noted on it (:mod:`railsim.engine.interrupt`): the summary then
+    says ``status: interrupted`` and the files hold everything up to the time reached.
     """
     sim = Simulation(
-        scenario, Path(out_dir) if out_dir is not None else None, seed=seed, progress=progress, settings=settings
+        scenario,
+        Path(out_dir) if out_dir is not None else None,
+        seed=seed,
+        progress=progress,
+        settings=settings,
+        stop=stop,
     )
     summary = sim.run()
     if sim.out_dir is not None:

@@ -9,7 +9,9 @@ Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.record.ou
 
 ``trips.csv``       one row per trip: planned/actual departure and arrival, travel time, delay at arrival
                     (actual − planned free-run time), traction energy [kWh], minimum true gap [m], time coupled,
-                    max jerk, stops served/scheduled, controller fallbacks, final status
+                    max jerk, stops served/scheduled, controller fallbacks, final status (``arrived``;
+                    ``running``/``inserting``/``scheduled`` when the run ended first; ``removed`` when it left
+                    the line by a ``leave`` event)
 ``stops.csv``       one row per trip and stop: planned/actual arrival, departure, dwell, stopping error [m]
                     (front − stopping mark at the halt), missed flag
 ``formations.csv``  one row per formation: coupling requests/successes/failures, time to couple, time coupled,
@@ -18,7 +20,9 @@ Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.record.ou
 ``trace.csv``       per-train samples every ``trace_stride_s``: chainage, speed, applied/commanded acceleration,
                     winning controller role, true gap, formation state, and the coupled controller's solve time
                     and objective (when it reports them: ``Command.info["solve_time_s"]``, ``info["J"]``)
-``summary.json``    totals (see :meth:`summary`)
+``summary.json``    totals (see :meth:`summary`); ``status`` is ``completed``, ``failed`` (a desync, a stall:
+                    ``failure`` says why) or ``interrupted`` (SIGINT/SIGTERM: ``interrupted_by``; every table
+                    holds what happened up to ``sim_s``)
 """
 
 from __future__ import annotations
@@ -245,6 +249,8 @@ class Recorder:
         return {
             "scenario": run.scenario_name,
             "seed": run.seed,
+            "status": run.status,
+            "interrupted_by": run.interrupted_by,
             "n_trains": len(trains),
             "n_inserted": sum(1 for tr in trains if tr.inserted_s is not None),
             "n_arrived": sum(1 for tr in trains if tr.arrived_s is not None),

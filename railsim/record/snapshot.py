@@ -66,6 +66,14 @@ class RunSnapshot:
     versions: Mapping[str, str]
     extra_summary: dict[str, Any] = field(default_factory=dict)  # extensions' summaries (e.g. "junction")
     failure: str | None = None  # why the run stopped early (a desync, a stall), or None
+    interrupted_by: str | None = None  # the signal that stopped the run ("SIGINT", "SIGTERM"), or None
+
+    @property
+    def status(self) -> str:
+        """``interrupted`` (a signal), ``failed`` (a desync, a stall) or ``completed`` (all trips or the horizon)."""
+        if self.interrupted_by is not None:
+            return "interrupted"
+        return "failed" if self.failure is not None else "completed"
 
 
 @dataclass(frozen=True)
