@@ -28,13 +28,14 @@ def run(
     progress: bool | None = None,
     settings: engine.EngineSettings | None = None,
     stop: StopRequest | None = None,
+    gui: bool = False,
 ) -> dict[str, Any]:
     """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any).
 
     ``stop`` (:mod:`railsim.engine.interrupt`) ends the run cleanly once a signal is noted on it; an interrupted
-    run gets no paper analyses (its files stop at the time reached).
+    run gets no paper analyses (its files stop at the time reached). ``gui``: watch it in sumo-gui.
     """
-    summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings, stop=stop)
+    summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings, stop=stop, gui=gui)
     if out_dir is not None and summary["status"] != "interrupted":
         results, tables = registry.run(scenario, Path(out_dir))
         if results:  # the papers' own metrics, from the files just written

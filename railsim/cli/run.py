@@ -21,6 +21,7 @@ def add_commands(sub: Any) -> None:
     p.add_argument("--out", required=True, help="output folder (created; files are replaced atomically)")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    p.add_argument("--gui", action="store_true", help="run it in sumo-gui (through traci: slower, for looking)")
     p.set_defaults(func=cmd_run)
 
 
@@ -62,7 +63,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     progress = False if args.no_progress else None
     with stop_on_signals() as stop:
         scn = scenario.load(args.scenario)
-        summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop)
+        summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop, gui=args.gui)
     print(format_summary(summary, out))
     if stop.signum is not None:
         print(f"railsim: interrupted ({stop.reason}) at t = {summary['sim_s']:g} s; outputs so far in {out}/")

@@ -73,6 +73,7 @@ class Simulation:
         progress: bool | None = None,
         settings: EngineSettings | None = None,
         stop: StopRequest | None = None,
+        gui: bool = False,
     ) -> None:
         from network.external import load_world, sumo_args
         from railsim import scenario as scn_mod
@@ -87,6 +88,7 @@ class Simulation:
         self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
         self.stop = stop or StopRequest()  # a signal noted by the CLI ends the run between two steps
+        self.gui = gui  # sumo-gui through traci (railsim run --gui)
         self.rng = np.random.default_rng(self.seed)
 
         self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
@@ -284,6 +286,8 @@ class Simulation:
             output_dir=self.out_dir if outs else None,
             sumo_outputs=outs,
             extra_args=self.sumo_extra_args,
+            run_dir=self.out_dir,
+            gui=self.gui,
         )
 
     def _step(self, t: float) -> None:
@@ -395,13 +399,15 @@ def run(
     progress: bool | None = None,
     settings: EngineSettings | None = None,
     stop: StopRequest | None = None,
+    gui: bool = False,
 ) -> dict[str, Any]:
     """Run ``scenario`` (a :class:`railsim.scenario.Scenario`) and write its outputs to ``out_dir``.
 
     Returns the summary dictionary (also written as ``summary.json``). :func:`railsim.api.run` adds the paper
     families' analyses of the files written; use that one unless you want the bare engine. ``stop`` ends the run
     cleanly between two steps once a signal is noted on it (:mod:`railsim.engine.interrupt`): the summary then
-    says ``status: interrupted`` and the files hold everything up to the time reached.
+    says ``status: interrupted`` and the files hold everything up to the time reached. ``gui`` runs the
+    scenario in sumo-gui (through traci: slower, for looking) instead of libsumo.
     """
     sim = Simulation(
         scenario,
@@ -410,6 +416,7 @@ def run(
         progress=progress,
         settings=settings,
         stop=stop,
+        gui=gui,
     )
     summary = sim.run()
     if sim.out_dir is not None:
