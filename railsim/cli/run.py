@@ -12,7 +12,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
-from railsim.record.snapshot import OUTPUT_FILES
+from railsim.record.snapshot import OUTPUT_FILES, output_file_name
 
 
 def add_commands(sub: Any) -> None:
@@ -48,7 +48,8 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
     if summary["formations"]:
         ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
         lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
-    files = ", ".join(f.file_name for f in OUTPUT_FILES if f.stem not in ("scenario.resolved", "versions"))
+    shown = [f for f in OUTPUT_FILES if f.kind != "sumo" and f.stem not in ("scenario.resolved", "versions")]
+    files = ", ".join([*(f.file_name for f in shown), output_file_name("sumo_run")])
     lines.append(f"  outputs: {out_dir}/ ({files})")
     for table in summary.get("analysis_tables", ()):
         lines.append(table)

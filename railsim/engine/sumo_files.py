@@ -28,11 +28,12 @@ from typing import Protocol
 from xml.sax.saxutils import quoteattr
 
 from railsim.record.output import write_bytes
+from railsim.record.snapshot import output_file_name
 
-VTYPES_FILE = "sumo_vtypes.rou.xml"
-ROUTES_FILE = "sumo_routes.rou.xml"
-RUN_CONFIG = "sumo_run.sumocfg"
-REPLAY_CONFIG = "sumo_replay.sumocfg"
+VTYPES_FILE = output_file_name("sumo_vtypes")
+ROUTES_FILE = output_file_name("sumo_routes")
+RUN_CONFIG = output_file_name("sumo_run")
+REPLAY_CONFIG = output_file_name("sumo_replay")
 
 # options of the engine's command line that write files or only quiet SUMO: not in the configs
 _OUTPUT_OPTIONS = ("--tripinfo-output", "--stop-output", "--fcd-output", "--collision-output", "--fcd-output.distance")

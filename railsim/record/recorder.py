@@ -302,6 +302,8 @@ class Recorder:
             "trace": (self.trace, TRACE_COLUMNS),
         }
         for spec in OUTPUT_FILES:
+            if spec.kind == "sumo":  # the SUMO bridge writes these
+                continue
             if spec.kind == "table":
                 rows, cols = tables[spec.stem]
                 for p in output.write_table(out_dir, spec.stem, rows, cols, formats):

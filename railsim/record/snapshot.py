@@ -78,7 +78,7 @@ class RunSnapshot:
 
 @dataclass(frozen=True)
 class OutputFile:
-    """One file of a run folder: ``kind`` is ``table`` (CSV, + Parquet if asked) or ``document``."""
+    """One file of a run folder: ``kind`` is ``table`` (CSV, + Parquet if asked), ``document`` or ``sumo``."""
 
     stem: str
     kind: str
@@ -95,4 +95,14 @@ OUTPUT_FILES: tuple[OutputFile, ...] = (
     OutputFile("summary", "document", "summary.json", "totals of the run"),
     OutputFile("scenario.resolved", "document", "scenario.resolved.yaml", "the scenario with every default"),
     OutputFile("versions", "document", "versions.json", "railsim, SUMO and numpy versions"),
+    # kind "sumo": written by the SUMO bridge, not the recorder (railsim.engine.sumo_files)
+    OutputFile("sumo_vtypes", "sumo", "sumo_vtypes.rou.xml", "the run's SUMO vehicle types"),
+    OutputFile("sumo_routes", "sumo", "sumo_routes.rou.xml", "every train as SUMO got it: route, stops"),
+    OutputFile("sumo_run", "sumo", "sumo_run.sumocfg", "opens the run's net, stops and trains in sumo/sumo-gui"),
+    OutputFile("sumo_replay", "sumo", "sumo_replay.sumocfg", "net and stops to replay sumo_fcd.xml on (fcd only)"),
 )
+
+
+def output_file_name(stem: str) -> str:
+    """The file name of the :data:`OUTPUT_FILES` row ``stem``."""
+    return next(f.file_name for f in OUTPUT_FILES if f.stem == stem)
