@@ -9,9 +9,11 @@ time reached are written and ``summary.json`` says ``status: interrupted`` (:mod
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
+from railsim.errors import ConfigError, SimulationError
 from railsim.record.snapshot import OUTPUT_FILES, output_file_name
 
 
@@ -38,7 +40,11 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
         f"{'n/a' if summary['min_gap_m'] is None else format(summary['min_gap_m'], '.1f')} m, "
         f"{summary['fallbacks']} controller fallbacks",
     ]
-    if summary["n_never_inserted"]:
+    if summary.get("status") == "interrupted":
+        lines.append(
+            f"  interrupted ({summary['interrupted_by']}): {summary['n_never_inserted']} train(s) not inserted yet"
+        )
+    elif summary["n_never_inserted"]:
         lines.append(
             f"  never inserted: {summary['n_never_inserted']} train(s): {', '.join(summary['never_inserted'])} "
             "(see the never_inserted events for why)"
@@ -63,8 +69,15 @@ def cmd_run(args: argparse.Namespace) -> int:
     out = Path(args.out)
     progress = False if args.no_progress else None
     with stop_on_signals() as stop:
-        scn = scenario.load(args.scenario)
-        summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop, gui=args.gui)
+        try:
+            scn = scenario.load(args.scenario)
+            summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop, gui=args.gui)
+        except (ConfigError, SimulationError):
+            if stop.signum is None:
+                raise
+            # the signal reached a child first (netconvert building the world): nothing ran, nothing to write
+            print(f"railsim: interrupted ({stop.reason}) before the first step; no outputs", file=sys.stderr)
+            return stop.exit_code
     print(format_summary(summary, out))
     if stop.signum is not None:
         print(f"railsim: interrupted ({stop.reason}) at t = {summary['sim_s']:g} s; outputs so far in {out}/")
