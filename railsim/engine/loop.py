@@ -39,6 +39,7 @@ from railsim.engine.interrupt import StopRequest
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead, Body, Occupancy
+from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import (
@@ -57,8 +58,6 @@ from railsim.errors import SimulationError
 from railsim.record.snapshot import RunSnapshot
 
 __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]
-
-PROGRESS_EVERY_S = 10  # progress bar update interval [simulated s]
 log = logging.getLogger(__name__)
 
 
@@ -87,8 +86,7 @@ class Simulation:
         self.step_method = sim.step_method
         self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
-        self.stop = stop or StopRequest()  # a signal noted by the CLI ends the run between two steps
-        self.gui = gui  # sumo-gui through traci (railsim run --gui)
+        self.stop, self.gui = stop or StopRequest(), gui  # a signal noted ends the run between steps; sumo-gui
         self.rng = np.random.default_rng(self.seed)
 
         self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
@@ -212,46 +210,30 @@ class Simulation:
         from railsim.engine.sumo import SumoBridge
 
         t_wall = _time.perf_counter()
-        bar = None
-        if self.progress:
-            from tqdm import tqdm
-
-            # the run ends when every trip has finished (or at the horizon): count trips, show simulated time
-            bar = tqdm(total=len(self.trains), unit="trip", desc=self.scenario.name, leave=False)
+        bar = RunProgress(self.scenario.name, len(self.trains), self.duration_s, self.progress)
         with SumoBridge(self._sumo_config()) as bridge:
             self.bridge = self.dispatcher.bridge = bridge
             self.turnbacks.bridge = bridge
             self.stops.drop_stop = bridge.drop_stop
             t = bridge.time_s
-            last_bar = t
             log.info("simulating %s: %d trips, horizon %g s", self.scenario.name, len(self.trains), self.duration_s)
             while t <= self.duration_s + 1e-9 and self.stop.signum is None:
                 self._step(t)
                 bridge.step()
                 self.steps += 1
                 t = bridge.time_s
-                if bar is not None and t - last_bar >= PROGRESS_EVERY_S:
-                    self._progress(bar, t)
-                    last_bar = t
+                bar.update(t, self.fleet.n_finished())
                 if self.fleet.all_done() or self.failure() is not None:
                     break
             self.end_s = t
-            if self.stop.reason is not None:
+            if self.stop.reason is not None:  # a signal: write what the run has (railsim.engine.interrupt)
                 log.warning("%s: stopping at t = %g s; writing what the run has", self.stop.reason, t)
             else:
                 self.dispatcher.report_never_inserted(t)
                 self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
-        if bar is not None:
-            self._progress(bar, self.end_s)
-            bar.close()
+        bar.close(self.end_s, self.fleet.n_finished())
         self.wall_s = _time.perf_counter() - t_wall
         return self.recorder.summary(self.snapshot())
-
-    def _progress(self, bar: Any, t: float) -> None:
-        """Trips finished so far (the bar's total is the number of trips) and the simulated time."""
-        bar.n = self.fleet.n_finished()
-        bar.set_postfix_str(f"t={t:.0f}/{self.duration_s:.0f} s", refresh=False)
-        bar.refresh()
 
     def failure(self) -> str | None:
         """Why the run had to stop (a desync, a stall), one line; None while all is well."""
@@ -404,20 +386,11 @@ def run(
     """Run ``scenario`` (a :class:`railsim.scenario.Scenario`) and write its outputs to ``out_dir``.
 
     Returns the summary dictionary (also written as ``summary.json``). :func:`railsim.api.run` adds the paper
-    families' analyses of the files written; use that one unless you want the bare engine. ``stop`` ends the run
-    cleanly between two steps once a signal is noted on it (:mod:`railsim.engine.interrupt`): the summary then
-    says ``status: interrupted`` and the files hold everything up to the time reached. ``gui`` runs the
-    scenario in sumo-gui (through traci: slower, for looking) instead of libsumo.
+    families' analyses of the files written; use that one unless you want the bare engine. ``stop``: a signal
+    noted on it ends the run between two steps (:mod:`railsim.engine.interrupt`); ``gui``: sumo-gui via traci.
     """
-    sim = Simulation(
-        scenario,
-        Path(out_dir) if out_dir is not None else None,
-        seed=seed,
-        progress=progress,
-        settings=settings,
-        stop=stop,
-        gui=gui,
-    )
+    out = Path(out_dir) if out_dir is not None else None
+    sim = Simulation(scenario, out, seed=seed, progress=progress, settings=settings, stop=stop, gui=gui)
     summary = sim.run()
     if sim.out_dir is not None:
         sim.write(sim.out_dir)
