@@ -137,7 +137,8 @@ class Command:
     """A controller's request for one step.
 
     ``accel_mps2`` is the applied specific force (see module docstring). ``fallback`` is True when the controller
-    could not compute its law (solver failure, infeasible QP) and returned its safe brake instead; ``info``
+    could not compute its law (solver failure, infeasible QP) and returned its safe brake instead, with the
+    reason in ``info["fallback_reason"]`` (the engine records it: ``controller_fallback`` events); ``info``
     carries diagnostics the recorder keeps (solve time, chosen model, status).
     """
 
@@ -188,6 +189,14 @@ def family_of(name: str) -> str:
 def create(name: str, params: Mapping[str, Any], vehicle: VehicleParams) -> Controller:
     """Instantiate controller ``name`` for one train (KeyError if unknown, ValueError for bad params)."""
     return _REGISTRY[name](params, vehicle)
+
+
+def fallback_reason(cmd: Command) -> str:
+    """Why ``cmd`` is a fallback: its ``info["fallback_reason"]`` (one short line), else its solver ``status``."""
+    reason = cmd.info.get("fallback_reason") if cmd.info else None
+    if not reason and cmd.info and cmd.info.get("status"):
+        reason = f"solver status: {cmd.info['status']}"
+    return str(reason or "not given by the controller")
 
 
 def arbitrate(commands: Mapping[str, Command]) -> tuple[str, Command]:

@@ -18,6 +18,7 @@ from typing import Any
 
 from railsim import engine
 from railsim.analysis import punctuality, registry
+from railsim.engine.interrupt import StopRequest
 from railsim.record import output
 
 
@@ -27,10 +28,16 @@ def run(
     seed: int | None = None,
     progress: bool | None = None,
     settings: engine.EngineSettings | None = None,
+    stop: StopRequest | None = None,
+    gui: bool = False,
 ) -> dict[str, Any]:
-    """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any)."""
-    summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings)
-    if out_dir is not None:
+    """Run ``scenario`` and write its outputs to ``out_dir``; return the summary (with ``analyses`` if any).
+
+    ``stop`` (:mod:`railsim.engine.interrupt`) ends the run cleanly once a signal is noted on it; an interrupted
+    run gets no paper analyses (its files stop at the time reached). ``gui``: watch it in sumo-gui.
+    """
+    summary = engine.run(scenario, out_dir, seed=seed, progress=progress, settings=settings, stop=stop, gui=gui)
+    if out_dir is not None and summary["status"] != "interrupted":
         robustness = punctuality.run_kpis(Path(out_dir), summary)  # only a run with ``disturbances:``
         if robustness is not None:
             summary["robustness"] = robustness

@@ -102,8 +102,8 @@ def test_pair_couples_then_decouples_and_takes_own_switch_lock(mini_run: Path) -
     # the follower's lock comes after the leader's tail cleared and the switch was thrown (15 s)
     assert released and fol_grant[0][0] >= released[0] + 15.0 - 1e-6
     trips = {r["trip_id"]: r for r in read_csv(mini_run / "trips.csv")}
-    assert trips[leader]["destination"] == "e" and trips[leader]["status"] == "removed"
-    assert trips[follower]["destination"] == "g" and trips[follower]["status"] == "removed"
+    assert trips[leader]["destination"] == "e" and trips[leader]["status"] == "arrived"
+    assert trips[follower]["destination"] == "g" and trips[follower]["status"] == "arrived"
     assert float(trips[follower]["time_coupled_s"]) > 60.0
 
 

@@ -97,10 +97,9 @@ def test_sections_capacity_train_graph_and_report_on_a_user_net(nets: dict, cach
     assert down.direction == "down" and down.to_km < down.from_km
     assert not report.tables["uic406"].empty and not report.tables["junction"].empty
 
-    stem = tmp_path / "fig" / "td"
-    res = run_railsim(["plot", str(out), "--kind", "time-distance", "--out", str(stem)], cache_dir=cache)
+    res = run_railsim(["plot", str(out), "--kind", "time-distance", "--out", str(tmp_path / "fig")], cache_dir=cache)
     assert res.returncode == 0, res.stderr
-    png = stem.with_suffix(".png")
+    png = tmp_path / "fig" / "time-distance.png"
     assert png.stat().st_size > 10_000 and png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
     res = run_railsim(["report", str(out)], cache_dir=cache)
     assert res.returncode == 0, res.stderr

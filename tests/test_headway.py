@@ -59,6 +59,15 @@ def test_frontier_is_conservative_under_non_monotone_feasibility() -> None:
     assert headway._grid(60, 100, 15) == [60, 75, 90, 100]
 
 
+def test_planned_probes_is_bisection_rounds_plus_confirmations() -> None:
+    # 37 grid points (60..240 s every 5 s), one worker: hi, lo, then ceil(log2 36) = 6 midpoints, 1 confirmation
+    assert headway.planned_probes(37, 1, False, 1) == 2 + 6 + 1
+    # two workers: ceil(log3 36) = 4 rounds of 2 points
+    assert headway.planned_probes(37, 2, False, 1) == 2 + 8 + 1
+    assert headway.planned_probes(37, 1, True, 2) == 37 + 2  # scan: every point, then the confirmations
+    assert headway.planned_probes(4, 8, False, 0) == 4  # never more than the grid
+
+
 @pytest.mark.parametrize(
     ("kwargs", "field"),
     [
@@ -112,6 +121,7 @@ def test_search_matches_an_independent_scan_of_every_grid_headway(tmp_path: Path
         if p.seed == 3:
             assert p.feasible == scan[p.headway_s]
     assert {p.headway_s for p in result.probes} < set(grid)  # the search probed fewer headways than the scan
+    assert len(result.probes) <= headway.planned_probes(len(grid), 2, False, 1)  # the progress bar's total
     # the answer was confirmed with another seed, and the probe just below it was infeasible
     assert result.confirmed_seeds == (4,)
     assert any(p.headway_s == expected and p.seed == 4 and p.feasible for p in result.probes)

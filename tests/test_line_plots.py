@@ -240,12 +240,25 @@ def test_spread_labels_keeps_order_and_spacing() -> None:
 # ---------------------------------------------------------------------------------------------------- CLI
 def test_cli_writes_each_kind(run_dir: Path, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert plot_command.LINE_KINDS == line.KINDS and set(line.KINDS) <= set(plot_command.KINDS)
+    out = tmp_path / "figs"  # --out is a folder: the figures are named after their kind
     for kind in line.KINDS:
-        stem = tmp_path / kind
-        assert cli_main(["plot", str(run_dir), "--kind", kind, "--out", str(stem), "--direction", "up"]) == 0
-        assert stem.with_suffix(".png").is_file() and stem.with_suffix(".svg").is_file()
+        assert cli_main(["plot", str(run_dir), "--kind", kind, "--out", str(out), "--direction", "up"]) == 0
+        assert (out / f"{kind}.png").is_file() and (out / f"{kind}.svg").is_file()
     printed = capsys.readouterr().out
-    assert str(tmp_path / "speed.svg") in printed
+    assert str(out / "speed.svg") in printed
+
+
+def test_cli_auto_draws_every_line_figure_that_applies(
+    run_dir: Path, tmp_path: Path, tmp_path_factory: pytest.TempPathFactory, capsys: pytest.CaptureFixture[str]
+) -> None:
+    """Without --kind a line run gets train graph, speed, gap and headway; a figure that does not apply is skipped."""
+    out = tmp_path / "auto"
+    assert cli_main(["plot", str(run_dir), "--out", str(out)]) == 0
+    assert sorted(p.name for p in out.glob("*.png")) == sorted(f"{k}.png" for k in line.KINDS)
+    lonely = _run(tmp_path_factory.mktemp("plots"), "no_formations_auto", formations=[])
+    assert cli_main(["plot", str(lonely)]) == 0  # no --out: into the run's own folder
+    assert (lonely / "time-distance.png").is_file() and not (lonely / "gap.png").exists()
+    assert "gap skipped: no virtually coupled formation" in capsys.readouterr().out
 
 
 def test_cli_mistakes_exit_2(

@@ -168,6 +168,7 @@ def test_two_worker_sweep_gives_one_tidy_row_per_case(reference: tuple[Path, Pat
         DOWN_HW,
     ]
     assert set(table["status"]) == {"ok"} and set(table["error"].fillna("")) == {""}
+    assert set(table["run_status"]) == {"completed"}  # the run's own status never overwrites the row's
     assert list(table["margin"]) == ["wide", "wide", "narrow", "narrow"]
     for _, row in table.iterrows():
         h = row[UP_HW]

@@ -193,9 +193,9 @@ class MpcAto:
         accel = float(np.sum(u) / p.total_mass_kg)
         if not math.isfinite(accel):  # never hand a NaN to the plant
             accel = -self.vehicle.service_decel_mps2
-            info = {**info, "fallback": True}
+            info = {**info, "fallback": True, "fallback_reason": "non-finite traction forces; service brake"}
         out_info: dict[str, Any] = {"phase": info.get("phase", "run"), "forces_n": tuple(float(f) for f in u)}
-        for key in ("status", "solve_time_s", "iterations"):
+        for key in ("status", "solve_time_s", "iterations", "fallback_reason"):
             if key in info:
                 out_info[key] = info[key]
         if obs.authority_end_m is not None and v > 0.0:

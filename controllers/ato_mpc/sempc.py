@@ -55,6 +55,7 @@ class MpcLaw:
         return u, {
             "status": info.status,
             "fallback": info.fallback,
+            "fallback_reason": f"QP not solved (OSQP: {info.status}); {self.mpc.s.fallback}" if info.fallback else "",
             "solve_time_s": info.solve_time_s,
             "iterations": info.iterations,
             "max_slack": info.max_slack,

@@ -382,4 +382,6 @@ class DistributedConstrainedController:
             feasible=out.feasible,
             k=obs.extras.get("k"),
         )
+        if not out.feasible:
+            info["fallback_reason"] = "no displacement meets every pair constraint; hard limits kept first"
         return Command(accel_mps2=applied, fallback=not out.feasible, info=info)

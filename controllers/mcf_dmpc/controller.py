@@ -461,7 +461,12 @@ class DmpcController(_PaperAController):
             self.fallbacks += 1
             self._u_plan = None  # the next solve starts from cruise, not from a failed plan
             brake = np.full((1, self.n_steps), -self.train.service_decel_mps2)
-            info.update(phase="fallback", fallbacks=self.fallbacks, J=math.nan)
+            info.update(
+                phase="fallback",
+                fallbacks=self.fallbacks,
+                J=math.nan,
+                fallback_reason=f"SQP not solved ({sol.status}); service brake",
+            )
             return (
                 -self.train.service_decel_mps2,
                 plan_dict(rollout_controls(brake, x0, v0, self.train), 0, self.params.dt_s),

@@ -240,6 +240,7 @@ class CollisionAvoidance:
             )
             if sol is None:
                 u, info["fallback"] = -b_e, True
+                info["fallback_reason"] = "collision-avoidance QP infeasible; emergency brake"
             else:
                 u = float(sol[0])
             if p.additive and reading.service_accel_mps2 is not None:

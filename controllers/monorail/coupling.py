@@ -261,6 +261,7 @@ class MonorailDmpc:
         info: dict[str, Any] = {"phase": "track", "gap_m": gap, "gap_error_m": err}
         if u is None:
             info["phase"] = "fallback"
+            info["fallback_reason"] = "coupling QP infeasible; service brake"
             cmd = Command(-b_s, fallback=True, info=info)
         else:
             cmd = _finish(obs, float(u[0]), _safety_cap(obs, gap, v_p, self.safety), info)

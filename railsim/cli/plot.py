@@ -5,10 +5,16 @@
     railsim plot out/x --kind paper000 --out fig/            # force a kind
 
 ``--kind auto`` (default) reads each folder's ``scenario.resolved.yaml`` and uses the analysis that applies to its
-controllers (:mod:`railsim.analysis.registry`). Line-level kinds (:mod:`railsim.report.plots.line`) write PNG and SVG to a file stem:
+controllers (:mod:`railsim.analysis.registry`); a line run (no paper family's controllers) gets every line-level
+figure that applies (:mod:`railsim.report.plots.line`: train graph, speed, gap, headway; gap only with a
+virtually coupled formation, headway only when two trains ran the same section — the others are reported as
+skipped). Line figures are PNG + SVG named after their kind:
 
-    railsim plot out/peak --kind time-distance [--out fig/peak_td] [--direction up]   # default stem RUN/<kind>
-    railsim plot out/peak --kind speed|gap|headway
+    railsim plot out/peak                                   # out/peak/time-distance.png, speed.png, gap.png, ...
+    railsim plot out/peak --kind time-distance --out fig/   # fig/time-distance.png (+ .svg) [--direction up]
+    railsim plot out/a out/b --out fig/                     # fig/a/..., fig/b/...
+
+``--out`` is always a folder (created); without it line figures go into each run's own folder.
 """
 
 from __future__ import annotations
@@ -29,8 +35,8 @@ def add_commands(sub: Any) -> None:
     p.add_argument(
         "--out",
         default=None,
-        help="folder for the figures; for line kinds a file stem (default "
-        "RUN/<kind>; with several runs <stem>-<run name>)",
+        help="folder for the figures (created; with several runs one sub-folder per run); "
+        "default for line figures: each run's own folder",
     )
     p.add_argument("--kind", choices=KINDS, default="auto")
     p.add_argument("--direction", choices=("up", "down"), default=None, help="line kinds: one direction only")
@@ -38,6 +44,7 @@ def add_commands(sub: Any) -> None:
 
 
 def _kind_of(run: Path) -> str:
+    """The paper family whose figures apply to ``run``'s controllers, or ``"line"`` (the line-level figures)."""
     import yaml
 
     from railsim.analysis import registry as analyses
@@ -48,9 +55,25 @@ def _kind_of(run: Path) -> str:
     raw = yaml.safe_load(resolved.read_text(encoding="utf-8")) or {}
     types = {c.get("type") for c in (raw.get("controllers") or {}).values() if isinstance(c, dict)}
     kinds = analyses.applicable_to_types(t for t in types if isinstance(t, str))
-    if kinds:
-        return kinds[0]
-    raise ConfigError(run, "controllers", "no figure kind applies to this run's controllers yet (use --kind)")
+    return kinds[0] if kinds else "line"
+
+
+def _line_figures(kinds: tuple[str, ...], run: Path, dest: Path, direction: str | None) -> list[Path]:
+    """Each line figure of ``kinds`` that applies to ``run`` into ``dest/<kind>``; one that does not is skipped
+    with its reason when several were asked for (``--kind auto``), an error when it was the one asked for."""
+    from railsim.report.plots.line import write_kind
+
+    written: list[Path] = []
+    for kind in kinds:
+        try:
+            written += write_kind(kind, run, dest / kind, direction)
+        except ConfigError as err:
+            if len(kinds) == 1:
+                raise
+            print(f"{run}: {kind} skipped: {err.message}")
+    if not written:
+        raise ConfigError(run, None, "no line figure applies to this run")
+    return written
 
 
 def cmd_plot(args: argparse.Namespace) -> int:
@@ -59,31 +82,27 @@ def cmd_plot(args: argparse.Namespace) -> int:
         if not r.is_dir():
             raise ConfigError(r, None, "no such run folder")
     written: list[Path] = []
-    if args.kind in LINE_KINDS:
-        from railsim.report.plots.line import write_kind
-
-        for r in runs:
-            stem = (
-                r / args.kind
-                if args.out is None
-                else Path(args.out)
-                if len(runs) == 1
-                else Path(f"{args.out}-{r.name}")
-            )
-            written += write_kind(args.kind, r, stem, args.direction)
-        for path in written:
-            print(path)
-        return 0
-    if args.out is None:
-        raise ConfigError(None, "--out", f"a folder for the figures is required with --kind {args.kind}")
     kinds = {r: (_kind_of(r) if args.kind == "auto" else args.kind) for r in runs}
-    dest = Path(args.out)
-    paper000 = [r for r in runs if kinds[r] == "paper000"]
+
+    def dest_of(r: Path) -> Path:
+        if args.out is None:
+            return r
+        return Path(args.out) / r.name if len(runs) > 1 else Path(args.out)
+
+    for r in runs:
+        if kinds[r] == "line" or kinds[r] in LINE_KINDS:
+            line_kinds = LINE_KINDS if kinds[r] == "line" else (kinds[r],)
+            written += _line_figures(line_kinds, r, dest_of(r), args.direction)
+    paper_runs = [r for r in runs if kinds[r] not in ("line", *LINE_KINDS)]
+    if paper_runs and args.out is None:
+        raise ConfigError(None, "--out", f"a folder for the figures is required for {kinds[paper_runs[0]]} runs")
+    dest = Path(args.out) if args.out is not None else Path()
+    paper000 = [r for r in paper_runs if kinds[r] == "paper000"]
     if paper000:
         from railsim.report.plots.paper000 import write_figures
 
         written += write_figures({r.name: r for r in paper000}, dest)
-    for r in (r for r in runs if kinds[r] == "paper003"):
+    for r in (r for r in paper_runs if kinds[r] == "paper003"):
         from railsim.report.plots.paper003 import write_figures as write_d
 
         written += write_d(r, dest / r.name if len(runs) > 1 else dest)

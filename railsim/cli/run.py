@@ -2,16 +2,19 @@
 
 Exit codes: 0 the run went through; 1 a collision (railsim's or SUMO's); 2 bad input; 3 the run could not
 continue (a desync, a stall: one line from :class:`railsim.errors.SimulationError`) or a train was never
-inserted (the summary names it).
+inserted (the summary names it); 130/143 Ctrl-C (SIGINT)/SIGTERM stopped it — the outputs up to the simulated
+time reached are written and ``summary.json`` says ``status: interrupted`` (:mod:`railsim.engine.interrupt`).
 """
 
 from __future__ import annotations
 
 import argparse
+import sys
 from pathlib import Path
 from typing import Any
 
-from railsim.record.snapshot import OUTPUT_FILES
+from railsim.errors import ConfigError, SimulationError
+from railsim.record.snapshot import OUTPUT_FILES, output_file_name
 
 
 def add_commands(sub: Any) -> None:
@@ -20,6 +23,7 @@ def add_commands(sub: Any) -> None:
     p.add_argument("--out", required=True, help="output folder (created; files are replaced atomically)")
     p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
+    p.add_argument("--gui", action="store_true", help="run it in sumo-gui (through traci: slower, for looking)")
     p.set_defaults(func=cmd_run)
 
 
@@ -36,7 +40,11 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
         f"{'n/a' if summary['min_gap_m'] is None else format(summary['min_gap_m'], '.1f')} m, "
         f"{summary['fallbacks']} controller fallbacks",
     ]
-    if summary["n_never_inserted"]:
+    if summary.get("status") == "interrupted":
+        lines.append(
+            f"  interrupted ({summary['interrupted_by']}): {summary['n_never_inserted']} train(s) not inserted yet"
+        )
+    elif summary["n_never_inserted"]:
         lines.append(
             f"  never inserted: {summary['n_never_inserted']} train(s): {', '.join(summary['never_inserted'])} "
             "(see the never_inserted events for why)"
@@ -46,7 +54,8 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
     if summary["formations"]:
         ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
         lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
-    files = ", ".join(f.file_name for f in OUTPUT_FILES if f.stem not in ("scenario.resolved", "versions"))
+    shown = [f for f in OUTPUT_FILES if f.kind != "sumo" and f.stem not in ("scenario.resolved", "versions")]
+    files = ", ".join([*(f.file_name for f in shown), output_file_name("sumo_run")])
     lines.append(f"  outputs: {out_dir}/ ({files})")
     for table in summary.get("analysis_tables", ()):
         lines.append(table)
@@ -55,12 +64,24 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
 
 def cmd_run(args: argparse.Namespace) -> int:
     from railsim import api as engine, scenario
+    from railsim.engine.interrupt import stop_on_signals
 
-    scn = scenario.load(args.scenario)
     out = Path(args.out)
     progress = False if args.no_progress else None
-    summary = engine.run(scn, out, seed=args.seed, progress=progress)
+    with stop_on_signals() as stop:
+        try:
+            scn = scenario.load(args.scenario)
+            summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop, gui=args.gui)
+        except (ConfigError, SimulationError):
+            if stop.signum is None:
+                raise
+            # the signal reached a child first (netconvert building the world): nothing ran, nothing to write
+            print(f"railsim: interrupted ({stop.reason}) before the first step; no outputs", file=sys.stderr)
+            return stop.exit_code
     print(format_summary(summary, out))
+    if stop.signum is not None:
+        print(f"railsim: interrupted ({stop.reason}) at t = {summary['sim_s']:g} s; outputs so far in {out}/")
+        return stop.exit_code
     return exit_code(summary)
 
 

@@ -11,7 +11,8 @@ Per train and step (docs/architecture.md, "The step loop"):
    ``separation`` against any other train ahead; ``ca`` on the train's own sensor. A *command source*
    extension (the junction planner) may take over a train's roles while it flies a plan.
 3. **Arbitration** — the most restrictive command wins (:func:`controllers.base.arbitrate`); emergency braking
-   intervals and non-finite commands are events.
+   intervals and non-finite commands are events, and so is every role's fallback (``controller_fallback``
+   with the reason, plus a rate-limited WARNING: :mod:`railsim.engine.fallbacks`).
 4. **Plant** — :func:`railsim.physics.dynamics.step` (envelopes, jerk, lag, resistance, gradient) with
    actuator noise and injected biases, or an exact plant extension (carriages, monorail drive) whose step's
    mean speed SUMO is handed. The return value is the speed SUMO applies during the coming step.
@@ -27,9 +28,10 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate
+from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate, fallback_reason
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
+from railsim.engine.fallbacks import FallbackReporter
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead
@@ -73,6 +75,22 @@ class Disturbances:
     actuator_trains: Any  # None = every train
     biases: tuple[Any, ...]  # scenario faults.actuator_bias
 
+    @classmethod
+    def from_faults(cls, faults: Any, rng: np.random.Generator) -> Disturbances:
+        """The scenario's ``faults`` (sensor noise, actuator noise and bias); the sensor then the actuator stream
+        are seeded from ``rng``."""
+        noise_rng = np.random.default_rng(rng.integers(2**63))
+        actuator_rng = np.random.default_rng(rng.integers(2**63))
+        return cls(
+            float(faults.sensor_noise.position_sd_m),
+            float(faults.sensor_noise.speed_sd_mps),
+            noise_rng,
+            float(faults.actuator_noise.accel_sd_mps2),
+            actuator_rng,
+            faults.actuator_noise.trains,
+            tuple(faults.actuator_bias),
+        )
+
     def biased(self, t: float, train_id: str, u_mps2: float) -> float:
         """``u`` plus every injected actuator bias active for this train at ``t``."""
         for bias in self.biases:
@@ -109,6 +127,7 @@ class ControlStage:
         self.dt = dt_s
         self.step_method = step_method
         self.dist = disturbances
+        self.fallbacks = FallbackReporter(events)
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
 
@@ -264,6 +283,10 @@ class ControlStage:
     def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
         """Arbitrate the roles' commands (minimum) and advance the plant; returns the speed handed to SUMO."""
         veh = tr.trip.vehicle
+        for r, c in commands.items():  # every role's fallback counts, not only the winner's
+            if c.fallback:
+                tr.fallbacks += 1
+                self.fallbacks.report(t, tr.train_id, r, _controller_name(tr, r), fallback_reason(c))
         role, cmd = arbitrate(commands)
         if cmd.emergency and tr.emergency_since_s is None:
             tr.emergency_since_s = t
@@ -273,13 +296,13 @@ class ControlStage:
                 t, "emergency_brake_off", tr.train_id, role=role, duration_s=round(t - tr.emergency_since_s, 3)
             )
             tr.emergency_since_s = None
-        if cmd.fallback:
-            tr.fallbacks += 1
         if not math.isfinite(cmd.accel_mps2):
             self.events.record(t, "controller_nan", tr.train_id, role=role)
             log.error("%s: %s controller returned %r; braking", tr.train_id, role, cmd.accel_mps2)
+            reason = f"non-finite command {cmd.accel_mps2!r}; service brake"
             cmd = Command(-veh.service_decel_mps2, fallback=True)
             tr.fallbacks += 1
+            self.fallbacks.report(t, tr.train_id, role, _controller_name(tr, role), reason)
         if tr.exact_plant is not None:
             return self._exact_finish(t, tr, role, cmd, grad)
         u = cmd.accel_mps2
@@ -322,3 +345,9 @@ class ControlStage:
         tr.last_plan = None
         tr.sent_speed_mps = max(advance_m / self.dt, 0.0)
         return tr.sent_speed_mps
+
+
+def _controller_name(tr: TrainRuntime, role: str) -> str:
+    """The class of the controller that plays ``role`` for ``tr`` (the role's name when none is registered)."""
+    ctl = tr.controllers.get(role)
+    return type(ctl).__name__ if ctl is not None else role

@@ -40,8 +40,12 @@ class Fleet:
         """Trains on the line (inserted, not yet arrived or removed), in scenario order."""
         return [tr for tr in self.trains.values() if tr.status in ("inserting", "running")]
 
+    def n_finished(self) -> int:
+        """Trips that arrived or left the line."""
+        return sum(1 for tr in self.trains.values() if tr.status in ("arrived", "removed"))
+
     def all_done(self) -> bool:
-        return all(tr.status in ("arrived", "removed") for tr in self.trains.values())
+        return self.n_finished() == len(self.trains)
 
     # ------------------------------------------------------------------ set-up
     def build(self, scenario: Any, bundle: Any, dt_s: float, step_method: str) -> None:

@@ -20,6 +20,7 @@ Paper-specific behaviour plugs in as extensions chosen by the scenario (:mod:`ra
 
 from __future__ import annotations
 
+import logging
 import sys
 import time as _time
 from pathlib import Path
@@ -35,9 +36,11 @@ from railsim.engine.extensions import ExtensionContext, install_all
 from railsim.engine.depot import Depots
 from railsim.engine.fleet import Fleet
 from railsim.engine.insertion import Dispatcher
+from railsim.engine.interrupt import StopRequest
 from railsim.engine.knowledge import Knowledge, comm_channels
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead, Body, Occupancy
+from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import (
@@ -56,8 +59,7 @@ from railsim.errors import SimulationError
 from railsim.record.snapshot import RunSnapshot
 
 __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]
-
-PROGRESS_EVERY_S = 10  # progress bar update interval [simulated s]
+log = logging.getLogger(__name__)
 
 
 class Simulation:
@@ -70,6 +72,8 @@ class Simulation:
         seed: int | None = None,
         progress: bool | None = None,
         settings: EngineSettings | None = None,
+        stop: StopRequest | None = None,
+        gui: bool = False,
     ) -> None:
         from network.external import load_world, sumo_args
         from railsim import scenario as scn_mod
@@ -83,6 +87,7 @@ class Simulation:
         self.step_method = sim.step_method
         self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
+        self.stop, self.gui = stop or StopRequest(), gui  # a signal noted ends the run between steps; sumo-gui
         self.rng = np.random.default_rng(self.seed)
 
         self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
@@ -100,18 +105,7 @@ class Simulation:
         for sw in self.bundle.switches.values():
             self.interlocking.add_switch(Switch(sw.id, throw_time_s=float(sw.throw_time_s)))
         self.channels = comm_channels(self.layer, scenario)
-        faults = scenario.faults
-        noise_rng = np.random.default_rng(self.rng.integers(2**63))
-        actuator_rng = np.random.default_rng(self.rng.integers(2**63))
-        disturbances = Disturbances(
-            float(faults.sensor_noise.position_sd_m),
-            float(faults.sensor_noise.speed_sd_mps),
-            noise_rng,
-            float(faults.actuator_noise.accel_sd_mps2),
-            actuator_rng,
-            faults.actuator_noise.trains,
-            tuple(faults.actuator_bias),
-        )
+        disturbances = Disturbances.from_faults(scenario.faults, self.rng)  # its two streams, in this order
 
         # ---- the ports
         self.fleet = Fleet(scenario.source)
@@ -204,32 +198,28 @@ class Simulation:
         from railsim.engine.sumo import SumoBridge
 
         t_wall = _time.perf_counter()
-        bar = None
-        if self.progress:
-            from tqdm import tqdm
-
-            bar = tqdm(total=int(self.duration_s), unit="sim-s", desc=self.scenario.name, leave=False)
+        bar = RunProgress(self.scenario.name, len(self.trains), self.duration_s, self.progress)
         with SumoBridge(self._sumo_config()) as bridge:
             self.bridge = self.dispatcher.bridge = bridge
             self.turnbacks.bridge = bridge
             self.stops.drop_stop = bridge.drop_stop
             t = bridge.time_s
-            last_bar = t
-            while t <= self.duration_s + 1e-9:
+            log.info("simulating %s: %d trips, horizon %g s", self.scenario.name, len(self.trains), self.duration_s)
+            while t <= self.duration_s + 1e-9 and self.stop.signum is None:
                 self._step(t)
                 bridge.step()
                 self.steps += 1
                 t = bridge.time_s
-                if bar is not None and t - last_bar >= PROGRESS_EVERY_S:
-                    bar.update(int(t - last_bar))
-                    last_bar = t
+                bar.update(t, self.fleet.n_finished())
                 if self.fleet.all_done() or self.failure() is not None:
                     break
             self.end_s = t
-            self.dispatcher.report_never_inserted(t)
-            self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
-        if bar is not None:
-            bar.close()
+            if self.stop.reason is not None:  # a signal: write what the run has (railsim.engine.interrupt)
+                log.warning("%s: stopping at t = %g s; writing what the run has", self.stop.reason, t)
+            else:
+                self.dispatcher.report_never_inserted(t)
+                self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
+        bar.close(self.end_s, self.fleet.n_finished())
         self.wall_s = _time.perf_counter() - t_wall
         return self.recorder.summary(self.snapshot())
 
@@ -266,6 +256,8 @@ class Simulation:
             output_dir=self.out_dir if outs else None,
             sumo_outputs=outs,
             extra_args=self.sumo_extra_args,
+            run_dir=self.out_dir,
+            gui=self.gui,
         )
 
     def _step(self, t: float) -> None:
@@ -314,7 +306,6 @@ class Simulation:
                 if self.turnbacks.handover(t, tr) is None:  # no next trip for its unit
                     bridge.remove(tr.sumo_id)
                 self.formations.on_off_line(t, tr)
-                tr.status = "removed"
 
     def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> Any:
         """Route chainage from SUMO's odometer; adopt SUMO's speed where it held a train (a stop)."""
@@ -368,6 +359,7 @@ class Simulation:
             extra_summary=extra,
             failure=self.failure(),
             extra_tables=primary_delays.tables(self.primary, self.recorder.stops, self.trains),
+            interrupted_by=self.stop.reason,
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:
@@ -380,15 +372,17 @@ def run(
     seed: int | None = None,
     progress: bool | None = None,
     settings: EngineSettings | None = None,
+    stop: StopRequest | None = None,
+    gui: bool = False,
 ) -> dict[str, Any]:
     """Run ``scenario`` (a :class:`railsim.scenario.Scenario`) and write its outputs to ``out_dir``.
 
     Returns the summary dictionary (also written as ``summary.json``). :func:`railsim.api.run` adds the paper
-    families' analyses of the files written; use that one unless you want the bare engine.
+    families' analyses of the files written; use that one unless you want the bare engine. ``stop``: a signal
+    noted on it ends the run between two steps (:mod:`railsim.engine.interrupt`); ``gui``: sumo-gui via traci.
     """
-    sim = Simulation(
-        scenario, Path(out_dir) if out_dir is not None else None, seed=seed, progress=progress, settings=settings
-    )
+    out = Path(out_dir) if out_dir is not None else None
+    sim = Simulation(scenario, out, seed=seed, progress=progress, settings=settings, stop=stop, gui=gui)
     summary = sim.run()
     if sim.out_dir is not None:
         sim.write(sim.out_dir)

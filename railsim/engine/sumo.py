@@ -1,4 +1,4 @@
-"""The SUMO bridge: the only module that imports libsumo.
+"""The SUMO bridge: the only module that imports libsumo (and traci, for ``railsim run --gui``).
 
 SUMO is the world: it owns the track geometry, moves the trains by the speeds we give it, keeps station dwell
 (``duration``/``until``) once a train halts with its whole length on the platform, writes its own outputs and
@@ -18,6 +18,10 @@ What this module does, and why (numbers in ``shared/notes/sumo_rail_findings.md`
   come as the odometer ``getDistance`` (route chainage = depart chainage + odometer), never x/y, and never
   ``getDrivingDistance`` (it returns −2^30 for points behind).
 * **Guard.** ``--end`` is ignored when we drive the loop; the engine guards on simulated time.
+* **Run folder.** With ``SumoConfig.run_dir`` the vTypes file is written there (not in a temp dir) and, on
+  close, the trains SUMO got and ``.sumocfg`` files that open them (:mod:`railsim.engine.sumo_files`).
+* **GUI.** ``SumoConfig.gui`` starts the eclipse-sumo wheel's ``sumo-gui`` through traci (a socket per call:
+  slower, for looking) with the same command line; every call below goes to whichever API was started.
 """
 
 from __future__ import annotations
@@ -25,10 +29,10 @@ from __future__ import annotations
 import logging
 import os
 import tempfile
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
-from xml.sax.saxutils import quoteattr
+from typing import Any
 
 import numpy as np
 
@@ -43,9 +47,15 @@ if not os.environ["SUMO_HOME"]:
 
 import libsumo  # noqa: E402  (after SUMO_HOME)
 
+from railsim.engine import sumo_files  # noqa: E402
+from railsim.record.output import write_bytes  # noqa: E402
 from railsim.errors import SimulationError  # noqa: E402
 
 log = logging.getLogger(__name__)
+
+# The TraCI API the bridge talks to: libsumo in-process (every run), or traci driving a sumo-gui process
+# (``railsim run --gui``); both have the same functions and a ``TraCIException``. Set by ``SumoBridge.start``.
+_api: Any = libsumo
 
 _STOP_BUS_STOP = 0x08  # trainStops are busStops to SUMO's stop logic
 _ACTIVE = {"started": False}
@@ -91,6 +101,8 @@ class SumoConfig:
     output_dir: Path | None = None
     sumo_outputs: Sequence[str] = ()  # any of: tripinfo, stops, fcd, collisions
     extra_args: Sequence[str] = ()
+    run_dir: Path | None = None  # the run folder: vTypes, inserted trains and .sumocfg files go there
+    gui: bool = False  # sumo-gui through traci instead of libsumo (for looking; slower)
 
 
 @dataclass
@@ -110,19 +122,6 @@ class TrainStates:
         self.index = {vid: i for i, vid in enumerate(self.ids)}
 
 
-def _write_vtypes(path: Path, vtypes: Iterable[VTypeSpec]) -> None:
-    lines = ["<routes>"]
-    for vt in vtypes:
-        lines.append(
-            f'  <vType id={quoteattr(vt.type_id)} vClass={quoteattr(vt.vclass)} length="{vt.length_m:.3f}"'
-            f' maxSpeed="{vt.max_speed_mps:.3f}" accel="{vt.accel_mps2:.3f}" decel="{vt.decel_mps2:.3f}"'
-            f' emergencyDecel="{vt.emergency_decel_mps2:.3f}" minGap="0" sigma="0" tau="{vt.tau_s:g}"'
-            ' carFollowModel="Krauss"/>'
-        )
-    lines.append("</routes>")
-    path.write_text("\n".join(lines) + "\n", encoding="utf-8")
-
-
 class SumoBridge:
     """Owns one libsumo simulation. Use as a context manager so SUMO is always closed."""
 
@@ -131,6 +130,8 @@ class SumoBridge:
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
         self._routes: set[str] = set()
         self._controlled: set[str] = set()
+        self._vtype_file: Path | None = None
+        self.inserted: list[sumo_files.InsertedTrain] = []  # every train as SUMO got it (for the run folder)
         self.started = False
 
     # ---------------------------------------------------------------- lifecycle
@@ -193,18 +194,26 @@ class SumoBridge:
         return args
 
     def start(self) -> SumoBridge:
+        global _api
         if _ACTIVE["started"]:
             raise SimulationError("a SUMO simulation is already running in this process (libsumo hosts one)")
-        self._tmp = tempfile.TemporaryDirectory(prefix="railsim-sumo-")
+        run_dir = self.config.run_dir
+        if run_dir is None:
+            self._tmp = tempfile.TemporaryDirectory(prefix="railsim-sumo-")
         vtype_file = None
         if self.config.vtypes:
-            vtype_file = Path(self._tmp.name) / "vtypes.rou.xml"
-            _write_vtypes(vtype_file, self.config.vtypes)
+            vtype_file = Path(run_dir or self._tmp.name) / sumo_files.VTYPES_FILE  # type: ignore[union-attr]
+            write_bytes(vtype_file, sumo_files.vtypes_xml(self.config.vtypes).encode("utf-8"))
+        self._vtype_file = vtype_file
         args = self.command_line(vtype_file)
         log.debug("starting SUMO: %s", " ".join(args))
+        _api = libsumo
         try:
-            libsumo.start(args)
-        except libsumo.TraCIException as exc:  # SUMO refused the inputs: show its message
+            if self.config.gui:
+                _api = _start_gui(args)
+            else:
+                libsumo.start(args)
+        except _api.TraCIException as exc:  # SUMO refused the inputs: show its message
             self._cleanup()
             raise SimulationError(f"SUMO could not start: {exc}") from None
         except Exception as exc:  # libsumo raises FatalTraCIError for unreadable nets
@@ -217,11 +226,21 @@ class SumoBridge:
     def close(self) -> None:
         if self.started:
             try:
-                libsumo.close()
+                _api.close()
             finally:
                 self.started = False
                 _ACTIVE["started"] = False
+        self._write_run_files()
         self._cleanup()
+
+    def _write_run_files(self) -> None:
+        """The trains SUMO got and the ``.sumocfg`` files, in the run folder (:mod:`railsim.engine.sumo_files`)."""
+        cfg = self.config
+        if cfg.run_dir is None or self._vtype_file is None:
+            return
+        sumo_files.write_run_files(
+            cfg.run_dir, self.command_line(self._vtype_file), self._vtype_file, self.inserted, "fcd" in cfg.sumo_outputs
+        )
 
     def _cleanup(self) -> None:
         if self._tmp is not None:
@@ -237,17 +256,17 @@ class SumoBridge:
     # ---------------------------------------------------------------- world
     @property
     def time_s(self) -> float:
-        return float(libsumo.simulation.getTime())
+        return float(_api.simulation.getTime())
 
     def step(self) -> None:
-        libsumo.simulationStep()
+        _api.simulationStep()
 
     def add_route(self, route_id: str, edges: Sequence[str]) -> None:
         if route_id in self._routes:
             return
         try:
-            libsumo.route.add(route_id, list(edges))
-        except libsumo.TraCIException as exc:
+            _api.route.add(route_id, list(edges))
+        except _api.TraCIException as exc:
             raise SimulationError(f"SUMO rejected route {route_id!r}: {exc}") from None
         self._routes.add(route_id)
 
@@ -263,7 +282,7 @@ class SumoBridge:
     ) -> None:
         """Insert a train now (it appears after the next step) with its stops; controlled → speedMode 32."""
         try:
-            libsumo.vehicle.add(
+            _api.vehicle.add(
                 train_id,
                 route_id,
                 type_id,
@@ -273,71 +292,82 @@ class SumoBridge:
             )
             _set_stops(train_id, stops)
             if controlled:
-                libsumo.vehicle.setSpeedMode(train_id, 32)
+                _api.vehicle.setSpeedMode(train_id, 32)
                 self._controlled.add(train_id)
-        except libsumo.TraCIException as exc:
+        except _api.TraCIException as exc:
             raise SimulationError(f"SUMO rejected train {train_id!r}: {exc}") from None
+        self.inserted.append(
+            sumo_files.InsertedTrain(
+                train_id,
+                type_id,
+                self.time_s,
+                float(depart_pos_m),
+                float(depart_speed_mps),
+                tuple(_api.route.getEdges(route_id)),
+                tuple((s.stop_id, s.duration_s, s.until_s) for s in stops),
+            )
+        )
 
     def reroute(self, train_id: str, edges: Sequence[str], stops: Sequence[StopSpec]) -> None:
         """Give a standing train a new route from the edge it is on (a unit's next trip) and its stops."""
         try:
-            libsumo.vehicle.setRoute(train_id, list(edges))
+            _api.vehicle.setRoute(train_id, list(edges))
             _set_stops(train_id, stops)
-        except libsumo.TraCIException as exc:
+        except _api.TraCIException as exc:
             raise SimulationError(f"SUMO rejected the next route of {train_id!r}: {exc}") from None
 
     def remove(self, train_id: str) -> None:
         try:
-            libsumo.vehicle.remove(train_id)
-        except libsumo.TraCIException:
+            _api.vehicle.remove(train_id)
+        except _api.TraCIException:
             pass
         self._controlled.discard(train_id)
 
     def set_length(self, train_id: str, length_m: float) -> None:
-        libsumo.vehicle.setLength(train_id, float(length_m))
+        _api.vehicle.setLength(train_id, float(length_m))
 
     def drop_stop(self, train_id: str, stop_id: str, lane_stop_m: tuple[float, float] | None = None) -> None:
         """Drop the pending stop ``stop_id`` (or its ``lane_stop_m`` window) if it is still the train's next one (a train overran the platform: logged by
         the engine). SUMO itself drops a stop a train has run past, so the next stop is compared first: dropping
         blindly would remove the stop after it (the destination — the train would then never arrive)."""
         try:
-            pending = libsumo.vehicle.getStops(train_id, 1)
+            pending = _api.vehicle.getStops(train_id, 1)
             if not pending:
                 return
             nxt = pending[0]
             if lane_stop_m is None:
                 same = nxt.stoppingPlaceID == stop_id
             else:
-                same = not nxt.stoppingPlaceID and nxt.lane == libsumo.busstop.getLaneID(stop_id)
+                same = not nxt.stoppingPlaceID and nxt.lane == _api.busstop.getLaneID(stop_id)
                 same = same and abs(nxt.endPos - lane_stop_m[1]) < 1e-3
             if same:
-                libsumo.vehicle.replaceStop(train_id, 0, "")
-        except libsumo.TraCIException as exc:
+                _api.vehicle.replaceStop(train_id, 0, "")
+        except _api.TraCIException as exc:
             log.warning("could not drop stop %s of %s: %s", stop_id, train_id, exc)
 
     # ---------------------------------------------------------------- state
     def present_ids(self) -> list[str]:
-        return list(libsumo.vehicle.getIDList())
+        return list(_api.vehicle.getIDList())
 
     def departed_ids(self) -> list[str]:
-        return list(libsumo.simulation.getDepartedIDList())
+        return list(_api.simulation.getDepartedIDList())
 
     def arrived_ids(self) -> list[str]:
-        return list(libsumo.simulation.getArrivedIDList())
+        return list(_api.simulation.getArrivedIDList())
 
     def pending_ids(self) -> list[str]:
-        return list(libsumo.simulation.getPendingVehicles())
+        return list(_api.simulation.getPendingVehicles())
 
     def read(self, ids: Sequence[str] | None = None) -> TrainStates:
         """Ground truth for ``ids`` (default: every train present) via direct getters."""
-        ids = list(libsumo.vehicle.getIDList()) if ids is None else list(ids)
+        ids = list(_api.vehicle.getIDList()) if ids is None else list(ids)
         n = len(ids)
         odo = np.empty(n)
         spd = np.empty(n)
         lpos = np.empty(n)
         stopped = np.zeros(n, dtype=bool)
         edges: list[str] = []
-        v = libsumo.vehicle
+        v = _api.vehicle
         for i, vid in enumerate(ids):
             odo[i] = v.getDistance(vid)
             spd[i] = v.getSpeed(vid)
@@ -347,26 +377,35 @@ class SumoBridge:
         return TrainStates(self.time_s, ids, odo, spd, lpos, edges, stopped)
 
     def set_speeds(self, ids: Sequence[str], speeds_mps: Sequence[float] | np.ndarray) -> None:
-        set_speed = libsumo.vehicle.setSpeed
+        set_speed = _api.vehicle.setSpeed
         for vid, spd in zip(ids, speeds_mps):
             set_speed(vid, float(spd))
 
     def release_speed(self, train_id: str) -> None:
         """Hand a train back to SUMO's car-following model (``setSpeed(-1)``, default speed mode)."""
-        libsumo.vehicle.setSpeed(train_id, -1)
-        libsumo.vehicle.setSpeedMode(train_id, 31)
+        _api.vehicle.setSpeed(train_id, -1)
+        _api.vehicle.setSpeedMode(train_id, 31)
         self._controlled.discard(train_id)
 
     def collisions(self) -> list[dict[str, object]]:
         """SUMO's own collision reports of the last step (an independent check of our ground truth)."""
         out = []
-        for c in libsumo.simulation.getCollisions():
+        for c in _api.simulation.getCollisions():
             out.append({"collider": c.collider, "victim": c.victim, "type": c.type, "lane": c.lane, "pos_m": c.pos})
         return out
 
     def stop_states(self, train_id: str) -> list[tuple[str, float, float]]:
         """Remaining stops of a train as ``(stop_id, duration_s, until_s)`` (for checks and debugging)."""
-        return [(s.stoppingPlaceID, s.duration, s.until) for s in libsumo.vehicle.getStops(train_id)]
+        return [(s.stoppingPlaceID, s.duration, s.until) for s in _api.vehicle.getStops(train_id)]
+
+
+def _start_gui(args: list[str]) -> Any:
+    """Start sumo-gui (the eclipse-sumo wheel's) through traci with ``args``; it starts running at once."""
+    import traci
+    from sumolib import checkBinary
+
+    traci.start([checkBinary("sumo-gui"), *args[1:], "--start", "true", "--quit-on-end", "true"])
+    return traci
 
 
 def _set_stops(train_id: str, stops: Sequence[StopSpec]) -> None:
@@ -376,13 +415,13 @@ def _set_stops(train_id: str, stops: Sequence[StopSpec]) -> None:
         duration = -1073741824.0 if stop.duration_s is None else float(stop.duration_s)
         until = -1073741824.0 if stop.until_s is None else float(stop.until_s)
         if stop.lane_stop_m is None:
-            libsumo.vehicle.setBusStop(train_id, stop.stop_id, duration, until, flags=_STOP_BUS_STOP)
+            _api.vehicle.setBusStop(train_id, stop.stop_id, duration, until, flags=_STOP_BUS_STOP)
             continue
-        lane = libsumo.busstop.getLaneID(stop.stop_id)
+        lane = _api.busstop.getLaneID(stop.stop_id)
         start_m, end_m = stop.lane_stop_m
-        libsumo.vehicle.setStop(
+        _api.vehicle.setStop(
             train_id,
-            libsumo.lane.getEdgeID(lane),
+            _api.lane.getEdgeID(lane),
             pos=end_m,
             laneIndex=int(lane.rsplit("_", 1)[1]),
             duration=duration,
@@ -392,7 +431,7 @@ def _set_stops(train_id: str, stops: Sequence[StopSpec]) -> None:
 
 
 def version() -> str:
-    """SUMO version string of the loaded libsumo."""
+    """SUMO version string of the loaded _api."""
     try:
         return str(libsumo.simulation.getVersion()[1])
     except Exception:  # not started

@@ -37,7 +37,7 @@ class TrainRuntime:
     view: RouteView
     controllers: dict[str, Any]
     plant: dynamics.PlantState = field(default_factory=lambda: dynamics.PlantState(speed_mps=0.0))
-    status: str = "scheduled"  # scheduled | inserting | running | arrived | removed
+    status: str = "scheduled"  # scheduled | inserting | running | arrived | removed (left the line early)
     inserted_s: float | None = None
     departed_s: float | None = None
     arrived_s: float | None = None

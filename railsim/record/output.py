@@ -1,7 +1,9 @@
 """Atomic file writers for run outputs (temp file in the same folder, then ``os.replace``).
 
 A run interrupted half-way never leaves a half-written ``trips.csv`` behind: every file either has its
-previous content or its new complete content. CSV is written with a fixed column order and fixed float
+previous content or its new complete content. ``mkstemp`` creates its temp file with mode 0600; the file is
+given the mode a plain ``open()`` would have (``0666`` less the user's umask, typically 0644) before it
+replaces the old one, so colleagues and web servers can read a run's ``report.html``. CSV is written with a fixed column order and fixed float
 formatting (``repr`` round-trip floats) so the same seed gives byte-identical files.
 """
 
@@ -20,11 +22,20 @@ from typing import Any
 import yaml
 
 
+def _umask() -> int:
+    """The process's umask (read by setting it and putting it back: POSIX has no getter)."""
+    mask = os.umask(0o022)
+    os.umask(mask)
+    return mask
+
+
 def write_bytes(path: Path, data: bytes) -> None:
+    """Write ``data`` to ``path`` atomically, with the permissions the user's umask gives new files."""
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", dir=str(path.parent))
     try:
+        os.fchmod(fd, 0o666 & ~_umask())
         with os.fdopen(fd, "wb") as fh:
             fh.write(data)
         os.replace(tmp, path)

@@ -9,7 +9,9 @@ Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.record.ou
 
 ``trips.csv``       one row per trip: planned/actual departure and arrival, travel time, delay at arrival
                     (actual − planned free-run time), traction energy [kWh], minimum true gap [m], time coupled,
-                    max jerk, stops served/scheduled, controller fallbacks, final status
+                    max jerk, stops served/scheduled, controller fallbacks, final status (``arrived``;
+                    ``running``/``inserting``/``scheduled`` when the run ended first; ``removed`` when it left
+                    the line by a ``leave`` event)
 ``stops.csv``       one row per trip and stop: planned/actual arrival, departure, dwell, stopping error [m]
                     (front − stopping mark at the halt), missed flag
 ``formations.csv``  one row per formation: coupling requests/successes/failures, time to couple, time coupled,
@@ -18,7 +20,9 @@ Files written by :meth:`Recorder.write` (atomically, see :mod:`railsim.record.ou
 ``trace.csv``       per-train samples every ``trace_stride_s``: chainage, speed, applied/commanded acceleration,
                     winning controller role, true gap, formation state, and the coupled controller's solve time
                     and objective (when it reports them: ``Command.info["solve_time_s"]``, ``info["J"]``)
-``summary.json``    totals (see :meth:`summary`)
+``summary.json``    totals (see :meth:`summary`); ``status`` is ``completed``, ``failed`` (a desync, a stall:
+                    ``failure`` says why) or ``interrupted`` (SIGINT/SIGTERM: ``interrupted_by``; every table
+                    holds what happened up to ``sim_s``)
 ``delays.csv``      with ``disturbances:`` only (``RunSnapshot.extra_tables``): one row per trip and stop, arrival
                     delay split into primary (injected) and secondary (knock-on) (railsim.engine.primary_delays)
 """
@@ -249,6 +253,8 @@ class Recorder:
         return {
             "scenario": run.scenario_name,
             "seed": run.seed,
+            "status": run.status,
+            "interrupted_by": run.interrupted_by,
             "n_trains": len(service),
             "n_inserted": sum(1 for tr in service if tr.inserted_s is not None),
             "n_arrived": sum(1 for tr in service if tr.arrived_s is not None),
@@ -300,6 +306,8 @@ class Recorder:
             "trace": (self.trace, TRACE_COLUMNS),
         }
         for spec in OUTPUT_FILES:
+            if spec.kind == "sumo":  # the SUMO bridge writes these
+                continue
             if spec.kind == "table":
                 rows, cols = tables[spec.stem]
                 for p in output.write_table(out_dir, spec.stem, rows, cols, formats):

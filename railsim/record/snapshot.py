@@ -68,11 +68,19 @@ class RunSnapshot:
     failure: str | None = None  # why the run stopped early (a desync, a stall), or None
     # tables only some runs write (``delays.csv`` with ``disturbances:``): stem -> (rows, columns)
     extra_tables: dict[str, tuple[list[dict[str, Any]], list[str]]] = field(default_factory=dict)
+    interrupted_by: str | None = None  # the signal that stopped the run ("SIGINT", "SIGTERM"), or None
+
+    @property
+    def status(self) -> str:
+        """``interrupted`` (a signal), ``failed`` (a desync, a stall) or ``completed`` (all trips or the horizon)."""
+        if self.interrupted_by is not None:
+            return "interrupted"
+        return "failed" if self.failure is not None else "completed"
 
 
 @dataclass(frozen=True)
 class OutputFile:
-    """One file of a run folder: ``kind`` is ``table`` (CSV, + Parquet if asked) or ``document``."""
+    """One file of a run folder: ``kind`` is ``table`` (CSV, + Parquet if asked), ``document`` or ``sumo``."""
 
     stem: str
     kind: str
@@ -89,4 +97,14 @@ OUTPUT_FILES: tuple[OutputFile, ...] = (
     OutputFile("summary", "document", "summary.json", "totals of the run"),
     OutputFile("scenario.resolved", "document", "scenario.resolved.yaml", "the scenario with every default"),
     OutputFile("versions", "document", "versions.json", "railsim, SUMO and numpy versions"),
+    # kind "sumo": written by the SUMO bridge, not the recorder (railsim.engine.sumo_files)
+    OutputFile("sumo_vtypes", "sumo", "sumo_vtypes.rou.xml", "the run's SUMO vehicle types"),
+    OutputFile("sumo_routes", "sumo", "sumo_routes.rou.xml", "every train as SUMO got it: route, stops"),
+    OutputFile("sumo_run", "sumo", "sumo_run.sumocfg", "opens the run's net, stops and trains in sumo/sumo-gui"),
+    OutputFile("sumo_replay", "sumo", "sumo_replay.sumocfg", "net and stops to replay sumo_fcd.xml on (fcd only)"),
 )
+
+
+def output_file_name(stem: str) -> str:
+    """The file name of the :data:`OUTPUT_FILES` row ``stem``."""
+    return next(f.file_name for f in OUTPUT_FILES if f.stem == stem)

@@ -159,6 +159,7 @@ How the package is laid out (one concept per module; dependencies point up the l
     overrides.py            dotted override paths (with_overrides)
     loading.py              YAML reading (line/column errors, bounded structure: railsim.inputs), load/loads/
                             from_mapping, resolved_yaml
+    shipped.py              the scenarios of scenarios/ by name, from any working directory (shipped)
     world.py                checks against the built world (check_against_world, with_station_ids)
 
 Everything the rest of railsim uses is re-exported here, so callers write ``from railsim import scenario``
@@ -178,6 +179,7 @@ from railsim.scenario.events import (
     register_event_kind,
 )
 from railsim.scenario.loading import from_mapping, load, loads, parse_yaml, read_text, resolved_yaml
+from railsim.scenario.shipped import shipped, shipped_names
 from railsim.scenario.model import (
     COMM_CHANNELS,
     DEFAULT_COUPLING_TIMEOUT_S,
@@ -271,6 +273,8 @@ __all__ = [
     "DEFAULT_COUPLING_TIMEOUT_S",
     # event kinds
     "EVENT_KINDS",
+    "shipped",
+    "shipped_names",
     "EVENT_TYPES",
     "EventKind",
     "EventField",

@@ -175,6 +175,17 @@ def _grid(lo_s: float, hi_s: float, tol_s: float) -> list[float]:
     return [round(min(lo_s + k * tol_s, hi_s), 9) for k in range(n + 1)]
 
 
+def planned_probes(n_grid: int, workers: int, scan: bool, n_confirm: int) -> int:
+    """How many probes a search usually runs (the progress bar's total): every grid point with ``scan``, else
+    ``hi`` and ``lo`` plus ``workers`` points per round until the bracket is one step wide; then the confirmations.
+    A failed confirmation or a non-monotone probe can add a few; a feasible ``lo`` or infeasible ``hi`` ends sooner.
+    """
+    if scan or n_grid <= 2:
+        return n_grid + n_confirm
+    rounds = math.ceil(math.log(n_grid - 1) / math.log(workers + 1) - 1e-9)
+    return min(n_grid, 2 + workers * rounds) + n_confirm
+
+
 def _frontier(state: Mapping[int, bool]) -> int | None:
     """Smallest probed grid index with every probed index >= it feasible (None if the top one is infeasible)."""
     best = None
@@ -275,7 +286,8 @@ def find_min_headway(
     if progress or (progress is None and sys.stderr.isatty()):
         from tqdm import tqdm
 
-        bar = tqdm(unit="probe", desc="min headway")
+        total = planned_probes(len(grid), workers, scan, len(confirm))
+        bar = tqdm(total=total, unit="probe", desc=f"min headway ({len(grid)} grid points)")
 
     def run(indices: Sequence[int], seeds: Sequence[int], round_no: int) -> None:
         tasks, cached, index_of = [], [], {}
@@ -290,6 +302,8 @@ def find_min_headway(
                     run_dir = out / "runs" / case.case_id if (out is not None and keep_runs) else None
                     tasks.append(CaseTask(Path(scenario_path), case, run_dir, timeout_s))
         results = list(cached)
+        if bar is not None and cached:
+            bar.update(len(cached))  # probes a previous call with the same --out already ran
         for task, row in execute(tasks, workers=workers, dask_address=dask_address):
             if out is not None:
                 write_row(out, task.case.case_id, row)
@@ -339,6 +353,8 @@ def find_min_headway(
             break
     finally:
         if bar is not None:
+            bar.total = bar.n  # the search is over: what it ran is the whole
+            bar.refresh()
             bar.close()
 
     b = _frontier(feasible_at)

@@ -26,11 +26,16 @@ def _flatten(prefix: str, value: Any, out: dict[str, Any]) -> None:
 
 
 def summary_metrics(summary: Mapping[str, Any]) -> dict[str, Any]:
-    """The scalar metrics of a run's summary, nested keys joined with ``.``; ``wall_s`` renamed ``engine_wall_s``."""
+    """The scalar metrics of a run's summary, nested keys joined with ``.``; ``wall_s`` renamed ``engine_wall_s``
+    and the run's ``status`` (``completed``/``failed``/``interrupted``) ``run_status``: the row's own ``status``
+    says whether the case ran (``ok``/``failed``)."""
     flat: dict[str, Any] = {}
     _flatten("", {k: v for k, v in summary.items() if k != "analysis_tables"}, flat)
     if "wall_s" in flat:
         flat["engine_wall_s"] = flat.pop("wall_s")
+    if "status" in flat:
+        flat["run_status"] = flat.pop("status")
+    flat.pop("interrupted_by", None)  # a case is never interrupted by a signal on its own (the sweep stops it)
     flat.pop("seed", None)  # the row's own seed column
     return flat
 

@@ -40,8 +40,10 @@ class CaseTask:
 def _connect(dask_address: str) -> Any:
     try:
         from distributed import Client
-    except ImportError:  # pragma: no cover - a declared dependency
-        raise ConfigError(None, "--dask", "the 'distributed' package is not installed") from None
+    except ImportError:  # an optional extra: only --dask needs it
+        raise ConfigError(
+            None, "--dask", "needs the dask extra: pip install 'railsim[dask]' (dask and distributed)"
+        ) from None
     try:
         return Client(dask_address, timeout=f"{DASK_CONNECT_TIMEOUT_S}s")
     except (OSError, TimeoutError, ValueError) as exc:
