@@ -53,7 +53,8 @@ and only re-enumerates the orders when that order has become infeasible.
 
 The first plan must fit the online budget, so it does not search every order: it solves the order with the
 earliest estimated coupling (:func:`order_estimates`: fastest profiles held back by the switch intervals at the
-switch where each arises) with ``first_iterations`` QPs. Only if that plan is infeasible are all orders screened,
+switch where each arises) with ``first_iterations`` QPs, then, if that plan is infeasible, the runner-up (up to
+``first_orders`` orders). Only if none of them has a feasible plan are all orders screened,
 visited by a kinematic lower bound on ``f_c`` (:func:`order_lower_bound`) and skipped once the bound exceeds the
 best verified cost. Every result is **verified with** :func:`controllers.junction.model.rollout` (and,
 when given, the exact interlocking rule): a plan is feasible only if the planner's own model says so. Everything is
@@ -120,7 +121,8 @@ class QpOrderParams:
     prox_weight: float = 0.05  # initial proximal weight on |E − Ē|² (the step control)
     max_iterations: int = 30  # QP solves per order (the chosen order, a re-plan)
     replan_iterations: int = 8  # QP solves of a warm-started re-plan (in the previous plan's order)
-    first_iterations: int = 10  # QP solves of the first plan in the arrival order (the online budget)
+    first_iterations: int = 10  # QP solves per order of the first plan (the online budget)
+    first_orders: int = 2  # orders the first plan tries, earliest estimated coupling first, before a full search
     screen_iterations: int = 40  # QP solves per order when all orders are searched (arrival order infeasible)
     feasible_tol: float = 0.02  # soft-constraint violation [s, m/s] small enough to stop (margins absorb it)
     converge_merit: float = 0.3  # merit improvement (cost units, λ4 = 1 per train-second) below which to stop
@@ -145,7 +147,7 @@ class QpOrderParams:
         ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("slack_weight", self.slack_weight > 0.0, "a number > 0", self.slack_weight)
-        for name in ("max_iterations", "replan_iterations", "first_iterations", "screen_iterations"):
+        for name in ("max_iterations", "replan_iterations", "first_iterations", "first_orders", "screen_iterations"):
             require(name, int(getattr(self, name)) >= 1, "an integer >= 1", getattr(self, name))
 
 
@@ -162,6 +164,7 @@ class QpOrderResult:
     orders_solved: int
     wall_time_s: float
     violations: dict[str, float] = field(default_factory=dict)  # soft-constraint shortfall per kind (last QP)
+    converged: bool = True  # the chosen order's SCP met its convergence test before its QP budget ran out
 
 
 class _Kinematics:
@@ -758,46 +761,79 @@ def _fine_grids(scp: _OrderSCP) -> tuple[list[np.ndarray], list[np.ndarray]]:
     return grids, caps
 
 
+def _fastest_runs(scp: _OrderSCP, a_up: float, a_down: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per train its fine grid and the time along it on its fastest profile (towards the line speed at ``a_up``,
+    braking curves into its turnout limits at ``a_down``: :func:`_profile` on the bounds of ``scp``)."""
+    grids, caps = _fine_grids(scp)
+    runs = []
+    for k, s in enumerate(grids):
+        E = _profile(s, scp.v0[k] ** 2, caps[k].copy(), scp.p.line_speed_mps, a_up, a_down, (math.inf, 0.0))
+        v = np.sqrt(np.maximum(E, 1e-6))
+        runs.append(np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s) / (v[:-1] + v[1:]))]))
+    return grids, runs
+
+
+def _chained_passages(
+    problem: Problem,
+    qp: QpOrderParams,
+    order: tuple[int, ...],
+    grids: list[np.ndarray],
+    runs: list[np.ndarray],
+) -> tuple[dict[int, dict[str, float]], dict[int, float]]:
+    """Each train's switch passages (by switch id) and hold [s] in ``order`` when it runs its fastest profile (``runs``) but is held
+    back at each of its switches until the switch is ready for it: after the switch interval behind the previous
+    user in ``order`` (``t_ls`` when the legs differ, plus ``headway_margin_s``), and for the
+    first user after the switch's own lock and throw. A hold is carried on along the train's path, so an interval
+    charged at ``sw1`` delays the merge passage too (two trains from ``sw1``'s legs run on at different speeds:
+    their interval at the merge is not the one at ``sw1``)."""
+    p = problem.params
+    last: dict[str, tuple[float, str]] = {}  # switch -> (passage time, leg) of its previous user
+    passages: dict[int, dict[str, float]] = {}
+    holds: dict[int, float] = {}
+    for k in order:
+        hold = 0.0
+        passages[k] = {}
+        for sw in sorted(problem.trains[k].switches, key=lambda x: x.distance_m):
+            t_sw = float(np.interp(sw.distance_m, grids[k], runs[k])) + hold
+            prev = last.get(sw.switch_id)
+            if prev is not None:
+                differ = prev[1] != sw.leg or p.headway_all_consecutive
+                ready = prev[0] + (p.throw_time_s if differ else p.min_time_gap_s) + qp.headway_margin_s
+            else:
+                st = problem.switch_states.get(sw.switch_id)
+                ready = 0.0
+                if st is not None:
+                    ready = st.locked_until_s + (p.throw_time_s if sw.leg != st.position else 0.0)
+                    ready = ready + qp.headway_margin_s if ready > 0.0 else 0.0
+            hold += max(ready - t_sw, 0.0)
+            t_sw = max(t_sw, ready)
+            last[sw.switch_id] = (t_sw, sw.leg)
+            passages[k][sw.switch_id] = t_sw
+        holds[k] = hold
+    return passages, holds
+
+
 def order_estimates(problem: Problem, qp: QpOrderParams, orders: list[tuple[int, ...]]) -> list[float]:
     """Estimated coupling instant of each order [s] — how the first plan picks its order.
 
-    Every train runs its fastest profile (full acceleration towards the line speed, braking curves into its
-    turnout limits: :func:`_profile` on the bounds of :class:`_OrderSCP`), held back at each of its switches until
-    the switch interval behind the previous user of that switch in the order has passed (``t_ls`` when the legs
-    differ, plus ``headway_margin_s``), a hold it carries on along its path; the coupling instant is when the
-    leader reaches F or, if later, a follower its slot. Unlike :func:`order_lower_bound` it charges an interval
-    at the switch where it arises (at ``sw1`` for two trains from ``sw1``'s legs, not at the merge).
+    Every train runs its fastest profile (full acceleration, braking curves into its turnout limits) held back at
+    its switches by :func:`_chained_passages`; the coupling instant is when the leader reaches F or, if later, a
+    follower its slot. Unlike :func:`order_lower_bound` it charges an interval at the switch where it arises
+    (at ``sw1`` for two trains from ``sw1``'s legs, not at the merge) and the switches' own positions.
     """
     if not orders:
         return []
     scp = _OrderSCP(problem, orders[0], qp)  # bounds and caps do not depend on the order
     p = scp.p
-    grids, caps = _fine_grids(scp)
-    none = (math.inf, 0.0)
-    run: list[np.ndarray] = []
-    for k, s in enumerate(grids):
-        E = _profile(s, scp.v0[k] ** 2, caps[k].copy(), p.line_speed_mps, p.accel_max_mps2, abs(p.accel_min_mps2), none)
-        v = np.sqrt(np.maximum(E, 1e-6))
-        run.append(np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s) / (v[:-1] + v[1:]))]))
-    switches = [sorted(tr.switches, key=lambda x: x.distance_m) for tr in problem.trains]
+    grids, runs = _fastest_runs(scp, p.accel_max_mps2, abs(p.accel_min_mps2))
     out = []
     for order in orders:
-        last: dict[str, tuple[float, str]] = {}  # switch -> (passage time, leg) of its previous user
+        _, holds = _chained_passages(problem, qp, order, grids, runs)
         lead = order[0]
-        t_c = float(np.interp(scp.d_F[lead], grids[lead], run[lead]))
+        t_c = 0.0
         for r, k in enumerate(order):
-            hold = 0.0
-            for sw in switches[k]:
-                t_sw = float(np.interp(sw.distance_m, grids[k], run[k])) + hold
-                prev = last.get(sw.switch_id)
-                if prev is not None:
-                    differ = prev[1] != sw.leg or p.headway_all_consecutive
-                    need = (p.throw_time_s if differ else p.min_time_gap_s) + qp.headway_margin_s
-                    hold += max(prev[0] + need - t_sw, 0.0)
-                    t_sw = max(t_sw, prev[0] + need)
-                last[sw.switch_id] = (t_sw, sw.leg)
             end = scp.d_F[k] if r == 0 else scp.d_m[k] + scp.d_F[lead] - scp.d_m[lead] - r * scp.margin0_m
-            t_c = max(t_c, float(np.interp(end, grids[k], run[k])) + hold)
+            t_c = max(t_c, float(np.interp(end, grids[k], runs[k])) + holds[k])
         out.append(t_c)
     return out
 
@@ -900,9 +936,10 @@ def solve_qp_order(
 ) -> QpOrderResult:
     """Enumerate the passing orders, solve each by trust-region SCP over OSQP QPs, verify with the rollout.
 
-    Without ``warm_x`` (the first plan) the order with the earliest estimated coupling among those consistent with
-    the granted locks is solved from its timetable (``first_iterations`` QPs); if that plan is infeasible, every
-    such order is (``screen_iterations`` QPs each, the best one then up to ``max_iterations``). With ``warm_x`` (a
+    Without ``warm_x`` (the first plan) the ``first_orders`` orders with the earliest estimated coupling among
+    those consistent with the granted locks are solved from their timetables (``first_iterations`` QPs each) until
+    one plan is feasible; if none is, every such order is (``screen_iterations`` QPs each, the best one then up to
+    ``max_iterations``). With ``warm_x`` (a
     re-plan: the previous plan shifted by :func:`.planner._warm_start`) only the previous plan's order is
     polished, ``replan_iterations`` QPs from the warm start — the online budget; an infeasible result is returned
     as such (the coordinator keeps the previous plan). ``problem.frozen_order`` fixes the order.
@@ -910,7 +947,7 @@ def solve_qp_order(
     qp = params or QpOrderParams()
     t0 = time.perf_counter()
     n = problem.n_trains
-    best: tuple[float, float, np.ndarray, tuple[int, ...], dict[str, float]] | None = None
+    best: tuple[float, float, np.ndarray, tuple[int, ...], dict[str, float], bool] | None = None
     solves = solved = 0
     states: dict[tuple[int, ...], tuple[_OrderSCP, np.ndarray]] = {}
 
@@ -932,7 +969,7 @@ def solve_qp_order(
             or (viol <= 0.0 and (best[0] > 0.0 or cost < best[1]))
             or (best[0] > 0.0 and viol < best[0])
         ):
-            best = (viol, cost, x, order, kinds)
+            best = (viol, cost, x, order, kinds, k < iterations)
 
     warm_order: tuple[int, ...] | None = None
     if problem.frozen_order is not None:
@@ -947,11 +984,15 @@ def solve_qp_order(
     elif warm_order is not None:
         consider(warm_order, None, qp.max_iterations)  # a frozen order without a previous plan
     if warm_x is None and problem.frozen_order is None:
-        # the online first plan: the order of the earliest estimated coupling, a short SCP (stops once converged)
+        # the online first plan: the orders of the earliest estimated couplings, a short SCP each (it stops once
+        # converged), until one is feasible
         allowed = [o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)]
-        if allowed:
-            estimate = order_estimates(problem, qp, allowed)
-            consider(min(zip(estimate, allowed))[1], None, qp.first_iterations)
+        ranked = sorted(zip(order_estimates(problem, qp, allowed), allowed))
+        for _, order in ranked[: qp.first_orders]:
+            consider(order, None, qp.first_iterations)
+            assert best is not None
+            if best[0] <= 0.0:
+                break
         if best is None or best[0] > 0.0:
             # no feasible plan in that order: screen every order with a longer SCP, then finish the best one
             orders = sorted(
@@ -965,7 +1006,7 @@ def solve_qp_order(
             assert best is not None
             consider(best[3], None, qp.max_iterations, resume=True)
     assert best is not None
-    viol, cost, x, order, kinds = best
+    viol, cost, x, order, kinds, converged = best
     return QpOrderResult(
         x=x,
         order=order,
@@ -976,4 +1017,5 @@ def solve_qp_order(
         orders_solved=solved,
         wall_time_s=time.perf_counter() - t0,
         violations=kinds,
+        converged=converged,
     )

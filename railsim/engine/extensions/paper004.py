@@ -423,6 +423,8 @@ class JunctionCoordinator:
         # qp_order's plans are flyable as made: it re-plans on a tracking deviation only (a periodic re-plan from
         # the ground's extrapolated states restarts the plan from slightly wrong states and drifts it later)
         due = self.method != "qp_order" and t - self.last_plan_s >= self.spec.replan_s - 1e-9
+        # ... or to polish a plan whose QP budget ran out before it converged (the first plan's is short)
+        due = due or (not self.plan.converged and self.plan.feasible and t - self.last_plan_s >= MIN_REPLAN_GAP_S)
         if not due and t - self.last_plan_s >= MIN_REPLAN_GAP_S:
             for tr in trains:
                 m = self.members[tr.train_id]
