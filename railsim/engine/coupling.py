@@ -4,8 +4,9 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
 * **Registration.** :meth:`FormationBook.add` registers a scenario formation (or one the junction planner forms
   at run time); a follower that couples ``on_departure`` is re-timed to its leader's departure at its origin.
 * **Every step** (:meth:`FormationBook.bookkeeping`): a follower waiting to couple on departure is inserted
-  behind its leader once the leader stands at the follower's origin; a formation whose leader approaches the
-  switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
+  behind its leader once the leader stands at the follower's origin; a follower that couples ``after_switch`` (a
+  merge) is asked to couple once its front is past that switch with its leader ahead on its track; a formation
+  whose leader approaches the switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
   the coupled controller's effective target) and the closing speed; coupled time is counted.
 * **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
   mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
