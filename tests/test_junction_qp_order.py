@@ -15,8 +15,9 @@ import numpy as np
 import pytest
 
 from controllers.braking import relative_braking_distance_m, stopping_distance_m
-from controllers.junction.model import JunctionParams, sumo_corrected_params
+from controllers.junction.model import JunctionParams, SwitchState, sumo_corrected_params
 from controllers.junction.planner import TrainState, YJunctionLayout, build_problem, plan, replan
+from controllers.junction.qp import order_estimates, solve_qp_order
 from controllers.junction.simulate import measure, simulate_plan
 
 LAYOUT = YJunctionLayout(S5_m=300.0)
@@ -123,7 +124,7 @@ def _corrected_table3(sc: int):
     return trains, layout, params, QpOrderParams(zone_m=30.0, interlocking=il)
 
 
-@pytest.mark.parametrize("sc", [1, 3])
+@pytest.mark.parametrize("sc", [1, 2, 3])
 def test_table3_under_the_corrected_model_couples_and_keeps_guard_and_interlocking_in_simulation(sc):
     """The model SUMO flies (t_ls 21.6 s, 20 m trains, the RBD guard, the engine's interlocking rule): the plan is
     feasible, and an independent time-stepped run of it (Δt = 0.05 s) couples at F, keeps the turnout limit over
@@ -178,3 +179,41 @@ def test_replan_from_the_previous_plan_keeps_its_order_and_stays_feasible():
     assert again.feasible, again.violations
     assert again.order == first.order
     assert abs((again.coupling_time_s + 4.0) - first.coupling_time_s) < 3.0  # the same plan, seen 4 s later
+
+
+@pytest.mark.parametrize("sc", [1, 2, 3])
+def test_first_plan_tries_at_most_two_orders_within_its_qp_budget_and_polishing_lowers_its_cost(sc):
+    """The online first plan: the two orders of the earliest estimated coupling, ``first_iterations`` QPs each,
+    feasible here without the full order search; warm re-plans from the same state (what the coordinator does
+    while a plan has not converged) keep the order and feasibility and never raise the cost, and end converged."""
+    trains, layout, params, qp = _corrected_table3(sc)
+    problem = build_problem(trains, (), layout, params)
+    r = solve_qp_order(problem, qp)
+    assert r.feasible, r.violations
+    assert r.orders_solved <= qp.first_orders and r.iterations <= qp.first_orders * qp.first_iterations
+    current = plan(trains, (), layout, params, method="qp_order", qp=qp)
+    assert current.order == tuple(problem.trains[k].train_id for k in r.order)
+    for _ in range(20):
+        if current.converged:
+            break
+        again = replan(current, trains, (), layout, params, method="qp_order", qp=qp)
+        assert again.feasible and again.order == current.order
+        assert again.cost <= current.cost + 1e-6
+        current = again
+    assert current.converged
+
+
+def test_order_estimates_charge_the_throw_of_a_switch_not_set_for_the_first_train():
+    """Two orders that differ only in which sw1 train goes first: with sw1 set normal, the order whose first sw1
+    train takes the normal leg needs one throw fewer and is estimated to couple earlier; set reverse, the other."""
+    trains, layout, params, qp = _corrected_table3(1)
+    problem = build_problem(trains, (), layout, params)
+    legs = {tr.train_id: {sw.switch_id: sw.leg for sw in tr.switches} for tr in problem.trains}
+    k_normal = next(k for k, tr in enumerate(problem.trains) if legs[tr.train_id].get("sw1") == "normal")
+    k_reverse = next(k for k, tr in enumerate(problem.trains) if legs[tr.train_id].get("sw1") == "reverse")
+    k_other = ({0, 1, 2} - {k_normal, k_reverse}).pop()
+    orders = [(k_other, k_normal, k_reverse), (k_other, k_reverse, k_normal)]
+    for position, earlier in (("normal", 0), ("reverse", 1)):
+        sw = [SwitchState("sw1", position), SwitchState("sw2", "normal")]
+        est = order_estimates(build_problem(trains, sw, layout, params), qp, orders)
+        assert est[earlier] < est[1 - earlier], (position, est)

@@ -539,7 +539,8 @@ def test_controller_registry_is_read_at_validation_time() -> None:
                     "couple": {"at_s": 5, "on_departure": True},
                 }
             ],
-            "formations[0].couple: expected exactly one of at_s, at_station, on_departure, got {'at_s': 5, 'on_departure': True}",
+            "formations[0].couple: expected exactly one of at_s, at_station, on_departure, after_switch, "
+            "got {'at_s': 5, 'on_departure': True}",
         ),
         (
             [

@@ -188,6 +188,7 @@ class JunctionPlan:
     wall_time_s: float
     # for warm starts: the distance-to-F of every train at plan time and its raw acceleration vector
     distance_to_F_m: dict[str, float] = field(default_factory=dict)
+    converged: bool = True  # qp_order: False when the QP budget ran out first (the plan can still be polished)
 
     def train(self, train_id: str) -> TrainPlan:
         return next(t for t in self.trains if t.train_id == train_id)
@@ -412,6 +413,7 @@ def decode(
     iterations: int = 0,
     wall_time_s: float = 0.0,
     frozen: bool = False,
+    converged: bool = True,
 ) -> JunctionPlan:
     """Turn one particle into a :class:`JunctionPlan` (profiles, passages, order, switch schedule, Φ_k)."""
     r = rollout(problem, x[None, :])
@@ -477,6 +479,7 @@ def decode(
         method=method,
         iterations=iterations,
         wall_time_s=wall_time_s,
+        converged=converged,
         distance_to_F_m={tr.train_id: tr.distance_to_F_m for tr in problem.trains},
     )
 
@@ -494,7 +497,7 @@ def plan(
     """Initial plan at the coupling opportunity (spec §7 step 1)."""
     problem = build_problem(trains, switches, layout, params)
     res = solve(problem, method, pso, rng, qp=qp)
-    return decode(problem, res.x, method, res.iterations, res.wall_time_s)
+    return decode(problem, res.x, method, res.iterations, res.wall_time_s, converged=getattr(res, "converged", True))
 
 
 def past_point_of_no_return(trains: Sequence[TrainState], params: JunctionParams | None = None) -> list[str]:
@@ -531,4 +534,6 @@ def replan(
     problem = build_problem(trains, switches, layout, params, previous.order if frozen else None)
     warm = _warm_start(problem, previous)
     res = solve(problem, method, pso, rng, warm, qp)
-    return decode(problem, res.x, method, res.iterations, res.wall_time_s, frozen)
+    return decode(
+        problem, res.x, method, res.iterations, res.wall_time_s, frozen, converged=getattr(res, "converged", True)
+    )

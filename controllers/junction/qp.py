@@ -32,7 +32,10 @@ QP solves and an impossible input ends as ``feasible=False`` with named violatio
       a leader that crawls after the switch releases late — the fixed ``t_ls`` does not see that, this does;
     * the guard: for every pair on shared track (leader earlier in ``π``), at every follower breakpoint and
       segment midpoint on the shared track, the leader's front must already be ``L + RBD(v_f, a_f, v_l) +
-      rbd_margin_m`` ahead: ``t_l(s̃_f + L + RBD) ≤ t_f(s̃_f)``;
+      rbd_margin_m`` ahead: ``t_l(s̃_f + L + RBD) ≤ t_f(s̃_f)``, with ``v_l`` the leader's speed *at that instant*
+      ``t_f(s̃_f)`` — where its front is then, as the guard and the rollout read it (a speed read where the spacing
+      ends is higher when the leader slows down and understates ``RBD`` by ``(v_y² − v_l²)/2b``: the 0.18 m
+      shortfall of scenario 2's first plan before this was fixed);
     * Eqs. 2–3 at the coupling instant ``T_c = t_lead(F)``: follower ``r`` of ``π`` reaches its slot (``r`` margins
       ``S_m`` behind F) within ``coupling_gap_tol_m`` of ``T_c`` and at the leader's speed within
       ``coupling_speed_tol_mps``; from its slot on it holds that speed (segment H).
@@ -48,8 +51,12 @@ violation) falls, and ``Δ`` grows or shrinks (a classical ℓ1 trust-region SQP
 timetable (:func:`_timetable_E`); a re-plan starts from the previous plan shifted by the distance run (warm start)
 and only re-enumerates the orders when that order has become infeasible.
 
-Orders are visited by a kinematic lower bound on ``f_c`` (:func:`order_lower_bound`) and skipped once the bound
-exceeds the best verified cost. Every result is **verified with** :func:`controllers.junction.model.rollout` (and,
+The first plan must fit the online budget, so it does not search every order: it solves the order with the
+earliest estimated coupling (:func:`order_estimates`: fastest profiles held back by the switch intervals at the
+switch where each arises) with ``first_iterations`` QPs, then, if that plan is infeasible, the runner-up (up to
+``first_orders`` orders). Only if none of them has a feasible plan are all orders screened,
+visited by a kinematic lower bound on ``f_c`` (:func:`order_lower_bound`) and skipped once the bound exceeds the
+best verified cost. Every result is **verified with** :func:`controllers.junction.model.rollout` (and,
 when given, the exact interlocking rule): a plan is feasible only if the planner's own model says so. Everything is
 deterministic (no random numbers; OSQP is deterministic for fixed data).
 """
@@ -66,7 +73,7 @@ import osqp
 import scipy.sparse as sp
 
 from controllers.braking import relative_braking_distance_m, require
-from controllers.junction.model import Problem, rollout, safety_margin_m
+from controllers.junction.model import JunctionParams, Problem, rollout, safety_margin_m
 
 
 E_SCALE = 100.0  # m²/s²: E = v² enters the QP as E / E_SCALE (conditioning)
@@ -105,7 +112,7 @@ class QpOrderParams:
     line_speed_margin_mps: float = 0.0  # planned speeds stay this far below v_max (room for the ATO's cruise law)
     headway_margin_s: float = 1.0  # extra on every switch interval
     speed_margin_mps: float = 0.2  # below each switch limit (on top of the model's switch_speed_margin_mps)
-    rbd_margin_m: float = 3.0  # extra on the guard's spacing (linearisation, interior instants)
+    rbd_margin_m: float = 1.0  # extra on the guard's spacing (interior instants between the samples)
     coupling_gap_tol_m: float = 1.0  # |D − S_m| at the coupling instant
     coupling_speed_tol_mps: float = 0.1  # |Δv| at the coupling instant
     accel_weight: float = 0.02  # Σ a²·ℓ (comfort)
@@ -114,7 +121,9 @@ class QpOrderParams:
     prox_weight: float = 0.05  # initial proximal weight on |E − Ē|² (the step control)
     max_iterations: int = 30  # QP solves per order (the chosen order, a re-plan)
     replan_iterations: int = 8  # QP solves of a warm-started re-plan (in the previous plan's order)
-    screen_iterations: int = 40  # QP solves per order when all orders are searched (the first plan)
+    first_iterations: int = 10  # QP solves per order of the first plan (the online budget)
+    first_orders: int = 2  # orders the first plan tries, earliest estimated coupling first, before a full search
+    screen_iterations: int = 40  # QP solves per order when all orders are searched (arrival order infeasible)
     feasible_tol: float = 0.02  # soft-constraint violation [s, m/s] small enough to stop (margins absorb it)
     converge_merit: float = 0.3  # merit improvement (cost units, λ4 = 1 per train-second) below which to stop
     osqp_eps: float = 1.0e-4
@@ -138,7 +147,7 @@ class QpOrderParams:
         ):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("slack_weight", self.slack_weight > 0.0, "a number > 0", self.slack_weight)
-        for name in ("max_iterations", "replan_iterations", "screen_iterations"):
+        for name in ("max_iterations", "replan_iterations", "first_iterations", "first_orders", "screen_iterations"):
             require(name, int(getattr(self, name)) >= 1, "an integer >= 1", getattr(self, name))
 
 
@@ -155,6 +164,7 @@ class QpOrderResult:
     orders_solved: int
     wall_time_s: float
     violations: dict[str, float] = field(default_factory=dict)  # soft-constraint shortfall per kind (last QP)
+    converged: bool = True  # the chosen order's SCP met its convergence test before its QP budget ran out
 
 
 class _Kinematics:
@@ -215,6 +225,17 @@ class _Kinematics:
             W[beyond] = 0.0
             W[beyond, -1] = 1.0
         return t, Jt, JE, ey, W
+
+    def position_at(self, ts: np.ndarray) -> np.ndarray:
+        """Positions at times ``ts`` (the inverse of :meth:`at`; exact: constant acceleration inside a segment)."""
+        bp, E, v, ell = self.bp, self.E, self.v, self.ell
+        ts = np.clip(np.atleast_1d(np.asarray(ts, dtype=float)), 0.0, None)
+        j = np.clip(np.searchsorted(self.t_bp, ts, side="right") - 1, 0, bp.size - 2)
+        tau = ts - self.t_bp[j]
+        a = (E[j + 1] - E[j]) / (2.0 * ell[j])
+        s = np.minimum(bp[j] + v[j] * tau + 0.5 * a * tau * tau, bp[j + 1])
+        beyond = ts >= self.t_bp[-1]
+        return np.where(beyond, bp[-1] + v[-1] * (ts - self.t_bp[-1]), s)
 
 
 class _OrderSCP:
@@ -435,13 +456,15 @@ class _OrderSCP:
                 def rbd(vf_: np.ndarray, af_: np.ndarray, vl_: np.ndarray) -> np.ndarray:
                     return relative_braking_distance_m(vf_, vl_, b_rbd, b_rbd, T_rbd, af_, p.rbd_margin_m)
 
-                # the leader's speed where its front will be: read at the spacing the reference run needs
+                # the leader's speed is the guard's at the same instant: where the leader's front *is* when the
+                # follower is at ys (a leader slowing down is slower there than where the spacing ends, and a
+                # speed read at the spacing's end would understate the guard's need by (v_y² − v_l²)/2b)
                 y0 = s_tilde + self.d_m[lead] + p.pred_length_m + qp.rbd_margin_m
-                _, _, El0, _ = tat(lead, y0 + rbd(vf, af, np.zeros_like(vf)))
-                need = rbd(vf, af, np.sqrt(np.maximum(El0, 1e-9)))
-                y = y0 + need
-                tl, Jl, El, Wl = tat(lead, y)
+                _, _, El, Wl = tat(lead, kin[lead].position_at(tf))
                 vl = np.sqrt(np.maximum(El, 1e-9))
+                need = rbd(vf, af, vl)
+                y = y0 + need
+                tl, Jl, _, _ = tat(lead, y)
                 h = 1e-4
                 dn_dvf = (rbd(vf + h, af, vl) - rbd(vf - h, af, vl)) / (2 * h)
                 dn_daf = (rbd(vf, af + h, vl) - rbd(vf, af - h, vl)) / (2 * h)
@@ -699,17 +722,15 @@ def _profile(
     """``E = v²`` on the fine grid ``s``: from ``E0`` towards ``cruise²`` (accelerating at ``a_up`` or braking at
     ``a_down``), never above the caps ``cap`` (approached on a braking curve) and reaching ``tail = (position, E)``
     on a braking curve at its end (from there on held)."""
-    ds = np.diff(s)
-    E = np.empty(s.size)
-    E[0] = E0
-    for i in range(1, s.size):  # forward: towards the cruise speed within the acceleration bounds
-        step = 2.0 * (a_up if E[i - 1] < cruise * cruise else -a_down) * ds[i - 1]
-        E[i] = min(E[i - 1] + step, cruise * cruise) if step > 0 else max(E[i - 1] + step, cruise * cruise)
+    c2 = cruise * cruise
+    x = s - s[0]
+    # forward: towards the cruise speed within the acceleration bounds (v² is linear in distance)
+    E = np.minimum(E0 + 2.0 * a_up * x, c2) if E0 <= c2 else np.maximum(E0 - 2.0 * a_down * x, c2)
     x_t, E_t = tail
     cap = np.where(s >= x_t, E_t, cap)
-    for i in range(s.size - 2, -1, -1):  # backward: braking curves to every cap (and to the tail's speed)
-        cap[i] = min(cap[i], cap[i + 1] + 2.0 * a_down * ds[i])
-    return np.minimum(E, cap)
+    # backward: braking curves to every cap (and to the tail's speed): cap_i = min_{j≥i} cap_j + 2 b (s_j − s_i)
+    reach = np.minimum.accumulate((cap + 2.0 * a_down * x)[::-1])[::-1] - 2.0 * a_down * x
+    return np.minimum(E, reach)
 
 
 def _run_time(s: np.ndarray, E: np.ndarray, x: float) -> float:
@@ -718,6 +739,103 @@ def _run_time(s: np.ndarray, E: np.ndarray, x: float) -> float:
     dt = 2.0 * np.diff(s) / (v[:-1] + v[1:])
     t = np.concatenate([[0.0], np.cumsum(dt)])
     return float(np.interp(x, s, t))
+
+
+def _timetable_rates(p: JunctionParams) -> tuple[float, float]:
+    """Acceleration and braking rates of the timetable's profiles (room left for the SCP to tighten)."""
+    return 0.8 * p.accel_max_mps2, 0.8 * abs(p.accel_min_mps2)
+
+
+def _fine_grids(scp: _OrderSCP) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per train a 2 m grid from its start to F and the ``v²`` cap on it (bounds, turnout zones held over
+    ``zone_m``); the caps do not depend on the order."""
+    grids, caps = [], []
+    for k in range(scp.n):
+        s = np.linspace(0.0, scp.d_F[k], max(int(scp.d_F[k] / 2.0), 20) + 1)
+        ub = np.interp(s, scp.bp[k], scp.ub[scp.off[k] : scp.off[k + 1]])
+        for kk, x, lim in scp.zone_caps:  # the caps hold over the zone, not only at breakpoints
+            if kk == k:
+                ub = np.where((s >= x - 1e-9) & (s <= x + scp.qp.zone_m), np.minimum(ub, lim * lim), ub)
+        grids.append(s)
+        caps.append(ub)
+    return grids, caps
+
+
+def _fastest_runs(scp: _OrderSCP, a_up: float, a_down: float) -> tuple[list[np.ndarray], list[np.ndarray]]:
+    """Per train its fine grid and the time along it on its fastest profile (towards the line speed at ``a_up``,
+    braking curves into its turnout limits at ``a_down``: :func:`_profile` on the bounds of ``scp``)."""
+    grids, caps = _fine_grids(scp)
+    runs = []
+    for k, s in enumerate(grids):
+        E = _profile(s, scp.v0[k] ** 2, caps[k].copy(), scp.p.line_speed_mps, a_up, a_down, (math.inf, 0.0))
+        v = np.sqrt(np.maximum(E, 1e-6))
+        runs.append(np.concatenate([[0.0], np.cumsum(2.0 * np.diff(s) / (v[:-1] + v[1:]))]))
+    return grids, runs
+
+
+def _chained_passages(
+    problem: Problem,
+    qp: QpOrderParams,
+    order: tuple[int, ...],
+    grids: list[np.ndarray],
+    runs: list[np.ndarray],
+) -> tuple[dict[int, dict[str, float]], dict[int, float]]:
+    """Each train's switch passages (by switch id) and hold [s] in ``order`` when it runs its fastest profile (``runs``) but is held
+    back at each of its switches until the switch is ready for it: after the switch interval behind the previous
+    user in ``order`` (``t_ls`` when the legs differ, plus ``headway_margin_s``), and for the
+    first user after the switch's own lock and throw. A hold is carried on along the train's path, so an interval
+    charged at ``sw1`` delays the merge passage too (two trains from ``sw1``'s legs run on at different speeds:
+    their interval at the merge is not the one at ``sw1``)."""
+    p = problem.params
+    last: dict[str, tuple[float, str]] = {}  # switch -> (passage time, leg) of its previous user
+    passages: dict[int, dict[str, float]] = {}
+    holds: dict[int, float] = {}
+    for k in order:
+        hold = 0.0
+        passages[k] = {}
+        for sw in sorted(problem.trains[k].switches, key=lambda x: x.distance_m):
+            t_sw = float(np.interp(sw.distance_m, grids[k], runs[k])) + hold
+            prev = last.get(sw.switch_id)
+            if prev is not None:
+                differ = prev[1] != sw.leg or p.headway_all_consecutive
+                ready = prev[0] + (p.throw_time_s if differ else p.min_time_gap_s) + qp.headway_margin_s
+            else:
+                st = problem.switch_states.get(sw.switch_id)
+                ready = 0.0
+                if st is not None:
+                    ready = st.locked_until_s + (p.throw_time_s if sw.leg != st.position else 0.0)
+                    ready = ready + qp.headway_margin_s if ready > 0.0 else 0.0
+            hold += max(ready - t_sw, 0.0)
+            t_sw = max(t_sw, ready)
+            last[sw.switch_id] = (t_sw, sw.leg)
+            passages[k][sw.switch_id] = t_sw
+        holds[k] = hold
+    return passages, holds
+
+
+def order_estimates(problem: Problem, qp: QpOrderParams, orders: list[tuple[int, ...]]) -> list[float]:
+    """Estimated coupling instant of each order [s] — how the first plan picks its order.
+
+    Every train runs its fastest profile (full acceleration, braking curves into its turnout limits) held back at
+    its switches by :func:`_chained_passages`; the coupling instant is when the leader reaches F or, if later, a
+    follower its slot. Unlike :func:`order_lower_bound` it charges an interval at the switch where it arises
+    (at ``sw1`` for two trains from ``sw1``'s legs, not at the merge) and the switches' own positions.
+    """
+    if not orders:
+        return []
+    scp = _OrderSCP(problem, orders[0], qp)  # bounds and caps do not depend on the order
+    p = scp.p
+    grids, runs = _fastest_runs(scp, p.accel_max_mps2, abs(p.accel_min_mps2))
+    out = []
+    for order in orders:
+        _, holds = _chained_passages(problem, qp, order, grids, runs)
+        lead = order[0]
+        t_c = 0.0
+        for r, k in enumerate(order):
+            end = scp.d_F[k] if r == 0 else scp.d_m[k] + scp.d_F[lead] - scp.d_m[lead] - r * scp.margin0_m
+            t_c = max(t_c, float(np.interp(end, grids[k], runs[k])) + holds[k])
+        out.append(t_c)
+    return out
 
 
 def _timetable_E(scp: _OrderSCP) -> np.ndarray:
@@ -732,17 +850,9 @@ def _timetable_E(scp: _OrderSCP) -> np.ndarray:
     """
     pb, p, qp = scp.pb, scp.p, scp.qp
     order = scp.order
-    a_up, a_down = 0.8 * p.accel_max_mps2, 0.8 * abs(p.accel_min_mps2)
+    a_up, a_down = _timetable_rates(p)
     floor = qp.speed_floor_mps + 0.5
-    grids, caps = [], []
-    for k in range(scp.n):
-        s = np.linspace(0.0, scp.d_F[k], max(int(scp.d_F[k] / 2.0), 20) + 1)
-        ub = np.interp(s, scp.bp[k], scp.ub[scp.off[k] : scp.off[k + 1]])
-        for kk, x, lim in scp.zone_caps:  # the caps hold over the zone, not only at breakpoints
-            if kk == k:
-                ub = np.where((s >= x - 1e-9) & (s <= x + qp.zone_m), np.minimum(ub, lim * lim), ub)
-        grids.append(s)
-        caps.append(ub)
+    grids, caps = _fine_grids(scp)
 
     def timed(k: int, x: float, target: float, E0: float, tail: tuple[float, float]) -> np.ndarray:
         s, cap = grids[k], caps[k]
@@ -826,8 +936,10 @@ def solve_qp_order(
 ) -> QpOrderResult:
     """Enumerate the passing orders, solve each by trust-region SCP over OSQP QPs, verify with the rollout.
 
-    Without ``warm_x`` (the first plan) every passing order consistent with the granted locks is solved from its
-    timetable (``screen_iterations`` QPs each, the best one then up to ``max_iterations``). With ``warm_x`` (a
+    Without ``warm_x`` (the first plan) the ``first_orders`` orders with the earliest estimated coupling among
+    those consistent with the granted locks are solved from their timetables (``first_iterations`` QPs each) until
+    one plan is feasible; if none is, every such order is (``screen_iterations`` QPs each, the best one then up to
+    ``max_iterations``). With ``warm_x`` (a
     re-plan: the previous plan shifted by :func:`.planner._warm_start`) only the previous plan's order is
     polished, ``replan_iterations`` QPs from the warm start — the online budget; an infeasible result is returned
     as such (the coordinator keeps the previous plan). ``problem.frozen_order`` fixes the order.
@@ -835,7 +947,7 @@ def solve_qp_order(
     qp = params or QpOrderParams()
     t0 = time.perf_counter()
     n = problem.n_trains
-    best: tuple[float, float, np.ndarray, tuple[int, ...], dict[str, float]] | None = None
+    best: tuple[float, float, np.ndarray, tuple[int, ...], dict[str, float], bool] | None = None
     solves = solved = 0
     states: dict[tuple[int, ...], tuple[_OrderSCP, np.ndarray]] = {}
 
@@ -857,7 +969,7 @@ def solve_qp_order(
             or (viol <= 0.0 and (best[0] > 0.0 or cost < best[1]))
             or (best[0] > 0.0 and viol < best[0])
         ):
-            best = (viol, cost, x, order, kinds)
+            best = (viol, cost, x, order, kinds, k < iterations)
 
     warm_order: tuple[int, ...] | None = None
     if problem.frozen_order is not None:
@@ -872,19 +984,29 @@ def solve_qp_order(
     elif warm_order is not None:
         consider(warm_order, None, qp.max_iterations)  # a frozen order without a previous plan
     if warm_x is None and problem.frozen_order is None:
-        # screen every order with a short SCP, then finish the best one
-        orders = sorted(
-            (o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)),
-            key=lambda o: (order_lower_bound(problem, o), o),
-        )
-        for order in orders:
-            if best is not None and best[0] <= 0.0 and order_lower_bound(problem, order) >= best[1]:
-                continue
-            consider(order, None, qp.screen_iterations)
-        assert best is not None
-        consider(best[3], None, qp.max_iterations, resume=True)
+        # the online first plan: the orders of the earliest estimated couplings, a short SCP each (it stops once
+        # converged), until one is feasible
+        allowed = [o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)]
+        ranked = sorted(zip(order_estimates(problem, qp, allowed), allowed))
+        for _, order in ranked[: qp.first_orders]:
+            consider(order, None, qp.first_iterations)
+            assert best is not None
+            if best[0] <= 0.0:
+                break
+        if best is None or best[0] > 0.0:
+            # no feasible plan in that order: screen every order with a longer SCP, then finish the best one
+            orders = sorted(
+                (o for o in itertools.permutations(range(n)) if _respects_locks(problem, o)),
+                key=lambda o: (order_lower_bound(problem, o), o),
+            )
+            for order in orders:
+                if best is not None and best[0] <= 0.0 and order_lower_bound(problem, order) >= best[1]:
+                    continue
+                consider(order, None, qp.screen_iterations)
+            assert best is not None
+            consider(best[3], None, qp.max_iterations, resume=True)
     assert best is not None
-    viol, cost, x, order, kinds = best
+    viol, cost, x, order, kinds, converged = best
     return QpOrderResult(
         x=x,
         order=order,
@@ -895,4 +1017,5 @@ def solve_qp_order(
         orders_solved=solved,
         wall_time_s=time.perf_counter() - t0,
         violations=kinds,
+        converged=converged,
     )

@@ -196,7 +196,7 @@ class ControlStage:
             f is not None
             and fstate in COUPLED_STATES
             and leader is not None
-            and leader.on_line
+            and (leader.on_line or leader.status == "arrived")  # arrived this step: it stands there, still ahead
             and tr.controllers.get("coupled") is not None
         ):
             used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)

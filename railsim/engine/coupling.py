@@ -4,8 +4,9 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
 * **Registration.** :meth:`FormationBook.add` registers a scenario formation (or one the junction planner forms
   at run time); a follower that couples ``on_departure`` is re-timed to its leader's departure at its origin.
 * **Every step** (:meth:`FormationBook.bookkeeping`): a follower waiting to couple on departure is inserted
-  behind its leader once the leader stands at the follower's origin; a formation whose leader approaches the
-  switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
+  behind its leader once the leader stands at the follower's origin; a follower that couples ``after_switch`` (a
+  merge) is asked to couple once its front is past that switch with its leader ahead on its track; a formation
+  whose leader approaches the switch it must decouple before is asked to decouple; the state machine is fed the true gap (judged against
   the coupled controller's effective target) and the closing speed; coupled time is counted.
 * **Across a turnback** (rotations): a formation whose follower is a trip its unit's turnback starts
   (``chained``) couples ``on_departure`` without an insertion: the follower's unit comes round by itself and
@@ -62,6 +63,7 @@ class FormationBook:
         self.of_follower: dict[str, Any] = {}  # follower id -> FormationSpec
         self.of_leader: dict[str, list[Any]] = {}  # leader id -> [FormationSpec]
         self.follower_hooks: list[FollowerHook] = []
+        self._merged: set[str] = set()  # formations whose after_switch couple request was made
         # wired by the loop: insert a train behind another (the dispatcher), a train's current stop (stops)
         self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], bool] = _unwired
         self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = _unwired
@@ -318,6 +320,8 @@ class FormationBook:
         if self._couples_after_turnback(tr, leader, f, a):
             self._asked_after_turnback.add(f.id)
             self.manager.request_couple(f.id)
+        if a is not None and a.train_id == leader.train_id and trig(f.couple, "after_switch"):
+            self._couple_after_merge(tr, f)
         if a is not None and a.train_id == leader.train_id:
             # the state machine judges the error against the controller's effective target (gap policy: larger
             # than the standstill target at speed), expressed around the formation's own target
@@ -329,6 +333,17 @@ class FormationBook:
             self.manager.observe_apart(t, f.id)
         if self.manager.state(f.id) == "coupled" and tr.arrived_s is None:  # an arrived train is no longer coupled
             tr.coupled_s += self.dt_s
+
+    def _couple_after_merge(self, follower: TrainRuntime, f: Any) -> None:
+        """``couple: {after_switch: X}``: ask once, when the follower's front is past switch ``X`` (its leader is
+        ahead on its track: the two have merged). Before that the follower keeps its own separation."""
+        if f.id in self._merged:
+            return
+        if any(
+            rs.switch_id == f.couple.switch and follower.front_m >= rs.point_m for rs in follower.trip.route.switches
+        ):
+            self._merged.add(f.id)
+            self.manager.request_couple(f.id)
 
     def on_off_line(self, t: float, tr: TrainRuntime) -> None:
         """``tr`` arrived or left the line: its formations' coupled time stops counting."""

@@ -68,7 +68,9 @@ The schema (every key; ``#`` comments give type, range and default)::
         leader: {service: airport, trip: 0}     # trip = 0-based index into that service's sorted departures
         follower: {service: jurenba, trip: 0}
         target_gap_m: 30                        # > 0, front-to-rear
-        couple: {at_station: liugongli}         # or {at_s: 0} or {on_departure: true}; omitted: only by events
+        couple: {at_station: liugongli}         # or {at_s: 0} or {on_departure: true} or {after_switch: bijin_down}
+                                                # (a merge: once the follower is past it behind its leader);
+                                                # omitted: only by events
         decouple: {before_switch: bijin_up}     # or {at_s: 3000} or {at_station: bijin}; omitted: never
         coupling_timeout_s: 300                 # > 0; default 300
       - {id: vc, pairs: {leader: airport, follower: branch}, target_gap_m: 30, couple: {on_departure: true}}

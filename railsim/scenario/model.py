@@ -179,7 +179,8 @@ class TriggerSpec:
 
     ``kind`` is one of ``at_s`` (simulation time ``at_s``), ``at_station`` (when both trains depart
     ``station`` for coupling; on departing ``station`` for decoupling), ``on_departure`` (couple from the
-    follower's departure on) or ``before_switch`` (decouple before the follower reaches ``switch``).
+    follower's departure on), ``after_switch`` (couple once the follower's front is past ``switch`` with its
+    leader ahead on its track: a merge) or ``before_switch`` (decouple before the follower reaches ``switch``).
     """
 
     kind: str

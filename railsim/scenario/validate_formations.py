@@ -36,7 +36,7 @@ from railsim.scenario.model import (
 from railsim.scenario.validate import Checker, did_you_mean, short_repr
 from railsim.scenario.validate_services import trip_name, trip_ref
 
-COUPLE_TRIGGERS = ("at_s", "at_station", "on_departure")
+COUPLE_TRIGGERS = ("at_s", "at_station", "on_departure", "after_switch")
 DECOUPLE_TRIGGERS = ("before_switch", "at_s", "at_station")
 
 

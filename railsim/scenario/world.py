@@ -55,11 +55,11 @@ def check_against_world(
                 continue
             if trig.kind == "at_station":
                 station(str(trig.station), f"formations[{i}].{key}.at_station")
-            elif trig.kind == "before_switch" and trig.switch not in switch_set:
+            elif trig.kind in ("before_switch", "after_switch") and trig.switch not in switch_set:
                 hint = did_you_mean(str(trig.switch), switch_set)
                 raise ConfigError(
                     source,
-                    f"formations[{i}].{key}.before_switch",
+                    f"formations[{i}].{key}.{trig.kind}",
                     f"expected a switch id of world {world!r}, got {trig.switch!r}{hint}",
                 )
 
