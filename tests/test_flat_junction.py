@@ -27,6 +27,7 @@ from tests.helpers import DATA, read_csv, read_summary, run_python, run_railsim
 
 UP_MOVE = ("main_up_2", "br_up_0")  # up trunk -> branch (diverging at c_up)
 DOWN_MOVE = ("main_down_3", "main_down_2")  # down main line through the junction (normal leg of c_down)
+JUNCTION_NODE = "main_n3"  # both switches' point, where the four tracks meet
 UP_DEPARTS_S = 28.0  # measured: the two fronts then reach the junction node 2 s apart (195.5 s and 193.5 s)
 
 
@@ -40,6 +41,7 @@ def test_the_generated_junction_is_a_flat_crossing(tmp_path: Path, monkeypatch: 
     fresh = generate(load_description(DATA / "lines" / "mini_y.yaml")[0], tmp_path / "g")
     cached = build(DATA / "lines" / "mini_y.yaml")  # what a run uses: read back from the topology JSON
     node = fresh.switches["c_up"].sumo_node
+    assert node == JUNCTION_NODE
     for bundle in (fresh, cached):
         crossings = bundle.graph.graph["crossings"]
         assert crossings == {node: {UP_MOVE: [DOWN_MOVE], DOWN_MOVE: [UP_MOVE]}}
@@ -118,6 +120,12 @@ def test_without_the_crossing_lock_sumo_sees_the_collision_and_the_summary_count
     assert res.returncode != 0  # a collision is a failed run
     s = read_summary(out)
     assert s["sumo_collisions"] >= 1 and s["collisions"] >= s["sumo_collisions"]
-    (hit,) = [e for e in _events(out) if e["kind"] == "sumo_collision"]
+    events = _events(out)
+    (hit,) = [e for e in events if e["kind"] == "sumo_collision"]
     assert {hit["subject"], hit["detail"]["victim"]} == {"up.000", "down.000"} and hit["detail"]["type"] == "junction"
-    assert not any(e["subject"].startswith("crossing:") for e in _events(out))
+    # railsim's own truth check sees it too (both bodies span the crossing node on foe movements), no later
+    (own,) = [e for e in events if e["kind"] == "collision"]
+    assert {own["subject"], own["detail"]["leader"]} == {"up.000", "down.000"}
+    assert own["detail"]["crossing"] == JUNCTION_NODE and float(own["t_s"]) <= float(hit["t_s"])
+    assert s["collisions_railsim"] == 1 and s["collisions"] == s["collisions_railsim"] + s["sumo_collisions"]
+    assert not any(e["subject"].startswith("crossing:") for e in events)
