@@ -89,7 +89,7 @@ import networkx as nx
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.topology import NetworkBundle, PlatformInfo, RouteInfo, StationInfo, SwitchInfo
+from network.topology import NetworkBundle, PlatformInfo, RouteInfo, StationInfo, SwitchInfo, flat_crossings
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -387,27 +387,18 @@ def _mark_crossings(g: nx.DiGraph) -> None:
 
     SUMO's own foe matrix of the node says which connections intersect (netconvert computes it from the geometry);
     movements that share an edge or its bidi partner are not crossings — a diverge/merge is a switch and head-on
-    running on one track is single track, both protected by their own resources. The result maps a node id to
-    its crossing movements, each a ``(from edge, to edge)`` pair with the pairs it conflicts with.
+    running on one track is single track, both protected by their own resources
+    (:func:`network.topology.flat_crossings`, shared with generated worlds).
     """
-    by_node: dict[str, list[tuple[str, str, Any]]] = {}
-    for a, b, attrs in g.edges(data=True):
-        by_node.setdefault(attrs["node"], []).append((a, b, attrs.pop("link")))
-    crossings: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = {}
-    for node_id, moves in sorted(by_node.items()):
-        for i, (a, b, c1) in enumerate(moves):
-            track1 = {a, b, g.nodes[a]["bidi"], g.nodes[b]["bidi"]}
-            for c, d, c2 in moves[i + 1 :]:
-                if c in track1 or d in track1:
-                    continue
-                node = c1.getFrom().getToNode()
-                i1, i2 = node.getLinkIndex(c1), node.getLinkIndex(c2)
-                if i1 < 0 or i2 < 0 or not (node.areFoes(i1, i2) or node.areFoes(i2, i1)):
-                    continue
-                foes = crossings.setdefault(node_id, {})
-                foes.setdefault((a, b), []).append((c, d))
-                foes.setdefault((c, d), []).append((a, b))
-    g.graph["crossings"] = crossings
+    links = {(a, b): attrs.pop("link") for a, b, attrs in g.edges(data=True)}
+
+    def foes(_node: str, m1: tuple[str, str], m2: tuple[str, str]) -> bool:
+        c1, c2 = links[m1], links[m2]
+        node = c1.getFrom().getToNode()
+        i1, i2 = node.getLinkIndex(c1), node.getLinkIndex(c2)
+        return i1 >= 0 and i2 >= 0 and bool(node.areFoes(i1, i2) or node.areFoes(i2, i1))
+
+    g.graph["crossings"] = flat_crossings(g, foes)
 
 
 def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str]:

@@ -36,6 +36,12 @@ How a line becomes a SUMO net (facts measured in ``shared/notes/sumo_rail_findin
   the track graph's lead nodes carry ``station=<id>`` and ``direction="depot"`` (through routes never use
   them) and ``graph.graph["depots"]`` maps each depot id to its name, line, km, the edge a unit starts on
   (``start_edge``) and the one it ends on (``end_edge``) (``railsim.engine.depot``).
+* **Flat crossings.** A double-track junction is one node for all four tracks: the track towards the branch
+  crosses the opposite main track at grade (the branch lies to one side of the line), and a depot lead joined to
+  both tracks at one node has its far track's movements cross the near track. netconvert marks such internal
+  lanes as *foes* and SUMO reports a collision when two trains overlap on them; the switches lock one track each
+  and do not protect it. :func:`read_net` reads the foe pairs back and ``graph.graph["crossings"]``
+  (:func:`network.topology.flat_crossings`) lists them, so the engine interlocks each such node as a crossing.
 
 The result is read back from the .net.xml with sumolib (lane lengths, speeds, internal lanes), so the track
 graph and the routes reflect what SUMO will actually simulate.
@@ -60,13 +66,14 @@ from network.topology import (
     StationInfo,
     SwitchInfo,
     bundle_to_json,
+    flat_crossings,
     make_route,
 )
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = "4"  # 4: depot leads
+GENERATOR_VERSION = "5"  # 4: depot leads; 5: flat crossings (graph.graph["crossings"])
 INTERNAL_LANE_M = 0.1  # length of every internal junction lane (what netconvert gives a straight rail node)
 ALLOW = "rail rail_urban rail_fast rail_electric subway"
 TRACK_WIDTH_M = 3.0
@@ -620,8 +627,13 @@ def depot_stops(lead: _DepotLead) -> list[tuple[str, str]]:
     return [(lead.into, f"{lead.depot.id}.in"), (lead.out, f"{lead.depot.id}.out")]
 
 
-def read_net(net_file: Path) -> tuple[dict[str, tuple[float, float]], dict[tuple[str, str], list[list]], list[str]]:
-    """Lane length/speed of every normal edge, internal lanes of every connection, rail_signal node ids."""
+def read_net(
+    net_file: Path,
+) -> tuple[
+    dict[str, tuple[float, float]], dict[tuple[str, str], list[list]], list[str], set[frozenset[tuple[str, str]]]
+]:
+    """Lane length/speed of every normal edge, internal lanes of every connection, rail_signal node ids, and the
+    pairs of connections (``(from edge, to edge)``) that SUMO's foe matrix of their node has intersect."""
     import sumolib
 
     net = sumolib.net.readNet(str(net_file), withInternal=True)
@@ -640,7 +652,16 @@ def read_net(net_file: Path) -> tuple[dict[str, tuple[float, float]], dict[tuple
                 via_id = nxt[0].getViaLaneID() if nxt else ""
             vias[(edge.getID(), to_edge.getID())] = chain
     signals = [n.getID() for n in net.getNodes() if n.getType() == "rail_signal"]
-    return lanes, vias, signals
+    foes: set[frozenset[tuple[str, str]]] = set()
+    for node in net.getNodes():
+        links = [(node.getLinkIndex(c), c) for c in node.getConnections()]
+        links = [(i, c) for i, c in links if i >= 0]  # internal-to-normal continuations have no link index
+        for k, (i1, c1) in enumerate(links):
+            for i2, c2 in links[k + 1 :]:
+                if node.areFoes(i1, i2) or node.areFoes(i2, i1):
+                    m1, m2 = ((c.getFrom().getID(), c.getTo().getID()) for c in (c1, c2))
+                    foes.add(frozenset((m1, m2)))
+    return lanes, vias, signals, foes
 
 
 def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> NetworkBundle:
@@ -653,7 +674,7 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
     run_netconvert(nod, edg, con, net_file, desc.source)
     stops_file = folder / f"{desc.name}.stops.add.xml"
     platforms = write_stops(plan, stops_file)
-    lanes, vias, signals = read_net(net_file)
+    lanes, vias, signals, foes = read_net(net_file)
     if signals:  # pragma: no cover - plain XML never yields them; guard the invariant anyway
         raise AssertionError(f"generated net has rail_signal nodes: {signals}")
     wanted = {(a, b) for a, b, _, _ in plan.connections()} | {(a, b) for a, b, _ in plan.tail_connections()}
@@ -709,6 +730,9 @@ def generate(desc: LineDescription, folder: Path, cache_key: str = "") -> Networ
         for line in desc.line_ids()
     }
     graph.graph["points"] = {p.id: [p.line, p.km * 1000.0] for p in desc.points}
+    # a double-track junction or a depot lead joined to both tracks crosses the other track at grade: SUMO's foe
+    # matrix says where, and the interlocking holds each such node as a crossing (network.topology)
+    graph.graph["crossings"] = flat_crossings(graph, lambda _node, m1, m2: frozenset((m1, m2)) in foes)
 
     xo_speed = {x.station: x.speed_kmh / 3.6 for x in desc.crossovers}
     stations = {

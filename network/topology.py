@@ -12,8 +12,17 @@ graph*, a :class:`networkx.DiGraph` whose
   junction), ``via`` (list of ``[internal_lane_id, length_m, speed_mps]`` in travel order, read from the
   .net.xml), ``switch`` (switch id or None) and ``leg`` (``'normal'``/``'reverse'`` or None).
 
-``graph.graph`` holds ``name``, ``gradients`` (``{line: [[from_m, to_m, permille_up], ...]}``, design metres)
-and ``points`` (``{point_id: [line, design_m]}``).
+``graph.graph`` holds ``name``, ``gradients`` (``{line: [[from_m, to_m, permille_up], ...]}``, design metres),
+``points`` (``{point_id: [line, design_m]}``) and ``crossings`` (:func:`flat_crossings`).
+
+**Flat crossings.** Where two movements through one SUMO node intersect while sharing no track, the node is a
+crossing at grade (a diamond): at a double-track junction the track towards the branch crosses the opposite
+main track (Bijin on Line 3), at a depot lead the movement to or from the far track crosses the near one.
+SUMO knows it (the two internal lanes are *foes* in the node's request matrix, computed by netconvert from the
+geometry) and reports a collision when two trains overlap there; railsim's interlocking must therefore hold the
+crossing as a resource (:func:`railsim.engine.single_track.route_crossings`). :func:`flat_crossings` keeps the
+foe pairs that are not already protected otherwise: movements that share an edge or its bidi partner are a
+diverge, a merge or single track, each guarded by its own switch or section.
 
 A :class:`RouteInfo` is computed from the graph alone (:func:`make_route`), so a bundle loaded from the
 cache gives exactly the same routes as a fresh build. Route chainage is metres from the start of the
@@ -25,7 +34,7 @@ route's first edge and **includes the internal junction lanes**, which is what S
 from __future__ import annotations
 
 import functools
-from collections.abc import Iterable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -378,8 +387,44 @@ def _serves_in_order(route: RouteInfo, chain: Sequence[str]) -> bool:
     return any(rs.edge == route.edges[-1] for rs in last)
 
 
+Crossings = dict[str, dict[tuple[str, str], list[tuple[str, str]]]]
+
+
+def flat_crossings(graph: nx.DiGraph, foes: Callable[[str, tuple[str, str], tuple[str, str]], bool]) -> Crossings:
+    """The flat crossings of ``graph`` (module docstring): node id -> ``{(from edge, to edge): [foe movements]}``.
+
+    ``foes(node, move1, move2)`` says whether SUMO's foe matrix of ``node`` has the two movements intersect.
+    """
+    by_node: dict[str, list[tuple[str, str]]] = {}
+    for a, b, node in graph.edges(data="node"):
+        by_node.setdefault(node, []).append((a, b))
+    out: Crossings = {}
+    for node_id, moves in sorted(by_node.items()):
+        for i, (a, b) in enumerate(moves):
+            track1 = {a, b, graph.nodes[a].get("bidi"), graph.nodes[b].get("bidi")}
+            for c, d in moves[i + 1 :]:
+                if c in track1 or d in track1 or not foes(node_id, (a, b), (c, d)):
+                    continue
+                at = out.setdefault(node_id, {})
+                at.setdefault((a, b), []).append((c, d))
+                at.setdefault((c, d), []).append((a, b))
+    return out
+
+
+def _crossings_to_json(crossings: Crossings) -> dict[str, list[list[Any]]]:
+    """JSON has no tuple keys: ``{node: [[from, to, [[from, to], ...]], ...]}``."""
+    return {n: [[a, b, [list(f) for f in fs]] for (a, b), fs in moves.items()] for n, moves in crossings.items()}
+
+
+def _crossings_from_json(d: dict[str, list[list[Any]]]) -> Crossings:
+    return {n: {(a, b): [(f[0], f[1]) for f in fs] for a, b, fs in rows} for n, rows in d.items()}
+
+
 def bundle_to_json(bundle: NetworkBundle) -> dict[str, Any]:
     g = bundle.graph
+    graph_json = nx.node_link_data(g, edges="links")
+    if "crossings" in g.graph:
+        graph_json["graph"] = {**g.graph, "crossings": _crossings_to_json(g.graph["crossings"])}
     return {
         "name": bundle.name,
         "cache_key": bundle.cache_key,
@@ -397,12 +442,14 @@ def bundle_to_json(bundle: NetworkBundle) -> dict[str, Any]:
         },
         "switches": {k: vars(v) for k, v in bundle.switches.items()},
         "routes": {k: v.to_json() for k, v in bundle.routes.items()},
-        "graph": nx.node_link_data(g, edges="links"),
+        "graph": graph_json,
     }
 
 
 def bundle_from_json(d: dict[str, Any], folder: Path, topology_file: Path) -> NetworkBundle:
     graph = nx.node_link_graph(d["graph"], directed=True, edges="links")
+    if "crossings" in graph.graph:
+        graph.graph["crossings"] = _crossings_from_json(graph.graph["crossings"])
     stations = {}
     for k, v in d["stations"].items():
         plats = tuple(PlatformInfo(**p) for p in v.pop("platforms"))

@@ -144,6 +144,7 @@ class Simulation:
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
+        self.safety.set_up_crossings(self.bundle.graph)
         self.watchdog = StallWatch(self.events, self.settings, self.locks)
         self.control = ControlStage(
             self.trains,
@@ -282,6 +283,7 @@ class Simulation:
             a = self.occupancy.ahead(tr.train_id, self.settings.lookahead_m)
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
+        self.safety.crossing_checks(t, active)
         self.safety.sumo_reported(t, bridge.collisions())
         self.watchdog.check(t, active, ahead)
 

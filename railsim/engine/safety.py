@@ -3,7 +3,12 @@
 Collisions are detected on the true positions (the occupancy's gap to the train ahead < 0, or a front past an
 obstacle) once per pair and logged as ``collision`` events; SUMO's own collision check runs too and each of its
 reports is a ``sumo_collision`` event, kept apart in the detail (``collisions_railsim``, ``sumo_collisions``) and
-counted together in ``collisions`` (docs/architecture.md, "Safety is never hidden"). Obstacles
+counted together in ``collisions`` (docs/architecture.md, "Safety is never hidden"), so the summary's
+``collisions`` is never lower than what SUMO saw. Trains on different tracks meet only inside a node: where two
+movements cross at grade (``graph.graph["crossings"]``, :func:`network.topology.flat_crossings`: a diamond, the
+track to a branch crossing the opposite main track at a double-track junction) two trains whose bodies span the
+node at once on foe movements are a collision too (:meth:`SafetyMonitor.crossing_checks`; SUMO's own check calls
+it a ``junction`` collision). Obstacles
 (scenario ``events: obstacle``) are fixed to the track; a train's own ranging sensor (collision avoidance) reads
 the nearest train or obstacle ahead within ``sensor_range_m``.
 
@@ -49,6 +54,27 @@ class SafetyMonitor:
         self.failure: str | None = None  # why the run must stop (a desync), one line
         self._last: dict[str, tuple[float, float]] = {}  # train -> (chainage, SUMO speed) at the last check
         self._last_t_s = 0.0
+        # train -> [(crossing node, its movement, route chainage where the front enters / the rear has left)]
+        self._crossings: dict[str, list[tuple[str, tuple[str, str], float, float]]] = {}
+        self._foes: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = {}
+
+    def set_up_crossings(self, graph: Any) -> None:
+        """Where each train's route passes a flat crossing of ``graph`` (the truth check needs no interlocking)."""
+        self._foes = graph.graph.get("crossings", {})
+        if not self._foes:
+            return
+        for tid, tr in self.trains.items():
+            route = tr.trip.route
+            spans = []
+            for k in range(len(route.edges) - 1):
+                move = (route.edges[k], route.edges[k + 1])
+                link = graph.get_edge_data(*move)  # None at a reversal (a turnaround is no graph edge)
+                node = None if link is None else link["node"]
+                if node is not None and move in self._foes.get(node, {}):
+                    start_m = float(route.edge_start_m[k]) + float(graph.nodes[move[0]]["length_m"])
+                    spans.append((node, move, start_m, float(route.edge_start_m[k + 1])))
+            if spans:
+                self._crossings[tid] = spans
 
     # ------------------------------------------------------------------ obstacles
     def place_obstacle(self, oid: str, ev: Any) -> None:
@@ -119,6 +145,38 @@ class SafetyMonitor:
         )
         self.events.record(t, "collision", tr.train_id, leader=other, overlap_m=round(overlap_m, 3))
         log.error("collision at t=%.1f s: " + what + " (overlap %.2f m)", t, tr.train_id, other, overlap_m)
+
+    def crossing_checks(self, t: float, active: list[TrainRuntime]) -> None:
+        """Two trains whose bodies span one flat crossing at once on foe movements collide (module docstring)."""
+        if not self._crossings:
+            return
+        inside: dict[str, list[tuple[TrainRuntime, tuple[str, str]]]] = {}
+        for tr in active:
+            rear_m = tr.front_m - tr.trip.vehicle.length_m
+            for node, move, start_m, end_m in self._crossings.get(tr.train_id, ()):
+                if tr.front_m > start_m and rear_m < end_m:
+                    inside.setdefault(node, []).append((tr, move))
+        for node, here in inside.items():
+            for i, (tr, move) in enumerate(here):
+                for other, move2 in here[i + 1 :]:
+                    if move2 not in self._foes[node][move]:
+                        continue
+                    pair = (min(tr.train_id, other.train_id), max(tr.train_id, other.train_id))
+                    if pair in self._colliding_pairs:
+                        continue
+                    self._colliding_pairs.add(pair)
+                    self.collisions.append(
+                        {
+                            "t_s": t,
+                            "follower": tr.train_id,
+                            "leader": other.train_id,
+                            "overlap_m": 0.0,
+                            "chainage_m": tr.front_m,
+                            "crossing": node,
+                        }
+                    )
+                    self.events.record(t, "collision", tr.train_id, leader=other.train_id, crossing=node)
+                    log.error("collision at t=%.1f s: %s and %s on crossing %s", t, tr.train_id, other.train_id, node)
 
     def sumo_reported(self, t: float, reports: list[dict[str, Any]]) -> None:
         """SUMO's own collision reports of this step (kept apart from ours)."""

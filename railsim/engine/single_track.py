@@ -17,9 +17,11 @@ its direction is :data:`REVERSING`, and each such train holds the section alone 
 direction of its own), since a second train in a turnback track would meet it head-on after the flip.
 
 **Crossings** (:func:`route_crossings`): movements through one SUMO node that SUMO's foe matrix says intersect
-while sharing no track (``graph.graph["crossings"]``, from :mod:`network.external`) are one resource per node,
-held by one movement at a time (trains on the same movement may follow each other through). It spans the node's
-internal lanes: from the end of the edge in front to the start of the edge behind.
+while sharing no track (``graph.graph["crossings"]``, from :func:`network.topology.flat_crossings`: a diamond in an
+external net, the track to a branch crossing the opposite main track at a generated junction) are one resource
+per node, held by one movement at a time (trains on the same movement may follow each other through). It spans
+the node's internal lanes: from the end of the edge in front to the start of the edge behind. Its protection
+point is the node itself, the point of a switch there too: a train asks for the crossing before that switch.
 """
 
 from __future__ import annotations
