@@ -214,6 +214,11 @@ class RouteLocks:
                 req = leader.locks[rs.switch_id]
                 if tr.train_id in getattr(req, "holder_ids", ()):
                     return None  # already in the leader's group
+            elif leader.on_line and any(
+                s.switch_id == rs.switch_id and s.leg == rs.leg and leader.front_m < s.point_m
+                for s in leader.trip.route.switches
+            ):
+                return None  # the leader has yet to ask: the follower rides on its request, never ahead of it
         group = [tr.train_id]
         for f2 in self.formations.of_leader.get(tr.train_id, ()):  # include coupled followers on the same leg
             if self.formations.manager.state(f2.id) not in COUPLED_STATES:
