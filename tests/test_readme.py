@@ -148,6 +148,14 @@ def _small_peak(raw: dict[str, Any]) -> None:
     raw["formations"] = [f for f in raw.get("formations", []) if f["leader"]["trip"] == 0 == f["follower"]["trip"]]
 
 
+def _small_day(raw: dict[str, Any]) -> None:
+    """The day's first 20 minutes: the peak pairs (services timed after the Airport units' peak trips, and their
+    formations) start later, so they go."""
+    raw["services"] = [s for s in raw["services"] if "after" not in s["departures"]]
+    raw.pop("formations", None)
+    _last_after_first(raw["services"], 20)
+
+
 def _small_sweep(raw: dict[str, Any]) -> None:
     raw["grid"] = {path: [150] for path in raw["grid"]}
     raw["seeds"] = raw["seeds"][:1]
@@ -161,7 +169,7 @@ def _workdir(tmp: Path) -> Path:
     _edit(work / "scenarios" / "chongqing_line3_peak.yaml", _small_peak)
     _edit(work / "scenarios" / "sweeps" / "line3_short.yaml", _small_peak)
     _edit(work / "scenarios" / "sweeps" / "line3_headway_coupling.yaml", _small_sweep)
-    _edit(work / "scenarios" / "chongqing_line3_day.yaml", lambda raw: _last_after_first(raw["services"], 20))
+    _edit(work / "scenarios" / "chongqing_line3_day.yaml", _small_day)
     fcd = yaml.safe_load((work / "scenarios" / "chongqing_line3_peak.yaml").read_text(encoding="utf-8"))
     fcd["simulation"]["duration_s"] = 600  # the Airport units only: all inserted by then (a Jurenba unit waits)
     fcd["services"], fcd["formations"] = fcd["services"][:2], []
