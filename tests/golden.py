@@ -7,7 +7,9 @@ case runs ``railsim run`` in a child process; its output folder is *normalised* 
 * wall-clock fields are dropped — JSON keys and CSV columns whose name contains ``wall`` or ``solve_time``
   (controller solve times, planner wall times, the run's wall time), also inside the JSON ``detail`` column of
   ``events.csv``;
-* the case's temporary folder is replaced by ``<TMP>`` (an external net's path appears in the resolved scenario).
+* the case's temporary folder is replaced by ``<TMP>`` (an external net's path appears in the resolved scenario),
+  and an external net's cache key in ``sumo_run.sumocfg`` by ``<HASH>`` (it hashes netconvert's header, which names
+  the temporary folder).
 
 Everything else — every number in ``trips.csv``, ``stops.csv``, ``formations.csv``, ``events.csv``,
 ``trace.csv``, ``summary.json``, ``scenario.resolved.yaml``, ``versions.json`` — is compared as bytes.
@@ -94,6 +96,8 @@ def _normalise_csv(text: str) -> str:
 def normalise(path: Path, tmp_root: Path) -> bytes:
     """The file's bytes with wall-clock fields removed and the case's temporary folder replaced."""
     text = path.read_text(encoding="utf-8").replace(str(tmp_root), "<TMP>")
+    if path.suffix == ".sumocfg":  # an external net's cache key hashes netconvert's header, which names <TMP>
+        text = re.sub(r"external-[0-9a-f]+", "external-<HASH>", text)
     if path.suffix == ".json":
         text = json.dumps(_drop_wall(json.loads(text)), indent=2, sort_keys=True) + "\n"
     elif path.suffix == ".csv":

@@ -91,6 +91,13 @@ PLAN: dict[str, str | None] = {
         "--workers 2"
     ): f"railsim study vc-vs-mb {HELP}",
     "railsim report out/sweep": None,
+    "railsim robustness SCENARIO --runs 200 --headways 110,130,150 --out out/rob --workers 2": (
+        f"railsim robustness {HELP}"
+    ),
+    (
+        "railsim study vc-vs-mb --out out/study --disturbances scenarios/disturbances/line3_peak.yaml --runs 200 "
+        "--robust-headways 110,130,150 --workers 2"
+    ): f"railsim study vc-vs-mb {HELP}",
     "railsim network show nets/my.net.xml -a nets/stops.add.xml": None,
     "railsim run scenarios/chongqing_line3_day.yaml --out out/day": None,
     ".venv/bin/python benchmarks/engine.py": "python benchmarks/engine.py scenarios/chongqing_line3_peak.yaml",
