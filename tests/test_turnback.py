@@ -176,6 +176,19 @@ def _mini_with_pocket(folder: Path) -> Path:
     return _write(folder, "mini_pocket.yaml", text)
 
 
+def _run_pocket_day(tmp_path: Path, raw: dict) -> Path:
+    """Run ``raw`` with unit u1 = short_down.000 then short_up.000 (turning in C's pocket); assert exit 0 and no
+    collision or switch violation; the output folder."""
+    raw["rotations"] = {"units": {"u1": ["short_down.000", "short_up.000"]}, "turnback_min_s": 120}
+    scn = _write(tmp_path, "pocket.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    assert res.returncode == 0, res.stderr[-2000:]
+    s = read_summary(out)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    return out
+
+
 def test_a_short_turn_in_a_pocket_track_between_through_trains(tmp_path: Path) -> None:
     line = _mini_with_pocket(tmp_path)
     raw = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
@@ -188,13 +201,7 @@ def test_a_short_turn_in_a_pocket_track_between_through_trains(tmp_path: Path) -
         {"id": "down", "from": "e", "to": "a", "vehicle": "cq6", "departures": {"times": [150]}, "dwell_s": 20},
     ]
     raw["formations"] = []
-    raw["rotations"] = {"units": {"u1": ["short_down.000", "short_up.000"]}, "turnback_min_s": 120}
-    scn = _write(tmp_path, "pocket.yaml", yaml.safe_dump(raw, sort_keys=False))
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr[-2000:]
-    s = read_summary(out)
-    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    out = _run_pocket_day(tmp_path, raw)
     (rev,) = _events(out, "reversed")
     assert yaml.safe_load(rev["detail"])["edge"] == "-c_pk"
     # the unit took both pocket switches on their reverse leg; the through trains passed them on the normal leg
@@ -393,13 +400,7 @@ def test_a_unit_turned_in_a_pocket_couples_behind_a_through_train(tmp_path: Path
             "couple": {"on_departure": True},
         }
     ]
-    raw["rotations"] = {"units": {"u1": ["short_down.000", "short_up.000"]}, "turnback_min_s": 120}
-    scn = _write(tmp_path, "pocket_pair.yaml", yaml.safe_dump(raw, sort_keys=False))
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
-    assert res.returncode == 0, res.stderr[-2000:]
-    s = read_summary(out)
-    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    out = _run_pocket_day(tmp_path, raw)
     assert [r["subject"] for r in _events(out, "coupled")] == ["pair"]
     stops = {(r["trip_id"], r["station"]): r for r in read_csv(out / "stops.csv")}
     leader_at_c = stops[("up.000", "c")]
