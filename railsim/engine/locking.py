@@ -11,7 +11,8 @@ planner requests in its planned order).
 
 **Single track and flat crossings** (:mod:`railsim.engine.single_track`, :mod:`railsim.engine.events.tracks`): a section of bidi
 track that trains use in both directions is a resource held one direction at a time. A train requests it
-``lock_request_distance_m`` before its protection point (the switch in front of the section, if any); until it
+``lock_request_distance_m`` before its protection point (the switch in front of the section, if any) — but with a
+station stop to make before that point, only when it is about to leave that stop (:func:`stop_before`); until it
 is reserved the train's authority ends ``protection_margin_m`` before that point, and it does not ask for the
 switch in front of the section either (a train waiting for a section must not hold or stand on the switch the
 oncoming train needs to leave). A train starting inside a section reserves it before it is inserted (the
@@ -44,8 +45,42 @@ from railsim.engine.single_track import (
     section_map,
 )
 from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import TripStop
 
 log = logging.getLogger(__name__)
+
+
+SECTION_REQUEST_LEAD_S = 20.0  # a train standing at its last stop before a section asks this long before it may go
+
+
+def departure_due_s(tr: TrainRuntime, stop: TripStop) -> float | None:
+    """When the train standing at ``stop`` (its next stop) may leave: its dwell after SUMO registered the halt,
+    at an origin not before the planned (and primarily delayed) departure; None while it is not standing there."""
+    if not tr.sumo_stopped or tr.dwell_started_s is None:
+        return None
+    due_s = tr.dwell_started_s + stop.dwell_s
+    if stop.is_origin:
+        due_s = max(due_s, tr.trip.depart_s + tr.trip.departure_delay_s)
+    return due_s
+
+
+def stop_before(t: float, tr: TrainRuntime, point_m: float) -> bool:
+    """True while the train still has a station stop to make before ``point_m`` and is not about to leave it
+    (within :data:`SECTION_REQUEST_LEAD_S` of its due departure). A single-track section or flat crossing beyond
+    that stop is requested only then — as a route is set from a station's starting signal when the train is
+    ready — not while the train dwells (a unit waiting out its turnback at a terminal held the Bijin crossing
+    for minutes, and the Jurenba trains crossing there stalled)."""
+    stops = tr.trip.stops
+    for k in range(tr.next_stop, len(stops)):
+        stop = stops[k]
+        if stop.window_end_m >= point_m:
+            return False
+        if stop.kind != "station":
+            continue
+        due_s = departure_due_s(tr, stop) if k == tr.next_stop else None
+        if due_s is None or t < due_s - SECTION_REQUEST_LEAD_S:
+            return True
+    return False
 
 
 class RouteLocks:
@@ -116,7 +151,11 @@ class RouteLocks:
         for sec in self.sections[tr.train_id]:
             req = reqs.get(sec.section_id)
             if req is None:
-                if sec.end_m > tr.front_m and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m:
+                if (
+                    sec.end_m > tr.front_m
+                    and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
+                    and not stop_before(t, tr, sec.guard_m)
+                ):
                     reqs[sec.section_id] = self.tracks.request(t, (tr.train_id,), sec.section_id, sec.direction)
             elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
                 self.tracks.release(t, tr.train_id, req)

@@ -1,0 +1,165 @@
+"""When a train asks for a switch or a section (RouteLocks.bookkeeping), constructed without SUMO.
+
+Two rules found by the Line 3 service day, each with the case that broke it:
+
+* a section or flat crossing beyond a station stop is requested only when the train is about to leave that stop
+  (a unit waiting out its turnback at a terminal held the Bijin crossing for minutes while the Jurenba trains that
+  cross there stalled);
+* a coupled follower never asks for a switch on its leader's leg before its leader does (granted first, it held
+  the points its own leader needed and neither could move: the depot-switch deadlock).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from railsim.engine.coupling import COUPLED_STATES
+from railsim.engine.events import EventLayer, Interlocking, Switch
+from railsim.engine.events.log import EventLog
+from railsim.engine.events.tracks import TrackSections
+from railsim.engine.locking import SECTION_REQUEST_LEAD_S, RouteLocks, stop_before
+from railsim.engine.settings import EngineSettings
+from railsim.engine.single_track import RouteSection
+from railsim.engine.trips import TripStop
+
+CROSSING = "crossing:n1"
+GUARD_M = 1000.0  # the crossing's protection point on the route
+
+
+def _stop(name: str, mark_m: float, dwell_s: float, origin: bool = False, destination: bool = False) -> TripStop:
+    return TripStop(
+        name, name, mark_m, mark_m - 120.0, mark_m + 1.0, dwell_s, is_origin=origin, is_destination=destination
+    )
+
+
+def _train(tid: str, front_m: float, stops: list[TripStop], depart_s: float = 0.0, switches: Any = ()) -> Any:
+    trip = SimpleNamespace(
+        stops=tuple(stops),
+        depart_s=depart_s,
+        departure_delay_s=0.0,
+        vehicle=SimpleNamespace(length_m=120.0),
+        route=SimpleNamespace(switches=list(switches)),
+        depart_chainage_m=stops[0].mark_m,
+        destination=stops[-1],
+    )
+    return SimpleNamespace(
+        train_id=tid,
+        trip=trip,
+        view=SimpleNamespace(length_m=stops[-1].mark_m + 100.0),
+        front_m=front_m,
+        next_stop=1,
+        sumo_stopped=False,
+        dwell_started_s=None,
+        locks={},
+        released=set(),
+        violations=set(),
+        reversing=False,
+        start_front_m=stops[0].mark_m,
+        status="running",
+        on_line=True,
+    )
+
+
+def _crossing_locks(*trains: Any) -> RouteLocks:
+    formations = SimpleNamespace(of_follower={}, of_leader={})
+    locks = RouteLocks(
+        SimpleNamespace(trains={t.train_id: t for t in trains}),
+        SimpleNamespace(),
+        formations,
+        EventLog(),
+        EngineSettings(),
+    )
+    locks.tracks = TrackSections(EventLog(), [CROSSING])
+    for t in trains:
+        locks.sections[t.train_id] = [RouteSection(CROSSING, 0, GUARD_M + 50.0, GUARD_M + 60.0, GUARD_M)]
+        locks.section_requests[t.train_id] = {}
+    return locks
+
+
+def test_a_train_dwelling_before_a_crossing_asks_for_it_only_when_about_to_leave() -> None:
+    # origin at 0 m (dwell 30 s, planned departure 300 s: a unit waiting out its turnback), station B at 600 m
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("B", 600.0, 40.0), _stop("C", 3000.0, 1.0, destination=True)]
+    tr = _train("t1", 0.0, stops, depart_s=300.0)
+    tr.next_stop = 0
+    tr.sumo_stopped, tr.dwell_started_s = True, 10.0
+    locks = _crossing_locks(tr)
+    for t in (10.0, 100.0, 300.0 - SECTION_REQUEST_LEAD_S - 1.0):
+        locks.bookkeeping(t, tr)
+        assert locks.section_requests["t1"] == {}, f"asked for the crossing at {t} s, standing at its origin"
+    # about to leave the origin, but B (before the crossing) is still to come: not yet
+    assert stop_before(300.0 - SECTION_REQUEST_LEAD_S, tr, GUARD_M)
+    # on its way to B, within the request distance: still not
+    tr.next_stop, tr.sumo_stopped, tr.dwell_started_s, tr.front_m = 1, False, None, 400.0
+    locks.bookkeeping(330.0, tr)
+    assert locks.section_requests["t1"] == {}
+    # dwelling at B: asks SECTION_REQUEST_LEAD_S before its dwell is over, and is granted (nobody else wants it)
+    tr.front_m, tr.sumo_stopped, tr.dwell_started_s = 600.0, True, 400.0
+    locks.bookkeeping(400.0 + 40.0 - SECTION_REQUEST_LEAD_S - 0.5, tr)
+    assert locks.section_requests["t1"] == {}
+    locks.bookkeeping(400.0 + 40.0 - SECTION_REQUEST_LEAD_S, tr)
+    assert locks.section_requests["t1"][CROSSING].granted
+    assert locks.authority_end_m(tr) > GUARD_M  # the authority now reaches past the crossing
+
+
+def test_a_train_without_a_stop_before_the_crossing_asks_at_the_request_distance() -> None:
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 3000.0, 1.0, destination=True)]
+    tr = _train("t1", GUARD_M - EngineSettings().lock_request_distance_m - 1.0, stops)
+    locks = _crossing_locks(tr)
+    locks.bookkeeping(50.0, tr)
+    assert locks.section_requests["t1"] == {}
+    assert locks.authority_end_m(tr) < GUARD_M  # no reservation: the authority ends before the crossing
+    tr.front_m += 2.0
+    locks.bookkeeping(51.0, tr)
+    assert locks.section_requests["t1"][CROSSING].granted
+
+
+def test_a_dwelling_train_does_not_keep_a_crossing_from_a_train_that_needs_it() -> None:
+    stops_a = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 3000.0, 1.0, destination=True)]
+    dweller = _train("dweller", 0.0, stops_a, depart_s=600.0)
+    dweller.next_stop, dweller.sumo_stopped, dweller.dwell_started_s = 0, True, 0.0
+    crosser = _train("crosser", GUARD_M - 500.0, stops_a)
+    locks = _crossing_locks(dweller, crosser)
+    locks.sections["crosser"] = [RouteSection(CROSSING, 1, GUARD_M + 50.0, GUARD_M + 60.0, GUARD_M)]
+    locks.bookkeeping(20.0, dweller)
+    locks.bookkeeping(20.0, crosser)
+    assert locks.section_requests["crosser"][CROSSING].granted
+    assert locks.waiting_for(crosser) == []
+
+
+# ---------------------------------------------------------------- a coupled follower and its leader's switch
+def _switch_locks(leader: Any, follower: Any) -> tuple[EventLayer, Interlocking, RouteLocks]:
+    layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
+    il = Interlocking(layer)
+    il.add_switch(Switch("sw", throw_time_s=0.0))
+    formation = SimpleNamespace(id="f1")
+    state = next(iter(sorted(COUPLED_STATES)))
+    formations = SimpleNamespace(
+        of_follower={follower.train_id: formation},
+        of_leader={leader.train_id: [formation]},
+        leader_of=lambda f: leader,
+        follower_of=lambda f: follower,
+        manager=SimpleNamespace(state=lambda fid: state),
+    )
+    fleet = SimpleNamespace(trains={leader.train_id: leader, follower.train_id: follower})
+    return layer, il, RouteLocks(fleet, il, formations, EventLog(), EngineSettings())  # type: ignore[arg-type]
+
+
+def test_a_coupled_follower_never_asks_for_its_leaders_switch_before_the_leader() -> None:
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 5000.0, 1.0, destination=True)]
+    switch = SimpleNamespace(switch_id="sw", leg="normal", point_m=2000.0)
+    leader = _train("lead", 800.0, stops, switches=[switch])
+    follower = _train("fol", 2000.0 - 1400.0, stops, switches=[switch])  # within the request distance
+    layer, il, locks = _switch_locks(leader, follower)
+    # the leader's front is further from the switch than the request distance: it has not asked yet
+    leader.front_m = 2000.0 - EngineSettings().lock_request_distance_m - 10.0
+    locks.bookkeeping(0.0, follower)
+    assert "sw" not in follower.locks, "the follower asked for the switch ahead of its own leader"
+    # the leader asks and takes the follower into its request: one lock for the formation
+    leader.front_m += 20.0
+    locks.bookkeeping(1.0, leader)
+    layer.advance_to(2.0)
+    assert follower.locks["sw"] is leader.locks["sw"]
+    assert il.is_locked_for("fol", "sw", "normal") and il.is_locked_for("lead", "sw", "normal")
