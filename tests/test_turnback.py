@@ -433,3 +433,50 @@ def test_a_train_behind_a_unit_at_its_turnback_does_not_brake_for_a_ghost(tmp_pa
     # ... and never had to brake for it
     assert _events(out, "emergency_brake_on") == []
     assert read_summary(out)["collisions"] == 0
+
+
+def _late_first_unit(folder: Path, rotations: object) -> Path:
+    """out.000 (planned first to reach Bury) leaves Aston 200 s late, so out.001's unit arrives first."""
+    folder.mkdir(parents=True, exist_ok=True)
+    net, stops = build_tail_track(folder)
+    services = [_service("out", "Aston", "Bury", [0, 60]), _service("back", "Bury", "Aston", [400, 700])]
+    raw = {
+        "name": folder.name,
+        "world": {"net": str(net), "additional": [str(stops)]},
+        **_COMMON,
+        "services": services,
+        "rotations": rotations,
+        "disturbances": {"departure": [{"services": ["out"], "until_s": 10, "dist": "constant", "value_s": 200}]},
+    }
+    raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
+    scn = _write(folder, "scenario.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = folder / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    assert res.returncode == 0, res.stderr + res.stdout
+    return out
+
+
+def test_a_unit_that_arrives_first_takes_the_first_departure(tmp_path: Path) -> None:
+    """First in, first out by the actual arrivals (``units: auto``): the unit planned for back.000 arrives after
+    the one planned for back.001, so the two swap the rest of their days and both trips leave on time. With the
+    same chaining written out explicitly the units keep their trips, and back.000 waits for its late unit."""
+    auto = _late_first_unit(tmp_path / "auto", {"units": "auto", "turnback_min_s": 60})
+    listed = {"units": {"u1": ["out.000", "back.000"], "u2": ["out.001", "back.001"]}, "turnback_min_s": 60}
+    fixed = _late_first_unit(tmp_path / "explicit", listed)
+    trips = {r["trip_id"]: r for r in read_csv(auto / "trips.csv")}
+    assert float(trips["out.001"]["arrival_s"]) < float(trips["out.000"]["arrival_s"])  # the case: out of order
+    (swap,) = _events(auto, "unit_swapped")
+    assert swap["subject"] == "out.001" and yaml.safe_load(swap["detail"])["takes"] == "back.000"
+    fleet = read_summary(auto)["fleet"]
+    assert fleet["units_swapped"] == 1 and fleet["late_starts_from_incoming_unit"] == 0
+    assert {(r["from_trip"], r["to_trip"]) for r in fleet["turnbacks"]} == {
+        ("out.001", "back.000"),
+        ("out.000", "back.001"),
+    }
+    for row in fleet["turnbacks"]:  # both leave on time, each after its own unit's minimum turnback
+        assert row["achieved_s"] >= row["min_s"] - 1e-6
+        assert abs(row["departed_s"] - row["scheduled_departure_s"]) <= STEP_S + 1e-9
+    late = {r["trip_id"]: r for r in read_csv(fixed / "trips.csv")}
+    assert float(late["back.000"]["departure_s"]) > float(trips["back.000"]["departure_s"]) + 60.0
+    assert not _events(fixed, "unit_swapped")
+    assert read_summary(auto)["collisions"] == 0 and read_summary(fixed)["collisions"] == 0

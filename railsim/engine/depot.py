@@ -243,14 +243,14 @@ class Depots:
         empty_km: dict[str, float] = {}
         start: dict[str, int] = {}
         end: dict[str, int] = {}
-        for uid, run in self.runs.items():
+        for run in self.runs.values():
             start[run["out_depot"]] = start.get(run["out_depot"], 0) + 1
             end[run["in_depot"]] = end.get(run["in_depot"], 0) + 1
-            km = 0.0
             for key, depot in (("out", run["out_depot"]), ("in", run["in_depot"])):
                 tr = trains[run[key]]
+                uid = tr.unit_id or ""  # the unit that ran it (units may swap their days: Turnbacks)
                 ran_m = 0.0 if tr.inserted_s is None else max(0.0, tr.front_m - tr.start_front_m)
-                km += ran_m / 1000.0
+                empty_km[uid] = empty_km.get(uid, 0.0) + ran_m / 1000.0
                 rows.append(
                     {
                         "unit": uid,
@@ -263,7 +263,7 @@ class Depots:
                         "km": round(ran_m / 1000.0, 3),
                     }
                 )
-            empty_km[uid] = round(km, 3)
+        empty_km = {u: round(km, 3) for u, km in sorted(empty_km.items())}
         late = 0
         for run in self.runs.values():
             first = trains[self.turnbacks.next_of[run["out"]]]

@@ -30,6 +30,14 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   turnback)), and the successor is on the line at once, standing. A late incoming unit therefore delays the
   next trip by exactly what it lacks of its turnback minimum (knock-on), and the successor's ``departed_s`` is
   its departure from the origin platform.
+* **First in, first out by the actual arrivals** (``units: auto`` only). The chaining is planned; a unit that
+  arrives before another unit that was planned to arrive first at the same station on the same track takes the
+  earlier departure: at the handover the arriving unit swaps the rest of its day with the unit whose planned
+  next trip leaves earliest among those not yet arrived there (``unit_swapped`` event). Otherwise the early unit
+  would stand on the departure platform (or in the turnback track) waiting for its later departure, and the unit
+  meant for the earlier one would queue behind it — what a dispatcher never lets happen. Trips of a formation
+  that couples across the turnback keep their units (their order is checked at set-up), and units of
+  different vehicle types never swap. An explicit ``units:`` list is followed as written.
 
 The port answers the loop (``handover``), the dispatcher (``chained``: trips it does not insert)
 and the summary (:meth:`Turnbacks.summary`: units, peak units in service, km per unit, turnback times achieved
@@ -109,6 +117,8 @@ class Turnbacks:
         self.prev_of: dict[str, str] = {}
         self.turnbacks: list[dict[str, Any]] = []  # one row per handover
         self._paths: dict[tuple[str, str], list[str] | None] = {}
+        self._pinned: set[str] = set()  # trips whose unit is fixed: a formation coupling across their turnback
+        self.swaps = 0
         self.bridge: Any = None  # the SUMO bridge, wired when the run starts
         if spec is None:
             return
@@ -222,6 +232,7 @@ class Turnbacks:
             key_l = (pl.trip.planned_arrival_s.get(st_l, pl.trip.depart_s), int(leader_id(pl.train_id) == pf.train_id))
             key_f = (pf.trip.planned_arrival_s.get(st_l, pf.trip.depart_s), int(leader_id(pf.train_id) == pl.train_id))
             first, last = (pl, pf) if key_l <= key_f else (pf, pl)
+            self._pinned.update((lead.train_id, fol.train_id))
             if self._in_place(lead) and self._in_place(fol):
                 raise ConfigError(
                     self.source,
@@ -280,6 +291,8 @@ class Turnbacks:
         has no next trip (it leaves the line)."""
         if pred.train_id not in self.next_of:
             return None
+        if self.spec.units is None:
+            self._first_in_first_out(t, pred)
         succ = self.fleet.trains[self.next_of[pred.train_id]]
         trip = succ.trip
         lane_pos_m = pred.front_m - pred.view.edge_start_m[-1]
@@ -329,6 +342,56 @@ class Turnbacks:
         )
         return succ
 
+    def _first_in_first_out(self, t: float, pred: TrainRuntime) -> None:
+        """``pred`` arrived: if a unit planned to arrive here before it on the same track has not, and that
+        unit's next trip leaves before ``pred``'s, the two units swap the rest of their days (module docstring)."""
+        trains = self.fleet.trains
+        succ = trains[self.next_of[pred.train_id]]
+        if succ.train_id in self._pinned:
+            return
+        end_edge = pred.trip.route.edges[-1]
+        best: tuple[tuple[float, str], str] | None = None  # ((departure, next trip), the late predecessor)
+        for p_id, c_id in self.next_of.items():
+            p, c = trains[p_id], trains[c_id]
+            if (
+                p_id == pred.train_id
+                or p.arrived_s is not None
+                or p.status == "removed"
+                or c_id in self._pinned
+                or p.trip.route.edges[-1] != end_edge
+                or c.trip.vehicle_name != succ.trip.vehicle_name
+                or c.trip.depart_s >= succ.trip.depart_s
+            ):
+                continue
+            if best is None or (c.trip.depart_s, c_id) < best[0]:
+                best = ((c.trip.depart_s, c_id), p_id)
+        if best is None:
+            return
+        late = trains[best[1]]
+        uid_a, uid_b = pred.unit_id, late.unit_id
+        assert uid_a is not None and uid_b is not None
+        chain_a, chain_b = self.units[uid_a], self.units[uid_b]
+        ia, ib = chain_a.index(pred.train_id), chain_b.index(late.train_id)
+        tail_a, tail_b = chain_a[ia + 1 :], chain_b[ib + 1 :]
+        self.units[uid_a], self.units[uid_b] = chain_a[: ia + 1] + tail_b, chain_b[: ib + 1] + tail_a
+        for uid, tail in ((uid_a, tail_b), (uid_b, tail_a)):
+            for tid in tail:
+                trains[tid].sumo_id = trains[tid].unit_id = uid
+        self.next_of[pred.train_id], self.prev_of[tail_b[0]] = tail_b[0], pred.train_id
+        self.next_of[late.train_id], self.prev_of[tail_a[0]] = tail_a[0], late.train_id
+        self.swaps += 1
+        self.events.record(
+            t,
+            "unit_swapped",
+            pred.train_id,
+            unit=uid_a,
+            takes=tail_b[0],
+            instead_of=tail_a[0],
+            late_unit=uid_b,
+            late_trip=late.train_id,
+            station=pred.trip.destination.station_id,
+        )
+
     # ------------------------------------------------------------------ results
     def summary(self) -> dict[str, Any]:
         """Fleet and turnback KPIs (module docstring)."""
@@ -370,6 +433,7 @@ class Turnbacks:
             "turnbacks": rows,
             "turnback_min_respected": achieved_ok,
             "late_starts_from_incoming_unit": len(late),
+            "units_swapped": self.swaps,
             "knock_on_delay_s": round(sum(r["knock_on_s"] for r in late), 3),
         }
 
