@@ -356,6 +356,16 @@ def _check_pair_back(out: Path, leader: str, follower: str) -> None:
     assert 0.0 <= float(fol["departure_s"]) - float(lead["departure_s"]) <= 10.0
     # ... and run coupled to the end: the follower arrives within a few seconds of its leader
     assert 0.0 < float(fol["arrival_s"]) - float(lead["arrival_s"]) <= 15.0
+    # a unit carries its state across the turnback: its energy and coupled time are its trips' sums
+    fleet = summary["fleet"]
+    by_unit: dict[str, list[dict]] = {}
+    for row in fleet["turnbacks"]:  # each unit ran two trips: the one it arrived with and the one after
+        by_unit.setdefault(row["unit"], []).extend([trips[row["from_trip"]], trips[row["to_trip"]]])
+    assert len(by_unit) == 2 and all(len(rows) == 2 for rows in by_unit.values())
+    for uid, rows in by_unit.items():
+        assert abs(fleet["energy_kwh_per_unit"][uid] - sum(float(r["energy_kwh"]) for r in rows)) < 2e-3
+        assert abs(fleet["coupled_s_per_unit"][uid] - sum(float(r["time_coupled_s"]) for r in rows)) < 2e-3
+    assert sum(fleet["coupled_s_per_unit"].values()) > 0.0 and all(v > 0 for v in fleet["energy_kwh_per_unit"].values())
 
 
 def test_a_coupled_pair_cannot_reverse_in_place_on_one_bidi_track(tmp_path: Path) -> None:

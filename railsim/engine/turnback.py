@@ -40,8 +40,8 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   different vehicle types never swap. An explicit ``units:`` list is followed as written.
 
 The port answers the loop (``handover``), the dispatcher (``chained``: trips it does not insert)
-and the summary (:meth:`Turnbacks.summary`: units, peak units in service, km per unit, turnback times achieved
-against the minimum, late starts caused by the incoming unit).
+and the summary (:meth:`Turnbacks.summary`: units, peak units in service, km, traction energy and time coupled
+per unit, turnback times achieved against the minimum, late starts caused by the incoming unit).
 """
 
 from __future__ import annotations
@@ -398,11 +398,15 @@ class Turnbacks:
         trains = self.fleet.trains
         spans: list[tuple[float, int]] = []
         km: dict[str, float] = {}
+        energy_kwh: dict[str, float] = {}
+        coupled_s: dict[str, float] = {}
         for uid, chain in self.units.items():
             first, last = trains[chain[0]], trains[chain[-1]]
             start = first.inserted_s
             end = last.arrived_s if last.arrived_s is not None else None
             km[uid] = round(sum(_run_m(trains[tid]) for tid in chain) / 1000.0, 3)
+            energy_kwh[uid] = round(sum(trains[tid].energy_j for tid in chain) / 3.6e6, 3)
+            coupled_s[uid] = round(sum(trains[tid].coupled_s for tid in chain), 3)
             if start is not None:
                 spans += [(start, 1), (end if end is not None else float("inf"), -1)]
         peak = cur = 0
@@ -429,6 +433,8 @@ class Turnbacks:
             "units_used": len(self.units),
             "peak_units_in_service": peak,
             "km_per_unit": km,
+            "energy_kwh_per_unit": energy_kwh,  # traction energy of all its trips (trips.csv has each trip's)
+            "coupled_s_per_unit": coupled_s,  # time it ran virtually coupled behind a leader (trips.csv)
             "trips_per_unit": {u: len(c) for u, c in self.units.items()},
             "turnbacks": rows,
             "turnback_min_respected": achieved_ok,
