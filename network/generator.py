@@ -73,7 +73,7 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-GENERATOR_VERSION = "5"  # 4: depot leads; 5: flat crossings (graph.graph["crossings"])
+GENERATOR_VERSION = "6"  # 4: depot leads; 5: flat crossings (graph.graph["crossings"]); 6: depot exit clear
 INTERNAL_LANE_M = 0.1  # length of every internal junction lane (what netconvert gives a straight rail node)
 ALLOW = "rail rail_urban rail_fast rail_electric subway"
 TRACK_WIDTH_M = 3.0
@@ -82,7 +82,9 @@ DIRECTIONS = ("up", "down")
 TURNBACK_TRACK_M = 180.0  # a turnback track beyond a terminus: a 6/8-car unit (≤ 120 m) plus margin
 POCKET_SPEED_MPS = 30.0 / 3.6  # estimated: pocket switches like the other Line 3 turnouts (data pack, S15)
 POCKET_THROW_S = 15.0  # estimated: as the Bijin switches in the shipped world
-DEPOT_STOP_MARGIN_M = 5.0  # a depot lead's trainStops end this far from the lead's ends
+DEPOT_STOP_MARGIN_M = 5.0  # a depot lead's trainStops end this far from the lead's ends ...
+DEPOT_EXIT_CLEAR_M = 60.0  # ... but a unit starts its day this far before the line end: clear of the points it
+# waits for (the overlap, and the separation margin of a train that passes on the running track meanwhile)
 DEPOT_DRAW_OFFSET_M = 40.0  # the lead's far end lies this far to the side of the line (drawing only)
 
 
@@ -611,11 +613,10 @@ def write_stops(plan: _Plan, path: Path) -> dict[str, list[PlatformInfo]]:
             platforms.setdefault(station.id, []).append(PlatformInfo(direction, stop_id, eid, start, end))
     for dl in plan.leads:
         for eid, stop_id in depot_stops(dl):
-            lead_m = dl.depot.length_m - INTERNAL_LANE_M
+            start, end = depot_stop_span(dl, eid, dl.depot.length_m - INTERNAL_LANE_M)
             lines.append(
                 f"  <trainStop id={quoteattr(stop_id)} lane={quoteattr(eid + '_0')} "
-                f'startPos="{_fmt(DEPOT_STOP_MARGIN_M)}" endPos="{_fmt(lead_m - DEPOT_STOP_MARGIN_M)}" '
-                f"name={quoteattr(dl.depot.name)}/>"
+                f'startPos="{_fmt(start)}" endPos="{_fmt(end)}" name={quoteattr(dl.depot.name)}/>'
             )
     lines.append("</additional>")
     path.write_text("\n".join(lines) + "\n", encoding="utf-8")
@@ -625,6 +626,14 @@ def write_stops(plan: _Plan, path: Path) -> dict[str, list[PlatformInfo]]:
 def depot_stops(lead: _DepotLead) -> list[tuple[str, str]]:
     """(lead edge, trainStop id) of a depot: where units end their day, where they start it."""
     return [(lead.into, f"{lead.depot.id}.in"), (lead.out, f"{lead.depot.id}.out")]
+
+
+def depot_stop_span(lead: _DepotLead, eid: str, length_m: float) -> tuple[float, float]:
+    """Lane positions (start, end) of the depot trainStop on lead edge ``eid`` of ``length_m``: the track in ends
+    :data:`DEPOT_STOP_MARGIN_M` before the lead's far end; the track out :data:`DEPOT_EXIT_CLEAR_M` before the
+    line (at most half the lead, on a short one)."""
+    clear_m = min(DEPOT_EXIT_CLEAR_M, 0.5 * length_m) if eid == lead.out else DEPOT_STOP_MARGIN_M
+    return DEPOT_STOP_MARGIN_M, length_m - clear_m
 
 
 def read_net(
@@ -867,7 +876,7 @@ def _add_depot_leads(
             (lead.into, lead.out, lead.node, lead.far),
             (lead.out, lead.into, lead.far, lead.node),
         ):
-            stop = (dp.id, stop_of[eid], DEPOT_STOP_MARGIN_M, lanes[eid][0] - DEPOT_STOP_MARGIN_M)
+            stop = (dp.id, stop_of[eid], *depot_stop_span(lead, eid, lanes[eid][0]))
             # the lead runs off to the side: its whole length sits at the depot's km (design sign 0)
             _add_side_edge(graph, eid, partner, dp.line, "depot", fn, tn, lanes[eid], x_m, 0, stop)
         for a, b, node in lead.connections():

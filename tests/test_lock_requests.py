@@ -5,6 +5,9 @@ Two rules found by the Line 3 service day, each with the case that broke it:
 * a section or flat crossing beyond a station stop is requested only when the train is about to leave that stop
   (a unit waiting out its turnback at a terminal held the Bijin crossing for minutes while the Jurenba trains that
   cross there stalled);
+* a switch beyond a station stop likewise (a branch train dwelling short of the merge held the points for two
+  minutes and the main-line train at the merge waited for it), unless the stop lies within the authority margin
+  of the points (without the lock the train could not reach its stopping point, and would never dwell there);
 * a coupled follower never asks for a switch on its leader's leg before its leader does (granted first, it held
   the points its own leader needed and neither could move: the depot-switch deadlock).
 """
@@ -14,6 +17,7 @@ from __future__ import annotations
 from types import SimpleNamespace
 from typing import Any
 
+import networkx as nx
 import numpy as np
 
 from railsim.engine.coupling import COUPLED_STATES
@@ -163,3 +167,87 @@ def test_a_coupled_follower_never_asks_for_its_leaders_switch_before_the_leader(
     layer.advance_to(2.0)
     assert follower.locks["sw"] is leader.locks["sw"]
     assert il.is_locked_for("fol", "sw", "normal") and il.is_locked_for("lead", "sw", "normal")
+
+
+# ---------------------------------------------------------------- merges: where a train on the other leg appears
+def test_before_a_merge_not_locked_for_it_a_train_stops_its_separation_margin_short() -> None:
+    """At trailing points (another track joins ours) a train passing on the other leg appears on our track with its
+    rear at the point: the authority ends the separation margin (50 m) before such a point, not only the overlap
+    (20 m), so the train appearing there is never inside our margin (the Line 3 day's emergency brakes at the
+    Bijin down merge). Facing points keep the overlap, and so does a train without a separation role."""
+    g = nx.DiGraph()
+    g.add_edge("main", "trunk", switch="merge_sw", leg="normal")
+    g.add_edge("branch", "trunk", switch="merge_sw", leg="reverse")
+    g.add_edge("trunk", "fork", switch=None)
+    g.add_edge("fork", "left", switch="facing_sw", leg="normal")
+    g.add_edge("fork", "right", switch="facing_sw", leg="reverse")
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    switches = [
+        SimpleNamespace(switch_id="merge_sw", leg="normal", point_m=2000.0),
+        SimpleNamespace(switch_id="facing_sw", leg="normal", point_m=4000.0),
+    ]
+    sep = SimpleNamespace(params=SimpleNamespace(margin_m=50.0))
+    guarded = _train("guarded", 500.0, stops, switches=switches)
+    plain = _train("plain", 500.0, stops, switches=switches)
+    for tr, controllers in ((guarded, {"separation": sep}), (plain, {})):
+        tr.trip.route.edges = ["main", "trunk", "fork", "left"]
+        tr.controllers = controllers
+    layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
+    il = Interlocking(layer)
+    for sid in ("merge_sw", "facing_sw"):
+        il.add_switch(Switch(sid, throw_time_s=0.0))
+    formations = SimpleNamespace(of_follower={}, of_leader={})
+    fleet = SimpleNamespace(trains={"guarded": guarded, "plain": plain})
+    locks = RouteLocks(fleet, il, formations, EventLog(), EngineSettings())  # type: ignore[arg-type]
+    locks.protect_merges(g)
+    overlap_m = EngineSettings().protection_margin_m
+    assert locks.authority_end_m(guarded) == 2000.0 - 50.0
+    assert locks.authority_end_m(plain) == 2000.0 - overlap_m
+    # the merge locked for both: the next limit is the facing point, where the overlap is enough
+    for tr in (guarded, plain):
+        il.request((tr.train_id,), "merge_sw", "normal", 0.0)
+    layer.advance_to(1.0)
+    assert il.is_locked_for("guarded", "merge_sw", "normal") or il.is_locked_for("plain", "merge_sw", "normal")
+    first = "guarded" if il.is_locked_for("guarded", "merge_sw", "normal") else "plain"
+    assert locks.authority_end_m(fleet.trains[first]) == 4000.0 - overlap_m
+
+
+# ---------------------------------------------------------------- a switch beyond a station stop
+def _one_switch_locks(tr: Any) -> tuple[EventLayer, RouteLocks]:
+    layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
+    il = Interlocking(layer)
+    il.add_switch(Switch("sw", throw_time_s=0.0))
+    formations = SimpleNamespace(of_follower={}, of_leader={})
+    fleet = SimpleNamespace(trains={tr.train_id: tr})
+    return layer, RouteLocks(fleet, il, formations, EventLog(), EngineSettings())  # type: ignore[arg-type]
+
+
+def test_a_switch_beyond_a_station_stop_is_asked_for_only_when_about_to_leave_it() -> None:
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("B", 600.0, 40.0), _stop("C", 3000.0, 1.0, destination=True)]
+    switch = SimpleNamespace(switch_id="sw", leg="reverse", point_m=GUARD_M)
+    tr = _train("t1", 400.0, stops, switches=[switch])  # within the request distance, B still to come
+    layer, locks = _one_switch_locks(tr)
+    locks.bookkeeping(10.0, tr)
+    assert "sw" not in tr.locks
+    tr.front_m, tr.sumo_stopped, tr.dwell_started_s = 600.0, True, 100.0  # dwelling at B, due at 140 s
+    locks.bookkeeping(140.0 - SECTION_REQUEST_LEAD_S - 0.5, tr)
+    assert "sw" not in tr.locks
+    locks.bookkeeping(140.0 - SECTION_REQUEST_LEAD_S, tr)
+    layer.advance_to(140.0)
+    assert locks.interlocking.is_locked_for("t1", "sw", "reverse")
+
+
+def test_a_stop_within_the_overlap_of_the_points_does_not_hold_back_the_request() -> None:
+    overlap_m = EngineSettings().protection_margin_m
+    stops = [
+        _stop("A", 0.0, 30.0, origin=True),
+        _stop("B", GUARD_M - overlap_m / 2.0, 40.0),  # its stopping point lies beyond where the authority would end
+        _stop("C", 3000.0, 1.0, destination=True),
+    ]
+    switch = SimpleNamespace(switch_id="sw", leg="reverse", point_m=GUARD_M)
+    tr = _train("t1", 400.0, stops, switches=[switch])
+    layer, locks = _one_switch_locks(tr)
+    locks.bookkeeping(10.0, tr)
+    layer.advance_to(11.0)
+    assert locks.interlocking.is_locked_for("t1", "sw", "reverse")
+    assert locks.authority_end_m(tr) > stops[1].mark_m  # it can reach its stopping point at B

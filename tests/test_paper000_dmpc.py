@@ -45,7 +45,10 @@ def _slsqp_reference(x0, v0, u_prev, hz, n, starts, weights):
             constraints=[{"type": "ineq", "fun": g}],
             options={"ftol": 1e-12, "maxiter": 500},
         )
-        if r.success and np.min(g(r.x)) > -1e-6 and (best is None or r.fun < best.fun):
+        # status 8 ("positive directional derivative for linesearch"): SLSQP found no descent left at its working
+        # precision; scipy >= 1.16's SLSQP ends there at this optimum rather than reporting success. The point is
+        # still checked for feasibility, and the best feasible point of all starts is the reference.
+        if (r.success or r.status == 8) and np.min(g(r.x)) > -1e-6 and (best is None or r.fun < best.fun):
             best = r
     assert best is not None
     return best

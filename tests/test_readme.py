@@ -105,6 +105,7 @@ PLAN: dict[str, str | None] = {
     ".venv/bin/python benchmarks/optimizers_000.py": f"python benchmarks/optimizers_000.py {HELP}",
     ".venv/bin/python benchmarks/controllers_000.py": f"python benchmarks/controllers_000.py {HELP}",
     ".venv/bin/python benchmarks/junction_planner.py": f"python benchmarks/junction_planner.py {HELP}",
+    ".venv/bin/python benchmarks/service_day.py": "python benchmarks/service_day.py --hours 0.05",
 }
 
 _COMMENT = re.compile(r"\s+#\s.*$")

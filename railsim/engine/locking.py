@@ -5,9 +5,23 @@ Every switch on a train's route is requested ``lock_request_distance_m`` before 
 granted the train's movement authority ends ``protection_margin_m`` before the switch point (the **overlap**: a
 scenario sets it with ``interlocking.overlap_m``; the authority also reaches that far beyond the destination
 platform's end); the lock is released when the train's rear is ``clearance_m`` past the point. A coupled follower on the same leg rides on
-its leader's request (one lock for the formation). Passing a switch without its lock is a ``switch_violation``
+its leader's request (one lock for the formation). With a station stop to make before the switch, it is requested
+only when the train is about to leave that stop (:func:`stop_before`), as a route is set from the starting signal:
+a branch train dwelling short of a merge held the points for two minutes and the main-line train at the merge
+waited for it — unless the stop lies within the authority margin of the points (the train could not reach its
+stopping point without the lock). Passing a switch without its lock is a ``switch_violation``
 event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
 planner requests in its planned order).
+
+**Merges.** At a merge (two tracks joining, SUMO's trailing points) a train on the other leg appears on our
+track the moment it passes the point: its rear is at the point. So before a merge not locked for it a train's
+authority ends ``max(overlap, its separation margin)`` before the point (:meth:`RouteLocks.protect_merges`), so
+that the train appearing there is never inside the follower's own moving-block margin: with the overlap alone
+(20 m < the 50 m margin) every such appearance was an emergency brake (29 on the Line 3 day, all at Bijin's down
+merge). A merge is found on the route itself (the edge after the point has another way in), so it covers a
+depot lead or a pocket joining the running track as well as a junction. Facing points keep the overlap: nobody
+can appear ahead of us from the other leg there (and the Bijin up platform ends closer than 50 m to them). Nor
+does a merge an extension manages (the junction planner orders the trains through it and plans their spacing).
 
 **Single track and flat crossings** (:mod:`railsim.engine.single_track`, :mod:`railsim.engine.events.tracks`): a section of bidi
 track that trains use in both directions is a resource held one direction at a time. A train requests it
@@ -104,6 +118,36 @@ class RouteLocks:
         self.now_s: Callable[[], float] = lambda: 0.0  # the clock's time, wired by the loop
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
+        self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
+        self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
+
+    def protect_merges(self, graph: nx.DiGraph) -> None:
+        """Find, on every train's route, the switches where another track joins the one the route continues on
+        (the edge after the point has more than one way in: trailing points, a merge for this train), and the
+        train's margin before them when they are not locked for it: the overlap, or its separation controller's
+        ``margin_m`` if larger (module docstring, "Merges")."""
+        overlap_m = self.settings.protection_margin_m
+        for tid, tr in self.fleet.trains.items():
+            params = getattr(tr.controllers.get("separation"), "params", None)
+            margin_m = float(getattr(params, "margin_m", 0.0))
+            if margin_m <= overlap_m:
+                continue
+            edges = tr.trip.route.edges
+            trailing = {
+                str(graph.edges[a, b]["switch"])
+                for a, b in zip(edges, edges[1:])
+                if graph.has_edge(a, b) and graph.edges[a, b].get("switch") and graph.in_degree(b) > 1
+            }
+            if trailing:
+                self.merge_margin_m[tid] = margin_m
+                self.merges_of[tid] = frozenset(trailing)
+
+    def _margin_m(self, train_id: str, switch_id: str) -> float:
+        """How far before a switch not locked for it the train's authority ends: the overlap, or its separation
+        margin before a merge (module docstring, "Merges")."""
+        if switch_id in self.merges_of.get(train_id, ()) and not self.managed_by(train_id, switch_id):
+            return self.merge_margin_m[train_id]
+        return self.settings.protection_margin_m
 
     def set_up_shared_track(self, graph: Any, now_s: Callable[[], float]) -> None:
         """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
@@ -213,6 +257,7 @@ class RouteLocks:
                 sid not in tr.locks
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
+                and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
                 and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
                 and not self.managed_by(tr.train_id, sid)
                 and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
@@ -365,5 +410,5 @@ class RouteLocks:
             if rs.point_m <= tr.front_m - 1e-6 or rs.switch_id in tr.released:
                 continue
             if not self.interlocking.is_locked_for(tr.train_id, rs.switch_id, rs.leg):
-                return min(end, rs.point_m - self.settings.protection_margin_m)
+                return min(end, rs.point_m - self._margin_m(tr.train_id, rs.switch_id))
         return end

@@ -121,6 +121,7 @@ class Simulation:
             self.formations.add(f, f"formations[{k}]")
         self.formations.across_turnbacks(self.turnbacks)
         self.locks = RouteLocks(self.fleet, self.interlocking, self.formations, self.events, self.settings)
+        self.locks.protect_merges(self.bundle.graph)
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
         self.stops = StopBook(
             self.formations, self.events, self.settings, self.recorder.stop_record, self.locks.release_all
