@@ -179,8 +179,15 @@ def net_braking_mps2(
 # --------------------------------------------------------------------------------------------- exact discrete
 
 
+_LAG_RATIOS: dict[tuple[float, float], float] = {}
+
+
 def _lag_ratio(dt_s: float, lag_s: float) -> float:
-    return math.exp(-dt_s / lag_s) if lag_s > 0.0 else 0.0
+    """``r = e^{−dt/τ}`` (0 without lag), remembered per ``(dt, τ)``: a run asks for one or two pairs."""
+    r = _LAG_RATIOS.get((dt_s, lag_s))
+    if r is None:
+        r = _LAG_RATIOS[(dt_s, lag_s)] = math.exp(-dt_s / lag_s) if lag_s > 0.0 else 0.0
+    return r
 
 
 def discrete_stop_distance_m(
@@ -206,18 +213,45 @@ def discrete_stop_distance_m(
     c = net_accel_now_mps2 + b
     cds = c * dt_s * s
     bdt = b * dt_s
-    # First step with V_j <= 0: start from the crossing of the asymptote (r^j -> 0), then walk to the exact one.
+    # First step with V_j <= 0 (V_j = v − j·b·dt + c·dt·s·(1 − r^j)): start from the crossing of the asymptote
+    # (r^j -> 0), then walk to the exact one.
     n = max(1, math.ceil((v + cds) / bdt))
-    speed_at = lambda j: v - j * bdt + cds * (1.0 - r**j)  # noqa: E731 - tiny local closed form
-    while n > 1 and speed_at(n - 1) <= 0.0:
+    while n > 1 and v - (n - 1) * bdt + cds * (1.0 - r ** (n - 1)) <= 0.0:
         n -= 1
-    while speed_at(n) > 0.0:
+    while v - n * bdt + cds * (1.0 - r**n) > 0.0:
         n += 1
     m = n - 1
     if m <= 0:
         return 0.0
     total = m * (v + cds) - bdt * m * (m + 1) / 2.0 - cds * s * (1.0 - r**m)
     return max(total * dt_s, 0.0)
+
+
+def discrete_stop_distance_bound_m(
+    speed_mps: float,
+    net_accel_now_mps2: float,
+    decel_mps2: float,
+    dt_s: float,
+    lag_s: float,
+) -> float:
+    """An upper bound on :func:`discrete_stop_distance_m` in a few operations (a screen before the exact sum).
+
+    With ``W = v + max(c·dt·s, 0)`` every speed of the recursion is ``V_j ≤ W − j·b·dt`` (the lag term
+    ``c·dt·s·(1 − r^j)`` lies between 0 and ``c·dt·s``), so the distance ``dt·Σ V_j`` over the steps with
+    ``V_j > 0`` is at most ``dt·Σ_j max(W − j·b·dt, 0) ≤ W²/(2·b)``. A relative and an absolute slack of 1e-9
+    cover the rounding of the exact sum, so ``x > bound`` proves ``x > discrete_stop_distance_m(...)`` and the
+    callers skip the exact evaluation (ATO cruising far from its stop points: every step).
+    """
+    v = speed_mps
+    b = decel_mps2
+    if v <= 0.0 and net_accel_now_mps2 <= 0.0:
+        return 0.0
+    if b <= _MIN_DECEL_MPS2:
+        return math.inf
+    r = _lag_ratio(dt_s, lag_s)
+    cds = (net_accel_now_mps2 + b) * dt_s * (r / (1.0 - r))
+    w = max(v, 0.0) + max(cds, 0.0)
+    return w * w / (2.0 * b) * (1.0 + 1e-9) + 1e-9
 
 
 def discrete_required_decel_mps2(

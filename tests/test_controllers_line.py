@@ -30,6 +30,7 @@ from controllers.braking import (
     allowed_speed_mps,
     build_up_delay_s,
     discrete_required_decel_mps2,
+    discrete_stop_distance_bound_m,
     discrete_stop_distance_m,
     required_decel_mps2,
     stopping_distance_m,
@@ -71,6 +72,30 @@ def test_discrete_stop_distance_matches_plant_recursion() -> None:
         assert discrete_stop_distance_m(v, net_now, b, dt, tau) == pytest.approx(expected, abs=1e-7)
         solved = discrete_required_decel_mps2(v, net_now, expected, dt, tau, 2.0)
         assert discrete_stop_distance_m(v, net_now, solved, dt, tau) == pytest.approx(expected, abs=2e-3)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    v=st.floats(0.0, 120.0),
+    net_now=st.floats(-2.0, 1.5),
+    b=st.floats(1e-4, 2.0),
+    dt=st.sampled_from([0.05, 0.1, 0.5, 1.0]),
+    tau=st.sampled_from([0.0, 0.2, 0.5, 1.0, 2.0]),
+)
+def test_discrete_stop_distance_bound_is_an_upper_bound(
+    v: float, net_now: float, b: float, dt: float, tau: float
+) -> None:
+    """The screen the ATO runs before the exact sum never lies below it (else it would skip a needed brake)."""
+    exact = discrete_stop_distance_m(v, net_now, b, dt, tau)
+    assert exact <= discrete_stop_distance_bound_m(v, net_now, b, dt, tau)
+
+
+def test_discrete_stop_distance_bound_is_tight_enough_to_screen_cruising() -> None:
+    """Cruising at 20 m/s (net 0), the bound is within 10 % of the exact distance at b = 0.8 m/s²: a stop point
+    beyond it needs no exact evaluation."""
+    exact = discrete_stop_distance_m(20.0, 0.0, 0.8, 0.5, 0.5)
+    bound = discrete_stop_distance_bound_m(20.0, 0.0, 0.8, 0.5, 0.5)
+    assert exact < bound < 1.1 * exact
 
 
 @given(
