@@ -73,3 +73,20 @@ def test_trains_on_different_legs_beyond_the_switch_do_not_see_each_other(bundle
     )
     assert occ.ahead("fol") is None
     assert occ.ahead("lead") is None
+
+
+def test_edge_near_is_edge_at_whatever_the_hint() -> None:
+    """The forward-only edge pointer (RouteView.edge_near) answers exactly what the search does, for a good,
+    a neighbouring or a wrong hint, before the route, on every edge boundary, inside edges, past the end and
+    with zero-length edges."""
+    from types import SimpleNamespace
+
+    starts = (0.0, 100.0, 100.0, 250.5, 251.0, 900.0)
+    route = SimpleNamespace(
+        id="r", edges=tuple(f"e{i}" for i in range(len(starts))), edge_start_m=starts, speed_limits=(), gradients=()
+    )
+    view = RouteView(route)
+    points = [-5.0, *starts, *(x + 1e-9 for x in starts), *(x - 1e-9 for x in starts), 50.0, 175.0, 600.0, 1e6]
+    for x in points:
+        for hint in range(-2, len(starts) + 2):
+            assert view.edge_near(x, hint) == view.edge_at(x), (x, hint)

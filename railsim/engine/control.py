@@ -360,18 +360,21 @@ class ControlStage:
         plan = cmd.info.get("plan") if cmd.info else None
         tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
         v_now = tr.plant.speed_mps
-        res = dynamics.step(veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method)
-        jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
+        v_next, a, u_k, _, _, energy_j, mask = dynamics.step_values(
+            veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method
+        )
+        jerk = abs(a - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
-        tr.plant = res.state
-        tr.energy_j += res.traction_energy_j
-        for s in res.saturations:
-            tr.saturations[s] = tr.saturations.get(s, 0) + 1
+        tr.plant = dynamics.PlantState(v_next, a, u_k)
+        tr.energy_j += energy_j
+        if mask:
+            for s in dynamics.flags_from_mask(mask):
+                tr.saturations[s] = tr.saturations.get(s, 0) + 1
         tr.last_role = role
         tr.last_cmd_mps2 = cmd.accel_mps2
         # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
         # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
-        tr.sent_speed_mps = v_now if self.step_method == "forward" else res.state.speed_mps
+        tr.sent_speed_mps = v_now if self.step_method == "forward" else v_next
         return tr.sent_speed_mps
 
     def _exact_finish(self, t: float, tr: TrainRuntime, role: str, cmd: Command, grad: float) -> float:

@@ -158,7 +158,7 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
-        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m)
+        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i)
         if mapped is None:
             return None
         return mapped[0], mapped[1], pos, v, acc, stamp, plan  # only the part of its body on our track

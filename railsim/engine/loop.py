@@ -277,7 +277,9 @@ class Simulation:
         truth = self._read_truth(t, active, ids)
         self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
 
-        self.occupancy.update([Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m) for tr in active])
+        self.occupancy.update(
+            [Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m, tr.edge_i) for tr in active]
+        )
         ahead: dict[str, Ahead | None] = {}
         for tr in active:
             a = self.occupancy.ahead(tr.train_id, self.settings.lookahead_m)
@@ -314,6 +316,7 @@ class Simulation:
         truth = self.bridge.read(ids)
         for i, tr in enumerate(active):
             tr.front_m = tr.depart_chainage_m + float(truth.odometer_m[i])
+            tr.edge_i = tr.view.edge_near(tr.front_m, tr.edge_i)  # forward-only pointer: the hint is last step's
             sumo_v = float(truth.speed_mps[i])
             # SUMO applies exactly the speed we sent (speedMode 32) unless it holds the train at a stop
             expected_v = tr.sent_speed_mps if tr.sent_speed_mps is not None else tr.plant.speed_mps

@@ -59,6 +59,17 @@ class RouteView:
         i = bisect.bisect_right(self.edge_start_m, chainage_m) - 1
         return min(max(i, 0), len(self.edges) - 1)
 
+    def edge_near(self, chainage_m: float, hint: int) -> int:
+        """:meth:`edge_at` for a chainage on or next to edge ``hint`` (a train's front one step later, its rear):
+        the hint and its neighbours are checked against the edge bounds before any search. The result is
+        :meth:`edge_at`'s, whatever the hint (a wrong one only costs the search)."""
+        starts = self.edge_start_m
+        last = len(starts) - 1
+        for i in (hint, hint + 1, hint - 1):
+            if 0 <= i <= last and (i == 0 or starts[i] <= chainage_m) and (i == last or chainage_m < starts[i + 1]):
+                return i
+        return self.edge_at(chainage_m)
+
     def gradient_at(self, chainage_m: float) -> float:
         """Gradient [‰] under ``chainage_m`` (0 where the route has no gradient data)."""
         i = bisect.bisect_right(self.grade_starts, chainage_m) - 1
@@ -86,18 +97,19 @@ class RouteView:
             return None
         return other.edge_start_m[j] - self.edge_start_m[i]
 
-    def map_body(self, other: RouteView, front_m: float, length_m: float) -> tuple[float, float] | None:
+    def map_body(self, other: RouteView, front_m: float, length_m: float, hint: int = 0) -> tuple[float, float] | None:
         """A train on ``other``'s route (front at ``front_m`` in its frame) as ``(front, rear)`` in *this* frame.
 
         Only the part of its body on track this route shares counts. At a merge the other train's front may be on
         our track while its tail is still on the other leg: its rear is then clamped to where the shared track
         begins (the switch), so the tail on the other leg is not "ahead of us". At a diverge the front may already
         be on the other leg while the tail is on our track: the frame change uses the shared edge under the tail,
-        and the rear is exact. Returns None if no part of the body is on our route.
+        and the rear is exact. Returns None if no part of the body is on our route. ``hint``: an edge index of
+        ``other`` at or next to the front (:meth:`edge_near`).
         """
         rear_m = front_m - length_m
-        i_front = other.edge_at(front_m)
-        i_rear = other.edge_at(rear_m)
+        i_front = other.edge_near(front_m, hint)
+        i_rear = other.edge_near(rear_m, i_front)
         for i in range(i_front, i_rear - 1, -1):  # the frontmost shared edge under the body
             j = self.edge_index.get(other.edges[i])
             if j is None:

@@ -45,7 +45,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import simpy
@@ -204,9 +204,9 @@ class Outage:
         return self.start_s <= t_s < self.end_s and (self.trains is None or train_id in self.trains)
 
 
-@dataclass(frozen=True, slots=True)
-class Message:
-    """A delivered (or in-flight) message; ``delivered_s = sent_s + drawn delay``, exactly."""
+class Message(NamedTuple):
+    """A delivered (or in-flight) message; ``delivered_s = sent_s + drawn delay``, exactly. (Immutable; a named
+    tuple rather than a frozen dataclass because one is built per train, step and channel.)"""
 
     sender: str
     receiver: str
