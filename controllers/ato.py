@@ -67,6 +67,7 @@ from controllers.braking import (
     params_from_mapping,
     require,
     required_decel_mps2,
+    required_decel_surely_below,
     traction_limit_mps2,
 )
 from railsim.physics.vehicle import VehicleParams
@@ -234,8 +235,11 @@ class Ato:
                 room_m <= discrete_stop_distance_m(v, net_now, b_plan, dt, tau)
             )
             if triggered or braking_now:
+                b_release = p.release_fraction * b_plan
+                if not triggered and required_decel_surely_below(v, net_now, d, dt, tau, b_release):
+                    continue  # braking for something else, this point far off: no solve needed to stay released
                 b_req = discrete_required_decel_mps2(v, net_now, d, dt, tau, b_service_net)
-                if (triggered or b_req >= p.release_fraction * b_plan) and -b_req < brake_net:
+                if (triggered or b_req >= b_release) and -b_req < brake_net:
                     brake_net = -b_req
                     phase = "stop"
 

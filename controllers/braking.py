@@ -57,6 +57,7 @@ from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 # Smallest deceleration the solvers consider [m/s²]: below it a stop is "never" (distance diverges).
 _MIN_DECEL_MPS2 = 1e-4
+_SOLVE_TOLERANCE_M = 1e-3  # discrete_required_decel_mps2 stops when the distance is this close [m]
 
 
 def build_up_delay_s(
@@ -254,6 +255,21 @@ def discrete_stop_distance_bound_m(
     return w * w / (2.0 * b) * (1.0 + 1e-9) + 1e-9
 
 
+def required_decel_surely_below(
+    speed_mps: float, net_accel_now_mps2: float, distance_m: float, dt_s: float, lag_s: float, decel_mps2: float
+) -> bool:
+    """True when :func:`discrete_required_decel_mps2` for ``distance_m`` is certainly below ``decel_mps2``.
+
+    The distance run braking at ``decel_mps2`` is at most :func:`discrete_stop_distance_bound_m`; with
+    ``distance_m`` beyond that bound by more than ten times the solver's tolerance, the root lies below
+    ``decel_mps2`` (the distance falls with the deceleration) and every answer the solver gives (within its
+    tolerance of the root, or a bracket end on the root's side) does too. The ATO uses it to skip the solve
+    while it only checks whether braking is still needed.
+    """
+    bound = discrete_stop_distance_bound_m(speed_mps, net_accel_now_mps2, decel_mps2, dt_s, lag_s)
+    return distance_m > bound * (1.0 + 1e-6) + 10.0 * _SOLVE_TOLERANCE_M
+
+
 def discrete_required_decel_mps2(
     speed_mps: float,
     net_accel_now_mps2: float,
@@ -261,7 +277,7 @@ def discrete_required_decel_mps2(
     dt_s: float,
     lag_s: float,
     max_decel_mps2: float,
-    tolerance_m: float = 1e-3,
+    tolerance_m: float = _SOLVE_TOLERANCE_M,
 ) -> float:
     """Constant net deceleration [m/s²] that makes :func:`discrete_stop_distance_m` equal ``distance_m``.
 

@@ -33,6 +33,7 @@ from controllers.braking import (
     discrete_stop_distance_bound_m,
     discrete_stop_distance_m,
     required_decel_mps2,
+    required_decel_surely_below,
     stopping_distance_m,
 )
 from railsim.physics.dynamics import PlantState, step
@@ -88,6 +89,24 @@ def test_discrete_stop_distance_bound_is_an_upper_bound(
     """The screen the ATO runs before the exact sum never lies below it (else it would skip a needed brake)."""
     exact = discrete_stop_distance_m(v, net_now, b, dt, tau)
     assert exact <= discrete_stop_distance_bound_m(v, net_now, b, dt, tau)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    v=st.floats(0.0, 40.0),
+    net_now=st.floats(-1.5, 1.0),
+    extra=st.floats(0.0, 3.0),
+    b0=st.floats(0.01, 1.0),
+    dt=st.sampled_from([0.1, 0.5, 1.0]),
+    tau=st.sampled_from([0.0, 0.5, 1.0]),
+)
+def test_release_screen_never_hides_a_required_brake(
+    v: float, net_now: float, extra: float, b0: float, dt: float, tau: float
+) -> None:
+    """Where the ATO skips the stop solve (required_decel_surely_below), the solve would have given less."""
+    d = discrete_stop_distance_bound_m(v, net_now, b0, dt, tau) * (1.0 + extra) + extra
+    if required_decel_surely_below(v, net_now, d, dt, tau, b0):
+        assert discrete_required_decel_mps2(v, net_now, d, dt, tau, 1.3) < b0
 
 
 def test_discrete_stop_distance_bound_is_tight_enough_to_screen_cruising() -> None:
