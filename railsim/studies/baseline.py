@@ -70,7 +70,7 @@ def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None)
         step_method=sim.step_method,
         vtypes=vtypes,
     )
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     steps = 0
     arrived = 0
     with SumoBridge(cfg) as bridge:
@@ -105,5 +105,5 @@ def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None)
             if k == len(trips) and not bridge.present_ids() and not bridge.pending_ids():
                 break
         sim_s = t
-    wall = time.perf_counter() - t0
-    return {"wall_s": wall, "sim_s": sim_s, "steps": steps, "n_trains": len(trips), "n_arrived": arrived}
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"wall_s": wall, "cpu_s": cpu, "sim_s": sim_s, "steps": steps, "n_trains": len(trips), "n_arrived": arrived}
