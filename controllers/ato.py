@@ -186,11 +186,12 @@ class Ato:
         brake_net = math.inf  # most restrictive braking sub-law (net acceleration, <= 0)
         phase = "cruise"
         braking_now = net_now <= -0.3 * b_plan
+        far_m = _restriction_far_m(v, v_target, b_plan, p.release_fraction * b_plan, delay_plan, net_now)
         for lim in speed_limits:
             v_lim = lim.speed_mps - p.speed_margin_mps
             if lim.start_m <= x < lim.end_m + length_m:
                 v_target = min(v_target, v_lim)
-            elif x < lim.start_m:
+            elif x < lim.start_m <= x + far_m:  # farther restrictions change nothing yet (_restriction_far_m)
                 d = lim.start_m - x
                 v_target = min(v_target, allowed_speed_mps(d, b_plan, delay_plan, 0.0, v_lim))
                 if v > v_lim:
@@ -256,6 +257,27 @@ class Ato:
             return -veh.emergency_decel_mps2, True, "emergency"
         applied = net + rho  # VehicleParams.net_to_applied(net, v, grade), the same operations
         return min(max(applied, -service), traction), False, phase
+
+
+def _restriction_far_m(
+    v: float, v_target: float, b_plan: float, b_release: float, delay_s: float, net_now: float
+) -> float:
+    """Distance beyond which a speed restriction ahead changes neither the cruise target nor the braking.
+
+    Its braking curve allows ``≥ v_target`` once ``d ≥ v_target²/(2·b_plan) + v_target·T`` (the quadratic of
+    :func:`allowed_speed_mps` with ``a0 = 0``, whatever the restriction's speed), and the deceleration it requires
+    (:func:`required_decel_mps2` with ``a0 = net_now``) stays below ``b_release`` once
+    ``d > dead-time run + v_after²/(2·b_release)``. A millimetre and a relative 1e-9 on top cover rounding,
+    so skipping a restriction beyond this distance gives the command the full loop gives.
+    """
+    t = delay_s
+    if net_now < 0.0 and v + net_now * t < 0.0:  # stands within the dead time: no braking required at all
+        t = v / -net_now
+    v_after = max(v + net_now * t, 0.0)
+    dead_m = v * t + 0.5 * net_now * t * t
+    vt = max(v_target, 0.0)
+    far_m = max(vt * vt / (2.0 * b_plan) + vt * delay_s, dead_m + v_after * v_after / (2.0 * b_release))
+    return far_m * (1.0 + 1e-9) + 1e-3
 
 
 @register("ato")

@@ -635,3 +635,27 @@ def test_command_cost_per_call() -> None:
         us = (time.perf_counter() - start) / (5 * len(obs)) * 1e6
         print(f"{name}: {us:.1f} us per command()")
         assert us < 2000.0
+
+
+@settings(max_examples=500, deadline=None)
+@given(
+    v=st.floats(0.0, 40.0),
+    v_target=st.floats(-1.0, 40.0),
+    b_plan=st.floats(0.05, 1.2),
+    release=st.floats(0.05, 0.95),
+    delay=st.floats(0.0, 4.0),
+    net_now=st.floats(-1.5, 1.0),
+    v_lim=st.floats(-0.5, 30.0),
+    beyond=st.floats(0.0, 5000.0),
+)
+def test_restrictions_beyond_the_far_distance_change_nothing(
+    v: float, v_target: float, b_plan: float, release: float, delay: float, net_now: float, v_lim: float, beyond: float
+) -> None:
+    """The ATO skips restrictions farther than _restriction_far_m: there the braking curve allows at least the
+    cruise target and the required deceleration is below the release level, so the loop would change nothing."""
+    from controllers.ato import _restriction_far_m
+
+    d = _restriction_far_m(v, v_target, b_plan, release * b_plan, delay, net_now) + beyond
+    assert allowed_speed_mps(d, b_plan, delay, 0.0, v_lim) >= v_target
+    if v > v_lim:
+        assert required_decel_mps2(v, d, delay, net_now, v_lim) < release * b_plan

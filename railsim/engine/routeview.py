@@ -37,6 +37,8 @@ class RouteView:
     grades: tuple[tuple[float, float, float], ...] = ()
     line_speed_mps: float = 20.0
     _offsets: dict[tuple[str, int], float | None] = field(default_factory=dict)
+    _windows: dict[tuple[int, int, bool], tuple[SpeedLimit, ...]] = field(default_factory=dict)
+    _well_formed: bool = True  # every restriction ends at or after its start
 
     def __post_init__(self) -> None:
         r = self.route
@@ -46,6 +48,7 @@ class RouteView:
         lims = sorted((float(a), float(b), float(v)) for a, b, v in r.speed_limits)
         self.limits = tuple(SpeedLimit(a, b, v) for a, b, v in lims)
         self.limit_starts = [a for a, _, _ in lims]
+        self._well_formed = all(b >= a for a, b, _ in lims)
         self.line_speed_mps = max((v for _, _, v in lims), default=20.0)
         self.grades = tuple(sorted((float(a), float(b), float(g)) for a, b, g in r.gradients))
         self.grade_starts = [a for a, _, _ in self.grades]
@@ -79,8 +82,26 @@ class RouteView:
         return g if a <= chainage_m < b else 0.0
 
     def limits_ahead(self, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
-        """Restrictions overlapping ``[from_m, to_m]`` (those at or below line speed; all of them, in order)."""
-        i = max(bisect.bisect_right(self.limit_starts, from_m) - 1, 0)
+        """Restrictions overlapping ``[from_m, to_m]`` (those below line speed, in order).
+
+        The scan starts at ``i``, the last restriction starting at or before ``from_m``, and ends before ``j``, the
+        first starting after ``to_m``; of those only the first can end before ``from_m`` (the others start after
+        it), so the answer is remembered per ``(i, j, whether limits[i] reaches from_m)``: every train on this
+        route asks for one of a few such windows, step after step.
+        """
+        starts = self.limit_starts
+        i = max(bisect.bisect_right(starts, from_m) - 1, 0)
+        if not self._well_formed:  # a restriction ending before it starts: no window reasoning
+            return self._scan(i, from_m, to_m)
+        if not starts:
+            return ()
+        key = (i, bisect.bisect_right(starts, to_m), self.limits[i].end_m >= from_m)
+        out = self._windows.get(key)
+        if out is None:
+            out = self._windows[key] = self._scan(i, from_m, to_m)
+        return out
+
+    def _scan(self, i: int, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
         out = []
         for lim in self.limits[i:]:
             if lim.start_m > to_m:
