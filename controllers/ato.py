@@ -186,7 +186,11 @@ class Ato:
         brake_net = math.inf  # most restrictive braking sub-law (net acceleration, <= 0)
         phase = "cruise"
         braking_now = net_now <= -0.3 * b_plan
-        far_m = _restriction_far_m(v, v_target, b_plan, p.release_fraction * b_plan, delay_plan, net_now)
+        far_m = (
+            _restriction_far_m(v, v_target, b_plan, p.release_fraction * b_plan, delay_plan, net_now)
+            if speed_limits
+            else 0.0
+        )
         for lim in speed_limits:
             v_lim = lim.speed_mps - p.speed_margin_mps
             if lim.start_m <= x < lim.end_m + length_m:

@@ -356,7 +356,8 @@ class ControlStage:
         noise_trains = self.dist.actuator_trains
         if self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains):
             u += float(self.dist.actuator_rng.normal(0.0, self.dist.actuator_sd_mps2))  # the papers' disturbance
-        u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
+        if self.dist.biases:
+            u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
         plan = cmd.info.get("plan") if cmd.info else None
         tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
         v_now = tr.plant.speed_mps

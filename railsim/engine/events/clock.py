@@ -134,7 +134,13 @@ class EventLayer:
         light = self._light
         queue = env._queue
         while True:
-            if light and light[0][0] <= t_s and (not queue or light[0][:3] < queue[0][:3]):
+            if light and light[0][0] <= t_s:
+                head = light[0]
+                if queue:  # simpy's head first if it sorts before: (time, priority, id), ids are unique
+                    q = queue[0]
+                    if q[0] < head[0] or (q[0] == head[0] and (q[1], q[2]) < (head[1], head[2])):
+                        env.step()
+                        continue
                 when, _, _, callback, value = heappop(light)
                 env._now = when  # as simpy's step sets it: the call sees the clock at its own time
                 callback(value)
