@@ -3,7 +3,7 @@
 The scenario is generated: one long double-track ``straight_corridor`` (stations every 3 km, line speed
 80 km/h, the demo's 6-car metro unit, ATO + moving-block separation, the demo's lossy, delayed ground radio).
 N/2 trains run up and N/2 down, all inserted at t = 0 already in motion (60 km/h), two per section (at 1/4
-and 3/4 of it, 1.5 km apart), each on a trip of three sections. From the first step every train is on the
+and 3/4 of it, 1.5 km apart), each on a trip of two sections. From the first step every train is on the
 line with a train ahead within the look-ahead, and brakes for, stops at and leaves the stations it reaches;
 no trip ends within the horizon, so the number of trains on the line is N in every measured step (checked:
 ``on_line_at_end``).
@@ -35,7 +35,7 @@ from typing import Any
 
 SPACING_M = 1500.0  # between consecutive trains of one direction [m]: two per section, at 1/4 and 3/4 of it
 STATION_KM = 3.0  # between stations [km]
-TRIP_STATIONS = 3  # every trip runs this many sections: farther than it gets within the horizon (≤ 300 s)
+TRIP_STATIONS = 2  # every trip runs two sections: farther than it gets within the default horizon (100 s)
 START_KMH = 60.0
 
 
