@@ -16,8 +16,10 @@ For each N the script runs, in separate processes (libsumo hosts one simulation 
   by SUMO's own car-following model (:func:`railsim.studies.baseline.run_sumo_only`).
 
 Both measure the steps after ``warmup_steps`` (insertion and first registration excluded) and report wall and
-process-CPU microseconds per train-step (step time / N), and their ratio. ``linearity`` compares the per
-train-step cost of the largest N with that of the smallest (1.0 = exactly linear in N).
+process-CPU microseconds per train-step (step time / N), and their ratio; railsim also reports the CPU time of
+SUMO's own ``simulationStep`` inside its loop (libsumo runs in the same process), so the rest is railsim's.
+``linearity`` compares the per train-step cost of the largest N with that of the smallest (1.0 = exactly
+linear in N).
 
     .venv/bin/python benchmarks/scale.py [--sizes 100,300,1000,3000] [--horizon-s 100] [--out scale.json]
 """
@@ -116,23 +118,36 @@ def _per_train_step(marks: list[tuple[float, float]], n_trains: int, warmup_step
 
 
 def _railsim(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict]) -> None:
+    from railsim.engine import sumo
     from railsim.engine.loop import Simulation
 
     marks: list[tuple[float, float]] = []
+    sumo_cpu: list[float] = []  # CPU time of SUMO's own step (libsumo runs in this process), per step
+    sumo_step = sumo.SumoBridge.step
+
+    def timed_sumo_step(bridge: Any) -> None:
+        c0 = time.process_time()
+        sumo_step(bridge)
+        sumo_cpu.append(time.process_time() - c0)
 
     class Timed(Simulation):
         def _step(self, t: float) -> None:
             marks.append((time.perf_counter(), time.process_time()))
             super()._step(t)
 
+    sumo.SumoBridge.step = timed_sumo_step  # type: ignore[method-assign]
     scn = _load(n_trains, horizon_s)
     with tempfile.TemporaryDirectory() as out:
         sim = Timed(scn, Path(out), progress=False)
         sim.run()
     on_line = [tr for tr in sim.trains.values() if tr.status == "running"]
+    steps = len(marks) - 1 - warmup_steps  # SUMO steps between the first and the last measured mark
     q.put(
         {
             **_per_train_step(marks, n_trains, warmup_steps),
+            "sumo_step_cpu_us_per_train_step": 1e6
+            * sum(sumo_cpu[warmup_steps : warmup_steps + steps])
+            / (steps * n_trains),
             "on_line_at_end": len(on_line),
             "collisions": len(sim.safety.collisions),
             "failure": sim.failure(),
