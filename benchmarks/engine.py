@@ -20,7 +20,8 @@ import statistics
 import tempfile
 import time
 from pathlib import Path
-from typing import Any
+
+from spawn import in_process  # benchmarks/spawn.py (the scripts' folder is on sys.path)
 
 DEFAULT = Path(__file__).resolve().parents[1] / "scenarios" / "chongqing_line3_peak.yaml"
 
@@ -44,27 +45,17 @@ def _sumo_only(path: str, q: mp.Queue[dict]) -> None:
     q.put(baseline.run_sumo_only(scenario.load(path)))
 
 
-def _in_process(target: Any, path: str) -> dict[str, Any]:
-    ctx = mp.get_context("spawn")
-    q = ctx.Queue()
-    p = ctx.Process(target=target, args=(path, q))
-    p.start()
-    res: dict[str, Any] = q.get()
-    p.join()
-    return res
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("scenario", nargs="?", default=str(DEFAULT))
     ap.add_argument("--reps", type=int, default=3, help="repetitions of each side (median reported)")
     args = ap.parse_args()
     path = args.scenario
-    _in_process(_sumo_only, path)  # warm the network cache so neither side pays for netconvert
+    in_process(_sumo_only, path)  # warm the network cache so neither side pays for netconvert
     runs = []
     for _ in range(args.reps):
-        sumo = _in_process(_sumo_only, path)
-        ours = _in_process(_railsim, path)
+        sumo = in_process(_sumo_only, path)
+        ours = in_process(_railsim, path)
         runs.append({"railsim": ours, "sumo_only": sumo})
     wall = [r["railsim"]["wall_s"] / r["sumo_only"]["wall_s"] for r in runs]
     cpu = [r["railsim"]["cpu_s"] / r["sumo_only"]["cpu_s"] for r in runs]

@@ -35,6 +35,8 @@ import time
 from pathlib import Path
 from typing import Any
 
+from spawn import in_process  # benchmarks/spawn.py (the scripts' folder is on sys.path)
+
 SPACING_M = 1500.0  # between consecutive trains of one direction [m]: two per section, at 1/4 and 3/4 of it
 STATION_KM = 3.0  # between stations [km]
 TRIP_STATIONS = 2  # every trip runs two sections: farther than it gets within the default horizon (100 s)
@@ -165,16 +167,6 @@ def _sumo(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict])
     q.put({**_per_train_step(marks, n_trains, warmup_steps), "n_arrived": res["n_arrived"]})
 
 
-def _in_process(target: Any, *args: Any) -> dict[str, Any]:
-    ctx = mp.get_context("spawn")
-    q = ctx.Queue()
-    p = ctx.Process(target=target, args=(*args, q))
-    p.start()
-    res: dict[str, Any] = q.get()
-    p.join()
-    return res
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--sizes", default="100,300,1000,3000", help="numbers of simultaneous trains (even)")
@@ -185,9 +177,9 @@ def main() -> None:
     sizes = [int(x) for x in args.sizes.split(",")]
     rows = []
     for n in sizes:
-        _in_process(_sumo, n, 1.0, 0)  # build and cache the corridor, so neither side pays for netconvert
-        sumo = _in_process(_sumo, n, args.horizon_s, args.warmup_steps)
-        ours = _in_process(_railsim, n, args.horizon_s, args.warmup_steps)
+        in_process(_sumo, n, 1.0, 0)  # build and cache the corridor, so neither side pays for netconvert
+        sumo = in_process(_sumo, n, args.horizon_s, args.warmup_steps)
+        ours = in_process(_railsim, n, args.horizon_s, args.warmup_steps)
         rows.append(
             {
                 "n_trains": n,

@@ -191,6 +191,15 @@ def _lag_ratio(dt_s: float, lag_s: float) -> float:
     return r
 
 
+def _trivial_stop_m(speed_mps: float, net_accel_now_mps2: float, decel_mps2: float) -> float | None:
+    """0 for a train standing without drive, infinity for a vanishing deceleration, else None (sum needed)."""
+    if speed_mps <= 0.0 and net_accel_now_mps2 <= 0.0:
+        return 0.0
+    if decel_mps2 <= _MIN_DECEL_MPS2:
+        return math.inf
+    return None
+
+
 def discrete_stop_distance_m(
     speed_mps: float,
     net_accel_now_mps2: float,
@@ -205,10 +214,9 @@ def discrete_stop_distance_m(
     """
     v = speed_mps
     b = decel_mps2
-    if v <= 0.0 and net_accel_now_mps2 <= 0.0:
-        return 0.0
-    if b <= _MIN_DECEL_MPS2:
-        return math.inf
+    trivial = _trivial_stop_m(v, net_accel_now_mps2, b)
+    if trivial is not None:
+        return trivial
     r = _lag_ratio(dt_s, lag_s)
     s = r / (1.0 - r)
     c = net_accel_now_mps2 + b
@@ -243,16 +251,13 @@ def discrete_stop_distance_bound_m(
     cover the rounding of the exact sum, so ``x > bound`` proves ``x > discrete_stop_distance_m(...)`` and the
     callers skip the exact evaluation (ATO cruising far from its stop points: every step).
     """
-    v = speed_mps
-    b = decel_mps2
-    if v <= 0.0 and net_accel_now_mps2 <= 0.0:
-        return 0.0
-    if b <= _MIN_DECEL_MPS2:
-        return math.inf
+    trivial = _trivial_stop_m(speed_mps, net_accel_now_mps2, decel_mps2)
+    if trivial is not None:
+        return trivial
     r = _lag_ratio(dt_s, lag_s)
-    cds = (net_accel_now_mps2 + b) * dt_s * (r / (1.0 - r))
-    w = max(v, 0.0) + max(cds, 0.0)
-    return w * w / (2.0 * b) * (1.0 + 1e-9) + 1e-9
+    cds = (net_accel_now_mps2 + decel_mps2) * dt_s * (r / (1.0 - r))
+    w = max(speed_mps, 0.0) + max(cds, 0.0)
+    return w * w / (2.0 * decel_mps2) * (1.0 + 1e-9) + 1e-9
 
 
 def required_decel_surely_below(
