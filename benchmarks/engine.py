@@ -1,30 +1,41 @@
 """Engine benchmark: the demo scenario under railsim's controlled loop vs the same trains driven by SUMO alone.
 
-Prints one JSON object: wall time of the demo scenario, simulated seconds per wall second, and the ratio of our
-controlled loop's wall time to SUMO alone on the same net, trips and step (both measured in this run, each in
-its own process because libsumo hosts one simulation per process).
+Prints one JSON object: for each side the wall and process-CPU time of the stepping loop (set-up excluded:
+world, fleet and free-run plans for railsim; the net for SUMO), simulated seconds per wall second, and the
+ratio of our controlled loop's time to SUMO alone on the same net, trips and step. Both sides run ``--reps``
+times (default 3), alternating, each run in its own process (libsumo hosts one simulation per process); the
+ratios are the medians of the per-repetition ratios. On a shared machine wall time depends on the load;
+the CPU ratio is the steadier figure.
 
-    .venv/bin/python benchmarks/engine.py [SCENARIO]
+    .venv/bin/python benchmarks/engine.py [SCENARIO] [--reps 3]
 """
 
 from __future__ import annotations
 
+import argparse
 import json
 import multiprocessing as mp
 import platform
-import sys
+import statistics
 import tempfile
+import time
 from pathlib import Path
+
+from spawn import in_process  # benchmarks/spawn.py (the scripts' folder is on sys.path)
 
 DEFAULT = Path(__file__).resolve().parents[1] / "scenarios" / "chongqing_line3_peak.yaml"
 
 
 def _railsim(path: str, q: mp.Queue[dict]) -> None:
-    from railsim import api as engine, scenario
+    from railsim import scenario
+    from railsim.engine.loop import Simulation
 
     with tempfile.TemporaryDirectory() as out:
-        s = engine.run(scenario.load(path), Path(out), progress=False)
-    q.put({k: s[k] for k in ("wall_s", "sim_s", "steps", "n_trains", "n_arrived", "collisions")})
+        sim = Simulation(scenario.load(path), Path(out), progress=False)
+        c0 = time.process_time()
+        s = sim.run()
+        cpu = time.process_time() - c0
+    q.put({**{k: s[k] for k in ("wall_s", "sim_s", "steps", "n_trains", "n_arrived", "collisions")}, "cpu_s": cpu})
 
 
 def _sumo_only(path: str, q: mp.Queue[dict]) -> None:
@@ -34,33 +45,40 @@ def _sumo_only(path: str, q: mp.Queue[dict]) -> None:
     q.put(baseline.run_sumo_only(scenario.load(path)))
 
 
-def _in_process(target, path: str) -> dict:
-    ctx = mp.get_context("spawn")
-    q = ctx.Queue()
-    p = ctx.Process(target=target, args=(path, q))
-    p.start()
-    res = q.get()
-    p.join()
-    return res
-
-
 def main() -> None:
-    path = sys.argv[1] if len(sys.argv) > 1 else str(DEFAULT)
-    _in_process(_sumo_only, path)  # warm the network cache so neither side pays for netconvert
-    sumo = _in_process(_sumo_only, path)
-    ours = _in_process(_railsim, path)
+    ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
+    ap.add_argument("scenario", nargs="?", default=str(DEFAULT))
+    ap.add_argument("--reps", type=int, default=3, help="repetitions of each side (median reported)")
+    args = ap.parse_args()
+    path = args.scenario
+    in_process(_sumo_only, path)  # warm the network cache so neither side pays for netconvert
+    runs = []
+    for _ in range(args.reps):
+        sumo = in_process(_sumo_only, path)
+        ours = in_process(_railsim, path)
+        runs.append({"railsim": ours, "sumo_only": sumo})
+    wall = [r["railsim"]["wall_s"] / r["sumo_only"]["wall_s"] for r in runs]
+    cpu = [r["railsim"]["cpu_s"] / r["sumo_only"]["cpu_s"] for r in runs]
+    per_step = [
+        (r["railsim"]["cpu_s"] / r["railsim"]["steps"]) / (r["sumo_only"]["cpu_s"] / r["sumo_only"]["steps"])
+        for r in runs
+    ]
+    last = runs[-1]
     print(
         json.dumps(
             {
                 "benchmark": "engine",
                 "scenario": Path(path).name,
                 "python": platform.python_version(),
-                "railsim": {**ours, "sim_s_per_wall_s": ours["sim_s"] / ours["wall_s"]},
-                "sumo_only": {**sumo, "sim_s_per_wall_s": sumo["sim_s"] / sumo["wall_s"]},
-                "overhead_ratio": ours["wall_s"] / sumo["wall_s"],
-                "per_step_ms": {
-                    "railsim": 1000 * ours["wall_s"] / ours["steps"],
-                    "sumo_only": 1000 * sumo["wall_s"] / sumo["steps"],
+                "reps": args.reps,
+                "runs": runs,
+                "overhead_ratio": statistics.median(wall),
+                "cpu_overhead_ratio": statistics.median(cpu),
+                "cpu_per_step_ratio": statistics.median(per_step),
+                "ratios": {"wall": wall, "cpu": cpu, "cpu_per_step": per_step},
+                "sim_s_per_wall_s": {
+                    "railsim": last["railsim"]["sim_s"] / last["railsim"]["wall_s"],
+                    "sumo_only": last["sumo_only"]["sim_s"] / last["sumo_only"]["wall_s"],
                 },
             },
             indent=2,

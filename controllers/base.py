@@ -200,6 +200,12 @@ def fallback_reason(cmd: Command) -> str:
 
 
 def arbitrate(commands: Mapping[str, Command]) -> tuple[str, Command]:
-    """The most restrictive command wins (smallest acceleration). Returns ``(role, command)``."""
-    role = min(commands, key=lambda r: commands[r].accel_mps2)
-    return role, commands[role]
+    """The most restrictive command wins (smallest acceleration; the first role on a tie, as ``min`` picks).
+    Returns ``(role, command)``."""
+    best_role, best = "", None
+    for role, cmd in commands.items():
+        if best is None or cmd.accel_mps2 < best.accel_mps2:
+            best_role, best = role, cmd
+    if best is None:
+        raise ValueError("arbitrate() needs at least one command")
+    return best_role, best

@@ -57,6 +57,7 @@ from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 # Smallest deceleration the solvers consider [m/s²]: below it a stop is "never" (distance diverges).
 _MIN_DECEL_MPS2 = 1e-4
+_SOLVE_TOLERANCE_M = 1e-3  # discrete_required_decel_mps2 stops when the distance is this close [m]
 
 
 def build_up_delay_s(
@@ -179,8 +180,24 @@ def net_braking_mps2(
 # --------------------------------------------------------------------------------------------- exact discrete
 
 
+_LAG_RATIOS: dict[tuple[float, float], float] = {}
+
+
 def _lag_ratio(dt_s: float, lag_s: float) -> float:
-    return math.exp(-dt_s / lag_s) if lag_s > 0.0 else 0.0
+    """``r = e^{−dt/τ}`` (0 without lag), remembered per ``(dt, τ)``: a run asks for one or two pairs."""
+    r = _LAG_RATIOS.get((dt_s, lag_s))
+    if r is None:
+        r = _LAG_RATIOS[(dt_s, lag_s)] = math.exp(-dt_s / lag_s) if lag_s > 0.0 else 0.0
+    return r
+
+
+def _trivial_stop_m(speed_mps: float, net_accel_now_mps2: float, decel_mps2: float) -> float | None:
+    """0 for a train standing without drive, infinity for a vanishing deceleration, else None (sum needed)."""
+    if speed_mps <= 0.0 and net_accel_now_mps2 <= 0.0:
+        return 0.0
+    if decel_mps2 <= _MIN_DECEL_MPS2:
+        return math.inf
+    return None
 
 
 def discrete_stop_distance_m(
@@ -197,27 +214,65 @@ def discrete_stop_distance_m(
     """
     v = speed_mps
     b = decel_mps2
-    if v <= 0.0 and net_accel_now_mps2 <= 0.0:
-        return 0.0
-    if b <= _MIN_DECEL_MPS2:
-        return math.inf
+    trivial = _trivial_stop_m(v, net_accel_now_mps2, b)
+    if trivial is not None:
+        return trivial
     r = _lag_ratio(dt_s, lag_s)
     s = r / (1.0 - r)
     c = net_accel_now_mps2 + b
     cds = c * dt_s * s
     bdt = b * dt_s
-    # First step with V_j <= 0: start from the crossing of the asymptote (r^j -> 0), then walk to the exact one.
+    # First step with V_j <= 0 (V_j = v − j·b·dt + c·dt·s·(1 − r^j)): start from the crossing of the asymptote
+    # (r^j -> 0), then walk to the exact one.
     n = max(1, math.ceil((v + cds) / bdt))
-    speed_at = lambda j: v - j * bdt + cds * (1.0 - r**j)  # noqa: E731 - tiny local closed form
-    while n > 1 and speed_at(n - 1) <= 0.0:
+    while n > 1 and v - (n - 1) * bdt + cds * (1.0 - r ** (n - 1)) <= 0.0:
         n -= 1
-    while speed_at(n) > 0.0:
+    while v - n * bdt + cds * (1.0 - r**n) > 0.0:
         n += 1
     m = n - 1
     if m <= 0:
         return 0.0
     total = m * (v + cds) - bdt * m * (m + 1) / 2.0 - cds * s * (1.0 - r**m)
     return max(total * dt_s, 0.0)
+
+
+def discrete_stop_distance_bound_m(
+    speed_mps: float,
+    net_accel_now_mps2: float,
+    decel_mps2: float,
+    dt_s: float,
+    lag_s: float,
+) -> float:
+    """An upper bound on :func:`discrete_stop_distance_m` in a few operations (a screen before the exact sum).
+
+    With ``W = v + max(c·dt·s, 0)`` every speed of the recursion is ``V_j ≤ W − j·b·dt`` (the lag term
+    ``c·dt·s·(1 − r^j)`` lies between 0 and ``c·dt·s``), so the distance ``dt·Σ V_j`` over the steps with
+    ``V_j > 0`` is at most ``dt·Σ_j max(W − j·b·dt, 0) ≤ W²/(2·b)``. A relative and an absolute slack of 1e-9
+    cover the rounding of the exact sum, so ``x > bound`` proves ``x > discrete_stop_distance_m(...)`` and the
+    callers skip the exact evaluation (ATO cruising far from its stop points: every step).
+    """
+    trivial = _trivial_stop_m(speed_mps, net_accel_now_mps2, decel_mps2)
+    if trivial is not None:
+        return trivial
+    r = _lag_ratio(dt_s, lag_s)
+    cds = (net_accel_now_mps2 + decel_mps2) * dt_s * (r / (1.0 - r))
+    w = max(speed_mps, 0.0) + max(cds, 0.0)
+    return w * w / (2.0 * decel_mps2) * (1.0 + 1e-9) + 1e-9
+
+
+def required_decel_surely_below(
+    speed_mps: float, net_accel_now_mps2: float, distance_m: float, dt_s: float, lag_s: float, decel_mps2: float
+) -> bool:
+    """True when :func:`discrete_required_decel_mps2` for ``distance_m`` is certainly below ``decel_mps2``.
+
+    The distance run braking at ``decel_mps2`` is at most :func:`discrete_stop_distance_bound_m`; with
+    ``distance_m`` beyond that bound by more than ten times the solver's tolerance, the root lies below
+    ``decel_mps2`` (the distance falls with the deceleration) and every answer the solver gives (within its
+    tolerance of the root, or a bracket end on the root's side) does too. The ATO uses it to skip the solve
+    while it only checks whether braking is still needed.
+    """
+    bound = discrete_stop_distance_bound_m(speed_mps, net_accel_now_mps2, decel_mps2, dt_s, lag_s)
+    return distance_m > bound * (1.0 + 1e-6) + 10.0 * _SOLVE_TOLERANCE_M
 
 
 def discrete_required_decel_mps2(
@@ -227,7 +282,7 @@ def discrete_required_decel_mps2(
     dt_s: float,
     lag_s: float,
     max_decel_mps2: float,
-    tolerance_m: float = 1e-3,
+    tolerance_m: float = _SOLVE_TOLERANCE_M,
 ) -> float:
     """Constant net deceleration [m/s²] that makes :func:`discrete_stop_distance_m` equal ``distance_m``.
 

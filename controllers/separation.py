@@ -89,25 +89,46 @@ class Separation:
         """Nothing to forget: the law keeps no state."""
 
     def command(self, obs: Observation) -> Command:
-        veh = obs.vehicle
         own = obs.own
-        v = max(own.speed_mps, 0.0)
         pred = obs.predecessor
-        traction = traction_limit_mps2(veh, v)
         if pred is None:
-            return Command(traction, info={"phase": "free"})
+            return Command(traction_limit_mps2(obs.vehicle, max(own.speed_mps, 0.0)), info={"phase": "free"})
+        return self.decide(
+            obs.vehicle,
+            obs.dt_s,
+            own.position_m,
+            own.speed_mps,
+            own.accel_mps2,
+            own.gradient_permille,
+            pred.rear_position_m,
+            pred.age_s,
+        )
+
+    def decide(
+        self,
+        veh: VehicleParams,
+        dt_s: float,
+        x: float,
+        speed_mps: float,
+        a0: float,
+        grade: float,
+        pred_rear_m: float,
+        pred_age_s: float,
+    ) -> Command:
+        """The law against a known predecessor rear, on plain values; :meth:`command` is this on an observation.
+        The engine calls it directly for a train whose separation role is this class (no observation built)."""
+        v = max(speed_mps, 0.0)
+        traction = traction_limit_mps2(veh, v)
         p = self.params
-        grade = own.gradient_permille
-        a0 = own.accel_mps2
         b = max(net_braking_mps2(veh, veh.service_decel_mps2, grade), 0.05)
-        age_s = max(pred.age_s, 0.0)
-        reaction_s = p.reaction_time_s + age_s + obs.dt_s  # + one step: a command is held until the next decision
+        age_s = max(pred_age_s, 0.0)
+        reaction_s = p.reaction_time_s + age_s + dt_s  # + one step: a command is held until the next decision
         delay = build_up_delay_s(a0, b, veh.actuator_time_constant_s, veh.jerk_limit_mps3, reaction_s)
-        free_m = pred.rear_position_m - p.margin_m - own.position_m
+        free_m = pred_rear_m - p.margin_m - x
         # The barrier aims one step of travel plus a small standstill buffer short of the boundary: the law
         # is continuous-time, the plant is sampled and lagged, and the train should come to rest *before*
         # rear − margin rather than converge onto it.
-        h = free_m - stopping_distance_m(v, b, delay, a0) - v * obs.dt_s - _STANDSTILL_BUFFER_M
+        h = free_m - stopping_distance_m(v, b, delay, a0) - v * dt_s - _STANDSTILL_BUFFER_M
         info: dict[str, Any] = {"phase": "follow", "free_m": free_m, "barrier_m": h}
         if h < 0.0 and v > 0.0:
             # Inside the braking curve's allowance already (a predecessor appeared close, a long outage):
@@ -115,12 +136,12 @@ class Separation:
             # ramp, would no longer stop before rear − margin.
             rho = veh.resistance_n(v, grade) / veh.effective_mass_kg
             ramp_m = 0.5 * v * max(a0 + veh.service_decel_mps2, 0.0) / veh.jerk_limit_mps3
-            if discrete_stop_distance_m(v, a0 - rho, b, obs.dt_s, veh.actuator_time_constant_s) + ramp_m > free_m:
+            if discrete_stop_distance_m(v, a0 - rho, b, dt_s, veh.actuator_time_constant_s) + ramp_m > free_m:
                 info["phase"] = "emergency"
                 return Command(-veh.emergency_decel_mps2, emergency=True, info=info)
             info["phase"] = "brake"
         slope_s = delay + max(v + a0 * delay, 0.0) / b
-        gamma = min(p.barrier_rate_per_s, 0.5 / obs.dt_s)  # a sampled barrier with γ·dt near 1 rings
+        gamma = min(p.barrier_rate_per_s, 0.5 / dt_s)  # a sampled barrier with γ·dt near 1 rings
         net_cap = (gamma * h - v) / slope_s if slope_s > 0.0 else math.inf
         if not math.isfinite(net_cap):
             return Command(traction, info=info)

@@ -30,8 +30,10 @@ from controllers.braking import (
     allowed_speed_mps,
     build_up_delay_s,
     discrete_required_decel_mps2,
+    discrete_stop_distance_bound_m,
     discrete_stop_distance_m,
     required_decel_mps2,
+    required_decel_surely_below,
     stopping_distance_m,
 )
 from railsim.physics.dynamics import PlantState, step
@@ -71,6 +73,48 @@ def test_discrete_stop_distance_matches_plant_recursion() -> None:
         assert discrete_stop_distance_m(v, net_now, b, dt, tau) == pytest.approx(expected, abs=1e-7)
         solved = discrete_required_decel_mps2(v, net_now, expected, dt, tau, 2.0)
         assert discrete_stop_distance_m(v, net_now, solved, dt, tau) == pytest.approx(expected, abs=2e-3)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    v=st.floats(0.0, 120.0),
+    net_now=st.floats(-2.0, 1.5),
+    b=st.floats(1e-4, 2.0),
+    dt=st.sampled_from([0.05, 0.1, 0.5, 1.0]),
+    tau=st.sampled_from([0.0, 0.2, 0.5, 1.0, 2.0]),
+)
+def test_discrete_stop_distance_bound_is_an_upper_bound(
+    v: float, net_now: float, b: float, dt: float, tau: float
+) -> None:
+    """The screen the ATO runs before the exact sum never lies below it (else it would skip a needed brake)."""
+    exact = discrete_stop_distance_m(v, net_now, b, dt, tau)
+    assert exact <= discrete_stop_distance_bound_m(v, net_now, b, dt, tau)
+
+
+@settings(max_examples=400, deadline=None)
+@given(
+    v=st.floats(0.0, 40.0),
+    net_now=st.floats(-1.5, 1.0),
+    extra=st.floats(0.0, 3.0),
+    b0=st.floats(0.01, 1.0),
+    dt=st.sampled_from([0.1, 0.5, 1.0]),
+    tau=st.sampled_from([0.0, 0.5, 1.0]),
+)
+def test_release_screen_never_hides_a_required_brake(
+    v: float, net_now: float, extra: float, b0: float, dt: float, tau: float
+) -> None:
+    """Where the ATO skips the stop solve (required_decel_surely_below), the solve would have given less."""
+    d = discrete_stop_distance_bound_m(v, net_now, b0, dt, tau) * (1.0 + extra) + extra
+    if required_decel_surely_below(v, net_now, d, dt, tau, b0):
+        assert discrete_required_decel_mps2(v, net_now, d, dt, tau, 1.3) < b0
+
+
+def test_discrete_stop_distance_bound_is_tight_enough_to_screen_cruising() -> None:
+    """Cruising at 20 m/s (net 0), the bound is within 10 % of the exact distance at b = 0.8 m/s²: a stop point
+    beyond it needs no exact evaluation."""
+    exact = discrete_stop_distance_m(20.0, 0.0, 0.8, 0.5, 0.5)
+    bound = discrete_stop_distance_bound_m(20.0, 0.0, 0.8, 0.5, 0.5)
+    assert exact < bound < 1.1 * exact
 
 
 @given(
@@ -591,3 +635,27 @@ def test_command_cost_per_call() -> None:
         us = (time.perf_counter() - start) / (5 * len(obs)) * 1e6
         print(f"{name}: {us:.1f} us per command()")
         assert us < 2000.0
+
+
+@settings(max_examples=500, deadline=None)
+@given(
+    v=st.floats(0.0, 40.0),
+    v_target=st.floats(-1.0, 40.0),
+    b_plan=st.floats(0.05, 1.2),
+    release=st.floats(0.05, 0.95),
+    delay=st.floats(0.0, 4.0),
+    net_now=st.floats(-1.5, 1.0),
+    v_lim=st.floats(-0.5, 30.0),
+    beyond=st.floats(0.0, 5000.0),
+)
+def test_restrictions_beyond_the_far_distance_change_nothing(
+    v: float, v_target: float, b_plan: float, release: float, delay: float, net_now: float, v_lim: float, beyond: float
+) -> None:
+    """The ATO skips restrictions farther than _restriction_far_m: there the braking curve allows at least the
+    cruise target and the required deceleration is below the release level, so the loop would change nothing."""
+    from controllers.ato import _restriction_far_m
+
+    d = _restriction_far_m(v, v_target, b_plan, release * b_plan, delay, net_now) + beyond
+    assert allowed_speed_mps(d, b_plan, delay, 0.0, v_lim) >= v_target
+    if v > v_lim:
+        assert required_decel_mps2(v, d, delay, net_now, v_lim) < release * b_plan

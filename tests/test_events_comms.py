@@ -230,3 +230,38 @@ def test_bad_specs_are_config_errors() -> None:
         Channel(layer, "wifi", DelaySpec(value_s=0.1))
     with pytest.raises(ConfigError, match="outages"):
         Outage(5.0, 5.0)
+
+
+# ---------------------------------------------------------------- block draws and light deliveries
+@pytest.mark.parametrize("spec", [DelaySpec("uniform", low_s=0.1, high_s=0.5), DelaySpec("constant", value_s=0.2)])
+def test_block_draws_are_the_per_message_draws(spec: DelaySpec) -> None:
+    """Constant and uniform channels read their stream in blocks; every message still gets the loss uniform and
+    the delay the per-message draws (``rng.random()`` then ``spec.sample(rng)``) give, across block ends."""
+    layer = make(seed=11)
+    ch = Channel(layer, "t2g", spec, loss_prob=0.3)
+    reference = EventLayer(0.0, rng=np.random.default_rng(11)).spawn_rng()  # the channel's own child stream
+    for k in range(5000):  # > one block of 4096 doubles
+        msg = ch.send(f"T{k % 7}", "ground", k)
+        u = reference.random()
+        delay_s = spec.sample(reference)
+        assert (msg is None) == (u < 0.3)
+        if msg is not None:
+            assert msg.delay_s == delay_s
+
+
+def test_light_deliveries_keep_simpy_order_with_other_events() -> None:
+    """A message and a simpy timer due at the same time run in the order they were scheduled, as two simpy
+    timeouts would; the clock stands at the delivery time inside the delivery."""
+    layer = make()
+    ch = Channel(layer, "t2t", DelaySpec("constant", value_s=0.5))
+    order: list[tuple[str, float]] = []
+    ch.subscribe(lambda m: order.append((f"msg{m.payload}", layer.now_s)))
+    layer.timeout_at(0.5).callbacks.append(lambda _e: order.append(("timer_before", layer.now_s)))
+    ch.send("L", "F", 1)
+    layer.timeout_at(0.5).callbacks.append(lambda _e: order.append(("timer_after", layer.now_s)))
+    ch.send("L", "F", 2, t_s=0.25)  # due at 0.75, after the next step's start
+    layer.advance_to(0.6)
+    assert order == [("timer_before", 0.5), ("msg1", 0.5), ("timer_after", 0.5)]
+    assert layer.now_s == 0.6
+    layer.advance_to(1.0)
+    assert order[-1] == ("msg2", 0.75) and layer.now_s == 1.0

@@ -19,7 +19,8 @@ take minutes to hours, the plan runs a smaller version — what changes and why:
   test suite would run this test again).
 * ``railsim study vc-vs-mb`` (about 50 min; tested in ``tests/test_study.py``) and three benchmarks
   (``optimizers_000``, ``controllers_000``, ``junction_planner``: minutes each) run with ``--help``;
-  ``benchmarks/engine.py`` gets the small peak as its scenario, ``benchmarks/controllers_001.py`` a 500 m section.
+  ``benchmarks/engine.py`` gets the small peak as its scenario (one repetition), ``benchmarks/scale.py`` 8 and 16
+  trains for 20 s, ``benchmarks/controllers_001.py`` a 500 m section.
 * sumo-gui commands run under ``xvfb-run`` (a virtual display; apt: xvfb) and quit at the end; where there is
   no ``xvfb-run`` they only check that ``sumo-gui`` is on the PATH. The replay command replays a 600 s run
   of the small peak's Airport units with ``outputs.sumo: [fcd]`` made just before it.
@@ -100,7 +101,8 @@ PLAN: dict[str, str | None] = {
     ): f"railsim study vc-vs-mb {HELP}",
     "railsim network show nets/my.net.xml -a nets/stops.add.xml": None,
     "railsim run scenarios/chongqing_line3_day.yaml --out out/day": None,
-    ".venv/bin/python benchmarks/engine.py": "python benchmarks/engine.py scenarios/chongqing_line3_peak.yaml",
+    ".venv/bin/python benchmarks/engine.py": "python benchmarks/engine.py scenarios/chongqing_line3_peak.yaml --reps 1",
+    ".venv/bin/python benchmarks/scale.py": "python benchmarks/scale.py --sizes 8,16 --horizon-s 20",
     ".venv/bin/python benchmarks/controllers_001.py": "python benchmarks/controllers_001.py 500",
     ".venv/bin/python benchmarks/optimizers_000.py": f"python benchmarks/optimizers_000.py {HELP}",
     ".venv/bin/python benchmarks/controllers_000.py": f"python benchmarks/controllers_000.py {HELP}",

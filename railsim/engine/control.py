@@ -28,7 +28,9 @@ from typing import Any, Protocol
 
 import numpy as np
 
+from controllers.ato import Ato
 from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate, fallback_reason
+from controllers.separation import Separation
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.fallbacks import FallbackReporter
@@ -43,6 +45,12 @@ from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
+# What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
+# the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
+# None, and the end of movement authority.
+Situation = tuple[
+    float, float, float, tuple[SpeedLimit, ...], Any, tuple[float, float, float, bool] | None, float | None
+]
 
 
 class CommandSource(Protocol):
@@ -132,32 +140,39 @@ class ControlStage:
         self.command_source: CommandSource | None = None
 
     # ------------------------------------------------------------------ observation
-    def _base(self, t: float, tr: TrainRuntime) -> tuple[dict[str, Any], float, float]:
+    def _situation(self, t: float, tr: TrainRuntime) -> Situation:
+        """What the train knows of itself now (noise drawn here, position then speed), see :data:`Situation`."""
         veh = tr.trip.vehicle
         stop, offset = self.stops.current(tr)
-        target = None
-        if stop is not None:
-            # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
-            target = StopTarget(
-                stop.station_id,
-                stop.mark_m - offset,
-                stop.window_start_m,
-                stop.window_end_m,
-                dwelling=tr.sumo_stopped or tr.halted_s is not None,
-            )
         own_pos = tr.front_m
         own_v = tr.plant.speed_mps
         if self.dist.position_sd_m > 0:
             own_pos += float(self.dist.noise_rng.normal(0.0, self.dist.position_sd_m))
         if self.dist.speed_sd_mps > 0:
             own_v = max(0.0, own_v + float(self.dist.noise_rng.normal(0.0, self.dist.speed_sd_mps)))
-        grad = tr.view.gradient_at(tr.front_m)
+        view = tr.view
+        grad = view.gradient_at(tr.front_m)
         tail_m = self.formations.tail_m(tr)
-        limits = tr.view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
+        limits = view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
         if tail_m > 0.0:
             # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears
             limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
-        base = dict(
+        # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
+        target = None
+        if stop is not None:
+            target = (
+                stop.mark_m - offset,
+                stop.window_start_m,
+                stop.window_end_m,
+                tr.sumo_stopped or tr.halted_s is not None,
+            )
+        return own_pos, own_v, grad, limits, stop, target, self.locks.authority_end_m(tr)
+
+    def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
+        """The fields every observation of this train shares this step."""
+        own_pos, own_v, grad, limits, stop, target, authority = sit
+        veh = tr.trip.vehicle
+        return dict(
             t_s=t,
             dt_s=self.dt,
             own=OwnState(tr.train_id, own_pos, own_v, tr.plant.applied_accel_mps2, veh.length_m, grad),
@@ -165,16 +180,21 @@ class ControlStage:
             route_length_m=tr.view.length_m,
             speed_limits=limits,
             line_speed_mps=tr.view.line_speed_mps,
-            next_stop=target,
-            authority_end_m=self.locks.authority_end_m(tr),
+            next_stop=None if stop is None or target is None else StopTarget(stop.station_id, *target),
+            authority_end_m=authority,
         )
-        return base, own_pos, own_v
 
     # ------------------------------------------------------------------ roles
     def control(self, t: float, tr: TrainRuntime, a: Ahead | None) -> float:
-        """Decide and apply this train's command; return the speed handed to SUMO for the coming step."""
-        base, own_pos, own_v = self._base(t, tr)
-        grad = base["own"].gradient_permille
+        """Decide and apply this train's command; return the speed handed to SUMO for the coming step.
+
+        The line controllers (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are
+        called on plain values (their ``decide``); every other controller gets its :class:`Observation`, built
+        from the same values (``base``, only when one is needed)."""
+        sit = self._situation(t, tr)
+        own_pos, own_v, grad, limits, _, target, authority = sit
+        veh = tr.trip.vehicle
+        base: dict[str, Any] | None = None
         commands: dict[str, Command] = {}
         f = self.formations.of_follower.get(tr.train_id)
         fstate = self.formations.manager.state(f.id) if f is not None else "free"
@@ -185,10 +205,29 @@ class ControlStage:
         ato_extras: dict[str, Any] = {}
         for extra in self.ato_extras:
             ato_extras.update(extra(t, tr))
-        commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
+        applied_now = tr.plant.applied_accel_mps2
+        if type(ato) is Ato:  # the line ATO reads no extras
+            accel, emergency, phase = ato.decide(
+                veh,
+                self.dt,
+                own_pos,
+                own_v,
+                applied_now,
+                veh.length_m,
+                grad,
+                tr.view.line_speed_mps,
+                limits,
+                target,
+                authority,
+            )
+            commands["ato"] = Command(accel, emergency=emergency, info={"phase": phase})
+        else:
+            base = self._base(t, tr, sit)
+            commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
 
         src = self.command_source
         if src is not None and src.in_plan_phase(tr.train_id):
+            base = base or self._base(t, tr, sit)
             src.commands(t, tr, a, base, commands, own_pos, own_v, fstate)
             return self._finish(t, tr, commands, grad)
         used_vc = False
@@ -199,17 +238,25 @@ class ControlStage:
             and (leader.on_line or leader.status == "arrived")  # arrived this step: it stands there, still ahead
             and tr.controllers.get("coupled") is not None
         ):
+            base = base or self._base(t, tr, sit)
             used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
             other = self.trains[a.train_id]
-            pred = self.knowledge.known_state(tr, other, "t2g", "ground")
-            if pred is not None:
-                tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
-                obs = Observation(**base, predecessor=pred, formation_state=fstate)
-                commands["separation"] = tr.controllers["separation"].command(obs)
+            sep = tr.controllers["separation"]
+            if type(sep) is Separation:
+                known = self.knowledge.known_rear_age(tr, other, "t2g", "ground")
+                if known is not None:
+                    tr.stale_max_s = max(tr.stale_max_s, known[1])
+                    commands["separation"] = sep.decide(veh, self.dt, own_pos, own_v, applied_now, grad, *known)
+            else:
+                pred = self.knowledge.known_state(tr, other, "t2g", "ground")
+                if pred is not None:
+                    tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+                    base = base or self._base(t, tr, sit)
+                    commands["separation"] = sep.command(Observation(**base, predecessor=pred, formation_state=fstate))
         ca_ctl = tr.controllers.get("ca")
         if ca_ctl is not None:  # collision avoidance on the train's own sensor: works with the radio down
-            self._collision_avoidance(t, tr, a, ca_ctl, base, fstate, commands)
+            self._collision_avoidance(t, tr, a, ca_ctl, base or self._base(t, tr, sit), fstate, commands)
         return self._finish(t, tr, commands, grad)
 
     def _coupled(
@@ -309,22 +356,26 @@ class ControlStage:
         noise_trains = self.dist.actuator_trains
         if self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains):
             u += float(self.dist.actuator_rng.normal(0.0, self.dist.actuator_sd_mps2))  # the papers' disturbance
-        u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
+        if self.dist.biases:
+            u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
         plan = cmd.info.get("plan") if cmd.info else None
         tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
         v_now = tr.plant.speed_mps
-        res = dynamics.step(veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method)
-        jerk = abs(res.state.applied_accel_mps2 - tr.plant.applied_accel_mps2) / self.dt
+        v_next, a, u_k, _, _, energy_j, mask = dynamics.step_values(
+            veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method
+        )
+        jerk = abs(a - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
-        tr.plant = res.state
-        tr.energy_j += res.traction_energy_j
-        for s in res.saturations:
-            tr.saturations[s] = tr.saturations.get(s, 0) + 1
+        tr.plant = dynamics.PlantState(v_next, a, u_k)
+        tr.energy_j += energy_j
+        if mask:
+            for s in dynamics.flags_from_mask(mask):
+                tr.saturations[s] = tr.saturations.get(s, 0) + 1
         tr.last_role = role
         tr.last_cmd_mps2 = cmd.accel_mps2
         # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
         # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
-        tr.sent_speed_mps = v_now if self.step_method == "forward" else res.state.speed_mps
+        tr.sent_speed_mps = v_now if self.step_method == "forward" else v_next
         return tr.sent_speed_mps
 
     def _exact_finish(self, t: float, tr: TrainRuntime, role: str, cmd: Command, grad: float) -> float:

@@ -101,6 +101,42 @@ class Knowledge:
         self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
     ) -> PredecessorState | None:
         """What ``observer`` knows of ``other`` via ``channel`` (mapped into the observer's frame)."""
+        known = self._known(observer, other, channel, receiver)
+        if known is None:
+            return None
+        front, rear, pos, v, acc, stamp, plan = known
+        veh = other.trip.vehicle
+        planned = _plan_in_frame(plan, front - pos, stamp) if plan else {}
+        return PredecessorState(
+            train_id=other.train_id,
+            position_m=front,
+            speed_mps=v,
+            accel_mps2=acc,
+            length_m=front - rear,
+            stamp_s=stamp,
+            age_s=max(0.0, self.layer.now_s - stamp),
+            service_decel_mps2=veh.service_decel_mps2,
+            emergency_decel_mps2=veh.emergency_decel_mps2,
+            source=channel,
+            **planned,
+        )
+
+    def known_rear_age(
+        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
+    ) -> tuple[float, float] | None:
+        """``(rear, age_s)`` of :meth:`known_state` without building it (``rear`` is its ``rear_position_m``,
+        computed the same way): all that moving-block separation reads."""
+        known = self._known(observer, other, channel, receiver)
+        if known is None:
+            return None
+        front, rear = known[0], known[1]
+        return front - (front - rear), max(0.0, self.layer.now_s - known[5])
+
+    def _known(
+        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
+    ) -> tuple[float, float, float, float, float, float, Any] | None:
+        """The latest delivered report (or the registration) of ``other``: ``(front, rear)`` in the observer's
+        frame, then the report's own position, speed, acceleration, stamp and plan; None if off our route."""
         ch = self.channels.get(channel)
         msg = ch.latest(receiver, other.train_id) if ch is not None else None
         if msg is None:
@@ -122,25 +158,10 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
-        veh = other.trip.vehicle
-        mapped = observer.view.map_body(other.view, pos, veh.length_m)
+        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i)
         if mapped is None:
             return None
-        front, rear = mapped  # only the part of its body on our track (see RouteView.map_body)
-        planned = _plan_in_frame(plan, front - pos, stamp) if plan else {}
-        return PredecessorState(
-            train_id=other.train_id,
-            position_m=front,
-            speed_mps=v,
-            accel_mps2=acc,
-            length_m=front - rear,
-            stamp_s=stamp,
-            age_s=max(0.0, self.layer.now_s - stamp),
-            service_decel_mps2=veh.service_decel_mps2,
-            emergency_decel_mps2=veh.emergency_decel_mps2,
-            source=channel,
-            **planned,
-        )
+        return mapped[0], mapped[1], pos, v, acc, stamp, plan  # only the part of its body on our track
 
 
 def _plan_in_frame(plan: dict[str, Any], shift_m: float, stamp_s: float) -> dict[str, Any]:

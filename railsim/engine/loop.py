@@ -278,7 +278,9 @@ class Simulation:
         truth = self._read_truth(t, active, ids)
         self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
 
-        self.occupancy.update([Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m) for tr in active])
+        self.occupancy.update(
+            [Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m, tr.edge_i) for tr in active]
+        )
         ahead: dict[str, Ahead | None] = {}
         for tr in active:
             a = self.occupancy.ahead(tr.train_id, self.settings.lookahead_m)
@@ -313,9 +315,11 @@ class Simulation:
     def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> Any:
         """Route chainage from SUMO's odometer; adopt SUMO's speed where it held a train (a stop)."""
         truth = self.bridge.read(ids)
+        odometer, speed, stopped = truth.odometer_m.tolist(), truth.speed_mps.tolist(), truth.stopped.tolist()
         for i, tr in enumerate(active):
-            tr.front_m = tr.depart_chainage_m + float(truth.odometer_m[i])
-            sumo_v = float(truth.speed_mps[i])
+            tr.front_m = tr.depart_chainage_m + odometer[i]
+            tr.edge_i = tr.view.edge_near(tr.front_m, tr.edge_i)  # forward-only pointer: the hint is last step's
+            sumo_v = speed[i]
             # SUMO applies exactly the speed we sent (speedMode 32) unless it holds the train at a stop
             expected_v = tr.sent_speed_mps if tr.sent_speed_mps is not None else tr.plant.speed_mps
             if abs(sumo_v - expected_v) > 1e-6 and tr.sent_speed_mps is not None:
@@ -327,7 +331,7 @@ class Simulation:
                     applied_accel_mps2=0.0 if sumo_v == 0 else tr.plant.applied_accel_mps2,
                     target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
                 )
-            tr.sumo_stopped_now = bool(truth.stopped[i])
+            tr.sumo_stopped_now = stopped[i]
             tr.sumo_edge = truth.edge_ids[i]
         return truth
 

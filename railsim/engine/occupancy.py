@@ -19,27 +19,31 @@ the switch — the interlocking, not the gap, protects the junction itself.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import NamedTuple
 
 from railsim.engine.routeview import RouteView
 
 
-@dataclass
+@dataclass(slots=True)
 class Body:
-    """A train's body for occupancy: front chainage in its own route frame and its length."""
+    """A train's body for occupancy: front chainage in its own route frame and its length; ``edge_i`` is the
+    route edge under the front (a hint: :meth:`RouteView.edge_near`), ``rear_i`` is set by :meth:`Occupancy.update`."""
 
     train_id: str
     view: RouteView
     front_m: float
     length_m: float
+    edge_i: int = 0
+    rear_i: int = 0
 
     @property
     def rear_m(self) -> float:
         return self.front_m - self.length_m
 
 
-@dataclass(frozen=True)
-class Ahead:
-    """The train directly ahead of a follower, in the follower's frame (ground truth)."""
+class Ahead(NamedTuple):
+    """The train directly ahead of a follower, in the follower's frame (ground truth). (Immutable; a named tuple
+    rather than a frozen dataclass because one is built per train and step.)"""
 
     train_id: str
     front_m: float
@@ -59,10 +63,15 @@ class Occupancy:
         by_edge: dict[str, list[Body]] = {}
         for b in bodies:
             view = b.view
-            i0 = view.edge_at(b.rear_m)
-            i1 = view.edge_at(b.front_m)
+            i1 = b.edge_i = view.edge_near(b.front_m, b.edge_i)
+            i0 = b.rear_i = view.edge_near(b.front_m - b.length_m, i1)
+            edges = view.edges
             for i in range(i0, i1 + 1):
-                by_edge.setdefault(view.edges[i], []).append(b)
+                on_edge = by_edge.get(edges[i])
+                if on_edge is None:
+                    by_edge[edges[i]] = [b]
+                else:
+                    on_edge.append(b)
         self._by_edge = by_edge
         self.bodies = {b.train_id: b for b in bodies}
 
@@ -70,7 +79,7 @@ class Occupancy:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""
         me = self.bodies[train_id]
         view = me.view
-        j = view.edge_at(me.front_m)
+        j = me.edge_i
         limit = me.front_m + lookahead_m
         n = len(view.edges)
         while j < n and view.edge_start_m[j] <= limit:
@@ -79,7 +88,7 @@ class Occupancy:
             for other in self._by_edge.get(edge, ()):
                 if other.train_id == train_id:
                     continue
-                mapped = view.map_body(other.view, other.front_m, other.length_m)
+                mapped = view.map_body(other.view, other.front_m, other.length_m, other.edge_i)
                 if mapped is None:
                     continue
                 front, rear = mapped

@@ -37,6 +37,8 @@ class RouteView:
     grades: tuple[tuple[float, float, float], ...] = ()
     line_speed_mps: float = 20.0
     _offsets: dict[tuple[str, int], float | None] = field(default_factory=dict)
+    _windows: dict[tuple[int, int, bool], tuple[SpeedLimit, ...]] = field(default_factory=dict)
+    _well_formed: bool = True  # every restriction ends at or after its start
 
     def __post_init__(self) -> None:
         r = self.route
@@ -46,6 +48,7 @@ class RouteView:
         lims = sorted((float(a), float(b), float(v)) for a, b, v in r.speed_limits)
         self.limits = tuple(SpeedLimit(a, b, v) for a, b, v in lims)
         self.limit_starts = [a for a, _, _ in lims]
+        self._well_formed = all(b >= a for a, b, _ in lims)
         self.line_speed_mps = max((v for _, _, v in lims), default=20.0)
         self.grades = tuple(sorted((float(a), float(b), float(g)) for a, b, g in r.gradients))
         self.grade_starts = [a for a, _, _ in self.grades]
@@ -59,6 +62,17 @@ class RouteView:
         i = bisect.bisect_right(self.edge_start_m, chainage_m) - 1
         return min(max(i, 0), len(self.edges) - 1)
 
+    def edge_near(self, chainage_m: float, hint: int) -> int:
+        """:meth:`edge_at` for a chainage on or next to edge ``hint`` (a train's front one step later, its rear):
+        the hint and its neighbours are checked against the edge bounds before any search. The result is
+        :meth:`edge_at`'s, whatever the hint (a wrong one only costs the search)."""
+        starts = self.edge_start_m
+        last = len(starts) - 1
+        for i in (hint, hint + 1, hint - 1):
+            if 0 <= i <= last and (i == 0 or starts[i] <= chainage_m) and (i == last or chainage_m < starts[i + 1]):
+                return i
+        return self.edge_at(chainage_m)
+
     def gradient_at(self, chainage_m: float) -> float:
         """Gradient [‰] under ``chainage_m`` (0 where the route has no gradient data)."""
         i = bisect.bisect_right(self.grade_starts, chainage_m) - 1
@@ -68,8 +82,26 @@ class RouteView:
         return g if a <= chainage_m < b else 0.0
 
     def limits_ahead(self, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
-        """Restrictions overlapping ``[from_m, to_m]`` (those at or below line speed; all of them, in order)."""
-        i = max(bisect.bisect_right(self.limit_starts, from_m) - 1, 0)
+        """Restrictions overlapping ``[from_m, to_m]`` (those below line speed, in order).
+
+        The scan starts at ``i``, the last restriction starting at or before ``from_m``, and ends before ``j``, the
+        first starting after ``to_m``; of those only the first can end before ``from_m`` (the others start after
+        it), so the answer is remembered per ``(i, j, whether limits[i] reaches from_m)``: every train on this
+        route asks for one of a few such windows, step after step.
+        """
+        starts = self.limit_starts
+        i = max(bisect.bisect_right(starts, from_m) - 1, 0)
+        if not self._well_formed:  # a restriction ending before it starts: no window reasoning
+            return self._scan(i, from_m, to_m)
+        if not starts:
+            return ()
+        key = (i, bisect.bisect_right(starts, to_m), self.limits[i].end_m >= from_m)
+        out = self._windows.get(key)
+        if out is None:
+            out = self._windows[key] = self._scan(i, from_m, to_m)
+        return out
+
+    def _scan(self, i: int, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
         out = []
         for lim in self.limits[i:]:
             if lim.start_m > to_m:
@@ -86,18 +118,19 @@ class RouteView:
             return None
         return other.edge_start_m[j] - self.edge_start_m[i]
 
-    def map_body(self, other: RouteView, front_m: float, length_m: float) -> tuple[float, float] | None:
+    def map_body(self, other: RouteView, front_m: float, length_m: float, hint: int = 0) -> tuple[float, float] | None:
         """A train on ``other``'s route (front at ``front_m`` in its frame) as ``(front, rear)`` in *this* frame.
 
         Only the part of its body on track this route shares counts. At a merge the other train's front may be on
         our track while its tail is still on the other leg: its rear is then clamped to where the shared track
         begins (the switch), so the tail on the other leg is not "ahead of us". At a diverge the front may already
         be on the other leg while the tail is on our track: the frame change uses the shared edge under the tail,
-        and the rear is exact. Returns None if no part of the body is on our route.
+        and the rear is exact. Returns None if no part of the body is on our route. ``hint``: an edge index of
+        ``other`` at or next to the front (:meth:`edge_near`).
         """
         rear_m = front_m - length_m
-        i_front = other.edge_at(front_m)
-        i_rear = other.edge_at(rear_m)
+        i_front = other.edge_near(front_m, hint)
+        i_rear = other.edge_near(rear_m, i_front)
         for i in range(i_front, i_rear - 1, -1):  # the frontmost shared edge under the body
             j = self.edge_index.get(other.edges[i])
             if j is None:

@@ -210,7 +210,7 @@ class SafetyMonitor:
                     railsim_m = prev[0] + min(max(advance_m, 0.0), max_advance_m)
             edge = edge_ids[i]
             if railsim_m == tr.front_m and not edge.startswith(":"):  # skip internal junction lanes
-                j = _edge_near(tr.view, edge, tr.front_m)
+                j = _edge_near(tr.view, edge, tr.edge_i)
                 sumo_m = None if j is None else tr.view.edge_start_m[j] + float(lane_pos_m[i])
                 if sumo_m is not None and abs(sumo_m - tr.front_m) <= tol:
                     continue
@@ -234,9 +234,9 @@ class SafetyMonitor:
             )
 
 
-def _edge_near(view: RouteView, edge: str, chainage_m: float) -> int | None:
-    """Index of ``edge`` in the route nearest ``chainage_m`` (a route may pass an edge twice, e.g. a loop)."""
-    i = view.edge_at(chainage_m)
+def _edge_near(view: RouteView, edge: str, i: int) -> int | None:
+    """Index of ``edge`` in the route nearest edge ``i`` (the train's front edge: a route may pass an edge
+    twice, e.g. a loop)."""
     for j in (i, i + 1, i - 1):
         if 0 <= j < len(view.edges) and view.edges[j] == edge:
             return j

@@ -361,20 +361,21 @@ class SumoBridge:
     def read(self, ids: Sequence[str] | None = None) -> TrainStates:
         """Ground truth for ``ids`` (default: every train present) via direct getters."""
         ids = list(_api.vehicle.getIDList()) if ids is None else list(ids)
-        n = len(ids)
-        odo = np.empty(n)
-        spd = np.empty(n)
-        lpos = np.empty(n)
-        stopped = np.zeros(n, dtype=bool)
-        edges: list[str] = []
         v = _api.vehicle
-        for i, vid in enumerate(ids):
-            odo[i] = v.getDistance(vid)
-            spd[i] = v.getSpeed(vid)
-            lpos[i] = v.getLanePosition(vid)
-            edges.append(v.getRoadID(vid))
-            stopped[i] = v.isStopped(vid)
-        return TrainStates(self.time_s, ids, odo, spd, lpos, edges, stopped)
+        odo = [v.getDistance(vid) for vid in ids]  # one getter over all trains at a time: lists, then arrays
+        spd = [v.getSpeed(vid) for vid in ids]
+        lpos = [v.getLanePosition(vid) for vid in ids]
+        edges = [v.getRoadID(vid) for vid in ids]
+        stopped = [v.isStopped(vid) for vid in ids]
+        return TrainStates(
+            self.time_s,
+            ids,
+            np.array(odo, dtype=float),
+            np.array(spd, dtype=float),
+            np.array(lpos, dtype=float),
+            edges,
+            np.array(stopped, dtype=bool),
+        )
 
     def set_speeds(self, ids: Sequence[str], speeds_mps: Sequence[float] | np.ndarray) -> None:
         set_speed = _api.vehicle.setSpeed

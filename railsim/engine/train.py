@@ -79,6 +79,7 @@ class TrainRuntime:
     reversing: bool = False  # on its way to / at its reversal stop: SUMO may flip it (railsim.engine.turnback)
     hold_until_s: float | None = None  # a reversing unit stands at least until then (early for its departure)
     start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
+    edge_i: int = 0  # the route edge under the front this step (RouteView.edge_near from last step's)
 
     def __post_init__(self) -> None:
         self.train_id = self.trip.trip_id

@@ -97,6 +97,7 @@ __all__ = [
     "simulate",
     "step",
     "step_many",
+    "step_values",
     "traction_limit_mps2",
 ]
 
@@ -249,6 +250,25 @@ def step(
     limit bypassed). Raises ValueError for ``dt_s ≤ 0``, a NaN command, a negative/NaN speed or gradient, or an
     unknown ``step_method``.
     """
+    v_next, a, u, net, advance, energy, mask = step_values(
+        vehicle, state, u_cmd_mps2, dt_s, gradient_permille, emergency, step_method
+    )
+    return StepResult(PlantState(v_next, a, u), net, advance, energy, _MASK_SETS[mask])
+
+
+def step_values(
+    vehicle: VehicleParams,
+    state: PlantState,
+    u_cmd_mps2: float,
+    dt_s: float,
+    gradient_permille: float = 0.0,
+    emergency: bool = False,
+    step_method: str = "euler",
+) -> tuple[float, float, float, float, float, float, int]:
+    """:func:`step` as plain values: ``(v_next, applied a_k, target u_k, net acceleration, advance, traction
+    energy, saturation mask)`` (:func:`flags_from_mask` turns the mask into the flags). The engine calls this
+    for every train every step; :func:`step` builds its :class:`StepResult` from it.
+    """
     v = state.speed_mps
     # Fast path validation: chained comparisons are False for NaN, so one test per input catches it.
     if not (
@@ -334,7 +354,7 @@ def step(
         advance = v * dt_s
     energy = a * m_eff * (v + v_next) * 0.5 * dt_s if a > 0.0 else 0.0
 
-    return StepResult(PlantState(v_next, a, u), (v_next - v) / dt_s, advance, energy, _MASK_SETS[mask])
+    return v_next, a, u, (v_next - v) / dt_s, advance, energy, mask
 
 
 # ----------------------------------------------------------------------------------------------------------------

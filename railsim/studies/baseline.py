@@ -10,13 +10,20 @@ junctions do not interlock (see the SUMO findings), so collisions in this mode a
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from typing import Any
 
 from railsim.engine.sumo import StopSpec, SumoBridge, SumoConfig, VTypeSpec
 from railsim.engine.trips import make_stops
 
 
-def run_sumo_only(scenario: Any) -> dict[str, Any]:
+def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None) -> dict[str, Any]:
+    """Drive every trip of ``scenario`` with SUMO alone (see the module docstring); return wall time and counts.
+
+    A trip that starts in motion (``services[].start``) is inserted like the engine inserts it: on its route
+    trimmed to the edge that holds its start chainage, at its start speed, with the stops still ahead of it.
+    ``on_step(t)`` is called before every SUMO step (``benchmarks/scale.py`` takes its per-step clock there).
+    """
     from network.external import load_world, sumo_args
     from railsim import scenario as scn_mod
 
@@ -37,8 +44,11 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
             svc.from_station,
             svc.to_station,
         )
+        start_m = stops[0].mark_m + float(svc.start_offset_m)
+        if svc.start_offset_m > 0.0:  # a trip in motion skips the stops behind it (as railsim.engine.fleet)
+            stops = (stops[0],) + tuple(st for st in stops[1:] if st.window_end_m > start_m)
         for trip_id, dep in zip(svc.trip_ids, svc.departures_s):
-            trips.append((float(dep), trip_id, svc.vehicle, route, stops))
+            trips.append((float(dep), trip_id, svc.vehicle, route, stops, start_m, float(svc.start_speed_mps)))
     trips.sort(key=lambda x: (x[0], x[1]))
     vtypes = [
         VTypeSpec(
@@ -60,7 +70,7 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
         step_method=sim.step_method,
         vtypes=vtypes,
     )
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.process_time()
     steps = 0
     arrived = 0
     with SumoBridge(cfg) as bridge:
@@ -68,16 +78,26 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
         t = bridge.time_s
         while t <= float(sim.duration_s):
             while k < len(trips) and trips[k][0] <= t:
-                dep, trip_id, vname, route, stops = trips[k]
-                bridge.add_route(route.id, route.edges)
+                dep, trip_id, vname, route, stops, start_m, start_v = trips[k]
+                e = max(i for i, x in enumerate(route.edge_start_m) if x <= start_m)  # the edge under the front
+                route_id = route.id if e == 0 else f"{route.id}@{e}"
+                bridge.add_route(route_id, route.edges[e:])
                 specs = [
                     StopSpec(s.stop_id, duration_s=1.0 if s.is_destination else s.dwell_s, lane_stop_m=s.lane_stop_m)
                     for s in stops[1:]
                 ]
                 bridge.add_train(
-                    trip_id, route.id, vname, stops[0].mark_m - route.edge_start_m[0], specs, controlled=False
+                    trip_id,
+                    route_id,
+                    vname,
+                    start_m - route.edge_start_m[e],
+                    specs,
+                    controlled=False,
+                    depart_speed_mps=start_v,
                 )
                 k += 1
+            if on_step is not None:
+                on_step(t)
             bridge.step()
             steps += 1
             arrived += len(bridge.arrived_ids())
@@ -85,5 +105,5 @@ def run_sumo_only(scenario: Any) -> dict[str, Any]:
             if k == len(trips) and not bridge.present_ids() and not bridge.pending_ids():
                 break
         sim_s = t
-    wall = time.perf_counter() - t0
-    return {"wall_s": wall, "sim_s": sim_s, "steps": steps, "n_trains": len(trips), "n_arrived": arrived}
+    wall, cpu = time.perf_counter() - t0, time.process_time() - c0
+    return {"wall_s": wall, "cpu_s": cpu, "sim_s": sim_s, "steps": steps, "n_trains": len(trips), "n_arrived": arrived}

@@ -24,9 +24,17 @@ absolute time (:class:`ExactEnvironment`, :class:`TimeoutAt`), and every timer o
 (:meth:`EventLayer.timeout_at`, the clock's own step marker) goes through it: a time written in the log
 equals the time that was asked for, bit for bit, and ``now_s`` after ``advance_to(t)`` is ``t`` itself.
 This reaches into simpy's event queue exactly as ``Environment.schedule`` does (``_queue``, ``_eid``, and
-``_ok``/``_value`` as ``simpy.Timeout`` sets them); the clock tests pin it against the installed simpy.
+``_ok``/``_value`` as ``simpy.Timeout`` sets them; ``_now`` as ``Environment.step`` sets it, for light deliveries); the clock tests pin it against the installed simpy.
 Relative timers (a throw lasting ``throw_time_s``, a message delay) stay plain ``env.timeout``: there the
 promised time *is* ``now + delay``.
+
+Light deliveries
+----------------
+A radio message is the most frequent timed thing (one per train and step and channel). It needs no simpy
+process, only "call this with that at ``t``", so :meth:`EventLayer.deliver_at` keeps such calls in a heap of
+plain tuples beside simpy's queue. Each takes an event id from simpy's own counter when it is queued, and
+:meth:`EventLayer.advance_to` merges the two queues by ``(time, priority, event id)`` — exactly the order simpy
+would have run the same calls as timeouts scheduled at those moments, with ``now_s`` standing at the call's time.
 
 Randomness
 ----------
@@ -40,7 +48,7 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Generator
 from dataclasses import dataclass, field
-from heapq import heappush
+from heapq import heappop, heappush
 
 import numpy as np
 import simpy
@@ -104,6 +112,8 @@ class EventLayer:
         self.env = ExactEnvironment(initial_time=t0_s)
         self.log = log if log is not None else EventLog()
         self.rng = rng
+        # light deliveries: (time, priority, simpy event id, callback, value), see "Light deliveries"
+        self._light: list[tuple[float, EventPriority, int, Callable[[object], object], object]] = []
 
     @property
     def now_s(self) -> float:
@@ -121,8 +131,29 @@ class EventLayer:
         if t_s > env.now:
             # A marker event exactly at t_s guarantees the clock ends on t_s even if nothing else is due.
             TimeoutAt(env, t_s)
-        while env.peek() <= t_s:
-            env.step()
+        light = self._light
+        queue = env._queue
+        while True:
+            if light and light[0][0] <= t_s:
+                head = light[0]
+                if queue:  # simpy's head first if it sorts before: (time, priority, id), ids are unique
+                    q = queue[0]
+                    if q[0] < head[0] or (q[0] == head[0] and (q[1], q[2]) < (head[1], head[2])):
+                        env.step()
+                        continue
+                when, _, _, callback, value = heappop(light)
+                env._now = when  # as simpy's step sets it: the call sees the clock at its own time
+                callback(value)
+            elif queue and queue[0][0] <= t_s:
+                env.step()
+            else:
+                break
+
+    def deliver_at(self, t_s: float, callback: Callable[[object], object], value: object) -> None:
+        """Call ``callback(value)`` at exactly ``t_s`` (≥ now), in simpy's order (see "Light deliveries")."""
+        if not t_s >= self.env.now:
+            raise ValueError(f"time {t_s!r} s is before now ({self.env.now!r} s)")
+        heappush(self._light, (t_s, NORMAL, next(self.env._eid), callback, value))
 
     def timeout_at(self, t_s: float, value: object = None) -> TimeoutAt:
         """A simpy event that fires at exactly ``t_s`` (≥ now); ``yield`` it inside a process."""

@@ -11,8 +11,9 @@ What happens in time
 
 1. the message is **lost** if the sender or the receiver is inside an :class:`Outage` window at ``t``
    (counted ``lost_outage``), otherwise with probability ``loss_prob`` (``lost_random``);
-2. otherwise a delay ``d`` is drawn from the channel's :class:`DelaySpec` and a simpy timeout delivers the
-   message at exactly ``t + d`` — between SUMO steps if that is when it falls — into the receiver's mailbox.
+2. otherwise a delay ``d`` is drawn from the channel's :class:`DelaySpec` and the event layer delivers the
+   message at exactly ``t + d`` — between SUMO steps if that is when it falls — into the receiver's mailbox
+   (a light delivery, :meth:`EventLayer.deliver_at`: in simpy's order, without a simpy event per message).
 
 ``latest(receiver, sender)`` is the newest-**sent** message delivered so far. With random delays a message
 can overtake an older one; the older one, arriving later, is counted ``overtaken`` and does not replace the
@@ -29,7 +30,10 @@ Readings and choices
 - Common random numbers: every send draws one uniform (loss) and one delay, lost or not, from the
   channel's own child stream of the scenario generator. Adding an outage, or changing ``loss_prob``,
   therefore leaves the fate and delay of every other message unchanged — runs differ only where the fault
-  acts.
+  acts. For ``constant`` and ``uniform`` delays the stream is read in blocks (:class:`_UniformBlock`: one
+  numpy call per few thousand messages instead of two per message); a uniform delay is
+  ``low + (high − low)·U`` with ``U`` the stream's next double, which is what ``Generator.uniform`` computes,
+  so the draws are the same numbers in the same order (``tests/test_events_comms.py`` checks it).
 - Delays never come out negative. ``normal`` is truncated at 0 by **rejection** (redraw), not by clipping,
   so there is no spike of zero-delay messages; the realised mean is then above ``mean_s`` when ``std_s`` is
   not small against it (``mean_s ≥ 0`` is required, so at least half the draws are accepted). The other
@@ -41,12 +45,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass
-from typing import Any, Literal
+from typing import Any, Literal, NamedTuple
 
 import numpy as np
 import simpy
 
-from railsim.engine.events.clock import EventLayer, TimeoutAt
+from railsim.engine.events.clock import EventLayer
 from railsim.errors import ConfigError
 
 DelayDist = Literal["constant", "uniform", "normal", "lognormal", "exponential"]
@@ -61,6 +65,7 @@ _DELAY_PARAMS: dict[str, tuple[str, ...]] = {
 }
 
 _MAX_REDRAWS = 64  # P(64 rejections) ≤ 2^-64 because mean_s ≥ 0
+_BLOCK = 4096  # doubles read from a channel's stream at a time (constant and uniform delays)
 
 
 _SCENARIO_KEYS = {"value": "value_s", "low": "low_s", "high": "high_s", "mean": "mean_s", "sd": "std_s"}
@@ -156,6 +161,28 @@ class DelaySpec:
         return 0.0
 
 
+class _UniformBlock:
+    """A channel's stream read ahead in blocks: :meth:`next` is the stream's next ``random()`` double.
+
+    The read-ahead is invisible because the stream belongs to this channel alone (:meth:`EventLayer.spawn_rng`).
+    """
+
+    __slots__ = ("_rng", "_buf", "_i")
+
+    def __init__(self, rng: np.random.Generator) -> None:
+        self._rng = rng
+        self._buf: list[float] = []
+        self._i = 0
+
+    def next(self) -> float:
+        i = self._i
+        if i == len(self._buf):
+            self._buf = self._rng.random(_BLOCK).tolist()
+            i = 0
+        self._i = i + 1
+        return self._buf[i]
+
+
 @dataclass(frozen=True)
 class Outage:
     """A communication blackout ``start_s ≤ t < end_s`` for ``trains`` (None = all trains)."""
@@ -177,9 +204,9 @@ class Outage:
         return self.start_s <= t_s < self.end_s and (self.trains is None or train_id in self.trains)
 
 
-@dataclass(frozen=True, slots=True)
-class Message:
-    """A delivered (or in-flight) message; ``delivered_s = sent_s + drawn delay``, exactly."""
+class Message(NamedTuple):
+    """A delivered (or in-flight) message; ``delivered_s = sent_s + drawn delay``, exactly. (Immutable; a named
+    tuple rather than a frozen dataclass because one is built per train, step and channel.)"""
 
     sender: str
     receiver: str
@@ -254,6 +281,8 @@ class Channel:
         self.loss_prob = float(loss_prob)
         self.outages: tuple[Outage, ...] = tuple(outages)
         self._rng = layer.spawn_rng()
+        # constant and uniform delays: the loss uniform and the delay come from the stream read in blocks
+        self._block = _UniformBlock(self._rng) if delay.dist in ("constant", "uniform") else None
         self._mail: dict[str, dict[str, Message]] = {}
         self._subscribers: list[Callable[[Message], object]] = []
         self._active_outages: list[Outage] = []
@@ -278,8 +307,17 @@ class Channel:
             raise ValueError(f"channel {self.name}: cannot send at {t_s!r} s, now is {now!r} s")
         self.sent += 1
         self._seq += 1
-        u = self._rng.random()
-        delay_s = self.delay.sample(self._rng)
+        block = self._block
+        if block is not None:  # the same two draws as below, read from the block
+            u = block.next()
+            delay = self.delay
+            if delay.dist == "uniform":
+                delay_s = delay.low_s + (delay.high_s - delay.low_s) * block.next()  # type: ignore[operator]
+            else:
+                delay_s = float(delay.value_s)  # type: ignore[arg-type]
+        else:
+            u = self._rng.random()
+            delay_s = self.delay.sample(self._rng)
         if self.outages and self._in_outage(sender, receiver, t_s):
             self.lost_outage += 1
             return None
@@ -288,12 +326,7 @@ class Channel:
             return None
         delivered_s = t_s + delay_s
         msg = Message(sender, receiver, payload, t_s, delivered_s, delay_s, self._seq, self.name)
-        # Sending now, now + delay *is* delivered_s; a later send time needs the absolute-time timer.
-        if t_s == now:
-            event = self._env.timeout(delay_s, msg)
-        else:
-            event = TimeoutAt(self._env, delivered_s, msg)  # type: ignore[assignment]
-        event.callbacks.append(self._on_delivery)
+        self._layer.deliver_at(delivered_s, self._on_delivery, msg)  # type: ignore[arg-type]
         return msg
 
     def _in_outage(self, sender: str, receiver: str, t_s: float) -> bool:
@@ -302,8 +335,7 @@ class Channel:
                 return True
         return False
 
-    def _on_delivery(self, event: simpy.Event) -> None:
-        msg: Message = event.value  # type: ignore[assignment]
+    def _on_delivery(self, msg: Message) -> None:
         self.delivered += 1
         self._delays.add(msg.delay_s)
         box = self._mail.get(msg.receiver)
