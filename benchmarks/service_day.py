@@ -19,12 +19,14 @@ from __future__ import annotations
 
 import argparse
 import json
-import multiprocessing as mp
 import platform
 import tempfile
 import time
 from pathlib import Path
+import multiprocessing as mp
 from typing import Any
+
+from spawn import in_process  # benchmarks/spawn.py (the scripts' folder is on sys.path)
 
 DEFAULT = Path(__file__).resolve().parents[1] / "scenarios" / "chongqing_line3_day.yaml"
 GOAL_RTF = 200.0
@@ -58,24 +60,14 @@ def _sumo_only(path: str, duration_s: float | None, q: mp.Queue[dict[str, Any]])
     q.put({**res, "cpu_s": time.process_time() - c0})
 
 
-def _in_process(target: Any, path: str, duration_s: float | None) -> dict[str, Any]:
-    ctx = mp.get_context("spawn")
-    q = ctx.Queue()
-    p = ctx.Process(target=target, args=(path, duration_s, q))
-    p.start()
-    res: dict[str, Any] = q.get()
-    p.join()
-    return res
-
-
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("scenario", nargs="?", default=str(DEFAULT))
     ap.add_argument("--hours", type=float, default=None, help="simulate only the first H hours")
     args = ap.parse_args()
     duration_s = args.hours * 3600.0 if args.hours else None
-    sumo = _in_process(_sumo_only, args.scenario, duration_s)  # also warms the world cache
-    ours = _in_process(_railsim, args.scenario, duration_s)
+    sumo = in_process(_sumo_only, args.scenario, duration_s)  # also warms the world cache
+    ours = in_process(_railsim, args.scenario, duration_s)
     rtf_cpu = ours["sim_s"] / ours["cpu_s"]
     print(
         json.dumps(
