@@ -51,8 +51,8 @@ dual) is solved with a proximal term ``ρ|E − Ē|²`` as the trust region; the
 (objective + slack price × violation) falls, and ``ρ`` falls or rises (a classical ℓ1 trust-region SQP). A step
 the merit rejects is tried at half its length first (one merit evaluation, no QP): the SCP then spends fewer of
 its QPs on steps it throws away (on the benchmark's 39 first plans: mean ``f_c`` 226.6 in 8 QPs against 232.9 in
-10 without). The first iterate of an order is a timetable (:func:`.qp_timetable.timetable_E`); a re-plan starts from the
-previous plan shifted by the distance run (warm start).
+10 without). The first iterate of an order is a timetable (:func:`.qp_timetable.timetable_E`); a re-plan starts
+from the previous plan shifted by the distance run (warm start).
 
 **The first plan has a budget in QP solves, whatever the input** (the online budget; no wall clock, so the
 plan is deterministic): it solves the order with the earliest estimated coupling (:func:`order_estimates`:
@@ -137,7 +137,7 @@ class QpOrderParams:
     smooth_weight: float = 2.0  # Σ (Δa)² between neighbouring segments (comfort, trackability)
     slack_weight: float = 100.0  # price of one unit of constraint violation (above every multiplier: exact)
     prox_weight: float = 0.05  # initial proximal weight on |E − Ē|² (the step control)
-    max_iterations: int = 30  # QP solves per order (the chosen order, a re-plan)
+    max_iterations: int = 30  # QP solves of a frozen order planned without a previous plan
     replan_iterations: int = 8  # QP solves of a warm-started re-plan (in the previous plan's order)
     first_iterations: int = 8  # QP solves per order of the first plan (the online budget)
     first_orders: int = 2  # orders the first plan tries, earliest estimated coupling first
@@ -650,9 +650,9 @@ class _OrderSCP:
 
         A step is accepted when the exact merit falls by at least a tenth of the QP's prediction; the proximal
         weight then falls (longer steps); a rejected step is tried at half its length (accepted if the merit
-        falls by a twentieth of the prediction); the weight then rises. The loop ends when an accepted iterate violates the soft
-        constraints by less than ``feasible_tol`` (their margins absorb that) and improved the merit by less than
-        ``converge_merit`` — or after ``max_iterations`` QPs.
+        falls by a twentieth of the prediction); the weight then rises. The loop ends when an accepted iterate
+        violates the soft constraints by less than ``feasible_tol`` (their margins absorb that) and improved the
+        merit by less than ``converge_merit`` — or after ``max_iterations`` QPs.
         """
         qp = self.qp
         prox = qp.prox_weight
@@ -727,8 +727,8 @@ def order_estimates(
     """Estimated coupling instant of each order [s] — how the first plan picks its order.
 
     Every train runs its fastest profile (full acceleration, braking curves into its turnout limits) held back at
-    its switches by :func:`.qp_timetable.chained_passages`; the coupling instant is when the leader reaches F or, if later, a
-    follower its slot. It charges an interval at the switch where it arises (at ``sw1`` for two trains from
+    its switches by :func:`.qp_timetable.chained_passages`; the coupling instant is when the leader reaches F or,
+    if later, a follower its slot. It charges an interval at the switch where it arises (at ``sw1`` for two trains from
     ``sw1``'s legs, not at the merge) and the switches' own positions. ``base``: the problem's shared structure,
     if already built.
     """

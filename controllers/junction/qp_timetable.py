@@ -91,10 +91,10 @@ def chained_passages(
     grids: list[np.ndarray],
     runs: list[np.ndarray],
 ) -> tuple[dict[int, dict[str, float]], dict[int, float]]:
-    """Each train's switch passages (by switch id) and hold [s] in ``order`` when it runs its fastest profile (``runs``) but is held
-    back at each of its switches until the switch is ready for it: after the switch interval behind the previous
-    user in ``order`` (``t_ls`` when the legs differ, plus ``headway_margin_s``), and for the
-    first user after the switch's own lock and throw. A hold is carried on along the train's path, so an interval
+    """Each train's switch passages (by switch id) and hold [s] in ``order`` when it runs its fastest profile
+    (``runs``) but is held back at each of its switches until the switch is ready for it: after the switch
+    interval behind the previous user in ``order`` (``t_ls`` when the legs differ, plus ``headway_margin_s``),
+    and for the first user after the switch's own lock and throw. A hold is carried on along the train's path, so an interval
     charged at ``sw1`` delays the merge passage too (two trains from ``sw1``'s legs run on at different speeds:
     their interval at the merge is not the one at ``sw1``)."""
     p = problem.params
