@@ -174,9 +174,12 @@ def test_switch_interval_reading_closed_form() -> None:
 def test_qp_order_couples_at_F_in_sumo_without_collisions_or_switch_violations(tmp_path: Path) -> None:
     """The deterministic planner online (issue 18): the plan it makes is one the engine lets the trains fly — the
     interlocking grants each lock before the train's braking point, the followers' guard never caps them — so
-    the platoon is coupled at F (Eqs. 2–3 measured on the SUMO trajectories when the leader reaches F)."""
+    the platoon is coupled at F (Eqs. 2–3 measured on the SUMO trajectories when the leader reaches F). When the
+    order freezes (a train at its point of no return) the coordinator re-plans once (session 6): with seed 1 no
+    tracking deviation triggers a re-plan before that, so without it the order would never be frozen by a plan and
+    the run would fly the budgeted first plan to its later coupling."""
     out = tmp_path / "qp"
-    s = _run(_variant(tmp_path, "qp", method="qp_order"), out, seed=3)
+    s = _run(_variant(tmp_path, "qp", method="qp_order"), out, seed=1)
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0
     assert s["switch_violations"] == 0
     j = s["junction"]
@@ -185,3 +188,11 @@ def test_qp_order_couples_at_F_in_sumo_without_collisions_or_switch_violations(t
     assert j["max_gap_error_m"] <= 5.0 and j["max_speed_diff_mps"] <= 0.5
     assert set(j["handover_s"]) == set(j["order"])
     assert not _events(out, "emergency_brake_on")  # nobody was braked by an authority end or the guard
+    frozen = _events(out, "junction_order_frozen")
+    plans = _events(out, "junction_plan")
+    assert len(frozen) == 1
+    deviations = [e["t_s"] for e in _events(out, "junction_deviation")]
+    assert all(frozen[0]["t_s"] <= d for d in deviations)  # frozen by the freeze re-plan, not by a deviation's
+    assert any(p["t_s"] == frozen[0]["t_s"] and p["detail"]["frozen"] for p in plans)  # the re-plan at the freeze
+    first = plans[0]
+    assert first["t_s"] + j["coupling_time_s"] < first["detail"]["predicted_coupling_s"]  # it coupled sooner

@@ -12,6 +12,8 @@ from typing import Any
 
 import numpy as np
 
+from controllers.junction import baselines
+
 REFERENCE_DT_S = 0.02  # integration step of the reference trajectory
 REFERENCE_HORIZON_S = 600.0  # the reference ends here at the latest
 
@@ -93,6 +95,18 @@ class PlannedTrain:
         self.ref_t = tau
         self.ref_s = base_s + base_v * dt + 0.5 * a_j * dt * dt
         self.ref_v = np.maximum(base_v + a_j * dt, min_speed_mps)
+
+    def naive_command(self, p: Any, pos_m: float, v: float, dt_s: float) -> float:
+        """The naive baselines' command (spec 004 §4.2): towards the limit speed of the next switch ahead on a
+        braking curve (past the last one: its limit); ``p`` are the planner's parameters."""
+        ahead = [(self.switch_m[sid], sid) for sid in self.switch_m if self.point_m[sid] > pos_m]
+        if ahead:
+            d, sid = min(ahead)
+            v_lim = p.limit_speed_mps(self.legs[sid]) - p.switch_speed_margin_mps
+            cap = baselines.approach_speed_cap(v, d - pos_m, v_lim, dt_s, abs(p.accel_min_mps2))
+        else:
+            cap = p.limit_speed_mps(self.legs[max(self.point_m, key=lambda k: self.point_m[k])])
+        return baselines.accel_towards(cap, v, dt_s, p)
 
     def accel_at(self, s: float) -> float:
         """The plan's acceleration at distance ``s`` from the plan instant's front."""
