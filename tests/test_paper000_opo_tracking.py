@@ -12,7 +12,7 @@ import numpy as np
 
 import controllers
 from controllers.mcf_dmpc.metrics import follower_metrics
-from controllers.mcf_dmpc.sim import KMH, run_platoon, variable_speed_profile
+from controllers.mcf_dmpc.sim import KMH, S_E_SEGMENTS, paper000_leader, run_platoon
 from controllers.mcf_dmpc.spacing import desired_spacing_m, paper000_vehicle
 
 
@@ -26,8 +26,7 @@ def _late_error(method: str, seed: int) -> float:
         (220 * KMH, 220 * KMH),
         300,
         seed=seed,
-        leader_speed=variable_speed_profile(),
-        leader_future_known=True,
+        leader=paper000_leader(220.0, S_E_SEGMENTS),
     )
     (m,) = follower_metrics(run, 150.0, 300.0)
     assert m.min_safety_margin_m > 0.0
