@@ -5,6 +5,10 @@ The numpy twin (:func:`railsim.studies.paper000_tables.numpy_twin`) is built fro
 scored by the same metric function. Before issue 19 the two disagreed in S-E (7.1 m engine vs 10.4 m numpy mean
 spacing error): the runner's follower read a one-step-old report of a leader that sends no plan. Now the leader
 broadcasts its plan (the paper's assumption) and the runner reads messages as the engine delivers them.
+
+Without the actuator noise (whose random stream is the only thing the two do not share) the runs are the same
+trajectories: measured max |ΔS_engine − ΔS_numpy| 5e-7 m (S-E), 7e-7 m (S-D). With the noise, the 5-seed means
+of ``railsim reproduce paper000`` agree within 5 % (README, Paper A).
 """
 
 from __future__ import annotations
@@ -13,6 +17,7 @@ import csv
 import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 import yaml
 
@@ -20,8 +25,6 @@ from railsim.analysis.paper000 import follower_series
 from railsim.scenario import loads
 from railsim.studies.paper000_tables import numpy_twin, scenario_path
 from tests.helpers import ROOT, run_railsim
-
-KEYS = ("mean_abs_dv_mps", "mean_abs_spacing_error_m")
 
 
 def _engine(tmp: Path, raw: dict, name: str) -> Path:
@@ -33,30 +36,25 @@ def _engine(tmp: Path, raw: dict, name: str) -> Path:
     return out
 
 
-def _means(series) -> dict[str, float]:
-    (fs,) = series
-    err = abs(fs.spacing_m - fs.desired_m)
-    return {
-        "mean_abs_dv_mps": float(abs(fs.v_lead_mps - fs.v_fol_mps).mean()),
-        "mean_abs_spacing_error_m": float(err.mean()),
-    }
-
-
 @pytest.mark.sumo
 @pytest.mark.parametrize("plan", [True, False], ids=["leader_plan", "no_plan"])
-def test_se_engine_and_numpy_twin_agree(tmp_path: Path, plan: bool) -> None:
+def test_se_engine_and_numpy_twin_are_the_same_run_without_noise(tmp_path: Path, plan: bool) -> None:
     raw = yaml.safe_load(scenario_path("S-E", "dmpc").read_text(encoding="utf-8"))
+    raw["faults"].pop("actuator_noise")
     if not plan:
         del raw["controllers"]["lead"]["params"]["plan_horizon_s"]
     out = _engine(tmp_path, raw, "se")
-    engine = _means(follower_series(out))
-    twin = _means(numpy_twin(loads(yaml.safe_dump(raw), str(tmp_path / "se.yaml"), ROOT / "scenarios")))
-    for key in KEYS:
-        assert engine[key] == pytest.approx(twin[key], rel=0.10), (key, engine, twin)
-    if plan:  # with the leader's future known the follower tracks D^(e) through the manoeuvre
-        assert engine["mean_abs_spacing_error_m"] < 1.5
-    else:  # extrapolating at constant speed it lags every ramp (measured 7.2 m)
-        assert engine["mean_abs_spacing_error_m"] > 5.0
+    (eng,) = follower_series(out)
+    (twin,) = numpy_twin(loads(yaml.safe_dump(raw), str(tmp_path / "se.yaml"), ROOT / "scenarios"))
+    np.testing.assert_array_equal(eng.t_s, twin.t_s)  # paper time 0 … 379 s on both sides
+    np.testing.assert_allclose(eng.spacing_m, twin.spacing_m, rtol=0, atol=1e-4)
+    np.testing.assert_allclose(eng.v_fol_mps, twin.v_fol_mps, rtol=0, atol=1e-6)
+    np.testing.assert_allclose(eng.v_lead_mps, twin.v_lead_mps, rtol=0, atol=1e-6)
+    err = float(np.mean(np.abs(eng.spacing_m - eng.desired_m)))
+    if plan:  # with the leader's future known the follower tracks D^(e) through the manoeuvre (measured 0.28 m)
+        assert err < 0.5
+    else:  # extrapolating at constant speed it lags every ramp (measured 7.2 m with the noise)
+        assert err > 5.0
     events = [r["kind"] for r in csv.DictReader(open(out / "events.csv", encoding="utf-8"))]
     assert "leader_plan_lost" not in events  # perfect communication: the plan never goes stale
 

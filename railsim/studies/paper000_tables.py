@@ -94,8 +94,8 @@ def numpy_twin(scenario: Any, seed: int | None = None) -> list[FollowerSeries]:
     leader = ctl.create(lead_spec.type, dict(lead_spec.params), vehicle)
     followers = [ctl.create(spec.type, dict(spec.params), vehicle) for spec in fol_specs]
     noise = scenario.faults.actuator_noise
-    noisy = set(noise.trains or ()) if noise is not None else set()
-    if noise is not None and noisy != {s.trip_ids[0] for s in fol_svcs}:
+    sd = float(noise.accel_sd_mps2) if noise is not None else 0.0
+    if sd > 0.0 and set(noise.trains or ()) != {s.trip_ids[0] for s in fol_svcs}:
         raise ValueError(f"{scenario.source}: the numpy runner puts the noise on every follower and only there")
     dt = float(scenario.simulation.step_s)
     run = run_platoon(
@@ -105,7 +105,7 @@ def numpy_twin(scenario: Any, seed: int | None = None) -> list[FollowerSeries]:
         int(round(scenario.simulation.duration_s / dt)) - 1,
         leader=leader,
         vehicle=vehicle,
-        noise_sd_mps2=float(noise.accel_sd_mps2) if noise is not None else 0.0,
+        noise_sd_mps2=sd,
         seed=int(scenario.simulation.seed if seed is None else seed),
         messages="engine",
         dt_s=dt,
