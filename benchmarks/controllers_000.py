@@ -9,13 +9,18 @@ the MCF variants get ``--mcf-steps`` steps because each solve is ~10³× a CF la
 compilation or cache load of :mod:`controllers.mcf_dmpc.kernels`) is reported apart as ``first_step_s``;
 ``--mcf-iterations`` lowers MSMFO's K (Table II: 100) to show what budget a time target buys.
 
-Reported per controller: median, p95 and mean solve time per train-step, the number of train-steps, and the ratio
-to the paper's MATLAB figures (0.439 s per solve for fmincon DMPC, 0.282 s for OPO-MCF-DMPC; A39: compare ratios,
-not seconds), plus ``paper_speedup_check``: our (t_DMPC − t_OPO)/t_DMPC next to the paper's 35.8 %. Targets (not
-tests): DMPC ≤ 1 ms, OPO-MCF-DMPC ≤ 20 ms per train-step.
+Reported per controller: median, p95 and mean solve time per train-step — wall clock (``info["solve_time_s"]``,
+inflated when other processes share the cores) and the controller thread's CPU time (``info["cpu_time_s"]``) —
+the number of train-steps, and the ratio to the paper's MATLAB figures (0.439 s per solve for fmincon DMPC,
+0.282 s for OPO-MCF-DMPC; A39: compare ratios, not seconds), plus ``paper_speedup_check``: our
+(t_DMPC − t_OPO)/t_DMPC next to the paper's 35.8 %. Targets (not tests): DMPC ≤ 1 ms, OPO-MCF-DMPC ≤ 20 ms per
+train-step (``meets_target`` on the median wall time, ``meets_target_cpu`` on the median CPU time).
 
-With ``--optimizer-seeds N > 0`` it also runs the S-B′ optimiser comparison (MSMFO vs MFO/GA/PSO/SA, best J
-and wall time at an equal budget of 5,000 evaluations) by importing ``benchmarks/optimizers_000.py``'s problem.
+Baseline in the same run (issue 19): the MCF variants are also timed on their Python optimiser path (the same
+search, :func:`controllers.mcf_dmpc.optim.minimize_sequence` over the numba fitness — what every step cost before
+the compiled MSMFO of :mod:`controllers.mcf_dmpc.msmfo_jit`), ``baseline_python`` with ``speedup_cpu`` /
+``speedup_wall`` = baseline median / compiled median. ``--budget-sweep K1 K2 …`` times OPO-MCF-DMPC at lower
+MSMFO iteration counts (Table II: K = 100) to show what budget a time target buys.
 
     .venv/bin/python benchmarks/controllers_000.py [--steps 60] [--mcf-steps 8] [--optimizer-seeds 5]
 """
@@ -43,39 +48,54 @@ CONTROLLERS = ("cf_idm", "cf_cacc", "cf_fvd", "dmpc", "mcf_dmpc", "opo_mcf_dmpc"
 X0_M, V0_MPS = (2000.0, 1500.0, 0.0), (220 / 3.6, 200 / 3.6, 180 / 3.6)
 
 
-def _followers(name: str, mcf_iterations: int = 100) -> list[Any]:
+def _followers(name: str, mcf_iterations: int = 100, compiled: bool = True) -> list[Any]:
     veh = paper000_vehicle()
     if name == "dmpc":
         return [controllers.create(name, {}, veh), controllers.create(name, {}, veh)]
     extra = {"iterations": mcf_iterations} if "mcf" in name else {}
-    return [controllers.create(name, {"theta_preset": preset, **extra}, veh) for preset in ("train2", "train3")]
+    out = [controllers.create(name, {"theta_preset": preset, **extra}, veh) for preset in ("train2", "train3")]
+    for f in out:
+        if not compiled and hasattr(f, "_compiled"):
+            f._compiled = False  # the Python optimiser path: the same search, uncompiled
+    return out
 
 
-def time_controller(name: str, steps: int, seed: int = 0, mcf_iterations: int = 100) -> dict[str, Any]:
-    run = run_platoon(
-        _followers(name, mcf_iterations), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed, horizon_steps=60
-    )
-    st = run.solve_time_s[:, 1:].ravel()
+def _stats(values: np.ndarray, prefix: str) -> dict[str, float]:
+    return {
+        f"{prefix}median_s": float(np.median(values)),
+        f"{prefix}p95_s": float(np.percentile(values, 95)),
+        f"{prefix}mean_s": float(np.mean(values)),
+    }
+
+
+def time_controller(
+    name: str, steps: int, seed: int = 0, mcf_iterations: int = 100, compiled: bool = True
+) -> dict[str, Any]:
+    run = run_platoon(_followers(name, mcf_iterations, compiled), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed)
     # The first train-step of each follower includes numba's JIT compilation (or its on-disk cache load):
     # report it apart from the steady-state figures.
     first = run.solve_time_s[0, 1:]
-    st = run.solve_time_s[1:, 1:].ravel() if steps > 1 else st
-    st = st[np.isfinite(st)]
-    row: dict[str, Any] = {
-        "train_steps": int(st.size),
-        "median_s": float(np.median(st)),
-        "p95_s": float(np.percentile(st, 95)),
-        "mean_s": float(np.mean(st)),
-        "first_step_s": float(np.nanmax(first)),
-        "fallbacks": int(run.fallback[:, 1:].sum()),
-    }
+    k0 = 1 if steps > 1 else 0
+    wall = run.solve_time_s[k0:, 1:].ravel()
+    wall = wall[np.isfinite(wall)]
+    cpu = np.array([info.get("cpu_time_s", np.nan) for step in run.infos[k0:] for info in step[1:]], dtype=float)
+    cpu = cpu[np.isfinite(cpu)]
+    row: dict[str, Any] = {"train_steps": int(wall.size), **_stats(wall, "")}
+    if cpu.size:
+        row.update(_stats(cpu, "cpu_"))
+    row["first_step_s"] = float(np.nanmax(first))
+    row["fallbacks"] = int(run.fallback[:, 1:].sum())
     if "mcf" in name:
         row["msmfo_iterations"] = mcf_iterations
+        row["evaluations_per_step"] = float(np.mean([i["evaluations"] for step in run.infos for i in step[1:]]))
+        row["rollouts_per_step"] = float(np.mean([i["rollouts"] for step in run.infos for i in step[1:]]))
     if name in PAPER_S:
         row["paper_s"] = PAPER_S[name]
         row["ratio_to_paper"] = row["mean_s"] / PAPER_S[name]
         row["target_s"] = TARGET_S[name]
         row["meets_target"] = bool(row["median_s"] <= TARGET_S[name])
+        if cpu.size:
+            row["meets_target_cpu"] = bool(row["cpu_median_s"] <= TARGET_S[name])
     return row
 
 
@@ -133,6 +153,8 @@ def main() -> None:
         help="MSMFO iterations K (Table II: 100); lower to see what budget a time target buys",
     )
     parser.add_argument("--only", nargs="*", default=list(CONTROLLERS), choices=CONTROLLERS)
+    parser.add_argument("--baseline-steps", type=int, default=3, help="steps of the Python-path baseline (0: skip)")
+    parser.add_argument("--budget-sweep", type=int, nargs="*", default=[], help="also time OPO at these K")
     args = parser.parse_args()
     out: dict[str, Any] = {
         "benchmark": "controllers_000",
@@ -143,7 +165,22 @@ def main() -> None:
     }
     for name in args.only:
         steps = args.mcf_steps if "mcf" in name else args.steps
-        out["controllers"][name] = time_controller(name, steps, mcf_iterations=args.mcf_iterations)
+        row = time_controller(name, steps, mcf_iterations=args.mcf_iterations)
+        if "mcf" in name and args.baseline_steps > 0:
+            base = time_controller(name, args.baseline_steps + 1, mcf_iterations=args.mcf_iterations, compiled=False)
+            row["baseline_python"] = {k: base[k] for k in ("train_steps", "median_s", "cpu_median_s")}
+            row["speedup_wall"] = base["median_s"] / row["median_s"]
+            row["speedup_cpu"] = base["cpu_median_s"] / row["cpu_median_s"]
+        out["controllers"][name] = row
+    if args.budget_sweep:
+        out["opo_budget_sweep"] = {
+            str(k): {
+                key: v
+                for key, v in time_controller("opo_mcf_dmpc", args.mcf_steps, mcf_iterations=k).items()
+                if key in ("median_s", "cpu_median_s", "evaluations_per_step", "meets_target", "meets_target_cpu")
+            }
+            for k in args.budget_sweep
+        }
     c = out["controllers"]
     if "dmpc" in c and "opo_mcf_dmpc" in c:
         ours = (c["dmpc"]["mean_s"] - c["opo_mcf_dmpc"]["mean_s"]) / c["dmpc"]["mean_s"]

@@ -22,7 +22,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 import controllers  # noqa: E402
 from controllers.mcf_dmpc.metrics import follower_metrics  # noqa: E402
-from controllers.mcf_dmpc.sim import KMH, run_platoon, variable_speed_profile  # noqa: E402
+from controllers.mcf_dmpc.sim import KMH, S_E_SEGMENTS, paper000_leader, run_platoon  # noqa: E402
 from controllers.mcf_dmpc.spacing import desired_spacing_m, paper000_vehicle  # noqa: E402
 
 METHODS = ("mcf_dmpc", "opo_mcf_dmpc")
@@ -54,8 +54,7 @@ def run_case(
             (220 * KMH, 220 * KMH),
             n,
             seed=seed,
-            leader_speed=variable_speed_profile(),
-            leader_future_known=True,
+            leader=paper000_leader(220.0, S_E_SEGMENTS),
         )
     else:
         run = run_platoon(followers, cfg["x0"], cfg["v0"], n, seed=seed)

@@ -221,7 +221,7 @@ def test_plain_float_rollout_and_fused_cost_equal_the_numpy_path(monkeypatch: py
         pop = int(rng.integers(1, 12))
         seq = rng.integers(0, 3, (pop, 60))
         theta = (
-            THETA_TRAIN3.as_array() if trial % 2 else np.abs(THETA_TRAIN3.as_array() + rng.normal(0, 0.05, (pop, 7)))
+            THETA_TRAIN3.as_array() if trial % 2 else THETA_TRAIN3.as_array() + np.abs(rng.normal(0, 0.05, (pop, 10)))
         )
         x0, v0, u_prev = rng.uniform(-800, 1500), rng.uniform(0, 100), rng.uniform(-0.8, 1.0)
         ff = trial % 3 == 0  # the A9 resistance feed-forward option too

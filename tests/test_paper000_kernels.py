@@ -28,7 +28,7 @@ def _random_case(rng: np.random.Generator, steps: int, pop: int) -> tuple:
     hz = PredecessorHorizon(xp, vp, ap, float(rng.uniform(100.0, 300.0)), float(rng.uniform(0.5, 1.5)))
     seq = rng.integers(0, 3, size=(pop, steps))
     lo, hi = THETA_BOUNDS.T
-    thetas = lo + rng.random((pop, 7)) * (hi - lo) * 1.5  # some rows beyond the box: the laws must not care
+    thetas = lo + rng.random((pop, len(lo))) * (hi - lo) * 1.5  # some rows beyond the box: the laws must not care
     return hz, seq, thetas, rng.uniform(-10.0, 10.0), rng.uniform(0.0, 97.0), rng.uniform(-0.8, 1.0)
 
 

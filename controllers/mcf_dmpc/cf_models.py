@@ -26,6 +26,13 @@ Readings of the ambiguities:
 * A12 — Eq. (13) adds m/s to m; implemented as printed.
 * A14 — model indices: 0 = IDM, 1 = CACC, 2 = FVD in code (the paper's 1, 2, 3).
 * A35 — the original models' δ (Eq. 7) and t_g (Eq. 9) are not in the paper: δ = 4, t_g = 1.5 s by default.
+
+**Control offsets (ours, issue 19; not in the paper).** Θ carries three more entries after θ1 … θ7: an offset
+``b_m`` [m/s²] per law, added to the law's output before the saturation, ``u = sat(a_m(…; Θ) + b_m)``. With
+``b_m = 0`` (the Table values, MCF-DMPC, CF-DMPC) the laws are exactly the paper's. OPO may correct them online
+(:mod:`controllers.mcf_dmpc.opo`): under the reading A9 above each law can only hold the running resistance by
+sitting at a spacing offset ``ω/gain``, and the J^(DMPC)-optimal gains over the horizon stay moderate (OPO on
+θ1 … θ7 alone settles S-D's late phase at ~3.9 m); an online offset lets the same cost remove the offset itself.
 """
 
 from __future__ import annotations
@@ -40,6 +47,7 @@ __all__ = [
     "MODEL_IDM",
     "MODEL_NAMES",
     "MODEL_THETA_INDEX",
+    "N_THETA",
     "THETA_BOUNDS",
     "THETA_TRAIN2",
     "THETA_TRAIN3",
@@ -55,8 +63,11 @@ __all__ = [
 
 MODEL_IDM, MODEL_CACC, MODEL_FVD = 0, 1, 2
 MODEL_NAMES = ("idm", "cacc", "fvd")
-# Which entries of Θ = [θ1 … θ7] (0-based) each model uses: the OPO decomposition (Section III-B).
-MODEL_THETA_INDEX: tuple[tuple[int, ...], ...] = ((0, 1), (2, 3, 4), (5, 6))
+# Which entries of Θ = [θ1 … θ7, b_IDM, b_CACC, b_FVD] (0-based) each model uses: the OPO decomposition (Section
+# III-B), each law with its own control offset (ours, module docstring).
+MODEL_THETA_INDEX: tuple[tuple[int, ...], ...] = ((0, 1, 7), (2, 3, 4, 8), (5, 6, 9))
+N_THETA = 10
+BIAS_INDEX = 7  # Θ[BIAS_INDEX + m] is law m's control offset
 
 V_FLOOR_MPS = 0.1  # A11 denominator floor [m/s]
 RATIO_CAP = 1.0e3  # A11 cap of D^(e)/ΔS before the power θ2
@@ -73,19 +84,25 @@ class CfTheta:
     theta5: float  # CACC velocity gain [1/s]
     theta6: float  # FVD optimal-velocity gain [1/s]
     theta7: float  # FVD close-range relative-speed gain [1/s]
+    bias_idm_mps2: float = 0.0  # control offsets (ours, module docstring): 0 = the paper's laws
+    bias_cacc_mps2: float = 0.0
+    bias_fvd_mps2: float = 0.0
 
     def as_array(self) -> np.ndarray:
         return np.array([getattr(self, f.name) for f in fields(self)], dtype=float)
 
     @classmethod
     def from_array(cls, values: np.ndarray) -> CfTheta:
-        return cls(*(float(x) for x in np.asarray(values, dtype=float).ravel()[:7]))
+        return cls(*(float(x) for x in np.asarray(values, dtype=float).ravel()[:N_THETA]))
 
 
 THETA_TRAIN2 = CfTheta(1.2, 12.1, 0.0, 0.011, 0.013, 0.012, 4.2e-4)  # Θ_2 (Section IV-A)
 THETA_TRAIN3 = CfTheta(1.4, 16.7, 0.35, 0.012, 0.015, 0.015, 4.3e-4)  # Θ_3
-# A29 SUGGESTION: OPO search box for θ1 … θ7 (lower, upper).
-THETA_BOUNDS = np.array([[0.5, 5.0], [2.0, 40.0], [0.0, 1.0], [1e-3, 0.1], [1e-3, 0.1], [1e-3, 0.1], [0.0, 1e-2]])
+# OPO search box (lower, upper): θ1 … θ7 the A29 SUGGESTION; the control offsets ±0.2 m/s² (ours: ω(350 km/h)
+# = 0.18 m/s², the largest force a law must hold at equilibrium on the flat)
+THETA_BOUNDS = np.array(
+    [[0.5, 5.0], [2.0, 40.0], [0.0, 1.0], [1e-3, 0.1], [1e-3, 0.1], [1e-3, 0.1], [0.0, 1e-2]] + [[-0.2, 0.2]] * 3
+)
 
 
 def saturate(u: np.ndarray, u_min: float = -0.8, u_max: float = 1.0) -> np.ndarray:
@@ -206,14 +223,17 @@ def all_models(
     u_min: float = -0.8,
     u_max: float = 1.0,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """The three saturated enhanced laws at once; ``theta`` is ``(7,)`` or ``(..., 7)`` (broadcast over rows)."""
+    """The three saturated enhanced laws at once, each plus its control offset; ``theta`` is ``(N_THETA,)`` or
+    ``(..., N_THETA)`` (broadcast over rows; 7 entries: no offsets)."""
     th = np.asarray(theta, dtype=float)
     t = [th[..., k] for k in range(7)]
-    return (
-        enhanced_idm(v, v_pred, spacing_m, desired_m, t[0], t[1], a_max, u_min, u_max),
-        enhanced_cacc(v, v_pred, spacing_m, desired_m, a_pred, t[2], t[3], t[4], u_min, u_max),
-        enhanced_fvd(v, v_pred, spacing_m, desired_m, t[5], t[6], u_min, u_max),
+    b = [th[..., BIAS_INDEX + m] if th.shape[-1] > BIAS_INDEX + m else 0.0 for m in range(3)]
+    laws = (
+        enhanced_idm(v, v_pred, spacing_m, desired_m, t[0], t[1], a_max, None, None),
+        enhanced_cacc(v, v_pred, spacing_m, desired_m, a_pred, t[2], t[3], t[4], None, None),
+        enhanced_fvd(v, v_pred, spacing_m, desired_m, t[5], t[6], None, None),
     )
+    return tuple(_maybe_saturate(a + bm, u_min, u_max) for a, bm in zip(laws, b))  # type: ignore[return-value]
 
 
 def _maybe_saturate(a: np.ndarray, u_min: float | None, u_max: float | None) -> np.ndarray:

@@ -13,15 +13,21 @@ Registered names (factory ``(params, vehicle)``, parameters as in the dataclasse
   shifted by one step and the three single-model sequences, so MCF never does worse than the best single model
   it was offered.
 * ``opo_mcf_dmpc`` — as ``mcf_dmpc`` after OPO (:mod:`controllers.mcf_dmpc.opo`) re-tunes Θ every step (A29:
-  before the sequence search), warm-started from the previous step's Θ.
+  before the sequence search), warm-started from the previous step's Θ. By default (``opo_bias: true``, ours,
+  issue 19) OPO also corrects a control offset per law (:mod:`~controllers.mcf_dmpc.cf_models` docstring);
+  ``opo_bias: false`` is the paper's reading (θ1 … θ7 only).
 * ``dmpc`` — the continuous-u baseline as a sparse OSQP QP (:mod:`controllers.mcf_dmpc.dmpc`); solver failure →
   service braking with ``fallback=True`` and a counter.
 
 Information flow: the predecessor's broadcast plan arrives in ``obs.predecessor.planned_*`` (delayed by the
-communication layer); it is shifted by ``age_s`` and extended at constant speed, or, without a plan, the last
-reported state is extrapolated at constant speed (:func:`~controllers.mcf_dmpc.rollout.predecessor_horizon`).
+communication layer); while fresh (age ≤ ``plan_max_age_s``, default 1 s: one lost message at τ = 1 s) it is
+shifted by ``age_s`` and extended at constant speed; without a plan, or when it is stale, the last reported state
+is extrapolated at constant speed (:func:`~controllers.mcf_dmpc.rollout.predecessor_horizon`). ``info
+["predecessor_plan"]`` says which (``plan``/``stale``/``absent``) every step, and a change between using the plan
+and extrapolating is ``info["event"]`` = ``leader_plan_lost`` / ``leader_plan_restored`` (the engine records it
+in events.csv); a predecessor that never sent a plan raises no event.
 Each controller returns its own plan (``Np + 1`` samples, observer's route frame) in ``info["plan"]`` plus
-``info["J"]``, ``info["solve_time_s"]`` and, where relevant, ``info["model_sequence"]`` / ``info["theta"]``.
+``info["J"]``, ``info["solve_time_s"]`` (wall), ``info["cpu_time_s"]`` and, where relevant, ``info["model_sequence"]`` / ``info["theta"]``.
 The previous control ``u_{−1}`` of Eq. (17) is this controller's own last command (A19: 0 at the first step,
 option ``u_prev_init: resistance`` for ω(v0)). Controllers add no noise and are deterministic given ``seed``.
 The prediction model comes from the train's own :class:`~railsim.physics.vehicle.VehicleParams` (one physics).
@@ -42,6 +48,8 @@ from controllers.braking import params_from_mapping, require
 from controllers.mcf_dmpc.cf_models import MODEL_CACC, MODEL_FVD, MODEL_IDM, MODEL_NAMES, THETA_TRAIN2, THETA_TRAIN3
 from controllers.mcf_dmpc.cost import CostWeights, dmpc_cost, sequence_costs
 from controllers.mcf_dmpc.dmpc import DmpcQp, shift_controls
+from controllers.mcf_dmpc.kernels import NUMBA_AVAILABLE, train_vector, weight_vector
+from controllers.mcf_dmpc.msmfo_jit import msmfo_mcf
 from controllers.mcf_dmpc.opo import OpoSettings, opo_step
 from controllers.mcf_dmpc.rollout import (
     PredecessorHorizon,
@@ -97,6 +105,7 @@ class CommonParams:
     xi_term: float = 10.0
     penalty_weight: float = 1.0e6  # A21
     u_prev_init: str = "zero"  # A19: "zero" or "resistance"
+    plan_max_age_s: float = 1.0  # the predecessor's plan is used up to this message age, then extrapolated
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -104,6 +113,7 @@ class CommonParams:
         _int_field(self, "seed", 0)
         require("dt_s", self.dt_s > 0.0, "a number > 0", self.dt_s)
         require("safety_margin_m", self.safety_margin_m >= 0.0, "a number >= 0", self.safety_margin_m)
+        require("plan_max_age_s", self.plan_max_age_s >= 0.0, "a number >= 0", self.plan_max_age_s)
         for name in ("xi_v", "xi_s", "xi_u", "xi_du", "xi_term", "penalty_weight"):
             require(name, getattr(self, name) >= 0.0, "a number >= 0", getattr(self, name))
         require("u_prev_init", self.u_prev_init in ("zero", "resistance"), "'zero' or 'resistance'", self.u_prev_init)
@@ -139,14 +149,14 @@ class CfParams(CommonParams):
             "cacc_feedforward", self.cacc_feedforward in ("net", "applied"), "'net' or 'applied'", self.cacc_feedforward
         )
         theta = self.theta()
-        for k, value in enumerate(theta, start=1):
+        for k, value in enumerate(theta[:7], start=1):
             low_ok = value > 0.0 if k <= 2 else value >= 0.0
             require(f"theta{k}", math.isfinite(value) and low_ok, "a number > 0" if k <= 2 else "a number >= 0", value)
 
     def theta(self) -> np.ndarray:
         base = _THETA_PRESETS.get(self.theta_preset, THETA_TRAIN2).as_array()
-        over = np.array([getattr(self, f"theta{k}") for k in range(1, 8)], dtype=float)
-        return np.where(np.isnan(over), base, over)
+        over = np.array([getattr(self, f"theta{k}") for k in range(1, 8)] + [np.nan] * 3, dtype=float)
+        return np.where(np.isnan(over), base, over)  # θ1 … θ7 and the control offsets (0: the paper's laws)
 
 
 @dataclass(frozen=True)
@@ -196,6 +206,8 @@ class OpoMcfParams(McfParams):
     theta6_max: float = 0.1
     theta7_min: float = 0.0
     theta7_max: float = 1e-2
+    opo_bias: bool = True  # ours: OPO also corrects each law's control offset within ±bias_max_mps2
+    bias_max_mps2: float = 0.2
 
     def __post_init__(self) -> None:
         super().__post_init__()
@@ -204,6 +216,8 @@ class OpoMcfParams(McfParams):
             lo, hi = getattr(self, f"theta{k}_min"), getattr(self, f"theta{k}_max")
             require(f"theta{k}_max", hi >= lo, f"a number >= theta{k}_min ({lo})", hi)
         require("opo_initial_step", 0.0 < self.opo_initial_step <= 1.0, "a number in (0, 1]", self.opo_initial_step)
+        require("opo_bias", isinstance(self.opo_bias, bool), "true or false", self.opo_bias)
+        require("bias_max_mps2", 0.0 <= self.bias_max_mps2 <= 1.0, "a number in [0, 1]", self.bias_max_mps2)
         require(
             "opo_min_step",
             0.0 < self.opo_min_step <= self.opo_initial_step,
@@ -212,7 +226,9 @@ class OpoMcfParams(McfParams):
         )
 
     def opo_settings(self) -> OpoSettings:
-        bounds = np.array([[getattr(self, f"theta{k}_min"), getattr(self, f"theta{k}_max")] for k in range(1, 8)])
+        rows = [[getattr(self, f"theta{k}_min"), getattr(self, f"theta{k}_max")] for k in range(1, 8)]
+        b = self.bias_max_mps2 if self.opo_bias else 0.0
+        bounds = np.array(rows + [[-b, b]] * 3)
         return OpoSettings(self.opo_iterations, self.opo_initial_step, self.opo_min_step, bounds)
 
 
@@ -249,10 +265,12 @@ class _PaperAController:
         self.n_steps = params.horizon_steps
         self.fallbacks = 0
         self._u_prev: float | None = None
+        self._plan_used: bool | None = None  # None until a plan was first used (no event for a plan never sent)
 
     def reset(self) -> None:
         self._u_prev = None
         self.fallbacks = 0
+        self._plan_used = None
 
     def _feedforward(self) -> str:
         return getattr(self.params, "cacc_feedforward", "net")
@@ -267,16 +285,32 @@ class _PaperAController:
         if pred is None:
             # nothing to follow: the traction limit, so the engine's min() leaves the ATO in charge
             return Command(self.train.max_accel_mps2, info={"phase": "free"})
-        t0 = time.perf_counter()
-        hz = predecessor_horizon(pred, self.n_steps, self.params.dt_s, self._feedforward())
+        t0, c0 = time.perf_counter(), time.thread_time()
+        p = self.params
+        hz = predecessor_horizon(pred, self.n_steps, p.dt_s, self._feedforward(), max_plan_age_s=p.plan_max_age_s)
         x0, v0 = float(obs.own.position_m), max(float(obs.own.speed_mps), 0.0)
         u_prev = self._u_prev_value(v0)
         u0, plan, info, fallback = self._decide(x0, v0, u_prev, hz)
         self._u_prev = u0
         info["plan"] = plan
-        info["solve_time_s"] = time.perf_counter() - t0
+        info["solve_time_s"] = time.perf_counter() - t0  # wall clock (inflated on a loaded machine)
+        info["cpu_time_s"] = time.thread_time() - c0  # this thread's CPU time (numba runs in it too)
+        info["predecessor_plan"] = hz.source
+        event = self._plan_event(hz.source == "plan")
+        if event is not None:
+            info["event"] = event
+            info["plan_age_s"] = round(float(pred.age_s), 3)
         info.setdefault("phase", "track")
         return Command(u0, fallback=fallback, info=info)
+
+    def _plan_event(self, used: bool) -> str | None:
+        """``leader_plan_lost`` / ``leader_plan_restored`` when the use of the predecessor's plan changes."""
+        before, self._plan_used = self._plan_used, (used if (used or self._plan_used is not None) else None)
+        if before is True and not used:
+            return "leader_plan_lost"
+        if before is False and used:
+            return "leader_plan_restored"
+        return None
 
     def _decide(
         self, x0: float, v0: float, u_prev: float, hz: PredecessorHorizon
@@ -301,6 +335,16 @@ class CfDmpc(_PaperAController):
         return float(traj.u[0, 0]), plan_dict(traj, 0, p.dt_s), info, False
 
 
+@dataclass(frozen=True)
+class _Search:
+    """What the controller keeps of a compiled MSMFO call (the fields it reads of an ``OptimResult``)."""
+
+    best: np.ndarray
+    best_cost: float
+    evaluations: int
+    rollouts: int
+
+
 def _default_optimizer() -> SequenceOptimizer:
     from controllers.mcf_dmpc.optim import minimize_sequence  # imported late: optim imports this package
 
@@ -311,11 +355,19 @@ class McfDmpc(_PaperAController):
     """MCF-DMPC: the model sequence chosen by an integer optimiser every step."""
 
     def __init__(
-        self, params: McfParams, vehicle: VehicleParams, sequence_optimizer: SequenceOptimizer | None = None
+        self,
+        params: McfParams,
+        vehicle: VehicleParams,
+        sequence_optimizer: SequenceOptimizer | None = None,
+        compiled: bool = True,
     ) -> None:
         super().__init__(params, vehicle)
         self.theta = params.theta()
         self.optimizer = sequence_optimizer if sequence_optimizer is not None else _default_optimizer()
+        # the compiled MSMFO (same draws, same result) unless a custom optimiser or another method is asked for
+        self._compiled = compiled and sequence_optimizer is None and params.optimizer == "msmfo" and NUMBA_AVAILABLE
+        self._train_vec = train_vector(self.train)
+        self._weight_vec = weight_vector(self.weights)
         self.rng = np.random.default_rng(params.seed)
         self.dim = params.decision_dim or params.horizon_steps
         self._best: np.ndarray | None = None
@@ -347,17 +399,14 @@ class McfDmpc(_PaperAController):
 
     def _select(self, x0, v0, u_prev, hz, theta) -> tuple[np.ndarray, Any]:
         p: McfParams = self.params  # type: ignore[assignment]
+        if self._compiled:
+            return self._select_compiled(x0, v0, u_prev, hz, theta)
         batch = self._batch_cost(x0, v0, u_prev, hz)
 
         def fitness(seqs: np.ndarray) -> np.ndarray:
             return batch(np.asarray(seqs), theta)
 
-        init = None
-        if p.warm_start:
-            seeds = [np.full(self.dim, m, dtype=np.int64) for m in (MODEL_IDM, MODEL_CACC, MODEL_FVD)]
-            if self._best is not None:
-                seeds.insert(0, np.append(self._best[1:], self._best[-1]))
-            init = np.stack(seeds[: p.population])
+        init = self._warm_start()
         res = self.optimizer(
             fitness,
             self.dim,
@@ -372,6 +421,39 @@ class McfDmpc(_PaperAController):
         self._best = best
         return best, res
 
+    def _warm_start(self) -> np.ndarray | None:
+        p: McfParams = self.params  # type: ignore[assignment]
+        if not p.warm_start:
+            return None
+        seeds = [np.full(self.dim, m, dtype=np.int64) for m in (MODEL_IDM, MODEL_CACC, MODEL_FVD)]
+        if self._best is not None:
+            seeds.insert(0, np.append(self._best[1:], self._best[-1]))
+        return np.stack(seeds[: p.population])
+
+    def _select_compiled(self, x0, v0, u_prev, hz, theta) -> tuple[np.ndarray, Any]:
+        """The same search as ``_select`` with the default MSMFO, compiled (:mod:`controllers.mcf_dmpc.msmfo_jit`)."""
+        p: McfParams = self.params  # type: ignore[assignment]
+        args = (
+            theta,
+            x0,
+            v0,
+            hz.position_m,
+            hz.speed_mps,
+            hz.accel_mps2,
+            hz.length_m,
+            hz.emergency_decel_mps2,
+            self._train_vec,
+            self._weight_vec,
+            u_prev,
+            p.resistance_feedforward,
+            self.n_steps,
+        )
+        best, cost, evaluations, rollouts = msmfo_mcf(
+            args, self.dim, 3, population=p.population, iterations=p.iterations, rng=self.rng, init=self._warm_start()
+        )
+        self._best = best
+        return best, _Search(best, cost, evaluations, rollouts)
+
     def _finish(self, x0, v0, u_prev, hz, theta, best, res, extra: dict[str, Any]):
         p: McfParams = self.params  # type: ignore[assignment]
         full = expand_sequence(best[None, :], self.n_steps)
@@ -382,6 +464,7 @@ class McfDmpc(_PaperAController):
             "model_sequence": tuple(int(m) for m in full[0]),
             "model_counts": tuple(int(np.sum(full[0] == m)) for m in range(3)),
             "evaluations": int(getattr(res, "evaluations", 0)),
+            "rollouts": int(getattr(res, "rollouts", getattr(res, "evaluations", 0))),  # compiled: repeats looked up
             **extra,
         }
         return float(traj.u[0, 0]), plan_dict(traj, 0, p.dt_s), info, False
@@ -395,9 +478,13 @@ class OpoMcfDmpc(McfDmpc):
     """OPO-MCF-DMPC: Θ re-tuned by OPO, then the MCF sequence search with the new Θ."""
 
     def __init__(
-        self, params: OpoMcfParams, vehicle: VehicleParams, sequence_optimizer: SequenceOptimizer | None = None
+        self,
+        params: OpoMcfParams,
+        vehicle: VehicleParams,
+        sequence_optimizer: SequenceOptimizer | None = None,
+        compiled: bool = True,
     ) -> None:
-        super().__init__(params, vehicle, sequence_optimizer)
+        super().__init__(params, vehicle, sequence_optimizer, compiled)
         self.opo_settings = params.opo_settings()
         lo, hi = self.opo_settings.bounds.T
         self.theta = np.clip(params.theta(), lo, hi)  # the warm start must lie in the box too

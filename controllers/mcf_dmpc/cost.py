@@ -24,6 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.mcf_dmpc import kernels as _kernels, rollout as _rollout
+from controllers.mcf_dmpc.cf_models import N_THETA
 from controllers.mcf_dmpc.rollout import PredecessorHorizon, Trajectory
 from controllers.mcf_dmpc.spacing import TrainParamsA, desired_spacing_m, safe_spacing_m
 
@@ -113,9 +114,9 @@ def sequence_costs(
     if seq.shape[1] != pred.steps:
         raise ValueError(f"sequence length {seq.shape[1]} != predecessor horizon {pred.steps}")
     theta = np.asarray(theta, dtype=float)
-    if _kernels.NUMBA_AVAILABLE and theta.shape in ((7,), (seq.shape[0], 7)):
+    if _kernels.NUMBA_AVAILABLE and theta.shape in ((N_THETA,), (seq.shape[0], N_THETA)):
         # compiled fused rollout + cost (same arithmetic, pinned to the scalar path in test_paper000_kernels)
-        thetas = np.ascontiguousarray(np.broadcast_to(theta, (seq.shape[0], 7)))
+        thetas = np.ascontiguousarray(np.broadcast_to(theta, (seq.shape[0], N_THETA)))
         return _kernels.population_costs(
             np.ascontiguousarray(seq),
             thetas,

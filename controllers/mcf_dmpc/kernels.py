@@ -45,7 +45,15 @@ except ImportError:  # pragma: no cover - exercised only in environments without
         return wrap(args[0]) if args and callable(args[0]) else wrap
 
 
-__all__ = ["NUMBA_AVAILABLE", "population_costs", "rollout_rows", "train_vector", "weight_vector"]
+__all__ = [
+    "NUMBA_AVAILABLE",
+    "desired_base",
+    "population_costs",
+    "rollout_rows",
+    "batch_costs",
+    "train_vector",
+    "weight_vector",
+]
 
 # Layout of the scalar parameter vectors handed to the kernels (numba wants flat, typed arguments).
 # train_vector: [dt_s, u_lo, u_hi (=a^(m)), |b^(c)|, |b^(m)| own, c0, c1, c2, L^(s), v_m]
@@ -78,48 +86,49 @@ def weight_vector(weights) -> np.ndarray:
     )
 
 
+@njit(cache=True, inline="always")
+def _control(m, th, vj, spacing, de, vpj, apj, omega, tr, feedforward):  # pragma: no cover - compiled
+    """The saturated control ``u_j`` of law ``m`` at one predicted step — the arithmetic of ``_rollout_scalar``."""
+    if m == 0:  # enhanced IDM, Eq. (8)
+        if spacing > 0.0:
+            vpos = vj if vj > 0.0 else 0.0
+            speed_term = (vpos / (vpj if vpj > V_FLOOR_MPS else V_FLOOR_MPS)) ** th[0]
+            ratio = (de if de > 0.0 else 0.0) / spacing
+            if ratio > RATIO_CAP:
+                ratio = RATIO_CAP
+            a = tr[2] * (2.0 - speed_term - ratio ** th[1])
+        else:
+            a = -math.inf
+    elif m == 1:  # enhanced CACC, Eq. (10)
+        a = th[2] * apj + th[3] * (spacing - de) + th[4] * (vpj - vj)
+    else:  # enhanced FVD, Eq. (11)-(13)
+        v_star = vpj * (vpj + spacing - de) / (vj if vj > V_FLOOR_MPS else V_FLOOR_MPS)
+        a = th[5] * (v_star - vj) + (th[6] if spacing <= de else 0.0) * (vpj - vj)
+    a += th[7 + m]  # the law's control offset (cf_models docstring; 0 = the paper's law)
+    if feedforward:  # A9 option: the law gives the net acceleration, saturate u = a + ω
+        a += omega
+    return tr[1] if a < tr[1] else (tr[2] if a > tr[2] else a)
+
+
+@njit(cache=True, inline="always")
+def _omega(vj, tr):  # pragma: no cover - compiled
+    av = abs(vj)
+    return tr[5] + tr[6] * av + tr[7] * av * av if av != 0.0 else 0.0
+
+
 @njit(cache=True)
 def _rollout_row(row, th, x0, v0, xp, vp, ap, base, tr, feedforward, u, v, s):  # pragma: no cover - compiled
     """One row of the MCF rollout into ``u (Np,)``, ``v``/``s (Np+1,)`` — the arithmetic of ``_rollout_scalar``."""
     tau = tr[0]
     half_tau2 = 0.5 * tau * tau
-    u_lo = tr[1]
-    u_hi = tr[2]
-    a_max = tr[2]
     own_k = 1.0 / (2.0 * tr[3])
-    c0 = tr[5]
-    c1 = tr[6]
-    c2 = tr[7]
-    th1, th2, th3, th4, th5, th6, th7 = th[0], th[1], th[2], th[3], th[4], th[5], th[6]
     vj = v0
     sj = x0
     v[0] = vj
     s[0] = sj
     for j in range(row.shape[0]):
-        m = row[j]
-        vpj = vp[j]
-        spacing = xp[j] - sj
-        de = base[j] + vj * vj * own_k
-        if m == 0:  # enhanced IDM, Eq. (8)
-            if spacing > 0.0:
-                vpos = vj if vj > 0.0 else 0.0
-                speed_term = (vpos / (vpj if vpj > V_FLOOR_MPS else V_FLOOR_MPS)) ** th1
-                ratio = (de if de > 0.0 else 0.0) / spacing
-                if ratio > RATIO_CAP:
-                    ratio = RATIO_CAP
-                a = a_max * (2.0 - speed_term - ratio**th2)
-            else:
-                a = -math.inf
-        elif m == 1:  # enhanced CACC, Eq. (10)
-            a = th3 * ap[j] + th4 * (spacing - de) + th5 * (vpj - vj)
-        else:  # enhanced FVD, Eq. (11)-(13)
-            v_star = vpj * (vpj + spacing - de) / (vj if vj > V_FLOOR_MPS else V_FLOOR_MPS)
-            a = th6 * (v_star - vj) + (th7 if spacing <= de else 0.0) * (vpj - vj)
-        av = abs(vj)
-        omega = c0 + c1 * av + c2 * av * av if av != 0.0 else 0.0
-        if feedforward:  # A9 option: the law gives the net acceleration, saturate u = a + ω
-            a += omega
-        uj = u_lo if a < u_lo else (u_hi if a > u_hi else a)
+        omega = _omega(vj, tr)
+        uj = _control(row[j], th, vj, xp[j] - sj, base[j] + vj * vj * own_k, vp[j], ap[j], omega, tr, feedforward)
         acc = uj - omega
         sj = sj + tau * vj + half_tau2 * acc
         vj = vj + tau * acc
@@ -129,7 +138,86 @@ def _rollout_row(row, th, x0, v0, xp, vp, ap, base, tr, feedforward, u, v, s):  
 
 
 @njit(cache=True)
-def _desired_base(vp, lp, bp, tr):  # pragma: no cover - compiled
+def batch_costs(seq, thetas, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, feedforward, out):  # pragma: no cover
+    """J^(DMPC) + penalty of the rows of ``seq (m, Np)`` (``thetas (m, N_THETA)``) into ``out (m,)``: the rollout
+    of ``_rollout_row`` and the terms of :func:`controllers.mcf_dmpc.cost.cost_terms`, fused in one pass.
+
+    The horizon is the outer loop and the rows the inner one: each row's recursion over the horizon is a chain of
+    dependent operations (~20 ns per step), and interleaving independent rows lets the CPU overlap them. Every row
+    sees exactly the same operations in the same order as on its own, so a row's cost does not depend on the batch.
+    """
+    m = seq.shape[0]
+    steps = seq.shape[1]
+    tau = tr[0]
+    half_tau2 = 0.5 * tau * tau
+    own_k = 1.0 / (2.0 * tr[3])
+    b_c2 = 2.0 * tr[3]
+    b_m2 = 2.0 * tr[4]
+    u_lo = tr[1]
+    u_hi = tr[2]
+    v_m = tr[9]
+    xi_v, xi_s, xi_u, xi_du, xi_term, w_pen = w[0], w[1], w[2], w[3], w[4], w[5]
+    vj = np.full(m, v0)
+    sj = np.full(m, x0)
+    sum_dv = np.zeros(m)
+    sum_e = np.zeros(m)
+    sum_u = np.zeros(m)
+    sum_du = np.zeros(m)
+    viol = np.zeros(m)
+    dv = np.zeros(m)
+    err = np.zeros(m)
+    u_last = np.zeros(m)
+    u_first = np.zeros(m)
+    for j in range(steps):
+        vpn = vp[j + 1]
+        pred_part = tr[8] + lp - vpn * vpn / (2.0 * bp)
+        for r in range(m):
+            v_r = vj[r]
+            s_r = sj[r]
+            omega = _omega(v_r, tr)
+            uj = _control(
+                seq[r, j],
+                thetas[r],
+                v_r,
+                xp[j] - s_r,
+                base[j] + v_r * v_r * own_k,
+                vp[j],
+                ap[j],
+                omega,
+                tr,
+                feedforward,
+            )
+            acc = uj - omega
+            s_r = s_r + tau * v_r + half_tau2 * acc
+            v_r = v_r + tau * acc
+            vj[r] = v_r
+            sj[r] = s_r
+            # the terms of step j + 1 (Eq. 14, 15, the Eq. 20 penalty) and of the control u_j (Eq. 16, 17)
+            spacing = xp[j + 1] - s_r
+            d_v = v_r - vpn
+            e = spacing - (pred_part + v_r * v_r / b_c2)
+            ds = pred_part + v_r * v_r / b_m2
+            sum_dv[r] += d_v * d_v
+            sum_e[r] += e * e
+            viol[r] += max(ds - spacing, 0.0) + max(-v_r, 0.0) + max(v_r - v_m, 0.0)
+            sum_u[r] += uj * uj
+            if j > 0:
+                d = uj - u_last[r]
+                sum_du[r] += d * d
+            else:
+                u_first[r] = uj
+            viol[r] += max(u_lo - uj, 0.0) + max(uj - u_hi, 0.0)
+            u_last[r] = uj
+            dv[r] = d_v
+            err[r] = e
+    for r in range(m):
+        first = u_prev - u_first[r]
+        total = xi_v * sum_dv[r] + xi_s * sum_e[r] + xi_u * sum_u[r] + xi_du * (sum_du[r] + first * first)
+        out[r] = total + xi_term * (xi_v * dv[r] * dv[r] + xi_s * err[r] * err[r]) + w_pen * viol[r]
+
+
+@njit(cache=True)
+def desired_base(vp, lp, bp, tr):  # pragma: no cover - compiled
     """The predecessor part of D^(e) (Eq. 5) per step: ``L^(s) + L_{i−1} − v_{i−1}²/(2|b^(m)_{i−1}|)``."""
     out = np.empty(vp.shape[0])
     for j in range(vp.shape[0]):
@@ -139,9 +227,9 @@ def _desired_base(vp, lp, bp, tr):  # pragma: no cover - compiled
 
 @njit(cache=True)
 def rollout_rows(seq, thetas, x0, v0, xp, vp, ap, lp, bp, tr, feedforward):  # pragma: no cover - compiled
-    """Trajectories of ``seq (P, Np)`` under ``thetas (P, 7)``: returns ``u (P, Np)``, ``v``, ``s (P, Np+1)``."""
+    """Trajectories of ``seq (P, Np)`` under ``thetas (P, N_THETA)``: returns ``u (P, Np)``, ``v``, ``s (P, Np+1)``."""
     pop, steps = seq.shape
-    base = _desired_base(vp, lp, bp, tr)
+    base = desired_base(vp, lp, bp, tr)
     u = np.empty((pop, steps))
     v = np.empty((pop, steps + 1))
     s = np.empty((pop, steps + 1))
@@ -152,48 +240,7 @@ def rollout_rows(seq, thetas, x0, v0, xp, vp, ap, lp, bp, tr, feedforward):  # p
 
 @njit(cache=True)
 def population_costs(seq, thetas, x0, v0, xp, vp, ap, lp, bp, tr, w, u_prev, feedforward):  # pragma: no cover
-    """J^(DMPC) + penalty (Eq. 14–20) of every row of ``seq (P, Np)`` under ``thetas (P, 7)``, shape ``(P,)``."""
-    pop, steps = seq.shape
-    base = _desired_base(vp, lp, bp, tr)
-    u = np.empty(steps)
-    v = np.empty(steps + 1)
-    s = np.empty(steps + 1)
-    out = np.empty(pop)
-    xi_v, xi_s, xi_u, xi_du, xi_term, w_pen = w[0], w[1], w[2], w[3], w[4], w[5]
-    b_c2 = 2.0 * tr[3]
-    b_m2 = 2.0 * tr[4]
-    u_lo = tr[1]
-    u_hi = tr[2]
-    v_m = tr[9]
-    for r in range(pop):
-        _rollout_row(seq[r], thetas[r], x0, v0, xp, vp, ap, base, tr, feedforward, u, v, s)
-        sum_dv = 0.0
-        sum_e = 0.0
-        sum_u = 0.0
-        sum_du = 0.0
-        viol = 0.0
-        dv = 0.0
-        err = 0.0
-        for j in range(1, steps + 1):
-            vj = v[j]
-            vpj = vp[j]
-            spacing = xp[j] - s[j]
-            dv = vj - vpj
-            pred_part = tr[8] + lp - vpj * vpj / (2.0 * bp)
-            err = spacing - (pred_part + vj * vj / b_c2)
-            ds = pred_part + vj * vj / b_m2
-            sum_dv += dv * dv
-            sum_e += err * err
-            viol += max(ds - spacing, 0.0) + max(-vj, 0.0) + max(vj - v_m, 0.0)
-        for j in range(steps):
-            uj = u[j]
-            sum_u += uj * uj
-            if j > 0:
-                d = uj - u[j - 1]
-                sum_du += d * d
-            viol += max(u_lo - uj, 0.0) + max(uj - u_hi, 0.0)
-        first = u_prev - u[0]
-        total = xi_v * sum_dv + xi_s * sum_e + xi_u * sum_u + xi_du * (sum_du + first * first)
-        total += xi_term * (xi_v * dv * dv + xi_s * err * err) + w_pen * viol
-        out[r] = total
+    """J^(DMPC) + penalty (Eq. 14–20) of every row of ``seq (P, Np)`` under ``thetas (P, N_THETA)``, shape ``(P,)``."""
+    out = np.empty(seq.shape[0])
+    batch_costs(seq, thetas, x0, v0, xp, vp, ap, desired_base(vp, lp, bp, tr), lp, bp, tr, w, u_prev, feedforward, out)
     return out

@@ -4,7 +4,14 @@ Eq. (30) minimises J^(DMPC) of the MCF rollout over Θ. The paper decomposes it 
 subproblems"; reading (A29): three independent low-dimensional problems, each scored by a *single-model*
 rollout over the horizon with the same cost and constraint penalty —
 
-* IDM+  over (θ1, θ2),   CACC+ over (θ3, θ4, θ5),   FVD+ over (θ6, θ7).
+* IDM+  over (θ1, θ2, b_IDM),   CACC+ over (θ3, θ4, θ5, b_CACC),   FVD+ over (θ6, θ7, b_FVD).
+
+The control offsets ``b_m`` (ours, :mod:`~controllers.mcf_dmpc.cf_models` docstring) are corrected like any other
+parameter; a box of zero width ``[0, 0]`` keeps a parameter fixed (the paper's reading: ``opo_bias: false``).
+Why the offsets (issue 19, measured on the numpy S-D platoon, seed 0): on θ1 … θ7 alone OPO settles at θ4 ≈
+0.025 s⁻², θ6 ≈ 0.024 s⁻¹, θ2 ≈ 21, i.e. at a late-phase spacing offset ω/gain ≈ 3.9 m for both followers,
+because larger gains make the predicted correction of every noise-driven deviation costlier in ξ_u, ξ_Δu than
+the offset they would remove; the DMPC baseline (which sets u = ω directly) holds 0.75–0.9 m.
 
 Solver (the paper names none): a **bounded compass (pattern) search** (Kolda, Lewis & Torczon, SIAM Review 2003)
 in box-normalised coordinates ``z = (θ − lo)/(hi − lo) ∈ [0, 1]``. Each iteration polls ``z ± h·e_k`` for every
@@ -24,17 +31,17 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from controllers.mcf_dmpc.cf_models import MODEL_THETA_INDEX, THETA_BOUNDS
+from controllers.mcf_dmpc.cf_models import MODEL_THETA_INDEX, N_THETA, THETA_BOUNDS
 
 __all__ = ["OpoResult", "OpoSettings", "opo_step"]
 
-# (model-index sequences (P, Np), parameter rows (P, 7)) -> costs (P,)
+# (model-index sequences (P, Np), parameter rows (P, N_THETA)) -> costs (P,)
 BatchCost = Callable[[np.ndarray, np.ndarray], np.ndarray]
 
 
 @dataclass(frozen=True)
 class OpoSettings:
-    """Compass-search budget and the Θ box (rows θ1 … θ7, columns lower/upper)."""
+    """Compass-search budget and the Θ box (rows θ1 … θ7, b_IDM, b_CACC, b_FVD; columns lower/upper)."""
 
     iterations: int = 8
     initial_step: float = 0.1  # fraction of each parameter's range
@@ -43,8 +50,8 @@ class OpoSettings:
 
     def __post_init__(self) -> None:
         b = np.asarray(self.bounds, dtype=float)
-        if b.shape != (7, 2) or not np.all(np.isfinite(b)) or np.any(b[:, 1] < b[:, 0]):
-            raise ValueError(f"bounds: expected 7 finite (lower <= upper) pairs, got {self.bounds!r}")
+        if b.shape != (N_THETA, 2) or not np.all(np.isfinite(b)) or np.any(b[:, 1] < b[:, 0]):
+            raise ValueError(f"bounds: expected {N_THETA} finite (lower <= upper) pairs, got {self.bounds!r}")
         if int(self.iterations) != self.iterations or self.iterations < 0:
             raise ValueError(f"iterations: expected an integer >= 0, got {self.iterations!r}")
         if not (0.0 < self.initial_step <= 1.0):
@@ -55,7 +62,7 @@ class OpoSettings:
 
 @dataclass(frozen=True)
 class OpoResult:
-    theta: np.ndarray  # (7,) inside the bounds
+    theta: np.ndarray  # (N_THETA,) inside the bounds
     model_costs: np.ndarray  # (3,) single-model J at the returned Θ
     evaluations: int  # rollouts evaluated
     batches: int  # vectorised rollout calls

@@ -13,16 +13,18 @@ MCF rollout (Eq. 29): at every predicted step the law named by ``m_j`` (0 IDM+, 
 ``u_j`` from the predicted own state and the predecessor's predicted state at the same step; CACC's ``a_{i−1}``
 is the predecessor's acceleration at step ``j`` (A13, default: its *net* acceleration from the planned speeds,
 option ``"applied"``: its planned control). Rollouts are vectorised over a population: sequences ``(P, Np)``,
-parameters ``(7,)`` or ``(P, 7)``. Up to :data:`SCALAR_MAX_ROWS` rows the same equations run in plain floats
+parameters ``(N_THETA,)`` or ``(P, N_THETA)``. Up to :data:`SCALAR_MAX_ROWS` rows the same equations run in plain floats
 (:func:`_rollout_scalar`): the recursion over the horizon is sequential, so numpy pays ~40 operations of
 overhead per step whatever the batch, while a float loop evaluates only the law each row selects (measured:
 ~37x faster for the 2-row calls of the greedy pass, ~2x for a population of 50). Results agree to rounding.
 
 Plans on the wire (``Command.info["plan"]`` and :class:`~controllers.base.PredecessorState`): ``Np + 1`` samples
 at ``stamp + j·dt`` (entry 0 is the state at the decision time), ``accel_mps2[j]`` the planned control over
-``[t_j, t_{j+1}]`` (last entry repeated). The receiver shifts the plan by the message age
-(:func:`predecessor_horizon`) and extends it past its end at constant speed; without a plan it extrapolates the
-last reported state at constant speed.
+``[t_j, t_{j+1}]`` (last entry repeated). The receiver uses a plan while it is *fresh* (message age ≤
+``max_plan_age_s``): it shifts it by the age (:func:`predecessor_horizon`) and extends it past its end at
+constant speed. Without a plan, or with a stale one (lost messages: the last delivered report grows old), it
+extrapolates the last reported state at constant speed; :attr:`PredecessorHorizon.source` says which
+(``"plan"``, ``"stale"``, ``"absent"``), and the controllers turn changes into events.
 """
 
 from __future__ import annotations
@@ -33,7 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from controllers.base import PredecessorState
-from controllers.mcf_dmpc.cf_models import RATIO_CAP, V_FLOOR_MPS, all_models, enhanced_cacc, enhanced_fvd, enhanced_idm
+from controllers.mcf_dmpc.cf_models import N_THETA, RATIO_CAP, V_FLOOR_MPS, all_models
 from controllers.mcf_dmpc.spacing import TrainParamsA, desired_spacing_m
 
 __all__ = [
@@ -61,6 +63,7 @@ class PredecessorHorizon:
     accel_mps2: np.ndarray
     length_m: float
     emergency_decel_mps2: float
+    source: str = "absent"  # "plan": the broadcast plan; "stale"/"absent": extrapolated (plan too old / none)
 
     @property
     def steps(self) -> int:
@@ -97,29 +100,30 @@ def constant_speed_horizon(
 
 
 def predecessor_horizon(
-    pred: PredecessorState, steps: int, dt_s: float, feedforward: str = "net", emergency_decel_mps2: float | None = None
+    pred: PredecessorState,
+    steps: int,
+    dt_s: float,
+    feedforward: str = "net",
+    emergency_decel_mps2: float | None = None,
+    max_plan_age_s: float = math.inf,
 ) -> PredecessorHorizon:
     """Sample the predecessor's broadcast plan at ``age + j·dt`` (j = 0 … steps) — see the module docstring.
 
     ``emergency_decel_mps2`` overrides ``pred.emergency_decel_mps2`` (Paper A: all units identical, so a controller
-    may use its own |b^(m)| instead of trusting a message default).
+    may use its own |b^(m)| instead of trusting a message default). A plan older than ``max_plan_age_s`` is not
+    used: the last reported state is extrapolated instead (``source == "stale"``).
     """
     if feedforward not in FEEDFORWARDS:
         raise ValueError(f"feedforward: expected one of {', '.join(FEEDFORWARDS)}, got {feedforward!r}")
     b_p = pred.emergency_decel_mps2 if emergency_decel_mps2 is None else emergency_decel_mps2
     age = max(pred.age_s, 0.0)
     n = min(len(pred.planned_position_m), len(pred.planned_speed_mps))
-    if n < 2 or not pred.plan_dt_s > 0.0:
+    has_plan = n >= 2 and pred.plan_dt_s > 0.0
+    if not has_plan or age > max_plan_age_s:
         hz = constant_speed_horizon(pred.position_m, max(pred.speed_mps, 0.0), steps, dt_s, pred.length_m, b_p, age)
-        if feedforward == "applied":
-            return PredecessorHorizon(
-                hz.position_m,
-                hz.speed_mps,
-                np.full(steps, float(pred.accel_mps2)),
-                hz.length_m,
-                hz.emergency_decel_mps2,
-            )
-        return hz
+        acc = np.full(steps, float(pred.accel_mps2)) if feedforward == "applied" else hz.accel_mps2
+        source = "stale" if has_plan else "absent"
+        return PredecessorHorizon(hz.position_m, hz.speed_mps, acc, hz.length_m, hz.emergency_decel_mps2, source)
     tp = pred.plan_dt_s * np.arange(n)
     xp = np.asarray(pred.planned_position_m[:n], dtype=float)
     vp = np.asarray(pred.planned_speed_mps[:n], dtype=float)
@@ -136,7 +140,7 @@ def predecessor_horizon(
         else:
             idx = np.minimum((tq[:-1] / pred.plan_dt_s + 1e-9).astype(int), len(ua) - 1)
             acc = ua[idx]
-    return PredecessorHorizon(pos, spd, acc, float(pred.length_m), float(b_p))
+    return PredecessorHorizon(pos, spd, acc, float(pred.length_m), float(b_p), "plan")
 
 
 def expand_sequence(seq: np.ndarray, steps: int) -> np.ndarray:
@@ -170,7 +174,7 @@ def rollout_models(
     if steps != pred.steps:
         raise ValueError(f"sequence length {steps} != predecessor horizon {pred.steps}")
     theta = np.asarray(theta, dtype=float)
-    if pop <= SCALAR_MAX_ROWS and theta.shape in ((7,), (pop, 7)):
+    if pop <= SCALAR_MAX_ROWS and theta.shape in ((N_THETA,), (pop, N_THETA)):
         return _rollout_scalar(seq, x0_m, v0_mps, pred, theta, train, resistance_feedforward)
     tau = train.dt_s
     u_lo, u_hi = -train.service_decel_mps2, train.max_accel_mps2
@@ -209,7 +213,7 @@ def _rollout_scalar(
     train: TrainParamsA,
     resistance_feedforward: bool = False,
 ) -> Trajectory:
-    """:func:`rollout_models` for up to :data:`SCALAR_MAX_ROWS` rows (Θ ``(7,)`` or one per row ``(P, 7)``) in
+    """:func:`rollout_models` for up to :data:`SCALAR_MAX_ROWS` rows (Θ ``(N_THETA,)`` or one per row ``(P, N_THETA)``) in
     plain floats: the same arithmetic as the vectorised laws of :mod:`.cf_models` (guards A11 included), but
     only the law each step selects is evaluated.
 
@@ -217,7 +221,7 @@ def _rollout_scalar(
     per call; the recursion over Np steps is sequential, so numpy pays its per-operation overhead (~1 µs × ~40
     operations × Np steps) whatever the batch, while plain floats cost ~1 µs per row and step.
     """
-    thetas = np.broadcast_to(theta, (seq.shape[0], 7)).tolist()
+    thetas = np.broadcast_to(theta, (seq.shape[0], N_THETA)).tolist()
     tau = train.dt_s
     half_tau2 = 0.5 * tau * tau
     u_lo, u_hi, a_max = -train.service_decel_mps2, train.max_accel_mps2, train.max_accel_mps2
@@ -233,7 +237,7 @@ def _rollout_scalar(
     v = np.empty((pop, steps + 1))
     s = np.empty((pop, steps + 1))
     for r, row in enumerate(seq.tolist()):
-        th1, th2, th3, th4, th5, th6, th7 = thetas[r]
+        th1, th2, th3, th4, th5, th6, th7, *biases = thetas[r]
         vj, sj = float(v0_mps), float(x0_m)
         us, vs, ss = [], [vj], [sj]
         for j, m in enumerate(row):
@@ -255,6 +259,7 @@ def _rollout_scalar(
             else:  # enhanced FVD, Eq. (11)-(13)
                 v_star = vpj * (vpj + spacing - de) / (vj if vj > V_FLOOR_MPS else V_FLOOR_MPS)
                 a = th6 * (v_star - vj) + (th7 if spacing <= de else 0.0) * (vpj - vj)
+            a += biases[m]  # the law's control offset (cf_models docstring)
             av = abs(vj)
             omega = c0 + c1 * av + c2 * av * av if av != 0.0 else 0.0
             if resistance_feedforward:  # A9 option: the law gives the net acceleration, saturate u = a + ω
@@ -271,16 +276,8 @@ def _rollout_scalar(
 
 
 def _laws(used, v, vp, spacing, de, a_pred, theta, a_max, lo, hi):
-    """The enhanced laws that some row uses (placeholders for the others, np.choose never reads them)."""
-    if all(used):
-        return all_models(v, vp, spacing, de, a_pred, theta, a_max, lo, hi)
-    t = [theta[..., k] for k in range(7)]
-    zero = np.zeros_like(v)
-    return (
-        enhanced_idm(v, vp, spacing, de, t[0], t[1], a_max, lo, hi) if used[0] else zero,
-        enhanced_cacc(v, vp, spacing, de, a_pred, t[2], t[3], t[4], lo, hi) if used[1] else zero,
-        enhanced_fvd(v, vp, spacing, de, t[5], t[6], lo, hi) if used[2] else zero,
-    )
+    """The enhanced laws with their offsets (all three: the population path is for large mixed batches)."""
+    return all_models(v, vp, spacing, de, a_pred, theta, a_max, lo, hi)
 
 
 def rollout_controls(u: np.ndarray, x0_m: float, v0_mps: float, train: TrainParamsA) -> Trajectory:

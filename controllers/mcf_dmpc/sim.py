@@ -4,27 +4,40 @@ Plant: :func:`railsim.physics.dynamics.step_many` with the Table I unit (:func:`
 and ``step_method="ballistic"`` — with τ = 1 s, no lag and no jerk limit this is exactly Eq. (2)
 ``x+ = x + τv + τ²/2·(u − ω(v))``, ``v+ = v + τ(u − ω(v))`` (plus the plant's envelope clip and v ≥ 0).
 
-Leader (A32/A34): it follows a target speed profile exactly, ``u_1 = ω(v_1) + (v_ref(t + τ) − v_1)/τ``, without
-noise — constant speed (S-A…S-D) or :func:`variable_speed_profile` (S-E: 220 → 180 km/h at 0.2 m/s², hold 100 s,
-back to 220 km/h, starting at ``t0 = 20`` s). Its plan is either unknown to the follower (no plan, the follower
-extrapolates constant speed) or the scheduled profile (``leader_future_known``, A17).
+Leader (A32/A34): a controller like the followers — by default the engine's ``speed_profile``
+(:func:`paper000_leader`: constant speed for S-A…S-D, :data:`S_E_SEGMENTS` for S-E), so the numpy runner and a
+``railsim run`` of the same scenario drive the leader with the same law, and it broadcasts its plan (A17 "leader
+future known") or not (``plan=False``: the follower extrapolates). No noise on the leader (A8).
 
 Followers: any controller of :mod:`controllers.base` (Paper A's or others). Perfect communication: every train
-broadcasts its state and ``Command.info["plan"]`` each step; with ``plan_delay_steps = 1`` (default, parallel DMPC)
-a follower sees its predecessor's message of the previous step (age τ), with ``0`` the fresh message of the same
-step (sequential DMPC, A17). Control noise N(0, σ²) is added to each follower's command after the controller
-(A8: followers only, not inside predictions), from a seeded generator.
+broadcasts its state and ``Command.info["plan"]`` each step. What a follower reads at ``t_k`` (``messages``):
+
+* ``"engine"`` (default) — the engine's zero-delay t2t (:mod:`railsim.engine.knowledge`): the predecessor's state
+  at ``t_k`` (age 0) and the plan it decided at ``t_{k−1}``, aligned so that entry 0 is ``t_k`` (parallel DMPC,
+  the A17 alternative; the plan leaves with the next position report);
+* ``"previous"`` — the whole message of ``t_{k−1}`` (state and plan, age τ);
+* ``"sequential"`` — the fresh message of ``t_k`` (the predecessor decided first, A17 default).
+
+Why ``"engine"`` is the default (issue 19): with a leader that sends no plan the follower extrapolates the last
+reported state, and a report one step old (``"previous"``, this runner's former default) misses the leader's
+last step of a 0.2 m/s² ramp — S-E mean |ΔS − D^(e)| 10.5 m against 7.2 m for the engine's age-0 report, the
+whole engine-vs-numpy disagreement. ``tests/test_paper000_agreement.py`` pins the two to each other.
+
+Control noise N(0, σ²) is added to each follower's command after the controller (A8: followers only, not inside
+predictions), from a seeded generator. ``t0_s`` is the clock the controllers see at the first step (the engine
+inserts departures at 0 in its first step and controls them from ``t = 1`` s: ``t0_s = 1`` replays that clock;
+the run's ``t`` stays the paper time ``k·τ``).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 
-from controllers.base import Command, Controller, Observation, OwnState, PredecessorState
+from controllers.base import Controller, Observation, OwnState, PredecessorState
 from controllers.mcf_dmpc.spacing import (
     TrainParamsA,
     desired_spacing_m,
@@ -32,43 +45,34 @@ from controllers.mcf_dmpc.spacing import (
     safe_spacing_m,
     train_params_from_vehicle,
 )
+from controllers.speed_profile import make_speed_profile
 from railsim.physics.dynamics import FleetParams, step_many
 from railsim.physics.vehicle import VehicleParams
 
-__all__ = ["PlatoonRun", "constant_speed_profile", "run_platoon", "variable_speed_profile"]
+__all__ = ["MESSAGES", "S_E_SEGMENTS", "PlatoonRun", "paper000_leader", "run_platoon"]
 
 KMH = 1.0 / 3.6
+MESSAGES = ("engine", "previous", "sequential")
+# S-E (A32): 220 -> 180 km/h at 0.2 m/s^2 from t0 = 20 s (55.56 s), hold 100 s, back to 220 km/h from 175.556 s
+S_E_SEGMENTS: tuple[Mapping[str, float], ...] = (
+    {"at_s": 20.0, "to_kmh": 180.0, "accel_mps2": 0.2},
+    {"at_s": 175.556, "to_kmh": 220.0, "accel_mps2": 0.2},
+)
 
-SpeedProfile = Callable[[float], float]
 
-
-def constant_speed_profile(speed_mps: float) -> SpeedProfile:
-    return lambda t: speed_mps
-
-
-def variable_speed_profile(
-    high_mps: float = 220 * KMH,
-    low_mps: float = 180 * KMH,
-    rate_mps2: float = 0.2,
-    hold_s: float = 100.0,
-    start_s: float = 20.0,
-) -> SpeedProfile:
-    """S-E leader reference: decelerate at ``rate`` from ``start_s``, hold ``hold_s``, accelerate back."""
-    ramp_s = (high_mps - low_mps) / rate_mps2
-    t1, t2, t3 = start_s + ramp_s, start_s + ramp_s + hold_s, start_s + 2 * ramp_s + hold_s
-
-    def v_ref(t: float) -> float:
-        if t <= start_s:
-            return high_mps
-        if t <= t1:
-            return high_mps - rate_mps2 * (t - start_s)
-        if t <= t2:
-            return low_mps
-        if t <= t3:
-            return low_mps + rate_mps2 * (t - t2)
-        return high_mps
-
-    return v_ref
+def paper000_leader(
+    initial_kmh: float = 220.0,
+    segments: Sequence[Mapping[str, float]] = (),
+    *,
+    plan: bool = True,
+    horizon_s: float = 60.0,
+    vehicle: VehicleParams | None = None,
+) -> Controller:
+    """The Paper A leader as the engine runs it: ``speed_profile`` with the paper000 scenarios' parameters."""
+    params: dict[str, Any] = {"initial_kmh": initial_kmh, "segments": [dict(s) for s in segments]}
+    if plan:
+        params["plan_horizon_s"] = horizon_s
+    return make_speed_profile(params, vehicle if vehicle is not None else paper000_vehicle())
 
 
 @dataclass(frozen=True)
@@ -116,25 +120,28 @@ def run_platoon(
     v0_mps: Sequence[float],
     n_steps: int,
     *,
-    leader_speed: SpeedProfile | None = None,
-    leader_future_known: bool = False,
+    leader: Controller | None = None,
     vehicle: VehicleParams | None = None,
     noise_sd_mps2: float = 0.01,
     seed: int = 0,
-    plan_delay_steps: int = 1,
+    messages: str = "engine",
     dt_s: float = 1.0,
-    horizon_steps: int = 60,
+    t0_s: float = 0.0,
 ) -> PlatoonRun:
-    """Run a leader and ``len(followers)`` followers (train ``i`` follows ``i − 1``) for ``n_steps`` steps."""
+    """Run a leader and ``len(followers)`` followers (train ``i`` follows ``i − 1``) for ``n_steps`` steps.
+
+    ``leader`` defaults to :func:`paper000_leader` at the leader's initial speed (constant, plan broadcast).
+    """
     n = len(followers) + 1
     if len(x0_m) != n or len(v0_mps) != n:
         raise ValueError(f"x0_m and v0_mps need {n} entries (leader + {n - 1} followers)")
-    if plan_delay_steps not in (0, 1):
-        raise ValueError(f"plan_delay_steps must be 0 or 1, got {plan_delay_steps!r}")
+    if messages not in MESSAGES:
+        raise ValueError(f"messages: expected one of {', '.join(MESSAGES)}, got {messages!r}")
     veh = vehicle if vehicle is not None else paper000_vehicle()
     train = train_params_from_vehicle(veh, dt_s=dt_s)
     fleet = FleetParams.from_vehicles([veh] * n)
-    v_ref = leader_speed if leader_speed is not None else constant_speed_profile(float(v0_mps[0]))
+    lead = leader if leader is not None else paper000_leader(float(v0_mps[0]) / KMH, vehicle=veh)
+    controllers_: list[Controller] = [lead, *followers]
     rng = np.random.default_rng(seed)
 
     x = np.empty((n_steps + 1, n))
@@ -151,60 +158,23 @@ def run_platoon(
     target = np.zeros(n)
     last_msg: list[PredecessorState | None] = [None] * n
 
-    def leader_command(t: float, v1: float) -> float:
-        return float(train.resistance_mps2(v1)) + (v_ref(t + dt_s) - v1) / dt_s
-
-    def leader_plan(t: float, x1: float, v1: float) -> dict[str, Any]:
-        xs, vs, us = [x1], [v1], []
-        for j in range(horizon_steps):
-            uj = leader_command(t + j * dt_s, vs[-1])
-            a = uj - float(train.resistance_mps2(vs[-1]))
-            xs.append(xs[-1] + dt_s * vs[-1] + 0.5 * dt_s * dt_s * a)
-            vs.append(vs[-1] + dt_s * a)
-            us.append(uj)
-        us.append(us[-1])
-        return {"dt_s": dt_s, "position_m": tuple(xs), "speed_mps": tuple(vs), "accel_mps2": tuple(us)}
-
     for k in range(n_steps):
-        t = k * dt_s
+        t = t0_s + k * dt_s
         fresh: list[PredecessorState] = []
         step_info: list[dict[str, Any]] = []
         for i in range(n):
-            if i == 0:
-                u = leader_command(t, float(v[k, 0]))
-                plan = leader_plan(t, float(x[k, 0]), float(v[k, 0])) if leader_future_known else None
-                cmd = Command(u, info={"plan": plan} if plan else {})
-            else:
-                if plan_delay_steps == 0 or last_msg[i - 1] is None:
-                    msg = fresh[i - 1]
-                else:
-                    msg = last_msg[i - 1]
-                assert msg is not None
-                pred = PredecessorState(
-                    msg.train_id,
-                    msg.position_m,
-                    msg.speed_mps,
-                    msg.accel_mps2,
-                    msg.length_m,
-                    msg.stamp_s,
-                    t - msg.stamp_s,
-                    msg.service_decel_mps2,
-                    msg.emergency_decel_mps2,
-                    msg.planned_position_m,
-                    msg.planned_speed_mps,
-                    msg.planned_accel_mps2,
-                    msg.plan_dt_s,
-                )
-                obs = Observation(
-                    t_s=t,
-                    dt_s=dt_s,
-                    own=OwnState(f"T{i + 1}", float(x[k, i]), float(v[k, i]), float(applied[i]), veh.length_m),
-                    vehicle=veh,
-                    route_length_m=1.0e9,
-                    predecessor=pred,
-                    formation_state="coupled",
-                )
-                cmd = followers[i - 1].command(obs)
+            own = OwnState(f"T{i + 1}", float(x[k, i]), float(v[k, i]), float(applied[i]), veh.length_m)
+            pred = None if i == 0 else _message(fresh[i - 1], last_msg[i - 1], messages, t)
+            obs = Observation(
+                t_s=t,
+                dt_s=dt_s,
+                own=own,
+                vehicle=veh,
+                route_length_m=1.0e9,
+                predecessor=pred,
+                formation_state="coupled" if i > 0 else "free",
+            )
+            cmd = controllers_[i].command(obs)
             info = dict(cmd.info)
             plan = info.pop("plan", None)
             step_info.append(info)
@@ -223,7 +193,8 @@ def run_platoon(
                     f"T{i + 1}",
                     float(x[k, i]),
                     float(v[k, i]),
-                    float(cmd.accel_mps2),
+                    # the engine reports the plant's applied acceleration of the last step, not this command
+                    float(applied[i]) if messages == "engine" else float(cmd.accel_mps2),
                     veh.length_m,
                     t,
                     0.0,
@@ -256,4 +227,25 @@ def run_platoon(
         np.full(n, veh.length_m),
         train,
         infos,
+    )
+
+
+def _message(now: PredecessorState, previous: PredecessorState | None, messages: str, t_s: float) -> PredecessorState:
+    """What a follower reads of its predecessor at ``t_s`` under the ``messages`` convention (module docstring)."""
+    if messages == "sequential" or (previous is None and messages == "previous"):
+        return now
+    if messages == "previous":
+        assert previous is not None
+        return replace(previous, age_s=t_s - previous.stamp_s)
+    # "engine": the state now, the plan decided one step ago with its entry for the previous step dropped (no plan
+    # at the first step: nothing was decided before it)
+    if previous is None or not previous.planned_position_m:
+        return replace(now, planned_position_m=(), planned_speed_mps=(), planned_accel_mps2=(), plan_dt_s=0.0)
+    drop = 1 if len(previous.planned_position_m) > 1 else 0
+    return replace(
+        now,
+        planned_position_m=previous.planned_position_m[drop:],
+        planned_speed_mps=previous.planned_speed_mps[drop:],
+        planned_accel_mps2=previous.planned_accel_mps2[drop:],
+        plan_dt_s=previous.plan_dt_s,
     )

@@ -50,6 +50,7 @@ __all__ = [
     "follower_series",
     "format_table",
     "paper000_metrics",
+    "score_series",
     "vc_times",
 ]
 
@@ -287,6 +288,25 @@ def _load_run(out: Path) -> tuple[dict[str, Any], list[FollowerSeries], dict[str
     return raw, result, fallbacks, summary, has_solve
 
 
+def score_series(fs: FollowerSeries, criterion: VcCriterion = VcCriterion(), fallbacks: int = 0) -> FollowerRow:
+    """:func:`follower_row` of one formation's aligned samples (from a run folder or any other source)."""
+    return follower_row(
+        fs.t_s,
+        fs.v_lead_mps,
+        fs.v_fol_mps,
+        fs.spacing_m,
+        fs.unit,
+        fs.lead_length_m,
+        fs.lead_emergency_mps2,
+        criterion,
+        follower=fs.follower,
+        leader=fs.leader,
+        controller=fs.controller,
+        solve_time_s=fs.solve_time_s,
+        fallbacks=fallbacks,
+    )
+
+
 def follower_series(out_dir: Path | str) -> list[FollowerSeries]:
     """The aligned per-formation samples of a run's output folder (what the metrics and the figures use)."""
     return _load_run(Path(out_dir))[1]
@@ -301,26 +321,7 @@ def paper000_metrics(out_dir: Path | str, criterion: VcCriterion | None = None) 
     """
     crit = criterion or VcCriterion()
     raw, series, fallbacks, summary, has_solve = _load_run(Path(out_dir))
-    rows = [
-        asdict(
-            follower_row(
-                fs.t_s,
-                fs.v_lead_mps,
-                fs.v_fol_mps,
-                fs.spacing_m,
-                fs.unit,
-                fs.lead_length_m,
-                fs.lead_emergency_mps2,
-                crit,
-                follower=fs.follower,
-                leader=fs.leader,
-                controller=fs.controller,
-                solve_time_s=fs.solve_time_s,
-                fallbacks=fallbacks.get(fs.follower, 0),
-            )
-        )
-        for fs in series
-    ]
+    rows = [asdict(score_series(fs, crit, fallbacks.get(fs.follower, 0))) for fs in series]
     steps = float(summary.get("steps") or 0)
     wall = float(summary.get("wall_s") or math.nan)
     return {

@@ -1,5 +1,6 @@
 """``railsim reproduce``: re-run a paper's numerical experiment and write its tables and figures.
 
+    railsim reproduce paper000 --out DIR [--seeds 5] [--settings S-D S-E] [--methods dmpc mcf_dmpc opo_mcf_dmpc]
     railsim reproduce paper002 --out DIR [--topology union|path]
     railsim reproduce paper001 --out DIR [--scenario A|B|C-constant|C-harmonic] [--controllers sempc,mpc,afsmc]
     railsim reproduce paper004 --out DIR [--workers N | --dask ADDRESS]
@@ -19,7 +20,10 @@ from railsim.studies.reproduce import reproduce_paper001, reproduce_paper002, re
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("reproduce", help="re-run a paper experiment in its numpy model and write its figures")
-    p.add_argument("experiment", choices=["paper001", "paper002", "paper004"], help="which experiment")
+    p.add_argument("experiment", choices=["paper000", "paper001", "paper002", "paper004"], help="which experiment")
+    p.add_argument("--seeds", type=int, default=5, help="paper000: seeds 0 … N−1 per case")
+    p.add_argument("--settings", nargs="*", default=["S-D", "S-E"], choices=["S-D", "S-E"], help="paper000")
+    p.add_argument("--methods", nargs="*", default=["dmpc", "mcf_dmpc", "opo_mcf_dmpc"], help="paper000")
     p.add_argument("--workers", type=int, default=None, help="paper004: local worker processes (default: cores)")
     p.add_argument("--dask", default=None, metavar="ADDRESS", help="paper004: run the cases on this Dask scheduler")
     p.add_argument("--out", required=True, help="output folder")
@@ -41,6 +45,12 @@ def add_commands(sub: Any) -> None:
 
 def cmd_reproduce(args: argparse.Namespace) -> int:
     out = Path(args.out)
+    if args.experiment == "paper000":
+        from railsim.studies.paper000_tables import reproduce_paper000
+
+        res = reproduce_paper000(out, range(args.seeds), args.settings, args.methods, args.workers or 2)
+        print(res["table"])
+        return 0
     if args.experiment == "paper004":
         summary = reproduce_paper004(out, args.workers, args.dask)
         print(summary["table"])

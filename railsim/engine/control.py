@@ -44,6 +44,7 @@ from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
+PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
 # the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
@@ -292,6 +293,8 @@ class ControlStage:
             tgt = vc_cmd.info.get("target_gap_m") if vc_cmd.info else None
             tr.vc_target_gap_m = float(tgt) if tgt is not None else None
             tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+            if info.get("event") in PLAN_EVENTS:  # the follower stopped/restarted using its leader's t2t plan
+                self.events.record(t, info["event"], tr.train_id, leader=leader.train_id, age_s=info.get("plan_age_s"))
             if tr.degraded:
                 tr.degraded = False
                 self.events.record(t, "vc_restored", tr.train_id)
