@@ -11,6 +11,8 @@ Modules, in the order of the paper:
 * :mod:`.dmpc`       — the continuous DMPC baseline as a warm-started OSQP QP;
 * :mod:`.opo`        — online parameter optimisation (Eq. 29–30);
 * :mod:`.optim`      — MSMFO and the benchmark optimisers (Eq. 21–28; separate package);
+* :mod:`.kernels`    — the rollout and J^(DMPC) compiled with numba (the optimisers' fitness);
+* :mod:`.msmfo_jit`  — the default MSMFO fused with that fitness in one compiled call (same draws, same result);
 * :mod:`.controller` — the registered controllers ``cf_idm``, ``cf_cacc``, ``cf_fvd``, ``mcf_dmpc``,
   ``opo_mcf_dmpc``, ``dmpc``;
 * :mod:`.sim`, :mod:`.metrics` — a numpy closed-loop platoon runner and the paper's tracking metrics.
