@@ -246,3 +246,22 @@ def test_post_release_previous_command_keeps_the_service_braking_of_the_trigger(
     hold = create("monorail_ca", {"post_release": "hold_speed"}, vehicle_params_for("empty"))
     hold.command(_obs(8.0, sensor_extras(27.0, 1.0, "vehicle", -0.15), t=0.0))
     assert hold.command(_obs(6.0, sensor_extras(29.0, -0.5, "vehicle", -0.15), t=1.0)).accel_mps2 == 0.0
+
+
+def test_ca_hysteresis_constructed_sequence() -> None:
+    """The coupling scenarios' debounced trigger and release hysteresis on a constructed gap sequence (fixed 28 m
+    trigger for clarity; closing at 2 m/s without own braking, so the own braking never 'suffices')."""
+    params = {"trigger_dwell_s": 0.3, "trigger_band_m": 0.5, "rearm_s": 1.0, "release_margin_m": 0.5}
+    ca = create("monorail_ca", {"law": "bang_bang", **params}, vehicle_params_for("empty"))
+
+    def state(t: float, gap: float) -> str:
+        return ca.command(_obs(10.0, sensor_extras(gap, 2.0, "vehicle"), t=t)).info["ca"]
+
+    assert [state(t, 27.8) for t in (0.0, 0.1, 0.2)] == ["idle"] * 3  # shallow, shorter than the dwell
+    assert state(0.3, 28.2) == "idle"  # back above: the dwell restarts
+    assert [state(t, 27.8) for t in (0.4, 0.5, 0.6)] == ["idle"] * 3
+    assert state(0.7, 27.8) == "active"  # shallow for the whole 0.3 s dwell
+    assert state(0.8, 28.3) == "active"  # above the trigger but not above trigger + 0.5 m release margin
+    assert state(0.9, 28.6) == "idle"  # released
+    assert [state(t, 27.8) for t in (1.0, 1.1, 1.2, 1.3, 1.4)] == ["idle"] * 5  # shallow within the 1 s re-arm
+    assert state(1.5, 27.4) == "active"  # deeper than the 0.5 m band: at once, re-arm or not
