@@ -83,3 +83,43 @@ def test_afsmc_rate_limiter_and_anti_windup_on_a_constructed_case() -> None:
     assert all(f == p.n_cars for f in frozen) and max(thetas) == 0.0  # no wind-up while limited
     unlimited, _, _ = _afsmc_steps(rate_limited=False, steps=2)
     assert max(abs(unlimited[0][1] - unlimited[0][0])) > p.force_rate_max_n_per_s * 0.1  # the check can fail
+
+
+def test_afsmc_memberships_stay_finite_far_outside_their_span() -> None:
+    """A train 100+ m behind a time reference (C-constant, paper-literal mode) drives s far outside the Gaussian
+    memberships; every firing strength underflows, and the plain ratio was 0/0 (NaN forces, then an internal error
+    in the carriage plant). The normalised strengths stay finite and the outermost rule takes the weight."""
+    import numpy as np
+
+    from controllers.ato_mpc.afsmc import AfsmcLaw
+    from railsim.physics.multipoint import MultipointParams
+
+    psi = AfsmcLaw(MultipointParams())._psi(np.array([150.0, -80.0]), np.array([40.0, 0.0]))
+    assert np.all(np.isfinite(psi)) and np.allclose(psi.sum(axis=1), 1.0)
+    assert psi[0].argmax() == 24 and psi[1].argmax() == 2  # (s, ṡ) = (+max, +max) and (−max, 0)
+
+
+def test_a_law_returning_nan_falls_back_to_rate_limited_braking() -> None:
+    import numpy as np
+
+    from controllers.ato_mpc.core import AtoDriver, Situation
+    from controllers.ato_mpc.reference import SpeedDistanceProfile
+    from railsim.physics.multipoint import MultipointParams
+
+    class Broken:
+        resets = 0
+
+        def forces(self, sit, u_prev_n):
+            return np.full(u_prev_n.size, np.nan), {}
+
+        def reset(self) -> None:
+            Broken.resets += 1
+
+    p = MultipointParams()
+    driver = AtoDriver(Broken(), p, 0.1)
+    driver.u_prev = np.full(p.n_cars, 30e3)
+    rel = np.concatenate(([0.0], np.full(p.n_cars - 1, -p.coupler_length_m), [10.0], np.zeros(p.n_cars - 1)))
+    u, info = driver.step(Situation(0.0, rel, np.zeros(p.n_cars), SpeedDistanceProfile(stop_m=5000.0)))
+    assert np.all(np.isfinite(u)) and np.allclose(u, 30e3 - 6e3)  # towards the holding brake, one rate step
+    assert info["fallback"] and "non-finite" in info["fallback_reason"] and Broken.resets >= 1
+    assert driver.stats.fallbacks == 1 and np.all(np.isfinite(driver.u_prev))

@@ -212,8 +212,9 @@ class MpcAto:
         sit = Situation(obs.t_s, rel, grad, profile, tref, obs.t_s - t_dep)
         u, info = self.driver.step(sit, dwelling)
         accel = float(np.sum(u) / p.total_mass_kg)
-        if not math.isfinite(accel):  # never hand a NaN to the plant
+        if not math.isfinite(accel):  # never hand a NaN to the plant (nor to the carriage plant's forces)
             accel = -self.vehicle.service_decel_mps2
+            u = np.full(n, accel * p.car_mass_kg)
             info = {**info, "fallback": True, "fallback_reason": "non-finite traction forces; service brake"}
         out_info: dict[str, Any] = {"phase": info.get("phase", "run"), "forces_n": tuple(float(f) for f in u)}
         if tref is not None:  # the paper's expected displacement/speed now, and the stop point (Paper B metrics)
