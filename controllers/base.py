@@ -34,10 +34,14 @@ Roles
       that are not coupled) or a virtual-coupling law (CACC, the papers' controllers) when coupling/coupled.
 
 The engine does this arbitration (:func:`arbitrate`), so a research controller only implements its own law.
+    One exception, opt-in: a command marked ``additive`` (Paper D's collision avoidance in the arrival case,
+    spec 003 A27) does not compete in the minimum — its braking is *added* to the winner's command, bounded by
+    the brake envelope.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from typing import Any, Protocol, runtime_checkable
@@ -140,12 +144,16 @@ class Command:
     could not compute its law (solver failure, infeasible QP) and returned its safe brake instead, with the
     reason in ``info["fallback_reason"]`` (the engine records it: ``controller_fallback`` events); ``info``
     carries diagnostics the recorder keeps (solve time, chosen model, status).
+
+    ``additive``: ``accel_mps2`` is a braking *increment* on top of the other roles' command rather than a
+    command of its own (see :func:`arbitrate`); a non-negative increment adds nothing.
     """
 
     accel_mps2: float
     fallback: bool = False
     emergency: bool = False
     info: Mapping[str, Any] = field(default_factory=dict)
+    additive: bool = False
 
 
 @runtime_checkable
@@ -199,13 +207,40 @@ def fallback_reason(cmd: Command) -> str:
     return str(reason or "not given by the controller")
 
 
-def arbitrate(commands: Mapping[str, Command]) -> tuple[str, Command]:
-    """The most restrictive command wins (smallest acceleration; the first role on a tie, as ``min`` picks).
-    Returns ``(role, command)``."""
-    best_role, best = "", None
-    for role, cmd in commands.items():
-        if best is None or cmd.accel_mps2 < best.accel_mps2:
-            best_role, best = role, cmd
-    if best is None:
-        raise ValueError("arbitrate() needs at least one command")
-    return best_role, best
+def arbitrate(commands: Mapping[str, Command], brake_envelope_mps2: float = math.inf) -> tuple[str, Command]:
+    """The most restrictive command wins (smallest acceleration; the first role on a tie). Returns ``(role, command)``.
+
+    Commands marked ``additive`` do not compete: the braking part ``min(a, 0)`` of each is added to the winner
+    of the others, and the sum is bounded below by the brake envelope ``−brake_envelope_mps2`` (the vehicle's
+    emergency deceleration) — never beyond it, and never less braking than the winner asked for on its own:
+    ``a = min(a_win, max(a_win + Σ min(a_add, 0), −envelope))``. The role is then the adding role with the
+    strongest increment; the command is a new one (emergency or fallback if either part is) whose ``info`` is the
+    adder's plus ``base_role`` and ``base_mps2``. Without an additive command (or with nothing to add) this is
+    exactly the minimum (so is a winner already at the envelope). A non-finite increment makes the result NaN (the engine then brakes and logs it).
+    ValueError if every command is additive (nothing to add to).
+    """
+    # one pass without a key function (this runs for every train in every step)
+    role, cmd, any_additive = "", None, False
+    for r, c in commands.items():
+        if c.additive:
+            any_additive = True
+        elif cmd is None or c.accel_mps2 < cmd.accel_mps2:
+            role, cmd = r, c
+    if cmd is None:
+        raise ValueError("arbitrate: no command that is not additive (nothing to add to)")
+    if not any_additive:
+        return role, cmd
+    adders = {r: c for r, c in commands.items() if c.additive and not c.accel_mps2 >= 0.0}
+    if not adders:
+        return role, cmd
+    extra = sum(min(c.accel_mps2, 0.0) for c in adders.values())
+    total = min(cmd.accel_mps2, max(cmd.accel_mps2 + extra, -brake_envelope_mps2))
+    if not math.isfinite(extra):  # a broken increment must reach the engine's non-finite check, not vanish
+        total = math.nan
+    elif total >= cmd.accel_mps2:  # the winner is already at the envelope: nothing was added
+        return role, cmd
+    add_role = min(adders, key=lambda r: adders[r].accel_mps2)
+    add = adders[add_role]
+    info = {**(add.info or {}), "base_role": role, "base_mps2": cmd.accel_mps2}
+    merged = Command(total, fallback=cmd.fallback or add.fallback, emergency=cmd.emergency or add.emergency, info=info)
+    return add_role, merged

@@ -198,13 +198,70 @@ def test_braking_suffices_closed_form() -> None:
     assert braking_suffices(6.0, -1.0, 0.3, 5.0) and not braking_suffices(4.0, -1.0, 0.3, 5.0)  # opening gap
 
 
-@pytest.mark.parametrize(
-    "service, ca, expected", [(-0.3, -0.5, -0.8), (-0.3, 0.4, -0.3), (-0.8, -0.9, -1.2), (0.2, -0.1, 0.1)]
-)
-def test_additive_ca_braking_eq_a27(service: float, ca: float, expected: float) -> None:
-    from controllers.monorail.states import additive_ca_accel_mps2
+def _additive_ca(**over: float | str | bool) -> object:
+    return create("monorail_ca", {"additive": True, "law": "mpc", **over}, vehicle_params_for("empty"))
 
-    assert additive_ca_accel_mps2(service, ca, 1.2) == pytest.approx(expected)
-    assert additive_ca_accel_mps2(service, ca, 1.2) >= -1.2  # never beyond the brake envelope
-    with pytest.raises(ValueError):
-        additive_ca_accel_mps2(service, ca, -1.0)
+
+def test_additive_ca_decides_a_bounded_braking_increment() -> None:
+    """A27 in the controller: the increment is marked additive, brakes (Δ ≤ 0) and never takes the total
+    (service + Δ) beyond the emergency deceleration; idle it adds nothing."""
+    veh = vehicle_params_for("empty")
+    ca = _additive_ca()
+    idle = ca.command(_obs(11.0, sensor_extras(40.0, 1.5, "vehicle", -0.15)))
+    assert idle.additive and idle.accel_mps2 == 0.0 and not idle.emergency
+    for service in (-0.15, -0.9, -1.4, -1.6):  # the last one is already beyond the envelope on its own
+        ca = _additive_ca()
+        cmd = ca.command(_obs(11.0, sensor_extras(27.0, 3.0, "vehicle", service)))
+        assert cmd.info["ca"] == "active" and cmd.additive
+        assert cmd.accel_mps2 <= 0.0
+        assert service + cmd.accel_mps2 >= min(service, -veh.emergency_decel_mps2) - 1e-9
+    bang = _additive_ca(law="bang_bang").command(_obs(11.0, sensor_extras(27.0, 3.0, "vehicle", -0.15)))
+    assert -0.15 + bang.accel_mps2 == pytest.approx(-veh.emergency_decel_mps2) and bang.emergency
+
+
+def test_additive_ca_increment_is_priced_by_r_u() -> None:
+    """The calibration knob of the arrival case: a dearer increment (r_u) brakes less at the same reading."""
+    reading = sensor_extras(26.0, 2.0, "vehicle", -0.15)
+    cheap = _additive_ca(r_u=0.5).command(_obs(11.0, reading)).accel_mps2
+    dear = _additive_ca(r_u=75.0).command(_obs(11.0, reading)).accel_mps2
+    assert cheap < dear < 0.0
+
+
+def test_additive_ca_without_a_service_reading_is_an_ordinary_command() -> None:
+    cmd = _additive_ca().command(_obs(11.0, sensor_extras(27.0, 3.0, "vehicle")))
+    assert not cmd.additive and cmd.accel_mps2 < 0.0
+
+
+def test_post_release_previous_command_keeps_the_service_braking_of_the_trigger() -> None:
+    """A11 (arrival): after the release the vehicle keeps the deceleration it had when CA fired, until a couple
+    command or ``ca_hold_clear``; ``hold_speed`` caps at cruise instead."""
+    ca = _additive_ca(post_release="previous_command")
+    assert ca.command(_obs(8.0, sensor_extras(27.0, 1.0, "vehicle", -0.15), t=0.0)).info.get("event") == "ca_on"
+    off = ca.command(_obs(6.0, sensor_extras(29.0, -0.5, "vehicle", -0.15), t=1.0))
+    assert off.info.get("event") == "ca_off" and off.accel_mps2 == pytest.approx(-0.15) and not off.additive
+    later = ca.command(_obs(5.0, sensor_extras(60.0, -0.5, "vehicle", 0.4), t=2.0))  # service asks for traction
+    assert later.accel_mps2 == pytest.approx(-0.15) and later.info["ca"] == "previous_command"
+    cleared = ca.command(_obs(5.0, {**sensor_extras(60.0, -0.5, "vehicle", 0.4), "ca_hold_clear": True}, t=3.0))
+    assert cleared.accel_mps2 == 0.0 and cleared.additive  # idle again: adds nothing
+    hold = create("monorail_ca", {"post_release": "hold_speed"}, vehicle_params_for("empty"))
+    hold.command(_obs(8.0, sensor_extras(27.0, 1.0, "vehicle", -0.15), t=0.0))
+    assert hold.command(_obs(6.0, sensor_extras(29.0, -0.5, "vehicle", -0.15), t=1.0)).accel_mps2 == 0.0
+
+
+def test_ca_hysteresis_constructed_sequence() -> None:
+    """The coupling scenarios' debounced trigger and release hysteresis on a constructed gap sequence (fixed 28 m
+    trigger for clarity; closing at 2 m/s without own braking, so the own braking never 'suffices')."""
+    params = {"trigger_dwell_s": 0.3, "trigger_band_m": 0.5, "rearm_s": 1.0, "release_margin_m": 0.5}
+    ca = create("monorail_ca", {"law": "bang_bang", **params}, vehicle_params_for("empty"))
+
+    def state(t: float, gap: float) -> str:
+        return ca.command(_obs(10.0, sensor_extras(gap, 2.0, "vehicle"), t=t)).info["ca"]
+
+    assert [state(t, 27.8) for t in (0.0, 0.1, 0.2)] == ["idle"] * 3  # shallow, shorter than the dwell
+    assert state(0.3, 28.2) == "idle"  # back above: the dwell restarts
+    assert [state(t, 27.8) for t in (0.4, 0.5, 0.6)] == ["idle"] * 3
+    assert state(0.7, 27.8) == "active"  # shallow for the whole 0.3 s dwell
+    assert state(0.8, 28.3) == "active"  # above the trigger but not above trigger + 0.5 m release margin
+    assert state(0.9, 28.6) == "idle"  # released
+    assert [state(t, 27.8) for t in (1.0, 1.1, 1.2, 1.3, 1.4)] == ["idle"] * 5  # shallow within the 1 s re-arm
+    assert state(1.5, 27.4) == "active"  # deeper than the 0.5 m band: at once, re-arm or not

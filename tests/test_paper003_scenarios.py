@@ -8,8 +8,10 @@ What must hold in every run (read back with railsim.analysis.paper003):
 * the gap is never below the follower's CA safety distance (recomputed per sample from the resolved scenario)
   unless the CA of that follower is triggered (one step of detection latency allowed): ``unguarded_s == 0``;
 * coupling scenarios couple (formations.csv) and end at d_c = 5 m with matched speeds;
-* the CA scenarios are designed to cross the 28 m trigger: the trigger fires at a gap ≤ 28 m, emergency braking
-  starts in the same step, the CA releases later at a gap above the trigger, and the gap recovers above it;
+* the coupling scenarios never fire CA nor the emergency brake (issue #19);
+* the departure CA scenario is designed to cross the 28 m trigger: the trigger fires at a gap ≤ 28 m, emergency
+  braking starts in the same step, the CA releases later at a gap above the trigger, and the gap recovers above it;
+  the arrival case adds the CA's braking to the service braking (A27) and holds it for a long, gentle interval;
 * a communication fault injected through ``faults.comm`` (1 s t2t delay, 10 % loss, a 3 s outage of F1) shows in
   the comm statistics and leaves the formation collision-free and guarded.
 """
@@ -28,7 +30,7 @@ from tests.helpers import ROOT, read_csv, read_summary, run_railsim
 pytestmark = pytest.mark.sumo
 SCEN = ROOT / "scenarios"
 COUPLING = ("in_station", "track_accel", "track_decel")
-CA = ("ca_departure", "ca_arrival")
+CA = ("ca_departure",)
 D_C_M = 5.0
 S_SAFE_M = 28.0
 
@@ -71,6 +73,9 @@ def test_coupling_scenarios_couple_without_collision(tmp_path: Path, name: str, 
     for pair, p in m["pairs"].items():
         assert abs(p["final_gap_m"] - D_C_M) < 0.5 and abs(p["final_speed_diff_mps"]) < 0.1, (pair, p)
         assert p["min_gap_m"] > D_C_M - 0.5, (pair, p)  # no undershoot of d_c worth the name
+    # issue #19: normal coupling never fires collision avoidance nor the emergency brake (was 5 / 21 times in
+    # accelerated coupling, empty / loaded)
+    assert not [e for e in _events(out) if e[1] in ("ca_trigger", "emergency_brake_on")]
 
 
 @pytest.mark.parametrize("load", ["", "_loaded"])
@@ -92,6 +97,30 @@ def test_ca_scenarios_trigger_brake_release_and_recover(tmp_path: Path, name: st
         assert rel[0][0] > t0 and rel[0][1]["gap_m"] > S_SAFE_M  # ... and releases once the gap is back
         assert p["final_gap_m"] > S_SAFE_M  # the gap recovers
         assert p["min_gap_m"] > S_SAFE_M - 5.0  # never into the 5 m buffer of S_safe = 23 + 5 m
+
+
+@pytest.mark.parametrize("load", ["", "_loaded"])
+def test_arrival_ca_brakes_on_top_of_the_service_braking(tmp_path: Path, load: str) -> None:
+    """Spec 003 §3.3.2 / A27 in SUMO: F1 and F2 brake with the faulty 0.15 m/s² (the lead 0.28 m/s²); each CA fires
+    at ≤ 28 m and *adds* a gentle increment (the engine's additive arbitration): F1 decelerates harder than its
+    service braking while the CA holds, for > 20 s, and is released above 28 m at a low speed; no collision, gaps
+    above the CA's s_min of 5 m."""
+    out = _run(tmp_path, SCEN / f"paper003_ca_arrival{load}.yaml")
+    m = metrics(out)
+    _common_safety(m)
+    ev = _events(out)
+    trig = [(t, d) for t, k, s, d in ev if k == "ca_trigger" and s == "F1.000"]
+    rel = [(t, d) for t, k, s, d in ev if k == "ca_release" and s == "F1.000"]
+    assert trig and rel and trig[0][1]["gap_m"] <= S_SAFE_M and rel[0][1]["gap_m"] > S_SAFE_M
+    assert rel[0][0] - trig[0][0] > 20.0
+    rows = [r for r in read_csv(out / "trace.csv") if r["train"] == "F1.000"]
+    during = [r for r in rows if trig[0][0] + 1.0 <= float(r["t_s"]) < rel[0][0]]
+    assert during and all(r["role"] == "ca" for r in during)  # the added command is the applied one
+    assert min(float(r["command_mps2"]) for r in during) < -0.3  # harder than the 0.15 service braking
+    release = min(rows, key=lambda r: abs(float(r["t_s"]) - rel[0][0]))
+    assert float(release["speed_mps"]) < 2.0
+    for pair, p in m["pairs"].items():
+        assert 5.0 < p["min_gap_m"] < S_SAFE_M, (pair, p)
 
 
 def test_obstacle_loaded_stops_before_the_obstacle(tmp_path: Path) -> None:

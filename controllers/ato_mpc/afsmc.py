@@ -63,11 +63,15 @@ class AfsmcLaw:
         self.s_prev: np.ndarray | None = None
 
     def _psi(self, s: np.ndarray, sd: np.ndarray) -> np.ndarray:
+        """Normalised firing strengths, computed in logs: far outside the membership span (a train 100 m behind a
+        time reference) every Gaussian underflows to 0 and the plain ratio is 0/0; in logs the outermost rule
+        takes the whole weight, as the ratio tends to."""
         ws = self.s.s_span_mps / 2.0
         wd = self.s.sdot_span_mps2 / 2.0
-        mu_s = np.exp(-0.5 * ((s[:, None] - self.centres_s[None, :]) / ws) ** 2)
-        mu_d = np.exp(-0.5 * ((sd[:, None] - self.centres_sd[None, :]) / wd) ** 2)
-        fire = (mu_s[:, :, None] * mu_d[:, None, :]).reshape(s.size, 25)
+        log_s = -0.5 * ((s[:, None] - self.centres_s[None, :]) / ws) ** 2
+        log_d = -0.5 * ((sd[:, None] - self.centres_sd[None, :]) / wd) ** 2
+        log_fire = (log_s[:, :, None] + log_d[:, None, :]).reshape(s.size, 25)
+        fire = np.exp(log_fire - np.max(log_fire, axis=1, keepdims=True))
         return fire / np.sum(fire, axis=1, keepdims=True)
 
     def forces(self, sit: Situation, u_prev_n: np.ndarray) -> tuple[np.ndarray, dict[str, Any]]:

@@ -17,6 +17,10 @@ usable there. Per step the adapter
 4. returns ``Command.accel_mps2 = Σu_i / Σm_i`` — the model's applied specific force, what the single-mass
    plant integrates — and ``info["forces_n"]`` (per carriage, for the multi-point plant), ``fallback`` when the
    QP failed. Emergency braking if even service braking cannot stop before the end of authority.
+5. keeps the section's *time-indexed* expected profile (Paper B's expected displacement/speed, built at the
+   section's departure): the law tracks it with ``reference_mode: time`` (paper-literal), and every step reports
+   it in ``info`` (``x_ref_m``, ``v_ref_mps``, with the stop point ``stop_m``) for the paper's E_d/E_v/E_p
+   (:mod:`railsim.engine.extensions.paper001`), whatever the law tracks.
 
 The controller model is derived from the train's :class:`~railsim.physics.vehicle.VehicleParams` by default (effective
 mass split over ``n_cars``, Davis A/B/C per tonne of it, traction/brake/jerk limits split per carriage), so the
@@ -37,7 +41,7 @@ from controllers.ato_mpc.afsmc import AfsmcLaw, AfsmcParams
 from controllers.ato_mpc.core import REFERENCE_MODES, AtoDriver, CarriageLaw, Situation
 from controllers.ato_mpc.mpc import mpc_settings
 from controllers.ato_mpc.pid import PidLaw, PidParams
-from controllers.ato_mpc.reference import Limit, SpeedDistanceProfile
+from controllers.ato_mpc.reference import Limit, SpeedDistanceProfile, TimeReference, time_profile
 from controllers.ato_mpc.sempc import MpcLaw, sempc_settings
 from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
@@ -113,6 +117,7 @@ class MpcAto:
         self.model = MultipointParams(n_cars=n) if params.paper_train else multipoint_from_vehicle(vehicle, n)
         self.driver: AtoDriver | None = None
         self.period_s = params.period_s
+        self._section: tuple[str | None, TimeReference, float] | None = None  # (stop station, reference, t_dep)
 
     def _law(self, period_s: float) -> CarriageLaw:
         pr = self.params
@@ -140,6 +145,21 @@ class MpcAto:
     def reset(self) -> None:
         if self.driver is not None:
             self.driver.reset()
+        self._section = None
+
+    def _section_reference(
+        self, obs: Observation, profile: SpeedDistanceProfile, dwelling: bool
+    ) -> tuple[TimeReference | None, float]:
+        """The section's time-indexed expected profile (Paper B §2.9, :func:`~.reference.time_profile`) and its
+        departure time: built at the first running step towards a new stop (keyed by the stop's station, so a
+        moving end of authority does not restart it), from the position there; None until the train first runs."""
+        key = obs.next_stop.station_id if obs.next_stop is not None else None
+        if not dwelling and (self._section is None or self._section[0] != key):
+            tref = time_profile(profile, obs.own.position_m, self.period_s)
+            self._section = (key, tref, obs.t_s)
+        if self._section is None:
+            return None, obs.t_s
+        return self._section[1], self._section[2]
 
     def _profile(self, obs: Observation) -> tuple[SpeedDistanceProfile, bool]:
         pr = self.params
@@ -188,13 +208,18 @@ class MpcAto:
         profile, in_window = self._profile(obs)
         standing = v <= p.standstill_mps
         dwelling = obs.next_stop is not None and (obs.next_stop.dwelling or (standing and in_window))
-        sit = Situation(obs.t_s, rel, grad, profile)
+        tref, t_dep = self._section_reference(obs, profile, dwelling)
+        sit = Situation(obs.t_s, rel, grad, profile, tref, obs.t_s - t_dep)
         u, info = self.driver.step(sit, dwelling)
         accel = float(np.sum(u) / p.total_mass_kg)
-        if not math.isfinite(accel):  # never hand a NaN to the plant
+        if not math.isfinite(accel):  # never hand a NaN to the plant (nor to the carriage plant's forces)
             accel = -self.vehicle.service_decel_mps2
+            u = np.full(n, accel * p.car_mass_kg)
             info = {**info, "fallback": True, "fallback_reason": "non-finite traction forces; service brake"}
         out_info: dict[str, Any] = {"phase": info.get("phase", "run"), "forces_n": tuple(float(f) for f in u)}
+        if tref is not None:  # the paper's expected displacement/speed now, and the stop point (Paper B metrics)
+            x_ref, v_ref = tref.at(tref.index(obs.t_s - t_dep))
+            out_info.update(x_ref_m=float(x_ref), v_ref_mps=float(v_ref), stop_m=float(profile.stop_m))
         for key in ("status", "solve_time_s", "iterations", "fallback_reason"):
             if key in info:
                 out_info[key] = info[key]

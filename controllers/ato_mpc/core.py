@@ -8,7 +8,8 @@ and (for the paper's time-indexed tracking) the time reference — to one force 
 * **hold** while dwelling, and once the train stands within ``stop_tolerance_m`` of (or past) the stop point:
   the forces ramp to the holding-brake level at the force-rate limit (so the rate limit holds in every
   phase, also for the baselines' outputs), and the law is reset (no stale warm start after a dwell);
-* otherwise ask the law.
+* otherwise ask the law; a law that returns a non-finite force is reset and the forces ramp towards the holding
+  brake at the rate limit (a logged fallback), so neither the plant nor the next step ever sees NaN.
 
 Reference modes (spec A11): ``"distance"`` rebuilds the horizon from the measured position on the speed
 cap (:func:`controllers.ato_mpc.reference.distance_window`) — robust, and what makes the ±0.3 m stop work
@@ -139,6 +140,10 @@ class AtoDriver:
             u, info = self.law.forces(sit, self.u_prev)
             info = dict(info)
             info.setdefault("phase", "run")
+            if not np.all(np.isfinite(u)):  # never hand NaN on (nor keep it as u_prev): brake at the rate limit
+                self.law.reset()
+                u = self.ramp_to(np.full(self.p.n_cars, self.hold_force_n))
+                info.update(fallback=True, fallback_reason="non-finite carriage forces from the law; braking")
             if info.get("fallback"):
                 self.stats.fallbacks += 1
             if "solve_time_s" in info:

@@ -12,7 +12,7 @@ Scenarios (spec §4; the line data are synthetic because the paper publishes non
 The plant is :func:`railsim.physics.multipoint.step` (RK4, ≤ 5 ms sub-steps, ZOH forces, holding brake); the control
 period ``T`` is 0.1 s (A1). The controllers are the laws of this package behind :class:`AtoDriver`.
 
-Metrics (spec §2.16, A12), per run and per section:
+Metrics (spec §2.16, A12; the shared definitions are :mod:`controllers.ato_mpc.metrics`), per run and section:
 
 * ``E_u = Σ_i Σ_k u_i(k)²·T`` [N²·s] (reported ×10⁻¹² as ``e_u_1e12``);
 * ``E_v``, ``E_x``: mean |v_r − v_1|, |x_r − x_1| over the non-dwell samples, against the **time-indexed**
@@ -35,6 +35,7 @@ import numpy as np
 
 from controllers.ato_mpc.afsmc import AfsmcLaw, AfsmcParams
 from controllers.ato_mpc.core import AtoDriver, CarriageLaw, Situation
+from controllers.ato_mpc.metrics import actuator_metrics, tracking_metrics
 from controllers.ato_mpc.mpc import make_mpc_law
 from controllers.ato_mpc.pid import PidLaw, PidParams
 from controllers.ato_mpc.reference import (
@@ -231,28 +232,16 @@ def run(
 def metrics(r: RunResult, p: MultipointParams, n_sections: int) -> dict[str, Any]:
     n = p.n_cars
     T = r.period_s
-    u = r.forces_n
-    du = np.diff(np.vstack([np.zeros((1, n)), u]), axis=0)
-    rate = np.abs(du) / T
-    tol = 1e-6
     run_mask = ~r.dwell
     x1 = r.rel[:, 0]
     v1 = r.rel[:, n]
     coupler_dev = r.rel[:, 1:n] + p.coupler_length_m
     rel_speed = r.rel[:, n + 1 :]
     out: dict[str, Any] = {
-        "e_u_1e12": float(np.sum(u**2) * T / 1e12),
-        "e_v_mps": float(np.mean(np.abs(r.v_ref_mps - v1)[run_mask])),
-        "e_x_m": float(np.mean(np.abs(r.x_ref_m - x1)[run_mask])),
+        **tracking_metrics(x1, v1, r.x_ref_m, r.v_ref_mps, run_mask),
         "e_p_m": float(np.mean(r.stop_errors_m)) if len(r.stop_errors_m) == n_sections else float("inf"),
         "stop_errors_m": [float(e) for e in r.stop_errors_m],
-        "max_force_n": float(np.max(u)),
-        "min_force_n": float(np.min(u)),
-        "max_force_rate_n_per_s": float(np.max(rate)),
-        "force_violations": int(np.sum((u > p.force_max_n * (1 + tol)) | (u < p.force_min_n * (1 + tol)))),
-        "rate_violations": int(
-            np.sum((du / T > p.force_rate_max_n_per_s * (1 + tol)) | (du / T < p.force_rate_min_n_per_s * (1 + tol)))
-        ),
+        **actuator_metrics(r.forces_n, p, T),
         "speed_limit_violations": int(np.sum(v1 > r.v_max_mps + 1e-6)),
         "coupler_band_violations": int(np.sum(np.abs(coupler_dev) > p.coupler_slack_m)),
         "max_coupler_deviation_m": float(np.max(np.abs(coupler_dev))) if n > 1 else 0.0,

@@ -23,13 +23,22 @@ off at ``gap > S_trig + release_margin_m`` after ``min_on_s`` (:func:`.states.ca
 While active the command is the first move of the QP of :mod:`.mpc` (Eqs 17–22): track ``d_ref`` = release
 threshold + ``ref_offset_m`` and the object's speed, ``u ∈ [−a_eb,max(m), a_t,max(m)]``, gap ≥ ``s_min_m``
 (soft) — or ``law = "bang_bang"`` (``u = −a_eb,max``). A latched (obstacle) brake uses ``latched_law``
-(default bang-bang: the paper's obstacle runs look like full braking, A9). With ``additive = true`` and a
-``service_accel_mps2`` in the sensor reading the CA braking is added on top of it (arrival case, A27).
-``Command.emergency`` is True while the brake is latched or the command is below the service braking.
+(default bang-bang: the paper's obstacle runs look like full braking, A9).
 
-Inactive, the command is the traction limit (no restriction under the engine's min()); with
-``post_release = "hold_speed"`` a released vehicle is capped at cruise (net 0) until the formation state becomes
-``coupling`` again or ``extras["ca_hold_clear"]`` is set (A11, departure case).
+**Additive braking** (``additive = true``, the arrival case, A27: "emergency braking on the basis of normal
+deceleration braking"): with a ``service_accel_mps2`` in the sensor reading (the engine puts the other roles'
+minimum there) the CA decides a braking *increment* ``Δ ∈ [−a_eb,max − u_service, 0]``: the QP predicts the
+vehicle under ``u_service + Δ`` (held over the horizon) and prices ``Δ`` itself (``r_u``, ``r_du``), so a large
+``r_u`` gives the gentle, long CA braking the paper reports. The command is marked ``additive`` and the
+engine's arbitration (:func:`controllers.base.arbitrate`) adds it to the others' minimum, bounded by the brake
+envelope; an idle additive CA returns an increment of 0 (adds nothing). ``Command.emergency`` is True while the
+brake is latched or the (total) command is below the service braking.
+
+Inactive, a non-additive CA commands the traction limit (no restriction under the engine's min()); with
+``post_release = "hold_speed"`` a released vehicle is capped at cruise (net 0), with ``"previous_command"`` at the
+service command it had when the CA fired ("continues to move under its previous deceleration state and proceeds
+to stop", arrival case) — either until the formation state becomes ``coupling`` again or
+``extras["ca_hold_clear"]`` is set (A11).
 """
 
 from __future__ import annotations
@@ -43,8 +52,11 @@ from controllers.base import Command, Observation, register
 from controllers.braking import params_from_mapping, require
 from controllers.monorail.braking_modes import BrakingPolicy, required_gap_m
 from controllers.monorail.mpc import GapTrackingQp, QpWeights, predict_ahead
-from controllers.monorail.states import additive_ca_accel_mps2, braking_suffices, ca_hysteresis, ca_should_fire
+from controllers.monorail.states import braking_suffices, ca_hysteresis, ca_should_fire
 from railsim.physics.vehicle import VehicleParams
+
+
+POST_RELEASE = ("none", "hold_speed", "previous_command")
 
 
 @dataclass(frozen=True)
@@ -67,7 +79,7 @@ class CaParams:
     law: str = "mpc"  # mpc | bang_bang
     latched_law: str = "bang_bang"
     additive: bool = False
-    post_release: str = "none"  # none | hold_speed
+    post_release: str = "none"  # none | hold_speed | previous_command
     horizon_steps: int = 20
     control_horizon_steps: int = 10
     dt_s: float = 0.1
@@ -86,7 +98,10 @@ class CaParams:
         for name in ("law", "latched_law"):
             require(name, getattr(self, name) in ("mpc", "bang_bang"), "'mpc' or 'bang_bang'", getattr(self, name))
         require(
-            "post_release", self.post_release in ("none", "hold_speed"), "'none' or 'hold_speed'", self.post_release
+            "post_release",
+            self.post_release in POST_RELEASE,
+            "'none', 'hold_speed' or 'previous_command'",
+            self.post_release,
         )
         for name in (
             "release_margin_m",
@@ -167,6 +182,8 @@ class CollisionAvoidance:
         self.off_since_s = -math.inf
         self.below_since_s: float | None = None
         self.hold = False
+        self.hold_cap_mps2 = 0.0  # the post-release cap (0: cruise; previous_command: the service command at ca_on)
+        self.service_at_on_mps2: float | None = None
         self._u_prev = 0.0
 
     def thresholds_m(self, obs: Observation, reading: SensorReading) -> tuple[float, float]:
@@ -220,41 +237,67 @@ class CollisionAvoidance:
             obstacle = reading is not None and reading.object == "obstacle"
             self.latched = p.latch == "always" or (p.latch == "obstacle" and obstacle)
             info["event"] = "ca_on"
+            self.service_at_on_mps2 = None if reading is None else reading.service_accel_mps2
         if not self.active:
             if was:
                 info["event"] = "ca_off"
                 self.off_since_s = obs.t_s
-                self.hold = p.post_release == "hold_speed" and not self.latched
+                self.hold = p.post_release != "none" and not self.latched
+                prev = self.service_at_on_mps2
+                self.hold_cap_mps2 = (
+                    min(prev, 0.0) if p.post_release == "previous_command" and prev is not None else 0.0
+                )
                 self.latched = False
             return self._idle(a_t, info)
         info["latched"] = self.latched
         law = p.latched_law if self.latched else p.law
+        # A27: an additive CA decides a braking increment on top of the others' command (``service``), within
+        # [−a_eb − service, 0]; otherwise an absolute command in [−a_eb, a_t] that joins the minimum.
+        service = self._additive_base(reading)
+        base = 0.0 if service is None else service
+        u_lo, u_hi = (-b_e, a_t) if service is None else (min(-b_e - service, 0.0), 0.0)
         if law == "bang_bang" or reading is None:
-            u = -b_e
+            u = u_lo
         else:
             n = int(p.horizon_steps)
             v_obj = max(v - reading.closing_speed_mps, 0.0)
             dx, v_ahead = predict_ahead(v_obj, 0.0, p.dt_s, n)
             sol = self.qp.solve(
-                gap, v, obs.own.accel_mps2, dx, v_ahead, release + p.ref_offset_m, p.s_min_m, self._u_prev, -b_e, a_t
+                gap,
+                v,
+                obs.own.accel_mps2,
+                dx,
+                v_ahead,
+                release + p.ref_offset_m,
+                p.s_min_m,
+                self._u_prev,
+                u_lo,
+                u_hi,
+                base,
             )
             if sol is None:
-                u, info["fallback"] = -b_e, True
+                u, info["fallback"] = u_lo, True
                 info["fallback_reason"] = "collision-avoidance QP infeasible; emergency brake"
             else:
                 u = float(sol[0])
-            if p.additive and reading.service_accel_mps2 is not None:
-                # A27: the CA's braking comes on top of the ongoing service braking
-                u = additive_ca_accel_mps2(reading.service_accel_mps2, u, b_e)
         self._u_prev = u
-        emergency = self.latched or u < -b_s + 1e-9
-        return Command(u, emergency=emergency, fallback=bool(info.get("fallback")), info=info)
+        emergency = self.latched or base + u < -b_s + 1e-9
+        additive = service is not None
+        return Command(u, emergency=emergency, fallback=bool(info.get("fallback")), info=info, additive=additive)
+
+    def _additive_base(self, reading: SensorReading | None) -> float | None:
+        """The service command the CA adds to (``additive`` and a reading that carries it), else None."""
+        if not self.params.additive or reading is None or reading.service_accel_mps2 is None:
+            return None
+        return reading.service_accel_mps2
 
     def _idle(self, a_t: float, info: dict[str, Any]) -> Command:
         self._u_prev = 0.0
         if self.hold:
-            info["ca"] = "hold_speed"
-            return Command(0.0, info=info)
+            info["ca"] = "hold_speed" if self.params.post_release == "hold_speed" else "previous_command"
+            return Command(self.hold_cap_mps2, info=info)
+        if self.params.additive:
+            return Command(0.0, info=info, additive=True)  # adds nothing
         return Command(a_t, info=info)
 
 

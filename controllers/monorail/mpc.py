@@ -79,12 +79,18 @@ class GapTrackingQp:
         u_prev_mps2: float,
         u_min_mps2: float,
         u_max_mps2: float,
+        offset_mps2: float = 0.0,
     ) -> np.ndarray | None:
-        """``ahead_dx_m[k]``/``ahead_v_mps[k]``: the object's displacement from now and speed at steps 1..Np."""
+        """``ahead_dx_m[k]``/``ahead_v_mps[k]``: the object's displacement from now and speed at steps 1..Np.
+
+        ``offset_mps2``: a command applied on top of the decision over the whole horizon (another role's service
+        braking when the decision is an additive increment, A27): the vehicle is predicted under
+        ``offset + u_j``, while the weights, ``u_prev`` and the bounds ``[u_min, u_max]`` are on ``u`` alone.
+        """
         n, m, w = self.n, self.m, self.w
         s0 = np.array([0.0, v0_mps, a0_mps2])
-        c_gap = gap0_m + np.asarray(ahead_dx_m, float) - self.px @ s0
-        c_v = np.asarray(ahead_v_mps, float) - self.pv @ s0
+        c_gap = gap0_m + np.asarray(ahead_dx_m, float) - self.px @ s0 - offset_mps2 * self.gx.sum(axis=1)
+        c_v = np.asarray(ahead_v_mps, float) - self.pv @ s0 - offset_mps2 * self.gv.sum(axis=1)
         e1 = np.zeros(m)
         e1[0] = u_prev_mps2
         q_u = (

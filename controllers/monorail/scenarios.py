@@ -8,8 +8,9 @@ plant. Every step (``dt_s``, default 0.1 s, A16):
   predecessor's *broadcast* state, delivered after ``comm_delay_s`` and not at all during ``comm_outage_s``;
 * the **CA** role (:class:`.collision_avoidance.CollisionAvoidance`) on the vehicle's own sensor (true gap and
   closing speed to the object ahead — it works when communication is down);
-* the final command is ``min(nominal, CA)`` (the engine's arbitration), or the CA's additive command in the
-  arrival case (A27).
+* the final command is the engine's arbitration (:func:`controllers.base.arbitrate`): ``min(nominal, CA)``, or
+  in the arrival case (A27) the nominal plus the CA's additive braking increment, bounded by the vehicle's
+  emergency deceleration.
 
 Scenarios (``SCENARIOS``): ``in_station``, ``track_accel``, ``track_decel`` (coupling, d_c = 5 m; the CA trigger is
 the RDBM distance with t_eq 0.3 s, 1 m margin — A3), ``ca_departure``, ``ca_arrival``, ``ca_obstacle`` (CA, 30 m
@@ -26,7 +27,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers.base import Observation, OwnState, PredecessorState
+from controllers.base import Command, Observation, OwnState, PredecessorState, arbitrate
 from controllers.monorail.collision_avoidance import CaParams, CollisionAvoidance, sensor_extras
 from controllers.monorail.coupling import ApfParams, DmpcParams, MonorailApf, MonorailDmpc
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, transition
@@ -104,7 +105,18 @@ def build_scenario(
         raise ValueError(f"load: expected 'empty' or 'loaded', got {load!r}")
     coupling = name in ("in_station", "track_accel", "track_decel")
     loads = ("empty",) * 3 if load == "empty" else (("full",) * 3 if coupling else ("full", "overloaded", "full"))
-    ca_coupling = CaParams(threshold_mode="rdbm", t_eq_s=0.3, margin_m=1.0, law="mpc", ref_offset_m=1.0, s_min_m=1.0)
+    ca_coupling = CaParams(  # the coupling scenarios' debounced trigger (as their SUMO files): A3, issue #19
+        threshold_mode="rdbm",
+        t_eq_s=0.3,
+        margin_m=1.0,
+        law="mpc",
+        ref_offset_m=1.0,
+        s_min_m=1.0,
+        trigger_dwell_s=0.3,
+        trigger_band_m=0.5,
+        rearm_s=1.0,
+        release_margin_m=0.5,
+    )
     common: dict[str, Any] = dict(comm_delay_s=comm_delay_s, comm_outage_s=comm_outage_s, coupling_law=coupling_law)
     if name == "in_station":  # Table 2: distances to the own stop point 80/200/300 m, d_c = 5 m; follower
         # speeds inside the spec's feasible range for immediate monotone braking (F1 14 m/s, F2 15 m/s)
@@ -135,14 +147,17 @@ def build_scenario(
             VehicleSpec("F2", 0.0, 2.90, loads[2], "accel", 1.0, 30 * KMH),
         )
         cfg = ScenarioConfig(name, veh, 40.0, ca=CaParams(post_release="hold_speed"), **common)
-    elif name == "ca_arrival":  # Table 6 placeholder: inconsistent service braking; CA additive (A27)
+    elif name == "ca_arrival":  # Table 6 placeholder: the followers' faulty, weaker service braking (0.15 against
+        # the lead's 0.28 m/s²) closes the gap; CA adds its braking on top (A27), its increment priced by r_u = 75
+        # (calibrated with ref_offset_m towards the paper's timeline, Table 6 note); then the previous deceleration
         stop_l = 60.0 + 9.72**2 / (2 * 0.28)
         veh = (
             VehicleSpec("L", 60.0, 9.72, loads[0], "stop", -0.28, 0.0, stop_l),
-            VehicleSpec("F1", 30.0, 11.1, loads[1], "stop", -0.15, 0.0, stop_l - 30.0),
-            VehicleSpec("F2", 0.0, 11.1, loads[2], "stop", -0.15, 0.0, stop_l - 60.0),
+            VehicleSpec("F1", 30.0, 11.1, loads[1], "accel", -0.15),
+            VehicleSpec("F2", 0.0, 11.1, loads[2], "accel", -0.15),
         )
-        cfg = ScenarioConfig(name, veh, 70.0, ca=CaParams(additive=True), **common)
+        ca = CaParams(additive=True, r_u=75.0, ref_offset_m=4.0, post_release="previous_command")
+        cfg = ScenarioConfig(name, veh, 70.0, ca=ca, **common)
     else:  # ca_obstacle, Table 7: 25 km/h, 30 m spacing, obstacle 50 m ahead of the lead at t = 0
         veh = (
             VehicleSpec("L", 0.0, 25 * KMH, loads[0], "accel", 0.0, 25 * KMH),
@@ -243,17 +258,15 @@ def run_scenario(cfg: ScenarioConfig) -> ScenarioResult:
                 ahead_v, obj = plants[i - 1].v_mps, "vehicle"
             extras: dict[str, Any] = {}
             if g_now[i] <= cfg.sensor_range_m:
-                extras = sensor_extras(g_now[i], p.v_mps - ahead_v, obj, nominal if cfg.ca.additive else None)
+                extras = sensor_extras(g_now[i], p.v_mps - ahead_v, obj, nominal)
             ca_cmd = cas[i].command(Observation(t, dt, own, veh, 1e6, extras=extras))
             ca_on[k, i] = cas[i].active
             if "trigger_m" in ca_cmd.info and extras:
                 trig[k, i] = ca_cmd.info["trigger_m"]
             if "event" in ca_cmd.info:
                 events.append((t, spec.name, str(ca_cmd.info["event"])))
-            if cas[i].active and cfg.ca.additive and i > 0:
-                u = ca_cmd.accel_mps2
-            else:
-                u = min(nominal, ca_cmd.accel_mps2)
+            _, final = arbitrate({"nominal": Command(nominal), "ca": ca_cmd}, veh.emergency_decel_mps2)
+            u = final.accel_mps2
             emer[k, i] = ca_cmd.emergency and cas[i].active
             cmds.append(u)
             if i > 0:

@@ -188,20 +188,6 @@ def braking_suffices(gap_m: float, closing_speed_mps: float, own_accel_mps2: flo
     return gap_m - closing_speed_mps * closing_speed_mps / (2.0 * brake) >= floor_m
 
 
-def additive_ca_accel_mps2(service_accel_mps2: float, ca_accel_mps2: float, emergency_decel_mps2: float) -> float:
-    """Spec 003 Eq. (A27) reading: the CA's *braking* is added on top of the service command, bounded by the
-    brake envelope: ``u = max(u_service + min(u_CA, 0), −a_eb,max)``.
-
-    A CA command that asks for traction adds nothing (CA never accelerates a vehicle that the service role is
-    braking), and the sum never exceeds the emergency brake. Pure, so the engine's arbitration can call it
-    instead of ``min(nominal, CA)`` when ``additive`` is set (see the module docstring of
-    :mod:`controllers.monorail.collision_avoidance`).
-    """
-    if emergency_decel_mps2 < 0.0:
-        raise ValueError(f"emergency_decel_mps2: expected a magnitude >= 0, got {emergency_decel_mps2!r}")
-    return max(float(service_accel_mps2) + min(float(ca_accel_mps2), 0.0), -float(emergency_decel_mps2))
-
-
 def transition(mem: VcMemory, inp: VcInputs, p: StateParams) -> tuple[VcMemory, tuple[str, ...]]:
     """One step of the follower state machine; returns the new memory and the events it emitted."""
     s, t = mem.state, inp.t_s

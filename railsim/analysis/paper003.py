@@ -20,8 +20,11 @@ Readings:
   scenario (the ``ca`` role's ``threshold_mode`` etc., the follower's own emergency deceleration, both speeds),
   with :func:`controllers.monorail.braking_modes.required_gap_m` — the same function the controller calls. A
   sample with the gap below it is *guarded* if the follower's CA was triggered at most one step later (the
-  controller sees the gap of the step it acts on); ``unguarded_s`` counts the rest. Trains without a ``ca`` role
-  get no safety-distance figures (None).
+  controller sees the gap of the step it acts on); ``unguarded_s`` counts the rest. With a debounced trigger
+  (``trigger_band_m`` > 0, :func:`controllers.monorail.states.ca_should_fire`) a shallow intrusion may last the
+  dwell without CA by design, so ``unguarded_s`` counts only samples deeper than the band below the trigger
+  (``below_trigger_s`` still counts every sample below it). Trains without a ``ca`` role get no safety-distance
+  figures (None).
 * **Final speed difference** is follower minus the one ahead (> 0: still closing).
 """
 
@@ -212,11 +215,14 @@ def _pair_row(
         return row
     policy = params.policy()
     below = np.zeros(len(times), bool)
+    deep = np.zeros(len(times), bool)
     for j in np.nonzero(ok)[0]:
         vf, va = max(float(v_fol[j]), 0.0), max(float(v_ahead[j]), 0.0)
         if math.isnan(vf) or math.isnan(va):
             continue
-        below[j] = gap[j] < required_gap_m(policy, vf, va, b_e)
+        trigger = required_gap_m(policy, vf, va, b_e)
+        below[j] = gap[j] < trigger
+        deep[j] = gap[j] < trigger - params.trigger_band_m
     guarded = np.zeros(len(times), bool)
     for t0, t1 in ca:
         guarded |= (times >= t0 - step_s - 1e-9) & (times <= (math.inf if t1 is None else t1) + 1e-9)
@@ -224,7 +230,7 @@ def _pair_row(
     row.update(
         safety_distance=policy.mode if policy.mode != "fixed" else f"fixed {policy.fixed_threshold_m:g} m",
         below_trigger_s=float(below.sum() * stride),
-        unguarded_s=float((below & ~guarded).sum() * stride),
+        unguarded_s=float((deep & ~guarded).sum() * stride),
     )
     return row
 

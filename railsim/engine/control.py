@@ -10,7 +10,9 @@ Per train and step (docs/architecture.md, "The step loop"):
    ``separation`` on ground data, logged ``vc_degraded``/``vc_restored`` with one step of hysteresis);
    ``separation`` against any other train ahead; ``ca`` on the train's own sensor. A *command source*
    extension (the junction planner) may take over a train's roles while it flies a plan.
-3. **Arbitration** — the most restrictive command wins (:func:`controllers.base.arbitrate`); emergency braking
+3. **Arbitration** — the most restrictive command wins (:func:`controllers.base.arbitrate`; a role whose command
+   is ``additive`` — Paper D's arrival-case CA — adds its braking to the others' instead, bounded by the vehicle's
+   emergency deceleration; the CA's sensor reading carries the others' minimum as ``service_accel_mps2``); emergency braking
    intervals and non-finite commands are events, and so is every role's fallback (``controller_fallback``
    with the reason, plus a rate-limited WARNING: :mod:`railsim.engine.fallbacks`).
 4. **Plant** — :func:`railsim.physics.dynamics.step` (envelopes, jerk, lag, resistance, gradient) with
@@ -314,9 +316,10 @@ class ControlStage:
         fstate: str,
         commands: dict[str, Command],
     ) -> None:
-        ca_cmd = ca_ctl.command(
-            Observation(**base, extras={"sensor": self.safety.sensor(tr, a)}, formation_state=fstate)
-        )
+        sensor = self.safety.sensor(tr, a)
+        # what the other roles command (their minimum): an additive CA plans its braking on top of it (A27)
+        sensor["service_accel_mps2"] = min(c.accel_mps2 for c in commands.values())
+        ca_cmd = ca_ctl.command(Observation(**base, extras={"sensor": sensor}, formation_state=fstate))
         commands["ca"] = ca_cmd
         event = ca_cmd.info.get("event") if ca_cmd.info else None
         if event in ("ca_on", "ca_off"):
@@ -331,13 +334,13 @@ class ControlStage:
 
     # ------------------------------------------------------------------ arbitration and plant
     def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
-        """Arbitrate the roles' commands (minimum) and advance the plant; returns the speed handed to SUMO."""
+        """Arbitrate the roles' commands (minimum, or additive) and advance the plant; returns the speed for SUMO."""
         veh = tr.trip.vehicle
         for r, c in commands.items():  # every role's fallback counts, not only the winner's
             if c.fallback:
                 tr.fallbacks += 1
                 self.fallbacks.report(t, tr.train_id, r, _controller_name(tr, r), fallback_reason(c))
-        role, cmd = arbitrate(commands)
+        role, cmd = arbitrate(commands, veh.emergency_decel_mps2)  # an additive role stops at the brake envelope
         if cmd.emergency and tr.emergency_since_s is None:
             tr.emergency_since_s = t
             self.events.record(t, "emergency_brake_on", tr.train_id, role=role)

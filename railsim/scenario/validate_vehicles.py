@@ -122,7 +122,8 @@ def vehicle(ck: Checker, key: str, body: Any, path: str) -> tuple[VehicleParams,
 
 
 def vehicle_plant(ck: Checker, body: Mapping[str, Any], path: str) -> PlantSpec | None:
-    """``plant: multipoint`` (+ ``plant_params`` overriding :class:`railsim.physics.multipoint.MultipointParams`)."""
+    """``plant: multipoint`` (+ ``plant_params`` overriding :class:`railsim.physics.multipoint.MultipointParams`, and
+    ``wind``: Paper B's Scenario C disturbance, see :func:`_plant_wind`)."""
     if "plant" not in body and "plant_params" not in body:
         return None
     kind = ck.string(body.get("plant", "single"), f"{path}.plant", PLANT_KINDS)
@@ -137,8 +138,11 @@ def vehicle_plant(ck: Checker, body: Mapping[str, Any], path: str) -> PlantSpec 
         from railsim.physics.monorail import MonorailParams as plant_cls  # type: ignore[assignment]
 
     fields_ = {f.name: f for f in dataclasses.fields(plant_cls)}
-    m = ck.mapping(params_in, f"{path}.plant_params", (), tuple(fields_))
+    extra = ("wind",) if kind == "multipoint" else ()
+    m = dict(ck.mapping(params_in, f"{path}.plant_params", (), (*fields_, *extra)))
     params: dict[str, Any] = {}
+    if "wind" in m:
+        params["wind"] = _plant_wind(ck, m.pop("wind"), f"{path}.plant_params.wind")
     for name, v in m.items():
         ftype = str(fields_[name].type)
         if name == "n_cars":
@@ -148,10 +152,28 @@ def vehicle_plant(ck: Checker, body: Mapping[str, Any], path: str) -> PlantSpec 
         else:
             params[name] = ck.number(v, f"{path}.plant_params.{name}")
     try:
-        plant_cls(**params)
+        plant_cls(**{k: v for k, v in params.items() if k != "wind"})
     except (ValueError, TypeError) as exc:
         raise ck.fail(f"{path}.plant_params", str(exc)) from None
     return PlantSpec(kind, params)
+
+
+def _plant_wind(ck: Checker, value: Any, path: str) -> dict[str, Any]:
+    """``plant_params.wind`` of a multipoint plant: Paper B Scenario C's disturbance acting on the plant only
+    (:class:`railsim.physics.multipoint.WindDisturbance`: ``kind`` none|constant|harmonic, ``constant``,
+    ``offset``, ``amplitude``, ``omega_rad_per_s``, ``unit`` mps2|n_per_kn, ``onset_s``)."""
+    from railsim.physics.multipoint import WindDisturbance
+
+    names = tuple(f.name for f in dataclasses.fields(WindDisturbance))
+    m = ck.mapping(value, path, (), names)
+    wind: dict[str, Any] = {}
+    for name, v in m.items():
+        wind[name] = ck.string(v, f"{path}.{name}") if name in ("kind", "unit") else ck.number(v, f"{path}.{name}")
+    try:
+        WindDisturbance(**wind)
+    except (ValueError, TypeError) as exc:
+        raise ck.fail(path, str(exc)) from None
+    return wind
 
 
 def controller_specs(ck: Checker, value: Any) -> tuple[dict[str, ControllerSpec], dict[str, Any]]:
