@@ -216,7 +216,8 @@ def test_flank_a_train_on_the_other_leg_stops_before_the_fouling_point(tmp_path:
 @pytest.mark.parametrize("overlap_m", [None, 80.0])
 def test_a_train_waiting_for_the_points_stands_the_overlap_before_them(tmp_path: Path, overlap_m: float | None) -> None:
     """A slow train (15 km/h) holds the merge for minutes; the branch train comes up and stands where its authority
-    ends: ``overlap_m`` (default 20 m) before the switch point, minus the ATO's 5 m authority margin."""
+    ends: before a merge, ``max(overlap_m, separation margin)`` before the switch point (default overlap 20 m, the
+    scenarios' separation margin 50 m: locking.py's "Merges"), minus the ATO's 5 m authority margin."""
     net, stops = build_merge(tmp_path)
     services = [
         {**_service("main", "ash", "zed", 0), "vehicle": "slow"},
@@ -236,8 +237,8 @@ def test_a_train_waiting_for_the_points_stands_the_overlap_before_them(tmp_path:
         if r["train"] == "branch.000" and float(r["speed_mps"]) == 0.0 and 1000.0 < float(r["chainage_m"]) < sw.point_m
     ]
     assert len(standing) > 30  # it stood for more than half a minute
-    overlap = 20.0 if overlap_m is None else overlap_m
-    assert sw.point_m - overlap - 5.5 <= min(standing) <= max(standing) <= sw.point_m - overlap - 4.5
+    margin = max(20.0 if overlap_m is None else overlap_m, 50.0)
+    assert sw.point_m - margin - 5.5 <= min(standing) <= max(standing) <= sw.point_m - margin - 4.5
 
 
 def test_a_bad_overlap_is_refused_naming_the_field(tmp_path: Path) -> None:

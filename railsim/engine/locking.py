@@ -9,7 +9,11 @@ its leader's request (one lock for the formation). With a station stop to make b
 only when the train is about to leave that stop (:func:`stop_before`), as a route is set from the starting signal:
 a branch train dwelling short of a merge held the points for two minutes and the main-line train at the merge
 waited for it — unless the stop lies within the authority margin of the points (the train could not reach its
-stopping point without the lock). Passing a switch without its lock is a ``switch_violation``
+stopping point without the lock). And a train whose route beyond its stop is not set far enough to draw clear of
+the platform (its length plus its separation margin) stays at the platform after its dwell
+(:meth:`RouteLocks.clears_platform`, the stop book's ``route_set``): a Jurenba unit that left Bijin and stood
+short of the crossing with its rear on the platform held the next up train 113 m short of its stopping point,
+and SUMO registered that train's stop there. Passing a switch without its lock is a ``switch_violation``
 event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
 planner requests in its planned order).
 
@@ -97,6 +101,12 @@ def stop_before(t: float, tr: TrainRuntime, point_m: float) -> bool:
     return False
 
 
+def separation_margin_m(tr: TrainRuntime) -> float:
+    """The margin the train's moving-block separation controller keeps behind the train ahead (0 without one)."""
+    params = getattr(tr.controllers.get("separation"), "params", None)
+    return float(getattr(params, "margin_m", 0.0))
+
+
 class RouteLocks:
     """Requests, authority and releases of switch locks for every train."""
 
@@ -128,8 +138,7 @@ class RouteLocks:
         ``margin_m`` if larger (module docstring, "Merges")."""
         overlap_m = self.settings.protection_margin_m
         for tid, tr in self.fleet.trains.items():
-            params = getattr(tr.controllers.get("separation"), "params", None)
-            margin_m = float(getattr(params, "margin_m", 0.0))
+            margin_m = separation_margin_m(tr)
             if margin_m <= overlap_m:
                 continue
             edges = tr.trip.route.edges
@@ -392,6 +401,22 @@ class RouteLocks:
         except nx.NetworkXNoCycle:
             return None
         return [a for a, _ in edges], sorted({graph.edges[a, b]["switch"] for a, b in edges})
+
+    def clears_platform(self, tr: TrainRuntime, stop: TripStop) -> bool:
+        """True if the route set for the train standing at ``stop`` lets it draw clear of the platform: its
+        authority reaches its own length plus its separation margin (at least the overlap) beyond the stopping
+        point, or its next stop if that comes first. Until then it stays at the platform after its dwell, as
+        behind a starting signal at danger (module docstring, "Routes from a station stop")."""
+        if stop.is_destination or stop.kind != "station":
+            return True
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is not None and self.formations.manager.state(f.id) in COUPLED_STATES:
+            return True  # a coupled follower goes with its leader
+        margin_m = max(self.settings.protection_margin_m, separation_margin_m(tr))
+        need_m = stop.mark_m + tr.trip.vehicle.length_m + margin_m
+        if tr.next_stop + 1 < len(tr.trip.stops):
+            need_m = min(need_m, tr.trip.stops[tr.next_stop + 1].window_start_m)
+        return self.authority_end_m(tr) >= need_m - 1e-6
 
     def authority_end_m(self, tr: TrainRuntime) -> float:
         """Route chainage where the train's movement authority ends: before the first switch not locked for it,

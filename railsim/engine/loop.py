@@ -140,7 +140,7 @@ class Simulation:
         self.formations.insert_behind = self.dispatcher.insert_behind
         self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
-        self.stops.track_wanted = self.locks.wanted_by_others
+        self.stops.track_wanted, self.stops.route_set = self.locks.wanted_by_others, self.locks.clears_platform
         self.stops.wait_for_leader, self.stops.hold_departure = self.formations.turnback_waits()
         self.dispatcher.admission.append(self.locks.admit)
         self.formations.current_stop = self.stops.current

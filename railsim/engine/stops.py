@@ -49,6 +49,8 @@ class StopBook:
         self.wait_for_leader: Callable[[TrainRuntime], bool] = lambda _train: False
         # FormationBook.holds_departure: a leader stays at a platform until the unit coupling behind it is there
         self.hold_departure: Callable[[float, TrainRuntime], bool] = lambda _t, _train: False
+        # RouteLocks.clears_platform: the route beyond the stop lets the train draw clear of the platform
+        self.route_set: Callable[[TrainRuntime, TripStop], bool] = lambda _train, _stop: True
         self._held: set[tuple[str, int]] = set()  # (train, stop index) whose hold was logged
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
@@ -76,6 +78,12 @@ class StopBook:
                 if (tr.train_id, tr.next_stop) not in self._held:
                     self._held.add((tr.train_id, tr.next_stop))
                     self.events.record(t, "departure_held_for_follower", tr.train_id, station=stop.station_id)
+                return
+            tr.held_for_route = not self.route_set(tr, stop)
+            if tr.held_for_route:  # as behind a starting signal at danger: the route is not set yet
+                if (tr.train_id, tr.next_stop) not in self._held:
+                    self._held.add((tr.train_id, tr.next_stop))
+                    self.events.record(t, "departure_held_for_route", tr.train_id, station=stop.station_id)
                 return
             tr.sumo_stopped = False
             self._record(tr, stop, tr.halted_s, t, tr.halt_error_m)

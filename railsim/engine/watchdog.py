@@ -1,7 +1,8 @@
 """The stall watchdog: a train that stands still for no reason stops the run instead of letting it idle on.
 
 A train *stands for no reason* when it is on the line, before its destination, at speed 0, and not dwelling at
-a stop (SUMO has not registered a halt there). Held departures never reach this check (a held train is not
+a stop (SUMO has not registered a halt there; a train whose dwell is over but whose route beyond the stop is not
+set, ``held_for_route``, stands like any train waiting for a route). Held departures never reach this check (a held train is not
 on the line yet). Standing like that for longer than ``stall_timeout_s`` is a deadlock, a lock never granted, a
 controller that will not move: each such train gets a ``stalled`` event (where it stands and, if the route-lock
 port can say, what it waits for: ``locks.waiting_for(tr)``), and the run fails (:attr:`StallWatch.failure`;
@@ -50,7 +51,8 @@ class StallWatch:
         is the occupancy's train directly ahead of each active train (for the deadlock search)."""
         for tr in active:
             held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
-            if tr.plant.speed_mps > STANDSTILL_MPS or tr.sumo_stopped or tr.sumo_stopped_now or held:
+            dwelling = (tr.sumo_stopped or tr.sumo_stopped_now) and not tr.held_for_route
+            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held:
                 self.standing_since.pop(tr.train_id, None)
             elif tr.train_id not in self.standing_since:
                 self.standing_since[tr.train_id] = (t, tr)
