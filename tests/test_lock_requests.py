@@ -64,6 +64,7 @@ def _train(tid: str, front_m: float, stops: list[TripStop], depart_s: float = 0.
         start_front_m=stops[0].mark_m,
         status="running",
         on_line=True,
+        controllers={},
     )
 
 
@@ -251,3 +252,25 @@ def test_a_stop_within_the_overlap_of_the_points_does_not_hold_back_the_request(
     layer.advance_to(11.0)
     assert locks.interlocking.is_locked_for("t1", "sw", "reverse")
     assert locks.authority_end_m(tr) > stops[1].mark_m  # it can reach its stopping point at B
+
+
+# ---------------------------------------------------------------- leaving a platform: the route must let it clear
+def test_a_train_stays_at_the_platform_until_its_route_lets_it_draw_clear() -> None:
+    """Dwell over at B, points 100 m beyond B's stopping point not yet locked: its authority would end the overlap
+    before them, with its rear still on the platform, so it stays (a train following it would halt short of its
+    own stopping point on that platform). Locked: it goes. A destination, or points beyond its length + margin,
+    never hold it."""
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("B", 600.0, 40.0), _stop("C", 3000.0, 1.0, destination=True)]
+    switch = SimpleNamespace(switch_id="sw", leg="reverse", point_m=700.0)
+    tr = _train("t1", 600.0, stops, switches=[switch])
+    tr.sumo_stopped, tr.dwell_started_s = True, 100.0
+    layer, locks = _one_switch_locks(tr)
+    assert not locks.clears_platform(tr, stops[1])
+    locks.bookkeeping(140.0 - SECTION_REQUEST_LEAD_S, tr)  # about to leave: it asks, and is granted
+    layer.advance_to(140.0)
+    assert locks.clears_platform(tr, stops[1])
+    assert locks.clears_platform(tr, stops[2])  # at its destination it goes nowhere
+    far = _train("t2", 600.0, stops, switches=[SimpleNamespace(switch_id="sw", leg="reverse", point_m=900.0)])
+    _, far_locks = _one_switch_locks(far)
+    # 900 − overlap 20 ≥ 600 + 120 (length) + 20 (no separation role: the overlap): the route lets it clear
+    assert far_locks.clears_platform(far, stops[1])

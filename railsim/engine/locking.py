@@ -207,7 +207,7 @@ class RouteLocks:
                 if (
                     sec.end_m > tr.front_m
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
-                    and not stop_before(t, tr, sec.guard_m)
+                    and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
                 ):
                     reqs[sec.section_id] = self.tracks.request(t, (tr.train_id,), sec.section_id, sec.direction)
             elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
