@@ -141,8 +141,9 @@ def _rollout_row(row, th, x0, v0, xp, vp, ap, base, tr, feedforward, u, v, s):  
 
 @njit(cache=True)
 def batch_costs(seq, thetas, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, feedforward, out):  # pragma: no cover
-    """J^(DMPC) + penalty of the rows of ``seq (m, Np)`` (``thetas (m, N_THETA)``) into ``out (m,)``: the rollout
-    of ``_rollout_row`` and the terms of :func:`controllers.mcf_dmpc.cost.cost_terms`, fused in one pass.
+    """J^(DMPC) + penalty of the rows of ``seq (m, Np)`` (``thetas (m, N_THETA)``, or ``(1, N_THETA)``: one Θ for
+    every row) into ``out (m,)``: the rollout of ``_rollout_row`` and the terms of
+    :func:`controllers.mcf_dmpc.cost.cost_terms`, fused in one pass.
 
     The horizon is the outer loop and the rows the inner one: each row's recursion over the horizon is a chain of
     dependent operations (~20 ns per step), and interleaving independent rows lets the CPU overlap them. Every row
@@ -150,6 +151,7 @@ def batch_costs(seq, thetas, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, fe
     """
     m = seq.shape[0]
     steps = seq.shape[1]
+    theta_step = 1 if thetas.shape[0] == m else 0  # 0: the single row of Θ serves every row
     tau = tr[0]
     half_tau2 = 0.5 * tau * tau
     own_k = 1.0 / (2.0 * tr[3])
@@ -179,7 +181,7 @@ def batch_costs(seq, thetas, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, fe
             omega = _omega(v_r, tr)
             uj = _control(
                 seq[r, j],
-                thetas[r],
+                thetas[r * theta_step],
                 v_r,
                 xp[j] - s_r,
                 base[j] + v_r * v_r * own_k,
