@@ -49,6 +49,7 @@ except ImportError:  # pragma: no cover - exercised only in environments without
 
 __all__ = [
     "NUMBA_AVAILABLE",
+    "batch_context",
     "desired_base",
     "population_costs",
     "rollout_rows",
@@ -248,3 +249,23 @@ def population_costs(seq, thetas, x0, v0, xp, vp, ap, lp, bp, tr, w, u_prev, fee
     out = np.empty(seq.shape[0])
     batch_costs(seq, thetas, x0, v0, xp, vp, ap, desired_base(vp, lp, bp, tr), lp, bp, tr, w, u_prev, feedforward, out)
     return out
+
+
+def batch_context(x0, v0, xp, vp, ap, lp, bp, tr, w, u_prev, feedforward) -> tuple:
+    """The arguments of :func:`batch_costs` after ``seq, thetas`` and before ``out``, typed and contiguous once per
+    step (the compiled searches call it hundreds of times with them)."""
+    vp = np.ascontiguousarray(vp, dtype=float)
+    return (
+        float(x0),
+        float(v0),
+        np.ascontiguousarray(xp, dtype=float),
+        vp,
+        np.ascontiguousarray(ap, dtype=float),
+        desired_base(vp, float(lp), float(bp), tr),
+        float(lp),
+        float(bp),
+        tr,
+        w,
+        float(u_prev),
+        bool(feedforward),
+    )

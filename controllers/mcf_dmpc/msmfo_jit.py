@@ -29,7 +29,7 @@ import math
 
 import numpy as np
 
-from controllers.mcf_dmpc.kernels import NUMBA_AVAILABLE, batch_costs, desired_base, njit
+from controllers.mcf_dmpc.kernels import NUMBA_AVAILABLE, batch_context, batch_costs, njit
 
 __all__ = ["NUMBA_AVAILABLE", "msmfo_mcf"]
 
@@ -299,30 +299,11 @@ def msmfo_mcf(
     feedforward, horizon_steps)``: the arguments of :func:`controllers.mcf_dmpc.kernels.population_costs` for one
     Θ, plus the horizon the ``D`` decision variables expand to (move blocking holds the last index).
     """
-    theta, x0, v0, xp, vp, ap, lp, bp, tr, w, u_prev, ff, steps = fitness_args
+    theta, *batch_args, steps = fitness_args
     digits_per_word = int(math.floor(62.0 / math.log2(max(n_values, 2))))
     n_words = -(-dim // digits_per_word)  # the int64 words of a row's exact key
-    xp = np.ascontiguousarray(xp, dtype=float)
-    vp = np.ascontiguousarray(vp, dtype=float)
-    ap = np.ascontiguousarray(ap, dtype=float)
-    base = desired_base(vp, float(lp), float(bp), tr)
-    ctx = (
-        np.ascontiguousarray(theta, dtype=float).reshape(1, -1),  # one Θ for every row
-        float(x0),
-        float(v0),
-        xp,
-        vp,
-        ap,
-        base,
-        float(lp),
-        float(bp),
-        tr,
-        w,
-        float(u_prev),
-        bool(ff),
-        int(n_values),
-        digits_per_word,
-    )
+    theta_row = np.ascontiguousarray(theta, dtype=float).reshape(1, -1)  # one Θ for every row
+    ctx = (theta_row, *batch_context(*batch_args), int(n_values), digits_per_word)
     warm = np.zeros((0, dim), dtype=np.int64) if init is None else np.ascontiguousarray(init, dtype=np.int64)
     n_elite = math.ceil(elite_fraction * population)
     # every row the search can score: the initial and EOBL batches, per iteration the moths, their opposites and
