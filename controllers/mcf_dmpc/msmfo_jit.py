@@ -84,7 +84,7 @@ def _score(pos, lb, table, stats, best, ctx, work):  # pragma: no cover - compil
     a row repeated within the batch is rolled out once. ``table`` = (keys, costs, cells, free cells left) of the
     rows scored so far; ``work`` = (rows of the batch, their costs, the table cell of each row, a key buffer).
     """
-    theta, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, n_values, dpw = ctx
+    theta, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, bits, dpw = ctx
     index, keys, state, values, n_entries = table
     full, costs, entry_of, key = work
     m, dim = pos.shape
@@ -94,12 +94,10 @@ def _score(pos, lb, table, stats, best, ctx, work):  # pragma: no cover - compil
     out = np.empty(m)
     n_new = 0
     for r in range(m):
-        for k in range(n_words):  # the row's exact key: dpw base-n digits per word
+        for k in range(n_words):  # the row's exact key: dpw digits of ``bits`` bits per word (independent ORs)
             word = 0
             for d in range(k * dpw, min(dim, (k + 1) * dpw)):
-                x = pos[r, d] - lb
-                full[n_new, d] = x
-                word = word * n_values + x
+                word |= (pos[r, d] - lb) << ((d - k * dpw) * bits)
             key[k] = word
         i = _find(index, keys, key, mask)
         if index[i] < 0:  # a new row: a new entry, pending as row n_new of this batch
@@ -111,6 +109,8 @@ def _score(pos, lb, table, stats, best, ctx, work):  # pragma: no cover - compil
             for k in range(n_words):
                 keys[e, k] = key[k]
             state[e] = n_new
+            for d in range(dim):
+                full[n_new, d] = pos[r, d] - lb
             for d in range(dim, steps):  # move blocking (decision_dim < Np): hold the last index
                 full[n_new, d] = full[n_new, dim - 1]
             n_new += 1
@@ -300,11 +300,14 @@ def msmfo_mcf(
     Θ, plus the horizon the ``D`` decision variables expand to (move blocking holds the last index).
     """
     theta, *batch_args, steps = fitness_args
-    digits_per_word = int(math.floor(62.0 / math.log2(max(n_values, 2))))
+    bits = max(1, (int(n_values) - 1).bit_length())  # bits of one zero-based index
+    digits_per_word = 63 // bits
     n_words = -(-dim // digits_per_word)  # the int64 words of a row's exact key
     theta_row = np.ascontiguousarray(theta, dtype=float).reshape(1, -1)  # one Θ for every row
-    ctx = (theta_row, *batch_context(*batch_args), int(n_values), digits_per_word)
+    ctx = (theta_row, *batch_context(*batch_args), bits, digits_per_word)
     warm = np.zeros((0, dim), dtype=np.int64) if init is None else np.ascontiguousarray(init, dtype=np.int64)
+    if warm.size and (warm.min() < 0 or warm.max() >= n_values):  # the row keys hold indices 0 … n − 1 only
+        raise ValueError(f"msmfo_mcf: init holds indices outside 0 … {n_values - 1}")
     n_elite = math.ceil(elite_fraction * population)
     # every row the search can score: the initial and EOBL batches, per iteration the moths, their opposites and
     # at most one mutant per flame, and the greedy passes (~2x the distinct rows a search scores)
