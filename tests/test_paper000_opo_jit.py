@@ -45,7 +45,7 @@ def test_compiled_opo_equals_the_python_search(steps: int) -> None:
         theta += rng.normal(0.0, 0.3, theta.size) * (THETA_BOUNDS[:, 1] - THETA_BOUNDS[:, 0])  # some outside the box
         settings = _settings(rng, trial)
 
-        def batch(seqs: np.ndarray, thetas: np.ndarray, hz=hz, v0=v0, u_prev=u_prev, ff=ff) -> np.ndarray:
+        def batch(seqs: np.ndarray, thetas: np.ndarray, hz=hz, x0=x0, v0=v0, u_prev=u_prev, ff=ff) -> np.ndarray:
             return sequence_costs(seqs, x0, v0, hz, thetas, TABLE_I, u_prev, TABLE_II, resistance_feedforward=ff)
 
         ref = opo_step(theta, batch, steps, settings)
