@@ -20,7 +20,11 @@ Baseline in the same run (issue 19): the MCF variants are also timed on their Py
 search, :func:`controllers.mcf_dmpc.optim.minimize_sequence` over the numba fitness — what every step cost before
 the compiled MSMFO of :mod:`controllers.mcf_dmpc.msmfo_jit`), ``baseline_python`` with ``speedup_cpu`` /
 ``speedup_wall`` = baseline median / compiled median. ``--budget-sweep K1 K2 …`` times OPO-MCF-DMPC at lower
-MSMFO iteration counts (Table II: K = 100) to show what budget a time target buys.
+MSMFO iteration counts (Table II: K = 100) to show what budget a time target buys. ``--repeats R`` runs each MCF
+timing (and its baseline) R times after a warm-up run: ``repeats`` lists each repetition's medians and its whole-
+process CPU time (``time.process_time``, all threads, plant and leader included) per train-step, and
+``repeat_median_*`` the medians over the repetitions (``speedup_process_cpu`` against the baseline's); the load
+average at the start and the end says how much the cores were shared.
 
     .venv/bin/python benchmarks/controllers_000.py [--steps 60] [--mcf-steps 8] [--optimizer-seeds 5]
 """
@@ -29,8 +33,10 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import platform
 import sys
+import time
 from pathlib import Path
 from typing import Any
 
@@ -69,20 +75,46 @@ def _stats(values: np.ndarray, prefix: str) -> dict[str, float]:
 
 
 def time_controller(
-    name: str, steps: int, seed: int = 0, mcf_iterations: int = 100, compiled: bool = True
+    name: str, steps: int, seed: int = 0, mcf_iterations: int = 100, compiled: bool = True, repeats: int = 1
 ) -> dict[str, Any]:
-    run = run_platoon(_followers(name, mcf_iterations, compiled), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed)
+    runs, process_cpu, process_wall = [], [], []
+    if repeats > 1:  # warm-up: numba's cache load (or compilation) outside the timed repetitions
+        run_platoon(_followers(name, mcf_iterations, compiled), X0_M, V0_MPS, 2, noise_sd_mps2=0.01, seed=seed)
+    for _ in range(repeats):
+        c0, t0 = time.process_time(), time.perf_counter()
+        runs.append(
+            run_platoon(_followers(name, mcf_iterations, compiled), X0_M, V0_MPS, steps, noise_sd_mps2=0.01, seed=seed)
+        )
+        # the whole process (all threads: numpy/BLAS helpers too) per train-step, plant and leader included
+        process_cpu.append((time.process_time() - c0) / (steps * (len(X0_M) - 1)))
+        process_wall.append((time.perf_counter() - t0) / (steps * (len(X0_M) - 1)))
+    run = runs[0]
     # The first train-step of each follower includes numba's JIT compilation (or its on-disk cache load):
     # report it apart from the steady-state figures.
     first = run.solve_time_s[0, 1:]
     k0 = 1 if steps > 1 else 0
-    wall = run.solve_time_s[k0:, 1:].ravel()
+    wall = np.concatenate([r.solve_time_s[k0:, 1:].ravel() for r in runs])
     wall = wall[np.isfinite(wall)]
-    cpu = np.array([info.get("cpu_time_s", np.nan) for step in run.infos[k0:] for info in step[1:]], dtype=float)
+    cpu = np.array(
+        [info.get("cpu_time_s", np.nan) for r in runs for step in r.infos[k0:] for info in step[1:]], dtype=float
+    )
     cpu = cpu[np.isfinite(cpu)]
     row: dict[str, Any] = {"train_steps": int(wall.size), **_stats(wall, "")}
     if cpu.size:
         row.update(_stats(cpu, "cpu_"))
+    if repeats > 1:
+        per_rep = [
+            {
+                "median_s": float(np.median(r.solve_time_s[k0:, 1:])),
+                "cpu_median_s": float(np.median([i["cpu_time_s"] for st in r.infos[k0:] for i in st[1:]])),
+                "process_cpu_per_step_s": pc,
+                "process_wall_per_step_s": pw,
+            }
+            for r, pc, pw in zip(runs, process_cpu, process_wall)
+        ]
+        row["repeats"] = per_rep
+        for key in ("median_s", "cpu_median_s", "process_cpu_per_step_s", "process_wall_per_step_s"):
+            row[f"repeat_median_{key}"] = float(np.median([rep[key] for rep in per_rep]))
     row["first_step_s"] = float(np.nanmax(first))
     row["fallbacks"] = int(run.fallback[:, 1:].sum())
     if "mcf" in name:
@@ -155,22 +187,31 @@ def main() -> None:
     parser.add_argument("--only", nargs="*", default=list(CONTROLLERS), choices=CONTROLLERS)
     parser.add_argument("--baseline-steps", type=int, default=3, help="steps of the Python-path baseline (0: skip)")
     parser.add_argument("--budget-sweep", type=int, nargs="*", default=[], help="also time OPO at these K")
+    parser.add_argument("--repeats", type=int, default=1, help="timed repetitions of each MCF run (medians over them)")
     args = parser.parse_args()
     out: dict[str, Any] = {
         "benchmark": "controllers_000",
         "python": platform.python_version(),
         "numpy": np.__version__,
         "horizon_steps": 60,
+        "load_average": list(os.getloadavg()),  # other processes share the cores: CPU figures, not wall
         "controllers": {},
     }
     for name in args.only:
         steps = args.mcf_steps if "mcf" in name else args.steps
-        row = time_controller(name, steps, mcf_iterations=args.mcf_iterations)
+        repeats = args.repeats if "mcf" in name else 1
+        row = time_controller(name, steps, mcf_iterations=args.mcf_iterations, repeats=repeats)
         if "mcf" in name and args.baseline_steps > 0:
-            base = time_controller(name, args.baseline_steps + 1, mcf_iterations=args.mcf_iterations, compiled=False)
-            row["baseline_python"] = {k: base[k] for k in ("train_steps", "median_s", "cpu_median_s")}
+            base = time_controller(
+                name, args.baseline_steps + 1, mcf_iterations=args.mcf_iterations, compiled=False, repeats=repeats
+            )
+            keys = ("train_steps", "median_s", "cpu_median_s", "repeat_median_process_cpu_per_step_s")
+            row["baseline_python"] = {k: base[k] for k in keys if k in base}
             row["speedup_wall"] = base["median_s"] / row["median_s"]
             row["speedup_cpu"] = base["cpu_median_s"] / row["cpu_median_s"]
+            if repeats > 1:
+                key = "repeat_median_process_cpu_per_step_s"
+                row["speedup_process_cpu"] = base[key] / row[key]
         out["controllers"][name] = row
     if args.budget_sweep:
         out["opo_budget_sweep"] = {
@@ -187,6 +228,7 @@ def main() -> None:
         out["paper_speedup_check"] = {"paper": (0.439 - 0.282) / 0.439, "ours": ours}
     if args.optimizer_seeds > 0:
         out["optimizers"] = optimizer_comparison(args.optimizer_seeds)
+    out["load_average_end"] = list(os.getloadavg())
     print(json.dumps(out, indent=2))
 
 

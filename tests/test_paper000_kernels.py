@@ -90,3 +90,24 @@ def test_sequence_costs_uses_kernel_and_agrees_with_numpy_path() -> None:
     ref = cost_terms(rollout_models(seq, x0, v0, hz, theta, TABLE_I), hz, u_prev, TABLE_I, TABLE_II)["J"]
     np.testing.assert_allclose(got, ref, rtol=1e-9)  # numpy's vectorised pow may differ in the last bits
     assert kernels.NUMBA_AVAILABLE  # the project declares numba; without it this path would be ~100x slower
+
+
+def test_a_rows_cost_does_not_depend_on_its_batch() -> None:
+    """batch_costs scores rows in pairs; a row's cost is bit for bit the same alone, in an odd or even batch, at any
+    position, and with one shared Θ row or its own copy (the compiled searches rely on it: issue 19)."""
+    rng = np.random.default_rng(23)
+    for _ in range(12):
+        steps = int(rng.integers(1, 61))
+        hz, seq, thetas, x0, v0, u_prev = _random_case(rng, steps, int(rng.integers(2, 10)))
+        ctx = kernels.batch_context(
+            x0, v0, hz.position_m, hz.speed_mps, hz.accel_mps2, hz.length_m, hz.emergency_decel_mps2,
+            kernels.train_vector(TABLE_I), kernels.weight_vector(TABLE_II), u_prev, bool(rng.random() < 0.5),
+        )  # fmt: skip
+        whole = np.empty(len(seq))
+        kernels.batch_costs(seq, thetas, *ctx, whole)
+        for r in range(len(seq)):
+            alone = np.empty(1)
+            kernels.batch_costs(seq[r : r + 1], thetas[r : r + 1], *ctx, alone)
+            shared = np.empty(3)  # the row in the middle of an odd batch, one Θ row for all
+            kernels.batch_costs(seq[[0, r, -1]], thetas[r : r + 1], *ctx, shared)
+            assert alone[0] == whole[r] == shared[1]

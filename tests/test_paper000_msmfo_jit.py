@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from controllers import create
-from controllers.mcf_dmpc import kernels
+from controllers.mcf_dmpc import kernels, msmfo_jit
 from controllers.mcf_dmpc.cf_models import THETA_TRAIN2, THETA_TRAIN3
 from controllers.mcf_dmpc.cost import TABLE_II, sequence_costs
 from controllers.mcf_dmpc.msmfo_jit import msmfo_mcf
@@ -34,8 +34,8 @@ def _problem(rng: np.random.Generator, steps: int):
 
 @pytest.mark.parametrize(
     "steps, dim, pop, iters",
-    [(20, 20, 10, 8), (30, 30, 16, 20), (25, 6, 12, 10), (60, 60, 50, 100)],
-    ids=["small", "medium", "move_blocking", "table_ii"],
+    [(20, 20, 10, 8), (30, 30, 16, 20), (25, 6, 12, 10), (60, 60, 50, 100), (170, 170, 8, 4)],
+    ids=["small", "medium", "move_blocking", "table_ii", "five_key_words"],
 )
 def test_compiled_msmfo_equals_the_python_optimiser(steps: int, dim: int, pop: int, iters: int) -> None:
     rng = np.random.default_rng(steps * 1000 + dim)
@@ -58,6 +58,18 @@ def test_compiled_msmfo_equals_the_python_optimiser(steps: int, dim: int, pop: i
         assert evaluations == ref.evaluations
         assert rollouts < evaluations  # repeated rows were looked up, not rolled out again
         assert r_py.random() == r_jit.random()  # the generator advanced by exactly the same draws
+
+
+def test_cyclic_rounding_equals_the_python_modulo() -> None:
+    """Eq. (21) without the integer division on the common path: the same cell as ``(⌊x⌋ − lb) mod n + lb``."""
+    rng = np.random.default_rng(21)
+    for lb, period in [(1, 3), (1, 2), (1, 7), (0, 5), (-2, 4)]:
+        x = np.concatenate([rng.uniform(-3.0 * period, 4.0 * period, 4000), rng.uniform(-1e12, 1e12, 200)])
+        x = np.concatenate([x, np.arange(-3 * period, 4 * period + 1, dtype=float)])  # the box edges exactly
+        got = [msmfo_jit._cyclic(float(v), lb, period) for v in x]
+        assert got == [(int(np.floor(v)) - lb) % period + lb for v in x]
+    with pytest.raises(ValueError, match="non-finite"):
+        msmfo_jit._cyclic(float("nan"), 1, 3)
 
 
 @pytest.mark.parametrize("name", ["mcf_dmpc", "opo_mcf_dmpc"])

@@ -51,6 +51,7 @@ from controllers.mcf_dmpc.dmpc import DmpcQp, shift_controls
 from controllers.mcf_dmpc.kernels import NUMBA_AVAILABLE, train_vector, weight_vector
 from controllers.mcf_dmpc.msmfo_jit import msmfo_mcf
 from controllers.mcf_dmpc.opo import OpoSettings, opo_step
+from controllers.mcf_dmpc.opo_jit import opo_step_compiled
 from controllers.mcf_dmpc.rollout import (
     PredecessorHorizon,
     expand_sequence,
@@ -430,11 +431,10 @@ class McfDmpc(_PaperAController):
             seeds.insert(0, np.append(self._best[1:], self._best[-1]))
         return np.stack(seeds[: p.population])
 
-    def _select_compiled(self, x0, v0, u_prev, hz, theta) -> tuple[np.ndarray, Any]:
-        """The same search as ``_select`` with the default MSMFO, compiled (:mod:`controllers.mcf_dmpc.msmfo_jit`)."""
+    def _fitness_args(self, x0, v0, u_prev, hz) -> tuple:
+        """The MCF fitness of this step for the compiled searches (everything but Θ and the rows)."""
         p: McfParams = self.params  # type: ignore[assignment]
-        args = (
-            theta,
+        return (
             x0,
             v0,
             hz.position_m,
@@ -448,6 +448,11 @@ class McfDmpc(_PaperAController):
             p.resistance_feedforward,
             self.n_steps,
         )
+
+    def _select_compiled(self, x0, v0, u_prev, hz, theta) -> tuple[np.ndarray, Any]:
+        """The same search as ``_select`` with the default MSMFO, compiled (:mod:`controllers.mcf_dmpc.msmfo_jit`)."""
+        p: McfParams = self.params  # type: ignore[assignment]
+        args = (theta, *self._fitness_args(x0, v0, u_prev, hz))
         best, cost, evaluations, rollouts = msmfo_mcf(
             args, self.dim, 3, population=p.population, iterations=p.iterations, rng=self.rng, init=self._warm_start()
         )
@@ -496,8 +501,11 @@ class OpoMcfDmpc(McfDmpc):
 
     def _decide(self, x0, v0, u_prev, hz):
         t0 = time.perf_counter()
-        batch = self._batch_cost(x0, v0, u_prev, hz)
-        opo = opo_step(self.theta, lambda seqs, thetas: batch(seqs, thetas), self.n_steps, self.opo_settings)
+        if self._compiled:  # the same compass search in one compiled call (same Θ, tested)
+            opo = opo_step_compiled(self.theta, self._fitness_args(x0, v0, u_prev, hz), self.opo_settings)
+        else:
+            batch = self._batch_cost(x0, v0, u_prev, hz)
+            opo = opo_step(self.theta, lambda seqs, thetas: batch(seqs, thetas), self.n_steps, self.opo_settings)
         self.theta = opo.theta
         opo_time = time.perf_counter() - t0
         best, res = self._select(x0, v0, u_prev, hz, self.theta)

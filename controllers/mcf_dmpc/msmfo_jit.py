@@ -29,88 +29,103 @@ import math
 
 import numpy as np
 
-from controllers.mcf_dmpc.kernels import NUMBA_AVAILABLE, batch_costs, desired_base, njit
+from controllers.mcf_dmpc.kernels import NUMBA_AVAILABLE, batch_context, batch_costs, njit
 
 __all__ = ["NUMBA_AVAILABLE", "msmfo_mcf"]
 
-_KEY_WORDS = 4
+
+_SCORED = -1  # an entry whose cost is known; an entry >= 0 is pending: that row of the current batch
+_MIX = 0x9E3779B97F4A7C15 - (1 << 64)  # Fibonacci hashing constant as an int64 (the products wrap)
 
 
 @njit(cache=True)
-def _key(row, n_values, digits_per_word):  # pragma: no cover - compiled
-    """The row packed exactly into four int64 words (base ``n_values``); requires ``D ≤ 4·digits_per_word``."""
-    k0 = 0
-    k1 = 0
-    k2 = 0
-    k3 = 0
-    for d in range(row.shape[0]):
-        w = d // digits_per_word
-        if w == 0:
-            k0 = k0 * n_values + row[d]
-        elif w == 1:
-            k1 = k1 * n_values + row[d]
-        elif w == 2:
-            k2 = k2 * n_values + row[d]
-        else:
-            k3 = k3 * n_values + row[d]
-    return (k0, k1, k2, k3)
+def _find(index, keys, key, mask):  # pragma: no cover - compiled
+    """The slot of ``key`` in the open-addressing ``index`` (linear probing): its entry number (a row of ``keys``),
+    or ``-1`` at the free slot where it goes. The index is small (int32, ~2 slots per row the search can score), so
+    a probe mostly stays in cache; the keys are read only for a candidate entry."""
+    n_words = key.shape[0]
+    h = 0
+    for w in range(n_words):
+        h = (h ^ key[w]) * _MIX
+    i = (h ^ (h >> 29)) & mask
+    while index[i] >= 0:
+        e = index[i]
+        same = True
+        for w in range(n_words):
+            if keys[e, w] != key[w]:
+                same = False
+                break
+        if same:
+            return i
+        i = (i + 1) & mask
+    return i
 
 
 @njit(cache=True)
 def _cyclic(x, lb, period):  # pragma: no cover - compiled
     """Eq. (21) on one value: ``(⌊x⌋ − lb) mod period + lb`` (non-negative modulo)."""
-    f = math.floor(x)
-    if not math.isfinite(f):
+    if not math.isfinite(x):  # as cyclic_round: a diverging move is a bug, not a cell
         raise ValueError("msmfo: non-finite position")
-    return (int(f) - lb) % period + lb
+    q = int(math.floor(x)) - lb
+    if q < -period or q >= 2 * period:  # far outside the box (rare): the general modulo
+        return q % period + lb
+    # the moves land within one period of the box: two selects (no branch to mispredict, no integer division)
+    q = q + period if q < 0 else q
+    q = q - period if q >= period else q
+    return q + lb
 
 
 @njit(cache=True)
-def _score(pos, lb, memo, stats, best, ctx, full):  # pragma: no cover - compiled
+def _score(pos, lb, table, stats, best, ctx, work):  # pragma: no cover - compiled
     """Costs of the integer positions ``pos (m, D)`` (paper frame); updates the evaluator's best (first found wins
     on ties, strict improvement) and counts ``stats[0]`` evaluations, ``stats[1]`` rollouts.
 
     Rows not seen before in this call are rolled out together (:func:`~controllers.mcf_dmpc.kernels.batch_costs`);
-    a row repeated within the batch is rolled out once.
+    a row repeated within the batch is rolled out once. ``table`` = (keys, costs, cells, free cells left) of the
+    rows scored so far; ``work`` = (rows of the batch, their costs, the table cell of each row, a key buffer).
     """
-    theta, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, n_values, dpw = ctx
+    theta, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, bits, dpw = ctx
+    index, keys, state, values, n_entries = table
+    full, costs, entry_of, key = work
     m, dim = pos.shape
     steps = full.shape[1]
+    n_words = key.shape[0]
+    mask = index.shape[0] - 1
     out = np.empty(m)
-    slot = np.empty(m, dtype=np.int64)  # -1: known cost in out[r]; else the row of the batch to roll out
-    keys = []
     n_new = 0
-    pending = dict()
-    pending[(-1, -1, -1, -1)] = -1  # fixes the dict's types; no real key is negative
     for r in range(m):
-        for d in range(dim):
-            full[n_new, d] = pos[r, d] - lb
-        key = _key(full[n_new, :dim], n_values, dpw)
-        keys.append(key)
-        if key in memo:
-            out[r] = memo[key]
-            slot[r] = -1
-        elif key in pending:
-            slot[r] = pending[key]
-        else:
+        for k in range(n_words):  # the row's exact key: dpw digits of ``bits`` bits per word (independent ORs)
+            word = 0
+            for d in range(k * dpw, min(dim, (k + 1) * dpw)):
+                word |= (pos[r, d] - lb) << ((d - k * dpw) * bits)
+            key[k] = word
+        i = _find(index, keys, key, mask)
+        if index[i] < 0:  # a new row: a new entry, pending as row n_new of this batch
+            e = n_entries[0]
+            if e == keys.shape[0]:
+                raise ValueError("msmfo: the table of scored rows is full")
+            n_entries[0] = e + 1
+            index[i] = e
+            for k in range(n_words):
+                keys[e, k] = key[k]
+            state[e] = n_new
+            for d in range(dim):
+                full[n_new, d] = pos[r, d] - lb
             for d in range(dim, steps):  # move blocking (decision_dim < Np): hold the last index
                 full[n_new, d] = full[n_new, dim - 1]
-            pending[key] = n_new
-            slot[r] = n_new
             n_new += 1
+        entry_of[r] = index[i]
     if n_new > 0:
-        costs = np.empty(n_new)
-        thetas = np.empty((n_new, theta.shape[0]))
-        for i in range(n_new):
-            thetas[i] = theta
-        batch_costs(full[:n_new], thetas, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, costs)
+        batch_costs(full[:n_new], theta, x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, costs[:n_new])
         stats[1] += n_new
         for r in range(m):
-            if slot[r] >= 0:
-                out[r] = costs[slot[r]]
-                memo[keys[r]] = out[r]
+            e = entry_of[r]
+            if state[e] >= 0:
+                values[e] = costs[state[e]]
+                state[e] = _SCORED
     for r in range(m):
-        c = out[r]
+        c = values[entry_of[r]]
+        out[r] = c
         if math.isnan(c):
             raise ValueError("msmfo: the fitness returned NaN")
         stats[0] += 1
@@ -122,7 +137,7 @@ def _score(pos, lb, memo, stats, best, ctx, full):  # pragma: no cover - compile
 
 
 @njit(cache=True)
-def _eobl(M, fM, rng, P, lb, ub, period, n_elite, memo, stats, best, ctx, full):  # pragma: no cover
+def _eobl(M, fM, rng, P, lb, ub, period, n_elite, table, stats, best, ctx, work):  # pragma: no cover
     """Eq. (23): opposites of the best ``n_elite`` moths, merged, best P kept (stable ranking)."""
     dim = M.shape[1]
     order = np.argsort(fM, kind="mergesort")[:n_elite]
@@ -131,7 +146,7 @@ def _eobl(M, fM, rng, P, lb, ub, period, n_elite, memo, stats, best, ctx, full):
     for e in range(n_elite):
         for d in range(dim):
             opp[e, d] = _cyclic(r2[e, d] * (lb + ub) - M[order[e], d], lb, period)
-    f_opp = _score(opp, lb, memo, stats, best, ctx, full)
+    f_opp = _score(opp, lb, table, stats, best, ctx, work)
     pool = np.concatenate((M, opp))
     f_pool = np.concatenate((fM, f_opp))
     keep = np.argsort(f_pool, kind="mergesort")[:P]
@@ -146,12 +161,12 @@ def _flame_count(progress, n0):  # pragma: no cover - compiled
 
 
 @njit(cache=True)
-def _search(init, rng, P, K, dim, n_values, alpha, beta, elite_fraction, max_passes, ctx, full):  # pragma: no cover
+def _search(
+    init, rng, P, K, dim, n_values, alpha, beta, elite_fraction, max_passes, ctx, table, work
+):  # pragma: no cover
     lb = 1
     ub = n_values
     period = n_values
-    memo = dict()
-    memo[(-1, -1, -1, -1)] = 0.0  # fixes the dict's types; no real key is negative
     stats = np.zeros(2, dtype=np.int64)
     best = np.empty(1 + dim)
     best[0] = np.inf
@@ -183,9 +198,9 @@ def _search(init, rng, P, K, dim, n_values, alpha, beta, elite_fraction, max_pas
         for d in range(dim):
             M[i, d] = init[i, d] + lb
     n_elite = math.ceil(elite_fraction * P)
-    fM = _score(M, lb, memo, stats, best, ctx, full)
+    fM = _score(M, lb, table, stats, best, ctx, work)
     if n_elite > 0:
-        M, fM = _eobl(M, fM, rng, P, lb, ub, period, n_elite, memo, stats, best, ctx, full)
+        M, fM = _eobl(M, fM, rng, P, lb, ub, period, n_elite, table, stats, best, ctx, work)
     order = np.argsort(fM, kind="mergesort")
     F = M[order].copy()
     fF = fM[order].copy()
@@ -205,9 +220,9 @@ def _search(init, rng, P, K, dim, n_values, alpha, beta, elite_fraction, max_pas
                 else:
                     x = dist * math.exp(alpha * rs[p, d]) * math.sin(spiral * (rs[p, d] - r)) + t[d]
                     M[p, d] = _cyclic(x, lb, period)
-        fM = _score(M, lb, memo, stats, best, ctx, full)
+        fM = _score(M, lb, table, stats, best, ctx, work)
         if n_elite > 0:
-            M, fM = _eobl(M, fM, rng, P, lb, ub, period, n_elite, memo, stats, best, ctx, full)
+            M, fM = _eobl(M, fM, rng, P, lb, ub, period, n_elite, table, stats, best, ctx, work)
         pool = np.concatenate((F, M))
         f_pool = np.concatenate((fF, fM))
         keep = np.argsort(f_pool, kind="mergesort")[:P]
@@ -224,7 +239,7 @@ def _search(init, rng, P, K, dim, n_values, alpha, beta, elite_fraction, max_pas
             for h in range(hits.size):
                 for d in range(dim):
                     mutant[h, d] = _cyclic(F[hits[h], d] + scale * noise[h, d], lb, period)
-            f_mut = _score(mutant, lb, memo, stats, best, ctx, full)
+            f_mut = _score(mutant, lb, table, stats, best, ctx, work)
             changed = False
             for h in range(hits.size):
                 if f_mut[h] < fF[hits[h]]:
@@ -250,7 +265,7 @@ def _search(init, rng, P, K, dim, n_values, alpha, beta, elite_fraction, max_pas
                     cands[i] = m[0]
                     cands[i, d] = value
                     i += 1
-            costs = _score(cands, lb, memo, stats, best, ctx, full)
+            costs = _score(cands, lb, table, stats, best, ctx, work)
             j = np.argmin(costs)
             if costs[j] < cost:
                 m[0] = cands[j]
@@ -284,34 +299,34 @@ def msmfo_mcf(
     feedforward, horizon_steps)``: the arguments of :func:`controllers.mcf_dmpc.kernels.population_costs` for one
     Θ, plus the horizon the ``D`` decision variables expand to (move blocking holds the last index).
     """
-    theta, x0, v0, xp, vp, ap, lp, bp, tr, w, u_prev, ff, steps = fitness_args
-    digits_per_word = int(math.floor(62.0 / math.log2(max(n_values, 2))))
-    if dim > _KEY_WORDS * digits_per_word:
-        raise ValueError(f"msmfo_mcf: dim {dim} too large for exact row keys (max {_KEY_WORDS * digits_per_word})")
-    xp = np.ascontiguousarray(xp, dtype=float)
-    vp = np.ascontiguousarray(vp, dtype=float)
-    ap = np.ascontiguousarray(ap, dtype=float)
-    base = desired_base(vp, float(lp), float(bp), tr)
-    ctx = (
-        np.ascontiguousarray(theta, dtype=float),
-        float(x0),
-        float(v0),
-        xp,
-        vp,
-        ap,
-        base,
-        float(lp),
-        float(bp),
-        tr,
-        w,
-        float(u_prev),
-        bool(ff),
-        int(n_values),
-        digits_per_word,
-    )
+    theta, *batch_args, steps = fitness_args
+    bits = max(1, (int(n_values) - 1).bit_length())  # bits of one zero-based index
+    digits_per_word = 63 // bits
+    n_words = -(-dim // digits_per_word)  # the int64 words of a row's exact key
+    theta_row = np.ascontiguousarray(theta, dtype=float).reshape(1, -1)  # one Θ for every row
+    ctx = (theta_row, *batch_context(*batch_args), bits, digits_per_word)
     warm = np.zeros((0, dim), dtype=np.int64) if init is None else np.ascontiguousarray(init, dtype=np.int64)
-    full = np.empty((max(population, 2 * n_values), int(steps)), dtype=np.int64)  # the rows of one batch
+    if warm.size and (warm.min() < 0 or warm.max() >= n_values):  # the row keys hold indices 0 … n − 1 only
+        raise ValueError(f"msmfo_mcf: init holds indices outside 0 … {n_values - 1}")
+    n_elite = math.ceil(elite_fraction * population)
+    # every row the search can score: the initial and EOBL batches, per iteration the moths, their opposites and
+    # at most one mutant per flame, and the greedy passes (~2x the distinct rows a search scores)
+    bound = (1 + iterations) * (population + n_elite) + iterations * population + max_passes * dim * (n_values - 1)
+    table = (
+        np.full(1 << int(bound).bit_length(), -1, dtype=np.int32),  # open-addressing index, > bound slots
+        np.empty((bound, n_words), dtype=np.int64),  # entry: the row's key,
+        np.empty(bound, dtype=np.int64),  # its state (pending batch row or _SCORED)
+        np.empty(bound),  # and its cost
+        np.zeros(1, dtype=np.int64),  # entries in use
+    )
+    rows = max(population, n_elite, n_values - 1)  # the largest batch: moths, opposites or greedy candidates
+    work = (
+        np.empty((rows, int(steps)), dtype=np.int64),
+        np.empty(rows),
+        np.empty(rows, dtype=np.int64),
+        np.empty(n_words, dtype=np.int64),
+    )
     best, cost, evaluations, rollouts = _search(
-        warm, rng, population, iterations, dim, n_values, alpha, beta, elite_fraction, max_passes, ctx, full
+        warm, rng, population, iterations, dim, n_values, alpha, beta, elite_fraction, max_passes, ctx, table, work
     )
     return best, float(cost), int(evaluations), int(rollouts)

@@ -33,7 +33,7 @@ import numpy as np
 
 from controllers.mcf_dmpc.cf_models import MODEL_THETA_INDEX, N_THETA, THETA_BOUNDS
 
-__all__ = ["OpoResult", "OpoSettings", "opo_step"]
+__all__ = ["OpoResult", "OpoSettings", "box", "finish", "opo_step"]
 
 # (model-index sequences (P, Np), parameter rows (P, N_THETA)) -> costs (P,)
 BatchCost = Callable[[np.ndarray, np.ndarray], np.ndarray]
@@ -68,15 +68,30 @@ class OpoResult:
     batches: int  # vectorised rollout calls
 
 
-def opo_step(
-    theta: np.ndarray, batch_cost: BatchCost, horizon_steps: int, settings: OpoSettings = OpoSettings()
-) -> OpoResult:
-    """One OPO update from the warm start ``theta`` (projected onto the box first)."""
+def box(theta: np.ndarray, settings: OpoSettings) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """``(lo, span, z)``: the box and the warm start projected onto it in normalised coordinates ``z ∈ [0, 1]``."""
     lo, hi = np.asarray(settings.bounds, dtype=float).T
     span = hi - lo
     safe_span = np.where(span > 0.0, span, 1.0)
     z = np.clip((np.asarray(theta, dtype=float) - lo) / safe_span, 0.0, 1.0)
-    z = np.where(span > 0.0, z, 0.0)
+    return lo, span, np.where(span > 0.0, z, 0.0)
+
+
+def finish(
+    lo: np.ndarray, span: np.ndarray, z: np.ndarray, cost: np.ndarray, evaluations: int, batches: int
+) -> OpoResult:
+    """The result at ``z``; a non-finite Θ is a bug upstream and raises."""
+    theta_out = lo + np.clip(z, 0.0, 1.0) * span
+    if not np.all(np.isfinite(theta_out)) or not math.isfinite(float(np.sum(span))):
+        raise RuntimeError("OPO produced a non-finite parameter vector")
+    return OpoResult(theta_out, cost, int(evaluations), int(batches))
+
+
+def opo_step(
+    theta: np.ndarray, batch_cost: BatchCost, horizon_steps: int, settings: OpoSettings = OpoSettings()
+) -> OpoResult:
+    """One OPO update from the warm start ``theta`` (projected onto the box first)."""
+    lo, span, z = box(theta, settings)
 
     def to_theta(zz: np.ndarray) -> np.ndarray:
         return lo + np.clip(zz, 0.0, 1.0) * span
@@ -120,7 +135,4 @@ def opo_step(
                 cost[m] = costs[best]
             else:
                 step[m] *= 0.5
-    theta_out = to_theta(z)
-    if not np.all(np.isfinite(theta_out)) or not math.isfinite(float(np.sum(span))):
-        raise RuntimeError("OPO produced a non-finite parameter vector")
-    return OpoResult(theta_out, cost, evaluations, batches)
+    return finish(lo, span, z, cost, evaluations, batches)
