@@ -35,7 +35,7 @@ class EngineSettings:
     missed_stop_tolerance_m: float = 0.5
     final_approach_margin_m: float = 50.0  # coupled follower: hand the stop to the ATO this far before braking
     sensor_range_m: float = 400.0  # a train's own ranging sensor (collision avoidance) sees this far ahead
-    insertion_margin_m: float = 50.0  # a departure waits unless trains approaching behind can stop this far back
+    insertion_margin_m: float = 50.0  # departures wait for this much room ahead and behind
     departure_retry_s: float = 1.0  # ... and is tried again after this long
     desync_tolerance_m: float = 0.05  # railsim's chainage and SUMO's lane position may differ this much
     stall_timeout_s: float = 300.0  # a train standing this long with no reason (no stop, no hold) stalls the run
