@@ -400,7 +400,12 @@ def relative_braking_distance_m(
     passes the worst-case extrapolated leader speed as ``leader_speed_mps``); the junction planner
     (:mod:`controllers.junction.model`, :mod:`controllers.junction.qp`) requires it along its plans, so a plan
     the guard would cap is infeasible. Accepts floats or numpy arrays (broadcast); returns a float for floats.
+    Scalars take a plain-float path (the guard runs every step for every coupled train; numpy costs ~10x there)
+    with the same operations in the same order, so both paths give the same bits (tested).
     """
+    args = (follower_speed_mps, leader_speed_mps, follower_decel_mps2, leader_decel_mps2, delay_s)
+    if all(isinstance(x, (float, int)) for x in args) and isinstance(follower_accel_mps2, (float, int)):
+        return _rbd_scalar_m(*args, follower_accel_mps2, margin_m)
     v = np.maximum(np.asarray(follower_speed_mps, dtype=float), 0.0)
     a0 = np.asarray(follower_accel_mps2, dtype=float)
     t = np.maximum(np.asarray(delay_s, dtype=float), 0.0)
@@ -412,3 +417,16 @@ def relative_braking_distance_m(
     v_l = np.maximum(np.asarray(leader_speed_mps, dtype=float), 0.0)
     out = own_stop - v_l * v_l / (2.0 * np.asarray(leader_decel_mps2, dtype=float)) + margin_m
     return float(out) if np.ndim(out) == 0 else out
+
+
+def _rbd_scalar_m(v_f: float, v_l: float, b_f: float, b_l: float, delay_s: float, a0: float, margin_m: float) -> float:
+    """:func:`relative_braking_distance_m` on plain floats: its array expression, operation for operation."""
+    v = max(float(v_f), 0.0)
+    a0 = float(a0)
+    t = max(float(delay_s), 0.0)
+    if a0 < 0.0 and v + a0 * t < 0.0:
+        t = v / -a0
+    v_after = max(v + a0 * t, 0.0)
+    own_stop = v * t + 0.5 * a0 * t * t + v_after * v_after / (2.0 * float(b_f))
+    v_lead = max(float(v_l), 0.0)
+    return float(own_stop - v_lead * v_lead / (2.0 * float(b_l)) + margin_m)

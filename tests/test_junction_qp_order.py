@@ -39,6 +39,23 @@ def test_guard_formula_is_the_dead_time_stop_minus_the_leaders_stop(v_f, v_l, a0
     assert np.allclose(arr, expected)
 
 
+def test_guard_scalar_path_gives_the_array_paths_bits():
+    """Plain floats take a fast path: on random inputs (negative speeds, hard braking inside the dead time,
+    zero delay included) it returns exactly the array path's numbers, bit for bit."""
+    rng = np.random.default_rng(7)
+    n = 2000
+    v_f, v_l = rng.uniform(-1.0, 30.0, n), rng.uniform(-1.0, 30.0, n)
+    b_f, b_l = rng.uniform(0.05, 2.0, n), rng.uniform(0.05, 2.0, n)
+    delay, a0, margin = rng.uniform(0.0, 3.0, n), rng.uniform(-3.0, 1.5, n), rng.uniform(0.0, 50.0, n)
+    delay[:50] = 0.0
+    arr = relative_braking_distance_m(v_f, v_l, b_f, b_l, delay, a0, margin)
+    for k in range(n):
+        one = relative_braking_distance_m(
+            float(v_f[k]), float(v_l[k]), float(b_f[k]), float(b_l[k]), float(delay[k]), float(a0[k]), float(margin[k])
+        )
+        assert type(one) is float and one == arr[k]
+
+
 def test_two_trains_paper_model_feasible_order_interval_and_coupling_hold_in_simulation():
     """Train a on the branch 150 m from sw2, b on the trunk 500 m away, both at 10 m/s: a is first (b cannot reach
     sw2 before a without exceeding the limits, and a closing order would need the reverse throw anyway)."""
