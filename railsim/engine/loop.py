@@ -136,7 +136,7 @@ class Simulation:
             self.knowledge.handshake,
             self.locks.release_all,
         )
-        primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
+        primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure, self.stops)
         self.formations.insert_behind = self.dispatcher.insert_behind
         self.dispatcher.chained = self.turnbacks.chained
         self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)

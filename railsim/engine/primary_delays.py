@@ -18,12 +18,14 @@ the first train *planned* to leave one of the rule's stations at or after the in
 * a departure delay sets ``Trip.departure_delay_s`` (the dispatcher, or the turnback for a unit's next trip,
   lets the trip leave that much after its scheduled time; a follower that couples on departure leaves with its
   leader, so it gets none);
+* passenger demand (``demand:``) is decided at run time, when a train reaches a platform
+  (:mod:`railsim.engine.passenger_dwell`): it holds the train there after SUMO's dwell;
 * the performance factor ``f`` scales the trip's vehicle: top speed, tractive force and power times ``f``
   (drawn to 0.01, so free runs are shared). The ATO reads the vehicle it is given, so it cruises lower too.
 
 **What each train owes to its own disturbances** — the *primary* part of its delay at each stop — is the delay
 of a free run (``railsim.engine.trips.plan_free_run``) with only its own disturbances: the departure delay,
-plus every extra dwell before the stop, plus the running-time loss of a free run with the scaled vehicle.
+plus every extra dwell before the stop (passenger-demand extensions included), plus the running-time loss of a free run with the scaled vehicle.
 Whatever else the train is late by is *secondary* (knock-on: waiting for authority, a held departure, a late
 incoming unit). :meth:`PrimaryDelays.rows` joins this with the recorded stops into ``delays.csv``.
 """
@@ -40,6 +42,8 @@ from typing import Any
 import numpy as np
 
 from railsim.engine.fleet import Fleet, ato_factory
+from railsim.engine.passenger_dwell import DemandDwell
+from railsim.engine.stops import StopBook
 from railsim.engine.trips import Trip, plan_free_run
 from railsim.errors import ConfigError
 from railsim.scenario.disturbances import DelayRule, DisturbanceSpec
@@ -61,6 +65,7 @@ DELAY_COLUMNS = [
     "departure_s",
     "departure_delay_s",
     "dwell_extra_s",
+    "dwell_demand_s",
     "incident_s",
     "missed",
 ]
@@ -73,12 +78,15 @@ class TripPrimary:
     departure_s: float = 0.0  # late departure from the origin
     dwell_extra_s: dict[str, float] = field(default_factory=dict)  # station -> extra dwell (dwell rules)
     incident_s: dict[str, float] = field(default_factory=dict)  # station -> incident hold
+    demand_s: dict[str, float] = field(default_factory=dict)  # station -> passenger-demand extension (at run time)
     factor: float = 1.0  # performance factor on the traction/speed envelope
     running_loss_s: dict[str, float] = field(default_factory=dict)  # station -> free-run arrival loss from factor
     stations: tuple[str, ...] = ()  # intermediate stops and destination, in order
 
     def extra_at(self, station: str) -> float:
-        return self.dwell_extra_s.get(station, 0.0) + self.incident_s.get(station, 0.0)
+        return (
+            self.dwell_extra_s.get(station, 0.0) + self.incident_s.get(station, 0.0) + self.demand_s.get(station, 0.0)
+        )
 
     def primary_arrival_s(self) -> dict[str, float]:
         """Station -> the arrival delay a free run with only these disturbances has there."""
@@ -112,6 +120,11 @@ class PrimaryDelays:
             self.trips[tid] = self._draw_trip(tr.trip)
         self._incidents(fleet, horizon_s)
         self._running_losses(fleet, scenario, dt_s)
+        self.demand: DemandDwell | None = None
+        if self.spec.demand is not None:
+            trips = (tr.trip for tr in fleet.trains.values())
+            start_s = scenario.simulation.start_time_s
+            self.demand = DemandDwell(self.spec.demand, self.spec.intensity, start_s, trips)
 
     # ------------------------------------------------------------------ drawing
     def _check_stations(self, fleet: Fleet, scenario: Any) -> None:
@@ -217,8 +230,13 @@ class PrimaryDelays:
             }
 
     # ------------------------------------------------------------------ injecting
-    def apply(self, fleet: Fleet, couples_on_departure: Any) -> None:
-        """Lengthen dwells, delay departures and slow vehicles down (module docstring)."""
+    def apply(self, fleet: Fleet, couples_on_departure: Any, stops: StopBook) -> None:
+        """Lengthen dwells, delay departures and slow vehicles down (module docstring); passenger demand hooks
+        into the stops (:mod:`railsim.engine.passenger_dwell`)."""
+        if self.demand is not None:
+            demand = self.demand
+            stops.dwell_extension = lambda t, tr, stop: demand.extension_s(t, tr.trip, stop)
+            stops.departed_platform = demand.departed
         for tid, tp in self.trips.items():
             trip = fleet.trains[tid].trip
             if couples_on_departure(tid):
@@ -237,6 +255,7 @@ class PrimaryDelays:
     # ------------------------------------------------------------------ accounting
     def rows(self, stop_records: list[dict[str, Any]], trains: dict[str, Any]) -> list[dict[str, Any]]:
         """``delays.csv``: one row per recorded stop after the origin (module docstring)."""
+        self._collect_demand()
         primary = {tid: tp.primary_arrival_s() for tid, tp in self.trips.items()}
         out = []
         for rec in stop_records:
@@ -265,16 +284,31 @@ class PrimaryDelays:
                     "departure_s": dep,
                     "departure_delay_s": None if (dep is None or planned_dep is None) else dep - planned_dep,
                     "dwell_extra_s": tp.dwell_extra_s.get(st, 0.0),
+                    "dwell_demand_s": tp.demand_s.get(st, 0.0),
                     "incident_s": tp.incident_s.get(st, 0.0),
                     "missed": rec["missed"],
                 }
             )
         return out
 
+    def _collect_demand(self) -> None:
+        """The passenger-demand extensions decided during the run, into each trip's primary delays."""
+        if self.demand is not None:
+            for tid, ext in self.demand.extensions_s.items():
+                self.trips[tid].demand_s = dict(ext)
+
     def summary(self) -> dict[str, Any]:
         """What was injected (the engine's part of ``summary.json``'s ``robustness`` block)."""
+        self._collect_demand()
         tps = self.trips.values()
+        demand = {}
+        if self.demand is not None:
+            demand = {
+                "injected_demand_s": math.fsum(math.fsum(tp.demand_s.values()) for tp in tps),
+                "extra_passengers": math.fsum(math.fsum(p.values()) for p in self.demand.passengers.values()),
+            }
         return {
+            **demand,
             "intensity": self.spec.intensity,
             "injected_departure_s": math.fsum(tp.departure_s for tp in tps),
             "injected_dwell_s": math.fsum(math.fsum(tp.dwell_extra_s.values()) for tp in tps),
@@ -298,10 +332,10 @@ def draw(scenario: Any, fleet: Fleet, seed: int, dt_s: float, aliases: Mapping[s
     return PrimaryDelays(scenario.disturbances, fleet, scenario, seed, horizon_s, dt_s, aliases)
 
 
-def apply(primary: PrimaryDelays | None, fleet: Fleet, couples_on_departure: Any) -> None:
-    """Inject them (:meth:`PrimaryDelays.apply`) once the formations are known."""
+def apply(primary: PrimaryDelays | None, fleet: Fleet, couples_on_departure: Any, stops: StopBook) -> None:
+    """Inject them (:meth:`PrimaryDelays.apply`) once the formations and the stops are known."""
     if primary is not None:
-        primary.apply(fleet, couples_on_departure)
+        primary.apply(fleet, couples_on_departure, stops)
 
 
 def summary(primary: PrimaryDelays | None) -> dict[str, Any]:
@@ -324,8 +358,12 @@ def with_station_ids(spec: DisturbanceSpec, aliases: Mapping[str, str]) -> Distu
     def ids(names: tuple[str, ...]) -> tuple[str, ...]:
         return tuple(aliases.get(n, n) for n in names)
 
+    demand = spec.demand
+    if demand is not None:
+        demand = dataclasses.replace(demand, rates=tuple((aliases.get(sid, sid), st) for sid, st in demand.rates))
     return dataclasses.replace(
         spec,
+        demand=demand,
         dwell=tuple(dataclasses.replace(r, stations=ids(r.stations)) for r in spec.dwell),
         incidents=tuple(
             dataclasses.replace(

@@ -51,6 +51,10 @@ class StopBook:
         self.hold_departure: Callable[[float, TrainRuntime], bool] = lambda _t, _train: False
         # RouteLocks.clears_platform: the route beyond the stop lets the train draw clear of the platform
         self.route_set: Callable[[TrainRuntime, TripStop], bool] = lambda _train, _stop: True
+        # PassengerDwell.extension_s: the extra dwell [s] passenger demand adds to a stop registered now
+        self.dwell_extension: Callable[[float, TrainRuntime, TripStop], float] = lambda _t, _train, _stop: 0.0
+        # PassengerDwell.departed: a train left a platform (the next train's interval starts)
+        self.departed_platform: Callable[[float, TripStop], None] = lambda _t, _stop: None
         self._held: set[tuple[str, int]] = set()  # (train, stop index) whose hold was logged
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
@@ -74,6 +78,8 @@ class StopBook:
             self._registered(t, tr, stop, mark, v)
             return
         if tr.sumo_stopped and not stopped_now:  # dwell over: departure
+            if tr.dwell_until_s is not None and t < tr.dwell_until_s:
+                return  # SUMO's dwell is over; more passengers than planned are still boarding (the ATO holds it)
             if self.hold_departure(t, tr):  # SUMO's dwell is over; it stays (the ATO holds it) for its follower
                 if (tr.train_id, tr.next_stop) not in self._held:
                     self._held.add((tr.train_id, tr.next_stop))
@@ -86,6 +92,8 @@ class StopBook:
                     self.events.record(t, "departure_held_for_route", tr.train_id, station=stop.station_id)
                 return
             tr.sumo_stopped = False
+            tr.dwell_until_s = None
+            self.departed_platform(t, stop)
             self._record(tr, stop, tr.halted_s, t, tr.halt_error_m)
             self.events.record(t, "stop_departed", tr.train_id, station=stop.station_id)
             if stop.is_origin and tr.departed_s is None:  # a unit's next trip leaves its origin platform
@@ -121,6 +129,10 @@ class StopBook:
         if not stop.is_origin:
             tr.stops_served += 1
         self.events.record(t, "stop_registered", tr.train_id, station=stop.station_id)
+        extra_s = self.dwell_extension(tr.halted_s, tr, stop)  # arrival = the halt, as the plan counts it
+        if extra_s > 0.0:
+            tr.dwell_until_s = t + stop.dwell_s + extra_s
+            self.events.record(t, "dwell_extended_demand", tr.train_id, station=stop.station_id, extra_s=extra_s)
         if stop.short_platform:  # served, with the front at the platform end and the rest of the train behind it
             self.events.record(
                 t,

@@ -65,6 +65,7 @@ class TrainRuntime:
     depart_chainage_m: float = 0.0
     sumo_stopped_now: bool = False
     held_for_route: bool = False  # its dwell is over, but its route beyond the stop is not set (it stays there)
+    dwell_until_s: float | None = None  # its dwell lasts at least until then (passenger demand, passenger_dwell)
     vc_target_gap_m: float | None = None  # the coupled controller's effective target (gap policy), last step
     last_plan: Any = None  # the winning controller's broadcast plan (Command.info["plan"]) of the last step
     sent_speed_mps: float | None = None  # the speed handed to SUMO last step

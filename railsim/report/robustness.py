@@ -58,6 +58,13 @@ def run_section(summary: Mapping[str, Any], run: Path, fig_dir: Path) -> list[st
         ),
         ("trips slowed (performance factor < 1)", str(inj.get("trips_slowed", "–"))),
     ]
+    if "injected_demand_s" in inj:  # passenger demand (disturbances.demand): decided during the run
+        rows.append(
+            (
+                "passenger demand: extra dwell [s] / extra passengers",
+                f"{num(inj['injected_demand_s'], '.0f')} / {num(inj.get('extra_passengers'), '.0f')}",
+            )
+        )
     table = ["| KPI | value |", "|---|---:|"] + [f"| {k} | {v} |" for k, v in rows]
     fig_dir.mkdir(parents=True, exist_ok=True)
     one = {"run": {"groups": [_as_group(rob)]}}

@@ -22,12 +22,24 @@ The section (every part optional, all zero by default; the validator is
       incidents:
         - {trip: airport_up.004, station: sigongli, hold_s: 120} # hold one train at one stop
         - {rate_per_h: 2, hold_s: 90, stations: [sigongli], from_s: 0, until_s: 3600}   # Poisson incidents
+      demand:                 # passenger-driven dwell: a train that finds more passengers than planned dwells longer
+        s_per_passenger: 0.05                                     # extra dwell per extra boarding passenger
+        stations: {sigongli: {"07:00": 3600, "08:30": 1800}}      # boarding passengers per hour, from each clock time
+        default: {"07:00": 600}                                   # (optional) every other intermediate stop
 
 A rule's ``from_s``/``until_s`` window applies to the planned time of the event it perturbs (the planned
 arrival at the stop, the planned departure from the origin). ``prob`` is the chance the rule fires at one
 stop/departure (default 1). Distributions (seconds, never negative): ``exponential`` (``mean_s``),
 ``lognormal`` (``mean_s``, ``sd_s`` of the delay itself), ``empirical`` (``values_s`` with optional
 ``weights``, drawn as a discrete table), ``constant`` (``value_s``).
+
+**Demand** (:mod:`railsim.engine.passenger_dwell`) is the one primary delay that is not drawn: passengers
+arrive at a platform at the table's rate, so a train that reaches it longer after the previous train left
+than planned finds more people waiting, ``rate × (actual − planned interval)``, and each extra boarding costs
+``s_per_passenger`` (doors in parallel: a whole-train figure). A late train is made later by its own lateness —
+the mechanism that bunches metro services. A train closer than planned behind its leader keeps its planned dwell
+(never shorter). The rate table is by clock time on the scenario's clock (``simulation.start_time``); each rate
+holds from its time until the next one, and before the first there is no demand.
 """
 
 from __future__ import annotations
@@ -129,6 +141,26 @@ class IncidentSpec:
 
 
 @dataclass(frozen=True)
+class DemandSpec:
+    """Passenger-driven dwell (module docstring): ``rates`` per station as ``(clock time after midnight [s],
+    boarding passengers per hour)`` steps in time order; ``default`` for the stations not listed."""
+
+    s_per_passenger: float
+    rates: tuple[tuple[str, tuple[tuple[float, float], ...]], ...] = ()
+    default: tuple[tuple[float, float], ...] = ()
+
+    def rate_per_h(self, station_id: str, clock_s: float) -> float:
+        """Boarding passengers per hour at ``station_id`` at clock time ``clock_s`` (seconds after midnight)."""
+        steps = next((st for sid, st in self.rates if sid == station_id), self.default)
+        rate = 0.0
+        for from_clock_s, value in steps:
+            if clock_s < from_clock_s:
+                break
+            rate = value
+        return rate
+
+
+@dataclass(frozen=True)
 class DisturbanceSpec:
     """The ``disturbances:`` section (module docstring). The default injects nothing."""
 
@@ -137,6 +169,7 @@ class DisturbanceSpec:
     departure: tuple[DelayRule, ...] = ()
     running_time: PerformanceSpec = field(default_factory=PerformanceSpec)
     incidents: tuple[IncidentSpec, ...] = ()
+    demand: DemandSpec | None = None
 
     def station_ids(self) -> list[tuple[str, str]]:
         """Every station the section names, with its field path (checked against the world at set-up)."""
@@ -147,4 +180,6 @@ class DisturbanceSpec:
             if inc.station is not None:
                 out.append((inc.station, f"disturbances.incidents[{k}].station"))
             out += [(s, f"disturbances.incidents[{k}].stations") for s in inc.stations]
+        if self.demand is not None:
+            out += [(sid, f"disturbances.demand.stations.{sid}") for sid, _ in self.demand.rates]
         return out

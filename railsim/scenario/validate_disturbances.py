@@ -16,15 +16,19 @@ from railsim.scenario.disturbances import (
     DWELL_DISTS,
     DelayDist,
     DelayRule,
+    DemandSpec,
     DisturbanceSpec,
     IncidentSpec,
     PerformanceSpec,
 )
+from railsim.scenario.clock import format_clock
 from railsim.scenario.model import ServiceSpec
 from railsim.scenario.validate import Checker, did_you_mean
 from railsim.scenario.validate_services import trip_name
 
-_TOP = ("intensity", "dwell", "departure", "running_time", "incidents")
+_TOP = ("intensity", "dwell", "departure", "running_time", "incidents", "demand")
+MAX_PAX_PER_H = 100_000.0  # boarding passengers per hour at one platform: more is a typo
+MAX_S_PER_PASSENGER = 60.0
 _RULE_KEYS: tuple[str, ...] = ("stations", "services", "from_s", "until_s", "prob", "dist", "weights")
 _RULE_KEYS += ("value_s", "mean_s", "sd_s", "values_s")
 MAX_DELAY_S = 86_400.0  # one day: a longer primary delay is a typo
@@ -39,10 +43,46 @@ def disturbances(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tu
     dep, dep_raw = _rules(ck, m.get("departure"), "disturbances.departure", service_ids, stations=False)
     perf, perf_raw = _performance(ck, m.get("running_time"), "disturbances.running_time", service_ids)
     inc, inc_raw = _incidents(ck, m.get("incidents"), "disturbances.incidents", services)
-    spec = DisturbanceSpec(intensity=intensity, dwell=dwell, departure=dep, running_time=perf, incidents=inc)
+    demand, demand_raw = _demand(ck, m.get("demand"), "disturbances.demand")
+    spec = DisturbanceSpec(intensity, dwell, dep, perf, inc, demand)
     raw = {"intensity": intensity, "dwell": dwell_raw, "departure": dep_raw, "running_time": perf_raw}
     raw["incidents"] = inc_raw
+    if demand_raw:  # only when given: older scenarios resolve as they did
+        raw["demand"] = demand_raw
     return spec, raw
+
+
+def _demand(ck: Checker, value: Any, path: str) -> tuple[DemandSpec | None, dict[str, Any]]:
+    """``demand:`` (passenger-driven dwell) → a :class:`DemandSpec`, or None when absent."""
+    if value is None:
+        return None, {}
+    m = ck.mapping(value, path, ("s_per_passenger",), ("s_per_passenger", "stations", "default"))
+    c = ck.number(m["s_per_passenger"], f"{path}.s_per_passenger", ge=0.0, le=MAX_S_PER_PASSENGER)
+    stations = ck.free_mapping(m.get("stations") or {}, f"{path}.stations")
+    rates = tuple((str(sid), _rate_table(ck, table, f"{path}.stations.{sid}")) for sid, table in stations.items())
+    default = _rate_table(ck, m["default"], f"{path}.default") if m.get("default") is not None else ()
+    raw: dict[str, Any] = {"s_per_passenger": c, "stations": {sid: _table_raw(t) for sid, t in rates}}
+    if default:
+        raw["default"] = _table_raw(default)
+    return DemandSpec(c, rates, default), raw
+
+
+def _rate_table(ck: Checker, value: Any, path: str) -> tuple[tuple[float, float], ...]:
+    """``{"HH:MM": passengers per hour, ...}`` → ``((seconds after midnight, rate), ...)`` in time order."""
+    what = 'a table {"HH:MM": boarding passengers per hour, ...}'
+    if not isinstance(value, dict) or not value:
+        raise ck.expect(path, what, value)
+    steps = []
+    for key, rate in value.items():
+        if not isinstance(key, str):  # YAML reads an unquoted 07:00 as the number 420
+            raise ck.expect(f"{path}.{key}", 'a quoted clock time "HH:MM" as the key', key)
+        clock_s = ck.clock(key, f"{path}.{key}")
+        steps.append((clock_s, ck.number(rate, f"{path}.{key}", ge=0.0, le=MAX_PAX_PER_H)))
+    return tuple(sorted(steps))
+
+
+def _table_raw(steps: tuple[tuple[float, float], ...]) -> dict[str, float]:
+    return {format_clock(t): rate for t, rate in steps}
 
 
 def _list(ck: Checker, value: Any, path: str) -> list[Any]:
