@@ -39,6 +39,7 @@ from railsim.engine.fallbacks import FallbackReporter
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead
+from railsim.engine.platforms import berth_limit_m
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.stops import StopBook
@@ -46,6 +47,7 @@ from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
+BERTH_WAIT_M = 10.0  # a train standing this close to an occupied platform's limit waits for it (logged once)
 PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
@@ -141,9 +143,10 @@ class ControlStage:
         self.fallbacks = FallbackReporter(events)
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
+        self._berth_waits: set[tuple[str, str]] = set()  # (train, station) whose platform_occupied was logged
 
     # ------------------------------------------------------------------ observation
-    def _situation(self, t: float, tr: TrainRuntime) -> Situation:
+    def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
         """What the train knows of itself now (noise drawn here, position then speed), see :data:`Situation`."""
         veh = tr.trip.vehicle
         stop, offset = self.stops.current(tr)
@@ -169,7 +172,18 @@ class ControlStage:
                 stop.window_end_m,
                 tr.sumo_stopped or tr.halted_s is not None,
             )
-        return own_pos, own_v, grad, limits, stop, target, self.locks.authority_end_m(tr)
+        authority = self.locks.authority_end_m(tr)
+        if a is not None:  # a platform another train still occupies is not entered (railsim.engine.platforms)
+            margin = self.settings.protection_margin_m
+            berth = berth_limit_m(tr.front_m, tr.train_id, stop, a, margin, self.formations.partners)
+            if berth is not None and berth < authority:
+                authority = berth
+                key = (tr.train_id, stop.station_id) if stop is not None else None
+                waits = tr.plant.speed_mps == 0.0 and berth - tr.front_m < BERTH_WAIT_M  # standing at the limit
+                if key is not None and waits and key not in self._berth_waits:
+                    self._berth_waits.add(key)
+                    self.events.record(t, "platform_occupied", tr.train_id, station=key[1], by=a.train_id)
+        return own_pos, own_v, grad, limits, stop, target, authority
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""
@@ -194,7 +208,7 @@ class ControlStage:
         The line controllers (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are
         called on plain values (their ``decide``); every other controller gets its :class:`Observation`, built
         from the same values (``base``, only when one is needed)."""
-        sit = self._situation(t, tr)
+        sit = self._situation(t, tr, a)
         own_pos, own_v, grad, limits, _, target, authority = sit
         veh = tr.trip.vehicle
         base: dict[str, Any] | None = None
