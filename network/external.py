@@ -378,11 +378,11 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             cost = sum(v[1] for v in via) + g.nodes[tid]["length_m"]
             g.add_edge(eid, tid, node=e.getToNode().getID(), via=via, switch=None, leg=None, cost_m=cost)
             g.edges[eid, tid]["link"] = usable[0]  # removed again by _mark_crossings (sumolib objects stay out)
-    _mark_crossings(g)
+    _mark_crossings(g, net)
     return g
 
 
-def _mark_crossings(g: nx.DiGraph) -> None:
+def _mark_crossings(g: nx.DiGraph, net: Any) -> None:
     """Foe movements inside one node that share no track (a flat crossing): ``g.graph["crossings"]``.
 
     SUMO's own foe matrix of the node says which connections intersect (netconvert computes it from the geometry);
@@ -396,9 +396,52 @@ def _mark_crossings(g: nx.DiGraph) -> None:
         c1, c2 = links[m1], links[m2]
         node = c1.getFrom().getToNode()
         i1, i2 = node.getLinkIndex(c1), node.getLinkIndex(c2)
-        return i1 >= 0 and i2 >= 0 and bool(node.areFoes(i1, i2) or node.areFoes(i2, i1))
+        if i1 < 0 or i2 < 0:
+            return False
+        try:
+            return bool(node.areFoes(i1, i2) or node.areFoes(i2, i1))
+        except (KeyError, IndexError):  # no foe matrix (an unregulated node): decide from the geometry
+            return _paths_cross(_movement_shape(net, c1), _movement_shape(net, c2))
 
     g.graph["crossings"] = flat_crossings(g, foes)
+
+
+def _movement_shape(net: Any, c: Any) -> list[tuple[float, float]]:
+    """The path of a connection through its node: its internal lane's shape, else the straight line from the
+    end of the incoming lane to the start of the outgoing one."""
+    via = c.getViaLaneID()
+    if via:
+        try:
+            return [(float(x), float(y)) for x, y, *_ in net.getLane(via).getShape()]
+        except (KeyError, AttributeError):
+            pass
+    (x0, y0, *_), (x1, y1, *_) = c.getFromLane().getShape()[-1], c.getToLane().getShape()[0]
+    return [(float(x0), float(y0)), (float(x1), float(y1))]
+
+
+def _paths_cross(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> bool:
+    """Do two polylines touch or intersect? Without a usable shape the movements are taken as crossing:
+    protecting a crossing that is not one costs capacity; leaving one unprotected could cost a collision."""
+    if len(a) < 2 or len(b) < 2:
+        return True
+    return any(_segments_meet(a[i], a[i + 1], b[j], b[j + 1]) for i in range(len(a) - 1) for j in range(len(b) - 1))
+
+
+def _orient(a: tuple[float, float], b: tuple[float, float], c: tuple[float, float]) -> float:
+    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
+
+
+def _segments_meet(
+    p1: tuple[float, float], p2: tuple[float, float], q1: tuple[float, float], q2: tuple[float, float]
+) -> bool:
+    """Segments p1p2 and q1q2 intersect or touch (orientation test, collinear overlap included)."""
+    d1, d2, d3, d4 = _orient(q1, q2, p1), _orient(q1, q2, p2), _orient(p1, p2, q1), _orient(p1, p2, q2)
+    if (d1 > 0 > d2 or d1 < 0 < d2) and (d3 > 0 > d4 or d3 < 0 < d4):
+        return True
+    for d, a, b, c in ((d1, q1, q2, p1), (d2, q1, q2, p2), (d3, p1, p2, q1), (d4, p1, p2, q2)):
+        if d == 0 and min(a[0], b[0]) <= c[0] <= max(a[0], b[0]) and min(a[1], b[1]) <= c[1] <= max(a[1], b[1]):
+            return True
+    return False
 
 
 def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str]:

@@ -453,3 +453,27 @@ def test_errors_name_the_file_and_field(nets: dict, use_cache: Path, tmp_path: P
     assert _error(["run", str(path), "--out", str(tmp_path / "o")], use_cache).startswith(
         f"railsim: error: {path}: services[back]: no route"
     )
+
+
+def test_unregulated_node_crossings_come_from_the_geometry(tmp_path: Path) -> None:
+    """A node without a foe matrix (``type="unregulated"``: netgenerate's spider centre) used to crash the loader
+    (sumolib's ``areFoes`` KeyError). Its crossings now come from the movements' paths through the node: on a
+    four-arm double-track cross the straight movement B1→B3 crosses the perpendicular ones (B2→B4, B4→B2), not the
+    opposite movement on its own bidi track (B3→B1, single track, protected as such)."""
+    import sumo
+
+    from network.external import load_net
+
+    net = tmp_path / "cross.net.xml"
+    proc = subprocess.run(
+        [str(Path(sumo.SUMO_HOME) / "bin" / "netgenerate"), "--spider", "--spider.arm-number", "4",
+         "--spider.circle-number", "1", "--spider.space-radius", "600", "--bidi-probability", "1",
+         "--default.allow", "rail", "--default.junctions.type", "rail_signal", "--no-turnarounds", "true",
+         "-o", str(net)],
+        capture_output=True, text=True, timeout=120,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    assert 'type="unregulated"' in net.read_text(encoding="utf-8")
+    crossings = load_net(net).graph.graph["crossings"]["A1"]
+    assert set(crossings[("B1A1", "A1B3")]) == {("B2A1", "A1B4"), ("B4A1", "A1B2")}
+    assert ("B3A1", "A1B1") not in crossings[("B1A1", "A1B3")]
