@@ -64,3 +64,38 @@ def test_bad_options_are_one_line_exit_2(tmp_path: Path) -> None:
     assert res.returncode == 2 and "--runs" in res.stderr and "Traceback" not in res.stderr
     res = run_railsim(["robustness", str(SCENARIO), "--runs", "3", "--headways", "9x", "--out", str(tmp_path)])
     assert res.returncode == 2 and "--headways" in res.stderr and "Traceback" not in res.stderr
+
+
+def test_paired_differences_use_only_common_seeds() -> None:
+    from railsim.studies.vc_robustness import paired_differences
+
+    def regime(values: dict[str, float]) -> dict:
+        per_seed = {s: {"knock_on_min": v} for s, v in values.items()}
+        return {"groups": [{"headway_s": 110.0, "intensity": 1.0, "per_seed": per_seed}]}
+
+    rows = paired_differences(regime({"1": 1.0, "2": 2.0, "3": 3.0, "9": 50.0}), regime({"1": 2.0, "2": 4.0, "3": 3.0}))
+    assert len(rows) == 1 and rows[0]["n_pairs"] == 3  # seed 9 ran under moving block only: not a pair
+    k = rows[0]["knock_on_min"]
+    assert k["n"] == 3 and k["mean"] == 1.0 and k["vc_higher"] == 2  # differences 1, 2, 0
+
+
+@pytest.mark.sumo
+def test_same_scenario_in_both_regimes_pairs_to_zero(tmp_path: Path) -> None:
+    """Common random numbers, end to end: the VC-vs-MB robustness comparison with the same scenario on both sides
+    runs the same seeds with the same draws, so every paired difference is exactly zero."""
+    import yaml
+
+    from railsim.studies.vc_robustness import compare_robustness
+
+    disturbances = yaml.safe_load(SCENARIO.read_text(encoding="utf-8"))["disturbances"]
+    text = compare_robustness(
+        tmp_path, SCENARIO, SCENARIO, disturbances, [75.0], ["a"], runs=2, workers=2, progress=False
+    )
+    result = json.loads((tmp_path / "robustness" / "vc_vs_mb_robustness.json").read_text(encoding="utf-8"))
+    from railsim.studies.vc_robustness import paired_differences
+
+    (row,) = paired_differences(*result.values())
+    assert row["n_pairs"] == 2
+    for key in ("knock_on_min", "robustness.mean_delay_s", "robustness.within_3min"):
+        assert row[key]["mean"] == 0.0 and row[key]["vc_higher"] == 0 and row[key]["n"] == 2
+    assert "Paired on the same seeds" in text and "| 75 | 1 | 2 |" in text

@@ -51,6 +51,7 @@ KPIS: tuple[tuple[str, str], ...] = (
     ("excess_propagation_factor", "excess propagation factor"),
     ("robustness.recovery_max_s", "longest recovery [s]"),
 )
+PAIRED_KPIS = ("knock_on_min", "robustness.mean_delay_s", "robustness.within_3min", "excess_propagation_factor")
 RECOVERING_BELOW = 1.0  # excess propagation factor below this: the line recovers
 
 
@@ -195,6 +196,7 @@ def ci95(values: Sequence[float | None]) -> dict[str, Any]:
 
 
 def _rows_by_group(spec: Any, folder: Path, axes: Sequence[str]) -> dict[tuple[Any, ...], list[dict[str, Any]]]:
+    """The finished runs' rows per point of ``axes``, each with its case's seed (``_seed``)."""
     from railsim.studies.sweep import read_rows
 
     rows = read_rows(folder)
@@ -204,7 +206,7 @@ def _rows_by_group(spec: Any, folder: Path, axes: Sequence[str]) -> dict[tuple[A
         if row is None:
             continue
         key = tuple(case.overrides.get(a) for a in axes)
-        groups.setdefault(key, []).append(row)
+        groups.setdefault(key, []).append({**row, "_seed": case.seed})
     return groups
 
 
@@ -251,6 +253,8 @@ def aggregate(plan: RobustnessPlan, spec: Any, folder: Path, base_spec: Any, bas
                 "by_station": {s: ci95([_num(r, f"robustness.by_station.{s}") for r in ok])["mean"] for s in stations},
                 "cdf": {int(c[-5:-1]): ci95([_num(r, c) for r in ok])["mean"] for c in cdf_cols},
                 "recovers": verdict(kpis["excess_propagation_factor"]),
+                # per seed, for comparisons under common random numbers (railsim.studies.vc_robustness)
+                "per_seed": {str(r["_seed"]): {k: _num(r, k) for k in PAIRED_KPIS} for r in ok},
             }
         )
     out_groups.sort(key=lambda g: (g["headway_s"] or 0.0, g["intensity"]))
