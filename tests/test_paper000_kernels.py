@@ -104,10 +104,43 @@ def test_a_rows_cost_does_not_depend_on_its_batch() -> None:
             kernels.train_vector(TABLE_I), kernels.weight_vector(TABLE_II), u_prev, bool(rng.random() < 0.5),
         )  # fmt: skip
         whole = np.empty(len(seq))
-        kernels.batch_costs(seq, thetas, *ctx, whole)
+        kernels.batch_costs(seq, thetas, *ctx, whole, kernels.NO_PREFIX, 0)
         for r in range(len(seq)):
             alone = np.empty(1)
-            kernels.batch_costs(seq[r : r + 1], thetas[r : r + 1], *ctx, alone)
+            kernels.batch_costs(seq[r : r + 1], thetas[r : r + 1], *ctx, alone, kernels.NO_PREFIX, 0)
             shared = np.empty(3)  # the row in the middle of an odd batch, one Θ row for all
-            kernels.batch_costs(seq[[0, r, -1]], thetas[r : r + 1], *ctx, shared)
+            kernels.batch_costs(seq[[0, r, -1]], thetas[r : r + 1], *ctx, shared, kernels.NO_PREFIX, 0)
             assert alone[0] == whole[r] == shared[1]
+
+
+def test_rows_resumed_from_prefix_states_cost_the_same() -> None:
+    """The compiled MSMFO starts every row after its first ``depth`` models from :func:`kernels.prefix_states`
+    (issue 19): the cost is bit for bit the one of the full rollout, for every depth up to the horizon minus one,
+    in pairs and alone; a table of the wrong depth would give other costs (checked, so the test can fail)."""
+    rng = np.random.default_rng(29)
+    for _ in range(10):
+        steps = int(rng.integers(2, 40))
+        hz, seq, thetas, x0, v0, u_prev = _random_case(rng, steps, int(rng.integers(2, 12)))
+        theta = thetas[:1]  # the searches' case: one Θ for every row
+        ff = bool(rng.random() < 0.5)
+        ctx = kernels.batch_context(
+            x0, v0, hz.position_m, hz.speed_mps, hz.accel_mps2, hz.length_m, hz.emergency_decel_mps2,
+            kernels.train_vector(TABLE_I), kernels.weight_vector(TABLE_II), u_prev, ff,
+        )  # fmt: skip
+        full = np.empty(len(seq))
+        kernels.batch_costs(seq, theta, *ctx, full, kernels.NO_PREFIX, 0)
+        x0c, v0c, xp, vp, ap, base, lp, bp, tr, _, _, _ = ctx
+        for depth in sorted({1, min(2, steps - 1), int(rng.integers(1, min(7, steps - 1) + 1)), min(7, steps - 1)}):
+            pre = kernels.prefix_states(theta[0], x0c, v0c, xp, vp, ap, base, lp, bp, tr, ff, depth)
+            assert pre.shape == (kernels.N_MODELS**depth, 9)
+            resumed = np.empty(len(seq))
+            kernels.batch_costs(seq, theta, *ctx, resumed, pre, depth)
+            np.testing.assert_array_equal(resumed, full)
+            alone = np.empty(1)
+            kernels.batch_costs(seq[-1:], theta, *ctx, alone, pre, depth)
+            assert alone[0] == full[-1]
+            if depth > 1:  # a table one level short is read with the wrong rows: not the same costs
+                short = kernels.prefix_states(theta[0], x0c, v0c, xp, vp, ap, base, lp, bp, tr, ff, depth - 1)
+                wrong = np.empty(len(seq))
+                kernels.batch_costs(seq, theta, *ctx, wrong, np.tile(short, (kernels.N_MODELS, 1)), depth)
+                assert not np.array_equal(wrong, full)

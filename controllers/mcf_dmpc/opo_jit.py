@@ -16,7 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from controllers.mcf_dmpc.cf_models import MODEL_THETA_INDEX
-from controllers.mcf_dmpc.kernels import batch_context, batch_costs, njit
+from controllers.mcf_dmpc.kernels import NO_PREFIX, batch_context, batch_costs, njit
 from controllers.mcf_dmpc.opo import OpoResult, OpoSettings, box, finish
 
 __all__ = ["opo_step_compiled"]
@@ -48,7 +48,9 @@ def _compass(z, lo, span, params, iterations, initial_step, min_step, steps, ctx
         for k in range(n_theta):
             thetas[m, k] = lo[k] + min(max(z[k], 0.0), 1.0) * span[k]
     cost = np.empty(n_models)
-    batch_costs(seq[:n_models], thetas[:n_models], x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, cost)
+    batch_costs(
+        seq[:n_models], thetas[:n_models], x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, cost, NO_PREFIX, 0
+    )
     evaluations = n_models
     batches = 1
     step = np.full(n_models, initial_step)
@@ -76,7 +78,7 @@ def _compass(z, lo, span, params, iterations, initial_step, min_step, steps, ctx
             seq[i, :] = owner[i]
             for k in range(n_theta):
                 thetas[i, k] = lo[k] + min(max(cand[i, k], 0.0), 1.0) * span[k]
-        batch_costs(seq[:n], thetas[:n], x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, costs[:n])
+        batch_costs(seq[:n], thetas[:n], x0, v0, xp, vp, ap, base, lp, bp, tr, w, u_prev, ff, costs[:n], NO_PREFIX, 0)
         evaluations += n
         batches += 1
         for m in range(n_models):
