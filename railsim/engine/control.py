@@ -175,7 +175,8 @@ class ControlStage:
         authority = self.locks.authority_end_m(tr)
         if a is not None:  # a platform another train still occupies is not entered (railsim.engine.platforms)
             margin = self.settings.protection_margin_m
-            berth = berth_limit_m(tr.front_m, tr.train_id, stop, a, margin, self.formations.partners)
+            standing = self.trains[a.train_id].plant.speed_mps == 0.0
+            berth = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin, self._coupled_behind)
             if berth is not None and berth < authority:
                 authority = berth
                 key = (tr.train_id, stop.station_id) if stop is not None else None
@@ -184,6 +185,13 @@ class ControlStage:
                     self._berth_waits.add(key)
                     self.events.record(t, "platform_occupied", tr.train_id, station=key[1], by=a.train_id)
         return own_pos, own_v, grad, limits, stop, target, authority
+
+    def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
+        """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state)?"""
+        f = self.formations.of_follower.get(train_id)
+        if f is None or not self.formations.partners(train_id, ahead_id):
+            return False
+        return self.formations.manager.state(f.id) in COUPLED_STATES
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""

@@ -12,8 +12,9 @@
   another train's body overlaps that ("track occupied by X") or a train approaching on shared track could not
   stop short of its rear (service braking distance + one reaction time + ``insertion_margin_m``: "approaching
   train X could not stop"), or the rear of a train ahead lies less than ``insertion_margin_m`` beyond its front
-  ("X ahead is less than 50 m clear": a train is not put on the track nose to tail behind a leaving train; coupling
-  partners are exempt, they start at their target gap on purpose), the departure waits: a ``departure_held`` event with the ``reason`` (again each
+  ("X ahead is less than 50 m clear": a train is not put on the track nose to tail behind a leaving train; a
+  follower that couples on departure is put on at its target gap by ``insert_behind``, not here), the departure
+  waits: a ``departure_held`` event with the ``reason`` (again each
   time the reason changes), retried every ``departure_retry_s``. The dispatcher, not the follower, is
   responsible for a train appearing on the track. A train never inserted by the end of the run is reported
   (:meth:`Dispatcher.report_never_inserted`: one ``never_inserted`` event each; the CLI exits 3).
@@ -242,9 +243,7 @@ class Dispatcher:
             other_rear_m = other.front_m - other.trip.vehicle.length_m
             if front_o <= other_rear_m:  # it lies behind the other train's rear: the other one is ahead
                 clear_m = other_rear_m - front_o
-                if clear_m < self.settings.insertion_margin_m and not self.formations.partners(
-                    tr.train_id, other.train_id
-                ):
+                if clear_m < self.settings.insertion_margin_m:  # (a follower put on at its target gap: insert_behind)
                     return f"{other.train_id} ahead is less than {self.settings.insertion_margin_m:g} m clear"
                 continue
             v = other.plant.speed_mps
