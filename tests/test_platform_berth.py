@@ -14,7 +14,6 @@ import pytest
 
 from tests.helpers import ROOT, read_csv, read_summary, run_railsim
 
-pytestmark = pytest.mark.sumo
 
 SCENARIO = ROOT / "tests" / "data" / "scenarios" / "platform_berth.yaml"
 PLATFORM_M = 400.0
@@ -22,6 +21,7 @@ OVERLAP_M = 20.0
 TRAIN_M_AT_MOST = 130.0  # the cq3_6car is shorter than this
 
 
+@pytest.mark.sumo
 def test_follower_waits_before_an_occupied_platform_and_stops_at_its_mark(tmp_path: Path) -> None:
     res = run_railsim(["run", str(SCENARIO), "--out", str(tmp_path), "--no-progress"])
     assert res.returncode == 0, res.stderr
@@ -39,3 +39,17 @@ def test_follower_waits_before_an_occupied_platform_and_stops_at_its_mark(tmp_pa
     trace = read_csv(tmp_path / "trace.csv")
     gaps = [float(r["gap_m"]) for r in trace if r["train"] == "a.001" and r["gap_m"] and float(r["t_s"]) < a_left_s]
     assert gaps and min(gaps) > PLATFORM_M + OVERLAP_M - TRAIN_M_AT_MOST - 10.0
+
+
+def test_platform_berths_is_a_yes_or_no_knob() -> None:
+    import yaml
+
+    from railsim import scenario as S
+    from railsim.errors import ConfigError
+
+    data = yaml.safe_load(SCENARIO.read_text(encoding="utf-8"))
+    assert S.from_mapping(data, source="b.yaml").interlocking.platform_berths is True
+    data["interlocking"] = {"platform_berths": "yes"}
+    with pytest.raises(ConfigError) as info:
+        S.from_mapping(data, source="b.yaml")
+    assert "b.yaml: interlocking.platform_berths: expected true or false" in str(info.value)

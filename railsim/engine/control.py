@@ -173,7 +173,7 @@ class ControlStage:
                 tr.sumo_stopped or tr.halted_s is not None,
             )
         authority = self.locks.authority_end_m(tr)
-        if a is not None:  # a platform another train still occupies is not entered (railsim.engine.platforms)
+        if a is not None and self.settings.platform_berths:  # (railsim.engine.platforms; opt-in)
             margin = self.settings.protection_margin_m
             standing = self.trains[a.train_id].plant.speed_mps == 0.0
             berth = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin, self._coupled_behind)

@@ -39,12 +39,15 @@ class EngineSettings:
     departure_retry_s: float = 1.0  # ... and is tried again after this long
     desync_tolerance_m: float = 0.05  # railsim's chainage and SUMO's lane position may differ this much
     stall_timeout_s: float = 300.0  # a train standing this long with no reason (no stop, no hold) stalls the run
+    platform_berths: bool = False  # a train does not run into a platform the train ahead stands on (platforms.py)
 
     def with_interlocking(self, spec: Any) -> EngineSettings:
         """These settings with a scenario's ``interlocking:`` knobs (an ``InterlockingSpec``) applied."""
-        changes: dict[str, float] = {}
+        changes: dict[str, Any] = {}
         if spec.overlap_m is not None:
             changes["protection_margin_m"] = float(spec.overlap_m)
         if spec.stall_timeout_s is not None:
             changes["stall_timeout_s"] = float(spec.stall_timeout_s)
+        if getattr(spec, "platform_berths", None) is not None:
+            changes["platform_berths"] = bool(spec.platform_berths)
         return replace(self, **changes) if changes else self

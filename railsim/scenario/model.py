@@ -382,10 +382,12 @@ class InterlockingSpec:
     ``overlap_m``: the distance between the end of a train's movement authority and the first point, single-track
     section or crossing not reserved for it (and beyond the destination platform's end): what a train may overrun
     its stopping point by without fouling a route set for another train. ``stall_timeout_s``: how long a train
-    may stand for no reason before the run stops as stalled."""
+    may stand for no reason before the run stops as stalled. ``platform_berths``: a train does not run into a
+    platform the train ahead stands on (``railsim.engine.platforms``; off by default, see there)."""
 
     overlap_m: float | None = None
     stall_timeout_s: float | None = None
+    platform_berths: bool | None = None
 
 
 @dataclass(frozen=True)

@@ -109,10 +109,14 @@ def outputs(ck: Checker, value: Any, sim: SimulationSpec) -> tuple[OutputSpec, d
 
 def interlocking(ck: Checker, value: Any) -> tuple[InterlockingSpec, dict[str, Any]]:
     """``interlocking:`` → an :class:`InterlockingSpec`; only the keys given (the engine keeps its defaults)."""
-    m = ck.mapping(value, "interlocking", (), ("overlap_m", "stall_timeout_s"))
+    m = ck.mapping(value, "interlocking", (), ("overlap_m", "stall_timeout_s", "platform_berths"))
     raw: dict[str, Any] = {}
     if "overlap_m" in m:
         raw["overlap_m"] = ck.number(m["overlap_m"], "interlocking.overlap_m", ge=0.0)
     if "stall_timeout_s" in m:
         raw["stall_timeout_s"] = ck.number(m["stall_timeout_s"], "interlocking.stall_timeout_s", gt=0.0)
+    if "platform_berths" in m:
+        if not isinstance(m["platform_berths"], bool):
+            raise ck.expect("interlocking.platform_berths", "true or false", m["platform_berths"])
+        raw["platform_berths"] = m["platform_berths"]
     return InterlockingSpec(**raw), raw
