@@ -57,8 +57,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from controllers import ato_kernel
 from controllers.base import Command, Observation, SpeedLimit, register
 from controllers.braking import (
+    _lag_ratio,
     allowed_speed_mps,
     build_up_delay_s,
     discrete_required_decel_mps2,
@@ -70,10 +74,25 @@ from controllers.braking import (
     required_decel_surely_below,
     traction_limit_mps2,
 )
-from railsim.physics.vehicle import VehicleParams
+from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 # Below this speed the train counts as standing [m/s].
 _STANDING_MPS = 1e-3
+_NO_STOP = (0.0, 0.0, 0.0, False)
+# Restriction tuples as kernel arrays, by identity (the route views hand out the same window tuples step after step;
+# the tuple is kept in the entry so its id cannot be reused while cached).
+_LIMIT_ARRAYS: dict[int, tuple[tuple[SpeedLimit, ...], np.ndarray]] = {}
+
+
+def _limits_array(limits: tuple[SpeedLimit, ...]) -> np.ndarray:
+    entry = _LIMIT_ARRAYS.get(id(limits))
+    if entry is not None and entry[0] is limits:
+        return entry[1]
+    if len(_LIMIT_ARRAYS) > 4096:  # formations' extended restrictions are new tuples every step
+        _LIMIT_ARRAYS.clear()
+    arr = ato_kernel.limits_array(limits)
+    _LIMIT_ARRAYS[id(limits)] = (limits, arr)
+    return arr
 
 
 @dataclass(frozen=True)
@@ -121,6 +140,9 @@ class Ato:
         )
         self.params = params
         self.vehicle = vehicle
+        self._packed = np.zeros(0)  # the kernel's packed inputs for the vehicle and dt last seen
+        self._packed_vehicle: VehicleParams | None = None
+        self._packed_dt = math.nan
 
     def reset(self) -> None:
         """Nothing to forget: the law keeps no state."""
@@ -159,7 +181,49 @@ class Ato:
     ) -> tuple[float, bool, str]:
         """The law on plain values: ``(applied acceleration, emergency, phase)``; :meth:`command` is this on an
         observation. The engine calls it directly for a train whose ATO is this class (no observation built).
-        ``stop`` is the next stop as ``(mark_m, window_start_m, window_end_m, dwelling)``, or None."""
+        ``stop`` is the next stop as ``(mark_m, window_start_m, window_end_m, dwelling)``, or None.
+
+        Runs the compiled transcription (:mod:`controllers.ato_kernel`) of :meth:`decide_reference`, which gives
+        the same bits (``tests/test_ato_kernel.py``)."""
+        packed = self._packed
+        if veh is not self._packed_vehicle or dt != self._packed_dt:
+            packed = self._pack(veh, dt)
+        accel, emergency, phase = ato_kernel.decide(
+            packed,
+            x,
+            speed_mps,
+            applied_now,
+            length_m,
+            grade,
+            line_speed_mps,
+            _limits_array(speed_limits),
+            stop is not None,
+            *(stop if stop is not None else _NO_STOP),
+            authority_end_m is not None,
+            authority_end_m if authority_end_m is not None else 0.0,
+        )
+        return accel, emergency, ato_kernel.PHASES[phase]
+
+    def _pack(self, veh: VehicleParams, dt: float) -> np.ndarray:
+        self._packed = ato_kernel.pack(veh, self.params, G_MPS2, dt, _lag_ratio(dt, veh.actuator_time_constant_s))
+        self._packed_vehicle, self._packed_dt = veh, dt
+        return self._packed
+
+    def decide_reference(
+        self,
+        veh: VehicleParams,
+        dt: float,
+        x: float,
+        speed_mps: float,
+        applied_now: float,
+        length_m: float,
+        grade: float,
+        line_speed_mps: float,
+        speed_limits: tuple[SpeedLimit, ...],
+        stop: tuple[float, float, float, bool] | None,
+        authority_end_m: float | None,
+    ) -> tuple[float, bool, str]:
+        """The law in Python: the reference :meth:`decide` must reproduce bit for bit (and the readable one)."""
         p = self.params
         v = max(speed_mps, 0.0)
         m_eff = veh.effective_mass_kg

@@ -23,7 +23,7 @@ prepends the reversal to that trip's route and stops).
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -205,15 +205,15 @@ def _free_run_cached(
 ) -> tuple[dict[str, float], dict[str, float]]:
     if key in _FREE_RUN_CACHE:
         return _FREE_RUN_CACHE[key]
-    from controllers.base import Observation, OwnState, StopTarget
     from railsim.engine.routeview import route_view
     from railsim.physics import dynamics
 
     ato = controller_factory()
     veh = trip.vehicle
     view = route_view(trip.route)
+    decide = _decider(ato, trip, view, dt_s)
     x = trip.depart_chainage_m
-    state = dynamics.PlantState(speed_mps=trip.start_speed_mps)
+    v, applied, target_u = trip.start_speed_mps, 0.0, 0.0
     arrivals: dict[str, float] = {trip.origin.station_id: 0.0}
     departures: dict[str, float] = {trip.origin.station_id: 0.0}
     t = 0.0
@@ -221,32 +221,68 @@ def _free_run_cached(
     dwell_until: float | None = None
     while idx < len(trip.stops) and t < max_time_s:
         stop = trip.stops[idx]
-        dwelling = dwell_until is not None
-        target = StopTarget(stop.station_id, stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling=dwelling)
-        obs = Observation(
-            t_s=t,
-            dt_s=dt_s,
-            own=OwnState(trip.trip_id, x, state.speed_mps, state.applied_accel_mps2, veh.length_m, view.gradient_at(x)),
-            vehicle=veh,
-            route_length_m=trip.route.length_m,
-            speed_limits=view.limits_ahead(x - veh.length_m, x + 4000.0),
-            line_speed_mps=view.line_speed_mps,
-            next_stop=target,
+        grad = view.gradient_at(x)
+        limits = view.limits_ahead(x - veh.length_m, x + 4000.0)
+        accel, emergency = decide(t, x, v, applied, grad, limits, stop, dwell_until is not None)
+        plant = dynamics.PlantState(v, applied, target_u)
+        v, applied, target_u, _, advance_m, _, _ = dynamics.step_values(
+            veh, plant, accel, dt_s, grad, emergency, step_method
         )
-        cmd = ato.command(obs)
-        res = dynamics.step(veh, state, cmd.accel_mps2, dt_s, view.gradient_at(x), cmd.emergency, step_method)
-        state = res.state
-        x += res.advance_m
+        x += advance_m
         t += dt_s
         if dwell_until is not None:
             if t >= dwell_until:
                 departures[stop.station_id] = t
                 dwell_until = None
                 idx += 1
-        elif state.speed_mps == 0.0 and stop.window_start_m <= x <= stop.window_end_m:
+        elif v == 0.0 and stop.window_start_m <= x <= stop.window_end_m:
             arrivals[stop.station_id] = t
             if stop.is_destination:
                 break
             dwell_until = t + stop.dwell_s + 1.0  # SUMO registers the stop ~1 s after the halt
     _FREE_RUN_CACHE[key] = (arrivals, departures)
     return arrivals, departures
+
+
+# (t, x, v, applied accel, gradient, limits ahead, the next stop, dwelling there) -> (accel, emergency)
+FreeRunDecide = Callable[[float, float, float, float, float, Any, Any, bool], tuple[float, bool]]
+
+
+def _decider(ato: Any, trip: Trip, view: Any, dt_s: float) -> FreeRunDecide:
+    """The free run's controller call: the line ATO's law on plain values (no observation objects: a free run
+    takes thousands of steps per trip), any other ATO through its :class:`~controllers.base.Observation`
+    (the same values either way, as in the simulation's control stage)."""
+    from controllers.ato import Ato
+    from controllers.base import Observation, OwnState, StopTarget
+
+    veh = trip.vehicle
+    line_speed_mps = view.line_speed_mps
+    if type(ato) is Ato:
+        line_ato: Ato = ato
+
+        def law(t: float, x: float, v: float, a: float, grad: float, limits: Any, stop: Any, dwelling: bool) -> Any:
+            target = (stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling)
+            accel, emergency, _ = line_ato.decide(
+                veh, dt_s, x, v, a, veh.length_m, grad, line_speed_mps, limits, target, None
+            )
+            return accel, emergency
+
+        return law
+
+    def observed(t: float, x: float, v: float, a: float, grad: float, limits: Any, stop: Any, dwelling: bool) -> Any:
+        obs = Observation(
+            t_s=t,
+            dt_s=dt_s,
+            own=OwnState(trip.trip_id, x, v, a, veh.length_m, grad),
+            vehicle=veh,
+            route_length_m=trip.route.length_m,
+            speed_limits=limits,
+            line_speed_mps=line_speed_mps,
+            next_stop=StopTarget(
+                stop.station_id, stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling=dwelling
+            ),
+        )
+        cmd = ato.command(obs)
+        return cmd.accel_mps2, cmd.emergency
+
+    return observed

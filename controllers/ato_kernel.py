@@ -1,0 +1,386 @@
+"""The line ATO's law compiled with numba: the same operations as :meth:`controllers.ato.Ato.decide_reference`.
+
+Why: the ATO law runs for every train at every step and was the largest single share of the step loop (about a
+sixth of a Line 3 run, issue 20). In the interpreter each call costs tens of microseconds — a few hundred float
+operations, each a Python object — and the exact discrete stop predictor sums and solves
+(:func:`controllers.braking.discrete_required_decel_mps2` evaluates the stop sum up to 60 times). Compiled, the
+same arithmetic costs about a microsecond plus the call.
+
+**Bit for bit.** The engine's outputs are pinned by a golden test, so this is a transcription, not a
+re-derivation: every expression keeps the reference's operands and evaluation order, and only IEEE operations
+are used (``+ − × ÷ √``, comparisons, and ``pow`` of two doubles — a float power in CPython is libm's ``pow``,
+so the integer exponents of the stop sum are converted to float here, where numba would otherwise multiply by
+squaring). Python's ``min``/``max`` return their *first* argument on ties and with NaN; :func:`_mn`/:func:`_mx`
+do the same (numba's would not always: ``max(-0.0, 0.0)``). The lag ratio ``e^{−dt/τ}`` is computed by the
+caller with the reference's own cached value. ``tests/test_ato_kernel.py`` compares the two on random inputs
+and along whole stops, bit for bit.
+
+Inputs are packed once per (controller, vehicle, step) into a float array (:data:`PACKED_FIELDS`); restrictions
+come as an ``(n, 3)`` array of ``(start, end, speed)``. The phase comes back as an index into :data:`PHASES`.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+try:  # numba: a declared dependency (pyproject.toml); without it the same functions run interpreted
+    from numba import njit
+except ImportError:  # pragma: no cover - exercised only in environments without numba
+
+    def njit(*args, **kwargs):  # type: ignore[no-redef]
+        def wrap(fn):
+            return fn
+
+        return wrap(args[0]) if args and callable(args[0]) else wrap
+
+
+PHASES = ("hold", "cruise", "restriction", "stop", "brake", "emergency")
+_HOLD, _CRUISE, _RESTRICTION, _STOP, _BRAKE, _EMERGENCY = range(6)
+
+# The packed float array: vehicle fields, ATO parameters, then the step's dt and lag ratio (in this order).
+PACKED_FIELDS = (
+    "mass_kg",
+    "rotating_mass_factor",
+    "davis_a_n",
+    "davis_b_n_per_mps",
+    "davis_c_n_per_mps2",
+    "max_speed_mps",
+    "traction_max_force_n",
+    "traction_max_power_w",
+    "service_decel_mps2",
+    "emergency_decel_mps2",
+    "jerk_limit_mps3",
+    "actuator_time_constant_s",
+    "speed_margin_mps",
+    "speed_gain_per_s",
+    "planning_decel_fraction",
+    "release_fraction",
+    "max_accel_mps2",
+    "authority_margin_m",
+    "stop_tolerance_m",
+    "creep_speed_mps",
+    "creep_zone_m",
+    "hold_decel_mps2",
+    "g_mps2",
+    "dt_s",
+    "lag_ratio",
+)
+
+_MIN_DECEL_MPS2 = 1e-4  # controllers.braking._MIN_DECEL_MPS2
+_SOLVE_TOLERANCE_M = 1e-3  # controllers.braking._SOLVE_TOLERANCE_M
+_STANDING_MPS = 1e-3  # controllers.ato._STANDING_MPS
+_SPEED_EPS_MPS = 1e-6  # railsim.physics.dynamics.SPEED_EPS_MPS
+_NO_TRIVIAL = -1.0  # _trivial_stop_m: "the sum is needed" (its real answers are 0 and inf)
+
+
+def pack(vehicle: object, params: object, g_mps2: float, dt_s: float, lag_ratio: float) -> np.ndarray:
+    """The kernel's float inputs for one controller, vehicle and step length (see :data:`PACKED_FIELDS`)."""
+    values = [float(getattr(vehicle, f) if hasattr(vehicle, f) else getattr(params, f)) for f in PACKED_FIELDS[:-3]]
+    return np.array([*values, float(g_mps2), float(dt_s), float(lag_ratio)], dtype=np.float64)
+
+
+def limits_array(limits: tuple) -> np.ndarray:
+    """Restrictions ``(start, end, speed)`` as an ``(n, 3)`` float array."""
+    if not limits:
+        return _EMPTY
+    return np.array([(lim.start_m, lim.end_m, lim.speed_mps) for lim in limits], dtype=np.float64)
+
+
+_EMPTY = np.zeros((0, 3), dtype=np.float64)
+
+
+@njit(cache=True, inline="always")
+def _mn(a: float, b: float) -> float:
+    """Python's ``min(a, b)``: ``a`` unless ``b < a``."""
+    return b if b < a else a
+
+
+@njit(cache=True, inline="always")
+def _mx(a: float, b: float) -> float:
+    """Python's ``max(a, b)``: ``a`` unless ``b > a``."""
+    return b if b > a else a
+
+
+@njit(cache=True)
+def build_up_delay_s(accel_now: float, decel: float, lag_s: float, jerk: float) -> float:
+    ramp_s = 0.0
+    if math.isfinite(jerk) and jerk > 0.0:
+        ramp_s = _mx(accel_now + decel, 0.0) / jerk
+    return _mx(0.0, 0.0) + _mx(lag_s, 0.0) + 0.5 * ramp_s
+
+
+@njit(cache=True)
+def allowed_speed_mps(distance_m: float, decel: float, delay_s: float, accel_now: float, target: float) -> float:
+    b = decel
+    t = _mx(delay_s, 0.0)
+    a0 = accel_now
+    v_end = _mx(target, 0.0)
+    d = distance_m
+    if d <= 0.0:
+        return v_end
+    disc = b * b * t * t + 2.0 * b * d + v_end * v_end + a0 * b * t * t
+    if disc <= 0.0:
+        return 0.0
+    w = -b * t + math.sqrt(disc)
+    return _mx(w - a0 * t, 0.0)
+
+
+@njit(cache=True)
+def required_decel_mps2(speed: float, distance_m: float, delay_s: float, accel_now: float, target: float) -> float:
+    v = _mx(speed, 0.0)
+    t = _mx(delay_s, 0.0)
+    a0 = accel_now
+    if a0 < 0.0 and v + a0 * t < 0.0:
+        t = v / -a0
+    v_after = _mx(v + a0 * t, 0.0)
+    v_end = _mx(target, 0.0)
+    if v_after <= v_end:
+        return 0.0
+    room = distance_m - (v * t + 0.5 * a0 * t * t)
+    if room <= 0.0:
+        return math.inf
+    return (v_after * v_after - v_end * v_end) / (2.0 * room)
+
+
+@njit(cache=True, inline="always")
+def _trivial_stop_m(speed: float, net_now: float, decel: float) -> float:
+    if speed <= 0.0 and net_now <= 0.0:
+        return 0.0
+    if decel <= _MIN_DECEL_MPS2:
+        return math.inf
+    return _NO_TRIVIAL
+
+
+@njit(cache=True)
+def discrete_stop_distance_m(speed: float, net_now: float, decel: float, dt_s: float, r: float) -> float:
+    v = speed
+    b = decel
+    trivial = _trivial_stop_m(v, net_now, b)
+    if trivial != _NO_TRIVIAL:
+        return trivial
+    s = r / (1.0 - r)
+    c = net_now + b
+    cds = c * dt_s * s
+    bdt = b * dt_s
+    n = max(1, math.ceil((v + cds) / bdt))
+    while n > 1 and v - (n - 1) * bdt + cds * (1.0 - r ** float(n - 1)) <= 0.0:
+        n -= 1
+    while v - n * bdt + cds * (1.0 - r ** float(n)) > 0.0:
+        n += 1
+    m = n - 1
+    if m <= 0:
+        return 0.0
+    total = m * (v + cds) - bdt * m * (m + 1) / 2.0 - cds * s * (1.0 - r ** float(m))
+    return _mx(total * dt_s, 0.0)
+
+
+@njit(cache=True)
+def discrete_stop_distance_bound_m(speed: float, net_now: float, decel: float, dt_s: float, r: float) -> float:
+    trivial = _trivial_stop_m(speed, net_now, decel)
+    if trivial != _NO_TRIVIAL:
+        return trivial
+    cds = (net_now + decel) * dt_s * (r / (1.0 - r))
+    w = _mx(speed, 0.0) + _mx(cds, 0.0)
+    return w * w / (2.0 * decel) * (1.0 + 1e-9) + 1e-9
+
+
+@njit(cache=True)
+def required_decel_surely_below(
+    speed: float, net_now: float, distance_m: float, dt_s: float, r: float, decel: float
+) -> bool:
+    bound = discrete_stop_distance_bound_m(speed, net_now, decel, dt_s, r)
+    return distance_m > bound * (1.0 + 1e-6) + 10.0 * _SOLVE_TOLERANCE_M
+
+
+@njit(cache=True)
+def discrete_required_decel_mps2(
+    speed: float, net_now: float, distance_m: float, dt_s: float, lag_s: float, r: float, max_decel: float
+) -> float:
+    if distance_m <= 0.0:
+        return max_decel
+    tol = _SOLVE_TOLERANCE_M
+    hi = max_decel
+    f_hi = discrete_stop_distance_m(speed, net_now, hi, dt_s, r) - distance_m
+    if f_hi >= 0.0:
+        return hi
+    lo = _MIN_DECEL_MPS2
+    guess = required_decel_mps2(speed, distance_m + 0.5 * speed * dt_s, lag_s, net_now, 0.0)
+    if 0.0 < guess < hi:
+        f_guess = discrete_stop_distance_m(speed, net_now, guess, dt_s, r) - distance_m
+        if abs(f_guess) <= tol:
+            return guess
+        if f_guess > 0.0:
+            lo, f_lo = guess, f_guess
+        else:
+            hi, f_hi = guess, f_guess
+            f_lo = discrete_stop_distance_m(speed, net_now, lo, dt_s, r) - distance_m
+    else:
+        f_lo = discrete_stop_distance_m(speed, net_now, lo, dt_s, r) - distance_m
+    if not math.isfinite(f_lo):
+        while not math.isfinite(f_lo) and lo < hi:
+            lo = _mn(lo * 10.0, hi)
+            f_lo = discrete_stop_distance_m(speed, net_now, lo, dt_s, r) - distance_m
+    if f_lo <= 0.0:
+        return lo
+    side = 0
+    b = hi
+    for _ in range(60):
+        b = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
+        if not lo < b < hi:
+            b = 0.5 * (lo + hi)
+        fb = discrete_stop_distance_m(speed, net_now, b, dt_s, r) - distance_m
+        if abs(fb) <= tol:
+            return b
+        if fb > 0.0:
+            lo, f_lo = b, fb
+            if side == 1:
+                f_hi *= 0.5
+            side = 1
+        else:
+            hi, f_hi = b, fb
+            if side == -1:
+                f_lo *= 0.5
+            side = -1
+        if hi - lo < 1e-9:
+            break
+    return b
+
+
+@njit(cache=True)
+def _restriction_far_m(
+    v: float, v_target: float, b_plan: float, b_release: float, delay_s: float, net_now: float
+) -> float:
+    t = delay_s
+    if net_now < 0.0 and v + net_now * t < 0.0:
+        t = v / -net_now
+    v_after = _mx(v + net_now * t, 0.0)
+    dead_m = v * t + 0.5 * net_now * t * t
+    vt = _mx(v_target, 0.0)
+    far_m = _mx(vt * vt / (2.0 * b_plan) + vt * delay_s, dead_m + v_after * v_after / (2.0 * b_release))
+    return far_m * (1.0 + 1e-9) + 1e-3
+
+
+@njit(cache=True)
+def decide(
+    p: np.ndarray,
+    x: float,
+    speed_mps: float,
+    applied_now: float,
+    length_m: float,
+    grade: float,
+    line_speed_mps: float,
+    limits: np.ndarray,
+    has_stop: bool,
+    mark_m: float,
+    window_start_m: float,
+    window_end_m: float,
+    dwelling: bool,
+    has_authority: bool,
+    authority_end_m: float,
+) -> tuple[float, bool, int]:
+    """:meth:`controllers.ato.Ato.decide_reference` on packed inputs: ``(applied accel, emergency, phase index)``."""
+    mass, rot, davis_a, davis_b, davis_c = p[0], p[1], p[2], p[3], p[4]
+    max_speed, f0, power, service, emergency_decel = p[5], p[6], p[7], p[8], p[9]
+    jerk, tau = p[10], p[11]
+    speed_margin, gain, plan_frac, release_frac, max_accel = p[12], p[13], p[14], p[15], p[16]
+    authority_margin, stop_tol, creep_speed, creep_zone, hold_decel = p[17], p[18], p[19], p[20], p[21]
+    g_mps2, dt, r = p[22], p[23], p[24]
+
+    v = _mx(speed_mps, 0.0)
+    m_eff = mass * rot
+    va = abs(v)  # VehicleParams.resistance_n
+    davis = 0.0 if va == 0.0 else davis_a + davis_b * va + davis_c * va * va
+    rho = (davis + mass * g_mps2 * grade / 1000.0) / m_eff
+    net_now = applied_now - rho
+    standing = v <= _STANDING_MPS
+    b_service_net = _mx(service + rho, 0.05)
+    b_plan = plan_frac * _mn(service, b_service_net)
+    hold_applied = -_mn(service, _mx(hold_decel, -rho + 0.1))
+
+    if has_stop:
+        in_window = window_start_m - stop_tol <= x <= window_end_m + stop_tol
+        if dwelling or (standing and in_window):
+            return hold_applied, False, _HOLD
+
+    v_target = _mn(line_speed_mps, max_speed) - speed_margin
+    delay_plan = build_up_delay_s(applied_now, b_plan, tau, jerk)
+    brake_net = math.inf
+    phase = _CRUISE
+    braking_now = net_now <= -0.3 * b_plan
+    n_lim = limits.shape[0]
+    far_m = _restriction_far_m(v, v_target, b_plan, release_frac * b_plan, delay_plan, net_now) if n_lim > 0 else 0.0
+    for k in range(n_lim):
+        start_m, end_m, lim_speed = limits[k, 0], limits[k, 1], limits[k, 2]
+        v_lim = lim_speed - speed_margin
+        if start_m <= x < end_m + length_m:
+            v_target = _mn(v_target, v_lim)
+        elif x < start_m <= x + far_m:
+            d = start_m - x
+            v_target = _mn(v_target, allowed_speed_mps(d, b_plan, delay_plan, 0.0, v_lim))
+            if v > v_lim:
+                b_req = required_decel_mps2(v, d, delay_plan, net_now, v_lim)
+                if b_req >= b_plan or (braking_now and b_req >= release_frac * b_plan):
+                    if -_mn(b_req, b_service_net) < brake_net:
+                        brake_net = -_mn(b_req, b_service_net)
+                        phase = _RESTRICTION
+    v_target = _mx(v_target, 0.0)
+
+    points = np.empty(2)
+    n_points = 0
+    if has_stop:
+        lo = window_start_m + stop_tol
+        hi = window_end_m - stop_tol
+        aim = _mn(_mx(mark_m, lo), hi) if lo <= hi else 0.5 * (window_start_m + window_end_m)
+        points[n_points] = aim
+        n_points += 1
+    emergency = False
+    if has_authority:
+        points[n_points] = authority_end_m - authority_margin
+        n_points += 1
+        hard_m = authority_end_m - x
+        if (
+            v > 0.0
+            and hard_m < discrete_stop_distance_bound_m(v, net_now, b_service_net, dt, r)
+            and discrete_stop_distance_m(v, net_now, b_service_net, dt, r) > hard_m
+        ):
+            emergency = True
+    ramp_m = v * 0.5 * _mx(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
+    for k in range(n_points):
+        d = points[k] - x
+        if standing and d <= stop_tol:
+            return hold_applied, False, _HOLD
+        if v <= creep_speed and d <= creep_zone:
+            v_target = _mn(v_target, creep_speed)
+        if d <= 0.0:
+            brake_net = -b_service_net
+            phase = _STOP
+            continue
+        room_m = d - v * dt - ramp_m
+        triggered = room_m <= discrete_stop_distance_bound_m(v, net_now, b_plan, dt, r) and (
+            room_m <= discrete_stop_distance_m(v, net_now, b_plan, dt, r)
+        )
+        if triggered or braking_now:
+            b_release = release_frac * b_plan
+            if not triggered and required_decel_surely_below(v, net_now, d, dt, r, b_release):
+                continue
+            b_req = discrete_required_decel_mps2(v, net_now, d, dt, tau, r, b_service_net)
+            if (triggered or b_req >= b_release) and -b_req < brake_net:
+                brake_net = -b_req
+                phase = _STOP
+
+    vv = v if v > _SPEED_EPS_MPS else _SPEED_EPS_MPS  # railsim.physics.dynamics.traction_limit_mps2
+    power_force_n = power / vv
+    traction = _mn((f0 if f0 <= power_force_n else power_force_n) / (mass * rot), max_accel)
+    if v >= max_speed:
+        traction = 0.0
+    cruise_net = gain * (v_target - v)
+    cruise_net = _mn(_mx(cruise_net, -b_plan), traction - rho)
+    net = _mn(cruise_net, brake_net)
+    if net < cruise_net and phase == _CRUISE:
+        phase = _BRAKE
+    if emergency:
+        return -emergency_decel, True, _EMERGENCY
+    applied = net + rho
+    return _mn(_mx(applied, -service), traction), False, phase
