@@ -59,7 +59,7 @@ from typing import Any
 
 import numpy as np
 
-from controllers import ato_kernel
+from controllers import line_kernels
 from controllers.base import Command, Observation, SpeedLimit, register
 from controllers.braking import (
     _lag_ratio,
@@ -90,7 +90,7 @@ def _limits_array(limits: tuple[SpeedLimit, ...]) -> np.ndarray:
         return entry[1]
     if len(_LIMIT_ARRAYS) > 4096:  # formations' extended restrictions are new tuples every step
         _LIMIT_ARRAYS.clear()
-    arr = ato_kernel.limits_array(limits)
+    arr = line_kernels.limits_array(limits)
     _LIMIT_ARRAYS[id(limits)] = (limits, arr)
     return arr
 
@@ -183,12 +183,12 @@ class Ato:
         observation. The engine calls it directly for a train whose ATO is this class (no observation built).
         ``stop`` is the next stop as ``(mark_m, window_start_m, window_end_m, dwelling)``, or None.
 
-        Runs the compiled transcription (:mod:`controllers.ato_kernel`) of :meth:`decide_reference`, which gives
-        the same bits (``tests/test_ato_kernel.py``)."""
+        Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
+        the same bits (``tests/test_line_kernels.py``)."""
         packed = self._packed
         if veh is not self._packed_vehicle or dt != self._packed_dt:
             packed = self._pack(veh, dt)
-        accel, emergency, phase = ato_kernel.decide(
+        accel, emergency, phase = line_kernels.ato(
             packed,
             x,
             speed_mps,
@@ -202,10 +202,12 @@ class Ato:
             authority_end_m is not None,
             authority_end_m if authority_end_m is not None else 0.0,
         )
-        return accel, emergency, ato_kernel.PHASES[phase]
+        return accel, emergency, line_kernels.ATO_PHASES[phase]
 
     def _pack(self, veh: VehicleParams, dt: float) -> np.ndarray:
-        self._packed = ato_kernel.pack(veh, self.params, G_MPS2, dt, _lag_ratio(dt, veh.actuator_time_constant_s))
+        self._packed = line_kernels.pack(
+            line_kernels.ATO_FIELDS, veh, self.params, G_MPS2, dt, _lag_ratio(dt, veh.actuator_time_constant_s)
+        )
         self._packed_vehicle, self._packed_dt = veh, dt
         return self._packed
 

@@ -46,8 +46,12 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from controllers import line_kernels
 from controllers.base import Command, Observation, register
 from controllers.braking import (
+    _lag_ratio,
     build_up_delay_s,
     discrete_stop_distance_m,
     net_braking_mps2,
@@ -56,7 +60,7 @@ from controllers.braking import (
     stopping_distance_m,
     traction_limit_mps2,
 )
-from railsim.physics.vehicle import VehicleParams
+from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 _STANDSTILL_BUFFER_M = 1.0  # aim to halt this far before rear − margin [m]
 _CRAWL_MPS = 0.5  # below this speed and ...
@@ -84,6 +88,9 @@ class Separation:
     def __init__(self, params: SeparationParams, vehicle: VehicleParams) -> None:
         self.params = params
         self.vehicle = vehicle
+        self._packed = np.zeros(0)  # the kernel's packed inputs for the vehicle and dt last seen
+        self._packed_vehicle: VehicleParams | None = None
+        self._packed_dt = math.nan
 
     def reset(self) -> None:
         """Nothing to forget: the law keeps no state."""
@@ -116,7 +123,39 @@ class Separation:
         pred_age_s: float,
     ) -> Command:
         """The law against a known predecessor rear, on plain values; :meth:`command` is this on an observation.
-        The engine calls it directly for a train whose separation role is this class (no observation built)."""
+        The engine calls it directly for a train whose separation role is this class (no observation built).
+
+        Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
+        the same bits (``tests/test_line_kernels.py``)."""
+        packed = self._packed
+        if veh is not self._packed_vehicle or dt_s != self._packed_dt:
+            packed = self._packed = line_kernels.pack(
+                line_kernels.SEPARATION_FIELDS,
+                veh,
+                self.params,
+                G_MPS2,
+                dt_s,
+                _lag_ratio(dt_s, veh.actuator_time_constant_s),
+            )
+            self._packed_vehicle, self._packed_dt = veh, dt_s
+        accel, emergency, phase, free_m, h = line_kernels.separation(
+            packed, x, speed_mps, a0, grade, pred_rear_m, pred_age_s
+        )
+        info = {"phase": line_kernels.SEPARATION_PHASES[phase], "free_m": free_m, "barrier_m": h}
+        return Command(accel, emergency=emergency, info=info)
+
+    def decide_reference(
+        self,
+        veh: VehicleParams,
+        dt_s: float,
+        x: float,
+        speed_mps: float,
+        a0: float,
+        grade: float,
+        pred_rear_m: float,
+        pred_age_s: float,
+    ) -> Command:
+        """The law in Python: the reference :meth:`decide` must reproduce bit for bit (and the readable one)."""
         v = max(speed_mps, 0.0)
         traction = traction_limit_mps2(veh, v)
         p = self.params

@@ -1,22 +1,25 @@
-"""The line ATO's law compiled with numba: the same operations as :meth:`controllers.ato.Ato.decide_reference`.
+"""The line controllers' laws compiled with numba: ATO and moving-block separation, bit for bit.
 
-Why: the ATO law runs for every train at every step and was the largest single share of the step loop (about a
-sixth of a Line 3 run, issue 20). In the interpreter each call costs tens of microseconds — a few hundred float
-operations, each a Python object — and the exact discrete stop predictor sums and solves
-(:func:`controllers.braking.discrete_required_decel_mps2` evaluates the stop sum up to 60 times). Compiled, the
-same arithmetic costs about a microsecond plus the call.
+Why: the line laws run for every train at every step. :meth:`controllers.ato.Ato.decide` was the largest single
+share of the step loop (about a sixth of a Line 3 run, issue 20) and separation the next: in the interpreter
+each call costs tens of microseconds — a few hundred float operations, each a Python object — and the ATO's exact
+discrete stop predictor sums and solves (:func:`controllers.braking.discrete_required_decel_mps2` evaluates the
+stop sum up to 60 times). Compiled, the same arithmetic costs about a microsecond plus the call.
 
 **Bit for bit.** The engine's outputs are pinned by a golden test, so this is a transcription, not a
-re-derivation: every expression keeps the reference's operands and evaluation order, and only IEEE operations
-are used (``+ − × ÷ √``, comparisons, and ``pow`` of two doubles — a float power in CPython is libm's ``pow``,
-so the integer exponents of the stop sum are converted to float here, where numba would otherwise multiply by
-squaring). Python's ``min``/``max`` return their *first* argument on ties and with NaN; :func:`_mn`/:func:`_mx`
-do the same (numba's would not always: ``max(-0.0, 0.0)``). The lag ratio ``e^{−dt/τ}`` is computed by the
-caller with the reference's own cached value. ``tests/test_ato_kernel.py`` compares the two on random inputs
-and along whole stops, bit for bit.
+re-derivation, of :meth:`Ato.decide_reference <controllers.ato.Ato.decide_reference>`,
+:meth:`Separation.decide_reference <controllers.separation.Separation.decide_reference>` and the
+:mod:`controllers.braking` functions they call: every expression keeps the reference's operands and evaluation
+order, and only IEEE operations are used (``+ − × ÷ √``, comparisons, and ``pow`` of two doubles — a float power
+in CPython is libm's ``pow``, so the integer exponents of the stop sum are converted to float here, where numba
+would otherwise multiply by squaring). Python's ``min``/``max`` return their *first* argument on ties and with
+NaN; :func:`_mn`/:func:`_mx` do the same (numba's would not always: ``max(-0.0, 0.0)``). The lag ratio
+``e^{−dt/τ}`` is the reference's own cached value, computed by the caller. ``tests/test_line_kernels.py``
+compares each law with its reference on random inputs and along whole closed-loop runs, bit for bit.
 
-Inputs are packed once per (controller, vehicle, step) into a float array (:data:`PACKED_FIELDS`); restrictions
-come as an ``(n, 3)`` array of ``(start, end, speed)``. The phase comes back as an index into :data:`PHASES`.
+Inputs are packed once per (controller, vehicle, step length) into a float array (:data:`ATO_FIELDS`,
+:data:`SEPARATION_FIELDS`); restrictions come as an ``(n, 3)`` array of ``(start, end, speed)``. Phases come back
+as indices into :data:`ATO_PHASES` / :data:`SEPARATION_PHASES`.
 """
 
 from __future__ import annotations
@@ -36,11 +39,12 @@ except ImportError:  # pragma: no cover - exercised only in environments without
         return wrap(args[0]) if args and callable(args[0]) else wrap
 
 
-PHASES = ("hold", "cruise", "restriction", "stop", "brake", "emergency")
+ATO_PHASES = ("hold", "cruise", "restriction", "stop", "brake", "emergency")
 _HOLD, _CRUISE, _RESTRICTION, _STOP, _BRAKE, _EMERGENCY = range(6)
+SEPARATION_PHASES = ("follow", "brake", "emergency", "halt")
+_FOLLOW, _SEP_BRAKE, _SEP_EMERGENCY, _HALT = range(4)
 
-# The packed float array: vehicle fields, ATO parameters, then the step's dt and lag ratio (in this order).
-PACKED_FIELDS = (
+_VEHICLE_FIELDS = (
     "mass_kg",
     "rotating_mass_factor",
     "davis_a_n",
@@ -53,31 +57,45 @@ PACKED_FIELDS = (
     "emergency_decel_mps2",
     "jerk_limit_mps3",
     "actuator_time_constant_s",
-    "speed_margin_mps",
-    "speed_gain_per_s",
-    "planning_decel_fraction",
-    "release_fraction",
-    "max_accel_mps2",
-    "authority_margin_m",
-    "stop_tolerance_m",
-    "creep_speed_mps",
-    "creep_zone_m",
-    "hold_decel_mps2",
-    "g_mps2",
-    "dt_s",
-    "lag_ratio",
 )
+# The packed float arrays: vehicle fields, the law's parameters, then gravity, the step's dt and lag ratio.
+_STEP_FIELDS = ("g_mps2", "dt_s", "lag_ratio")
+ATO_FIELDS = (
+    _VEHICLE_FIELDS
+    + (
+        "speed_margin_mps",
+        "speed_gain_per_s",
+        "planning_decel_fraction",
+        "release_fraction",
+        "max_accel_mps2",
+        "authority_margin_m",
+        "stop_tolerance_m",
+        "creep_speed_mps",
+        "creep_zone_m",
+        "hold_decel_mps2",
+    )
+    + _STEP_FIELDS
+)
+SEPARATION_FIELDS = _VEHICLE_FIELDS + ("margin_m", "reaction_time_s", "barrier_rate_per_s") + _STEP_FIELDS
 
 _MIN_DECEL_MPS2 = 1e-4  # controllers.braking._MIN_DECEL_MPS2
 _SOLVE_TOLERANCE_M = 1e-3  # controllers.braking._SOLVE_TOLERANCE_M
 _STANDING_MPS = 1e-3  # controllers.ato._STANDING_MPS
 _SPEED_EPS_MPS = 1e-6  # railsim.physics.dynamics.SPEED_EPS_MPS
 _NO_TRIVIAL = -1.0  # _trivial_stop_m: "the sum is needed" (its real answers are 0 and inf)
+_STANDSTILL_BUFFER_M = 1.0  # controllers.separation._STANDSTILL_BUFFER_M
+_CRAWL_MPS = 0.5  # controllers.separation._CRAWL_MPS
+_CRAWL_ZONE_M = 1.0  # controllers.separation._CRAWL_ZONE_M
+_CRAWL_STOP_DECEL_MPS2 = 0.3  # controllers.separation._CRAWL_STOP_DECEL_MPS2
 
 
-def pack(vehicle: object, params: object, g_mps2: float, dt_s: float, lag_ratio: float) -> np.ndarray:
-    """The kernel's float inputs for one controller, vehicle and step length (see :data:`PACKED_FIELDS`)."""
-    values = [float(getattr(vehicle, f) if hasattr(vehicle, f) else getattr(params, f)) for f in PACKED_FIELDS[:-3]]
+def pack(
+    fields: tuple[str, ...], vehicle: object, params: object, g_mps2: float, dt_s: float, lag_ratio: float
+) -> np.ndarray:
+    """A law's float inputs (``fields``: :data:`ATO_FIELDS` or :data:`SEPARATION_FIELDS`) for one controller,
+    vehicle and step length."""
+    n = len(fields) - len(_STEP_FIELDS)
+    values = [float(getattr(vehicle, f) if hasattr(vehicle, f) else getattr(params, f)) for f in fields[:n]]
     return np.array([*values, float(g_mps2), float(dt_s), float(lag_ratio)], dtype=np.float64)
 
 
@@ -263,7 +281,82 @@ def _restriction_far_m(
 
 
 @njit(cache=True)
-def decide(
+def stopping_distance_m(speed: float, decel: float, delay_s: float, accel_now: float) -> float:
+    v = _mx(speed, 0.0)
+    t = _mx(delay_s, 0.0)
+    a0 = accel_now
+    if a0 < 0.0 and v + a0 * t < 0.0:
+        t = v / -a0
+    v_after = _mx(v + a0 * t, 0.0)
+    dist = v * t + 0.5 * a0 * t * t
+    v_end = _mx(0.0, 0.0)
+    if v_after > v_end:
+        dist += (v_after * v_after - v_end * v_end) / (2.0 * decel)
+    return dist
+
+
+@njit(cache=True, inline="always")
+def _resistance_mps2(
+    mass: float, rot: float, a: float, b: float, c: float, g_mps2: float, v: float, grade: float
+) -> float:
+    """``VehicleParams.resistance_n(v, grade) / effective_mass_kg``."""
+    va = abs(v)
+    davis = 0.0 if va == 0.0 else a + b * va + c * va * va
+    return (davis + mass * g_mps2 * grade / 1000.0) / (mass * rot)
+
+
+@njit(cache=True, inline="always")
+def _traction_limit_mps2(mass: float, rot: float, f0: float, power: float, v: float) -> float:
+    """``railsim.physics.dynamics.traction_limit_mps2``."""
+    vv = v if v > _SPEED_EPS_MPS else _SPEED_EPS_MPS
+    power_force_n = power / vv
+    return (f0 if f0 <= power_force_n else power_force_n) / (mass * rot)
+
+
+@njit(cache=True)
+def separation(
+    p: np.ndarray, x: float, speed_mps: float, a0: float, grade: float, pred_rear_m: float, pred_age_s: float
+) -> tuple[float, bool, int, float, float]:
+    """:meth:`controllers.separation.Separation.decide_reference` on packed inputs:
+    ``(applied accel, emergency, phase index, free distance, barrier)``."""
+    mass, rot, davis_a, davis_b, davis_c = p[0], p[1], p[2], p[3], p[4]
+    f0, power, service, emergency_decel = p[6], p[7], p[8], p[9]
+    jerk, tau = p[10], p[11]
+    margin, reaction_time, barrier_rate = p[12], p[13], p[14]
+    g_mps2, dt_s, r = p[15], p[16], p[17]
+
+    v = _mx(speed_mps, 0.0)
+    traction = _traction_limit_mps2(mass, rot, f0, power, v)
+    b = _mx(service + mass * g_mps2 * grade / 1000.0 / (mass * rot), 0.05)  # net_braking_mps2 without Davis
+    age_s = _mx(pred_age_s, 0.0)
+    reaction_s = reaction_time + age_s + dt_s
+    ramp_s = 0.0  # build_up_delay_s(a0, b, tau, jerk, reaction_s)
+    if math.isfinite(jerk) and jerk > 0.0:
+        ramp_s = _mx(a0 + b, 0.0) / jerk
+    delay = _mx(reaction_s, 0.0) + _mx(tau, 0.0) + 0.5 * ramp_s
+    free_m = pred_rear_m - margin - x
+    h = free_m - stopping_distance_m(v, b, delay, a0) - v * dt_s - _STANDSTILL_BUFFER_M
+    phase = _FOLLOW
+    if h < 0.0 and v > 0.0:
+        rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
+        ramp_m = 0.5 * v * _mx(a0 + service, 0.0) / jerk
+        if discrete_stop_distance_m(v, a0 - rho, b, dt_s, r) + ramp_m > free_m:
+            return -emergency_decel, True, _SEP_EMERGENCY, free_m, h
+        phase = _SEP_BRAKE
+    slope_s = delay + _mx(v + a0 * delay, 0.0) / b
+    gamma = _mn(barrier_rate, 0.5 / dt_s)
+    net_cap = (gamma * h - v) / slope_s if slope_s > 0.0 else math.inf
+    if not math.isfinite(net_cap):
+        return traction, False, phase, free_m, h
+    if v < _CRAWL_MPS and free_m - _STANDSTILL_BUFFER_M < _CRAWL_ZONE_M:
+        net_cap = _mn(net_cap, -_CRAWL_STOP_DECEL_MPS2)
+        phase = _HALT
+    applied = net_cap + _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
+    return _mn(_mx(applied, -service), traction), False, phase, free_m, h
+
+
+@njit(cache=True)
+def ato(
     p: np.ndarray,
     x: float,
     speed_mps: float,
@@ -281,6 +374,7 @@ def decide(
     authority_end_m: float,
 ) -> tuple[float, bool, int]:
     """:meth:`controllers.ato.Ato.decide_reference` on packed inputs: ``(applied accel, emergency, phase index)``."""
+    # (the ATO's build-up delay has no reaction time: build_up_delay_s's first term is max(0, 0))
     mass, rot, davis_a, davis_b, davis_c = p[0], p[1], p[2], p[3], p[4]
     max_speed, f0, power, service, emergency_decel = p[5], p[6], p[7], p[8], p[9]
     jerk, tau = p[10], p[11]
@@ -289,10 +383,7 @@ def decide(
     g_mps2, dt, r = p[22], p[23], p[24]
 
     v = _mx(speed_mps, 0.0)
-    m_eff = mass * rot
-    va = abs(v)  # VehicleParams.resistance_n
-    davis = 0.0 if va == 0.0 else davis_a + davis_b * va + davis_c * va * va
-    rho = (davis + mass * g_mps2 * grade / 1000.0) / m_eff
+    rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
     net_now = applied_now - rho
     standing = v <= _STANDING_MPS
     b_service_net = _mx(service + rho, 0.05)
@@ -370,9 +461,7 @@ def decide(
                 brake_net = -b_req
                 phase = _STOP
 
-    vv = v if v > _SPEED_EPS_MPS else _SPEED_EPS_MPS  # railsim.physics.dynamics.traction_limit_mps2
-    power_force_n = power / vv
-    traction = _mn((f0 if f0 <= power_force_n else power_force_n) / (mass * rot), max_accel)
+    traction = _mn(_traction_limit_mps2(mass, rot, f0, power, v), max_accel)
     if v >= max_speed:
         traction = 0.0
     cruise_net = gain * (v_target - v)

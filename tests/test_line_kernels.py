@@ -1,9 +1,10 @@
-"""The compiled ATO law (:mod:`controllers.ato_kernel`) gives the same bits as the Python reference.
+"""The compiled line laws (:mod:`controllers.line_kernels`) give the same bits as their Python references.
 
-:meth:`Ato.decide` runs the numba transcription; :meth:`Ato.decide_reference` is the law as written. They must
-agree exactly — the engine's golden outputs depend on it — on every branch: holding, cruising, restrictions
-under and ahead of the train, stop points (screens, exact sums, the solver), the end of authority and its
-emergency. Random states are drawn around those branches, and whole stops are flown closed-loop with each.
+:meth:`Ato.decide` and :meth:`Separation.decide` run the numba transcriptions; ``decide_reference`` is each law
+as written. They must agree exactly — the engine's golden outputs depend on it — on every branch. ATO: holding,
+cruising, restrictions under and ahead of the train, stop points (screens, exact sums, the solver), the end of
+authority and its emergency. Separation: following, braking inside the curve, emergency, the final halt. Random
+states are drawn around those branches, and whole runs are flown closed-loop with each.
 """
 
 from __future__ import annotations
@@ -14,7 +15,8 @@ import numpy as np
 import pytest
 
 from controllers.ato import Ato, AtoParams
-from controllers.base import SpeedLimit
+from controllers.base import Command, SpeedLimit
+from controllers.separation import Separation, SeparationParams
 from railsim.physics import dynamics
 from railsim.physics.vehicle import VehicleParams
 
@@ -98,3 +100,50 @@ def test_whole_stops_fly_the_same_bits(veh: VehicleParams) -> None:
         runs.append((trace, x))
     assert runs[0] == runs[1]
     assert abs(runs[0][1] - 2000.0) < 0.5  # and it is a real stop on the mark
+
+
+SEPARATIONS = [SeparationParams(), SeparationParams(margin_m=0.0, reaction_time_s=0.0, barrier_rate_per_s=3.0)]
+
+
+def _command_bits(cmd: Command) -> tuple:
+    info = {k: (v.hex() if isinstance(v, float) else v) for k, v in cmd.info.items()}
+    return (cmd.accel_mps2.hex(), cmd.emergency, cmd.fallback, cmd.additive, sorted(info.items()))
+
+
+@pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
+def test_separation_kernel_matches_reference_on_random_states(dt: float) -> None:
+    rng = np.random.default_rng(21)
+    phases: set[str] = set()
+    for k in range(4000):
+        veh = VEHICLES[k % len(VEHICLES)]
+        if math.isinf(veh.jerk_limit_mps3):
+            continue  # the reference's emergency ramp divides by the jerk limit: a finite one is required
+        sep = Separation(SEPARATIONS[(k // 3) % len(SEPARATIONS)], veh)
+        x = float(rng.uniform(0.0, 3000.0))
+        v = float(rng.choice([0.0, rng.uniform(0.0, 0.6), rng.uniform(0.0, veh.max_speed_mps)]))
+        a0 = float(rng.uniform(-veh.emergency_decel_mps2, 1.2))
+        grade = float(rng.choice([0.0, rng.uniform(-35.0, 35.0)]))
+        rear = x + float(rng.choice([rng.uniform(40.0, 60.0), rng.uniform(0.0, 300.0), rng.uniform(0.0, 3000.0)]))
+        age = float(rng.choice([0.0, rng.uniform(0.0, 3.0)]))
+        args = (veh, dt, x, v, a0, grade, rear, age)
+        fast, ref = sep.decide(*args), sep.decide_reference(*args)
+        assert _command_bits(fast) == _command_bits(ref), args
+        phases.add(ref.info["phase"])
+    assert phases == {"follow", "brake", "emergency", "halt"}
+
+
+def test_a_follower_closes_up_the_same_way() -> None:
+    """Closed loop: a follower runs up behind a train standing 1.5 km ahead; every command is the same."""
+    veh = VEHICLES[0]
+    sep = Separation(SeparationParams(), veh)
+    runs = []
+    for law in (sep.decide, sep.decide_reference):
+        x, state, trace = 0.0, dynamics.PlantState(speed_mps=15.0), []
+        for _ in range(1200):
+            cmd = law(veh, 0.5, x, state.speed_mps, state.applied_accel_mps2, 0.0, 1500.0, 0.2)
+            res = dynamics.step(veh, state, cmd.accel_mps2, 0.5, 0.0, cmd.emergency)
+            state, x = res.state, x + res.advance_m
+            trace.append(_command_bits(cmd))
+        runs.append((trace, x))
+    assert runs[0] == runs[1]
+    assert 1500.0 - 50.0 - 5.0 < runs[0][1] <= 1500.0 - 50.0  # it halts just short of rear − margin
