@@ -127,6 +127,23 @@ class Separation:
 
         Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
         the same bits (``tests/test_line_kernels.py``)."""
+        accel, emergency, phase, free_m, h = self.values(veh, dt_s, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)
+        info = {"phase": line_kernels.SEPARATION_PHASES[phase], "free_m": free_m, "barrier_m": h}
+        return Command(accel, emergency=emergency, info=info)
+
+    def values(
+        self,
+        veh: VehicleParams,
+        dt_s: float,
+        x: float,
+        speed_mps: float,
+        a0: float,
+        grade: float,
+        pred_rear_m: float,
+        pred_age_s: float,
+    ) -> tuple[float, bool, int, float, float]:
+        """:meth:`decide` without its :class:`Command`: ``(accel, emergency, phase index into
+        line_kernels.SEPARATION_PHASES, free distance, barrier)`` — for the engine's line trains."""
         packed = self._packed
         if veh is not self._packed_vehicle or dt_s != self._packed_dt:
             packed = self._packed = line_kernels.pack(
@@ -138,11 +155,7 @@ class Separation:
                 _lag_ratio(dt_s, veh.actuator_time_constant_s),
             )
             self._packed_vehicle, self._packed_dt = veh, dt_s
-        accel, emergency, phase, free_m, h = line_kernels.separation(
-            packed, x, speed_mps, a0, grade, pred_rear_m, pred_age_s
-        )
-        info = {"phase": line_kernels.SEPARATION_PHASES[phase], "free_m": free_m, "barrier_m": h}
-        return Command(accel, emergency=emergency, info=info)
+        return line_kernels.separation(packed, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)  # type: ignore[no-any-return]
 
     def decide_reference(
         self,

@@ -231,6 +231,15 @@ class ControlStage:
         for extra in self.ato_extras:
             ato_extras.update(extra(t, tr))
         applied_now = tr.plant.applied_accel_mps2
+        src = self.command_source
+        planned = src is not None and src.in_plan_phase(tr.train_id)
+        vc_role = (
+            f is not None
+            and fstate in COUPLED_STATES
+            and leader is not None
+            and (leader.on_line or leader.status == "arrived")  # arrived this step: it stands there, still ahead
+            and tr.controllers.get("coupled") is not None
+        )
         if type(ato) is Ato:  # the line ATO reads no extras
             accel, emergency, phase = ato.decide(
                 veh,
@@ -245,24 +254,22 @@ class ControlStage:
                 target,
                 authority,
             )
+            line_roles = a is None or type(tr.controllers["separation"]) is Separation
+            if line_roles and not (planned or vc_role) and tr.exact_plant is None and tr.controllers.get("ca") is None:
+                return self._line_train(t, tr, a, accel, emergency, own_pos, own_v, grad)
             commands["ato"] = Command(accel, emergency=emergency, info={"phase": phase})
         else:
             base = self._base(t, tr, sit)
             commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
 
-        src = self.command_source
-        if src is not None and src.in_plan_phase(tr.train_id):
+        if planned:
+            assert src is not None
             base = base or self._base(t, tr, sit)
             src.commands(t, tr, a, base, commands, own_pos, own_v, fstate)
             return self._finish(t, tr, commands, grad)
         used_vc = False
-        if (
-            f is not None
-            and fstate in COUPLED_STATES
-            and leader is not None
-            and (leader.on_line or leader.status == "arrived")  # arrived this step: it stands there, still ahead
-            and tr.controllers.get("coupled") is not None
-        ):
+        if vc_role:
+            assert f is not None and leader is not None
             base = base or self._base(t, tr, sit)
             used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
@@ -354,6 +361,33 @@ class ControlStage:
                 trigger_m=ca_cmd.info.get("trigger_m"),
             )
 
+    def _line_train(
+        self,
+        t: float,
+        tr: TrainRuntime,
+        a: Ahead | None,
+        accel: float,
+        emergency: bool,
+        x: float,
+        v: float,
+        grad: float,
+    ) -> float:
+        """The common case on plain values: the line ATO's command, then the line :class:`Separation` against the
+        train ahead, arbitrated like :func:`controllers.base.arbitrate` (the smaller acceleration wins, the ATO on a
+        tie) — the same numbers as the general path, without a :class:`Command` per role (neither law falls back,
+        adds, or carries a plan)."""
+        role = "ato"
+        if a is not None:
+            known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground")
+            if known is not None:
+                tr.stale_max_s = max(tr.stale_max_s, known[1])
+                sep_accel, sep_emergency, _, _, _ = tr.controllers["separation"].values(
+                    tr.trip.vehicle, self.dt, x, v, tr.plant.applied_accel_mps2, grad, known[0], known[1]
+                )
+                if sep_accel < accel:
+                    role, accel, emergency = "separation", sep_accel, sep_emergency
+        return self._apply(t, tr, role, accel, emergency, None, grad)
+
     # ------------------------------------------------------------------ arbitration and plant
     def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
         """Arbitrate the roles' commands (minimum, or additive) and advance the plant; returns the speed for SUMO."""
@@ -363,34 +397,43 @@ class ControlStage:
                 tr.fallbacks += 1
                 self.fallbacks.report(t, tr.train_id, r, _controller_name(tr, r), fallback_reason(c))
         role, cmd = arbitrate(commands, veh.emergency_decel_mps2)  # an additive role stops at the brake envelope
-        if cmd.emergency and tr.emergency_since_s is None:
+        return self._apply(t, tr, role, cmd.accel_mps2, cmd.emergency, cmd, grad)
+
+    def _apply(
+        self, t: float, tr: TrainRuntime, role: str, accel: float, emergency: bool, cmd: Command | None, grad: float
+    ) -> float:
+        """The winning command (``accel``/``emergency``; ``cmd`` itself when there is one, for its plan and an
+        exact plant): emergency-brake events, the non-finite guard, actuator noise and biases, the plant step."""
+        veh = tr.trip.vehicle
+        if emergency and tr.emergency_since_s is None:
             tr.emergency_since_s = t
             self.events.record(t, "emergency_brake_on", tr.train_id, role=role)
-        elif not cmd.emergency and tr.emergency_since_s is not None:
+        elif not emergency and tr.emergency_since_s is not None:
             self.events.record(
                 t, "emergency_brake_off", tr.train_id, role=role, duration_s=round(t - tr.emergency_since_s, 3)
             )
             tr.emergency_since_s = None
-        if not math.isfinite(cmd.accel_mps2):
+        if not math.isfinite(accel):
             self.events.record(t, "controller_nan", tr.train_id, role=role)
-            log.error("%s: %s controller returned %r; braking", tr.train_id, role, cmd.accel_mps2)
-            reason = f"non-finite command {cmd.accel_mps2!r}; service brake"
+            log.error("%s: %s controller returned %r; braking", tr.train_id, role, accel)
+            reason = f"non-finite command {accel!r}; service brake"
             cmd = Command(-veh.service_decel_mps2, fallback=True)
+            accel, emergency = cmd.accel_mps2, cmd.emergency
             tr.fallbacks += 1
             self.fallbacks.report(t, tr.train_id, role, _controller_name(tr, role), reason)
         if tr.exact_plant is not None:
-            return self._exact_finish(t, tr, role, cmd, grad)
-        u = cmd.accel_mps2
+            return self._exact_finish(t, tr, role, cmd or Command(accel, emergency=emergency), grad)
+        u = accel
         noise_trains = self.dist.actuator_trains
         if self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains):
             u += float(self.dist.actuator_rng.normal(0.0, self.dist.actuator_sd_mps2))  # the papers' disturbance
         if self.dist.biases:
             u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
-        plan = cmd.info.get("plan") if cmd.info else None
+        plan = cmd.info.get("plan") if cmd is not None and cmd.info else None
         tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
         v_now = tr.plant.speed_mps
         v_next, a, u_k, _, _, energy_j, mask = dynamics.step_values(
-            veh, tr.plant, u, self.dt, grad, cmd.emergency, self.step_method
+            veh, tr.plant, u, self.dt, grad, emergency, self.step_method
         )
         jerk = abs(a - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
@@ -400,7 +443,7 @@ class ControlStage:
             for s in dynamics.flags_from_mask(mask):
                 tr.saturations[s] = tr.saturations.get(s, 0) + 1
         tr.last_role = role
-        tr.last_cmd_mps2 = cmd.accel_mps2
+        tr.last_cmd_mps2 = accel
         # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
         # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
         tr.sent_speed_mps = v_now if self.step_method == "forward" else v_next
