@@ -144,6 +144,7 @@ class ControlStage:
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
         self._berth_waits: set[tuple[str, str]] = set()  # (train, station) whose platform_occupied was logged
+        self._tails: dict[tuple[int, float], tuple[tuple[SpeedLimit, ...], tuple[SpeedLimit, ...]]] = {}
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -162,7 +163,7 @@ class ControlStage:
         limits = view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
         if tail_m > 0.0:
             # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears
-            limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
+            limits = self._with_tail(limits, tail_m)
         # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
         target = None
         if stop is not None:
@@ -185,6 +186,19 @@ class ControlStage:
                     self._berth_waits.add(key)
                     self.events.record(t, "platform_occupied", tr.train_id, station=key[1], by=a.train_id)
         return own_pos, own_v, grad, limits, stop, target, authority
+
+    def _with_tail(self, limits: tuple[SpeedLimit, ...], tail_m: float) -> tuple[SpeedLimit, ...]:
+        """``limits`` with every end moved on by ``tail_m``, remembered per (tuple, tail): the route views hand out
+        the same window tuples step after step, and so the ATO's kernel finds its arrays for them too."""
+        key = (id(limits), tail_m)
+        hit = self._tails.get(key)
+        if hit is not None and hit[0] is limits:
+            return hit[1]
+        if len(self._tails) > 4096:
+            self._tails.clear()
+        out = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
+        self._tails[key] = (limits, out)  # the key tuple is kept alive with its entry: its id cannot be reused
+        return out
 
     def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
         """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state)?"""

@@ -130,6 +130,8 @@ class RouteLocks:
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
+        # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
+        self._switch_pointer: dict[str, tuple[Any, int, float]] = {}
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on
@@ -431,9 +433,29 @@ class RouteLocks:
                 if sec.end_m > tr.front_m and sec.guard_m > tr.front_m - 1e-6 and (req is None or not req.granted):
                     end = min(end, sec.guard_m - self.settings.protection_margin_m)
                     break
-        for rs in tr.trip.route.switches:
-            if rs.point_m <= tr.front_m - 1e-6 or rs.switch_id in tr.released:
+        switches = tr.trip.route.switches
+        behind_m = tr.front_m - 1e-6
+        first = self._first_switch(tr, switches, behind_m)
+        for i in range(first, len(switches)):
+            rs = switches[i]
+            if rs.point_m <= behind_m or rs.switch_id in tr.released:
                 continue
             if not self.interlocking.is_locked_for(tr.train_id, rs.switch_id, rs.leg):
                 return min(end, rs.point_m - self._margin_m(tr.train_id, rs.switch_id))
         return end
+
+    def _first_switch(self, tr: TrainRuntime, switches: Any, behind_m: float) -> int:
+        """How many of the route's first switches lie behind ``behind_m`` (the loop above skips them anyway).
+
+        A forward-only pointer per train: the front only moves on, so a switch once behind stays behind; the
+        pointer restarts from 0 if the front ever moved back or the route changed. The answer is the scan's."""
+        key = tr.train_id
+        entry = self._switch_pointer.get(key)
+        i = 0
+        if entry is not None and entry[0] is switches and entry[2] <= behind_m:
+            i = entry[1]
+        n = len(switches)
+        while i < n and switches[i].point_m <= behind_m:
+            i += 1
+        self._switch_pointer[key] = (switches, i, behind_m)
+        return i

@@ -58,6 +58,36 @@ log = logging.getLogger(__name__)
 _api: Any = libsumo
 
 _STOP_BUS_STOP = 0x08  # trainStops are busStops to SUMO's stop logic
+
+
+class _RawVehicleCalls:
+    """libsumo's per-vehicle getters and ``setSpeed`` as the compiled functions themselves.
+
+    ``libsumo.vehicle.getSpeed(id)`` is a Python function that calls ``_libsumo.vehicle_getSpeed(id)``; the loop
+    calls these five getters and ``setSpeed`` for every train at every step, so the bridge calls the compiled
+    ones directly (``map`` over the ids: no Python frame per call). Same functions, same values.
+    """
+
+    def __init__(self, raw: Any) -> None:
+        self.getDistance = raw.vehicle_getDistance
+        self.getSpeed = raw.vehicle_getSpeed
+        self.getLanePosition = raw.vehicle_getLanePosition
+        self.getRoadID = raw.vehicle_getRoadID
+        self.getStopState = raw.vehicle_getStopState
+        self.setSpeed = raw.vehicle_setSpeed
+
+
+try:
+    _RAW_LIBSUMO: Any = _RawVehicleCalls(libsumo.libsumo._libsumo)
+except AttributeError:  # pragma: no cover - a libsumo without the SWIG module layout: its public functions
+    _RAW_LIBSUMO = libsumo.vehicle
+
+
+def _vehicle_calls() -> Any:
+    """The per-vehicle calls of the API in use (libsumo's compiled ones, or traci's for the GUI)."""
+    return _RAW_LIBSUMO if _api is libsumo else _api.vehicle
+
+
 _ACTIVE = {"started": False}
 
 
@@ -361,12 +391,12 @@ class SumoBridge:
     def read(self, ids: Sequence[str] | None = None) -> TrainStates:
         """Ground truth for ``ids`` (default: every train present) via direct getters."""
         ids = list(_api.vehicle.getIDList()) if ids is None else list(ids)
-        v = _api.vehicle
-        odo = [v.getDistance(vid) for vid in ids]  # one getter over all trains at a time: lists, then arrays
-        spd = [v.getSpeed(vid) for vid in ids]
-        lpos = [v.getLanePosition(vid) for vid in ids]
-        edges = [v.getRoadID(vid) for vid in ids]
-        stopped = [v.isStopped(vid) for vid in ids]
+        v = _vehicle_calls()
+        odo = list(map(v.getDistance, ids))  # one getter over all trains at a time: lists, then arrays
+        spd = list(map(v.getSpeed, ids))
+        lpos = list(map(v.getLanePosition, ids))
+        edges = list(map(v.getRoadID, ids))
+        stopped = [state & 1 == 1 for state in map(v.getStopState, ids)]  # traci's isStopped: bit 0
         return TrainStates(
             self.time_s,
             ids,
@@ -378,7 +408,7 @@ class SumoBridge:
         )
 
     def set_speeds(self, ids: Sequence[str], speeds_mps: Sequence[float] | np.ndarray) -> None:
-        set_speed = _api.vehicle.setSpeed
+        set_speed = _vehicle_calls().setSpeed
         for vid, spd in zip(ids, speeds_mps):
             set_speed(vid, float(spd))
 
