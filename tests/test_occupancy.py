@@ -108,3 +108,24 @@ def test_remembered_limit_windows_are_the_scan() -> None:
         lo, hi = front - rng.choice([0.0, 120.0, 400.0]), front + rng.choice([0.0, 300.0, 5000.0])
         i = max(bisect.bisect_right(view.limit_starts, lo) - 1, 0)
         assert view.limits_ahead(lo, hi) == view._scan(i, lo, hi), (lo, hi)
+
+
+def test_remembered_frame_changes_are_computed_ones(bundle) -> None:
+    """map_body remembers the frame change per (other route, front edge, rear edge); asked in any order, on
+    routes that share track, merge and diverge, every answer is the one a fresh view computes."""
+    import random
+
+    pairs = [("e", "a"), ("g", "a"), ("a", "e"), ("a", "g")]
+    views = [RouteView(bundle.route_between(*p)) for p in pairs]
+    rng = random.Random(5)
+    mapped = 0
+    for _ in range(3000):
+        me, other = rng.choice(views), rng.choice(views)
+        front = rng.uniform(-50.0, other.length_m + 50.0)
+        length = rng.choice([L, 2 * L + 30.0, 5.0])
+        hint = rng.randrange(len(other.edges))
+        got = me.map_body(other, front, length, hint)
+        fresh = RouteView(me.route).map_body(RouteView(other.route), front, length, hint)
+        assert got == fresh, (front, length)
+        mapped += got is not None
+    assert mapped > 1000  # most bodies land on shared track: the comparison covers real frame changes

@@ -38,6 +38,8 @@ class RouteView:
     line_speed_mps: float = 20.0
     _offsets: dict[tuple[str, int], float | None] = field(default_factory=dict)
     _windows: dict[tuple[int, int, bool], tuple[SpeedLimit, ...]] = field(default_factory=dict)
+    # (id of the other view, its front edge, its rear edge) -> (that view, map_body's frame change for the pair)
+    _frames: dict[tuple[int, int, int], tuple[Any, tuple[float, float | None] | None]] = field(default_factory=dict)
     _well_formed: bool = True  # every restriction ends at or after its start
 
     def __post_init__(self) -> None:
@@ -68,6 +70,16 @@ class RouteView:
         :meth:`edge_at`'s, whatever the hint (a wrong one only costs the search)."""
         starts = self.edge_start_m
         last = len(starts) - 1
+        if 0 <= hint <= last:  # the same answers as the loop below, unrolled (edge starts never decrease)
+            if hint == 0 or starts[hint] <= chainage_m:
+                if hint == last or chainage_m < starts[hint + 1]:
+                    return hint
+                nxt = hint + 1  # at or past its start
+                if nxt == last or chainage_m < starts[nxt + 1]:
+                    return nxt
+            elif hint - 1 == 0 or starts[hint - 1] <= chainage_m:  # before the hint's start: the previous edge?
+                return hint - 1
+            return self.edge_at(chainage_m)
         for i in (hint, hint + 1, hint - 1):
             if 0 <= i <= last and (i == 0 or starts[i] <= chainage_m) and (i == last or chainage_m < starts[i + 1]):
                 return i
@@ -131,6 +143,24 @@ class RouteView:
         rear_m = front_m - length_m
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
+        key = (id(other), i_front, i_rear)
+        frame = self._frames.get(key)
+        if frame is None or frame[0] is not other:
+            frame = self._frames[key] = (other, self._frame(other, i_front, i_rear))
+        shape = frame[1]
+        if shape is None:
+            return None
+        off, clamp_m = shape
+        rear_here = rear_m + off
+        if clamp_m is not None:
+            rear_here = max(rear_here, clamp_m)
+        return front_m + off, rear_here
+
+    def _frame(self, other: RouteView, i_front: int, i_rear: int) -> tuple[float, float | None] | None:
+        """How a body on ``other``'s edges ``i_rear..i_front`` maps into this frame: ``(offset, clamp)`` — add the
+        offset to its front and rear, and raise the rear to the clamp if given (part of its tail is on track we do
+        not use) — or None (no part of it on our route). It depends on the edges only, so :meth:`map_body`
+        remembers it per (other route, front edge, rear edge)."""
         for i in range(i_front, i_rear - 1, -1):  # the frontmost shared edge under the body
             j = self.edge_index.get(other.edges[i])
             if j is None:
@@ -140,10 +170,8 @@ class RouteView:
             while k - 1 >= i_rear and jj - 1 >= 0 and other.edges[k - 1] == self.edges[jj - 1]:
                 k -= 1
                 jj -= 1
-            rear_here = rear_m + off
-            if k > i_rear:  # part of the tail is on track we do not use: it starts where our track is shared
-                rear_here = max(rear_here, self.edge_start_m[jj])
-            return front_m + off, rear_here
+            # part of the tail is on track we do not use: it starts where our track is shared
+            return off, (self.edge_start_m[jj] if k > i_rear else None)
         return None
 
     def offset_to(self, other: RouteView, from_chainage_m: float) -> float | None:
