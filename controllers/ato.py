@@ -178,10 +178,13 @@ class Ato:
         speed_limits: tuple[SpeedLimit, ...],
         stop: tuple[float, float, float, bool] | None,
         authority_end_m: float | None,
+        tail_m: float = 0.0,
     ) -> tuple[float, bool, str]:
         """The law on plain values: ``(applied acceleration, emergency, phase)``; :meth:`command` is this on an
         observation. The engine calls it directly for a train whose ATO is this class (no observation built).
-        ``stop`` is the next stop as ``(mark_m, window_start_m, window_end_m, dwelling)``, or None.
+        ``stop`` is the next stop as ``(mark_m, window_start_m, window_end_m, dwelling)``, or None. ``tail_m`` > 0:
+        the train leads a formation that long behind it, and every restriction's end moves on by it (it holds
+        until the formation's rear clears).
 
         Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
         the same bits (``tests/test_line_kernels.py``)."""
@@ -201,6 +204,7 @@ class Ato:
             *(stop if stop is not None else _NO_STOP),
             authority_end_m is not None,
             authority_end_m if authority_end_m is not None else 0.0,
+            tail_m,
         )
         return accel, emergency, line_kernels.ATO_PHASES[phase]
 
@@ -224,8 +228,11 @@ class Ato:
         speed_limits: tuple[SpeedLimit, ...],
         stop: tuple[float, float, float, bool] | None,
         authority_end_m: float | None,
+        tail_m: float = 0.0,
     ) -> tuple[float, bool, str]:
         """The law in Python: the reference :meth:`decide` must reproduce bit for bit (and the readable one)."""
+        if tail_m > 0.0:
+            speed_limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in speed_limits)
         p = self.params
         v = max(speed_mps, 0.0)
         m_eff = veh.effective_mass_kg

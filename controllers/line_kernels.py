@@ -372,6 +372,7 @@ def ato(
     dwelling: bool,
     has_authority: bool,
     authority_end_m: float,
+    tail_m: float,
 ) -> tuple[float, bool, int]:
     """:meth:`controllers.ato.Ato.decide_reference` on packed inputs: ``(applied accel, emergency, phase index)``."""
     # (the ATO's build-up delay has no reaction time: build_up_delay_s's first term is max(0, 0))
@@ -404,6 +405,8 @@ def ato(
     far_m = _restriction_far_m(v, v_target, b_plan, release_frac * b_plan, delay_plan, net_now) if n_lim > 0 else 0.0
     for k in range(n_lim):
         start_m, end_m, lim_speed = limits[k, 0], limits[k, 1], limits[k, 2]
+        if tail_m > 0.0:  # a formation's rear must clear it
+            end_m = end_m + tail_m
         v_lim = lim_speed - speed_margin
         if start_m <= x < end_m + length_m:
             v_target = _mn(v_target, v_lim)

@@ -62,7 +62,8 @@ def test_kernel_matches_reference_on_random_states(dt: float) -> None:
         veh = VEHICLES[k % len(VEHICLES)]
         ato = Ato(PARAMS[(k // 3) % len(PARAMS)], veh)
         x, v, applied, grade, line, limits, stop, authority = _random_state(rng, veh)
-        args = (veh, dt, x, v, applied, veh.length_m, grade, line, limits, stop, authority)
+        tail = float(rng.choice([0.0, 0.0, rng.uniform(0.0, 150.0)]))  # a formation's length behind the train
+        args = (veh, dt, x, v, applied, veh.length_m, grade, line, limits, stop, authority, tail)
         fast, ref = ato.decide(*args), ato.decide_reference(*args)
         assert _bits(fast) == _bits(ref), args
         phases.add(ref[2])

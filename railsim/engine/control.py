@@ -52,9 +52,10 @@ PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controll
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
 # the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
-# None, and the end of movement authority.
+# None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
+# formation's rear clears it: the limits' ends move on by it, see ``_with_tail``).
 Situation = tuple[
-    float, float, float, tuple[SpeedLimit, ...], Any, tuple[float, float, float, bool] | None, float | None
+    float, float, float, tuple[SpeedLimit, ...], Any, tuple[float, float, float, bool] | None, float | None, float
 ]
 
 
@@ -144,7 +145,6 @@ class ControlStage:
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
         self._berth_waits: set[tuple[str, str]] = set()  # (train, station) whose platform_occupied was logged
-        self._tails: dict[tuple[int, float], tuple[tuple[SpeedLimit, ...], tuple[SpeedLimit, ...]]] = {}
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -160,10 +160,9 @@ class ControlStage:
         view = tr.view
         grad = view.gradient_at(tr.front_m)
         tail_m = self.formations.tail_m(tr)
+        # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears (the
+        # ends move on by tail_m: the line ATO does it in its kernel, _base for the observation others get)
         limits = view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
-        if tail_m > 0.0:
-            # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears
-            limits = self._with_tail(limits, tail_m)
         # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
         target = None
         if stop is not None:
@@ -185,20 +184,12 @@ class ControlStage:
                 if key is not None and waits and key not in self._berth_waits:
                     self._berth_waits.add(key)
                     self.events.record(t, "platform_occupied", tr.train_id, station=key[1], by=a.train_id)
-        return own_pos, own_v, grad, limits, stop, target, authority
+        return own_pos, own_v, grad, limits, stop, target, authority, tail_m
 
-    def _with_tail(self, limits: tuple[SpeedLimit, ...], tail_m: float) -> tuple[SpeedLimit, ...]:
-        """``limits`` with every end moved on by ``tail_m``, remembered per (tuple, tail): the route views hand out
-        the same window tuples step after step, and so the ATO's kernel finds its arrays for them too."""
-        key = (id(limits), tail_m)
-        hit = self._tails.get(key)
-        if hit is not None and hit[0] is limits:
-            return hit[1]
-        if len(self._tails) > 4096:
-            self._tails.clear()
-        out = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
-        self._tails[key] = (limits, out)  # the key tuple is kept alive with its entry: its id cannot be reused
-        return out
+    @staticmethod
+    def _with_tail(limits: tuple[SpeedLimit, ...], tail_m: float) -> tuple[SpeedLimit, ...]:
+        """``limits`` with every end moved on by ``tail_m`` (for the observation of a formation's controllers)."""
+        return tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
 
     def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
         """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state)?"""
@@ -209,8 +200,10 @@ class ControlStage:
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""
-        own_pos, own_v, grad, limits, stop, target, authority = sit
+        own_pos, own_v, grad, limits, stop, target, authority, tail_m = sit
         veh = tr.trip.vehicle
+        if tail_m > 0.0:
+            limits = self._with_tail(limits, tail_m)
         return dict(
             t_s=t,
             dt_s=self.dt,
@@ -231,7 +224,7 @@ class ControlStage:
         called on plain values (their ``decide``); every other controller gets its :class:`Observation`, built
         from the same values (``base``, only when one is needed)."""
         sit = self._situation(t, tr, a)
-        own_pos, own_v, grad, limits, _, target, authority = sit
+        own_pos, own_v, grad, limits, _, target, authority, tail_m = sit
         veh = tr.trip.vehicle
         base: dict[str, Any] | None = None
         commands: dict[str, Command] = {}
@@ -267,6 +260,7 @@ class ControlStage:
                 limits,
                 target,
                 authority,
+                tail_m,
             )
             line_roles = a is None or type(tr.controllers["separation"]) is Separation
             if line_roles and not (planned or vc_role) and tr.exact_plant is None and tr.controllers.get("ca") is None:

@@ -132,6 +132,7 @@ class RouteLocks:
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
         # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
         self._switch_pointer: dict[str, tuple[Any, int, float]] = {}
+        self._route_end: dict[str, tuple[Any, float]] = {}  # train id -> (its trip's stops, authority at the end)
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on
@@ -425,7 +426,13 @@ class RouteLocks:
         or the protection point of the first single-track section not reserved for it. At the end of its trip the
         authority reaches the route's end, and at least the overlap beyond the destination platform (a platform
         ending within the overlap of the route's end would otherwise cut the train's stopping window short)."""
-        end = max(tr.view.length_m - 1.0, tr.trip.destination.window_end_m + self.settings.protection_margin_m)
+        stops = tr.trip.stops  # (a turnback may replace them: the end is remembered per stops tuple)
+        known = self._route_end.get(tr.train_id)
+        if known is not None and known[0] is stops:
+            end = known[1]
+        else:
+            end = max(tr.view.length_m - 1.0, stops[-1].window_end_m + self.settings.protection_margin_m)
+            self._route_end[tr.train_id] = (stops, end)
         if tr.train_id in self.sections:
             reqs = self.section_requests[tr.train_id]
             for sec in self.sections[tr.train_id]:
