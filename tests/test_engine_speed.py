@@ -66,3 +66,34 @@ def test_free_run_plan_on_plain_values_is_the_observed_plan(scenario, tmp_path_f
     for fast, slow in rows:
         assert fast == slow
         assert len(fast[0]) >= 2  # origin and at least one station reached
+
+
+HEAP_CHILD = r"""
+import gc, json, tempfile
+from pathlib import Path
+from railsim.engine.loop import Simulation
+from railsim.scenario.loading import load
+
+seen = []
+class Probe(Simulation):
+    def _step(self, t):
+        seen.append(gc.get_freeze_count())
+        super()._step(t)
+
+with tempfile.TemporaryDirectory() as out:
+    sim = Probe(load(SCENARIO), Path(out), progress=False)
+    before = gc.get_freeze_count()
+    sim.run()
+print(json.dumps({"before": before, "during": min(seen), "after": gc.get_freeze_count(), "n_set_up": len(sim.trains)}))
+"""
+
+
+def test_the_set_up_is_frozen_for_the_run_and_released_after(tmp_path_factory) -> None:
+    """railsim.engine.heap: while the loop runs, everything the set-up built sits in the collector's permanent
+    generation (full collections do not walk it again), and the run gives it back when it ends."""
+    code = HEAP_CHILD.replace("SCENARIO", repr(str(DATA / "scenarios" / "mini_line.yaml")))
+    res = run_python(code, cache_dir=tmp_path_factory.mktemp("cache"))
+    assert res.returncode == 0, res.stderr[-3000:]
+    got = json.loads(res.stdout.strip().splitlines()[-1])
+    assert got["before"] == 0 and got["after"] == 0
+    assert got["during"] > 10_000  # the set-up's objects (trips, views, controllers, the network), not a handful

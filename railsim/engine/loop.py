@@ -35,6 +35,7 @@ from railsim.engine.events import EventLayer, FormationManager, Interlocking, Sw
 from railsim.engine.extensions import ExtensionContext, install_all
 from railsim.engine.depot import Depots
 from railsim.engine.fleet import Fleet
+from railsim.engine.heap import setup_frozen
 from railsim.engine.insertion import Dispatcher
 from railsim.engine.interrupt import StopRequest
 from railsim.engine.knowledge import Knowledge, comm_channels
@@ -201,7 +202,7 @@ class Simulation:
 
         t_wall = _time.perf_counter()
         bar = RunProgress(self.scenario.name, len(self.trains), self.duration_s, self.progress)
-        with SumoBridge(self._sumo_config()) as bridge:
+        with SumoBridge(self._sumo_config()) as bridge, setup_frozen():  # (railsim.engine.heap)
             self.bridge = self.dispatcher.bridge = bridge
             self.turnbacks.bridge = bridge
             self.stops.drop_stop = bridge.drop_stop
