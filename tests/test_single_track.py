@@ -358,22 +358,26 @@ def build_short_loop(folder: Path) -> tuple[Path, Path]:
 
 
 @pytest.mark.sumo
-def test_a_deadlock_through_a_train_standing_behind_another_is_found(tmp_path: Path) -> None:
+@pytest.mark.parametrize("berths", [True, False])
+def test_a_deadlock_through_a_train_standing_behind_another_is_found(tmp_path: Path, berths: bool) -> None:
     """Three trains, a circular wait that only the occupancy of the track closes: ``zed`` (east) waits on the loop
     for the M2–B section that ``west`` holds; ``west`` stands on the short loop track (its rear still in M2–B)
     waiting for the A–M1 section, which ``ex`` holds — ``ex`` stands in it right behind ``zed`` on its way to the
-    loop platform and needs nothing else. Without the ``ahead:`` edge this was a 300 s stall, not a deadlock."""
+    loop platform and needs nothing else. Without the ``ahead:`` edge this was a 300 s stall, not a deadlock. With
+    platform berths (the default) ``ex`` stands at the limit of the loop platform ``zed`` occupies, and the edge is
+    that berth wait (``platform:loop``); without them, the train directly ahead (``ahead:zed.000``)."""
     net, stops = build_short_loop(tmp_path)
     services = [
         _service("zed", "z_out", "b_in", 0),
         _service("ex", "x_out", "loop", 0),
         _service("west", "b_out", "a_in", 0),
     ]
-    out, s, stderr = _run(tmp_path, "occ", net, stops, services, exit_code=3)
+    extra = None if berths else {"interlocking": {"platform_berths": False}}
+    out, s, stderr = _run(tmp_path, "occ", net, stops, services, exit_code=3, extra=extra)
     assert "deadlock" in stderr
     (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
     detail = yaml.safe_load(ev["detail"])
     assert sorted(detail["trains"]) == ["ex.000", "west.000", "zed.000"]
-    assert "ahead:zed.000" in detail["resources"]
+    assert ("platform:loop" if berths else "ahead:zed.000") in detail["resources"]
     assert float(ev["t_s"]) < 300.0  # found by the deadlock search, long before the stall timeout
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0

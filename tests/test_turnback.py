@@ -176,6 +176,16 @@ def _mini_with_pocket(folder: Path) -> Path:
     return _write(folder, "mini_pocket.yaml", text)
 
 
+# the pocket unit's next trip (short_up.000) couples on departure from C behind the through train up.000
+POCKET_PAIR = {
+    "id": "pair",
+    "leader": {"service": "up", "trip": 0},
+    "follower": {"service": "short_up", "trip": 0},
+    "target_gap_m": 30,
+    "couple": {"on_departure": True},
+}
+
+
 def _run_pocket_day(tmp_path: Path, raw: dict) -> Path:
     """Run ``raw`` with unit u1 = short_down.000 then short_up.000 (turning in C's pocket); assert exit 0 and no
     collision or switch violation; the output folder."""
@@ -401,15 +411,7 @@ def test_a_unit_turned_in_a_pocket_couples_behind_a_through_train(tmp_path: Path
         {"id": "short_up", "from": "c", "to": "e", "vehicle": "cq6", "departures": {"times": [400]}, "dwell_s": 20},
         {"id": "up", "from": "a", "to": "e", "vehicle": "cq6", "departures": {"times": [200]}, "dwell_s": 20},
     ]
-    raw["formations"] = [
-        {
-            "id": "pair",
-            "leader": {"service": "up", "trip": 0},
-            "follower": {"service": "short_up", "trip": 0},
-            "target_gap_m": 30,
-            "couple": {"on_departure": True},
-        }
-    ]
+    raw["formations"] = [POCKET_PAIR]
     out = _run_pocket_day(tmp_path, raw)
     assert [r["subject"] for r in _events(out, "coupled")] == ["pair"]
     stops = {(r["trip_id"], r["station"]): r for r in read_csv(out / "stops.csv")}

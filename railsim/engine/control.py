@@ -39,7 +39,7 @@ from railsim.engine.fallbacks import FallbackReporter
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead
-from railsim.engine.platforms import berth_limit_m
+from railsim.engine.platforms import Berths
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.stops import StopBook
@@ -47,7 +47,6 @@ from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
-BERTH_WAIT_M = 10.0  # a train standing this close to an occupied platform's limit waits for it (logged once)
 PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
@@ -144,7 +143,7 @@ class ControlStage:
         self.fallbacks = FallbackReporter(events)
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
-        self._berth_waits: set[tuple[str, str]] = set()  # (train, station) whose platform_occupied was logged
+        self.berths = Berths(trains, events, settings, self._coupled_behind)  # railsim.engine.platforms
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -173,17 +172,7 @@ class ControlStage:
                 tr.sumo_stopped or tr.halted_s is not None,
             )
         authority = self.locks.authority_end_m(tr)
-        if a is not None and self.settings.platform_berths:  # (railsim.engine.platforms; opt-in)
-            margin = self.settings.protection_margin_m
-            standing = self.trains[a.train_id].plant.speed_mps == 0.0
-            berth = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin, self._coupled_behind)
-            if berth is not None and berth < authority:
-                authority = berth
-                key = (tr.train_id, stop.station_id) if stop is not None else None
-                waits = tr.plant.speed_mps == 0.0 and berth - tr.front_m < BERTH_WAIT_M  # standing at the limit
-                if key is not None and waits and key not in self._berth_waits:
-                    self._berth_waits.add(key)
-                    self.events.record(t, "platform_occupied", tr.train_id, station=key[1], by=a.train_id)
+        authority = self.berths.authority_end_m(t, tr, stop, a, authority)
         return own_pos, own_v, grad, limits, stop, target, authority, tail_m
 
     @staticmethod
@@ -192,11 +181,12 @@ class ControlStage:
         return tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
 
     def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
-        """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state)?"""
+        """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state), or on
+        its way to couple behind it on departure (``FormationBook.joins``)?"""
         f = self.formations.of_follower.get(train_id)
         if f is None or not self.formations.partners(train_id, ahead_id):
             return False
-        return self.formations.manager.state(f.id) in COUPLED_STATES
+        return self.formations.manager.state(f.id) in COUPLED_STATES or self.formations.joins(train_id, ahead_id)
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""

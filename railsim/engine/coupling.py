@@ -69,6 +69,7 @@ class FormationBook:
         self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = _unwired
         self.chained: Callable[[str], bool] = lambda _trip: False  # rotations: trips their unit's turnback starts
         self._asked_after_turnback: set[str] = set()  # formations whose couple request went out after a turnback
+        self._cut_off: set[str] = set()  # formations whose follower cannot reach its leader (_join_cut_off)
         self._held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell ended (held for the follower)
 
     # ------------------------------------------------------------------ registration
@@ -157,6 +158,21 @@ class FormationBook:
             return False
         return not (stop.station_id == origin and leader.sumo_stopped)
 
+    def joins(self, train_id: str, leader_id: str) -> bool:
+        """True while chained ``train_id`` is on its way to couple on departure behind ``leader_id`` at its origin
+        platform (it has not left that platform, and no attempt has failed): it runs into the platform its leader
+        occupies on purpose, as a unit called on to attach (:mod:`railsim.engine.platforms`)."""
+        f = self.of_follower.get(train_id)
+        if f is None or not trig(f.couple, "on_departure") or not self.chained(train_id):
+            return False
+        if (
+            self.leader_of(f).train_id != leader_id
+            or self.follower_of(f).departed_s is not None
+            or f.id in self._cut_off
+        ):
+            return False
+        return f.id not in self._asked_after_turnback or self.manager.state(f.id) in COUPLED_STATES
+
     def holds_departure(self, t: float, tr: TrainRuntime) -> bool:
         """True while leader ``tr`` must stay at the platform where a chained follower couples behind it on
         departure: until the pair is coupled, the attempt failed, or one coupling timeout has passed since its own
@@ -171,8 +187,8 @@ class FormationBook:
             state = self.manager.state(f.id)
             if fol.status not in ("scheduled", "running") or state == "coupled":
                 continue
-            if f.id in self._asked_after_turnback and state != "coupling":
-                continue  # the attempt failed: the leader goes
+            if (f.id in self._asked_after_turnback and state != "coupling") or f.id in self._cut_off:
+                continue  # the attempt failed, or another train stands between them: the leader goes
             if t - self._held_since_s.setdefault(f.id, t) >= float(f.coupling_timeout_s):
                 continue
             return True
@@ -201,6 +217,25 @@ class FormationBook:
             return False
         stop, _ = self.current_stop(leader)
         return stop is not None and stop.station_id == follower.trip.origin.station_id
+
+    def _join_cut_off(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead) -> bool:
+        """True once for an ``on_departure`` formation of a chained follower whose leader stands at the follower's
+        origin platform with another train (``a``) between them — a through train let over the points before the
+        unit came out of its turnback: it cannot reach its leader, so its leader does not wait for it
+        (:meth:`holds_departure`; ``join_cut_off`` event) and it is not called on into the platform (:meth:`joins`).
+        It follows on its own, late. Without this the leader waited its whole coupling timeout, the train
+        between them with it (the Line 3 day with platform berths)."""
+        if f.id in self._cut_off or f.id in self._asked_after_turnback or a.train_id == leader.train_id:
+            return False
+        if not (trig(f.couple, "on_departure") and self.chained(follower.train_id)):
+            return False
+        if follower.status != "running" or follower.departed_s is not None or leader.status != "running":
+            return False
+        first = follower.trip.stops[0]
+        if first.kind == "reversal" and a.rear_m < first.window_end_m:
+            return False  # a train before the unit's turnaround (on its arrival track) is not between them
+        stop, _ = self.current_stop(leader)
+        return leader.sumo_stopped and stop is not None and stop.station_id == follower.trip.origin.station_id
 
     # ------------------------------------------------------------------ queries
     def state(self, train_id: str) -> str:
@@ -317,6 +352,9 @@ class FormationBook:
             for hook in self.follower_hooks:
                 hook(t, tr, f, a)
         leader = self.leader_of(f)
+        if a is not None and self._join_cut_off(tr, leader, f, a):
+            self._cut_off.add(f.id)
+            self.manager.record(t, "join_cut_off", f.id, by=a.train_id, station=tr.trip.origin.station_id)
         if self._couples_after_turnback(tr, leader, f, a):
             self._asked_after_turnback.add(f.id)
             self.manager.request_couple(f.id)

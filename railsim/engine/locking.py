@@ -375,13 +375,14 @@ class RouteLocks:
         return out
 
     def deadlock(
-        self, trains: list[TrainRuntime], behind: dict[str, str] | None = None
+        self, trains: list[TrainRuntime], behind: dict[str, tuple[str, str]] | None = None
     ) -> tuple[list[str], list[str]] | None:
         """A circular wait among ``trains``: ``(train ids in the cycle, resources involved)``, or None.
 
         Train A waits for B when B holds (or is queued ahead for) a switch or section A asked for, or when A stands
-        right behind B (``behind``: standing train -> the standing train directly ahead of it, from the occupancy
-        of the track; the resource is named ``ahead:B``). A cycle in that graph can never resolve by itself: the
+        behind B (``behind``: standing train -> (the standing train it waits behind, the resource): ``ahead:B``
+        for the train directly ahead, from the occupancy of the track, or ``platform:S`` for the train occupying
+        the platform of station S that A waits to enter). A cycle in that graph can never resolve by itself: the
         interlocking serves each resource first-in-first-out, nobody releases a lock without moving past it, and
         a train cannot move through the train standing in front of it.
         """
@@ -392,9 +393,9 @@ class RouteLocks:
                 for other in others:
                     if other in by_id:
                         waits.setdefault(tr.train_id, {})[other] = sid
-        for a, b in (behind or {}).items():
+        for a, (b, resource) in (behind or {}).items():
             if a in by_id and b in by_id:
-                waits.setdefault(a, {}).setdefault(b, f"ahead:{b}")
+                waits.setdefault(a, {}).setdefault(b, resource)
         graph = nx.DiGraph()
         for a in sorted(waits):  # insertion order keeps the search deterministic
             for b in sorted(waits[a]):

@@ -147,7 +147,6 @@ class Simulation:
         self.formations.current_stop = self.stops.current
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
         self.safety.set_up_crossings(self.bundle.graph)
-        self.watchdog = StallWatch(self.events, self.settings, self.locks)
         self.control = ControlStage(
             self.trains,
             self.formations,
@@ -161,6 +160,7 @@ class Simulation:
             self.step_method,
             disturbances,
         )
+        self.watchdog = StallWatch(self.events, self.settings, self.locks, self.control.berths)
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
         self.dispatcher.schedule_departures()

@@ -4,26 +4,77 @@ A platform track is one berth. Moving-block separation alone would let a followe
 a train standing at a long platform — inside the platform, where it would halt short of its mark and SUMO could
 register the stop there (the depot day's unit at T2 was served 106 m short that way). As with a platform's
 entry signal, the follower's movement authority ends the overlap (``protection_margin_m``) before the start of
-the platform it is heading for while the train directly ahead stands with any part of its body on that platform.
-Once that train moves, the follower may run in behind it, kept back by its separation (as a CBTC movement
-authority follows a departing train's rear) — the station headway moving block is known for.
+the platform it is heading for while the train directly ahead stands — or is stopping there — with any part of
+its body on that platform. Once that train moves off (its stop there is over), the follower may run in behind it,
+kept back by its separation (as a CBTC movement authority follows a departing train's rear) — the station headway
+moving block is known for.
 Track-vacancy detection sees the truth, so the train ahead is taken from the ground-truth occupancy
 (:class:`railsim.engine.occupancy.Ahead`). A follower coupling or coupled behind the train ahead is exempt: it
-enters the platform behind its leader on purpose (a formation partner that is not coupled is not). A train already past the berth's limit (it was let in, or it is standing
-at the platform) is not stopped again.
+enters the platform behind its leader on purpose; so is a unit on its way to couple on departure behind the
+train standing at its origin platform (called on, as a unit that attaches: ``FormationBook.joins``) — held at the
+berth limit it stood 155 m behind its leader at Liugongli, beyond the 150 m from which the coupling is asked,
+and the leader waited the whole coupling timeout for it. A formation partner that is not coupling is not exempt.
+A train already past the berth's limit (it was let in, or it is standing at the platform) is not stopped again.
 
-**Opt-in** (``interlocking: {platform_berths: true}``), off by default: with it, the Line 3 service day stalls
-(a short-turn train waited more than the 300 s stall limit before Liugongli's up platform, where a unit stood
-waiting out its turnback); the stall watchdog does not yet count a berth wait as a reason, and turnback units
-that wait at a through platform should wait elsewhere first. Both are left for the next session.
+**On by default**; ``interlocking: {platform_berths: false}`` turns it off. A train standing at a berth limit
+waits for the occupant: :attr:`Berths.waiting` tells the stall watchdog (:mod:`railsim.engine.watchdog`) so, as
+an edge of its wait-for graph (resource ``platform:S``), and its wait is not a stall while the occupant itself
+stands for a reason (dwells, or waits for its departure time).
 """
 
 from __future__ import annotations
 
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 
+from railsim.engine.events.log import EventLog
 from railsim.engine.occupancy import Ahead
+from railsim.engine.settings import EngineSettings
+from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
+
+BERTH_WAIT_M = 10.0  # a train standing this close to an occupied platform's limit waits for it (logged once)
+
+
+class Berths:
+    """The berth rule at run time: each train's authority cut at an occupied platform, its ``platform_occupied``
+    event (once per train and station), and who stands waiting for whose platform (:attr:`waiting`, for the stall
+    watchdog: the occupant is the train it waits for)."""
+
+    def __init__(
+        self,
+        trains: Mapping[str, TrainRuntime],
+        events: EventLog,
+        settings: EngineSettings,
+        coupled_behind: Callable[[str, str], bool],
+    ) -> None:
+        self.trains = trains
+        self.events = events
+        self.settings = settings
+        self.coupled_behind = coupled_behind
+        self.waiting: dict[str, tuple[str, str]] = {}  # train standing at a berth limit -> (station, occupant)
+        self._logged: set[tuple[str, str]] = set()  # (train, station) whose platform_occupied was logged
+
+    def authority_end_m(
+        self, t: float, tr: TrainRuntime, stop: TripStop | None, a: Ahead | None, authority_m: float
+    ) -> float:
+        """``authority_m`` (the route locks' end of authority), cut short of the platform ``tr`` is heading for
+        while the train ahead stands on it."""
+        self.waiting.pop(tr.train_id, None)
+        if a is None or stop is None or not self.settings.platform_berths:
+            return authority_m
+        occupant = self.trains[a.train_id]
+        standing = occupant.plant.speed_mps == 0.0 or _stops_at(occupant, stop.station_id)
+        margin_m = self.settings.protection_margin_m
+        berth_m = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin_m, self.coupled_behind)
+        if berth_m is None or berth_m >= authority_m:
+            return authority_m
+        if tr.plant.speed_mps == 0.0 and berth_m - tr.front_m < BERTH_WAIT_M:  # standing at the limit: it waits
+            self.waiting[tr.train_id] = (stop.station_id, a.train_id)
+            key = (tr.train_id, stop.station_id)
+            if key not in self._logged:
+                self._logged.add(key)
+                self.events.record(t, "platform_occupied", tr.train_id, station=stop.station_id, by=a.train_id)
+        return berth_m
 
 
 def berth_limit_m(
@@ -50,3 +101,11 @@ def berth_limit_m(
     if coupled_behind(train_id, ahead.train_id):
         return None
     return limit_m
+
+
+def _stops_at(tr: TrainRuntime, station_id: str) -> bool:
+    """True while ``tr`` is heading for (or standing at) a stop at ``station_id``: it will stand there, so the
+    platform is occupied from the moment its body is on it, not only from its halt — a follower then meets the
+    berth limit while still far enough back to brake for it (holding it only from the halt cut its authority
+    short suddenly: 8 one-step emergency brakes on the Line 3 day, trains ~200 m behind a train halting at Bijin)."""
+    return tr.next_stop < len(tr.trip.stops) and tr.trip.stops[tr.next_stop].station_id == station_id

@@ -39,7 +39,7 @@ class EngineSettings:
     departure_retry_s: float = 1.0  # ... and is tried again after this long
     desync_tolerance_m: float = 0.05  # railsim's chainage and SUMO's lane position may differ this much
     stall_timeout_s: float = 300.0  # a train standing this long with no reason (no stop, no hold) stalls the run
-    platform_berths: bool = False  # a train does not run into a platform the train ahead stands on (platforms.py)
+    platform_berths: bool = True  # a train does not run into a platform the train ahead stands on (platforms.py)
 
     def with_interlocking(self, spec: Any) -> EngineSettings:
         """These settings with a scenario's ``interlocking:`` knobs (an ``InterlockingSpec``) applied."""

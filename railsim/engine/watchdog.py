@@ -16,6 +16,13 @@ trains and the resources (``ahead:T`` for "stands behind train T"), and the run 
 closes cycles the locks alone do not show: a train that holds a single-track section stands behind a train that
 waits for the section's opposing train, which waits for that section.
 
+**Platform berths** (:mod:`railsim.engine.platforms`): a train standing at the limit of a platform that the train
+ahead occupies waits for that train, as behind a platform entry signal at danger. In the wait-for graph that is an
+edge to the occupant (resource ``platform:S`` for station S), however far back the train stands, and a ``stalled``
+event names it (``waiting_for``: ``platform:S(T)``). While the occupant itself stands for a reason — it dwells, or
+waits for its departure time — the wait is legitimate and the follower's clock does not run (each such reason
+ends by itself); once the occupant stands for no reason, the follower's clock runs from then.
+
 At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
 is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
 """
@@ -39,10 +46,12 @@ STANDSTILL_MPS = 1e-6
 class StallWatch:
     """Times how long each train has stood for no reason; reports stalls."""
 
-    def __init__(self, events: EventLog, settings: EngineSettings, locks: Any) -> None:
+    def __init__(self, events: EventLog, settings: EngineSettings, locks: Any, berths: Any = None) -> None:
+        """``berths``: the berth rule's port (its ``waiting``: train -> (station, occupant)), or None."""
         self.events = events
         self.settings = settings
         self.locks = locks
+        self.berth_waits: Mapping[str, tuple[str, str]] = berths.waiting if berths is not None else {}
         self.standing_since: dict[str, tuple[float, TrainRuntime]] = {}
         self.failure: str | None = None
 
@@ -52,7 +61,9 @@ class StallWatch:
         for tr in active:
             held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
             dwelling = (tr.sumo_stopped or tr.sumo_stopped_now) and not tr.held_for_route
-            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held:
+            berth = self.berth_waits.get(tr.train_id)
+            behind_busy = berth is not None and berth[1] not in self.standing_since  # its platform's occupant dwells
+            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held or behind_busy:
                 self.standing_since.pop(tr.train_id, None)
             elif tr.train_id not in self.standing_since:
                 self.standing_since[tr.train_id] = (t, tr)
@@ -66,11 +77,14 @@ class StallWatch:
         standing = [tr for since, tr in self.standing_since.values() if t - since >= DEADLOCK_CONFIRM_S]
         if len(standing) < 2:
             return
-        behind = {}
+        behind: dict[str, tuple[str, str]] = {}  # standing train -> (the train it waits behind, the resource)
         for tr in standing:
             a = ahead.get(tr.train_id)
-            if a is not None and a.gap_m <= OCCUPANCY_WAIT_M:
-                behind[tr.train_id] = a.train_id
+            berth = self.berth_waits.get(tr.train_id)
+            if berth is not None:
+                behind[tr.train_id] = (berth[1], f"platform:{berth[0]}")
+            elif a is not None and a.gap_m <= OCCUPANCY_WAIT_M:
+                behind[tr.train_id] = (a.train_id, f"ahead:{a.train_id}")
         found = finder(standing, behind)
         if found is None:
             return
@@ -99,6 +113,9 @@ class StallWatch:
         parts = []
         for since, tr in stalled:
             waits = list(waiting_for(tr)) if waiting_for is not None else []
+            berth = self.berth_waits.get(tr.train_id)
+            if berth is not None:
+                waits.append(f"platform:{berth[0]}({berth[1]})")
             self.events.record(
                 t,
                 "stalled",

@@ -383,7 +383,7 @@ class InterlockingSpec:
     section or crossing not reserved for it (and beyond the destination platform's end): what a train may overrun
     its stopping point by without fouling a route set for another train. ``stall_timeout_s``: how long a train
     may stand for no reason before the run stops as stalled. ``platform_berths``: a train does not run into a
-    platform the train ahead stands on (``railsim.engine.platforms``; off by default, see there)."""
+    platform the train ahead stands on (``railsim.engine.platforms``; on by default, ``false`` turns it off)."""
 
     overlap_m: float | None = None
     stall_timeout_s: float | None = None

@@ -196,6 +196,10 @@ class FormationManager:
         self._follower_of[formation.follower_id] = formation.id
         self._leader_of.setdefault(formation.leader_id, []).append(formation.id)
 
+    def record(self, t_s: float, kind: str, fid: str, **detail: object) -> None:
+        """Log an event about formation ``fid`` (the engine's formation book reports through here)."""
+        self._layer.log.record(t_s, kind, fid, **detail)
+
     # ------------------------------------------------------------------ commands
     def request_couple(self, fid: str, at_s: float | None = None) -> None:
         """Ask formation ``fid`` to couple now, or at exactly ``at_s`` (a simpy timer)."""
