@@ -145,14 +145,21 @@ def allowed_speed_mps(distance_m: float, decel: float, delay_s: float, accel_now
     return _mx(w - a0 * t, 0.0)
 
 
-@njit(cache=True)
-def required_decel_mps2(speed: float, distance_m: float, delay_s: float, accel_now: float, target: float) -> float:
+@njit(cache=True, inline="always")
+def _dead_time(speed: float, delay_s: float, a0: float) -> tuple[float, float, float]:
+    """The dead-time model's start (controllers.braking): ``(v ≥ 0, dead time — shortened if the train stands
+    within it, speed after it)``."""
     v = _mx(speed, 0.0)
     t = _mx(delay_s, 0.0)
-    a0 = accel_now
-    if a0 < 0.0 and v + a0 * t < 0.0:
+    if a0 < 0.0 and v + a0 * t < 0.0:  # already braking hard enough to stand within the dead time
         t = v / -a0
-    v_after = _mx(v + a0 * t, 0.0)
+    return v, t, _mx(v + a0 * t, 0.0)
+
+
+@njit(cache=True)
+def required_decel_mps2(speed: float, distance_m: float, delay_s: float, accel_now: float, target: float) -> float:
+    v, t, v_after = _dead_time(speed, delay_s, accel_now)
+    a0 = accel_now
     v_end = _mx(target, 0.0)
     if v_after <= v_end:
         return 0.0
@@ -282,12 +289,8 @@ def _restriction_far_m(
 
 @njit(cache=True)
 def stopping_distance_m(speed: float, decel: float, delay_s: float, accel_now: float) -> float:
-    v = _mx(speed, 0.0)
-    t = _mx(delay_s, 0.0)
+    v, t, v_after = _dead_time(speed, delay_s, accel_now)
     a0 = accel_now
-    if a0 < 0.0 and v + a0 * t < 0.0:
-        t = v / -a0
-    v_after = _mx(v + a0 * t, 0.0)
     dist = v * t + 0.5 * a0 * t * t
     v_end = _mx(0.0, 0.0)
     if v_after > v_end:
