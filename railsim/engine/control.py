@@ -143,7 +143,7 @@ class ControlStage:
         self.fallbacks = FallbackReporter(events)
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
-        self.berths = Berths(trains, events, settings, self._coupled_behind)  # railsim.engine.platforms
+        self.berths = Berths(trains, events, settings, self._coupled_behind, dt_s)  # railsim.engine.platforms
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:

@@ -16,6 +16,14 @@ berth limit it stood 155 m behind its leader at Liugongli, beyond the 150 m from
 and the leader waited the whole coupling timeout for it. A formation partner that is not coupling is not exempt.
 A train already past the berth's limit (it was let in, or it is standing at the platform) is not stopped again.
 
+**Never inside the braking distance** (approach locking): a berth limit that appears when the follower could no
+longer stop for it at its service deceleration is not imposed on that follower — it is let in, kept back by its
+separation behind the occupant's rear as at any other point of the line. Once imposed, the limit holds while the
+occupant stands (the follower then brakes for it along its own curve). On the depot day a unit running to the
+airport without a stop at Bijin halted on Bijin's platform for the points ahead; the Airport train behind,
+~155 m from the limit at 19 m/s (braking distance ~190 m), had its authority cut and braked in emergency for one
+step before the unit moved on.
+
 **On by default**; ``interlocking: {platform_berths: false}`` turns it off. A train standing at a berth limit
 waits for the occupant: :attr:`Berths.waiting` tells the stall watchdog (:mod:`railsim.engine.watchdog`) so, as
 an edge of its wait-for graph (resource ``platform:S``), and its wait is not a stall while the occupant itself
@@ -46,13 +54,16 @@ class Berths:
         events: EventLog,
         settings: EngineSettings,
         coupled_behind: Callable[[str, str], bool],
+        dt_s: float,
     ) -> None:
         self.trains = trains
+        self.dt_s = dt_s
         self.events = events
         self.settings = settings
         self.coupled_behind = coupled_behind
         self.waiting: dict[str, tuple[str, str]] = {}  # train standing at a berth limit -> (station, occupant)
         self._logged: set[tuple[str, str]] = set()  # (train, station) whose platform_occupied was logged
+        self._imposed: dict[str, str] = {}  # train -> station whose berth limit it was given (holds while standing)
 
     def authority_end_m(
         self, t: float, tr: TrainRuntime, stop: TripStop | None, a: Ahead | None, authority_m: float
@@ -66,7 +77,14 @@ class Berths:
         standing = occupant.plant.speed_mps == 0.0 or _stops_at(occupant, stop.station_id)
         margin_m = self.settings.protection_margin_m
         berth_m = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin_m, self.coupled_behind)
-        if berth_m is None or berth_m >= authority_m:
+        if berth_m is None:
+            self._imposed.pop(tr.train_id, None)
+            return authority_m
+        if self._imposed.get(tr.train_id) != stop.station_id:
+            if berth_m - tr.front_m < service_braking_m(tr, self.dt_s):
+                return authority_m  # too late to stop for it: let in (approach locking), separation keeps it back
+            self._imposed[tr.train_id] = stop.station_id
+        if berth_m >= authority_m:
             return authority_m
         if tr.plant.speed_mps == 0.0 and berth_m - tr.front_m < BERTH_WAIT_M:  # standing at the limit: it waits
             self.waiting[tr.train_id] = (stop.station_id, a.train_id)
@@ -101,6 +119,15 @@ def berth_limit_m(
     if coupled_behind(train_id, ahead.train_id):
         return None
     return limit_m
+
+
+def service_braking_m(tr: TrainRuntime, dt_s: float) -> float:
+    """How far ``tr`` runs before it stands if it brakes at its service deceleration now [m]: a control step and
+    the brake's lag at the present speed, then ``v² / 2b`` — the distance inside which an authority cut is too
+    late (the train would need its emergency brake)."""
+    v = tr.plant.speed_mps
+    vehicle = tr.trip.vehicle
+    return v * (dt_s + vehicle.actuator_time_constant_s) + v * v / (2.0 * vehicle.service_decel_mps2)
 
 
 def _stops_at(tr: TrainRuntime, station_id: str) -> bool:
