@@ -208,6 +208,13 @@ class Ato:
         )
         return accel, emergency, line_kernels.ATO_PHASES[phase]
 
+    def packed(self, veh: VehicleParams, dt: float) -> np.ndarray:
+        """The law's inputs for ``veh`` and step ``dt`` as :func:`controllers.line_kernels.ato` reads them (for a
+        caller that runs the kernel inside its own compiled loop: ``railsim.engine.free_run_kernel``)."""
+        if veh is not self._packed_vehicle or dt != self._packed_dt:
+            return self._pack(veh, dt)
+        return self._packed
+
     def _pack(self, veh: VehicleParams, dt: float) -> np.ndarray:
         self._packed = line_kernels.pack(
             line_kernels.ATO_FIELDS, veh, self.params, G_MPS2, dt, _lag_ratio(dt, veh.actuator_time_constant_s)

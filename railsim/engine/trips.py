@@ -27,6 +27,8 @@ from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
+import numpy as np
+
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
 REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses (railsim.engine.turnback)
@@ -205,10 +207,70 @@ def _free_run_cached(
 ) -> tuple[dict[str, float], dict[str, float]]:
     if key in _FREE_RUN_CACHE:
         return _FREE_RUN_CACHE[key]
+    ato = controller_factory()
+    result = _free_run_compiled(trip, ato, dt_s, step_method, max_time_s)
+    if result is None:
+        result = free_run_reference(trip, ato, dt_s, step_method, max_time_s)
+    _FREE_RUN_CACHE[key] = result
+    return result
+
+
+def _free_run_compiled(
+    trip: Trip, ato: Any, dt_s: float, step_method: str, max_time_s: float
+) -> tuple[dict[str, float], dict[str, float]] | None:
+    """:func:`free_run_reference` in one compiled call (:mod:`railsim.engine.free_run_kernel`) for the line ATO
+    on a plain vehicle; None for anything else, or when the law gave a non-finite command (the reference then
+    raises its clear error)."""
+    from controllers.ato import Ato
+    from railsim.engine import free_run_kernel
+    from railsim.engine.routeview import route_view
+    from railsim.physics import dynamics, plant_kernel
+    from railsim.physics.vehicle import VehicleParams
+
+    veh = trip.vehicle
+    if type(ato) is not Ato or type(veh) is not VehicleParams or step_method not in dynamics.STEP_METHODS:
+        return None
+    view = route_view(trip.route)
+    stops = np.array(
+        [(s.mark_m, s.window_start_m, s.window_end_m, s.dwell_s, float(s.is_destination)) for s in trip.stops],
+        dtype=np.float64,
+    ).reshape(-1, 5)
+    arr_t, dep_t, ok = free_run_kernel.free_run(
+        ato.packed(veh, dt_s),
+        plant_kernel.pack(veh, dt_s),
+        plant_kernel.method_index(step_method),
+        dt_s,
+        veh.length_m,
+        view.line_speed_mps,
+        np.array(view.grade_starts, dtype=np.float64),
+        np.array(view.grades, dtype=np.float64).reshape(-1, 3),
+        np.array([(lim.start_m, lim.end_m, lim.speed_mps) for lim in view.limits], dtype=np.float64).reshape(-1, 3),
+        stops,
+        trip.depart_chainage_m,
+        trip.start_speed_mps,
+        max_time_s,
+    )
+    if not ok:
+        return None
+    arrivals: dict[str, float] = {trip.origin.station_id: 0.0}
+    departures: dict[str, float] = {trip.origin.station_id: 0.0}
+    for k in range(1, len(trip.stops)):  # in stop order, as the reference fills them
+        stop = trip.stops[k]
+        if arr_t[k] == arr_t[k]:
+            arrivals[stop.station_id] = float(arr_t[k])
+        if dep_t[k] == dep_t[k]:
+            departures[stop.station_id] = float(dep_t[k])
+    return arrivals, departures
+
+
+def free_run_reference(
+    trip: Trip, ato: Any, dt_s: float, step_method: str, max_time_s: float
+) -> tuple[dict[str, float], dict[str, float]]:
+    """The free run in the interpreter, step by step (the reference of the compiled one, and the path of any
+    controller other than the line ATO): times relative to the departure."""
     from railsim.engine.routeview import route_view
     from railsim.physics import dynamics
 
-    ato = controller_factory()
     veh = trip.vehicle
     view = route_view(trip.route)
     decide = _decider(ato, trip, view, dt_s)
@@ -240,7 +302,6 @@ def _free_run_cached(
             if stop.is_destination:
                 break
             dwell_until = t + stop.dwell_s + 1.0  # SUMO registers the stop ~1 s after the halt
-    _FREE_RUN_CACHE[key] = (arrivals, departures)
     return arrivals, departures
 
 
