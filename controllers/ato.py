@@ -84,7 +84,8 @@ _NO_STOP = (0.0, 0.0, 0.0, False)
 _LIMIT_ARRAYS: dict[int, tuple[tuple[SpeedLimit, ...], np.ndarray]] = {}
 
 
-def _limits_array(limits: tuple[SpeedLimit, ...]) -> np.ndarray:
+def limits_array_cached(limits: tuple[SpeedLimit, ...]) -> np.ndarray:
+    """``limits`` as the kernels' ``(n, 3)`` array, remembered by the tuple's identity (see above)."""
     entry = _LIMIT_ARRAYS.get(id(limits))
     if entry is not None and entry[0] is limits:
         return entry[1]
@@ -199,7 +200,7 @@ class Ato:
             length_m,
             grade,
             line_speed_mps,
-            _limits_array(speed_limits),
+            limits_array_cached(speed_limits),
             stop is not None,
             *(stop if stop is not None else _NO_STOP),
             authority_end_m is not None,

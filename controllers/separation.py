@@ -144,9 +144,15 @@ class Separation:
     ) -> tuple[float, bool, int, float, float]:
         """:meth:`decide` without its :class:`Command`: ``(accel, emergency, phase index into
         line_kernels.SEPARATION_PHASES, free distance, barrier)`` — for the engine's line trains."""
-        packed = self._packed
+        packed = self.packed(veh, dt_s)
+        return line_kernels.separation(packed, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)  # type: ignore[no-any-return]
+
+    def packed(self, veh: VehicleParams, dt_s: float) -> np.ndarray:
+        """The law's inputs for ``veh`` and step ``dt_s`` as :func:`controllers.line_kernels.separation` reads
+        them (packed once per vehicle and step; also for a caller's own compiled step,
+        ``railsim.engine.line_step_kernel``)."""
         if veh is not self._packed_vehicle or dt_s != self._packed_dt:
-            packed = self._packed = line_kernels.pack(
+            self._packed = line_kernels.pack(
                 line_kernels.SEPARATION_FIELDS,
                 veh,
                 self.params,
@@ -155,7 +161,7 @@ class Separation:
                 _lag_ratio(dt_s, veh.actuator_time_constant_s),
             )
             self._packed_vehicle, self._packed_dt = veh, dt_s
-        return line_kernels.separation(packed, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)  # type: ignore[no-any-return]
+        return self._packed
 
     def decide_reference(
         self,

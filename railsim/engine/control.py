@@ -30,7 +30,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from controllers.ato import Ato
+from controllers.ato import Ato, limits_array_cached
 from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate, fallback_reason
 from controllers.separation import Separation
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
@@ -44,9 +44,12 @@ from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
-from railsim.physics import dynamics
+from railsim.engine import line_step_kernel
+from railsim.physics import dynamics, plant_kernel
 
 log = logging.getLogger(__name__)
+_NO_PACK = np.zeros(0)  # no separation law this step (the fused line step does not read it)
+_NO_STOP = (0.0, 0.0, 0.0, False)  # no next stop (the ATO kernel does not read it)
 PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
@@ -144,6 +147,8 @@ class ControlStage:
         self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
         self.command_source: CommandSource | None = None
         self.berths = Berths(trains, events, settings, self._coupled_behind, dt_s)  # railsim.engine.platforms
+        self._plant_p: dict[int, tuple[Any, np.ndarray]] = {}  # plant kernel inputs per vehicle (_plant_packed)
+        self._method_i = plant_kernel.method_index(step_method)
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -238,6 +243,9 @@ class ControlStage:
             and tr.controllers.get("coupled") is not None
         )
         if type(ato) is Ato:  # the line ATO reads no extras
+            line_roles = a is None or type(tr.controllers["separation"]) is Separation
+            if line_roles and not (planned or vc_role) and tr.exact_plant is None and tr.controllers.get("ca") is None:
+                return self._line_train(t, tr, a, ato, sit)
             accel, emergency, phase = ato.decide(
                 veh,
                 self.dt,
@@ -252,9 +260,6 @@ class ControlStage:
                 authority,
                 tail_m,
             )
-            line_roles = a is None or type(tr.controllers["separation"]) is Separation
-            if line_roles and not (planned or vc_role) and tr.exact_plant is None and tr.controllers.get("ca") is None:
-                return self._line_train(t, tr, a, accel, emergency, own_pos, own_v, grad)
             commands["ato"] = Command(accel, emergency=emergency, info={"phase": phase})
         else:
             base = self._base(t, tr, sit)
@@ -359,32 +364,76 @@ class ControlStage:
                 trigger_m=ca_cmd.info.get("trigger_m"),
             )
 
-    def _line_train(
-        self,
-        t: float,
-        tr: TrainRuntime,
-        a: Ahead | None,
-        accel: float,
-        emergency: bool,
-        x: float,
-        v: float,
-        grad: float,
-    ) -> float:
+    def _line_train(self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation) -> float:
         """The common case on plain values: the line ATO's command, then the line :class:`Separation` against the
         train ahead, arbitrated like :func:`controllers.base.arbitrate` (the smaller acceleration wins, the ATO on a
         tie) — the same numbers as the general path, without a :class:`Command` per role (neither law falls back,
-        adds, or carries a plan)."""
-        role = "ato"
+        adds, or carries a plan). Without actuator noise or bias on the train, the laws, the arbitration and the
+        plant step are one compiled call (:mod:`railsim.engine.line_step_kernel`)."""
+        x, v, grad, limits, _, target, authority, tail_m = sit
+        veh = tr.trip.vehicle
+        known = None
         if a is not None:
             known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground")
             if known is not None:
                 tr.stale_max_s = max(tr.stale_max_s, known[1])
-                sep_accel, sep_emergency, _, _, _ = tr.controllers["separation"].values(
-                    tr.trip.vehicle, self.dt, x, v, tr.plant.applied_accel_mps2, grad, known[0], known[1]
-                )
-                if sep_accel < accel:
-                    role, accel, emergency = "separation", sep_accel, sep_emergency
+        plant = tr.plant
+        if not self._disturbed_actuator(tr):
+            sep_p = tr.controllers["separation"].packed(veh, self.dt) if known is not None else _NO_PACK
+            accel, emergency, role_i, ok, v_next, a_k, u_k, energy_j, mask = line_step_kernel.line_step(
+                ato.packed(veh, self.dt),
+                sep_p,
+                self._plant_packed(veh),
+                self._method_i,
+                self.dt,
+                x,
+                v,
+                plant.speed_mps,
+                plant.applied_accel_mps2,
+                plant.target_accel_mps2,
+                veh.length_m,
+                grad,
+                tr.view.line_speed_mps,
+                limits_array_cached(limits),
+                target is not None,
+                *(target if target is not None else _NO_STOP),
+                authority is not None,
+                authority if authority is not None else 0.0,
+                tail_m,
+                known is not None,
+                *(known if known is not None else (0.0, 0.0)),
+            )
+            role = "separation" if role_i == line_step_kernel.ROLE_SEPARATION else "ato"
+            if ok:
+                self._emergency_events(t, tr, role, emergency)
+                tr.last_plan = None
+                return self._commit(tr, role, accel, v_next, a_k, u_k, energy_j, mask)
+            return self._apply(t, tr, role, accel, emergency, None, grad)  # non-finite: recorded, braked
+        accel, emergency, _ = ato.decide(
+            veh, self.dt, x, v, plant.applied_accel_mps2, veh.length_m, grad, tr.view.line_speed_mps, limits,
+            target, authority, tail_m,
+        )  # fmt: skip
+        role = "ato"
+        if known is not None:
+            sep_accel, sep_emergency, _, _, _ = tr.controllers["separation"].values(
+                veh, self.dt, x, v, plant.applied_accel_mps2, grad, known[0], known[1]
+            )
+            if sep_accel < accel:
+                role, accel, emergency = "separation", sep_accel, sep_emergency
         return self._apply(t, tr, role, accel, emergency, None, grad)
+
+    def _disturbed_actuator(self, tr: TrainRuntime) -> bool:
+        """Does actuator noise or an injected bias act on this train's command (drawn in :meth:`_apply`)?"""
+        noise_trains = self.dist.actuator_trains
+        noisy = self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains)
+        return noisy or bool(self.dist.biases)
+
+    def _plant_packed(self, veh: Any) -> np.ndarray:
+        """The plant kernel's packed vehicle for this run's step (once per vehicle)."""
+        packed = self._plant_p.get(id(veh))
+        if packed is None or packed[0] is not veh:
+            packed = self._plant_p[id(veh)] = (veh, plant_kernel.pack(veh, self.dt))
+        return packed[1]
 
     # ------------------------------------------------------------------ arbitration and plant
     def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:
@@ -403,14 +452,7 @@ class ControlStage:
         """The winning command (``accel``/``emergency``; ``cmd`` itself when there is one, for its plan and an
         exact plant): emergency-brake events, the non-finite guard, actuator noise and biases, the plant step."""
         veh = tr.trip.vehicle
-        if emergency and tr.emergency_since_s is None:
-            tr.emergency_since_s = t
-            self.events.record(t, "emergency_brake_on", tr.train_id, role=role)
-        elif not emergency and tr.emergency_since_s is not None:
-            self.events.record(
-                t, "emergency_brake_off", tr.train_id, role=role, duration_s=round(t - tr.emergency_since_s, 3)
-            )
-            tr.emergency_since_s = None
+        self._emergency_events(t, tr, role, emergency)
         if not math.isfinite(accel):
             self.events.record(t, "controller_nan", tr.train_id, role=role)
             log.error("%s: %s controller returned %r; braking", tr.train_id, role, accel)
@@ -429,10 +471,27 @@ class ControlStage:
             u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)
         plan = cmd.info.get("plan") if cmd is not None and cmd.info else None
         tr.last_plan = {"t0_s": t, **plan} if plan else None  # entry 0 = decision time unless the plan says so
-        v_now = tr.plant.speed_mps
         v_next, a, u_k, _, _, energy_j, mask = dynamics.step_values(
             veh, tr.plant, u, self.dt, grad, emergency, self.step_method
         )
+        return self._commit(tr, role, accel, v_next, a, u_k, energy_j, mask)
+
+    def _emergency_events(self, t: float, tr: TrainRuntime, role: str, emergency: bool) -> None:
+        """An emergency-braking interval's start and end, as events."""
+        if emergency and tr.emergency_since_s is None:
+            tr.emergency_since_s = t
+            self.events.record(t, "emergency_brake_on", tr.train_id, role=role)
+        elif not emergency and tr.emergency_since_s is not None:
+            self.events.record(
+                t, "emergency_brake_off", tr.train_id, role=role, duration_s=round(t - tr.emergency_since_s, 3)
+            )
+            tr.emergency_since_s = None
+
+    def _commit(
+        self, tr: TrainRuntime, role: str, accel: float, v_next: float, a: float, u_k: float, energy_j: float, mask: int
+    ) -> float:
+        """Keep the plant step's result (jerk, state, energy, saturations, role); return the speed for SUMO."""
+        v_now = tr.plant.speed_mps
         jerk = abs(a - tr.plant.applied_accel_mps2) / self.dt
         tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
         tr.plant = dynamics.PlantState(v_next, a, u_k)

@@ -1,0 +1,93 @@
+"""A line train's whole control step in one compiled call: ATO, separation, arbitration, plant.
+
+Most trains on a line, most of the time, are *line trains*: the line ATO (:class:`controllers.ato.Ato`) and the
+moving-block separation (:class:`controllers.separation.Separation`) against the train ahead, no formation role,
+junction plan, collision avoidance, exact plant, actuator noise or bias (``ControlStage._line_train``). For
+them the step is: both laws, the smaller acceleration wins (the ATO on a tie, as
+:func:`controllers.base.arbitrate`), then the plant step. Calling the two law kernels and the interpreted plant
+step one after the other cost three Python-level calls and a few hundred interpreted float operations per train
+and step; here it is one call (issue 20).
+
+**Bit for bit** with the interpreted path: the same kernels (:func:`controllers.line_kernels.ato`,
+:func:`controllers.line_kernels.separation`, :func:`railsim.physics.plant_kernel.step`, each tested against its
+reference) on the same values, the same comparison for arbitration (a NaN from separation loses, as ``<`` does in
+Python). A non-finite winning command is handed back unstepped (``ok`` False): the engine's general path then
+records it and brakes. The golden test pins the whole loop.
+
+numba's disk cache is keyed on each function's own file: after editing ``line_kernels.py`` or ``plant_kernel.py``
+clear ``railsim/engine/__pycache__`` (see :mod:`railsim.engine.free_run_kernel`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+from controllers import line_kernels
+from railsim.physics import plant_kernel
+
+ROLE_ATO, ROLE_SEPARATION = 0, 1
+
+
+@njit(cache=True)
+def line_step(
+    ato_p: np.ndarray,
+    sep_p: np.ndarray,
+    plant_p: np.ndarray,
+    method: int,
+    dt_s: float,
+    x: float,
+    v: float,
+    v_plant: float,
+    applied: float,
+    target: float,
+    length_m: float,
+    grade: float,
+    line_speed_mps: float,
+    limits: np.ndarray,
+    has_stop: bool,
+    mark_m: float,
+    window_start_m: float,
+    window_end_m: float,
+    dwelling: bool,
+    has_authority: bool,
+    authority_end_m: float,
+    tail_m: float,
+    has_rear: bool,
+    rear_m: float,
+    age_s: float,
+) -> tuple[float, bool, int, bool, float, float, float, float, int]:
+    """``(command, emergency, role, ok, v_next, applied a_k, target u_k, traction energy, saturation mask)``.
+
+    The laws see the train's own ``x``/``v`` (with sensor noise, if any), the plant steps its true ``v_plant``,
+    ``applied`` and ``target``; ``has_rear``: the known rear of the train ahead (``rear_m``, ``age_s``) is given
+    and separation runs."""
+    accel, emergency, _ = line_kernels.ato(
+        ato_p,
+        x,
+        v,
+        applied,
+        length_m,
+        grade,
+        line_speed_mps,
+        limits,
+        has_stop,
+        mark_m,
+        window_start_m,
+        window_end_m,
+        dwelling,
+        has_authority,
+        authority_end_m,
+        tail_m,
+    )
+    role = ROLE_ATO
+    if has_rear:
+        sep_accel, sep_emergency, _, _, _ = line_kernels.separation(sep_p, x, v, applied, grade, rear_m, age_s)
+        if sep_accel < accel:
+            role, accel, emergency = ROLE_SEPARATION, sep_accel, sep_emergency
+    if not (accel == accel and -np.inf < accel < np.inf):
+        return accel, emergency, role, False, 0.0, 0.0, 0.0, 0.0, 0
+    v_next, a, u, _, _, energy, mask = plant_kernel.step(
+        plant_p, v_plant, applied, target, accel, dt_s, grade, emergency, method
+    )
+    return accel, emergency, role, True, v_next, a, u, energy, mask
