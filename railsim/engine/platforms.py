@@ -74,7 +74,10 @@ class Berths:
         if a is None or stop is None or not self.settings.platform_berths:
             return authority_m
         occupant = self.trains[a.train_id]
-        standing = occupant.plant.speed_mps == 0.0 or _stops_at(occupant, stop.station_id)
+
+        def standing() -> bool:
+            return occupant.plant.speed_mps == 0.0 or _stops_at(occupant, stop.station_id)
+
         margin_m = self.settings.protection_margin_m
         berth_m = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin_m, self.coupled_behind)
         if berth_m is None:
@@ -100,22 +103,25 @@ def berth_limit_m(
     train_id: str,
     stop: TripStop | None,
     ahead: Ahead | None,
-    ahead_standing: bool,
+    ahead_standing: Callable[[], bool],
     overlap_m: float,
     coupled_behind: Callable[[str, str], bool],
 ) -> float | None:
     """The chainage (own route frame) where the train must stop short of an occupied platform, or None.
 
     ``stop`` is the stop the train is heading for, ``ahead`` the train directly ahead (its front and rear in the
-    same frame)."""
-    if ahead is None or not ahead_standing or stop is None or stop.kind != "station":
-        return None  # a train ahead that is moving draws clear: the follower may run in behind it (separation)
+    same frame); ``ahead_standing()`` tells whether it stands there (asked only once the geometry says it could
+    matter: the cheap checks first, every train, every step)."""
+    if ahead is None or stop is None or stop.kind != "station":
+        return None
     platform_start_m = stop.window_end_m - stop.platform_m
     limit_m = platform_start_m - overlap_m
     if front_m > limit_m + 1e-6:  # already let in (or standing at the platform)
         return None
     if ahead.rear_m >= stop.window_end_m or ahead.front_m <= platform_start_m:
         return None  # the train ahead is clear of the platform (beyond it, or not on it yet)
+    if not ahead_standing():
+        return None  # a train ahead that is moving draws clear: the follower may run in behind it (separation)
     if coupled_behind(train_id, ahead.train_id):
         return None
     return limit_m

@@ -195,8 +195,9 @@ class SafetyMonitor:
         bad = []
         last = self._last
         self._last = {}
+        speeds, lane_pos = speed_mps.tolist(), lane_pos_m.tolist()  # Python floats, the same values
         for i, tr in enumerate(active):
-            v_now = float(speed_mps[i])
+            v_now = speeds[i]
             self._last[tr.train_id] = (tr.front_m, v_now)
             prev = last.get(tr.train_id)
             sumo_m: float | None = tr.front_m
@@ -211,7 +212,7 @@ class SafetyMonitor:
             edge = edge_ids[i]
             if railsim_m == tr.front_m and not edge.startswith(":"):  # skip internal junction lanes
                 j = _edge_near(tr.view, edge, tr.edge_i)
-                sumo_m = None if j is None else tr.view.edge_start_m[j] + float(lane_pos_m[i])
+                sumo_m = None if j is None else tr.view.edge_start_m[j] + lane_pos[i]
                 if sumo_m is not None and abs(sumo_m - tr.front_m) <= tol:
                     continue
             elif railsim_m == tr.front_m:
