@@ -39,17 +39,20 @@ def test_shipped_sweep_validates(path: Path) -> None:
     sweep.validate_cases(spec, world_check=False)
 
 
-@pytest.mark.parametrize("regime", ["mb", "vc"])
+@pytest.mark.parametrize("regime", ["mb", "vc", "vc_together"])
 def test_study_scenarios_are_the_peak_with_the_0730_0800_window(regime: str) -> None:
-    """scenarios/studies/line3_peak_{mb,vc}_0730_0800.yaml (the robustness study's, README) load, and differ from
-    the shipped peak scenario only in name, description and the Airport services' last departure."""
+    """scenarios/studies/line3_peak_{mb,vc,vc_together}_0730_0800.yaml (the robustness study's, README) load, and
+    differ from the shipped peak scenario only in name, description and the Airport services' last departure
+    (and ``vc_together`` in its formations departing together)."""
     import yaml
 
     short = yaml.safe_load((ROOT / "scenarios" / "studies" / f"line3_peak_{regime}_0730_0800.yaml").read_text())
-    full = yaml.safe_load((ROOT / "scenarios" / f"chongqing_line3_peak_{regime}.yaml").read_text())
+    full = yaml.safe_load((ROOT / "scenarios" / f"chongqing_line3_peak_{regime[:2]}.yaml").read_text())
     from railsim.scenario.loading import load
 
     load(ROOT / "scenarios" / "studies" / f"line3_peak_{regime}_0730_0800.yaml")
+    if regime == "vc_together":
+        assert all(f.pop("depart_together") is True for f in short["formations"])
     for k in (0, 1):
         assert short["services"][k]["departures"]["last"] == "08:00"
         short["services"][k]["departures"]["last"] = full["services"][k]["departures"]["last"]

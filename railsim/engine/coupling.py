@@ -22,6 +22,11 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
 * **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
   mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
   tail clears it (:meth:`tail_m`).
+* **Departing together** (a formation's ``depart_together``): at every station both units of a coupled pair
+  serve, the leader stays after its own dwell until its follower's dwell there has ended
+  (:meth:`holds_departure`), so the pair leaves as one with the longer of the two dwells — as one coupled train
+  would. Without it each unit keeps its own dwell: a follower that dwells longer drops behind and, planned in its
+  leader's slot, then uses each platform after it (the #22 robustness study measured what that costs).
 
 Paper-specific follower logic (Paper D's state machine) plugs in through ``follower_hooks``: callables
 ``hook(t, tr, formation_spec, ahead)`` run before the state machine is fed.
@@ -71,6 +76,8 @@ class FormationBook:
         self._asked_after_turnback: set[str] = set()  # formations whose couple request went out after a turnback
         self._cut_off: set[str] = set()  # formations whose follower cannot reach its leader (_join_cut_off)
         self._held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell ended (held for the follower)
+        # (formation, leader's stop index) -> when the leader's dwell ended there (held for a convoy's follower)
+        self._convoy_held_since_s: dict[tuple[str, int], float] = {}
 
     # ------------------------------------------------------------------ registration
     def add(self, f: Any, where: str = "formations") -> None:
@@ -174,25 +181,51 @@ class FormationBook:
         return f.id not in self._asked_after_turnback or self.manager.state(f.id) in COUPLED_STATES
 
     def holds_departure(self, t: float, tr: TrainRuntime) -> bool:
-        """True while leader ``tr`` must stay at the platform where a chained follower couples behind it on
-        departure: until the pair is coupled, the attempt failed, or one coupling timeout has passed since its own
-        dwell ended (a pair leaves together; a follower that cannot come never keeps it for long)."""
+        """True while leader ``tr`` must stay at its platform after its dwell: for a chained follower coupling
+        behind it on departure (:meth:`_holds_for_join`), or for its coupled follower's dwell at a station both
+        serve when the formation departs together (:meth:`_holds_for_convoy`)."""
         stop, _ = self.current_stop(tr)
-        for f in self.of_leader.get(tr.train_id, ()):
-            fol = self.follower_of(f)
-            if not (trig(f.couple, "on_departure") and self.chained(fol.train_id)):
-                continue
-            if stop is None or stop.station_id != fol.trip.origin.station_id or fol.departed_s is not None:
-                continue
-            state = self.manager.state(f.id)
-            if fol.status not in ("scheduled", "running") or state == "coupled":
-                continue
-            if (f.id in self._asked_after_turnback and state != "coupling") or f.id in self._cut_off:
-                continue  # the attempt failed, or another train stands between them: the leader goes
-            if t - self._held_since_s.setdefault(f.id, t) >= float(f.coupling_timeout_s):
-                continue
-            return True
-        return False
+        return any(
+            self._holds_for_join(t, f, stop) or self._holds_for_convoy(t, tr, f, stop)
+            for f in self.of_leader.get(tr.train_id, ())
+        )
+
+    def _holds_for_join(self, t: float, f: Any, stop: TripStop | None) -> bool:
+        """At the origin of a chained follower that couples on departure: until the pair is coupled, the attempt
+        failed, or one coupling timeout has passed since the leader's dwell ended (a pair leaves together; a
+        follower that cannot come never keeps it for long)."""
+        fol = self.follower_of(f)
+        if not (trig(f.couple, "on_departure") and self.chained(fol.train_id)):
+            return False
+        if stop is None or stop.station_id != fol.trip.origin.station_id or fol.departed_s is not None:
+            return False
+        state = self.manager.state(f.id)
+        if fol.status not in ("scheduled", "running") or state == "coupled":
+            return False
+        if (f.id in self._asked_after_turnback and state != "coupling") or f.id in self._cut_off:
+            return False  # the attempt failed, or another train stands between them: the leader goes
+        return t - self._held_since_s.setdefault(f.id, t) < float(f.coupling_timeout_s)
+
+    def _holds_for_convoy(self, t: float, tr: TrainRuntime, f: Any, stop: TripStop | None) -> bool:
+        """A formation that departs together (``depart_together``), coupled, at a station its follower serves
+        too: until the follower's dwell there has ended (it has moved on to its next stop), so the pair's dwell is
+        the longer of the two, as one coupled train's would be. Not for a follower that is not on its way in
+        (farther than :data:`COUPLE_REACH_M` from where it halts) or is held for its route out (which may wait
+        for the leader's route to be released), and at most one coupling timeout after the leader's own dwell
+        ended."""
+        if not f.depart_together or stop is None or self.manager.state(f.id) != "coupled":
+            return False
+        fol = self.follower_of(f)
+        if fol.status != "running":
+            return False
+        fstop, offset = self.current_stop(fol)
+        if fstop is None or fstop.station_id != stop.station_id or fstop.kind == "reversal":
+            return False  # it does not stop here, or its dwell here is over
+        if fol.held_for_route:
+            return False  # its route out may wait for the leader's own to be released: no circular wait
+        if not fol.sumo_stopped and fstop.mark_m - offset - fol.front_m > COUPLE_REACH_M:
+            return False
+        return t - self._convoy_held_since_s.setdefault((f.id, tr.next_stop), t) < float(f.coupling_timeout_s)
 
     def _couples_after_turnback(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> bool:
         """True once for an ``on_departure`` formation of a chained follower: both units ran their turnback, the

@@ -73,6 +73,8 @@ The schema (every key; ``#`` comments give type, range and default)::
                                                 # omitted: only by events
         decouple: {before_switch: bijin_up}     # or {at_s: 3000} or {at_station: bijin}; omitted: never
         coupling_timeout_s: 300                 # > 0; default 300
+        depart_together: false                  # true: the coupled pair leaves each station both serve as one
+                                                # (the leader waits for its follower's dwell); default false
       - {id: vc, pairs: {leader: airport, follower: branch}, target_gap_m: 30, couple: {on_departure: true}}
                                                 # one formation vc0, vc1, ... per branch trip with the airport
                                                 # trip it departs after (the follower must be timed `after:` it)

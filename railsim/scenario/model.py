@@ -201,6 +201,9 @@ class FormationSpec:
     couple: TriggerSpec | None = None
     decouple: TriggerSpec | None = None
     coupling_timeout_s: float = DEFAULT_COUPLING_TIMEOUT_S
+    # the coupled pair leaves every station both serve together: the leader waits for its follower's dwell
+    # (:meth:`railsim.engine.coupling.FormationBook.holds_departure`); False: each unit keeps its own dwell
+    depart_together: bool = False
 
 
 @dataclass(frozen=True)

@@ -152,6 +152,12 @@ class Checker:
             raise self.expect(path, f"an integer in [{ge}, {le}]" if ge is not None else f"an integer <= {le}", value)
         return int(value)
 
+    def boolean(self, value: Any, path: str) -> bool:
+        """``true`` or ``false`` (not 0/1, not a string)."""
+        if not isinstance(value, bool):
+            raise self.expect(path, "true or false", value)
+        return value
+
     def plausible_tree(self, value: Any, path: str) -> None:
         """Every number in a free parameter block (a controller's ``params``, a world's ``params``) finite and
         plausible for the unit in its name; the block's own checks come after."""

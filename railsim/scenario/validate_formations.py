@@ -90,12 +90,15 @@ def formations(ck: Checker, value: Any, services: Sequence[ServiceSpec]) -> tupl
             if m.get("decouple") is not None:
                 decouple, raw["decouple"] = trigger(ck, m["decouple"], f"{path}.decouple", DECOUPLE_TRIGGERS)
             raw["coupling_timeout_s"] = timeout
-            specs.append(FormationSpec(fid, leader, follower, gap, couple, decouple, timeout))
+            together = ck.boolean(m.get("depart_together", False), f"{path}.depart_together")
+            if together:  # listed only when set: resolved scenarios without it stay as they were
+                raw["depart_together"] = True
+            specs.append(FormationSpec(fid, leader, follower, gap, couple, decouple, timeout, together))
             raws.append(raw)
     return tuple(specs), raws
 
 
-_OPTIONAL = ("couple", "decouple", "coupling_timeout_s")
+_OPTIONAL = ("couple", "decouple", "coupling_timeout_s", "depart_together")
 
 
 def _entries(
