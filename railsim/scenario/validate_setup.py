@@ -116,7 +116,5 @@ def interlocking(ck: Checker, value: Any) -> tuple[InterlockingSpec, dict[str, A
     if "stall_timeout_s" in m:
         raw["stall_timeout_s"] = ck.number(m["stall_timeout_s"], "interlocking.stall_timeout_s", gt=0.0)
     if "platform_berths" in m:
-        if not isinstance(m["platform_berths"], bool):
-            raise ck.expect("interlocking.platform_berths", "true or false", m["platform_berths"])
-        raw["platform_berths"] = m["platform_berths"]
+        raw["platform_berths"] = ck.boolean(m["platform_berths"], "interlocking.platform_berths")
     return InterlockingSpec(**raw), raw
