@@ -31,7 +31,8 @@ class ConfigError(Exception):
 
     def __init__(self, source: str | Path | None, field: str | None, message: str) -> None:
         self.source = str(source) if source is not None else None
-        self.field = field
+        # a field path holds the user's keys: one with a newline or another control character is shown escaped
+        self.field = field if field is None or field.isprintable() else field.encode("unicode_escape").decode("ascii")
         message = " ".join(message.split()) if "\n" in message else message  # one line, whatever went in
         self.message = message if len(message) <= MAX_MESSAGE_CHARS else message[: MAX_MESSAGE_CHARS - 3] + "..."
         super().__init__(self.__str__())

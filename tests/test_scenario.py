@@ -695,3 +695,12 @@ def test_module_docstring_example_is_a_valid_scenario() -> None:
     assert scn.name == "chongqing_line3_peak"
     assert scn.services[1].departures_s == (60.0, 390.0, 900.0)
     assert scn.vehicles["cq6_heavy"].max_speed_mps == pytest.approx(70 / 3.6)
+
+
+def test_a_key_with_a_newline_is_named_on_one_line() -> None:
+    """A user's key with a control character (here a newline) is shown escaped in the field path, so the error
+    stays one line (found by test_junk_values_give_config_errors)."""
+    data = S.with_overrides(_FULL, {"controllers": {"drive\n": 1}})
+    with pytest.raises(ConfigError) as info:
+        S.from_mapping(data, source="fuzz.yaml")
+    assert "\n" not in str(info.value) and "drive\\n" in str(info.value)
