@@ -48,6 +48,15 @@ Holding and creeping
 
 If even service braking cannot stop the train before the authority end itself, the command is emergency
 braking (``emergency=True``).
+
+Other position updates
+    The predictor's sum is SUMO's default Euler update (``x += dt·v_new``). A plant that moves by
+    ``dt·(v + v_new)/2`` (ballistic) or ``dt·v`` (the papers' explicit Euler, "forward") runs farther while
+    braking to a stop by exactly ``lead·dt·v`` (``lead`` = 1/2 or 1; ``v`` the speed now): the sums differ by
+    their first term only, since the last speed is 0. The engine tells the law which update SUMO and the plant
+    use (:meth:`Ato.use_position_update`), and every distance to a stop point (and to the end of authority for
+    the emergency check) is shortened by that lead. Without it a forward-Euler train at dt = 1 s overran its
+    stopping window and the end of its authority by up to one step's run.
 """
 
 from __future__ import annotations
@@ -78,7 +87,9 @@ from railsim.physics.vehicle import G_MPS2, VehicleParams
 
 # Below this speed the train counts as standing [m/s].
 _STANDING_MPS = 1e-3
-_NO_STOP = (0.0, 0.0, 0.0, False)
+NO_STOP = (0.0, 0.0, 0.0, False)  # the kernel's stop arguments when there is no next stop (it does not read them)
+# How far a step's position update runs ahead of Euler's ``dt·v_new``, in steps of the speed now (docstring)
+POSITION_LEAD = {"euler": 0.0, "ballistic": 0.5, "forward": 1.0}
 # Restriction tuples as kernel arrays, by identity (the route views hand out the same window tuples step after step;
 # the tuple is kept in the entry so its id cannot be reused while cached).
 _LIMIT_ARRAYS: dict[int, tuple[tuple[SpeedLimit, ...], np.ndarray]] = {}
@@ -144,6 +155,17 @@ class Ato:
         self._packed = np.zeros(0)  # the kernel's packed inputs for the vehicle and dt last seen
         self._packed_vehicle: VehicleParams | None = None
         self._packed_dt = math.nan
+        self.position_lead = 0.0  # lead of the plant's position update over Euler (module docstring)
+
+    def use_position_update(self, step_method: str) -> None:
+        """How the plant (and SUMO) move a train's position in a step: ``euler`` (``x += dt·v_new``, what the
+        stop predictor sums), ``ballistic`` or ``forward`` (module docstring, "Other position updates")."""
+        lead = POSITION_LEAD.get(step_method)
+        if lead is None:
+            raise ValueError(f"unknown step method {step_method!r} (one of {', '.join(POSITION_LEAD)})")
+        if lead != self.position_lead:
+            self.position_lead = lead
+            self._packed_vehicle = None  # pack again with the new lead
 
     def reset(self) -> None:
         """Nothing to forget: the law keeps no state."""
@@ -202,7 +224,7 @@ class Ato:
             line_speed_mps,
             limits_array_cached(speed_limits),
             stop is not None,
-            *(stop if stop is not None else _NO_STOP),
+            *(stop if stop is not None else NO_STOP),
             authority_end_m is not None,
             authority_end_m if authority_end_m is not None else 0.0,
             tail_m,
@@ -218,7 +240,13 @@ class Ato:
 
     def _pack(self, veh: VehicleParams, dt: float) -> np.ndarray:
         self._packed = line_kernels.pack(
-            line_kernels.ATO_FIELDS, veh, self.params, G_MPS2, dt, _lag_ratio(dt, veh.actuator_time_constant_s)
+            line_kernels.ATO_FIELDS,
+            veh,
+            self.params,
+            G_MPS2,
+            dt,
+            _lag_ratio(dt, veh.actuator_time_constant_s),
+            extra=(self.position_lead * dt,),
         )
         self._packed_vehicle, self._packed_dt = veh, dt
         return self._packed
@@ -248,6 +276,7 @@ class Ato:
         net_now = applied_now - rho
         service = veh.service_decel_mps2
         tau = veh.actuator_time_constant_s
+        lead_s = self.position_lead * dt
         standing = v <= _STANDING_MPS
         # Net braking the train can plan with: on a downhill part of the brake only holds the train.
         b_service_net = max(service + rho, 0.05)
@@ -298,6 +327,8 @@ class Ato:
         if authority_end_m is not None:
             points.append(authority_end_m - p.authority_margin_m)
             hard_m = authority_end_m - x
+            if lead_s > 0.0:  # the plant runs lead_s·v farther than the Euler sum (module docstring)
+                hard_m -= lead_s * v
             # the cheap upper bound first: far from the end of authority the exact sum is not needed
             if (
                 v > 0.0
@@ -308,6 +339,8 @@ class Ato:
         ramp_m = v * 0.5 * max(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
         for point_m in points:
             d = point_m - x
+            if lead_s > 0.0:
+                d -= lead_s * v
             if standing and d <= p.stop_tolerance_m:
                 return hold_applied, False, "hold"
             if v <= p.creep_speed_mps and d <= p.creep_zone_m:

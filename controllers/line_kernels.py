@@ -75,6 +75,7 @@ ATO_FIELDS = (
         "hold_decel_mps2",
     )
     + _STEP_FIELDS
+    + ("lead_s",)  # position_lead × dt: how much farther than the Euler sum the plant runs (controllers.ato)
 )
 SEPARATION_FIELDS = _VEHICLE_FIELDS + ("margin_m", "reaction_time_s", "barrier_rate_per_s") + _STEP_FIELDS
 
@@ -90,13 +91,23 @@ _CRAWL_STOP_DECEL_MPS2 = 0.3  # controllers.separation._CRAWL_STOP_DECEL_MPS2
 
 
 def pack(
-    fields: tuple[str, ...], vehicle: object, params: object, g_mps2: float, dt_s: float, lag_ratio: float
+    fields: tuple[str, ...],
+    vehicle: object,
+    params: object,
+    g_mps2: float,
+    dt_s: float,
+    lag_ratio: float,
+    extra: tuple[float, ...] = (),
 ) -> np.ndarray:
     """A law's float inputs (``fields``: :data:`ATO_FIELDS` or :data:`SEPARATION_FIELDS`) for one controller,
-    vehicle and step length."""
-    n = len(fields) - len(_STEP_FIELDS)
+    vehicle and step length; ``extra``: the values of the fields after the step's (the ATO's ``lead_s``)."""
+    n = len(fields) - len(_STEP_FIELDS) - len(extra)
+    if fields[n : n + len(_STEP_FIELDS)] != _STEP_FIELDS:
+        raise ValueError(f"{len(extra)} extra value(s) for fields {fields!r}")
     values = [float(getattr(vehicle, f) if hasattr(vehicle, f) else getattr(params, f)) for f in fields[:n]]
-    return np.array([*values, float(g_mps2), float(dt_s), float(lag_ratio)], dtype=np.float64)
+    return np.array(
+        [*values, float(g_mps2), float(dt_s), float(lag_ratio), *(float(e) for e in extra)], dtype=np.float64
+    )
 
 
 def limits_array(limits: tuple) -> np.ndarray:
@@ -384,7 +395,7 @@ def ato(
     jerk, tau = p[10], p[11]
     speed_margin, gain, plan_frac, release_frac, max_accel = p[12], p[13], p[14], p[15], p[16]
     authority_margin, stop_tol, creep_speed, creep_zone, hold_decel = p[17], p[18], p[19], p[20], p[21]
-    g_mps2, dt, r = p[22], p[23], p[24]
+    g_mps2, dt, r, lead_s = p[22], p[23], p[24], p[25]
 
     v = _mx(speed_mps, 0.0)
     rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
@@ -437,6 +448,8 @@ def ato(
         points[n_points] = authority_end_m - authority_margin
         n_points += 1
         hard_m = authority_end_m - x
+        if lead_s > 0.0:
+            hard_m -= lead_s * v
         if (
             v > 0.0
             and hard_m < discrete_stop_distance_bound_m(v, net_now, b_service_net, dt, r)
@@ -446,6 +459,8 @@ def ato(
     ramp_m = v * 0.5 * _mx(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
     for k in range(n_points):
         d = points[k] - x
+        if lead_s > 0.0:
+            d -= lead_s * v
         if standing and d <= stop_tol:
             return hold_applied, False, _HOLD
         if v <= creep_speed and d <= creep_zone:

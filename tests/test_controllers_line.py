@@ -171,9 +171,13 @@ def run_ato(
     t_end_s: float = 300.0,
     settle_s: float = 5.0,
     params: dict | None = None,
+    method: str = "euler",
+    told: str | None = None,
 ) -> Trace:
-    """Drive one train with ATO only until it has stood still for ``settle_s`` (or ``t_end_s``)."""
+    """Drive one train with ATO only until it has stood still for ``settle_s`` (or ``t_end_s``). ``method``: the
+    plant's position update; ``told``: the one the ATO is told (default: ``method``, as the engine does)."""
     ato = create("ato", params or {}, CQ3)
+    ato.use_position_update(told or method)  # type: ignore[attr-defined]
     state, x, t = PlantState(0.0), x0, 0.0
     tr = Trace()
     standing_s = 0.0
@@ -191,7 +195,7 @@ def run_ato(
         )
         cmd = ato.command(obs)
         assert math.isfinite(cmd.accel_mps2)
-        res = step(CQ3, state, cmd.accel_mps2, dt, grade, emergency=cmd.emergency)
+        res = step(CQ3, state, cmd.accel_mps2, dt, grade, emergency=cmd.emergency, step_method=method)
         state, x, t = res.state, x + res.advance_m, t + dt
         tr.t_s.append(t), tr.x_m.append(x), tr.v_mps.append(state.speed_mps)
         tr.u_mps2.append(cmd.accel_mps2), tr.phase.append(str(cmd.info.get("phase")))
@@ -247,6 +251,37 @@ def test_ato_stops_before_authority_end(dt: float) -> None:
     assert max(tr.x_m) <= authority_m - 5.0 + 0.5  # margin 5 m, aimed at with the stop precision
     assert tr.x_m[-1] >= authority_m - 5.0 - 0.5
     assert tr.v_mps[-1] == 0.0
+
+
+@pytest.mark.parametrize("method", ["ballistic", "forward"])
+@pytest.mark.parametrize("dt", [0.5, 1.0])
+def test_ato_stops_on_the_mark_and_before_authority_with_every_position_update(dt: float, method: str) -> None:
+    """A plant that moves by ``dt·(v + v_new)/2`` or ``dt·v`` runs farther than the Euler sum the stop predictor
+    adds up; told the update, the ATO still stops within 0.5 m of the mark and short of its authority's end."""
+    stop = _stop(1500.0, before_m=100.0, after_m=1.0)  # a window ending 1 m past the mark: no room to overrun
+    tr = run_ato(dt, stop, method=method)
+    assert tr.v_mps[-1] == 0.0
+    assert abs(tr.x_m[-1] - stop.mark_m) <= 0.5
+    assert max(tr.x_m) <= stop.mark_m + 0.5
+    authority_m = 900.0
+    tr = run_ato(dt, _stop(1500.0), authority_m=authority_m, method=method)
+    assert tr.v_mps[-1] == 0.0
+    assert authority_m - 5.0 - 0.5 <= tr.x_m[-1] and max(tr.x_m) <= authority_m - 5.0 + 0.5
+
+
+def test_an_ato_not_told_the_forward_update_overruns() -> None:
+    """The dangerous case the lead corrects: told Euler while the plant runs the papers' explicit Euler at
+    dt = 1 s, the ATO halts past its stopping window and past its aim before the end of authority."""
+    stop = _stop(1500.0, before_m=100.0, after_m=1.0)
+    tr = run_ato(1.0, stop, method="forward", told="euler")
+    assert max(tr.x_m) > stop.window_end_m
+    tr = run_ato(1.0, _stop(1500.0), authority_m=900.0, method="forward", told="euler")
+    assert max(tr.x_m) > 900.0 - 5.0 + 0.5
+
+
+def test_an_unknown_position_update_is_refused() -> None:
+    with pytest.raises(ValueError, match="unknown step method 'midpoint'"):
+        create("ato", {}, CQ3).use_position_update("midpoint")  # type: ignore[attr-defined]
 
 
 def test_ato_authority_emergency_when_service_cannot_stop() -> None:

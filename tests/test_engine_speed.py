@@ -44,7 +44,7 @@ for tr in sim.trains.values():
     if key in seen:
         continue
     seen.add(key)
-    factory = ato_factory(sim.scenario, dict(trip.roles), trip.vehicle)
+    factory = ato_factory(sim.scenario, dict(trip.roles), trip.vehicle, sim.step_method)
     assert type(factory()) is Ato
     fast = trips_mod._free_run_cached(("fast",) + key, trip, factory, sim.dt, sim.step_method, 6 * 3600.0)
     slow = trips_mod._free_run_cached(("slow",) + key, trip, observed(factory), sim.dt, sim.step_method, 6 * 3600.0)

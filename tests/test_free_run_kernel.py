@@ -91,7 +91,7 @@ for tr in sim.trains.values():
         run = trip if factor == 1.0 else dataclasses.replace(trip, vehicle=scaled_vehicle(trip.vehicle, factor))
         for dt in STEPS:
             for method in METHODS:
-                ato = ato_factory(sim.scenario, dict(trip.roles), trip.vehicle)()
+                ato = ato_factory(sim.scenario, dict(trip.roles), trip.vehicle, method)()
                 assert type(ato) is Ato
                 fast = T._free_run_compiled(run, ato, dt, method, 6 * 3600.0)
                 slow = T.free_run_reference(run, ato, dt, method, 6 * 3600.0)

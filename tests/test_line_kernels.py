@@ -61,6 +61,7 @@ def test_kernel_matches_reference_on_random_states(dt: float) -> None:
     for k in range(4000):
         veh = VEHICLES[k % len(VEHICLES)]
         ato = Ato(PARAMS[(k // 3) % len(PARAMS)], veh)
+        ato.use_position_update(("euler", "ballistic", "forward")[(k // 6) % 3])  # the lead's branches too
         x, v, applied, grade, line, limits, stop, authority = _random_state(rng, veh)
         tail = float(rng.choice([0.0, 0.0, rng.uniform(0.0, 150.0)]))  # a formation's length behind the train
         args = (veh, dt, x, v, applied, veh.length_m, grade, line, limits, stop, authority, tail)

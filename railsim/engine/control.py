@@ -30,7 +30,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from controllers.ato import Ato, limits_array_cached
+from controllers.ato import NO_STOP, Ato, limits_array_cached
 from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate, fallback_reason
 from controllers.separation import Separation
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
@@ -49,7 +49,6 @@ from railsim.physics import dynamics, plant_kernel
 
 log = logging.getLogger(__name__)
 _NO_PACK = np.zeros(0)  # no separation law this step (the fused line step does not read it)
-_NO_STOP = (0.0, 0.0, 0.0, False)  # no next stop (the ATO kernel does not read it)
 PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
 AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
@@ -396,7 +395,7 @@ class ControlStage:
                 tr.view.line_speed_mps,
                 limits_array_cached(limits),
                 target is not None,
-                *(target if target is not None else _NO_STOP),
+                *(target if target is not None else NO_STOP),
                 authority is not None,
                 authority if authority is not None else 0.0,
                 tail_m,
@@ -424,9 +423,12 @@ class ControlStage:
 
     def _disturbed_actuator(self, tr: TrainRuntime) -> bool:
         """Does actuator noise or an injected bias act on this train's command (drawn in :meth:`_apply`)?"""
+        return self._actuator_noise_on(tr) or bool(self.dist.biases)
+
+    def _actuator_noise_on(self, tr: TrainRuntime) -> bool:
+        """Is actuator noise drawn for this train's command (scenario ``faults.actuator_noise``)?"""
         noise_trains = self.dist.actuator_trains
-        noisy = self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains)
-        return noisy or bool(self.dist.biases)
+        return self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains)
 
     def _plant_packed(self, veh: Any) -> np.ndarray:
         """The plant kernel's packed vehicle for this run's step (once per vehicle)."""
@@ -464,8 +466,7 @@ class ControlStage:
         if tr.exact_plant is not None:
             return self._exact_finish(t, tr, role, cmd or Command(accel, emergency=emergency), grad)
         u = accel
-        noise_trains = self.dist.actuator_trains
-        if self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains):
+        if self._actuator_noise_on(tr):
             u += float(self.dist.actuator_rng.normal(0.0, self.dist.actuator_sd_mps2))  # the papers' disturbance
         if self.dist.biases:
             u = self.dist.biased(t, tr.train_id, u)  # a faulty actuator (injected fault, logged at start)

@@ -102,12 +102,12 @@ class Fleet:
 
     def add(self, trip: Trip, scenario: Any, dt_s: float, step_method: str) -> TrainRuntime:
         """Plan ``trip`` (free run from its ``depart_s``), give it its controllers and add it to the fleet."""
-        factory = ato_factory(scenario, dict(trip.roles), trip.vehicle)
+        factory = ato_factory(scenario, dict(trip.roles), trip.vehicle, step_method)
         arr, depm = plan_free_run(trip, factory, dt_s, step_method)
         trip.planned_arrival_s.update(arr)
         trip.planned_departure_s.update(depm)
-        ctrls = {role: _controller(scenario, role, trip.roles, trip.vehicle) for role in ROLES}
-        ctrls["ato_closing"] = _closing_ato(scenario, trip.roles, trip.vehicle)
+        ctrls = {role: _controller(scenario, role, trip.roles, trip.vehicle, step_method) for role in ROLES}
+        ctrls["ato_closing"] = _closing_ato(scenario, trip.roles, trip.vehicle, step_method)
         tr = TrainRuntime(trip=trip, view=route_view(trip.route), controllers=ctrls)
         self.trains[trip.trip_id] = tr
         return tr
@@ -137,19 +137,29 @@ class Fleet:
         return start_offset
 
 
-def _controller(scenario: Any, role: str, trip_roles: dict[str, str], vehicle: Any) -> Any:
+def _controller(scenario: Any, role: str, trip_roles: dict[str, str], vehicle: Any, step_method: str) -> Any:
     name = trip_roles.get(role)
     if name is None:
         return None
     spec = scenario.controllers[name]
-    return ctl.create(spec.type, dict(spec.params or {}), vehicle)
+    return _for_plant(ctl.create(spec.type, dict(spec.params or {}), vehicle), step_method)
 
 
-def ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any) -> Callable[[], Any]:
-    return lambda: _controller(scenario, "ato", roles, vehicle)
+def _for_plant(controller: Any, step_method: str) -> Any:
+    """``controller``, told how the plant and SUMO update positions if it plans with that (the line ATO's stop
+    predictor: :meth:`controllers.ato.Ato.use_position_update`)."""
+    tell = getattr(controller, "use_position_update", None)
+    if tell is not None:
+        tell(step_method)
+    return controller
 
 
-def _closing_ato(scenario: Any, trip_roles: dict[str, str], vehicle: Any) -> Any:
+def ato_factory(scenario: Any, roles: dict[str, str], vehicle: Any, step_method: str) -> Callable[[], Any]:
+    """A maker of fresh ATOs of a trip (its free-run plans run each on its own)."""
+    return lambda: _controller(scenario, "ato", roles, vehicle, step_method)
+
+
+def _closing_ato(scenario: Any, trip_roles: dict[str, str], vehicle: Any, step_method: str) -> Any:
     """The follower's ATO while coupled: the same ATO without its cruise margin below the line speed.
 
     Both units of a formation otherwise cruise at the same speed (line speed − margin) and a follower that fell
@@ -159,6 +169,7 @@ def _closing_ato(scenario: Any, trip_roles: dict[str, str], vehicle: Any) -> Any
     """
     spec = scenario.controllers[trip_roles["ato"]]
     try:
-        return ctl.create(spec.type, {**dict(spec.params or {}), "speed_margin_mps": 0.0}, vehicle)
+        closing = ctl.create(spec.type, {**dict(spec.params or {}), "speed_margin_mps": 0.0}, vehicle)
     except (ValueError, TypeError):
         return None
+    return _for_plant(closing, step_method)

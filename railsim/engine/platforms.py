@@ -72,6 +72,8 @@ class Berths:
         while the train ahead stands on it."""
         self.waiting.pop(tr.train_id, None)
         if a is None or stop is None or not self.settings.platform_berths:
+            if self._imposed:  # no limit now: one given before is no longer held
+                self._imposed.pop(tr.train_id, None)
             return authority_m
         occupant = self.trains[a.train_id]
 

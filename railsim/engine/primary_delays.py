@@ -221,7 +221,7 @@ class PrimaryDelays:
             slow = dataclasses.replace(
                 trip, vehicle=scaled_vehicle(trip.vehicle, tp.factor), planned_arrival_s={}, planned_departure_s={}
             )
-            factory = ato_factory(scenario, dict(trip.roles), trip.vehicle)
+            factory = ato_factory(scenario, dict(trip.roles), trip.vehicle, step_method)
             arr, _ = plan_free_run(slow, factory, dt_s, step_method)
             tp.running_loss_s = {
                 st: arr[st] - trip.planned_arrival_s[st]
