@@ -213,8 +213,8 @@ class Simulation:
                 bridge.step()
                 self.steps += 1
                 t = bridge.time_s
-                bar.update(t, self.fleet.n_finished())
-                if self.fleet.all_done() or self.failure() is not None:
+                bar.update(t, n_finished := self.fleet.n_finished())
+                if n_finished == len(self.fleet.trains) or self.failure() is not None:  # all done, or a failure
                     break
             self.end_s = t
             if self.stop.reason is not None:  # a signal: write what the run has (railsim.engine.interrupt)
@@ -268,8 +268,8 @@ class Simulation:
         bridge = self.bridge
         present = set(bridge.present_ids())
         active = [tr for tr in self.fleet.active() if tr.sumo_id in present]
-        for tr in self.fleet.active():
-            if tr.status == "inserting" and tr.sumo_id in present:
+        for tr in active:
+            if tr.status == "inserting":
                 tr.status = "running"
                 tr.departed_s = t
                 self.events.record(t, "train_departed", tr.train_id, station=tr.trip.origin.station_id)
