@@ -13,8 +13,13 @@
   stop short of its rear (service braking distance + one reaction time + ``insertion_margin_m``: "approaching
   train X could not stop"), or the rear of a train ahead lies less than ``insertion_margin_m`` beyond its front
   ("X ahead is less than 50 m clear": a train is not put on the track nose to tail behind a leaving train; a
-  follower that couples on departure is put on at its target gap by ``insert_behind``, not here), the departure
-  waits: a ``departure_held`` event with the ``reason`` (again each
+  follower that couples on departure is put on at its target gap by ``insert_behind``, not here, and never faster
+  than its leader: a start speed above the leader's is limited to it, a ``start_speed_limited`` event), the departure
+  waits. A train started *in motion* (``services[].start``) is held only on a collision course
+  (:meth:`Dispatcher.collision_course`: closer to a train ahead, or a train behind closer to it, than the one
+  behind's least stopping distance less the one ahead's — found by fuzzing: a train put on at 60 km/h 71 m behind
+  a standing one collided whatever it did); a platoon put on in motion at one speed is not held. Held
+  departures log a ``departure_held`` event with the ``reason`` (again each
   time the reason changes), retried every ``departure_retry_s``. The dispatcher, not the follower, is
   responsible for a train appearing on the track. A train never inserted by the end of the run is reported
   (:meth:`Dispatcher.report_never_inserted`: one ``never_inserted`` event each; the CLI exits 3).
@@ -141,11 +146,22 @@ class Dispatcher:
         if tr.status != "scheduled":
             return False
         depart_m = trip.depart_chainage_m
+        start_mps = trip.start_speed_mps
         if behind is not None:
             behind_m = self.behind_chainage_m(tr, behind, behind.front_m, gap_m)
             if behind_m is None:
                 raise SimulationError(f"{tr.train_id} cannot start behind {behind.train_id}: routes share no track")
             depart_m = behind_m
+            if behind.plant.speed_mps < start_mps:  # at its gap behind a slower leader: no faster than the leader
+                self.events.record(
+                    self.layer.now_s,
+                    "start_speed_limited",
+                    tr.train_id,
+                    leader=behind.train_id,
+                    start_mps=round(start_mps, 3),
+                    speed_mps=round(behind.plant.speed_mps, 3),
+                )
+                start_mps = behind.plant.speed_mps
             if depart_m < trip.origin.window_start_m:
                 self.events.record(
                     self.layer.now_s,
@@ -153,8 +169,9 @@ class Dispatcher:
                     tr.train_id,
                     detail=f"front {depart_m:.1f} m < window {trip.origin.window_start_m:.1f} m",
                 )
-        elif trip.start_speed_mps == 0.0 and trip.start_offset_m == 0.0:
-            reason = self.blocker(tr, depart_m)
+        else:
+            standing = trip.start_speed_mps == 0.0 and trip.start_offset_m == 0.0
+            reason = self.blocker(tr, depart_m) if standing else self.collision_course(tr, depart_m, start_mps)
             if reason is not None:
                 self._hold(tr, reason)
                 return False
@@ -186,11 +203,11 @@ class Dispatcher:
             depart_m - tr.view.edge_start_m[k],
             stops,
             controlled=True,
-            depart_speed_mps=trip.start_speed_mps,
+            depart_speed_mps=start_mps,
         )
         tr.status = "inserting"
         tr.front_m = depart_m
-        tr.plant = dynamics.PlantState(speed_mps=trip.start_speed_mps)
+        tr.plant = dynamics.PlantState(speed_mps=start_mps)
         for hook in self.on_inserted:
             hook(self.layer.now_s, tr, depart_m)
         self.handshake(tr)
@@ -261,6 +278,38 @@ class Dispatcher:
                 # the train behind holds the route through this spot: a train put in between would wait for that
                 # lock in front of its holder, for ever (a deadlock by insertion)
                 return f"{other.train_id} holds the route through here (switch {held})"
+        return None
+
+    def collision_course(self, tr: TrainRuntime, depart_m: float, v_mps: float) -> str | None:
+        """Why a train put on at ``depart_m`` already moving at ``v_mps`` (a start in motion) would be on a collision
+        course, or None: some part of another train's body where it would stand, or a train ahead (behind) closer
+        than the least stopping distance of the one behind less that of the one ahead
+        (:func:`railsim.physics.dynamics.least_stop_distance_m`: both on their emergency brakes at once) — then no
+        braking at all avoids the collision. Trains put on in motion close behind each other at one speed (a
+        paper's platoon) are not held: their difference is 0."""
+        veh = tr.trip.vehicle
+        own_stop_m = dynamics.least_stop_distance_m(veh, v_mps, tr.view.gradient_at(depart_m))
+        for other in self.fleet.active():
+            if other is tr:
+                continue
+            mapped = other.view.map_body(tr.view, depart_m, veh.length_m)
+            if mapped is None:
+                continue
+            front_o, rear_o = mapped
+            other_veh = other.trip.vehicle
+            other_stop_m = dynamics.least_stop_distance_m(
+                other_veh, other.plant.speed_mps, other.view.gradient_at(other.front_m)
+            )
+            other_rear_m = other.front_m - other_veh.length_m
+            if front_o <= other_rear_m:  # the other one is ahead
+                if other_rear_m - front_o < own_stop_m - other_stop_m:
+                    return (
+                        f"{other.train_id} ahead is {other_rear_m - front_o:.0f} m clear: it could not stop behind it"
+                    )
+            elif rear_o < other.front_m:
+                return f"track occupied by {other.train_id}"
+            elif rear_o - other.front_m < other_stop_m - own_stop_m:
+                return f"approaching train {other.train_id} could not stop"
         return None
 
     @staticmethod

@@ -321,9 +321,11 @@ class Simulation:
             tr.front_m = tr.depart_chainage_m + odometer[i]
             tr.edge_i = tr.view.edge_near(tr.front_m, tr.edge_i)  # forward-only pointer: the hint is last step's
             sumo_v = speed[i]
+            tr.sumo_stopped_now, tr.sumo_edge = stopped[i], truth.edge_ids[i]
             # SUMO applies exactly the speed we sent (speedMode 32) unless it holds the train at a stop
             expected_v = tr.sent_speed_mps if tr.sent_speed_mps is not None else tr.plant.speed_mps
             if abs(sumo_v - expected_v) > 1e-6 and tr.sent_speed_mps is not None:
+                self.safety.speed_imposed(t, tr, sumo_v, expected_v, self.dt)
                 if tr.exact_plant is not None:
                     tr.exact_plant.resync(t, tr.front_m, sumo_v)
                 # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
@@ -332,8 +334,6 @@ class Simulation:
                     applied_accel_mps2=0.0 if sumo_v == 0 else tr.plant.applied_accel_mps2,
                     target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
                 )
-            tr.sumo_stopped_now = stopped[i]
-            tr.sumo_edge = truth.edge_ids[i]
         return truth
 
     # ------------------------------------------------------------------ results

@@ -20,6 +20,20 @@ so only this catches a jump). A difference above ``desync_tolerance_m`` means ra
 does not (a train inserted elsewhere, moved behind our back). It is a ``desync`` event
 and a run failure (:attr:`SafetyMonitor.failure`; the run stops, writes its outputs and exits 3). Trains on an
 internal junction lane are skipped for that step (their lane position is not on a route edge).
+
+**Speed desync.** SUMO moves a controlled train at exactly the speed it is handed (speedMode 32) except at a
+stop: it holds a dwelling train at 0 (the engine adopts that speed), and it halts a train that runs onto the end
+of its stop at once, whatever its speed — an overrun the train's brakes could not have prevented, hidden by SUMO
+(found by fuzzing: a vehicle with a 0.3 m/s³ jerk limit reached its stop's end at 4.5 m/s and stood one 0.2 s step
+later). :meth:`SafetyMonitor.speed_imposed` checks every speed SUMO imposes on a train it was not holding: more
+speed taken off in one step than the emergency brake can (``emergency_decel · dt``), hiding more run than the stop
+tolerance (the least stopping distance, :func:`railsim.physics.dynamics.least_stop_distance_m`, from our speed
+less that from SUMO's), is either a halt *inside* the window the train could still have stopped in — a
+``sumo_forced_halt`` event (SUMO does this to trains much shorter than the platform, e.g. a 40 m unit on a 220 m
+platform, from ~2 m/s some 5 m before the mark: the stopping error records where) — or a hidden overrun: a
+``desync`` event (our speed, SUMO's, the next stop) and a run failure, like a position desync. The stop book
+declares a stop missed before the train gets there (:func:`railsim.engine.stops.surely_overruns_m`), so the
+failure is the backstop.
 """
 
 from __future__ import annotations
@@ -33,6 +47,7 @@ from railsim.engine.occupancy import Ahead
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.train import TrainRuntime
+from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
 
@@ -232,6 +247,32 @@ class SafetyMonitor:
             self.failure = (
                 f"railsim and SUMO disagree on where {', '.join(bad)} stand(s) at t={t:.1f} s "
                 f"(more than {tol:g} m; see the desync events)"
+            )
+
+    def speed_imposed(self, t: float, tr: TrainRuntime, sumo_v_mps: float, railsim_v_mps: float, dt_s: float) -> None:
+        """SUMO's speed for ``tr`` is not the one it was handed (module docstring, "Speed desync")."""
+        veh = tr.trip.vehicle
+        if tr.sumo_stopped or railsim_v_mps - sumo_v_mps <= veh.emergency_decel_mps2 * dt_s + 1e-6:
+            return  # held at its stop (the dwell), or a speed the train's own brakes could have reached
+        grade = tr.view.gradient_at(tr.front_m)
+        least_m = dynamics.least_stop_distance_m(veh, railsim_v_mps, grade)
+        if least_m - dynamics.least_stop_distance_m(veh, sumo_v_mps, grade) <= self.settings.missed_stop_tolerance_m:
+            return  # the train would have stood within the stop tolerance of where SUMO halted it
+        stop = tr.trip.stops[tr.next_stop] if tr.next_stop < len(tr.trip.stops) else None
+        station = None if stop is None else stop.station_id
+        detail = dict(railsim_mps=round(railsim_v_mps, 3), sumo_mps=round(sumo_v_mps, 3), next_stop=station)
+        if stop is not None and tr.front_m + least_m <= stop.window_end_m + self.settings.missed_stop_tolerance_m:
+            # halted early inside the window it could still have stopped in: its stopping error shows where
+            self.events.record(t, "sumo_forced_halt", tr.train_id, front_m=round(tr.front_m, 3), **detail)
+            log.warning("SUMO halted %s at %s from %.2f m/s in one step", tr.train_id, station, railsim_v_mps)
+            return
+        self.events.record(t, "desync", tr.train_id, edge=tr.sumo_edge, **detail)
+        log.error("desync at t=%.1f s: SUMO set %s from %.3f to %.3f m/s", t, tr.train_id, railsim_v_mps, sumo_v_mps)
+        if self.failure is None:
+            self.failure = (
+                f"SUMO stopped {tr.train_id} harder than its emergency brake can at t={t:.1f} s "
+                f"({railsim_v_mps:.2f} -> {sumo_v_mps:.2f} m/s in one step, next stop {station}: an overrun SUMO hid; "
+                "see the desync events)"
             )
 
 

@@ -20,6 +20,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
+from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
 MOVING_REGISTRATION_MPS = 0.1  # SUMO registering a stop above this speed is an error event
@@ -114,6 +115,10 @@ class StopBook:
             tr.halt_error_m = tr.front_m - mark
         if not tr.sumo_stopped and tr.front_m > stop.window_end_m + self.settings.missed_stop_tolerance_m:
             self._missed(t, tr, stop)
+        elif not tr.sumo_stopped and tr.halted_s is None and v > 0.0:
+            overrun_m = surely_overruns_m(tr, stop.window_end_m, self.settings.missed_stop_tolerance_m, v)
+            if overrun_m is not None:  # missed now: SUMO would halt it at the stop's end, harder than it can brake
+                self._missed(t, tr, stop, overrun_m)
 
     def _registered(self, t: float, tr: TrainRuntime, stop: TripStop, mark: float, v: float) -> None:
         tr.sumo_stopped = True
@@ -180,13 +185,14 @@ class StopBook:
             tr.hold_until_s = None
             tr.next_stop += 1
 
-    def _missed(self, t: float, tr: TrainRuntime, stop: TripStop) -> None:
-        self.events.record(
-            t, "stop_missed", tr.train_id, station=stop.station_id, overrun_m=round(tr.front_m - stop.window_end_m, 3)
-        )
-        log.warning(
-            "%s overran the platform at %s by %.2f m", tr.train_id, stop.station_id, tr.front_m - stop.window_end_m
-        )
+    def _missed(self, t: float, tr: TrainRuntime, stop: TripStop, overrun_m: float | None = None) -> None:
+        """A stop the train ran past (``overrun_m`` None: its front is beyond the window) or will run past whatever
+        it does (``overrun_m``: the least overrun, :func:`surely_overruns_m`)."""
+        past_m = tr.front_m - stop.window_end_m if overrun_m is None else overrun_m
+        detail = {"overrun_m": round(past_m, 3)} if overrun_m is None else {"least_overrun_m": round(past_m, 3)}
+        self.events.record(t, "stop_missed", tr.train_id, station=stop.station_id, **detail)
+        log.warning("%s overran the platform at %s by %s%.2f m", tr.train_id, stop.station_id,
+                    "" if overrun_m is None else "at least ", past_m)  # fmt: skip
         self._record(tr, stop, None, None, None, missed=True)
         self.drop_stop(tr.sumo_id, stop.stop_id, stop.lane_stop_m)
         tr.next_stop += 1
@@ -214,3 +220,20 @@ class StopBook:
             error_m=error_m,
             missed=missed,
         )
+
+
+def surely_overruns_m(tr: TrainRuntime, end_m: float, tolerance_m: float, v_mps: float) -> float | None:
+    """How far past ``end_m`` (a stop window's end) the front runs at the least, if that is more than
+    ``tolerance_m`` (a missed stop); None if it may still stop within it.
+
+    The least stopping distance (:func:`railsim.physics.dynamics.least_stop_distance_m`: the emergency brake at
+    once, resistance and gradient helping; no lag, no jerk ramp, no reaction step) is shorter than any real one:
+    beyond the limit, the stop is missed whatever the train does. (SUMO would otherwise halt it at the stop's end
+    at once, from any speed: a hidden overrun, :meth:`railsim.engine.safety.SafetyMonitor.speed_imposed`.)
+    """
+    veh = tr.trip.vehicle
+    room_m = end_m + tolerance_m - tr.front_m
+    if room_m * 2.0 * veh.emergency_decel_mps2 >= v_mps * v_mps:  # the cheap screen: it stops in time without drag
+        return None
+    least_m = dynamics.least_stop_distance_m(veh, v_mps, tr.view.gradient_at(tr.front_m))
+    return least_m - (end_m - tr.front_m) if least_m > room_m else None

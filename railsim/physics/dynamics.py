@@ -209,6 +209,17 @@ def braking_distance_m(vehicle: VehicleParams, speed_mps: float, decel_mps2: flo
     return speed_mps * speed_mps / (2.0 * b)
 
 
+def least_stop_distance_m(vehicle: VehicleParams, speed_mps: float, gradient_permille: float = 0.0) -> float:
+    """The shortest distance [m] in which the train can stand from ``speed_mps``: the emergency brake at once, with
+    the running resistance and the gradient helping, ``v² / (2·(b_e + ρ))`` (infinite on a downhill steeper than the
+    brake). The plant's lag, jerk limit and step only lengthen it: a lower bound, for deciding what is impossible."""
+    rho = vehicle.resistance_n(speed_mps, gradient_permille) / vehicle.effective_mass_kg
+    decel = vehicle.emergency_decel_mps2 + rho
+    if decel <= 0.0:
+        return math.inf
+    return speed_mps * speed_mps / (2.0 * decel)
+
+
 @lru_cache(maxsize=256)
 def _lag_gain(tau_s: float, dt_s: float) -> float:
     """``1 − exp(−dt/τ)`` (computed as −expm1 for accuracy when dt ≪ τ); 1.0 for τ = 0."""

@@ -1,0 +1,39 @@
+"""A follower that couples on departure is put on behind its standing leader — never faster than the leader.
+
+Found by fuzzing the mini line (real SUMO): ``br_up`` with ``start: {offset_m: 500, speed_kmh: 60}`` and a formation
+that couples it on departure behind ``main_up.001``. The dispatcher puts a follower on at its target gap behind its
+leader's rear (the start offset does not apply), but it kept the start speed: 16.7 m/s, 30 m behind a standing
+train — 739 collisions (SUMO's and ours), the follower 79.5 m into its leader. Now the speed is limited to the
+leader's (a ``start_speed_limited`` event).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tests.helpers import ROOT, read_csv, read_summary, run_railsim
+
+DATA = ROOT / "tests" / "data"
+
+
+@pytest.mark.sumo
+def test_a_follower_started_in_motion_behind_a_standing_leader_starts_at_its_speed(tmp_path: Path) -> None:
+    data = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
+    data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    follower = next(s for s in data["services"] if s["id"] == "br_up")
+    follower["start"] = {"offset_m": 500, "speed_kmh": 60}
+    path = tmp_path / "start.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
+    assert res.returncode == 0, res.stderr
+    s = read_summary(out)
+    assert s["collisions"] == 0 and s["min_gap_m"] > 0.0 and s["n_arrived"] == s["n_trains"]
+    limited = [e for e in read_csv(out / "events.csv") if e["kind"] == "start_speed_limited"]
+    assert len(limited) == 1 and limited[0]["subject"] == "br_up.000"
+    assert '"speed_mps":0.0' in limited[0]["detail"] and '"leader":"main_up.001"' in limited[0]["detail"]
+    first = next(r for r in read_csv(out / "trace.csv") if r["train"] == "br_up.000")
+    assert float(first["speed_mps"]) < 1.0  # it started from a standstill behind its leader
