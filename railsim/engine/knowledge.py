@@ -47,6 +47,11 @@ class Knowledge:
         self.registration: dict[tuple[str, str], Report] = {}
         self.extra_receivers: Callable[[str], Iterable[str]] = lambda _train: ()
 
+    def radio_out(self, t: float, train_id: str, other_id: str) -> bool:
+        """Can the two trains' position reports be cut off at ``t`` (an outage of some channel covers either)? A
+        train standing behind the last position it heard of the train ahead waits for the radio then."""
+        return any(ch.out(train_id, t) or ch.out(other_id, t) for ch in self.channels.values())
+
     @staticmethod
     def report(t: float, tr: TrainRuntime) -> Report:
         """A position report: (route id, front chainage, speed, applied acceleration, time)."""

@@ -44,12 +44,7 @@ from railsim.engine.occupancy import Ahead, Body, Occupancy
 from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
-from railsim.engine.settings import (
-    PERMISSIVE_DECEL_MPS2,
-    PERMISSIVE_SPEED_FACTOR,
-    PERMISSIVE_TAU_S,
-    EngineSettings,
-)
+from railsim.engine.settings import PERMISSIVE_DECEL_MPS2, PERMISSIVE_SPEED_FACTOR, PERMISSIVE_TAU_S, EngineSettings
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
 from railsim.engine.turnback import Turnbacks
@@ -160,7 +155,9 @@ class Simulation:
             self.step_method,
             disturbances,
         )
-        self.watchdog = StallWatch(self.events, self.settings, self.locks, self.control.berths)
+        self.watchdog = StallWatch(
+            self.events, self.settings, self.locks, self.control.berths, self.knowledge.radio_out
+        )
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
         self.dispatcher.schedule_departures()

@@ -23,13 +23,21 @@ event names it (``waiting_for``: ``platform:S(T)``). While the occupant itself s
 waits for its departure time — the wait is legitimate and the follower's clock does not run (each such reason
 ends by itself); once the occupant stands for no reason, the follower's clock runs from then.
 
+**Radio outages** (scenario ``faults.comm.*.outages``): a train standing behind a train ahead while an outage cuts
+either off stands for a reason — its separation holds it behind the last position it heard — and its clock does
+not run until the outage ends (found by fuzzing: a 550 s t2g outage stalled a run at 300 s "for no reason").
+**Lock waits** likewise: a train waiting for a switch or section that a train on the line holds or is queued
+ahead for (``locks.blockers``) waits for a reason while that train moves or stands for a reason of its own (a
+branch train waited 300 s for a flat crossing held by a train standing out a radio outage); its clock runs once
+every such train stands for no reason. A circular wait is still found by the deadlock search below.
+
 At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
 is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Callable, Mapping
 from typing import Any
 
 from railsim.engine.events.log import EventLog
@@ -46,8 +54,17 @@ STANDSTILL_MPS = 1e-6
 class StallWatch:
     """Times how long each train has stood for no reason; reports stalls."""
 
-    def __init__(self, events: EventLog, settings: EngineSettings, locks: Any, berths: Any = None) -> None:
-        """``berths``: the berth rule's port (its ``waiting``: train -> (station, occupant)), or None."""
+    def __init__(
+        self,
+        events: EventLog,
+        settings: EngineSettings,
+        locks: Any,
+        berths: Any = None,
+        radio_out: Callable[[float, str, str], bool] | None = None,
+    ) -> None:
+        """``berths``: the berth rule's port (its ``waiting``: train -> (station, occupant)), or None;
+        ``radio_out(t, train, train ahead)``: is the radio between them cut off (an outage), or None."""
+        self.radio_out = radio_out
         self.events = events
         self.settings = settings
         self.locks = locks
@@ -58,17 +75,51 @@ class StallWatch:
     def check(self, t: float, active: list[TrainRuntime], ahead: Mapping[str, Ahead | None] | None = None) -> None:
         """Every step: update the standing clocks; stall the run if one ran past ``stall_timeout_s``. ``ahead``
         is the occupancy's train directly ahead of each active train (for the deadlock search)."""
+        ahead = ahead or {}
+        busy: set[str] = set()  # moving, or standing for a reason of its own
+        waiting: list[TrainRuntime] = []
         for tr in active:
             held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
             dwelling = (tr.sumo_stopped or tr.sumo_stopped_now) and not tr.held_for_route
-            berth = self.berth_waits.get(tr.train_id)
-            behind_busy = berth is not None and berth[1] not in self.standing_since  # its platform's occupant dwells
-            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held or behind_busy:
+            a = ahead.get(tr.train_id)
+            radio = a is not None and self.radio_out is not None and self.radio_out(t, tr.train_id, a.train_id)
+            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held or radio:
+                busy.add(tr.train_id)
+            else:
+                waiting.append(tr)
+        busy |= self._waiting_for_busy(waiting, busy)
+        for tr in active:
+            if tr.train_id in busy:
                 self.standing_since.pop(tr.train_id, None)
             elif tr.train_id not in self.standing_since:
                 self.standing_since[tr.train_id] = (t, tr)
-        self._deadlock(t, ahead or {})
+        self._deadlock(t, ahead)
         self._report(t, self.settings.stall_timeout_s, "")
+
+    def _waiting_for_busy(self, waiting: list[TrainRuntime], busy: set[str]) -> set[str]:
+        """The standing trains that wait for a busy train — the occupant of the platform they wait to enter, or a
+        train holding or queued ahead for a switch or section they asked for (``locks.blockers``) — directly or
+        through other such trains (module docstring). A circular wait with no busy train in it never qualifies:
+        the deadlock search finds it."""
+        if not waiting:
+            return set()
+        blockers = getattr(self.locks, "blockers", None)
+        waits: dict[str, set[str]] = {}
+        for tr in waiting:
+            others = {o for os in blockers(tr).values() for o in os} if blockers is not None else set()
+            berth = self.berth_waits.get(tr.train_id)
+            if berth is not None:
+                others.add(berth[1])
+            waits[tr.train_id] = others
+        found: set[str] = set()
+        grown = True
+        while grown:
+            grown = False
+            for train_id, others in waits.items():
+                if train_id not in found and not others.isdisjoint(busy | found):
+                    found.add(train_id)
+                    grown = True
+        return found
 
     def _deadlock(self, t: float, ahead: Mapping[str, Ahead | None]) -> None:
         finder = getattr(self.locks, "deadlock", None)

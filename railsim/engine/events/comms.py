@@ -329,6 +329,10 @@ class Channel:
         self._layer.deliver_at(delivered_s, self._on_delivery, msg)  # type: ignore[arg-type]
         return msg
 
+    def out(self, train_id: str, t_s: float) -> bool:
+        """Is ``train_id`` cut off this channel at ``t_s`` (an outage window covers it)?"""
+        return any(o.covers(train_id, t_s) for o in self.outages)
+
     def _in_outage(self, sender: str, receiver: str, t_s: float) -> bool:
         for o in self.outages:
             if o.covers(sender, t_s) or o.covers(receiver, t_s):
