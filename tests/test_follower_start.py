@@ -37,3 +37,30 @@ def test_a_follower_started_in_motion_behind_a_standing_leader_starts_at_its_spe
     assert '"speed_mps":0.0' in limited[0]["detail"] and '"leader":"main_up.001"' in limited[0]["detail"]
     first = next(r for r in read_csv(out / "trace.csv") if r["train"] == "br_up.000")
     assert float(first["speed_mps"]) < 1.0  # it started from a standstill behind its leader
+
+
+@pytest.mark.sumo
+def test_a_follower_is_not_put_on_in_front_of_a_train_that_could_not_stop_for_it(tmp_path: Path) -> None:
+    """Found by fuzzing: with platform berths off, ``main_up.002`` runs into B behind the standing leader
+    ``main_up.001``; the follower put on 5 m behind the leader stood in its way, and it ran into it (138
+    collisions). Now the follower waits while a train approaching from behind could not stop for it (here it never
+    gets on: the following train takes its place, the leader leaves — a ``never_inserted`` event and exit 3)."""
+    data = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
+    data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    data["simulation"].update(step_s=0.5, step_method="forward", seed=846)
+    for svc in data["services"]:
+        svc["dwell_s"] = 20 if svc["id"] == "br_up" else 60
+        svc["departures"] = {
+            "times": {"main_up": [0, 60, 120], "br_up": [30], "main_down": [30, 150]}.get(svc["id"], [60])
+        }
+    data["formations"][0].update(target_gap_m=5, depart_together=True)
+    data["interlocking"] = {"platform_berths": False}
+    path = tmp_path / "behind.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    out = tmp_path / "out"
+    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
+    s = read_summary(out)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0
+    held = [e for e in read_csv(out / "events.csv") if e["kind"] == "departure_held" and e["subject"] == "br_up.000"]
+    assert held and "approaching train main_up.002 could not stop" in held[0]["detail"]
+    assert res.returncode == 3 and s["never_inserted"] == ["br_up.000"]
