@@ -13,10 +13,10 @@
   stop short of its rear (service braking distance + one reaction time + ``insertion_margin_m``: "approaching
   train X could not stop"), or the rear of a train ahead lies less than ``insertion_margin_m`` beyond its front
   ("X ahead is less than 50 m clear": a train is not put on the track nose to tail behind a leaving train; a
-  follower that couples on departure is put on at its target gap by ``insert_behind``, not here — only a train
-  approaching from behind holds it — and never faster than its leader: a start speed above the leader's is
-  limited to it, a ``start_speed_limited`` event), the departure
-  waits. A train started *in motion* (``services[].start``) is held only on a collision course
+  follower that couples on departure is put on at its target gap by ``insert_behind``, not here — only a
+  collision course holds it (below: a train approaching from behind that could not stop for it) — and never
+  faster than its leader: a start speed above the leader's is limited to it, a ``start_speed_limited`` event), the
+  departure waits. A train started *in motion* (``services[].start``) is held only on a collision course
   (:meth:`Dispatcher.collision_course`: closer to a train ahead, or a train behind closer to it, than the one
   behind's least stopping distance less the one ahead's — found by fuzzing: a train put on at 60 km/h 71 m behind
   a standing one collided whatever it did); a platoon put on in motion at one speed is not held. Held
@@ -153,11 +153,12 @@ class Dispatcher:
             if behind_m is None:
                 raise SimulationError(f"{tr.train_id} cannot start behind {behind.train_id}: routes share no track")
             depart_m = behind_m
-            reason = self.blocker(tr, depart_m, behind_leader=True)
+            leader_mps = behind.plant.speed_mps  # at its gap behind a slower leader: no faster than the leader
+            reason = self.collision_course(tr, depart_m, min(start_mps, leader_mps))
             if reason is not None:  # a train approaching from behind could not stop for it: not now
                 self._log_held(tr, reason)  # (the formation book tries again while the leader stands there)
                 return False
-            if behind.plant.speed_mps < start_mps:  # at its gap behind a slower leader: no faster than the leader
+            if leader_mps < start_mps:
                 self.events.record(
                     self.layer.now_s,
                     "start_speed_limited",
@@ -252,10 +253,8 @@ class Dispatcher:
             self.events.record(t, "never_inserted", tid, reason=reason)
         return ids
 
-    def blocker(self, tr: TrainRuntime, depart_m: float, behind_leader: bool = False) -> str | None:
-        """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring).
-        ``behind_leader``: a follower put on at its target gap behind its leader — the trains ahead are not asked
-        about, only those it would stand in front of."""
+    def blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
+        """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring)."""
         length = tr.trip.vehicle.length_m
         for other in self.fleet.active():
             if other is tr:
@@ -266,8 +265,6 @@ class Dispatcher:
             front_o, rear_o = mapped
             other_rear_m = other.front_m - other.trip.vehicle.length_m
             if front_o <= other_rear_m:  # it lies behind the other train's rear: the other one is ahead
-                if behind_leader:
-                    continue
                 clear_m = other_rear_m - front_o
                 if clear_m < self.settings.insertion_margin_m:  # (a follower put on at its target gap: insert_behind)
                     return f"{other.train_id} ahead is less than {self.settings.insertion_margin_m:g} m clear"
