@@ -27,9 +27,11 @@ ends by itself); once the occupant stands for no reason, the follower's clock ru
 either off stands for a reason — its separation holds it behind the last position it heard — and its clock does
 not run until the outage ends (found by fuzzing: a 550 s t2g outage stalled a run at 300 s "for no reason").
 **Lock waits** likewise: a train waiting for a switch or section that a train on the line holds or is queued
-ahead for (``locks.blockers``) waits for a reason while that train moves or stands for a reason of its own (a
-branch train waited 300 s for a flat crossing held by a train standing out a radio outage); its clock runs once
-every such train stands for no reason. A circular wait is still found by the deadlock search below.
+ahead for (``locks.blockers``), or standing close behind a train (within :data:`OCCUPANCY_WAIT_M`), waits for a
+reason while that train moves or stands for a reason of its own (a branch train waited 300 s for a flat crossing
+held by a train standing out a radio outage; a follower stood 300 s behind its leader held for it at a platform
+too short for both); its clock runs once every such train stands for no reason. A circular wait is still found
+by the deadlock search below.
 
 At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
 is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
@@ -87,7 +89,7 @@ class StallWatch:
                 busy.add(tr.train_id)
             else:
                 waiting.append(tr)
-        busy |= self._waiting_for_busy(waiting, busy)
+        busy |= self._waiting_for_busy(waiting, busy, ahead)
         for tr in active:
             if tr.train_id in busy:
                 self.standing_since.pop(tr.train_id, None)
@@ -96,11 +98,14 @@ class StallWatch:
         self._deadlock(t, ahead)
         self._report(t, self.settings.stall_timeout_s, "")
 
-    def _waiting_for_busy(self, waiting: list[TrainRuntime], busy: set[str]) -> set[str]:
-        """The standing trains that wait for a busy train — the occupant of the platform they wait to enter, or a
-        train holding or queued ahead for a switch or section they asked for (``locks.blockers``) — directly or
-        through other such trains (module docstring). A circular wait with no busy train in it never qualifies:
-        the deadlock search finds it."""
+    def _waiting_for_busy(
+        self, waiting: list[TrainRuntime], busy: set[str], ahead: Mapping[str, Ahead | None]
+    ) -> set[str]:
+        """The standing trains that wait for a busy train — the train directly ahead within
+        :data:`OCCUPANCY_WAIT_M`, the occupant of the platform they wait to enter, or a train holding or queued
+        ahead for a switch or section they asked for (``locks.blockers``) — directly or through other such trains
+        (module docstring). A circular wait with no busy train in it never qualifies: the deadlock search finds
+        it."""
         if not waiting:
             return set()
         blockers = getattr(self.locks, "blockers", None)
@@ -110,6 +115,9 @@ class StallWatch:
             berth = self.berth_waits.get(tr.train_id)
             if berth is not None:
                 others.add(berth[1])
+            a = ahead.get(tr.train_id)
+            if a is not None and a.gap_m <= OCCUPANCY_WAIT_M:
+                others.add(a.train_id)
             waits[tr.train_id] = others
         found: set[str] = set()
         grown = True
