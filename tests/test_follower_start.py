@@ -43,8 +43,8 @@ def test_a_follower_started_in_motion_behind_a_standing_leader_starts_at_its_spe
 def test_a_follower_is_not_put_on_in_front_of_a_train_that_could_not_stop_for_it(tmp_path: Path) -> None:
     """Found by fuzzing: with platform berths off, ``main_up.002`` runs into B behind the standing leader
     ``main_up.001``; the follower put on 5 m behind the leader stood in its way, and it ran into it (138
-    collisions). Now the follower waits while a train approaching from behind could not stop for it (here it never
-    gets on: the following train takes its place, the leader leaves — a ``never_inserted`` event and exit 3)."""
+    collisions). Now the follower waits while a train approaching from behind could not stop for it, and gets on
+    once it could (here 4 s later)."""
     data = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
     data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
     data["simulation"].update(step_s=0.5, step_method="forward", seed=846)
@@ -63,4 +63,5 @@ def test_a_follower_is_not_put_on_in_front_of_a_train_that_could_not_stop_for_it
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0
     held = [e for e in read_csv(out / "events.csv") if e["kind"] == "departure_held" and e["subject"] == "br_up.000"]
     assert held and "approaching train main_up.002 could not stop" in held[0]["detail"]
-    assert res.returncode == 3 and s["never_inserted"] == ["br_up.000"]
+    assert res.returncode == 0, res.stderr
+    assert s["n_arrived"] == s["n_trains"] == 7

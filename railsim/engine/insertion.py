@@ -154,7 +154,7 @@ class Dispatcher:
                 raise SimulationError(f"{tr.train_id} cannot start behind {behind.train_id}: routes share no track")
             depart_m = behind_m
             leader_mps = behind.plant.speed_mps  # at its gap behind a slower leader: no faster than the leader
-            reason = self.collision_course(tr, depart_m, min(start_mps, leader_mps))
+            reason = self.collision_course(tr, depart_m, min(start_mps, leader_mps), approaching_only=True)
             if reason is not None:  # a train approaching from behind could not stop for it: not now
                 self._log_held(tr, reason)  # (the formation book tries again while the leader stands there)
                 return False
@@ -286,13 +286,17 @@ class Dispatcher:
                 return f"{other.train_id} holds the route through here (switch {held})"
         return None
 
-    def collision_course(self, tr: TrainRuntime, depart_m: float, v_mps: float) -> str | None:
+    def collision_course(
+        self, tr: TrainRuntime, depart_m: float, v_mps: float, approaching_only: bool = False
+    ) -> str | None:
         """Why a train put on at ``depart_m`` already moving at ``v_mps`` (a start in motion) would be on a collision
         course, or None: some part of another train's body where it would stand, or a train ahead (behind) closer
         than the least stopping distance of the one behind less that of the one ahead
         (:func:`railsim.physics.dynamics.least_stop_distance_m`: both on their emergency brakes at once) — then no
         braking at all avoids the collision. Trains put on in motion close behind each other at one speed (a
-        paper's platoon) are not held: their difference is 0."""
+        paper's platoon) are not held: their difference is 0. ``approaching_only``: only trains approaching from
+        behind count (a follower put on behind its leader: a spot still occupied SUMO itself fills only once
+        free)."""
         veh = tr.trip.vehicle
         own_stop_m = dynamics.least_stop_distance_m(veh, v_mps, tr.view.gradient_at(depart_m))
         for other in self.fleet.active():
@@ -307,6 +311,8 @@ class Dispatcher:
                 other_veh, other.plant.speed_mps, other.view.gradient_at(other.front_m)
             )
             other_rear_m = other.front_m - other_veh.length_m
+            if approaching_only and (front_o <= other_rear_m or rear_o < other.front_m):
+                continue
             if front_o <= other_rear_m:  # the other one is ahead
                 if other_rear_m - front_o < own_stop_m - other_stop_m:
                     return (
