@@ -45,3 +45,23 @@ def read_csv(path: Path) -> list[dict[str, str]]:
 
 def read_summary(out: Path) -> dict[str, Any]:
     return json.loads((out / "summary.json").read_text(encoding="utf-8"))
+
+
+def mini_line() -> dict[str, Any]:
+    """The mini line scenario (:file:`tests/data/scenarios/mini_line.yaml`) as a mapping, its world made absolute
+    so a changed copy can be written anywhere."""
+    import yaml
+
+    data: dict[str, Any] = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
+    data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    return data
+
+
+def run_mapping(folder: Path, data: dict[str, Any], name: str = "scenario") -> tuple[subprocess.CompletedProcess, Path]:
+    """Write ``data`` as ``folder/name.yaml``, ``railsim run`` it into ``folder/name``; (the process, the outputs)."""
+    import yaml
+
+    path = folder / f"{name}.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    out = folder / name
+    return run_railsim(["run", str(path), "--out", str(out), "--no-progress"]), out

@@ -12,23 +12,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import yaml
 
-from tests.helpers import ROOT, read_csv, read_summary, run_railsim
-
-DATA = ROOT / "tests" / "data"
+from tests.helpers import mini_line, read_csv, read_summary, run_mapping
 
 
 @pytest.mark.sumo
 def test_a_follower_started_in_motion_behind_a_standing_leader_starts_at_its_speed(tmp_path: Path) -> None:
-    data = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
-    data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    data = mini_line()
     follower = next(s for s in data["services"] if s["id"] == "br_up")
     follower["start"] = {"offset_m": 500, "speed_kmh": 60}
-    path = tmp_path / "start.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
+    res, out = run_mapping(tmp_path, data, "start")
     assert res.returncode == 0, res.stderr
     s = read_summary(out)
     assert s["collisions"] == 0 and s["min_gap_m"] > 0.0 and s["n_arrived"] == s["n_trains"]
@@ -45,8 +38,7 @@ def test_a_follower_is_not_put_on_in_front_of_a_train_that_could_not_stop_for_it
     ``main_up.001``; the follower put on 5 m behind the leader stood in its way, and it ran into it (138
     collisions). Now the follower waits while a train approaching from behind could not stop for it, and gets on
     once it could (here 4 s later)."""
-    data = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
-    data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    data = mini_line()
     data["simulation"].update(step_s=0.5, step_method="forward", seed=846)
     for svc in data["services"]:
         svc["dwell_s"] = 20 if svc["id"] == "br_up" else 60
@@ -55,10 +47,7 @@ def test_a_follower_is_not_put_on_in_front_of_a_train_that_could_not_stop_for_it
         }
     data["formations"][0].update(target_gap_m=5, depart_together=True)
     data["interlocking"] = {"platform_berths": False}
-    path = tmp_path / "behind.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
+    res, out = run_mapping(tmp_path, data, "behind")
     s = read_summary(out)
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0
     held = [e for e in read_csv(out / "events.csv") if e["kind"] == "departure_held" and e["subject"] == "br_up.000"]

@@ -12,23 +12,16 @@ from __future__ import annotations
 from pathlib import Path
 
 import pytest
-import yaml
 
-from tests.helpers import ROOT, read_summary, run_railsim
-
-DATA = ROOT / "tests" / "data"
+from tests.helpers import mini_line, read_summary, run_mapping
 
 
 @pytest.mark.sumo
 @pytest.mark.parametrize(("method", "step_s"), [("forward", 1.0), ("forward", 0.5), ("ballistic", 1.0)])
 def test_every_stop_is_served_on_the_mark(tmp_path: Path, method: str, step_s: float) -> None:
-    data = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
-    data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
+    data = mini_line()
     data["simulation"].update(step_method=method, step_s=step_s)
-    path = tmp_path / "mini.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
+    res, out = run_mapping(tmp_path, data, "mini")
     assert res.returncode == 0, res.stderr
     s = read_summary(out)
     assert s["collisions"] == 0 and s["n_arrived"] == s["n_trains"] == 7

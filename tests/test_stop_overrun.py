@@ -15,12 +15,11 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import pytest
-import yaml
 
 from railsim.engine.stops import surely_overruns_m
 from railsim.physics import dynamics
 from railsim.physics.vehicle import VehicleParams
-from tests.helpers import ROOT, read_csv, read_summary, run_railsim
+from tests.helpers import ROOT, read_csv, read_summary, run_mapping
 
 DATA = ROOT / "tests" / "data"
 BARE = VehicleParams("bare", 100.0, 2.0e5, emergency_decel_mps2=1.25)  # no Davis terms: v²/(2 b_e) exactly
@@ -77,10 +76,7 @@ def _run(tmp_path: Path, offset_m: float) -> tuple[int, Path]:
         ],  # fmt: skip
         "outputs": {"trace_stride_s": 0.2, "sumo": [], "formats": ["csv"]},
     }
-    path = tmp_path / "overrun.yaml"
-    path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
+    res, out = run_mapping(tmp_path, data, "overrun")
     return res.returncode, out
 
 
