@@ -83,9 +83,7 @@ class StallWatch:
         for tr in active:
             held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
             dwelling = (tr.sumo_stopped or tr.sumo_stopped_now) and not tr.held_for_route
-            a = ahead.get(tr.train_id)
-            radio = a is not None and self.radio_out is not None and self.radio_out(t, tr.train_id, a.train_id)
-            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held or radio:
+            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held or self._radio_wait(t, tr, ahead):
                 busy.add(tr.train_id)
             else:
                 waiting.append(tr)
@@ -97,6 +95,11 @@ class StallWatch:
                 self.standing_since[tr.train_id] = (t, tr)
         self._deadlock(t, ahead)
         self._report(t, self.settings.stall_timeout_s, "")
+
+    def _radio_wait(self, t: float, tr: TrainRuntime, ahead: Mapping[str, Ahead | None]) -> bool:
+        """Does ``tr`` stand behind a train ahead while an outage cuts either off? (Asked of standing trains only.)"""
+        a = ahead.get(tr.train_id)
+        return a is not None and self.radio_out is not None and self.radio_out(t, tr.train_id, a.train_id)
 
     def _waiting_for_busy(
         self, waiting: list[TrainRuntime], busy: set[str], ahead: Mapping[str, Ahead | None]
