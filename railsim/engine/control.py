@@ -278,12 +278,12 @@ class ControlStage:
             other = self.trains[a.train_id]
             sep = tr.controllers["separation"]
             if type(sep) is Separation:
-                known = self.knowledge.known_rear_age(tr, other, "t2g", "ground")
+                known = self.knowledge.known_rear_age(tr, other, "t2g", "ground", ahead=True)
                 if known is not None:
                     tr.stale_max_s = max(tr.stale_max_s, known[1])
                     commands["separation"] = sep.decide(veh, self.dt, own_pos, own_v, applied_now, grad, *known)
             else:
-                pred = self.knowledge.known_state(tr, other, "t2g", "ground")
+                pred = self.knowledge.known_state(tr, other, "t2g", "ground", ahead=True)
                 if pred is not None:
                     tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
                     base = base or self._base(t, tr, sit)
@@ -373,7 +373,7 @@ class ControlStage:
         veh = tr.trip.vehicle
         known = None
         if a is not None:
-            known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground")
+            known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
             if known is not None:
                 tr.stale_max_s = max(tr.stale_max_s, known[1])
         plant = tr.plant

@@ -103,10 +103,12 @@ class Knowledge:
                 )
 
     def known_state(
-        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
+        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str, ahead: bool = False
     ) -> PredecessorState | None:
-        """What ``observer`` knows of ``other`` via ``channel`` (mapped into the observer's frame)."""
-        known = self._known(observer, other, channel, receiver)
+        """What ``observer`` knows of ``other`` via ``channel`` (mapped into the observer's frame). ``ahead``:
+        ``other`` is the train directly ahead on the observer's track (the occupancy says so) — a report that has
+        it off our track then still gives a state (see :meth:`_known`) instead of None."""
+        known = self._known(observer, other, channel, receiver, ahead)
         if known is None:
             return None
         front, rear, pos, v, acc, stamp, plan = known
@@ -127,21 +129,22 @@ class Knowledge:
         )
 
     def known_rear_age(
-        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
+        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str, ahead: bool = False
     ) -> tuple[float, float] | None:
         """``(rear, age_s)`` of :meth:`known_state` without building it (``rear`` is its ``rear_position_m``,
         computed the same way): all that moving-block separation reads."""
-        known = self._known(observer, other, channel, receiver)
+        known = self._known(observer, other, channel, receiver, ahead)
         if known is None:
             return None
         front, rear = known[0], known[1]
         return front - (front - rear), max(0.0, self.layer.now_s - known[5])
 
     def _known(
-        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str
+        self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str, ahead: bool = False
     ) -> tuple[float, float, float, float, float, float, Any] | None:
         """The latest delivered report (or the registration) of ``other``: ``(front, rear)`` in the observer's
-        frame, then the report's own position, speed, acceleration, stamp and plan; None if off our route."""
+        frame, then the report's own position, speed, acceleration, stamp and plan; None if off our route —
+        unless ``other`` is ahead of us on our track now (``ahead``): then where its route joins ours."""
         ch = self.channels.get(channel)
         msg = ch.latest(receiver, other.train_id) if ch is not None else None
         if msg is None:
@@ -165,7 +168,17 @@ class Knowledge:
             route_id, pos, v, acc, stamp, plan = msg.payload
         mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i)
         if mapped is None:
-            return None
+            if not ahead:
+                return None
+            # the report has it on track our route does not use — short of a merge, or short of where our route
+            # begins — yet it is ahead of us now: it came onto our track since, where its route joins ours, and
+            # no part of it on our track is behind that point. Known: a train standing there (its speed on our
+            # track unknown); without this the train behind ran with no separation at all (two fuzz-found
+            # collisions in radio outages: tests/test_knowledge_off_route.py)
+            join_m = other.view.join_m(observer.view, pos)
+            if join_m is None:
+                return None
+            return join_m, join_m, pos, 0.0, 0.0, stamp, None
         return mapped[0], mapped[1], pos, v, acc, stamp, plan  # only the part of its body on our track
 
 

@@ -37,16 +37,19 @@ class RouteView:
     grades: tuple[tuple[float, float, float], ...] = ()
     line_speed_mps: float = 20.0
     _offsets: dict[tuple[str, int], float | None] = field(default_factory=dict)
+    _joins: dict[tuple[str, int], float | None] = field(default_factory=dict)
     _windows: dict[tuple[int, int, bool], tuple[SpeedLimit, ...]] = field(default_factory=dict)
     # (id of the other view, its front edge, its rear edge) -> (that view, map_body's frame change for the pair)
     _frames: dict[tuple[int, int, int], tuple[Any, tuple[float, float | None] | None]] = field(default_factory=dict)
     _well_formed: bool = True  # every restriction ends at or after its start
+    _simple: bool = True  # no edge twice on the route (a body on it maps into its own frame unchanged)
 
     def __post_init__(self) -> None:
         r = self.route
         self.edges = tuple(r.edges)
         self.edge_start_m = tuple(float(x) for x in r.edge_start_m)
         self.edge_index = {e: i for i, e in enumerate(self.edges)}
+        self._simple = len(self.edge_index) == len(self.edges)
         lims = sorted((float(a), float(b), float(v)) for a, b, v in r.speed_limits)
         self.limits = tuple(SpeedLimit(a, b, v) for a, b, v in lims)
         self.limit_starts = [a for a, _, _ in lims]
@@ -141,6 +144,8 @@ class RouteView:
         ``other`` at or next to the front (:meth:`edge_near`).
         """
         rear_m = front_m - length_m
+        if other is self and self._simple:  # one route, no edge twice: the frame is the same (what _frame gives)
+            return front_m, rear_m
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
         key = (id(other), i_front, i_rear)
@@ -192,6 +197,16 @@ class RouteView:
                 break
         self._offsets[key] = result
         return result
+
+    def join_m(self, other: RouteView, from_chainage_m: float) -> float | None:
+        """Where, in ``other``'s frame, this route first runs on ``other``'s track at or after ``from_chainage_m``
+        (the start of that shared edge): a merge, or the start of ``other``'s route; None if never."""
+        i0 = self.edge_at(from_chainage_m)
+        key = (other.route.id, i0)
+        if key not in self._joins:
+            j = next((other.edge_index[e] for e in self.edges[i0:] if e in other.edge_index), None)
+            self._joins[key] = None if j is None else other.edge_start_m[j]
+        return self._joins[key]
 
 
 _VIEWS: dict[str, RouteView] = {}
