@@ -79,3 +79,41 @@ def test_standing_close_behind_a_train_that_stands_for_a_reason_is_not_a_stall()
     leader.held_for_route = True  # its dwell is over and its route is not set: no reason now
     _run(watch, [leader, follower], 2 * TIMEOUT_S + STEP_S, 4 * TIMEOUT_S, _ahead("F", "L"))
     assert {e.subject for e in events.entries("stalled")} == {"L", "F"}
+
+
+def _reference_fixed_point(waits: dict[str, set[str]], busy: set[str]) -> set[str]:
+    """The rule as written: add any waiting train that waits for a busy or already found one, until none is added."""
+    found: set[str] = set()
+    grown = True
+    while grown:
+        grown = False
+        for train_id, others in waits.items():
+            if train_id not in found and not others.isdisjoint(busy | found):
+                found.add(train_id)
+                grown = True
+    return found
+
+
+def test_waits_along_long_chains_and_random_graphs_match_the_rule_as_written() -> None:
+    """The watchdog grows the waits from the busy trains along reversed edges (linear); the answer is the rule's
+    least fixed point — a chain listed back to front (one train per pass for the rule as written), cycles with and
+    without a busy train in reach, and random wait graphs."""
+    import random
+
+    n = 300
+    chain = {f"w{i}": {f"w{i - 1}" if i else "B"} for i in reversed(range(n))}  # w0 waits for B, w1 for w0, ...
+    chain |= {"c1": {"c2"}, "c2": {"c1"}, "c3": {"c1", "w5"}}  # a closed cycle; c3 also waits for a chain train
+    graphs = [(chain, {"B"})]
+    rng = random.Random(3)
+    for _ in range(200):
+        ids = [f"t{i}" for i in range(rng.randrange(1, 30))]
+        busy = {i for i in ids if rng.random() < 0.2}
+        waits = {i: {rng.choice(ids) for _ in range(rng.randrange(0, 3))} - {i} for i in ids if i not in busy}
+        graphs.append((waits, busy))
+    for waits, busy in graphs:
+        watch, _, _ = _watch(_Locks({w: {f"sw_{o}": (o,) for o in others} for w, others in waits.items()}))
+        got = watch._waiting_for_busy([_train(w, 0.0) for w in waits], set(busy), {})  # type: ignore[list-item]
+        assert got == _reference_fixed_point(waits, busy)
+    watch, _, _ = _watch(_Locks({w: {f"sw_{o}": (o,) for o in others} for w, others in chain.items()}))
+    got = watch._waiting_for_busy([_train(w, 0.0) for w in chain], {"B"}, {})  # type: ignore[list-item]
+    assert {f"w{i}" for i in range(n)} | {"c3"} == got and not {"c1", "c2"} & got

@@ -72,6 +72,7 @@ class Dispatcher:
         self.admission: list[Callable[[float, TrainRuntime, float], str | None]] = []
         self.bridge: Any = None  # the SUMO bridge, wired when the run starts
         self._held: dict[str, str] = {}  # trip -> the reason its departure is held (logged when it changes)
+        self._stop_memo: dict[str, tuple[float, float, float, float]] = {}  # train -> (t, v, front, least stop)
         self.chained: Callable[[str], bool] = lambda _trip: False  # rotations: trips their unit's turnback starts
 
     def schedule_departures(self) -> None:
@@ -299,30 +300,39 @@ class Dispatcher:
         free)."""
         veh = tr.trip.vehicle
         own_stop_m = dynamics.least_stop_distance_m(veh, v_mps, tr.view.gradient_at(depart_m))
+        hint = tr.view.edge_at(depart_m)
         for other in self.fleet.active():
             if other is tr:
                 continue
-            mapped = other.view.map_body(tr.view, depart_m, veh.length_m)
+            mapped = other.view.map_body(tr.view, depart_m, veh.length_m, hint)
             if mapped is None:
                 continue
             front_o, rear_o = mapped
-            other_veh = other.trip.vehicle
-            other_stop_m = dynamics.least_stop_distance_m(
-                other_veh, other.plant.speed_mps, other.view.gradient_at(other.front_m)
-            )
-            other_rear_m = other.front_m - other_veh.length_m
+            other_rear_m = other.front_m - other.trip.vehicle.length_m
             if approaching_only and (front_o <= other_rear_m or rear_o < other.front_m):
                 continue
-            if front_o <= other_rear_m:  # the other one is ahead
-                if other_rear_m - front_o < own_stop_m - other_stop_m:
-                    return (
-                        f"{other.train_id} ahead is {other_rear_m - front_o:.0f} m clear: it could not stop behind it"
-                    )
+            if front_o <= other_rear_m:  # the other one is ahead (its stopping distance is >= 0: asked only if
+                gap_m = other_rear_m - front_o  # ours alone could not stop within the gap)
+                if gap_m < own_stop_m and gap_m < own_stop_m - self._least_stop_m(other):
+                    return f"{other.train_id} ahead is {gap_m:.0f} m clear: it could not stop behind it"
             elif rear_o < other.front_m:
                 return f"track occupied by {other.train_id}"
-            elif rear_o - other.front_m < other_stop_m - own_stop_m:
+            elif rear_o - other.front_m < self._least_stop_m(other) - own_stop_m:
                 return f"approaching train {other.train_id} could not stop"
         return None
+
+    def _least_stop_m(self, other: TrainRuntime) -> float:
+        """``other``'s least stopping distance now (remembered for the instant: a whole timetable is put on at
+        t = 0, each insertion asking it of every train already on)."""
+        now = self.layer.now_s
+        known = self._stop_memo.get(other.train_id)
+        if known is not None and known[0] == now and known[1] == other.plant.speed_mps and known[2] == other.front_m:
+            return known[3]
+        stop_m = dynamics.least_stop_distance_m(
+            other.trip.vehicle, other.plant.speed_mps, other.view.gradient_at(other.front_m)
+        )
+        self._stop_memo[other.train_id] = (now, other.plant.speed_mps, other.front_m, stop_m)
+        return stop_m
 
     @staticmethod
     def _locked_ahead_of(other: TrainRuntime, chainage_m: float) -> str | None:

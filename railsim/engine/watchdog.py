@@ -122,14 +122,19 @@ class StallWatch:
             if a is not None and a.gap_m <= OCCUPANCY_WAIT_M:
                 others.add(a.train_id)
             waits[tr.train_id] = others
+        # the least fixed point {w : waits[w] meets busy ∪ found}, grown outward from the busy trains along the
+        # reversed waits (linear in the waits: a queue of hundreds at a terminus costs no pass per train)
+        waited_for_by: dict[str, list[str]] = {}
+        for train_id, others in waits.items():
+            for other in others:
+                waited_for_by.setdefault(other, []).append(train_id)
         found: set[str] = set()
-        grown = True
-        while grown:
-            grown = False
-            for train_id, others in waits.items():
-                if train_id not in found and not others.isdisjoint(busy | found):
+        frontier = [b for b in busy if b in waited_for_by]
+        while frontier:
+            for train_id in waited_for_by.get(frontier.pop(), ()):
+                if train_id not in found:
                     found.add(train_id)
-                    grown = True
+                    frontier.append(train_id)
         return found
 
     def _deadlock(self, t: float, ahead: Mapping[str, Ahead | None]) -> None:
