@@ -57,11 +57,13 @@ def mini_line() -> dict[str, Any]:
     return data
 
 
-def run_mapping(folder: Path, data: dict[str, Any], name: str = "scenario") -> tuple[subprocess.CompletedProcess, Path]:
+def run_mapping(
+    folder: Path, data: dict[str, Any], name: str = "scenario", timeout: float = 600
+) -> tuple[subprocess.CompletedProcess, Path]:
     """Write ``data`` as ``folder/name.yaml``, ``railsim run`` it into ``folder/name``; (the process, the outputs)."""
     import yaml
 
     path = folder / f"{name}.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     out = folder / name
-    return run_railsim(["run", str(path), "--out", str(out), "--no-progress"]), out
+    return run_railsim(["run", str(path), "--out", str(out), "--no-progress"], timeout=timeout), out
