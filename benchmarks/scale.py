@@ -13,7 +13,16 @@ For each N the script runs, in separate processes (libsumo hosts one simulation 
 * **railsim**: the controlled loop (:class:`railsim.engine.loop.Simulation`), clock taken at the start of every
   step (the interval between two marks is one whole step: our phases plus SUMO's ``simulationStep``);
 * **sumo**: the bare-SUMO twin — the same trips on the same net inserted at the same places and speeds, driven
-  by SUMO's own car-following model (:func:`railsim.studies.baseline.run_sumo_only`).
+  by SUMO's own car-following model (:func:`railsim.studies.baseline.run_sumo_only`);
+* **io_floor**: the twin again, with the engine's per-train libsumo traffic added to every step — the IDs of
+  the trains present, the bridge's five getters per train (:meth:`SumoBridge.read`) and one ``setSpeed`` per
+  train (:meth:`SumoBridge.set_speeds`, with -1: SUMO keeps driving). No railsim logic at all: what any
+  controller driving SUMO train by train through libsumo costs at the least (the floor under the railsim column);
+* **io_floor_busy**: the io floor with unrelated Python work between two steps (summing a field over
+  ``BUSY_OBJECTS_PER_TRAIN`` small dicts per train: a working set growing with N like the engine's per-train
+  objects). It measures how much dearer
+  SUMO's own step gets when the process does anything between steps (the CPU caches are cold when SUMO runs
+  again): compare its ``sumo_step_cpu_us_per_train_step`` with io_floor's.
 
 Both measure the steps after ``warmup_steps`` (insertion and first registration excluded) and report wall and
 process-CPU microseconds per train-step (step time / N), and their ratio; railsim also reports the CPU time of
@@ -167,6 +176,49 @@ def _sumo(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict])
     q.put({**_per_train_step(marks, n_trains, warmup_steps), "n_arrived": res["n_arrived"]})
 
 
+BUSY_OBJECTS_PER_TRAIN = 300
+
+
+def _io_floor(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict], busy: bool = False) -> None:
+    from railsim.engine import sumo
+    from railsim.studies import baseline
+
+    marks: list[tuple[float, float]] = []
+    sumo_cpu: list[float] = []
+    sumo_step = sumo.SumoBridge.step
+    working_set = [{"k": i, "x": float(i)} for i in range(BUSY_OBJECTS_PER_TRAIN * n_trains if busy else 0)]
+
+    def step_with_io(bridge: Any) -> None:
+        total = 0.0
+        for obj in working_set:  # busy: unrelated work between two SUMO steps
+            total += obj["x"]
+        ids = bridge.present_ids()
+        bridge.read(ids)
+        bridge.set_speeds(ids, [-1.0] * len(ids))  # -1: SUMO's own car-following keeps the train
+        c0 = time.process_time()
+        sumo_step(bridge)
+        sumo_cpu.append(time.process_time() - c0)
+
+    sumo.SumoBridge.step = step_with_io  # type: ignore[method-assign]
+    res = baseline.run_sumo_only(
+        _load(n_trains, horizon_s), on_step=lambda _t: marks.append((time.perf_counter(), time.process_time()))
+    )
+    steps = len(marks) - 1 - warmup_steps
+    q.put(
+        {
+            **_per_train_step(marks, n_trains, warmup_steps),
+            "sumo_step_cpu_us_per_train_step": 1e6
+            * sum(sumo_cpu[warmup_steps : warmup_steps + steps])
+            / (steps * n_trains),
+            "n_arrived": res["n_arrived"],
+        }
+    )
+
+
+def _io_floor_busy(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict]) -> None:
+    _io_floor(n_trains, horizon_s, warmup_steps, q, busy=True)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("--sizes", default="100,300,1000,3000", help="numbers of simultaneous trains (even)")
@@ -179,19 +231,30 @@ def main() -> None:
     for n in sizes:
         in_process(_sumo, n, 1.0, 0)  # build and cache the corridor, so neither side pays for netconvert
         sumo = in_process(_sumo, n, args.horizon_s, args.warmup_steps)
+        floor = in_process(_io_floor, n, args.horizon_s, args.warmup_steps)
+        busy = in_process(_io_floor_busy, n, args.horizon_s, args.warmup_steps)
         ours = in_process(_railsim, n, args.horizon_s, args.warmup_steps)
         rows.append(
             {
                 "n_trains": n,
                 "railsim": ours,
                 "sumo": sumo,
+                "io_floor": floor,
+                "io_floor_busy": busy,
                 "ratio": ours["us_per_train_step"] / sumo["us_per_train_step"],
                 "cpu_ratio": ours["cpu_us_per_train_step"] / sumo["cpu_us_per_train_step"],
+                "floor_cpu_ratio": floor["cpu_us_per_train_step"] / sumo["cpu_us_per_train_step"],
+                # railsim's own per train-step: its whole step less SUMO's step inside it
+                "railsim_own_cpu_us_per_train_step": ours["cpu_us_per_train_step"]
+                - ours["sumo_step_cpu_us_per_train_step"],
             }
         )
         print(
-            f"N={n}: railsim {ours['us_per_train_step']:.1f} us (cpu {ours['cpu_us_per_train_step']:.1f}), "
-            f"sumo {sumo['us_per_train_step']:.1f} us (cpu {sumo['cpu_us_per_train_step']:.1f}) per train-step",
+            f"N={n}: railsim {ours['us_per_train_step']:.1f} us (cpu {ours['cpu_us_per_train_step']:.1f}, of it "
+            f"SUMO's step {ours['sumo_step_cpu_us_per_train_step']:.1f}), sumo {sumo['us_per_train_step']:.1f} us "
+            f"(cpu {sumo['cpu_us_per_train_step']:.1f}), io floor cpu {floor['cpu_us_per_train_step']:.1f} "
+            f"(SUMO's step {floor['sumo_step_cpu_us_per_train_step']:.1f}; busy between steps "
+            f"{busy['sumo_step_cpu_us_per_train_step']:.1f}) per train-step",
             flush=True,
         )
     first, last = rows[0]["railsim"], rows[-1]["railsim"]
