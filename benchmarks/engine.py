@@ -5,7 +5,8 @@ world, fleet and free-run plans for railsim; the net for SUMO), simulated second
 ratio of our controlled loop's time to SUMO alone on the same net, trips and step. Both sides run ``--reps``
 times (default 3), alternating, each run in its own process (libsumo hosts one simulation per process); the
 ratios are the medians of the per-repetition ratios. On a shared machine wall time depends on the load;
-the CPU ratio is the steadier figure.
+the CPU ratio is the steadier figure. ``io_floor_cpu_ratio``: the twin plus the engine's per-train libsumo
+traffic and no railsim logic (``benchmarks/io_floor.py``) ÷ the twin — the floor under the controlled ratio.
 
     .venv/bin/python benchmarks/engine.py [SCENARIO] [--reps 3]
 """
@@ -45,6 +46,17 @@ def _sumo_only(path: str, q: mp.Queue[dict]) -> None:
     q.put(baseline.run_sumo_only(scenario.load(path)))
 
 
+def _io_floor(path: str, q: mp.Queue[dict]) -> None:
+    from io_floor import add_engine_io  # benchmarks/io_floor.py
+
+    from railsim import scenario
+    from railsim.studies import baseline
+
+    sumo_cpu = add_engine_io()
+    res = baseline.run_sumo_only(scenario.load(path))
+    q.put({**res, "sumo_step_cpu_s": sum(sumo_cpu)})
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("scenario", nargs="?", default=str(DEFAULT))
@@ -55,14 +67,16 @@ def main() -> None:
     runs = []
     for _ in range(args.reps):
         sumo = in_process(_sumo_only, path)
+        floor = in_process(_io_floor, path)
         ours = in_process(_railsim, path)
-        runs.append({"railsim": ours, "sumo_only": sumo})
+        runs.append({"railsim": ours, "sumo_only": sumo, "io_floor": floor})
     wall = [r["railsim"]["wall_s"] / r["sumo_only"]["wall_s"] for r in runs]
     cpu = [r["railsim"]["cpu_s"] / r["sumo_only"]["cpu_s"] for r in runs]
     per_step = [
         (r["railsim"]["cpu_s"] / r["railsim"]["steps"]) / (r["sumo_only"]["cpu_s"] / r["sumo_only"]["steps"])
         for r in runs
     ]
+    floor_cpu = [r["io_floor"]["cpu_s"] / r["sumo_only"]["cpu_s"] for r in runs]
     last = runs[-1]
     print(
         json.dumps(
@@ -75,7 +89,9 @@ def main() -> None:
                 "overhead_ratio": statistics.median(wall),
                 "cpu_overhead_ratio": statistics.median(cpu),
                 "cpu_per_step_ratio": statistics.median(per_step),
-                "ratios": {"wall": wall, "cpu": cpu, "cpu_per_step": per_step},
+                # the twin plus the engine's per-train libsumo traffic, no railsim logic (benchmarks/io_floor.py)
+                "io_floor_cpu_ratio": statistics.median(floor_cpu),
+                "ratios": {"wall": wall, "cpu": cpu, "cpu_per_step": per_step, "io_floor_cpu": floor_cpu},
                 "sim_s_per_wall_s": {
                     "railsim": last["railsim"]["sim_s"] / last["railsim"]["wall_s"],
                     "sumo_only": last["sumo_only"]["sim_s"] / last["sumo_only"]["wall_s"],

@@ -14,10 +14,10 @@ For each N the script runs, in separate processes (libsumo hosts one simulation 
   step (the interval between two marks is one whole step: our phases plus SUMO's ``simulationStep``);
 * **sumo**: the bare-SUMO twin — the same trips on the same net inserted at the same places and speeds, driven
   by SUMO's own car-following model (:func:`railsim.studies.baseline.run_sumo_only`);
-* **io_floor**: the twin again, with the engine's per-train libsumo traffic added to every step — the IDs of
-  the trains present, the bridge's five getters per train (:meth:`SumoBridge.read`) and one ``setSpeed`` per
-  train (:meth:`SumoBridge.set_speeds`, with -1: SUMO keeps driving). No railsim logic at all: what any
-  controller driving SUMO train by train through libsumo costs at the least (the floor under the railsim column);
+* **io_floor**: the twin again, with the engine's per-train libsumo traffic added to every step
+  (``benchmarks/io_floor.py``: the ids, five getters and one ``setSpeed`` per train; SUMO keeps driving). No
+  railsim logic at all: what any controller driving SUMO train by train through libsumo costs at the least (the
+  floor under the railsim column);
 * **io_floor_busy**: the io floor with unrelated Python work between two steps (summing a field over
   ``BUSY_OBJECTS_PER_TRAIN`` small dicts per train: a working set growing with N like the engine's per-train
   objects). It measures how much dearer
@@ -180,26 +180,12 @@ BUSY_OBJECTS_PER_TRAIN = 300
 
 
 def _io_floor(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict], busy: bool = False) -> None:
-    from railsim.engine import sumo
+    from io_floor import add_engine_io  # benchmarks/io_floor.py
+
     from railsim.studies import baseline
 
     marks: list[tuple[float, float]] = []
-    sumo_cpu: list[float] = []
-    sumo_step = sumo.SumoBridge.step
-    working_set = [{"k": i, "x": float(i)} for i in range(BUSY_OBJECTS_PER_TRAIN * n_trains if busy else 0)]
-
-    def step_with_io(bridge: Any) -> None:
-        total = 0.0
-        for obj in working_set:  # busy: unrelated work between two SUMO steps
-            total += obj["x"]
-        ids = bridge.present_ids()
-        bridge.read(ids)
-        bridge.set_speeds(ids, [-1.0] * len(ids))  # -1: SUMO's own car-following keeps the train
-        c0 = time.process_time()
-        sumo_step(bridge)
-        sumo_cpu.append(time.process_time() - c0)
-
-    sumo.SumoBridge.step = step_with_io  # type: ignore[method-assign]
+    sumo_cpu = add_engine_io(BUSY_OBJECTS_PER_TRAIN * n_trains if busy else 0)
     res = baseline.run_sumo_only(
         _load(n_trains, horizon_s), on_step=lambda _t: marks.append((time.perf_counter(), time.process_time()))
     )
