@@ -264,7 +264,9 @@ class Simulation:
         self.layer.advance_to(t)
         bridge = self.bridge
         present = set(bridge.present_ids())
-        active = [tr for tr in self.fleet.active() if tr.sumo_id in present]
+        on_line = self.fleet.active()  # handed to SUMO: present, or still waiting in its queue (guarded)
+        self.dispatcher.guard_pending([tr for tr in on_line if tr.status == "inserting" and tr.sumo_id not in present])
+        active = [tr for tr in on_line if tr.sumo_id in present]
         for tr in active:
             if tr.status == "inserting":
                 tr.status = "running"
