@@ -27,6 +27,10 @@
 * **Inserting** hands SUMO the route (trimmed to begin at the edge holding the start chainage), the stops with
   their dwells, and the start speed; extensions hook in (``on_inserted``: exact plants, …) and the formation
   partners register (:meth:`Knowledge.handshake`).
+* **Waiting in SUMO's queue.** SUMO puts a train on only once its spot is free, which can be minutes later; every
+  step a *standing* train still in the queue is checked again against trains approaching from behind (the rule
+  above), and withdrawn (``train_withdrawn``), held and retried if one could not stop for it
+  (:meth:`Dispatcher.guard_pending`).
 """
 
 from __future__ import annotations
