@@ -55,7 +55,7 @@ NAIVE = ("naive1", "naive2")
 TIMED_METHODS = ("improved_pso", "plain_pso", "qp_order", *NAIVE)
 # qp_order's settings as the engine's coordinator derives them for the Table 3 scenarios (turnouts 10 m, trains
 # 20 m, clearance 10 m, protection 20 m + the ATO's 5 m authority margin, ATO planning braking 0.96 m/s²):
-# railsim/engine/extensions/paper004.py and paper004_readings.interlocking_model
+# railsim/engine/extensions/junction_coordinator (coordinator.py and readings.interlocking_model)
 ENGINE_QP = QpOrderParams(
     zone_m=30.0,
     approach_decel_mps2=0.48,

@@ -810,33 +810,3 @@ def line_chainage(station_order: Sequence[str], routes: Iterable[RouteInfo]) -> 
                 c0, km0 = min(known, key=lambda ck: abs(ck[0] - c))
                 placed[sid] = (line_id, round(km0 + sign * (c - c0) / 1000.0, 6))
         k += 1
-
-
-def sumo_args(bundle: NetworkBundle) -> tuple[str, ...]:
-    """Extra SUMO options for simulating ``bundle`` (none for generated worlds).
-
-    On an external net SUMO's ``oncomingTrain``/``bidi`` insertion checks are switched off (all the others stay):
-    SUMO otherwise holds a train at its depart platform on a bidi edge for as long as any train whose route
-    uses the partner edge is on the way (75 s in the passing-loop test), which breaks the timetable; railsim's
-    trains are placed where the scenario says and our occupancy and interlocking judge safety.
-    """
-    if bundle.graph.graph.get("kind") != "external":
-        return ()
-    return ("--insertion-checks", INSERTION_CHECKS)
-
-
-def load_world(world: Any, source: Any = None) -> NetworkBundle:
-    """The bundle of a scenario's ``world`` (:class:`railsim.scenario.WorldSpec`): built, or read from a net."""
-    if world.kind != "net":
-        from network.build import build
-
-        name_or_path, params = world.build_args()
-        return build(name_or_path, **params)
-    return load_net(
-        world.net,
-        world.additional,
-        signals=world.signals,
-        vclass=world.vclass,
-        throw_time_s=world.throw_time_s,
-        where=(source, "world"),
-    )

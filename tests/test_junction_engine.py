@@ -157,10 +157,10 @@ def test_start_before_a_switch_not_on_the_route(tmp_path: Path) -> None:
 
 
 def test_switch_interval_reading_closed_form() -> None:
-    """The planner's t_ls = release + throw + sighting (railsim.engine.extensions.paper004_readings)."""
+    """The planner's t_ls = release + throw + sighting (railsim.engine.extensions.junction_coordinator.readings)."""
     from controllers.junction.model import JunctionParams
-    from railsim.engine.extensions.paper004_readings import switch_interval_s
-    from railsim.engine.extensions.paper004_tracking import PlannedTrain
+    from railsim.engine.extensions.junction_coordinator.readings import switch_interval_s
+    from railsim.engine.extensions.junction_coordinator.tracking import PlannedTrain
     from railsim.engine.settings import EngineSettings
 
     members = [PlannedTrain("a", {"sw2": 90.0}, {"sw2": "reverse"}, {"sw2": 100.0}, 300.0)]

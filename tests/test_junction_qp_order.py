@@ -252,7 +252,7 @@ def test_first_plan_budget_in_qp_solves_holds_when_the_first_order_fails(first_i
     feasible; starved to 2 QPs per order neither is, and the rescue continues the less violating one (a plan that
     is still infeasible is reported so, its violations named — never an exception, never an unbounded search)."""
     _, layout, params, qp = _corrected_table3(1)
-    # the engine's settings for these scenarios (paper004.py): turnouts approached inside the ATO's envelope
+    # the engine's settings for these scenarios (the junction coordinator): turnouts approached inside the ATO's envelope
     qp = dataclasses.replace(
         qp, approach_decel_mps2=0.48, approach_hold_m=20.0, line_speed_margin_mps=3.0, first_iterations=first_iterations
     )

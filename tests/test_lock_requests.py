@@ -24,6 +24,7 @@ from railsim.engine.coupling import COUPLED_STATES
 from railsim.engine.events import EventLayer, Interlocking, Switch
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import TrackSections
+from railsim.engine.extensions import ExtensionSet
 from railsim.engine.locking import SECTION_REQUEST_LEAD_S, RouteLocks, stop_before
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import RouteSection
@@ -76,6 +77,8 @@ def _crossing_locks(*trains: Any) -> RouteLocks:
         formations,
         EventLog(),
         EngineSettings(),
+        ExtensionSet(),
+        SimpleNamespace(now_s=0.0),
     )
     locks.tracks = TrackSections(EventLog(), [CROSSING])
     for t in trains:
@@ -149,7 +152,7 @@ def _switch_locks(leader: Any, follower: Any) -> tuple[EventLayer, Interlocking,
         manager=SimpleNamespace(state=lambda fid: state),
     )
     fleet = SimpleNamespace(trains={leader.train_id: leader, follower.train_id: follower})
-    return layer, il, RouteLocks(fleet, il, formations, EventLog(), EngineSettings())  # type: ignore[arg-type]
+    return layer, il, RouteLocks(fleet, il, formations, EventLog(), EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
 
 
 def test_a_coupled_follower_never_asks_for_its_leaders_switch_before_the_leader() -> None:
@@ -199,7 +202,7 @@ def test_before_a_merge_not_locked_for_it_a_train_stops_its_separation_margin_sh
         il.add_switch(Switch(sid, throw_time_s=0.0))
     formations = SimpleNamespace(of_follower={}, of_leader={})
     fleet = SimpleNamespace(trains={"guarded": guarded, "plain": plain})
-    locks = RouteLocks(fleet, il, formations, EventLog(), EngineSettings())  # type: ignore[arg-type]
+    locks = RouteLocks(fleet, il, formations, EventLog(), EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
     locks.protect_merges(g)
     overlap_m = EngineSettings().protection_margin_m
     assert locks.authority_end_m(guarded) == 2000.0 - 50.0
@@ -220,7 +223,7 @@ def _one_switch_locks(tr: Any) -> tuple[EventLayer, RouteLocks]:
     il.add_switch(Switch("sw", throw_time_s=0.0))
     formations = SimpleNamespace(of_follower={}, of_leader={})
     fleet = SimpleNamespace(trains={tr.train_id: tr})
-    return layer, RouteLocks(fleet, il, formations, EventLog(), EngineSettings())  # type: ignore[arg-type]
+    return layer, RouteLocks(fleet, il, formations, EventLog(), EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
 
 
 def test_a_switch_beyond_a_station_stop_is_asked_for_only_when_about_to_leave_it() -> None:

@@ -8,6 +8,7 @@ from types import SimpleNamespace
 import numpy as np
 
 from railsim.engine.events import EventLayer, Interlocking, Switch
+from railsim.engine.extensions import ExtensionSet
 from railsim.engine.locking import RouteLocks
 from railsim.engine.settings import EngineSettings
 
@@ -17,7 +18,15 @@ def _train(tid: str) -> SimpleNamespace:
 
 
 def _locks(interlocking: Interlocking) -> RouteLocks:
-    return RouteLocks(SimpleNamespace(trains={}), interlocking, SimpleNamespace(), SimpleNamespace(), EngineSettings())
+    return RouteLocks(
+        SimpleNamespace(trains={}),
+        interlocking,
+        SimpleNamespace(),
+        SimpleNamespace(),
+        EngineSettings(),
+        ExtensionSet(),
+        SimpleNamespace(now_s=0.0),
+    )
 
 
 def _setup() -> tuple[EventLayer, Interlocking, RouteLocks]:

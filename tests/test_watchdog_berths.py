@@ -20,6 +20,7 @@ import numpy as np
 
 from railsim.engine.events import EventLayer, Interlocking, Switch
 from railsim.engine.events.log import EventLog
+from railsim.engine.extensions import ExtensionSet
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
@@ -92,7 +93,15 @@ def test_a_circular_wait_through_a_platform_berth_is_a_deadlock() -> None:
     layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
     il = Interlocking(layer)
     il.add_switch(Switch("p1", throw_time_s=0.0))
-    locks = RouteLocks(SimpleNamespace(trains={}), il, SimpleNamespace(), SimpleNamespace(), EngineSettings())
+    locks = RouteLocks(
+        SimpleNamespace(trains={}),
+        il,
+        SimpleNamespace(),
+        SimpleNamespace(),
+        EngineSettings(),
+        ExtensionSet(),
+        SimpleNamespace(now_s=0.0),
+    )
     watch, events, berths = _watch(locks)
     # F stands at the berth limit of s2 behind O, holding the points p1 it has passed over; O, at the platform,
     # has finished its dwell and waits for p1 to leave (held for its route): neither can move

@@ -194,7 +194,7 @@ class LineFrame:
             )
         scn = scenario_mod.load(resolved)
         if scn.world.kind == "net":  # a user's net: line chainage from its routes (network.external.line_chainage)
-            from network.external import load_world
+            from network.world import load_world
 
             bundle = load_world(scn.world, resolved)
             scn = scenario_mod.with_station_ids(scn, bundle.station_aliases)

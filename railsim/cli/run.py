@@ -63,7 +63,7 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
 
 
 def cmd_run(args: argparse.Namespace) -> int:
-    from railsim import api as engine, scenario
+    from railsim import api, scenario
     from railsim.engine.interrupt import stop_on_signals
 
     out = Path(args.out)
@@ -71,7 +71,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     with stop_on_signals() as stop:
         try:
             scn = scenario.load(args.scenario)
-            summary = engine.run(scn, out, seed=args.seed, progress=progress, stop=stop, gui=args.gui)
+            summary = api.run(scn, out, seed=args.seed, progress=progress, stop=stop, gui=args.gui)
         except (ConfigError, SimulationError):
             if stop.signum is None:
                 raise

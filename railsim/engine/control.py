@@ -24,9 +24,8 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Callable
 from dataclasses import dataclass
-from typing import Any, Protocol
+from typing import Any
 
 import numpy as np
 
@@ -35,6 +34,7 @@ from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTar
 from controllers.separation import Separation
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
+from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fallbacks import FallbackReporter
 from railsim.engine.knowledge import Knowledge
 from railsim.engine.locking import RouteLocks
@@ -50,7 +50,6 @@ from railsim.physics import dynamics, plant_kernel
 log = logging.getLogger(__name__)
 _NO_PACK = np.zeros(0)  # no separation law this step (the fused line step does not read it)
 PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
-AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
 # the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
 # None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
@@ -58,24 +57,6 @@ AtoExtras = Callable[[float, TrainRuntime], dict[str, Any]]
 Situation = tuple[
     float, float, float, tuple[SpeedLimit, ...], Any, tuple[float, float, float, bool] | None, float | None, float
 ]
-
-
-class CommandSource(Protocol):
-    """An extension that commands some trains itself for a while (the junction planner)."""
-
-    def in_plan_phase(self, train_id: str) -> bool: ...
-
-    def commands(
-        self,
-        t: float,
-        tr: TrainRuntime,
-        a: Ahead | None,
-        base: dict[str, Any],
-        commands: dict[str, Command],
-        own_pos_m: float,
-        own_v_mps: float,
-        fstate: str,
-    ) -> None: ...
 
 
 @dataclass
@@ -130,6 +111,7 @@ class ControlStage:
         dt_s: float,
         step_method: str,
         disturbances: Disturbances,
+        extensions: ExtensionSet,
     ) -> None:
         self.trains = trains
         self.formations = formations
@@ -143,8 +125,7 @@ class ControlStage:
         self.step_method = step_method
         self.dist = disturbances
         self.fallbacks = FallbackReporter(events)
-        self.ato_extras: list[AtoExtras] = []  # extensions: extra observation fields for the ATO role
-        self.command_source: CommandSource | None = None
+        self.extensions = extensions  # extra ATO observation fields; an extension that drives some trains itself
         self.berths = Berths(trains, events, settings, self._coupled_behind, dt_s)  # railsim.engine.platforms
         self._plant_p: dict[int, tuple[Any, np.ndarray]] = {}  # plant kernel inputs per vehicle (_plant_packed)
         self._method_i = plant_kernel.method_index(step_method)
@@ -228,12 +209,10 @@ class ControlStage:
         ato = tr.controllers["ato"]
         if fstate in COUPLED_STATES and tr.controllers.get("ato_closing") is not None and not tr.degraded:
             ato = tr.controllers["ato_closing"]
-        ato_extras: dict[str, Any] = {}
-        for extra in self.ato_extras:
-            ato_extras.update(extra(t, tr))
+        ato_extras = self.extensions.ato_extras(t, tr)
         applied_now = tr.plant.applied_accel_mps2
-        src = self.command_source
-        planned = src is not None and src.in_plan_phase(tr.train_id)
+        src = self.extensions.driver_of(tr.train_id)
+        planned = src is not None
         vc_role = (
             f is not None
             and fstate in COUPLED_STATES

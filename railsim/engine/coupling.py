@@ -28,28 +28,43 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   would. Without it each unit keeps its own dwell: a follower that dwells longer drops behind and, planned in its
   leader's slot, then uses each platform after it (the #22 robustness study measured what that costs).
 
-Paper-specific follower logic (Paper D's state machine) plugs in through ``follower_hooks``: callables
-``hook(t, tr, formation_spec, ahead)`` run before the state machine is fed.
+Paper-specific follower logic (Paper D's state machine) plugs in as an extension's ``follower_step(t, tr,
+formation, ahead)``, run before the state machine is fed (:mod:`railsim.engine.extensions.base`).
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 from railsim.engine.events.formations import Formation, FormationManager
+from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
+from railsim.engine.wiring import set_once, unwired
 from railsim.errors import ConfigError
 
-FollowerHook = Callable[[float, TrainRuntime, Any, Ahead], None]
 COUPLED_STATES = ("coupling", "coupled")
 # a unit that comes round by its turnback asks to couple once it is this close behind its leader's rear, before
 # the separation controller (margin 50 m on Line 3) would stop it further back
 COUPLE_REACH_M = 150.0
+
+
+class InsertsBehind(Protocol):
+    """The dispatcher, asked to put a follower on the track behind its leader."""
+
+    def insert_behind(self, tr: TrainRuntime, behind: TrainRuntime, gap_m: float) -> bool:
+        """Insert ``tr`` ``gap_m`` behind ``behind``'s rear; False if it cannot go yet."""
+
+
+class KnowsStops(Protocol):
+    """The stop book, asked where a train stops next."""
+
+    def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
+        """The stop ``tr`` heads for or stands at, and how far behind its mark it halts."""
 
 
 def trig(trigger: Any, kind: str) -> bool:
@@ -60,19 +75,32 @@ def trig(trigger: Any, kind: str) -> bool:
 class FormationBook:
     """The engine's view of formations: leader/follower maps over the formation state machine."""
 
-    def __init__(self, fleet: Fleet, manager: FormationManager, settings: EngineSettings, dt_s: float) -> None:
+    def __init__(
+        self,
+        fleet: Fleet,
+        manager: FormationManager,
+        settings: EngineSettings,
+        dt_s: float,
+        chained: Callable[[str], bool],
+        extensions: ExtensionSet,
+    ) -> None:
         self.fleet = fleet
         self.manager = manager
         self.settings = settings
         self.dt_s = dt_s
         self.of_follower: dict[str, Any] = {}  # follower id -> FormationSpec
         self.of_leader: dict[str, list[Any]] = {}  # leader id -> [FormationSpec]
-        self.follower_hooks: list[FollowerHook] = []
+        self.extensions = extensions  # follower_step: per follower and step, before the state machine is fed
         self._merged: set[str] = set()  # formations whose after_switch couple request was made
-        # wired by the loop: insert a train behind another (the dispatcher), a train's current stop (stops)
-        self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], bool] = _unwired
-        self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = _unwired
-        self.chained: Callable[[str], bool] = lambda _trip: False  # rotations: trips their unit's turnback starts
+        # two questions whose answerers are built after this book and ask it back (wire()): insert a train behind
+        # another (the dispatcher), a train's current stop and how far behind its mark it halts (the stop book)
+        self.insert_behind: Callable[[TrainRuntime, TrainRuntime, float], bool] = unwired(
+            "FormationBook", "insert_behind"
+        )
+        self.current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]] = unwired(
+            "FormationBook", "current_stop"
+        )
+        self.chained = chained  # rotations: trips their unit's turnback starts
         self._asked_after_turnback: set[str] = set()  # formations whose couple request went out after a turnback
         self._cut_off: set[str] = set()  # formations whose follower cannot reach its leader (_join_cut_off)
         self._held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell ended (held for the follower)
@@ -121,9 +149,13 @@ class FormationBook:
             if trig(f.decouple, "at_s"):
                 self.manager.request_decouple(f.id, at_s=float(f.decouple.at_s))
 
+    def wire(self, dispatcher: InsertsBehind, stops: KnowsStops) -> None:
+        """The two collaborators built after this book (they ask it back): set once, by the engine."""
+        set_once(self, "insert_behind", dispatcher.insert_behind)
+        set_once(self, "current_stop", stops.current)
+
     def across_turnbacks(self, turnbacks: Any) -> None:
-        """Wire the rotations port: which trips start by a turnback; check the order of formations across one."""
-        self.chained = turnbacks.chained
+        """Check the order of the formations coupling across a turnback (the rotations port)."""
         turnbacks.check_formation_order(self.on_departure_pairs(), self.leader_id)
 
     def turnback_waits(self) -> tuple[Callable[[TrainRuntime], bool], Callable[[float, TrainRuntime], bool]]:
@@ -382,8 +414,7 @@ class FormationBook:
         if f is None:
             return
         if a is not None:
-            for hook in self.follower_hooks:
-                hook(t, tr, f, a)
+            self.extensions.follower_step(t, tr, f, a)
         leader = self.leader_of(f)
         if a is not None and self._join_cut_off(tr, leader, f, a):
             self._cut_off.add(f.id)
@@ -423,7 +454,3 @@ class FormationBook:
             fs.append(self.of_follower[tr.train_id])
         for f in fs:
             self.manager.stop_clock(t, f.id)
-
-
-def _unwired(*_args: Any) -> Any:
-    raise RuntimeError("FormationBook used before the loop wired it")

@@ -35,20 +35,42 @@
 
 from __future__ import annotations
 
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
 
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
+from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import INSERTION_REACTION_S, EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import sumo_stops
+from railsim.engine.wiring import set_once, unwired
 from railsim.errors import ConfigError, SimulationError
 from railsim.physics import dynamics
 
-InsertHook = Callable[[float, TrainRuntime, float], None]
+# before inserting train at (t, train, start chainage): a reason to hold its departure, or None
+Admission = Callable[[float, TrainRuntime, float], str | None]
+
+
+class SumoInsertion(Protocol):
+    """What the dispatcher asks of SUMO: routes, trains put on and taken off."""
+
+    def add_route(self, route_id: str, edges: Sequence[str]) -> None: ...
+
+    def add_train(
+        self,
+        train_id: str,
+        route_id: str,
+        type_id: str,
+        depart_pos_m: float,
+        stops: Sequence[Any] = (),
+        controlled: bool = True,
+        depart_speed_mps: float = 0.0,
+    ) -> None: ...
+
+    def remove(self, train_id: str) -> None: ...
 
 
 class Dispatcher:
@@ -63,6 +85,9 @@ class Dispatcher:
         formations: FormationBook,
         handshake: Callable[[TrainRuntime], None],
         release_locks: Callable[[TrainRuntime], None],
+        chained: Callable[[str], bool],
+        admission: Sequence[Admission],
+        extensions: ExtensionSet,
     ) -> None:
         self.fleet = fleet
         self.layer = layer
@@ -71,13 +96,16 @@ class Dispatcher:
         self.formations = formations
         self.handshake = handshake
         self.release_locks = release_locks
-        self.on_inserted: list[InsertHook] = []  # extensions: (t, train, start chainage)
-        # before inserting: (t, train, start chainage) -> a reason to hold the departure, or None
-        self.admission: list[Callable[[float, TrainRuntime, float], str | None]] = []
-        self.bridge: Any = None  # the SUMO bridge, wired when the run starts
+        self.chained = chained  # rotations: trips their unit's turnback starts (not inserted here)
+        self.admission = tuple(admission)  # before inserting: a reason to hold the departure, or None
+        self.extensions = extensions  # on_inserted: exact plants, …
+        self.bridge: SumoInsertion = unwired("Dispatcher", "bridge")  # exists while the run is under way: connect()
         self._held: dict[str, str] = {}  # trip -> the reason its departure is held (logged when it changes)
         self._stop_memo: dict[str, tuple[float, float, float, float]] = {}  # train -> (t, v, front, least stop)
-        self.chained: Callable[[str], bool] = lambda _trip: False  # rotations: trips their unit's turnback starts
+
+    def connect(self, bridge: SumoInsertion) -> None:
+        """The SUMO bridge, once the run has started it."""
+        set_once(self, "bridge", bridge)
 
     def schedule_departures(self) -> None:
         """Schedule every departure; check that same-origin formations fit (ConfigError naming the formation)."""
@@ -219,8 +247,7 @@ class Dispatcher:
         tr.status = "inserting"
         tr.front_m = depart_m
         tr.plant = dynamics.PlantState(speed_mps=start_mps)
-        for hook in self.on_inserted:
-            hook(self.layer.now_s, tr, depart_m)
+        self.extensions.on_inserted(self.layer.now_s, tr, depart_m)
         self.handshake(tr)
         tr.depart_chainage_m = tr.start_front_m = depart_m
         tr.inserted_s = self.layer.now_s

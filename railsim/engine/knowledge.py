@@ -14,13 +14,13 @@ conservative).
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterable
 from typing import Any
 
 from controllers.base import PredecessorState
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events import Channel, DelaySpec, Outage
 from railsim.engine.events.clock import EventLayer
+from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.train import TrainRuntime
 
 Report = tuple[Any, ...]
@@ -39,13 +39,15 @@ def comm_channels(layer: EventLayer, scenario: Any) -> dict[str, Channel]:
 class Knowledge:
     """Sends reports and answers "what does train A know of train B" from delivered messages."""
 
-    def __init__(self, layer: EventLayer, channels: dict[str, Any], formations: FormationBook) -> None:
+    def __init__(
+        self, layer: EventLayer, channels: dict[str, Any], formations: FormationBook, extensions: ExtensionSet
+    ) -> None:
         self.layer = layer
         self.channels = channels
         self.formations = formations
         # what a train knows of another before any message arrived: (receiver, sender) -> report
         self.registration: dict[tuple[str, str], Report] = {}
-        self.extra_receivers: Callable[[str], Iterable[str]] = lambda _train: ()
+        self.extensions = extensions  # t2t_receivers: extra receivers of a train's report (Paper C's graph)
 
     def radio_out(self, t: float, train_id: str, other_id: str) -> bool:
         """Can the two trains' position reports be cut off at ``t`` (an outage of some channel covers either)? A
@@ -75,7 +77,7 @@ class Knowledge:
                     fol = self.formations.follower_of(f)
                     if fol.status in ("inserting", "running"):
                         t2t.send(tr.train_id, fol.train_id, report)
-                for other in self.extra_receivers(tr.train_id):
+                for other in self.extensions.t2t_receivers(tr.train_id):
                     t2t.send(tr.train_id, other, report)
 
     def handshake(self, tr: TrainRuntime) -> None:

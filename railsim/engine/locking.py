@@ -14,8 +14,8 @@ the platform (its length plus its separation margin) stays at the platform after
 (:meth:`RouteLocks.clears_platform`, the stop book's ``route_set``): a Jurenba unit that left Bijin and stood
 short of the crossing with its rear on the platform held the next up train 113 m short of its stopping point,
 and SUMO registered that train's stop there. Passing a switch without its lock is a ``switch_violation``
-event. An extension may take over the requests for some trains and switches (``managed_by``: the junction
-planner requests in its planned order).
+event. An extension may take over the requests for some trains and switches (its ``manages_lock`` hook: the
+junction planner requests in its planned order).
 
 **Merges.** At a merge (two tracks joining, SUMO's trailing points) a train on the other leg appears on our
 track the moment it passes the point: its rear is at the point. So before a merge not locked for it a train's
@@ -43,8 +43,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable
-from typing import Any
+from typing import Any, Protocol
 
 import networkx as nx
 
@@ -52,6 +51,7 @@ from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
+from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
@@ -107,6 +107,14 @@ def separation_margin_m(tr: TrainRuntime) -> float:
     return float(getattr(params, "margin_m", 0.0))
 
 
+class Clock(Protocol):
+    """The event layer's time."""
+
+    @property
+    def now_s(self) -> float:
+        """Now [s]."""
+
+
 class RouteLocks:
     """Requests, authority and releases of switch locks for every train."""
 
@@ -117,15 +125,17 @@ class RouteLocks:
         formations: FormationBook,
         events: EventLog,
         settings: EngineSettings,
+        extensions: ExtensionSet,
+        clock: Clock,
     ) -> None:
         self.fleet = fleet
         self.interlocking = interlocking
         self.formations = formations
         self.events = events
         self.settings = settings
-        self.managed_by: Callable[[str, str], bool] = lambda _train, _switch: False
+        self.extensions = extensions  # manages_lock: switch requests an extension makes itself (the junction planner)
         self.tracks: TrackSections | None = None
-        self.now_s: Callable[[], float] = lambda: 0.0  # the clock's time, wired by the loop
+        self.clock = clock  # the event layer's time (single-track releases are stamped with it)
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
@@ -157,14 +167,13 @@ class RouteLocks:
     def _margin_m(self, train_id: str, switch_id: str) -> float:
         """How far before a switch not locked for it the train's authority ends: the overlap, or its separation
         margin before a merge (module docstring, "Merges")."""
-        if switch_id in self.merges_of.get(train_id, ()) and not self.managed_by(train_id, switch_id):
+        if switch_id in self.merges_of.get(train_id, ()) and not self.extensions.manages_lock(train_id, switch_id):
             return self.merge_margin_m[train_id]
         return self.settings.protection_margin_m
 
-    def set_up_shared_track(self, graph: Any, now_s: Callable[[], float]) -> None:
+    def set_up_shared_track(self, graph: Any) -> None:
         """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
-        cross on different movements (see the module docstring); ``now_s`` is the clock."""
-        self.now_s = now_s
+        cross on different movements (see the module docstring)."""
         smap = section_map(graph)
         if not smap and not graph.graph.get("crossings"):
             return
@@ -271,7 +280,7 @@ class RouteLocks:
                 and rs.point_m <= request_until_m
                 and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
                 and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
-                and not self.managed_by(tr.train_id, sid)
+                and not self.extensions.manages_lock(tr.train_id, sid)
                 and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
             ):
                 holders = self._lock_group(tr, rs)
@@ -331,7 +340,7 @@ class RouteLocks:
         if self.tracks is not None:
             for req in self.section_requests.get(tr.train_id, {}).values():
                 if tr.train_id not in req.released_by:
-                    self.tracks.release(self.now_s(), tr.train_id, req)
+                    self.tracks.release(self.clock.now_s, tr.train_id, req)
         for sid in list(tr.locks):
             if sid not in tr.released:
                 self.interlocking.release(tr.train_id, sid)

@@ -32,7 +32,8 @@ from railsim.engine import primary_delays, timed
 from railsim.engine.control import ControlStage, Disturbances
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events import EventLayer, FormationManager, Interlocking, Switch
-from railsim.engine.extensions import ExtensionContext, install_all
+from railsim.engine.extensions import ExtensionContext, ExtensionSet
+from railsim.engine.extensions.registry import install_all
 from railsim.engine.depot import Depots
 from railsim.engine.fleet import Fleet
 from railsim.engine.heap import setup_frozen
@@ -71,7 +72,7 @@ class Simulation:
         stop: StopRequest | None = None,
         gui: bool = False,
     ) -> None:
-        from network.external import load_world, sumo_args
+        from network.world import load_world, sumo_args
         from railsim import scenario as scn_mod
 
         self.scenario = scenario
@@ -103,7 +104,10 @@ class Simulation:
         self.channels = comm_channels(self.layer, scenario)
         disturbances = Disturbances.from_faults(scenario.faults, self.rng)  # its two streams, in this order
 
-        # ---- the ports
+        # ---- the ports, each given its collaborators when built, in dependency order. The true cycles are closed
+        # once: FormationBook.wire (the dispatcher and the stop book ask the formation book back) and the ExtensionSet
+        # the ports get empty and install() fills; the SUMO bridge, which exists only in run(), is connected there.
+        self.extensions = ExtensionSet()
         self.fleet = Fleet(scenario.source)
         self.fleet.build(scenario, self.bundle, self.dt, self.step_method)
         self.trains = self.fleet.trains
@@ -112,17 +116,20 @@ class Simulation:
         self.turnbacks = Turnbacks(self.fleet, self.bundle.graph, scenario.rotations, self.events, scenario.source)
         # depot runs: each unit's day starts with a run out of a depot and ends with one into a depot
         self.depots = Depots(self.fleet, self.turnbacks, self.bundle, scenario, self.dt, self.step_method)
-        self.formations = FormationBook(self.fleet, FormationManager(self.layer), self.settings, self.dt)
+        self.formations = FormationBook(
+            self.fleet, FormationManager(self.layer), self.settings, self.dt, self.turnbacks.chained, self.extensions
+        )
         for k, f in enumerate(scenario.formations):
             self.formations.add(f, f"formations[{k}]")
         self.formations.across_turnbacks(self.turnbacks)
-        self.locks = RouteLocks(self.fleet, self.interlocking, self.formations, self.events, self.settings)
+        self.locks = RouteLocks(
+            self.fleet, self.interlocking, self.formations, self.events, self.settings, self.extensions, self.layer
+        )
         self.locks.protect_merges(self.bundle.graph)
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
-        self.stops = StopBook(
-            self.formations, self.events, self.settings, self.recorder.stop_record, self.locks.release_all
-        )
-        self.knowledge = Knowledge(self.layer, self.channels, self.formations)
+        pax = primary_delays.passenger_demand(self.primary)
+        self.stops = StopBook(self.formations, self.locks, self.events, self.settings, self.recorder.stop_record, pax)
+        self.knowledge = Knowledge(self.layer, self.channels, self.formations, self.extensions)
         self.dispatcher = Dispatcher(
             self.fleet,
             self.layer,
@@ -131,15 +138,13 @@ class Simulation:
             self.formations,
             self.knowledge.handshake,
             self.locks.release_all,
+            self.turnbacks.chained,
+            (self.locks.admit,),
+            self.extensions,
         )
-        primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure, self.stops)
-        self.formations.insert_behind = self.dispatcher.insert_behind
-        self.dispatcher.chained = self.turnbacks.chained
-        self.locks.set_up_shared_track(self.bundle.graph, lambda: self.layer.now_s)
-        self.stops.track_wanted, self.stops.route_set = self.locks.wanted_by_others, self.locks.clears_platform
-        self.stops.wait_for_leader, self.stops.hold_departure = self.formations.turnback_waits()
-        self.dispatcher.admission.append(self.locks.admit)
-        self.formations.current_stop = self.stops.current
+        self.formations.wire(self.dispatcher, self.stops)
+        primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
+        self.locks.set_up_shared_track(self.bundle.graph)
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
         self.safety.set_up_crossings(self.bundle.graph)
         self.control = ControlStage(
@@ -154,6 +159,7 @@ class Simulation:
             self.dt,
             self.step_method,
             disturbances,
+            self.extensions,
         )
         self.watchdog = StallWatch(
             self.events, self.settings, self.locks, self.control.berths, self.knowledge.radio_out
@@ -165,28 +171,22 @@ class Simulation:
             timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety),
             scenario,
         )
-        self.extensions = install_all(
-            ExtensionContext(
-                scenario=scenario,
-                fleet=self.fleet,
-                formations=self.formations,
-                dispatcher=self.dispatcher,
-                knowledge=self.knowledge,
-                locks=self.locks,
-                control=self.control,
-                events=self.events,
-                layer=self.layer,
-                interlocking=self.interlocking,
-                channels=self.channels,
-                settings=self.settings,
-                switch_throw_s={sid: float(sw.throw_time_s) for sid, sw in self.bundle.switches.items()},
-                dt_s=self.dt,
-                step_method=self.step_method,
-                draw_seed=lambda: int(self.rng.integers(2**63)),
-            )
+        ctx = ExtensionContext(
+            scenario=scenario,
+            trains=self.trains,
+            formations=self.formations,
+            knowledge=self.knowledge,
+            events=self.events,
+            interlocking=self.interlocking,
+            channels=self.channels,
+            settings=self.settings,
+            actuator_bias=disturbances.biased,
+            switch_throw_s={sid: float(sw.throw_time_s) for sid, sw in self.bundle.switches.items()},
+            dt_s=self.dt,
+            step_method=self.step_method,
+            draw_seed=lambda: int(self.rng.integers(2**63)),
         )
-        self._before_bookkeeping = [e.before_bookkeeping for e in self.extensions if hasattr(e, "before_bookkeeping")]
-        self._before_comms = [e.before_comms for e in self.extensions if hasattr(e, "before_comms")]
+        self.extensions.install(install_all(ctx))
         self.steps = 0
         self.wall_s = 0.0
         self.end_s = 0.0
@@ -200,9 +200,10 @@ class Simulation:
         t_wall = _time.perf_counter()
         bar = RunProgress(self.scenario.name, len(self.trains), self.duration_s, self.progress)
         with SumoBridge(self._sumo_config()) as bridge, setup_frozen():  # (railsim.engine.heap)
-            self.bridge = self.dispatcher.bridge = bridge
-            self.turnbacks.bridge = bridge
-            self.stops.drop_stop = bridge.drop_stop
+            self.bridge = bridge
+            self.dispatcher.connect(bridge)
+            self.turnbacks.connect(bridge)
+            self.stops.connect(bridge.drop_stop)
             t = bridge.time_s
             log.info("simulating %s: %d trips, horizon %g s", self.scenario.name, len(self.trains), self.duration_s)
             while t <= self.duration_s + 1e-9 and self.stop.signum is None:
@@ -290,14 +291,12 @@ class Simulation:
         self.safety.sumo_reported(t, bridge.collisions())
         self.watchdog.check(t, active, ahead)
 
-        for hook in self._before_bookkeeping:
-            hook(t)
+        self.extensions.before_bookkeeping(t)
         for tr in active:
             self.stops.bookkeeping(t, tr)
             self.formations.bookkeeping(t, tr, ahead[tr.train_id])
             self.locks.bookkeeping(t, tr, ahead[tr.train_id])
-        for comms_hook in self._before_comms:
-            comms_hook(t, active)
+        self.extensions.before_comms(t, active)
         reports = {tr.train_id: Knowledge.report(t, tr) for tr in active}  # the state at t, before the plant step
         # broadcast the state at t (with the plan decided last step) and deliver what is due now: a zero-delay
         # channel gives the neighbours' state at t in the same step (the papers' "perfect communication")
@@ -341,7 +340,7 @@ class Simulation:
         from railsim import __version__
         from railsim.engine.sumo import version as sumo_version
 
-        extra = {e.summary_key: e.summary() for e in self.extensions if getattr(e, "summary_key", None)}
+        extra: dict[str, Any] = self.extensions.summaries()
         if self.turnbacks.units:
             extra["fleet"] = self.turnbacks.summary()
             if self.depots.runs or self.depots.unreached:

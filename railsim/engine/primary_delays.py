@@ -43,7 +43,6 @@ import numpy as np
 
 from railsim.engine.fleet import Fleet, ato_factory
 from railsim.engine.passenger_dwell import DemandDwell
-from railsim.engine.stops import StopBook
 from railsim.engine.trips import Trip, plan_free_run
 from railsim.errors import ConfigError
 from railsim.scenario.disturbances import DelayRule, DisturbanceSpec
@@ -230,13 +229,9 @@ class PrimaryDelays:
             }
 
     # ------------------------------------------------------------------ injecting
-    def apply(self, fleet: Fleet, couples_on_departure: Any, stops: StopBook) -> None:
-        """Lengthen dwells, delay departures and slow vehicles down (module docstring); passenger demand hooks
-        into the stops (:mod:`railsim.engine.passenger_dwell`)."""
-        if self.demand is not None:
-            demand = self.demand
-            stops.dwell_extension = lambda t, tr, stop: demand.extension_s(t, tr.trip, stop)
-            stops.departed_platform = demand.departed
+    def apply(self, fleet: Fleet, couples_on_departure: Any) -> None:
+        """Lengthen dwells, delay departures and slow vehicles down (module docstring); passenger demand is
+        handed to the stop book (:func:`passenger_demand`, :mod:`railsim.engine.passenger_dwell`)."""
         for tid, tp in self.trips.items():
             trip = fleet.trains[tid].trip
             if couples_on_departure(tid):
@@ -332,10 +327,15 @@ def draw(scenario: Any, fleet: Fleet, seed: int, dt_s: float, aliases: Mapping[s
     return PrimaryDelays(scenario.disturbances, fleet, scenario, seed, horizon_s, dt_s, aliases)
 
 
-def apply(primary: PrimaryDelays | None, fleet: Fleet, couples_on_departure: Any, stops: StopBook) -> None:
-    """Inject them (:meth:`PrimaryDelays.apply`) once the formations and the stops are known."""
+def apply(primary: PrimaryDelays | None, fleet: Fleet, couples_on_departure: Any) -> None:
+    """Inject them (:meth:`PrimaryDelays.apply`) once the formations are known."""
     if primary is not None:
-        primary.apply(fleet, couples_on_departure, stops)
+        primary.apply(fleet, couples_on_departure)
+
+
+def passenger_demand(primary: PrimaryDelays | None) -> DemandDwell | None:
+    """The run's passenger demand at the platforms (the stop book lengthens dwells by it), or None."""
+    return primary.demand if primary is not None else None
 
 
 def summary(primary: PrimaryDelays | None) -> dict[str, Any]:

@@ -14,16 +14,41 @@ from __future__ import annotations
 
 import logging
 from collections.abc import Callable
+from typing import Protocol
 
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
-from railsim.engine.trips import TripStop
+from railsim.engine.trips import Trip, TripStop
+from railsim.engine.wiring import set_once, unwired
 from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
 MOVING_REGISTRATION_MPS = 0.1  # SUMO registering a stop above this speed is an error event
+
+
+class PlatformRoutes(Protocol):
+    """What the stop book asks of the route locks (:class:`~railsim.engine.locking.RouteLocks`)."""
+
+    def wanted_by_others(self, tr: TrainRuntime) -> bool:
+        """Another train waits for a single-track section ``tr`` holds."""
+
+    def clears_platform(self, tr: TrainRuntime, stop: TripStop) -> bool:
+        """The route set beyond ``stop`` lets ``tr`` draw clear of the platform."""
+
+    def release_all(self, tr: TrainRuntime) -> None:
+        """``tr`` gives up every lock and section it holds."""
+
+
+class PassengerDemand(Protocol):
+    """Passenger demand at the platforms (:class:`~railsim.engine.passenger_dwell.DemandDwell`)."""
+
+    def extension_s(self, t: float, trip: Trip, stop: TripStop) -> float:
+        """The extra dwell [s] the demand adds to ``trip``'s stop registered at ``t``."""
+
+    def departed(self, t: float, stop: TripStop) -> None:
+        """A train left ``stop``'s platform at ``t`` (the next train's interval starts)."""
 
 
 class StopBook:
@@ -32,31 +57,32 @@ class StopBook:
     def __init__(
         self,
         formations: FormationBook,
+        routes: PlatformRoutes,
         events: EventLog,
         settings: EngineSettings,
         record_stop: Callable[..., None],
-        release_locks: Callable[[TrainRuntime], None],
+        passengers: PassengerDemand | None,
     ) -> None:
         self.formations = formations
         self.events = events
         self.settings = settings
         self.record_stop = record_stop
-        self.release_locks = release_locks
-        # the SUMO bridge's (train, stop id, lane window), wired at run
-        self.drop_stop: Callable[[str, str, tuple[float, float] | None], None] = lambda _t, _s, _w: None
-        # RouteLocks.wanted_by_others: another unit waits for the turnback track this unit holds
-        self.track_wanted: Callable[[TrainRuntime], bool] = lambda _train: False
-        # FormationBook.waits_for_leader: a unit that couples behind a leader at its origin waits for it
-        self.wait_for_leader: Callable[[TrainRuntime], bool] = lambda _train: False
-        # FormationBook.holds_departure: a leader stays at a platform until the unit coupling behind it is there
-        self.hold_departure: Callable[[float, TrainRuntime], bool] = lambda _t, _train: False
-        # RouteLocks.clears_platform: the route beyond the stop lets the train draw clear of the platform
-        self.route_set: Callable[[TrainRuntime, TripStop], bool] = lambda _train, _stop: True
-        # PassengerDwell.extension_s: the extra dwell [s] passenger demand adds to a stop registered now
-        self.dwell_extension: Callable[[float, TrainRuntime, TripStop], float] = lambda _t, _train, _stop: 0.0
-        # PassengerDwell.departed: a train left a platform (the next train's interval starts)
-        self.departed_platform: Callable[[float, TripStop], None] = lambda _t, _stop: None
+        self.release_locks = routes.release_all
+        # the SUMO bridge's (train, stop id, lane window), once the run has started it: connect()
+        self.drop_stop: Callable[[str, str, tuple[float, float] | None], None] = unwired("StopBook", "drop_stop")
+        # another unit waits for the turnback track this unit holds
+        self.track_wanted = routes.wanted_by_others
+        # a unit that couples behind a leader at its origin waits for it (FormationBook.waits_for_leader); a leader
+        # stays at a platform until the unit coupling behind it is there (FormationBook.holds_departure)
+        self.wait_for_leader, self.hold_departure = formations.turnback_waits()
+        # the route beyond the stop lets the train draw clear of the platform
+        self.route_set = routes.clears_platform
+        self.passengers = passengers  # passenger demand that lengthens dwells (None: the timetable's dwells)
         self._held: set[tuple[str, int]] = set()  # (train, stop index) whose hold was logged
+
+    def connect(self, drop_stop: Callable[[str, str, tuple[float, float] | None], None]) -> None:
+        """The SUMO bridge's ``drop_stop``, once the run has started it."""
+        set_once(self, "drop_stop", drop_stop)
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop the train is heading for or standing at, and how far behind its mark it halts."""
@@ -94,7 +120,8 @@ class StopBook:
                 return
             tr.sumo_stopped = False
             tr.dwell_until_s = None
-            self.departed_platform(t, stop)
+            if self.passengers is not None:
+                self.passengers.departed(t, stop)
             self._record(tr, stop, tr.halted_s, t, tr.halt_error_m)
             self.events.record(t, "stop_departed", tr.train_id, station=stop.station_id)
             if stop.is_origin and tr.departed_s is None:  # a unit's next trip leaves its origin platform
@@ -134,7 +161,8 @@ class StopBook:
         if not stop.is_origin:
             tr.stops_served += 1
         self.events.record(t, "stop_registered", tr.train_id, station=stop.station_id)
-        extra_s = self.dwell_extension(tr.halted_s, tr, stop)  # arrival = the halt, as the plan counts it
+        # arrival = the halt, as the plan counts it
+        extra_s = self.passengers.extension_s(tr.halted_s, tr.trip, stop) if self.passengers is not None else 0.0
         if extra_s > 0.0:
             tr.dwell_until_s = t + stop.dwell_s + extra_s
             self.events.record(t, "dwell_extended_demand", tr.train_id, station=stop.station_id, extra_s=extra_s)

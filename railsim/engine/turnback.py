@@ -48,8 +48,8 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable
-from typing import Any
+from collections.abc import Callable, Sequence
+from typing import Any, Protocol
 
 import networkx as nx
 
@@ -60,6 +60,7 @@ from railsim.engine.routeview import route_view
 from railsim.engine.settings import DWELL_REGISTRATION_S
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import REVERSAL, TripStop, sumo_stops
+from railsim.engine.wiring import set_once, unwired
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -102,6 +103,12 @@ def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | No
     return None if best is None else best[1]
 
 
+class SumoReroute(Protocol):
+    """What a handover asks of SUMO: the unit's next route and stops."""
+
+    def reroute(self, train_id: str, edges: Sequence[str], stops: Sequence[Any]) -> None: ...
+
+
 class Turnbacks:
     """Units, their chains of trips, and the handover between two trips of a unit (module docstring)."""
 
@@ -119,7 +126,7 @@ class Turnbacks:
         self._paths: dict[tuple[str, str], list[str] | None] = {}
         self._pinned: set[str] = set()  # trips whose unit is fixed: a formation coupling across their turnback
         self.swaps = 0
-        self.bridge: Any = None  # the SUMO bridge, wired when the run starts
+        self.bridge: SumoReroute = unwired("Turnbacks", "bridge")  # exists while the run is under way: connect()
         if spec is None:
             return
         self._chain()
@@ -202,6 +209,10 @@ class Turnbacks:
             tr.sumo_id = tr.unit_id = uid
         if pred.trip.route.edges[-1] != succ.trip.route.edges[0]:
             self._reroute(succ, pred)
+
+    def connect(self, bridge: SumoReroute) -> None:
+        """The SUMO bridge, once the run has started it."""
+        set_once(self, "bridge", bridge)
 
     def chained(self, train_id: str) -> bool:
         """True for a trip that starts by its unit's reversal (the dispatcher does not insert it)."""

@@ -24,7 +24,7 @@ def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None)
     trimmed to the edge that holds its start chainage, at its start speed, with the stops still ahead of it.
     ``on_step(t)`` is called before every SUMO step (``benchmarks/scale.py`` takes its per-step clock there).
     """
-    from network.external import load_world, sumo_args
+    from network.world import load_world, sumo_args
     from railsim import scenario as scn_mod
 
     sim = scenario.simulation

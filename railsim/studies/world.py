@@ -7,7 +7,7 @@ the first build of a world is slow). :func:`world_check` does that second level 
 (:func:`railsim.studies.sweep.validate_cases`).
 
 A shipped world or a line description is built with ``network.build``; a ``net`` world (a user's ``.net.xml``) is
-read as it is (:func:`network.external.load_world`: stations from its trainStops). Mismatches raise
+read as it is (:func:`network.world.load_world`: stations from its trainStops). Mismatches raise
 :class:`railsim.errors.ConfigError` from :func:`railsim.scenario.check_against_world`, naming file and field.
 
 :func:`run_checks` adds everything ``railsim run`` checks before its first step, by building the engine's
@@ -41,7 +41,7 @@ def world_check(scn: scenario_mod.Scenario) -> str | None:
     if build is None:
         return "world check skipped: network.build is not available yet"
     if scn.world.kind == "net":  # a user's .net.xml is read (stations from its trainStops), not built
-        from network.external import load_world
+        from network.world import load_world
 
         bundle = load_world(scn.world, scn.source)
     else:

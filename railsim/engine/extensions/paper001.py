@@ -20,14 +20,18 @@ brought the train to rest, before the hold supervisor of :class:`~controllers.at
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from controllers.ato_mpc.metrics import actuator_metrics, tracking_metrics
-from railsim.engine.extensions import ExtensionContext, plant_kind, require_euler
+from railsim.engine.extensions.base import Extension
+from railsim.engine.extensions.context import ExtensionContext, plant_kind, require_euler
 from railsim.engine.train import TrainRuntime
 from railsim.physics import multipoint
+
+if TYPE_CHECKING:  # pragma: no cover
+    from railsim.scenario import Scenario
 
 
 STOP_RADIUS_M = 50.0  # a standstill this close to the stop point counts as the law's stop (as the numpy runner)
@@ -130,18 +134,21 @@ def carriage_forces(cmd: Any, p: multipoint.MultipointParams) -> np.ndarray:
     return np.full(p.n_cars, float(cmd.accel_mps2) * p.car_mass_kg)
 
 
-class Paper001:
+class CarriagePlants(Extension):
     """Installs carriage plants on the vehicles that ask for them; Paper B's measures in ``summary.json``."""
 
     summary_key = "paper001"
 
+    @classmethod
+    def applies(cls, scenario: Scenario) -> bool:
+        return any(p.kind == "multipoint" for p in scenario.plants.values())
+
     def __init__(self, ctx: ExtensionContext) -> None:
+        require_euler(ctx, "multipoint")
         self.ctx = ctx
         self.plants: dict[str, MultipointPlant] = {}
-        ctx.dispatcher.on_inserted.append(self._on_inserted)
-        ctx.control.ato_extras.append(self._ato_extras)
 
-    def _on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:
+    def on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:
         kind, params = plant_kind(self.ctx, tr.trip.vehicle_name)
         if kind == "multipoint":
             wind = multipoint.WindDisturbance(**params.pop("wind", {}))
@@ -153,15 +160,7 @@ class Paper001:
         """Per carriage-plant train: Paper B's measures (E_d = ``e_x_m``, E_v, E_p, E_u, envelope violations)."""
         return {tid: plant.measures(self.ctx.dt_s) for tid, plant in sorted(self.plants.items())}
 
-    @staticmethod
-    def _ato_extras(t: float, tr: TrainRuntime) -> dict[str, Any]:
+    def ato_extras(self, t: float, tr: TrainRuntime) -> dict[str, Any]:
         if isinstance(tr.exact_plant, MultipointPlant):  # the carriages' relative state for model-based ATOs
             return {"multipoint_rel_state": tr.exact_plant.state.relative()}
         return {}
-
-
-def install(ctx: ExtensionContext) -> Paper001 | None:
-    if not any(p.kind == "multipoint" for p in ctx.scenario.plants.values()):
-        return None
-    require_euler(ctx, "multipoint")
-    return Paper001(ctx)

@@ -11,53 +11,57 @@ with the validator's message (exit code 2): an unsafe topology change is never s
 
 from __future__ import annotations
 
-from collections.abc import Iterable
-from typing import Any
+from collections.abc import Iterable, Sequence
+from typing import TYPE_CHECKING, Any
 
 from controllers.distributed.graph import CommGraph, Edge, EdgeData
 from controllers.distributed.validate import PreconditionError, check_event_preconditions, validate
-from railsim.engine.extensions import ExtensionContext
+from railsim.engine.extensions.base import Extension
+from railsim.engine.extensions.context import ExtensionContext
 from railsim.engine.train import TrainRuntime
 from railsim.errors import ConfigError
+
+if TYPE_CHECKING:  # pragma: no cover
+    from railsim.scenario import Scenario
 
 Neighbours = dict[str, dict[str, tuple[float, ...]]]
 
 
-class Paper002:
+class CooperativeGraph(Extension):
     """The cooperative graph in force and its validation."""
 
-    summary_key = None
+    @classmethod
+    def applies(cls, scenario: Scenario) -> bool:
+        return bool(scenario.cooperative.edges)
 
     def __init__(self, ctx: ExtensionContext) -> None:
         self.ctx = ctx
         self.edges = tuple(ctx.scenario.cooperative.edges)
         self.members = {e.a for e in self.edges} | {e.b for e in self.edges}
         for tid in self.members:
-            if tid not in ctx.fleet.trains:
+            if tid not in ctx.trains:
                 raise ConfigError(ctx.scenario.source, "cooperative.edges", f"no trip {tid!r}")
         self.graph: Any = None  # the neighbour graph in force (the validator's CommGraph)
         self.neighbours: Neighbours = {}
-        ctx.knowledge.extra_receivers = self._receivers
-        ctx.control.ato_extras.append(self._ato_extras)
 
-    def _receivers(self, train_id: str) -> Iterable[str]:
+    def t2t_receivers(self, train_id: str) -> Iterable[str]:
         return self.neighbours.get(train_id, {})
 
-    def _ato_extras(self, t: float, tr: TrainRuntime) -> dict[str, Any]:
+    def ato_extras(self, t: float, tr: TrainRuntime) -> dict[str, Any]:
         if tr.train_id not in self.members:
             return {}
         edges = self.neighbours.get(tr.train_id, {})
         states = []
         for j in edges:
-            st = self.ctx.knowledge.known_state(tr, self.ctx.fleet.trains[j], "t2t", tr.train_id)
+            st = self.ctx.knowledge.known_state(tr, self.ctx.trains[j], "t2t", tr.train_id)
             if st is not None:
                 states.append(st)
         return {"edges": dict(edges), "neighbours": tuple(states), "k": int(round(t / self.ctx.dt_s))}
 
-    def before_comms(self, t: float, active: list[TrainRuntime]) -> None:
+    def before_comms(self, t: float, active: Sequence[TrainRuntime]) -> None:
         self.neighbours = self._graph_at(t, active)
 
-    def _graph_at(self, t: float, active: list[TrainRuntime]) -> Neighbours:
+    def _graph_at(self, t: float, active: Sequence[TrainRuntime]) -> Neighbours:
         """Active neighbour edges at ``t`` (both ends on the line), oriented per train; validated when they change."""
         on_line = {tr.train_id for tr in active}
         live = [e for e in self.edges if e.from_s <= t < e.until_s and e.a in on_line and e.b in on_line]
@@ -78,7 +82,7 @@ class Paper002:
 
     def _validate(self, t: float, graph: Any, nodes: list[str]) -> None:
         src = self.ctx.scenario.source
-        trains = self.ctx.fleet.trains
+        trains = self.ctx.trains
         params = {}
         v_ref = None
         for tid in nodes:
@@ -103,7 +107,3 @@ class Paper002:
             problems = check_event_preconditions(self.graph, graph, params, dt, float(v_ref), x, v)  # type: ignore[arg-type]
             if problems:
                 raise PreconditionError(src, problems, k=k)
-
-
-def install(ctx: ExtensionContext) -> Paper002 | None:
-    return Paper002(ctx) if ctx.scenario.cooperative.edges else None

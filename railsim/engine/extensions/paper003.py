@@ -12,13 +12,17 @@
 from __future__ import annotations
 
 from collections.abc import Callable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from controllers.monorail.states import StateParams, VcInputs, VcMemory, VcState, transition
-from railsim.engine.extensions import ExtensionContext, plant_kind, require_euler
+from railsim.engine.extensions.base import Extension
+from railsim.engine.extensions.context import ExtensionContext, plant_kind, require_euler
 from railsim.engine.occupancy import Ahead
 from railsim.engine.train import TrainRuntime
 from railsim.physics import monorail
+
+if TYPE_CHECKING:  # pragma: no cover
+    from railsim.scenario import FormationSpec, Scenario
 
 MONORAIL_COUPLED_TYPES = ("monorail_apf", "monorail_dmpc")
 CLOCK_TOLERANCE_S = 1e-6
@@ -65,25 +69,27 @@ class MonorailPlant:
         self.state = monorail.PlantState(t_s=t, x_m=chainage_m, v_mps=speed_mps)
 
 
-class Paper003:
+class MonorailDrive(Extension):
     """Monorail drives on the vehicles that ask for them; the state machine on monorail formations."""
 
-    summary_key = None
+    @classmethod
+    def applies(cls, scenario: Scenario) -> bool:
+        monorail_plant = any(p.kind == "monorail" for p in scenario.plants.values())
+        return monorail_plant or any(c.type in MONORAIL_COUPLED_TYPES for c in scenario.controllers.values())
 
     def __init__(self, ctx: ExtensionContext) -> None:
+        require_euler(ctx, "monorail")
         self.ctx = ctx
         self.memory: dict[str, tuple[VcMemory, StateParams]] = {}
-        ctx.dispatcher.on_inserted.append(self._on_inserted)
-        ctx.formations.follower_hooks.append(self._follower_fsm)
 
-    def _on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:
+    def on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:
         kind, params = plant_kind(self.ctx, tr.trip.vehicle_name)
         if kind == "monorail":
             tr.exact_plant = MonorailPlant(
-                monorail.MonorailParams(**params), t, chainage_m, tr.trip.start_speed_mps, self.ctx.control.dist.biased
+                monorail.MonorailParams(**params), t, chainage_m, tr.trip.start_speed_mps, self.ctx.actuator_bias
             )
 
-    def _follower_fsm(self, t: float, tr: TrainRuntime, f: Any, a: Ahead) -> None:
+    def follower_step(self, t: float, tr: TrainRuntime, f: FormationSpec, a: Ahead) -> None:
         name = tr.trip.roles.get("coupled")
         if name is None or self.ctx.scenario.controllers[name].type not in MONORAIL_COUPLED_TYPES:
             return
@@ -95,7 +101,7 @@ class Paper003:
                 StateParams(target_gap_m=float(f.target_gap_m)),
             )
         mem, params = self.memory[tr.train_id]
-        other = self.ctx.fleet.trains[a.train_id]
+        other = self.ctx.trains[a.train_id]
         inp = VcInputs(
             t_s=t,
             gap_m=a.gap_m,
@@ -114,12 +120,3 @@ class Paper003:
             if state == "decoupling" and reason in ("passive", "active") and fstate in ("coupling", "coupled"):
                 self.ctx.events.record(t, f"{reason}_decoupling", f.id, gap_m=round(a.gap_m, 3))
                 manager.request_decouple(f.id)
-
-
-def install(ctx: ExtensionContext) -> Paper003 | None:
-    monorail_plant = any(p.kind == "monorail" for p in ctx.scenario.plants.values())
-    monorail_fsm = any(c.type in MONORAIL_COUPLED_TYPES for c in ctx.scenario.controllers.values())
-    if not (monorail_plant or monorail_fsm):
-        return None
-    require_euler(ctx, "monorail")
-    return Paper003(ctx)

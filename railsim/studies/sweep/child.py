@@ -85,12 +85,12 @@ def _child_main(spec_path: str) -> None:
     threading.Thread(target=_watch_parent, args=(int(spec["parent_pid"]),), daemon=True).start()
     result_path = Path(spec["result"])
     try:
-        from railsim import api as engine, scenario
+        from railsim import api, scenario
 
         scn = scenario.load(spec["scenario"], spec["overrides"])
         with tempfile.TemporaryDirectory(prefix="railsim_case_") as tmp:
             run_dir = Path(spec["out_dir"]) if spec.get("out_dir") else Path(tmp)
-            engine.run(scn, run_dir, seed=int(spec["seed"]), progress=False)
+            api.run(scn, run_dir, seed=int(spec["seed"]), progress=False)
             summary = json.loads((run_dir / "summary.json").read_text(encoding="utf-8"))
             metrics = summary_metrics(summary)
             metrics.update(trip_metrics(run_dir))

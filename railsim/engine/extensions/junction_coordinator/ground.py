@@ -1,4 +1,4 @@
-"""What the ground knows in the junction coordination (Paper E online, :mod:`.paper004`).
+"""What the ground knows in the junction coordination (Paper E online, :mod:`.coordinator`).
 
 The planner runs on the ground, so it sees the trains through their train-to-ground reports — each one the
 sender's route, front, speed and acceleration stamped with its send time, delivered late or not at all by the

@@ -41,10 +41,10 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    lock through the interlocking's movement authority.
 
 ``qp_order`` (issue 18, :mod:`controllers.junction.qp`) differs where SUMO runs showed missed couplings: its model
-is the engine's (:func:`.paper004_readings.engine_corrected_params`, :func:`.paper004_readings.interlocking_model`,
+is the engine's (:func:`.readings.engine_corrected_params`, :func:`.readings.interlocking_model`,
 turnouts held over the train's length, approached inside the ATO's envelope); a granted lock fixes the order at
 its switch; the reference is the plan's exact trajectory from the planner's initial state; followers fly the plan in
-the leader's time (:func:`.paper004_tracking.leader_time_reference`); it re-plans on deviations, to polish an
+the leader's time (:func:`.tracking.leader_time_reference`); it re-plans on deviations, to polish an
 unconverged first plan, and once when the order freezes (no periodic re-plans).
 
 Measured outcome: the coordinator records every planned train's path position and speed at every step from
@@ -59,9 +59,7 @@ from __future__ import annotations
 import dataclasses
 import logging
 import math
-from collections.abc import Callable
-from dataclasses import dataclass
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING, Any, cast
 
 import numpy as np
 
@@ -82,18 +80,22 @@ from controllers.junction.planner import (
 from controllers.junction.pso import improved_pso_params, plain_pso_params
 from controllers.junction.qp import QpOrderParams
 from controllers.junction.simulate import measure
-from railsim.engine.extensions.paper004_readings import (
+from railsim.engine.extensions.junction_coordinator.readings import (
     engine_corrected_params,
     interlocking_model,
     safe_gap_m,
     switch_interval_s,
     turnout_start,
 )
-from railsim.engine.extensions.paper004_ground import SWITCHES, ground_front, ground_states, switch_states
-from railsim.engine.extensions.paper004_tracking import PlannedTrain, leader_time_reference
+from railsim.engine.extensions.junction_coordinator.ground import SWITCHES, ground_front, ground_states, switch_states
+from railsim.engine.extensions.junction_coordinator.tracking import PlannedTrain, leader_time_reference
+from railsim.engine.extensions.base import Extension
+from railsim.engine.extensions.context import ExtensionContext
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
+    from railsim.engine.events.interlocking import Leg
+    from railsim.scenario import Scenario
     from railsim.engine.occupancy import Ahead
     from railsim.engine.train import TrainRuntime
 
@@ -110,40 +112,28 @@ ATO_CRUISE_MARGIN_MPS = 3.0  # below v_max, where the law caps full acceleration
 APPROACH_HOLD_M = 20.0  # at the turnout speed this far before a turnout (braking into it at half the ATO's rate)
 
 
-@dataclass
-class JunctionPorts:
-    """What the coordinator may use of the engine — nothing else (it never sees the simulation)."""
-
-    source: Any  # the scenario file (error messages)
-    trains: dict[str, TrainRuntime]
-    settings: Any  # EngineSettings (clearance, protection margin)
-    dt_s: float
-    channels: dict[str, Any]  # the radio channels (t2g reports, t2t delay)
-    events: Any  # EventLog
-    interlocking: Any  # Interlocking (switch states, lock requests)
-    manager: Any  # FormationManager (couple requests, stats)
-    add_formation: Callable[[Any, str], None]  # register a formation formed at run time
-    known_state: Callable[..., Any]  # Knowledge.known_state (what a train knows of another)
-    leader_of: Callable[[Any], TrainRuntime]  # FormationBook.leader_of
-    of_follower: dict[str, Any]  # FormationBook.of_follower
-    switch_throw_s: dict[str, float]  # throw time per switch of the world
-    seed: int  # the planner's own random stream
-
-
-class JunctionCoordinator:
+class JunctionCoordinator(Extension):
     """The ground-side junction planner of one scenario (see the module docstring)."""
 
     summary_key = "junction"
 
-    def __init__(self, ports: JunctionPorts, spec: Any) -> None:
-        self.ports = ports
+    @classmethod
+    def applies(cls, scenario: Scenario) -> bool:
+        """The junction planner runs online when the scenario has a ``junction:`` section."""
+        return scenario.junction is not None
+
+    def __init__(self, ctx: ExtensionContext) -> None:
+        spec = ctx.scenario.junction
+        if spec is None:
+            raise ValueError("the junction coordinator needs the scenario's junction: section")
+        self.ctx = ctx
         self.spec = spec
         self.method: str = spec.method
-        src = ports.source
+        src = ctx.scenario.source
         self.members: dict[str, PlannedTrain] = {}
         lengths = []
         for i, tid in enumerate(spec.trains):
-            tr = ports.trains[tid]
+            tr = ctx.trains[tid]
             self.members[tid] = self._member(tr, f"junction.trains[{i}]")
             lengths.append(tr.trip.vehicle.length_m)
         legs2 = {m.legs["sw2"] for m in self.members.values() if "sw1" not in m.legs}
@@ -156,18 +146,18 @@ class JunctionCoordinator:
         s4 = (ref.switch_m["sw2"] - ref.switch_m["sw1"]) if ref is not None else 200.0
         s5 = any_m.F_m - any_m.switch_m["sw2"]
         self.layout = YJunctionLayout(S4_m=s4, S5_m=s5, sw1_branch_leg="reverse", sw2_branch_leg=branch2)  # type: ignore[arg-type]
-        throw_s = max(ports.switch_throw_s[sid] for sid in SWITCHES if sid in ports.switch_throw_s)
+        throw_s = max(ctx.switch_throw_s[sid] for sid in SWITCHES if sid in ctx.switch_throw_s)
         try:
             probe = JunctionParams(**{"pred_length_m": max(lengths), **spec.params})
             if "standstill_gap_m" not in spec.params:
                 probe = dataclasses.replace(
                     probe,
                     standstill_gap_m=max(
-                        probe.standstill_gap_m, safe_gap_m(ports, list(self.members), probe.normal_speed_mps)
+                        probe.standstill_gap_m, safe_gap_m(ctx, list(self.members), probe.normal_speed_mps)
                     ),
                 )
             self.switch_interval_s = switch_interval_s(
-                ports.settings, self.members.values(), probe, throw_s, max(lengths)
+                ctx.settings, self.members.values(), probe, throw_s, max(lengths)
             )
             self.params = (
                 dataclasses.replace(probe, throw_time_s=self.switch_interval_s)
@@ -177,8 +167,8 @@ class JunctionCoordinator:
             self.qp: QpOrderParams | None = None
             if self.method == "qp_order":
                 # the model the engine flies: the guard of the followers' CACC, the turnout zone, the interlocking
-                self.params = engine_corrected_params(ports, list(self.members), self.params, spec.params)
-                il = interlocking_model(ports, list(self.members), self._turnout_m(), max(lengths), throw_s)
+                self.params = engine_corrected_params(ctx, list(self.members), self.params, spec.params)
+                il = interlocking_model(ctx, list(self.members), self._turnout_m(), max(lengths), throw_s)
                 self.qp = QpOrderParams(
                     zone_m=self._turnout_m() + max(lengths),
                     # inside the ATO's envelope: its braking curve into a turnout and its cruise law below v_max
@@ -194,7 +184,7 @@ class JunctionCoordinator:
         except ValueError as exc:
             raise ConfigError(src, "junction.params", str(exc)) from None
         self.target_gap_m = float(spec.target_gap_m if spec.target_gap_m is not None else self.params.standstill_gap_m)
-        self.rng = np.random.default_rng(ports.seed)
+        self.rng = np.random.default_rng(ctx.draw_seed())  # the planner's own stream
         self.plan: JunctionPlan | None = None
         self.problem0: Any = None
         self.t0_s: float | None = None
@@ -215,7 +205,7 @@ class JunctionCoordinator:
     # ------------------------------------------------------------------ set-up
     def _member(self, tr: TrainRuntime, where: str) -> PlannedTrain:
         route = tr.trip.route
-        src = self.ports.source
+        src = self.ctx.scenario.source
         points = {rs.switch_id: rs for rs in route.switches if rs.switch_id in SWITCHES}
         F = [p.point_m for p in route.points if p.point_id == "F"]
         if "sw2" not in points or not F:
@@ -245,7 +235,7 @@ class JunctionCoordinator:
         m = self.members.get(train_id)
         return m is not None and switch_id in m.legs
 
-    def in_plan_phase(self, train_id: str) -> bool:
+    def drives(self, train_id: str) -> bool:
         """True while the junction role drives this train: until it reaches F, and for the platoon's leader until
         the last train has reached F (it holds its speed there so that the platoon closes up behind it)."""
         m = self.members.get(train_id)
@@ -264,7 +254,7 @@ class JunctionCoordinator:
         if self.plan is None and self.method in OPTIMISERS:
             return None
         if self.method in ("naive1", "naive2"):
-            return m.naive_command(p, own_pos_m, own_v_mps, self.ports.dt_s)
+            return m.naive_command(p, own_pos_m, own_v_mps, self.ctx.dt_s)
         s_ref, v_ref, rate = self._reference(m, t)
         s = own_pos_m - m.ref_front_m
         a_ff = m.accel_at(s_ref) * rate * rate
@@ -279,7 +269,7 @@ class JunctionCoordinator:
         lead = self.members[self.order[0]]
         if lead.handed_over:
             return (*m.reference(t), 1.0)
-        front, v_lead = ground_front(self.ports.channels, self.ports.trains[lead.train_id], t)
+        front, v_lead = ground_front(self.ctx.channels, self.ctx.trains[lead.train_id], t)
         return leader_time_reference(m, lead, front, v_lead)
 
     def commands(
@@ -300,10 +290,10 @@ class JunctionCoordinator:
             commands["junction"] = Command(u)
         if a is None:
             return
-        other = self.ports.trains[a.train_id]
-        f = self.ports.of_follower.get(tr.train_id)
-        own_leader = f is not None and self.ports.leader_of(f).train_id == other.train_id
-        pred = self.ports.known_state(
+        other = self.ctx.trains[a.train_id]
+        f = self.ctx.formations.of_follower.get(tr.train_id)
+        own_leader = f is not None and self.ctx.formations.leader_of(f).train_id == other.train_id
+        pred = self.ctx.knowledge.known_state(
             tr, other, "t2t" if own_leader else "t2g", tr.train_id if own_leader else "ground"
         )
         guard = tr.controllers.get("coupled")
@@ -331,7 +321,7 @@ class JunctionCoordinator:
 
     def update(self, t: float) -> None:
         """Plan, re-plan, lock, form, hand over and record (called every step before the controllers run)."""
-        trains = [self.ports.trains[tid] for tid in self.members]
+        trains = [self.ctx.trains[tid] for tid in self.members]
         if any(tr.status not in ("running",) for tr in trains) and self.t0_s is None:
             return  # not every planned train is on the line yet
         if self.t0_s is None:
@@ -343,7 +333,7 @@ class JunctionCoordinator:
             if not m.handed_over and tr.front_m >= m.F_m:
                 m.handed_over = True
                 self.handover_s[tr.train_id] = t
-                self.ports.events.record(
+                self.ctx.events.record(
                     t, "junction_handover", tr.train_id, at="F", speed_mps=round(tr.plant.speed_mps, 3)
                 )
         if not self.formed and (
@@ -365,10 +355,10 @@ class JunctionCoordinator:
         self.traj_v.append([tr.plant.speed_mps for tr in trains])
 
     def _switch_states(self) -> list[SwitchState]:
-        return switch_states(self.ports.interlocking, self.members, self.method == "qp_order")
+        return switch_states(self.ctx.interlocking, self.members, self.method == "qp_order")
 
     def _first_plan(self, t: float, trains: list[TrainRuntime]) -> None:
-        states, fronts = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
+        states, fronts = ground_states(self.ctx.channels, self.members, trains, t, self.params.min_speed_mps)
         self.t0_s = t
         truth = []
         for tr in trains:
@@ -385,7 +375,7 @@ class JunctionCoordinator:
                 order = tuple(ids[k] for k in prio)
                 self._apply_order(t, order, naive=True)
                 self.frozen = True
-                self.ports.events.record(t, "junction_plan", "junction", method=self.method, order=list(order))
+                self.ctx.events.record(t, "junction_plan", "junction", method=self.method, order=list(order))
                 return
             new = plan(
                 states,
@@ -398,7 +388,9 @@ class JunctionCoordinator:
                 qp=self.qp,
             )
         except PlannerError as exc:
-            raise ConfigError(self.ports.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}") from None
+            raise ConfigError(
+                self.ctx.scenario.source, "junction", f"the planner cannot plan at t={t:g} s: {exc}"
+            ) from None
         self._adopt(t, new, trains, states, fronts)
 
     def _maybe_replan(self, t: float, trains: list[TrainRuntime]) -> None:
@@ -406,7 +398,7 @@ class JunctionCoordinator:
             return
         if any(tr.front_m >= self.members[tr.train_id].point_m["sw2"] for tr in trains):
             self.replanning = False  # the first train is through the merge switch: track the last plan to F
-            self.ports.events.record(t, "junction_replanning_ended", "junction", reason="a train passed sw2")
+            self.ctx.events.record(t, "junction_replanning_ended", "junction", reason="a train passed sw2")
             return
         # qp_order's plans are flyable as made: it re-plans on a tracking deviation only (a periodic re-plan from
         # the ground's extrapolated states restarts the plan from slightly wrong states and drifts it later)
@@ -418,7 +410,7 @@ class JunctionCoordinator:
         # ... and once when the order freezes (a train at its point of no return): a warm re-plan from there, a
         # smaller problem, improves on the budgeted first plan (scenario 1: coupling 80.5 → 71 s)
         if not due and gap_ok and self.method == "qp_order" and not self.frozen:
-            ground, _ = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
+            ground, _ = ground_states(self.ctx.channels, self.members, trains, t, self.params.min_speed_mps)
             due = bool(past_point_of_no_return(ground, self.params))
         if not due and gap_ok:
             for tr in trains:
@@ -429,7 +421,7 @@ class JunctionCoordinator:
                     or abs(tr.plant.speed_mps - v_ref) > DEVIATION_MPS
                 ):
                     due = True
-                    self.ports.events.record(
+                    self.ctx.events.record(
                         t,
                         "junction_deviation",
                         tr.train_id,
@@ -439,7 +431,7 @@ class JunctionCoordinator:
                     break
         if not due:
             return
-        states, fronts = ground_states(self.ports.channels, self.members, trains, t, self.params.min_speed_mps)
+        states, fronts = ground_states(self.ctx.channels, self.members, trains, t, self.params.min_speed_mps)
         if any(s.distance_to_switch_m < 0.0 for s in states):
             return  # a train is inside a turnout (between restriction start and point): keep the current plan
         try:
@@ -456,13 +448,13 @@ class JunctionCoordinator:
                 qp=self.qp,
             )
         except PlannerError as exc:
-            self.ports.events.record(t, "junction_plan_failed", "junction", error=str(exc))
+            self.ctx.events.record(t, "junction_plan_failed", "junction", error=str(exc))
             log.warning("junction re-plan at t=%.1f s failed (%s); keeping the current plan", t, exc)
             self.last_plan_s = t
             return
         if not new.feasible and self.plan.feasible and not new.frozen_order:
             # an infeasible re-plan never replaces a feasible plan (the documented fallback: keep tracking it)
-            self.ports.events.record(t, "junction_plan_rejected", "junction", violation=round(new.violation, 4))
+            self.ctx.events.record(t, "junction_plan_rejected", "junction", violation=round(new.violation, 4))
             self.last_plan_s = t
             return
         self._adopt(t, new, trains, states, fronts)
@@ -509,7 +501,7 @@ class JunctionCoordinator:
                 "coupled_speed_mps": new.coupled_speed_mps,
             }
         )
-        self.ports.events.record(
+        self.ctx.events.record(
             t,
             "junction_plan",
             "junction",
@@ -523,7 +515,7 @@ class JunctionCoordinator:
         )
         if new.frozen_order and not self.frozen:
             self.frozen = True
-            self.ports.events.record(t, "junction_order_frozen", "junction", order=list(new.order))
+            self.ctx.events.record(t, "junction_order_frozen", "junction", order=list(new.order))
         self._apply_order(t, tuple(new.order), naive=False)
 
     # ------------------------------------------------------------------ locks and formations
@@ -532,7 +524,7 @@ class JunctionCoordinator:
         if order == self.order:
             return
         self.order = order
-        il = self.ports.interlocking
+        il = self.ctx.interlocking
         for sid in SWITCHES:
             users = [tid for tid in order if sid in self.members[tid].legs]
             if not users:
@@ -541,9 +533,9 @@ class JunctionCoordinator:
                 if not il.is_granted(req):
                     il.cancel(req)
                     for h in req.holder_ids:
-                        self.ports.trains[h].locks.pop(sid, None)
+                        self.ctx.trains[h].locks.pop(sid, None)
             self.requests[sid] = [r for r in self.requests[sid] if il.is_granted(r)]
-            waiting = [tid for tid in users if sid not in self.ports.trains[tid].locks]
+            waiting = [tid for tid in users if sid not in self.ctx.trains[tid].locks]
             groups: list[list[str]] = []
             for tid in waiting:
                 leg = self.members[tid].legs[sid]
@@ -552,10 +544,12 @@ class JunctionCoordinator:
                 else:
                     groups.append([tid])
             for g in groups:
-                req = il.request(tuple(g), sid, self.members[g[0]].legs[sid])
+                req = il.request(
+                    tuple(g), sid, cast("Leg", self.members[g[0]].legs[sid])
+                )  # checked by the interlocking
                 self.requests[sid].append(req)
                 for h in g:
-                    self.ports.trains[h].locks[sid] = req
+                    self.ctx.trains[h].locks[sid] = req
 
     def _form(self, t: float) -> None:
         """Form the formations in passing order: each train follows the one before it, coupling from now."""
@@ -565,7 +559,7 @@ class JunctionCoordinator:
         self.formed_s = t
         order = self.order or tuple(self.members)
         for lead, fol in zip(order, order[1:]):
-            lt, ft = self.ports.trains[lead].trip, self.ports.trains[fol].trip
+            lt, ft = self.ctx.trains[lead].trip, self.ctx.trains[fol].trip
             fid = f"junction_{lead}_{fol}"
             spec = FormationSpec(
                 id=fid,
@@ -573,9 +567,9 @@ class JunctionCoordinator:
                 follower=TripRef(ft.service_id, ft.index),
                 target_gap_m=self.target_gap_m,
             )
-            self.ports.add_formation(spec, "junction")
-            self.ports.manager.request_couple(fid)
-        self.ports.events.record(t, "junction_formed", "junction", order=list(order))
+            self.ctx.formations.add(spec, "junction")
+            self.ctx.formations.manager.request_couple(fid)
+        self.ctx.events.record(t, "junction_formed", "junction", order=list(order))
 
     # ------------------------------------------------------------------ results
     def summary(self) -> dict[str, Any]:
@@ -605,8 +599,8 @@ class JunctionCoordinator:
             out[k] = val
         if out.get("coupling_time_s") is not None:
             out["coupling_time_s"] = float(out["coupling_time_s"])
-        form = [f for f in self.ports.manager.ids() if f.startswith("junction_")]
-        times = [self.ports.manager.stats(fid).time_to_couple_s for fid in form]
+        form = [f for f in self.ctx.formations.manager.ids() if f.startswith("junction_")]
+        times = [self.ctx.formations.manager.stats(fid).time_to_couple_s for fid in form]
         out["formations"] = form
         out["formations_coupled"] = sum(1 for c in times if c)
         # every formation locked in (Eq. 2-3 held for the hold time): when the last one did, from the first plan
@@ -616,30 +610,3 @@ class JunctionCoordinator:
             else None
         )
         return out
-
-
-def install(ctx: Any) -> JunctionCoordinator | None:
-    """The junction planner online when the scenario has a ``junction:`` section."""
-    spec = ctx.scenario.junction
-    if spec is None:
-        return None
-    ports = JunctionPorts(
-        source=ctx.scenario.source,
-        trains=ctx.fleet.trains,
-        settings=ctx.settings,
-        dt_s=ctx.dt_s,
-        channels=ctx.channels,
-        events=ctx.events,
-        interlocking=ctx.interlocking,
-        manager=ctx.formations.manager,
-        add_formation=ctx.formations.add,
-        known_state=ctx.knowledge.known_state,
-        leader_of=ctx.formations.leader_of,
-        of_follower=ctx.formations.of_follower,
-        switch_throw_s=ctx.switch_throw_s,
-        seed=ctx.draw_seed(),
-    )
-    coordinator = JunctionCoordinator(ports, spec)
-    ctx.control.command_source = coordinator
-    ctx.locks.managed_by = coordinator.manages_lock
-    return coordinator

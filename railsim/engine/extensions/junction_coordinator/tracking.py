@@ -1,8 +1,8 @@
-"""A train under the junction plan (Paper E online, :mod:`.paper004`): its path and its tracking reference.
+"""A train under the junction plan (Paper E online, :mod:`.coordinator`): its path and its tracking reference.
 
 The coordinator turns each plan's acceleration-over-distance profile into a reference ``(s, v)(τ)`` by
 integrating it from the plan instant with a fine step (:meth:`PlannedTrain.set_reference`); the train tracks it
-with feed-forward plus feedback (:meth:`railsim.engine.extensions.paper004.JunctionCoordinator.command`).
+with feed-forward plus feedback (:meth:`railsim.engine.extensions.junction_coordinator.coordinator.JunctionCoordinator.command`).
 """
 
 from __future__ import annotations

@@ -1,4 +1,4 @@
-"""Readings of the junction planner online (:mod:`.paper004`) that fix its parameters from the engine's rules.
+"""Readings of the junction planner online (:mod:`.coordinator`) that fix its parameters from the engine's rules.
 
 Where the paper's model (mass points, a 10 s switch interval, ``S_0`` = 10 m) and the engine (trains of real
 length, an interlocking that frees a switch only behind the rear, a relative-braking-distance guard) differ, the
@@ -8,18 +8,22 @@ planner is given the engine's numbers, so that its plans are ones the engine let
 from __future__ import annotations
 
 from collections.abc import Iterable
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import dataclasses
 
 from controllers.base import Observation, OwnState, PredecessorState
 from controllers.junction.model import JunctionParams
 from controllers.junction.qp import InterlockingModel
-from railsim.engine.extensions.paper004_tracking import PlannedTrain
+from railsim.engine.extensions.junction_coordinator.tracking import PlannedTrain
+
+if TYPE_CHECKING:  # pragma: no cover
+    from railsim.engine.extensions.context import ExtensionContext
+    from railsim.engine.settings import EngineSettings
 
 
 def switch_interval_s(
-    settings: Any, members: Iterable[PlannedTrain], p: JunctionParams, throw_s: float, length_m: float
+    settings: EngineSettings, members: Iterable[PlannedTrain], p: JunctionParams, throw_s: float, length_m: float
 ) -> float:
     """The planner's ``t_ls``: the least time between two passages on different legs that the interlocking
     can serve without stopping the second train (unless ``junction.params.throw_time_s`` is given).
@@ -40,7 +44,7 @@ def switch_interval_s(
     return float(release + throw_s + sighting)
 
 
-def safe_gap_m(ports: Any, train_ids: list[str], speed_mps: float) -> float:
+def safe_gap_m(ctx: ExtensionContext, train_ids: list[str], speed_mps: float) -> float:
     """The gap the followers' own coupled controller holds at ``speed_mps`` behind an equally fast leader.
 
     *Reading:* the planner's ``S_0`` (standstill part of ``S_m``, spec §6 #5) is raised to this gap, so that the
@@ -50,10 +54,10 @@ def safe_gap_m(ports: Any, train_ids: list[str], speed_mps: float) -> float:
     synthetic observation (leader at equal speed, message age = the t2t delay's mean) returns its target.
     """
     gaps = [0.0]
-    ch = ports.channels.get("t2t")
+    ch = ctx.channels.get("t2t")
     age = float(ch.delay.mean_delay_s) if ch is not None else 0.1
     for tid in train_ids:
-        tr = ports.trains[tid]
+        tr = ctx.trains[tid]
         ctl = tr.controllers.get("coupled")
         if ctl is None:
             continue
@@ -72,7 +76,7 @@ def safe_gap_m(ports: Any, train_ids: list[str], speed_mps: float) -> float:
         )
         obs = Observation(
             t_s=age,
-            dt_s=ports.dt_s,
+            dt_s=ctx.dt_s,
             own=own,
             vehicle=veh,
             route_length_m=1e6,
@@ -95,7 +99,7 @@ def turnout_start(tr: Any, point_m: float) -> float:
 
 
 def engine_corrected_params(
-    ports: Any, train_ids: list[str], p: JunctionParams, given: dict[str, Any]
+    ctx: ExtensionContext, train_ids: list[str], p: JunctionParams, given: dict[str, Any]
 ) -> JunctionParams:
     """The planner model with the followers' relative-braking-distance guard switched on (``qp_order``).
 
@@ -105,16 +109,16 @@ def engine_corrected_params(
     """
     margins, decels = [], []
     for tid in train_ids:
-        tr = ports.trains[tid]
+        tr = ctx.trains[tid]
         decels.append(tr.trip.vehicle.emergency_decel_mps2)
         ctl = tr.controllers.get("coupled")
         margin = getattr(getattr(ctl, "params", None), "safety_margin_m", None)
         if margin is not None:
             margins.append(float(margin))
-    ch = ports.channels.get("t2t")
+    ch = ctx.channels.get("t2t")
     age = float(ch.delay.mean_delay_s) if ch is not None else 0.1
     values = {
-        "rbd_reaction_s": ports.dt_s + age,
+        "rbd_reaction_s": ctx.dt_s + age,
         "rbd_decel_mps2": min(decels),
         "rbd_margin_m": max(margins, default=10.0),
     }
@@ -123,7 +127,7 @@ def engine_corrected_params(
 
 
 def interlocking_model(
-    ports: Any, train_ids: list[str], turnout_m: float, length_m: float, throw_s: float
+    ctx: ExtensionContext, train_ids: list[str], turnout_m: float, length_m: float, throw_s: float
 ) -> InterlockingModel:
     """The engine's switch rule in the planner's distances (``qp_order``; see :class:`InterlockingModel`).
 
@@ -133,20 +137,20 @@ def interlocking_model(
     short of that, braking at ``b_plan`` (the ATO's planning deceleration); it must hold its lock before that
     braking point, one control step of reaction included.
     """
-    st = ports.settings
+    st = ctx.settings
     ato_margins, b_plan = [5.0], []
     for tid in train_ids:
-        tr = ports.trains[tid]
+        tr = ctx.trains[tid]
         ap = getattr(tr.controllers.get("ato"), "params", None)
         if ap is not None:
             ato_margins.append(float(ap.authority_margin_m))
             b_plan.append(float(ap.planning_decel_fraction) * tr.trip.vehicle.service_decel_mps2)
         else:
             b_plan.append(tr.trip.vehicle.service_decel_mps2)
-    v_max = max(ports.trains[t].trip.vehicle.max_speed_mps for t in train_ids)
+    v_max = max(ctx.trains[t].trip.vehicle.max_speed_mps for t in train_ids)
     return InterlockingModel(
         release_after_m=turnout_m + length_m + st.clearance_m,
         throw_s=throw_s,
-        grant_before_m=max(st.protection_margin_m + max(ato_margins) - turnout_m, 0.0) + v_max * ports.dt_s,
+        grant_before_m=max(st.protection_margin_m + max(ato_margins) - turnout_m, 0.0) + v_max * ctx.dt_s,
         brake_decel_mps2=min(b_plan),
     )
