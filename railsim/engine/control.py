@@ -8,8 +8,8 @@ Per train and step (docs/architecture.md, "The step loop"):
 2. **Roles** — ``ato`` always (the closing ATO without cruise margin for a coupled follower); ``coupled`` on
    t2t data while the formation couples/is coupled and the leader's data is fresh (else it degrades to
    ``separation`` on ground data, logged ``vc_degraded``/``vc_restored`` with one step of hysteresis);
-   ``separation`` against any other train ahead; ``ca`` on the train's own sensor. A *command source*
-   extension (the junction planner) may take over a train's roles while it flies a plan.
+   ``separation`` against any other train ahead; ``ca`` on the train's own sensor. An extension that
+   ``drives`` a train (the junction planner) takes over its roles while it flies a plan (its ``commands``).
 3. **Arbitration** — the most restrictive command wins (:func:`controllers.base.arbitrate`; a role whose command
    is ``additive`` — Paper D's arrival-case CA — adds its braking to the others' instead, bounded by the vehicle's
    emergency deceleration; the CA's sensor reading carries the others' minimum as ``service_accel_mps2``); emergency braking

@@ -30,6 +30,8 @@ class Unwired:
         raise RuntimeError(f"{self.slot} used before the engine wired it")
 
     def __getattr__(self, name: str) -> NoReturn:
+        if name.startswith("__"):  # introspection (copy, pickle, vars) sees a plain object
+            raise AttributeError(name)
         raise RuntimeError(f"{self.slot}.{name} used before the engine wired it")
 
     def __repr__(self) -> str:
@@ -50,4 +52,4 @@ def set_once(port: object, name: str, value: object) -> None:
 
 def unwired_slots(port: object) -> list[str]:
     """The names of ``port``'s attributes that still hold their :class:`Unwired` placeholder."""
-    return sorted(name for name, value in vars(port).items() if isinstance(value, Unwired))
+    return sorted(name for name, value in getattr(port, "__dict__", {}).items() if isinstance(value, Unwired))

@@ -145,7 +145,7 @@ class CarriagePlants(Extension):
 
     def __init__(self, ctx: ExtensionContext) -> None:
         require_euler(ctx, "multipoint")
-        self.ctx = ctx
+        super().__init__(ctx)
         self.plants: dict[str, MultipointPlant] = {}
 
     def on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:

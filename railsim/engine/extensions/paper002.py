@@ -35,7 +35,7 @@ class CooperativeGraph(Extension):
         return bool(scenario.cooperative.edges)
 
     def __init__(self, ctx: ExtensionContext) -> None:
-        self.ctx = ctx
+        super().__init__(ctx)
         self.edges = tuple(ctx.scenario.cooperative.edges)
         self.members = {e.a for e in self.edges} | {e.b for e in self.edges}
         for tid in self.members:

@@ -79,7 +79,7 @@ class MonorailDrive(Extension):
 
     def __init__(self, ctx: ExtensionContext) -> None:
         require_euler(ctx, "monorail")
-        self.ctx = ctx
+        super().__init__(ctx)
         self.memory: dict[str, tuple[VcMemory, StateParams]] = {}
 
     def on_inserted(self, t: float, tr: TrainRuntime, chainage_m: float) -> None:

@@ -126,7 +126,7 @@ class JunctionCoordinator(Extension):
         spec = ctx.scenario.junction
         if spec is None:
             raise ValueError("the junction coordinator needs the scenario's junction: section")
-        self.ctx = ctx
+        super().__init__(ctx)
         self.spec = spec
         self.method: str = spec.method
         src = ctx.scenario.source
