@@ -83,9 +83,10 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "1"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "2"  # bump when the options or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 _OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
+MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
 _WARN_SUMMARY = re.compile(r"^Warning: (\d+) total messages of type: (.*)$")
 
 
@@ -241,6 +242,19 @@ class _Stop:
     name: str
 
 
+def _ensure_length(st: _Stop, lane_length_m: float) -> int:
+    """Widen a stop shorter than :data:`MIN_STOP_M` around its centre, within its lane; 1 if it was widened."""
+    want = min(MIN_STOP_M["tram" if st.vclass == "tram" else "other"], lane_length_m)
+    start = float(st.elem.get("startPos", 0.0))
+    end = float(st.elem.get("endPos", lane_length_m))
+    if end - start >= want - 1e-6:
+        return 0
+    centre = min(max(0.5 * (start + end), 0.5 * want), lane_length_m - 0.5 * want)
+    st.elem.set("startPos", f"{centre - 0.5 * want:.2f}")
+    st.elem.set("endPos", f"{centre + 0.5 * want:.2f}")
+    return 1
+
+
 def _lane_class(permissions: set[str]) -> str | None:
     """The rail class a stop's lane belongs to: the first of :data:`RAIL_CLASSES` it allows."""
     return next((vc for vc in RAIL_CLASSES if vc in permissions), None)
@@ -352,7 +366,7 @@ def _split(
     short: set[str] = set()
     for ln in rail_lines:
         seq = [(sid, nm) for sid, nm in ln["stops"] if sid in stops]
-        if len(seq) < 2:
+        if len({stops[sid].name for sid, _ in seq}) < 2:
             short.add(ln["ref"])
             continue
         kept_lines.append({**ln, "stops": seq})
@@ -367,8 +381,15 @@ def _split(
             summary.dropped.append(f"{len(unserved)} stops no imported line serves")
         stops = {sid: st for sid, st in stops.items() if sid in served}
     by_class: dict[str, list[_Stop]] = defaultdict(list)
+    lengthened = 0
     for st in stops.values():
         by_class[st.vclass].append(st)
+        lengthened += _ensure_length(st, net.getLane(st.elem.get("lane", "")).getLength())
+    if lengthened:
+        summary.dropped.append(
+            f"{lengthened} stops shorter than a platform (netconvert gives some tram stops 0 m) widened around "
+            f"their centre to {MIN_STOP_M['tram']:g} m (tram) / {MIN_STOP_M['other']:g} m, within their lane"
+        )
     for vc, members in sorted(by_class.items()):
         root = ET.Element("additional")
         for st in members:

@@ -5,6 +5,8 @@ notebook can do the same)::
 
     railsim network build NAME|FILE --out DIR   build a world (net.xml, stops.add.xml, topology.json)   cli.network
     railsim network show NAME|FILE              readable summary of a world                              cli.network
+    railsim network import OSM --out DIR        rail world from an OpenStreetMap extract                 cli.network
+    railsim timetable import FEED --world DIR   scenario from a GTFS feed (or --from-lines)              cli.timetable
     railsim validate SCENARIO                   check a scenario file without running it                 cli.scenario
     railsim run SCENARIO --out DIR [--seed N]   run one simulation and write its outputs                 cli.run
     railsim reproduce EXPERIMENT --out DIR      re-run a paper experiment and draw its figures           cli.reproduce
@@ -37,7 +39,20 @@ import traceback
 from collections.abc import Callable, Sequence
 from types import ModuleType
 
-from railsim.cli import export, headway, network, plot, report, reproduce, robustness, run, scenario, study, sweep
+from railsim.cli import (
+    export,
+    headway,
+    network,
+    plot,
+    report,
+    reproduce,
+    robustness,
+    run,
+    scenario,
+    study,
+    sweep,
+    timetable,
+)
 from railsim.errors import (
     EXIT_CONFIG_ERROR,
     EXIT_INTERNAL_ERROR,
@@ -49,6 +64,7 @@ from railsim.errors import (
 # The command groups, in help order; each module has ``add_commands(subparsers)``.
 COMMAND_GROUPS: tuple[ModuleType, ...] = (
     network,
+    timetable,
     scenario,
     run,
     reproduce,
