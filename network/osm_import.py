@@ -20,6 +20,10 @@ RailwayScenario.md``, is where most come from; where we depart from it, the reas
     on a line's way), and add as few ``bidi`` edges as it can. The tutorial's ``--railway.topology.all-bidi``
     (and the plain ``repair``) make *both* tracks of a double-track line ``bidi`` far more often; railsim then
     has to work out which track each direction should use. Minimal repair keeps OSM's own one-way tracks.
+    An extract **without route relations** (no rail line comes out) gives minimal repair nothing to follow:
+    netconvert runs a second time with the full ``--railway.topology.repair``, which joins tracks that meet
+    without a connection (São Paulo's metro line 1 at Paraíso: no path south of it without it) at the price of
+    more ``bidi`` edges.
 ``--railway.topology.repair.stop-turn``
     A turnaround connection at every stop: a unit can reverse at a terminus platform (railsim's turnbacks
     between trips need a connection from an edge onto its bidi partner; a dead-end terminus has none).
@@ -61,6 +65,7 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
+import math
 import os
 import re
 import shutil
@@ -83,9 +88,10 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "2"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "5"  # bump when the options or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 _OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
+TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
 MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
 _WARN_SUMMARY = re.compile(r"^Warning: (\d+) total messages of type: (.*)$")
 
@@ -127,8 +133,11 @@ class ImportSummary:
         return "\n".join(out)
 
 
-def netconvert_args(osm_file: Path, out: Path, name: str, bbox: Sequence[float] | None) -> list[str]:
-    """The netconvert command line for ``osm_file`` (module docstring: each option and why)."""
+def netconvert_args(
+    osm_file: Path, out: Path, name: str, bbox: Sequence[float] | None, repair: str = "minimal"
+) -> list[str]:
+    """The netconvert command line for ``osm_file`` (module docstring: each option and why); ``repair`` is
+    ``minimal`` (the extract has rail lines) or ``full`` (it has none: nothing for a minimal repair to follow)."""
     typemap = netconvert_binary().parents[1] / "data" / "typemap"
     args = [
         str(netconvert_binary()),
@@ -138,7 +147,7 @@ def netconvert_args(osm_file: Path, out: Path, name: str, bbox: Sequence[float] 
         f"{typemap / 'osmNetconvert.typ.xml'},{typemap / 'osmNetconvertExtraRail.typ.xml'}",
         "--keep-edges.by-vclass",
         ",".join(RAIL_CLASSES),
-        "--railway.topology.repair.minimal",
+        "--railway.topology.repair.minimal" if repair == "minimal" else "--railway.topology.repair",
         "true",
         "--railway.topology.repair.stop-turn",
         "true",
@@ -218,9 +227,22 @@ def _cache_key(osm_file: Path, bbox: Sequence[float] | None, lines: Sequence[str
     return hashlib.sha256(payload.encode()).hexdigest()[:24]
 
 
+def _has_rail_lines(ptlines: Path) -> bool:
+    return any(ln["vclass"] in RAIL_CLASSES for ln in _read_lines(ptlines))
+
+
 def _run_netconvert(osm_file: Path, work: Path, name: str, bbox: Sequence[float] | None) -> list[str]:
-    """Run netconvert; its warnings (the log lines) on success, a ConfigError naming SUMO's error otherwise."""
-    args = netconvert_args(osm_file, work, name, bbox)
+    """Run netconvert (minimal repair; again with full repair when no rail line came out); its warnings on
+    success, a ConfigError naming SUMO's error otherwise."""
+    warnings = _netconvert_once(osm_file, work, name, bbox, "minimal")
+    if _has_rail_lines(work / f"{name}.ptlines.xml") or os.environ.get("RAILSIM_OSM_REPAIR") != "full":
+        return warnings
+    log.info("%s: no rail lines in the extract: repairing the whole track topology", osm_file.name)
+    return _netconvert_once(osm_file, work, name, bbox, "full")
+
+
+def _netconvert_once(osm_file: Path, work: Path, name: str, bbox: Sequence[float] | None, repair: str) -> list[str]:
+    args = netconvert_args(osm_file, work, name, bbox, repair)
     try:
         proc = subprocess.run(args, capture_output=True, text=True, timeout=1800)
     except (OSError, subprocess.TimeoutExpired) as exc:
@@ -253,6 +275,58 @@ def _ensure_length(st: _Stop, lane_length_m: float) -> int:
     st.elem.set("startPos", f"{centre - 0.5 * want:.2f}")
     st.elem.set("endPos", f"{centre + 0.5 * want:.2f}")
     return 1
+
+
+def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
+    """Add the missing platform of a double-track station: for each stop, a rail edge of its class running the
+    opposite way within :data:`TWIN_RADIUS_M` of the stop's centre (not its own bidi partner, which already
+    carries it) that holds no stop of the same station gets a copy of the stop (id ``<stop>_twin``, same name
+    and length, centred on the point nearest the original). Returns how many were added."""
+    from sumolib.geomhelper import polygonOffsetAndDistanceToPoint, positionAtShapeOffset
+
+    def heading(shape: Sequence[Any], offset: float) -> float:
+        a = positionAtShapeOffset(shape, max(0.0, offset - 5.0))
+        b = positionAtShapeOffset(shape, offset + 5.0)
+        return math.atan2(b[1] - a[1], b[0] - a[0])
+
+    edges_by_class: dict[str, list[Any]] = defaultdict(list)
+    for e in net.getEdges(withInternal=False):
+        for vc in {_lane_class(set(ln.getPermissions())) for ln in e.getLanes()} - {None}:
+            edges_by_class[str(vc)].append(e)
+    station_edges: dict[tuple[str, str], set[str]] = defaultdict(set)
+    for st in stops.values():
+        station_edges[(st.vclass, st.name)].add(net.getLane(st.elem.get("lane", "")).getEdge().getID())
+    added: dict[str, _Stop] = {}
+    for sid, st in stops.items():
+        lane = net.getLane(st.elem.get("lane", ""))
+        start, end = float(st.elem.get("startPos", 0.0)), float(st.elem.get("endPos", lane.getLength()))
+        centre = positionAtShapeOffset(lane.getShape(), 0.5 * (start + end))
+        h = heading(lane.getShape(), 0.5 * (start + end))
+        own = lane.getEdge()
+        for e in edges_by_class[st.vclass]:
+            if e is own or e is own.getBidi() or e.getID() in station_edges[(st.vclass, st.name)]:
+                continue
+            other = next((ln for ln in e.getLanes() if _lane_class(set(ln.getPermissions())) == st.vclass), None)
+            if other is None:
+                continue
+            offset, dist = polygonOffsetAndDistanceToPoint(centre, other.getShape())
+            if dist > TWIN_RADIUS_M:
+                continue
+            turn = abs((heading(other.getShape(), offset) - h + math.pi) % (2 * math.pi) - math.pi)
+            if turn < math.radians(135):
+                continue
+            length = min(end - start, other.getLength())
+            a = min(max(offset - 0.5 * length, 0.0), other.getLength() - length)
+            elem = ET.Element(st.elem.tag, dict(st.elem.attrib))
+            elem.set("id", f"{sid}_twin")
+            elem.set("lane", other.getID())
+            elem.set("startPos", f"{a:.2f}")
+            elem.set("endPos", f"{a + length:.2f}")
+            added[f"{sid}_twin"] = _Stop(elem, st.vclass, st.name)
+            station_edges[(st.vclass, st.name)].add(e.getID())
+            break
+    stops.update(added)
+    return len(added)
 
 
 def _lane_class(permissions: set[str]) -> str | None:
@@ -380,6 +454,11 @@ def _split(
         if unserved:
             summary.dropped.append(f"{len(unserved)} stops no imported line serves")
         stops = {sid: st for sid, st in stops.items() if sid in served}
+    twins = _twin_stops(net, stops)
+    if twins:
+        summary.dropped.append(
+            f"{twins} platforms added on the opposite track of stations OSM maps with a stop on one track only"
+        )
     by_class: dict[str, list[_Stop]] = defaultdict(list)
     lengthened = 0
     for st in stops.values():

@@ -14,7 +14,7 @@ writes: ``*.net.xml``, ``*.stops.<class>.add.xml``, ``*.stations.yaml`` (and ``*
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from datetime import date as Date
 from pathlib import Path
@@ -23,7 +23,7 @@ from typing import Any
 import yaml
 
 from railsim.errors import ConfigError
-from railsim.timetable.builder import Built, build_scenario, plan_trips, trips_from_lines
+from railsim.timetable.builder import Built, build_scenario, cut_to_routable, plan_trips, trips_from_lines
 from railsim.timetable.gtfs import read_trips
 from railsim.timetable.matching import DEFAULT_RADIUS_M, Match, WorldStation, match_stops, report_lines
 from railsim.timetable.rotations import DEFAULT_TURNBACK_MIN_S
@@ -163,6 +163,8 @@ def import_timetable(
     matches = per_class[chosen]
     compatible = [t for t in data.trips if chosen in classes_of_route_type(t.route_type)]
     planned, short = plan_trips(compatible, matches, {s.name: chosen for s in world.stations if s.vclass == chosen}, chosen)
+    routes = _Routes(world, chosen)
+    planned, cut_notes = cut_to_routable(planned, routes.routable)
     out_path = Path(out)
     built = build_scenario(
         planned,
@@ -173,6 +175,7 @@ def import_timetable(
         start_s=from_s,
         turnback_min_s=turnback_min_s,
         rotations=rotations,
+        can_turn=routes.can_turn,
     )
     built.dropped_short = short
     relevant = {c.stop_id for t in compatible for c in t.calls}
@@ -181,6 +184,7 @@ def import_timetable(
         f"({data.expanded_from_frequencies} expanded from frequencies.txt), {len(data.trips) - len(compatible)} of "
         f"other classes than {chosen}",
         *report_lines({k: v for k, v in matches.items() if k in relevant}),
+        *cut_notes,
     ]
     others = {vc: n for vc, n in counts.items() if vc != chosen and n}
     if others:
@@ -220,7 +224,9 @@ def timetable_from_lines(
     if not world.lines:
         raise ConfigError(world.folder, None, "expected imported lines (*.lines.yaml with lines): the OSM extract had no route relations")
     chosen = _choose_class(world, vclass, counts)
-    planned = trips_from_lines(chosen_lines, chosen, from_s, to_s, headway_s)
+    planned, cut_notes = cut_to_routable(
+        trips_from_lines(chosen_lines, chosen, from_s, to_s, headway_s), _Routes(world, chosen).routable
+    )
     out_path = Path(out)
     built = build_scenario(
         planned,
@@ -241,7 +247,60 @@ def timetable_from_lines(
             f"({chosen}), every {headway_s:g} s, {_hhmm(from_s)}-{_hhmm(to_s)}; rotations: auto.",
         ],
     )
-    return ImportReport(out_path, chosen, built, [f"lines: {', '.join(sorted({str(p.line) for p in planned}))}"])
+    return ImportReport(
+        out_path, chosen, built, [f"lines: {', '.join(sorted({str(p.line) for p in planned}))}", *cut_notes]
+    )
+
+
+TURNBACK_SEARCH_M = 5000.0  # as railsim's turnbacks: a turnaround farther than this is not a turnback
+
+
+class _Routes:
+    """The world as the import needs it: is there a service route through some stations, and can a unit that
+    ends one route turn into the start of another (a turnaround within :data:`TURNBACK_SEARCH_M`)?"""
+
+    def __init__(self, world: World, vclass: str) -> None:
+        from network.external import load_net
+
+        self.bundle = load_net(world.net, [world.stops[vclass]], vclass=vclass, where=("<command line>", "--"))
+        self.ids = self.bundle.station_aliases
+        g = self.bundle.graph
+        self.reversals = {a: b for a, (b, _via) in g.graph.get("reversals", {}).items() if a in g and b in g}
+        self._ends: dict[tuple[str, ...], tuple[str, str] | None] = {}
+        self._turn: dict[tuple[str, str], bool] = {}
+
+    def ends(self, chain: Sequence[str]) -> tuple[str, str] | None:
+        """(first edge, last edge) of the route through ``chain``, or None if the world has none."""
+        key = tuple(chain)
+        if key not in self._ends:
+            try:
+                r = self.bundle.route_between(self.ids[key[0]], self.ids[key[-1]], [self.ids[c] for c in key[1:-1]])
+                self._ends[key] = (r.edges[0], r.edges[-1])
+            except (KeyError, ValueError):
+                self._ends[key] = None
+        return self._ends[key]
+
+    def routable(self, chain: Sequence[str]) -> bool:
+        return self.ends(chain) is not None
+
+    def can_turn(self, arriving: Sequence[str], departing: Sequence[str]) -> bool:
+        """A unit that ran ``arriving`` can reverse into ``departing`` (a turnaround reachable ahead of its last
+        edge, from which the first edge of the next route is reachable)."""
+        a, d = self.ends(arriving), self.ends(departing)
+        if a is None or d is None:
+            return False
+        key = (a[1], d[0])
+        if key not in self._turn:
+            import networkx as nx
+
+            g = self.bundle.graph
+            weight = lambda u, v, data: float(g.nodes[v]["length_m"])  # noqa: E731
+            ahead = nx.single_source_dijkstra_path_length(g, key[0], cutoff=TURNBACK_SEARCH_M, weight=weight)
+            back = nx.single_source_dijkstra_path_length(
+                g.reverse(copy=False), key[1], cutoff=TURNBACK_SEARCH_M, weight=weight
+            )
+            self._turn[key] = any(x in ahead and y in back for x, y in self.reversals.items())
+        return self._turn[key]
 
 
 def _hhmm(t_s: float) -> str:

@@ -27,7 +27,7 @@ from __future__ import annotations
 
 import statistics
 from collections import defaultdict
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -50,15 +50,33 @@ def vehicle_for(vclass: str) -> str:
 
 @dataclass(frozen=True)
 class PlannedTrip:
-    """A trip cut to the world: line, station names, first departure and last arrival [s], block, source id."""
+    """A trip cut to the world: line, station names with their arrival and departure [s], block, source id."""
 
     line: str
     stations: tuple[str, ...]
-    departure_s: float
-    arrival_s: float
-    dwell_s: tuple[float, ...]
+    arrivals_s: tuple[float, ...]
+    departures_s: tuple[float, ...]
     block: str
     source_id: str
+
+    @property
+    def departure_s(self) -> float:
+        return self.departures_s[0]
+
+    @property
+    def arrival_s(self) -> float:
+        return self.arrivals_s[-1]
+
+    @property
+    def dwell_s(self) -> tuple[float, ...]:
+        return tuple(max(0.0, d - a) for a, d in zip(self.arrivals_s[1:-1], self.departures_s[1:-1]))
+
+    def cut(self, first: int, last: int) -> PlannedTrip:
+        """The part from station ``first`` to station ``last`` (inclusive)."""
+        sl = slice(first, last + 1)
+        return PlannedTrip(
+            self.line, self.stations[sl], self.arrivals_s[sl], self.departures_s[sl], self.block, self.source_id
+        )
 
 
 @dataclass
@@ -104,11 +122,59 @@ def plan_trips(trips: Sequence[Trip], matches: Mapping[str, Match], station_clas
         if len(seq) < 2:
             short += 1
             continue
-        dwell = tuple(max(0.0, d - a) for _, a, d in seq[1:-1])
         out.append(
-            PlannedTrip(trip.route_name, tuple(s for s, _, _ in seq), seq[0][2], seq[-1][1], dwell, trip.block_id, trip.trip_id)
+            PlannedTrip(
+                trip.route_name,
+                tuple(x[0] for x in seq),
+                tuple(x[1] for x in seq),
+                tuple(x[2] for x in seq),
+                trip.block_id,
+                trip.trip_id,
+            )
         )
     return out, short
+
+
+def longest_routable(stations: Sequence[str], routable: Callable[[Sequence[str]], bool]) -> tuple[int, int]:
+    """``(first, last)`` indices of the longest run of consecutive ``stations`` the world has a route through
+    (``routable(chain)``: a route from the first through every station to the last, no reversal). A feed's
+    line may leave the extract and come back, or run over track the OSM data does not connect: the trip is
+    cut to its longest part the world can drive rather than refused."""
+    best = (0, 0)
+    i = 0
+    n = len(stations)
+    while i < n - 1:
+        j = i + 1
+        while j < n and routable(stations[i : j + 1]):
+            j += 1
+        if j - 1 - i > best[1] - best[0]:
+            best = (i, j - 1)
+        i = j - 1 if j - 1 > i else i + 1
+    return best
+
+
+def cut_to_routable(
+    planned: Sequence[PlannedTrip], routable: Callable[[Sequence[str]], bool]
+) -> tuple[list[PlannedTrip], list[str]]:
+    """Every trip cut to :func:`longest_routable` of its station sequence (computed once per sequence);
+    trips left with fewer than two stations are dropped. Returns the trips and one note per cut sequence."""
+    cuts: dict[tuple[str, ...], tuple[int, int]] = {}
+    notes: list[str] = []
+    out: list[PlannedTrip] = []
+    for p in planned:
+        if p.stations not in cuts:
+            first, last = longest_routable(p.stations, routable)
+            cuts[p.stations] = (first, last)
+            if (first, last) != (0, len(p.stations) - 1):
+                kept = f"{p.stations[first]}-{p.stations[last]}" if last > first else "nothing"
+                notes.append(
+                    f"line {p.line} {p.stations[0]}-{p.stations[-1]}: the world has no route through all its "
+                    f"{len(p.stations)} stations; kept {kept} ({last - first + 1 if last > first else 0} stations)"
+                )
+        first, last = cuts[p.stations]
+        if last > first:
+            out.append(p.cut(first, last))
+    return out, notes
 
 
 def build_scenario(
@@ -122,6 +188,7 @@ def build_scenario(
     turnback_min_s: float = DEFAULT_TURNBACK_MIN_S,
     rotations: str = "explicit",
     seed: int = 1,
+    can_turn: Callable[[Sequence[str], Sequence[str]], bool] | None = None,
 ) -> Built:
     """The scenario dict for ``planned`` trips (module docstring)."""
     groups: dict[tuple[str, tuple[str, ...]], list[PlannedTrip]] = defaultdict(list)
@@ -160,7 +227,9 @@ def build_scenario(
         services.append(service)
         width = max(3, len(str(len(unique) - 1)))
         for k, p in enumerate(unique):
-            legs.append(Leg(f"{sid}.{k:0{width}d}", line, p.block, stations[0], stations[-1], p.departure_s, p.arrival_s))
+            legs.append(
+                Leg(f"{sid}.{k:0{width}d}", line, p.block, stations[0], stations[-1], p.departure_s, p.arrival_s, stations)
+            )
     built.services = len(services)
     built.trips = len(legs)
     end_s = max((p.arrival_s for p in planned), default=start_s) + END_MARGIN_S
@@ -186,7 +255,7 @@ def build_scenario(
     if rotations == "auto":
         scenario["rotations"] = {"units": "auto", "turnback_min_s": turnback_min_s}
     elif rotations == "explicit" and legs:
-        rot = build_units(legs, turnback_min_s=turnback_min_s)
+        rot = build_units(legs, turnback_min_s=turnback_min_s, can_turn=can_turn)
         scenario["rotations"] = {"units": rot.units, "turnback_min_s": turnback_min_s}
         built.units = len(rot.units)
         built.units_from_blocks = rot.from_blocks
@@ -217,6 +286,7 @@ def trips_from_lines(
                 continue
             t = start_s + (0.5 * headway_s if k % 2 else 0.0)
             while t < end_s - 1e-9:
-                out.append(PlannedTrip(str(line["ref"]), tuple(names), t, t, (), "", f"{line['ref']}/{k}"))
+                times = tuple(t for _ in names)  # running times unknown: railsim drives the trip
+                out.append(PlannedTrip(str(line["ref"]), tuple(names), times, times, "", f"{line['ref']}/{k}"))
                 t += headway_s
     return out

@@ -22,7 +22,7 @@ connect). Units are named ``<line>_u01``...; the result is ``{unit: [trip key, .
 from __future__ import annotations
 
 from collections import defaultdict
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 
 DEFAULT_TURNBACK_MIN_S = 180.0
@@ -40,6 +40,7 @@ class Leg:
     destination: str
     departure_s: float
     arrival_s: float
+    stations: tuple[str, ...] = ()  # the whole station sequence (for the world's turnaround check)
 
 
 @dataclass
@@ -58,8 +59,12 @@ def build_units(
     legs: Sequence[Leg],
     turnback_min_s: float = DEFAULT_TURNBACK_MIN_S,
     max_layover_s: float = DEFAULT_MAX_LAYOVER_S,
+    can_turn: Callable[[Sequence[str], Sequence[str]], bool] | None = None,
 ) -> Rotations:
-    """Units from explicit blocks, then built for the rest (module docstring)."""
+    """Units from explicit blocks, then built for the rest (module docstring). ``can_turn(arriving stations,
+    departing stations)`` says whether the world lets a unit reverse from one trip into the next (default:
+    everywhere); where it does not, the next trip needs another unit."""
+    turns = can_turn or (lambda a, b: True)
     units: dict[str, list[str]] = {}
     counters: dict[str, int] = defaultdict(int)
 
@@ -80,17 +85,19 @@ def build_units(
         result.from_blocks += 1
         for prev, nxt in zip([None, *chain], chain):
             if prev is not None and (
-                prev.destination != nxt.origin or nxt.departure_s < prev.arrival_s + turnback_min_s
+                prev.destination != nxt.origin
+                or nxt.departure_s < prev.arrival_s + turnback_min_s
+                or not turns(prev.stations, nxt.stations)
             ):
                 uid = new_unit(nxt.line)
                 result.block_splits += 1
             units[uid].append(nxt.key)
     # built rotations: per (line, station) the units standing there, as (ready time, unit)
-    standing: dict[tuple[str, str], list[tuple[float, str]]] = defaultdict(list)
+    standing: dict[tuple[str, str], list[tuple[float, str, tuple[str, ...]]]] = defaultdict(list)
     for leg in sorted(loose, key=lambda x: (x.departure_s, x.key)):
         here = standing[(leg.line, leg.origin)]
-        here[:] = [(t, u) for t, u in here if leg.departure_s - t <= max_layover_s + turnback_min_s]
-        ready = [(t, u) for t, u in here if t <= leg.departure_s]
+        here[:] = [x for x in here if leg.departure_s - x[0] <= max_layover_s + turnback_min_s]
+        ready = [x for x in here if x[0] <= leg.departure_s and turns(x[2], leg.stations)]
         if ready:
             chosen = max(ready)
             here.remove(chosen)
@@ -98,5 +105,5 @@ def build_units(
         else:
             uid = new_unit(leg.line)
         units[uid].append(leg.key)
-        standing[(leg.line, leg.destination)].append((leg.arrival_s + turnback_min_s, uid))
+        standing[(leg.line, leg.destination)].append((leg.arrival_s + turnback_min_s, uid, leg.stations))
     return result
