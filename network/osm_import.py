@@ -417,15 +417,13 @@ def _split(
         if vc is None:
             off_rail += 1
             continue
-        stops[elem.get("id", "")] = _Stop(elem, vc, elem.get("name") or elem.get("id", ""))
+        stops[elem.get("id", "")] = _Stop(elem, vc, elem.get("name") or elem.get("id") or "")
     if off_rail:
         summary.dropped.append(f"{off_rail} stops on lanes of no rail class (bus stops on streets)")
     all_lines = _read_lines(work / f"{name}.ptlines.xml")
     road = Counter(ln["vclass"] for ln in all_lines if ln["vclass"] not in RAIL_CLASSES)
     if road:
-        summary.dropped.append(
-            "lines of road classes: " + ", ".join(f"{n} {vc}" for vc, n in sorted(road.items()))
-        )
+        summary.dropped.append("lines of road classes: " + ", ".join(f"{n} {vc}" for vc, n in sorted(road.items())))
     rail_lines = [ln for ln in all_lines if ln["vclass"] in RAIL_CLASSES]
     if lines_wanted:
         wanted = {w.strip() for w in lines_wanted}
@@ -492,8 +490,8 @@ def _split(
         summary.line_refs.setdefault(doc["class"], []).append(doc["ref"])
     summary.lines = {vc: len(refs) for vc, refs in summary.line_refs.items()}
     summary.track_km, summary.switches, summary.bidi_share = _track_stats(net)
-    for ln in warnings:
-        m = _WARN_SUMMARY.match(ln)
+    for warning in warnings:
+        m = _WARN_SUMMARY.match(warning)
         if m:
             summary.dropped.append(f"netconvert: {m.group(1)} x {m.group(2)}")
     summary.files.update(

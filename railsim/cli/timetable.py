@@ -41,7 +41,13 @@ def cmd_import(args: argparse.Namespace) -> int:
         if args.headway_s is None:
             raise ConfigError("<command line>", "--headway-s", "expected a headway in seconds with --from-lines")
         report = timetable_from_lines(
-            args.world, from_s, to_s, args.headway_s, args.out, vclass=args.vclass, lines=_list(args.lines),
+            args.world,
+            from_s,
+            to_s,
+            args.headway_s,
+            args.out,
+            vclass=args.vclass,
+            lines=_list(args.lines),
             turnback_min_s=args.turnback_min_s,
         )
     else:
@@ -54,8 +60,17 @@ def cmd_import(args: argparse.Namespace) -> int:
         except ValueError:
             raise ConfigError("<command line>", "--date", f"expected a date YYYY-MM-DD, got {args.date!r}") from None
         report = import_timetable(
-            args.feed, args.world, day, from_s, to_s, args.out, routes=_list(args.routes), vclass=args.vclass,
-            turnback_min_s=args.turnback_min_s, rotations=args.rotations, radius_m=args.radius_m,
+            args.feed,
+            args.world,
+            day,
+            from_s,
+            to_s,
+            args.out,
+            routes=_list(args.routes),
+            vclass=args.vclass,
+            turnback_min_s=args.turnback_min_s,
+            rotations=args.rotations,
+            radius_m=args.radius_m,
         )
     print(report.text())
     return 0
@@ -71,11 +86,17 @@ def add_commands(subparsers: Any) -> None:
     i.add_argument("--from", dest="from_time", required=True, metavar="HH:MM", help="first departure of the window")
     i.add_argument("--to", dest="to_time", required=True, metavar="HH:MM", help="end of the window (exclusive)")
     i.add_argument("--out", required=True, metavar="SCENARIO.yaml", help="scenario file to write")
-    i.add_argument("--routes", metavar="R1,R2", help="GTFS route ids or short names to keep (default: every rail route)")
+    i.add_argument(
+        "--routes", metavar="R1,R2", help="GTFS route ids or short names to keep (default: every rail route)"
+    )
     i.add_argument("--vclass", default=None, help="rail class of the scenario (default: the one most trips match)")
     i.add_argument("--turnback-min-s", type=float, default=180.0, help="minimum turnback between two trips [s]")
-    i.add_argument("--rotations", choices=("explicit", "auto"), default="explicit",
-                   help="explicit units (block_id, else built) or auto (railsim chains at run time)")
+    i.add_argument(
+        "--rotations",
+        choices=("explicit", "auto"),
+        default="explicit",
+        help="explicit units (block_id, else built) or auto (railsim chains at run time)",
+    )
     i.add_argument("--radius-m", type=float, default=300.0, help="position match radius [m]")
     i.add_argument("--from-lines", action="store_true", help="services from the world's imported OSM lines")
     i.add_argument("--headway-s", type=float, default=None, help="headway of --from-lines services [s]")

@@ -14,7 +14,7 @@ writes: ``*.net.xml``, ``*.stops.<class>.add.xml``, ``*.stations.yaml`` (and ``*
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import date as Date
 from pathlib import Path
@@ -31,7 +31,12 @@ from railsim.timetable.rotations import DEFAULT_TURNBACK_MIN_S
 __all__ = ["ImportReport", "World", "import_timetable", "load_world", "timetable_from_lines"]
 
 # GTFS route types -> the rail classes their trains may run on (first = preferred)
-_TYPE_CLASSES = {0: ("tram",), 1: ("subway", "rail_urban"), 2: ("rail", "rail_urban", "rail_electric", "rail_fast"), 12: ("rail_urban",)}
+_TYPE_CLASSES = {
+    0: ("tram",),
+    1: ("subway", "rail_urban"),
+    2: ("rail", "rail_urban", "rail_electric", "rail_fast"),
+    12: ("rail_urban",),
+}
 
 
 def classes_of_route_type(route_type: int) -> tuple[str, ...]:
@@ -101,12 +106,19 @@ class ImportReport:
                 f"  rotations: {b.units} units ({b.units_from_blocks} from block_id, {b.block_splits} block splits; "
                 "the rest built: same line, fewest units, shortest turnback)"
             )
+            if b.units == b.trips:
+                head.append(
+                    "  (no unit could turn anywhere: the lines' ends lie outside the extract or their termini have no "
+                    "turnaround, so every trip is its own unit, entering and leaving the world)"
+                )
         elif "rotations" in b.scenario:
             head.append("  rotations: auto (railsim chains units at run time)")
         if b.dropped_short:
             head.append(f"  dropped: {b.dropped_short} trips with fewer than 2 stations in the world")
         if b.dropped_duplicate:
-            head.append(f"  dropped: {b.dropped_duplicate} trips leaving at the same second as another of their service")
+            head.append(
+                f"  dropped: {b.dropped_duplicate} trips leaving at the same second as another of their service"
+            )
         return "\n".join(head + [f"  {ln}" for ln in self.lines])
 
 
@@ -119,7 +131,11 @@ def _write(out: Path, built: Built, header: Sequence[str]) -> None:
 def _choose_class(world: World, requested: str | None, counts: dict[str, int]) -> str:
     if requested is not None:
         if requested not in world.stops:
-            raise ConfigError("<command line>", "--vclass", f"expected one of the world's classes {sorted(world.stops)}, got {requested!r}")
+            raise ConfigError(
+                "<command line>",
+                "--vclass",
+                f"expected one of the world's classes {sorted(world.stops)}, got {requested!r}",
+            )
         return requested
     if not counts or max(counts.values()) == 0:
         raise ConfigError(
@@ -162,9 +178,11 @@ def import_timetable(
     chosen = _choose_class(world, vclass, counts)
     matches = per_class[chosen]
     compatible = [t for t in data.trips if chosen in classes_of_route_type(t.route_type)]
-    planned, short = plan_trips(compatible, matches, {s.name: chosen for s in world.stations if s.vclass == chosen}, chosen)
-    routes = _Routes(world, chosen)
-    planned, cut_notes = cut_to_routable(planned, routes.routable)
+    planned, short = plan_trips(
+        compatible, matches, {s.name: chosen for s in world.stations if s.vclass == chosen}, chosen
+    )
+    world_routes = _Routes(world, chosen)
+    planned, cut_notes = cut_to_routable(planned, world_routes.routable)
     out_path = Path(out)
     built = build_scenario(
         planned,
@@ -175,7 +193,7 @@ def import_timetable(
         start_s=from_s,
         turnback_min_s=turnback_min_s,
         rotations=rotations,
-        can_turn=routes.can_turn,
+        can_turn=world_routes.can_turn,
     )
     built.dropped_short = short
     relevant = {c.stop_id for t in compatible for c in t.calls}
@@ -188,7 +206,10 @@ def import_timetable(
     ]
     others = {vc: n for vc, n in counts.items() if vc != chosen and n}
     if others:
-        lines.append("other classes with trips (import them with --vclass): " + ", ".join(f"{vc} {n}" for vc, n in others.items()))
+        lines.append(
+            "other classes with trips (import them with --vclass): "
+            + ", ".join(f"{vc} {n}" for vc, n in others.items())
+        )
     _write(
         out_path,
         built,
@@ -222,7 +243,11 @@ def timetable_from_lines(
     chosen_lines = [ln for ln in world.lines if not lines or str(ln.get("ref")) in set(lines)]
     counts = {vc: len(trips_from_lines(chosen_lines, vc, from_s, to_s, headway_s)) for vc in world.stops}
     if not world.lines:
-        raise ConfigError(world.folder, None, "expected imported lines (*.lines.yaml with lines): the OSM extract had no route relations")
+        raise ConfigError(
+            world.folder,
+            None,
+            "expected imported lines (*.lines.yaml with lines): the OSM extract had no route relations",
+        )
     chosen = _choose_class(world, vclass, counts)
     planned, cut_notes = cut_to_routable(
         trips_from_lines(chosen_lines, chosen, from_s, to_s, headway_s), _Routes(world, chosen).routable

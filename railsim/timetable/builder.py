@@ -105,7 +105,9 @@ def _clock(t_s: float) -> str:
     return f"{t // 3600:02d}:{t % 3600 // 60:02d}:{t % 60:02d}"
 
 
-def plan_trips(trips: Sequence[Trip], matches: Mapping[str, Match], station_class: Mapping[str, str], vclass: str) -> tuple[list[PlannedTrip], int]:
+def plan_trips(
+    trips: Sequence[Trip], matches: Mapping[str, Match], station_class: Mapping[str, str], vclass: str
+) -> tuple[list[PlannedTrip], int]:
     """Trips cut to the world stations of ``vclass`` (module docstring); and how many had fewer than 2."""
     out: list[PlannedTrip] = []
     short = 0
@@ -199,7 +201,9 @@ def build_scenario(
     legs: list[Leg] = []
     used_ids: set[str] = set()
     vehicle = vehicle_for(vclass)
-    for (line, stations), members in sorted(groups.items(), key=lambda kv: (kv[0][0], min(p.departure_s for p in kv[1]))):
+    for (line, stations), members in sorted(
+        groups.items(), key=lambda kv: (kv[0][0], min(p.departure_s for p in kv[1]))
+    ):
         members.sort(key=lambda p: (p.departure_s, p.source_id))
         unique: list[PlannedTrip] = []
         for p in members:
@@ -228,7 +232,16 @@ def build_scenario(
         width = max(3, len(str(len(unique) - 1)))
         for k, p in enumerate(unique):
             legs.append(
-                Leg(f"{sid}.{k:0{width}d}", line, p.block, stations[0], stations[-1], p.departure_s, p.arrival_s, stations)
+                Leg(
+                    f"{sid}.{k:0{width}d}",
+                    line,
+                    p.block,
+                    stations[0],
+                    stations[-1],
+                    p.departure_s,
+                    p.arrival_s,
+                    stations,
+                )
             )
     built.services = len(services)
     built.trips = len(legs)

@@ -114,7 +114,9 @@ def _open(feed: Path) -> None:
         with zipfile.ZipFile(feed) as zf:
             names = {Path(n).name for n in zf.namelist()}
     except zipfile.BadZipFile:
-        raise ConfigError(feed, None, "expected a GTFS feed (a .zip of .txt tables), got a file that is not a zip") from None
+        raise ConfigError(
+            feed, None, "expected a GTFS feed (a .zip of .txt tables), got a file that is not a zip"
+        ) from None
     missing = [t for t in REQUIRED_TABLES if t not in names]
     if missing:
         raise ConfigError(feed, missing[0], f"expected the GTFS table {missing[0]} in the feed, got {sorted(names)}")
@@ -162,19 +164,27 @@ def read_trips(
                 raise ConfigError(path, f"{table}.{col}", "expected this column, got a table without it")
     rail: dict[str, tuple[str, int]] = {}
     for row in route_df.itertuples(index=False):
-        rtype = int(_num(getattr(row, "route_type"), -1))
+        rtype = int(_num(row.route_type, -1))
         if rtype not in RAIL_ROUTE_TYPES:
             continue
         short = str(getattr(row, "route_short_name", "") or "").strip()
-        name = short if short and short != "nan" else str(getattr(row, "route_id"))
-        rail[str(getattr(row, "route_id"))] = (name, rtype)
+        name = short if short and short != "nan" else str(row.route_id)
+        rail[str(row.route_id)] = (name, rtype)
     if not rail:
-        raise ConfigError(path, "routes.txt.route_type", "expected at least one rail route (types 0, 1, 2, 12, 100-199, 400-499, 900-999), got none")
+        raise ConfigError(
+            path,
+            "routes.txt.route_type",
+            "expected at least one rail route (types 0, 1, 2, 12, 100-199, 400-499, 900-999), got none",
+        )
     if routes:
         wanted = {r.strip() for r in routes}
         rail = {rid: v for rid, v in rail.items() if rid in wanted or v[0] in wanted}
         if not rail:
-            raise ConfigError("<command line>", "--routes", f"expected rail route ids or short names of the feed, got {sorted(wanted)}")
+            raise ConfigError(
+                "<command line>",
+                "--routes",
+                f"expected rail route ids or short names of the feed, got {sorted(wanted)}",
+            )
     trip_df = trip_df[trip_df["route_id"].astype(str).isin(rail)]
     st_df = st_df[st_df["trip_id"].isin(set(trip_df["trip_id"]))].sort_values(["trip_id", "stop_sequence"])
     calls: dict[str, list[StopTime]] = {}
@@ -194,7 +204,11 @@ def read_trips(
         for row in freq_df.itertuples(index=False):
             start, end, headway = (_num(getattr(row, c)) for c in ("start_time", "end_time", "headway_secs"))
             if not (headway > 0 and end > start):
-                raise ConfigError(path, "frequencies.txt", f"expected start_time < end_time and headway_secs > 0 for trip {row.trip_id}")
+                raise ConfigError(
+                    path,
+                    "frequencies.txt",
+                    f"expected start_time < end_time and headway_secs > 0 for trip {row.trip_id}",
+                )
             templates.setdefault(str(row.trip_id), []).append((start, end, headway))
     result = Feed(trips=[], stops={}, rail_routes=len(rail))
     for row in trip_df.itertuples(index=False):
@@ -234,7 +248,9 @@ def read_trips(
         if sid not in used:
             continue
         name = parent_names.get(sid) or str(getattr(row, "stop_name", "") or sid)
-        result.stops[sid] = GtfsStop(sid, name, _num(getattr(row, "stop_lon", None)), _num(getattr(row, "stop_lat", None)))
+        result.stops[sid] = GtfsStop(
+            sid, name, _num(getattr(row, "stop_lon", None)), _num(getattr(row, "stop_lat", None))
+        )
     return result
 
 

@@ -34,7 +34,22 @@ DEFAULT_RADIUS_M = 300.0
 DEFAULT_DOUBT_M = 500.0
 SIMILAR_RATIO = 0.6
 _STOPWORDS = frozenset(
-    {"station", "stn", "estacao", "metro", "metrô", "cptm", "tram", "bahnhof", "bf", "hbf", "gare", "stazione", "u", "s"}
+    {
+        "station",
+        "stn",
+        "estacao",
+        "metro",
+        "metrô",
+        "cptm",
+        "tram",
+        "bahnhof",
+        "bf",
+        "hbf",
+        "gare",
+        "stazione",
+        "u",
+        "s",
+    }
 )
 
 

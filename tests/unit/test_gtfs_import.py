@@ -86,7 +86,10 @@ def _write_feed(path: Path, trips: list[tuple[str, str, str]], times: dict[str, 
     """A small GTFS feed: trips (trip_id, route_id, block_id) with stop times [(stop_id, HH:MM:SS)]."""
     with zipfile.ZipFile(path, "w") as zf:
         zf.writestr("agency.txt", "agency_id,agency_name,agency_url,agency_timezone\na,A,http://a,UTC\n")
-        zf.writestr("calendar.txt", "service_id,monday,tuesday,wednesday,thursday,friday,saturday,sunday,start_date,end_date\nwk,1,1,1,1,1,1,1,20190101,20191231\n")
+        zf.writestr(
+            "calendar.txt",
+            "service_id,monday,tuesday,wednesday,thursday,friday,saturday,sunday,start_date,end_date\nwk,1,1,1,1,1,1,1,20190101,20191231\n",
+        )
         zf.writestr("routes.txt", "route_id,route_short_name,route_type\nM,M,1\nB,B,3\n")
         zf.writestr("stops.txt", "stop_id,stop_name,stop_lat,stop_lon\nA,Alpha,0.0,0.0\nZ,Zulu,0.0,0.01\n")
         zf.writestr(
@@ -123,7 +126,12 @@ def test_built_rotations_use_the_fewest_units_and_respect_the_turnback() -> None
     def leg(key: str, o: str, d: str, dep_min: float, arr_min: float, line: str = "L") -> Leg:
         return Leg(key, line, "", o, d, 60 * dep_min, 60 * arr_min)
 
-    shuttle = [leg("a", "X", "Y", 0, 10), leg("b", "Y", "X", 14, 24), leg("c", "X", "Y", 28, 38), leg("d", "Y", "X", 42, 50)]
+    shuttle = [
+        leg("a", "X", "Y", 0, 10),
+        leg("b", "Y", "X", 14, 24),
+        leg("c", "X", "Y", 28, 38),
+        leg("d", "Y", "X", 42, 50),
+    ]
     assert build_units(shuttle, turnback_min_s=180).units == {"l_u01": ["a", "b", "c", "d"]}
     # a 5 min minimum turnback: b leaves 4 min after a arrives and c 4 min after b: new units; d (32 min after
     # a arrived at Y) is run by a's unit
