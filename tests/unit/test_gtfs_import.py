@@ -205,3 +205,25 @@ def test_utm_inverse_on_reference_points() -> None:
     a = utm_to_lonlat(325680.33, -2610376.88, 23, south=False)
     b = utm_to_lonlat(325680.33, 10000000.0 - 2610376.88, 23, south=True)
     assert distance_m(*a, *b) < 0.01 and distance_m(*a, -46.708093, -23.595422) < 200.0
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--date", "2019-10-01"], "FEED: expected a GTFS feed (.zip), or --from-lines --headway-s H"),
+        ([str(FEED), "--date", "1 Oct"], "--date: expected a date YYYY-MM-DD, got '1 Oct'"),
+        ([str(FEED)], "--date: expected the service date YYYY-MM-DD"),
+        (["--from-lines"], "--headway-s: expected a headway in seconds with --from-lines"),
+        ([str(FEED), "--from-lines", "--headway-s", "300"], "--from-lines: expected either a FEED or --from-lines"),
+        ([str(FEED), "--date", "2019-10-01", "--world", "/nonexistent"], "expected a world folder"),
+    ],
+)
+def test_timetable_command_line_errors_are_one_line_exit_2(
+    args: list[str], message: str, capsys: pytest.CaptureFixture[str]
+) -> None:
+    from railsim.cli.main import main
+
+    world = [] if "--world" in args else ["--world", "/nonexistent"]
+    code = main(["timetable", "import", *args, *world, "--from", "07:00", "--to", "08:00", "--out", "/tmp/x.yaml"])
+    err = capsys.readouterr().err
+    assert code == 2 and err.count("\n") == 1 and message in err, err
