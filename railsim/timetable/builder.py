@@ -18,7 +18,7 @@ of departure times; railsim drives the train and works out the running times its
 * **One rail class per scenario**: the world's stops file of that class is the scenario's additional file and
   its ``vclass``; trips whose stations are of another class are left to a scenario of their own.
 * The **vehicle** per class: ``cq3_6car`` (89.4 m metro unit) for metro and rail classes; for ``tram`` the same
-  preset cut to 30 m, 70 km/h. Edit ``vehicles:`` to taste.
+  preset cut to 27 m (a 30 m stop leaves it 3 m to stop in), 70 km/h. Edit ``vehicles:`` to taste.
 
 The output is plain YAML with a comment header saying where it came from; nothing in it is special to imports.
 """
@@ -40,7 +40,7 @@ MIN_DWELL_S = 20.0
 END_MARGIN_S = 1800.0  # simulated time after the last departure's planned arrival (late trains still arrive)
 VEHICLES: dict[str, dict[str, Any]] = {
     "metro": {"preset": "cq3_6car"},
-    "tram": {"preset": "cq3_6car", "length_m": 30.0, "max_speed_kmh": 70.0},
+    "tram": {"preset": "cq3_6car", "length_m": 27.0, "max_speed_kmh": 70.0},
 }
 
 

@@ -133,7 +133,7 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
     )
     assert "on tram" in out and "rotations: auto" in out
     doc = yaml.safe_load(scenario.read_text(encoding="utf-8"))
-    assert doc["world"]["vclass"] == "tram" and doc["vehicles"]["tram"]["length_m"] == 30.0
+    assert doc["world"]["vclass"] == "tram" and doc["vehicles"]["tram"]["length_m"] == 27.0
     assert len(doc["services"]) == 2  # line 4, both directions
     _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
