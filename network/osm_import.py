@@ -88,7 +88,7 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "5"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "6"  # bump when the options or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 _OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
 TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
@@ -303,6 +303,8 @@ def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
         centre = positionAtShapeOffset(lane.getShape(), 0.5 * (start + end))
         h = heading(lane.getShape(), 0.5 * (start + end))
         own = lane.getEdge()
+        want = _min_stop_m(st.vclass)
+        candidates: list[tuple[bool, float, Any, float]] = []  # (too short, distance, lane, offset)
         for e in edges_by_class[st.vclass]:
             if e is own or e is own.getBidi() or e.getID() in station_edges[(st.vclass, st.name)]:
                 continue
@@ -315,18 +317,50 @@ def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
             turn = abs((heading(other.getShape(), offset) - h + math.pi) % (2 * math.pi) - math.pi)
             if turn < math.radians(135):
                 continue
-            length = min(end - start, other.getLength())
-            a = min(max(offset - 0.5 * length, 0.0), other.getLength() - length)
-            elem = ET.Element(st.elem.tag, dict(st.elem.attrib))
-            elem.set("id", f"{sid}_twin")
-            elem.set("lane", other.getID())
-            elem.set("startPos", f"{a:.2f}")
-            elem.set("endPos", f"{a + length:.2f}")
-            added[f"{sid}_twin"] = _Stop(elem, st.vclass, st.name)
-            station_edges[(st.vclass, st.name)].add(e.getID())
-            break
+            candidates.append((other.getLength() < want, dist, other, offset))
+        if not candidates:
+            continue
+        _short, _dist, other, offset = min(candidates, key=lambda c: (c[0], c[1]))  # a lane a platform fits on first
+        length = min(max(end - start, want), other.getLength())
+        a = min(max(offset - 0.5 * length, 0.0), other.getLength() - length)
+        elem = ET.Element(st.elem.tag, dict(st.elem.attrib))
+        elem.set("id", f"{sid}_twin")
+        elem.set("lane", other.getID())
+        elem.set("startPos", f"{a:.2f}")
+        elem.set("endPos", f"{a + length:.2f}")
+        added[f"{sid}_twin"] = _Stop(elem, st.vclass, st.name)
+        station_edges[(st.vclass, st.name)].add(other.getEdge().getID())
     stops.update(added)
     return len(added)
+
+
+def _min_stop_m(vclass: str) -> float:
+    return MIN_STOP_M["tram" if vclass == "tram" else "other"]
+
+
+def _move_off_short_edges(net: Any, stops: dict[str, _Stop]) -> int:
+    """A stop on an edge shorter than a platform (:data:`MIN_STOP_M`; OSM stop positions often sit on a stub
+    between two junctions) cannot hold a train: when its edge has one incoming edge of the class (not its own
+    bidi partner) long enough, the stop moves to the end of that edge — the train halts a few metres earlier
+    than the OSM node. Returns how many moved."""
+    moved = 0
+    for st in stops.values():
+        lane = net.getLane(st.elem.get("lane", ""))
+        want = _min_stop_m(st.vclass)
+        if lane.getLength() >= want:
+            continue
+        edge = lane.getEdge()
+        before = [e for e in edge.getIncoming() if e is not edge.getBidi()]
+        if len(before) != 1:
+            continue
+        prev = next((ln for ln in before[0].getLanes() if _lane_class(set(ln.getPermissions())) == st.vclass), None)
+        if prev is None or prev.getLength() < want:
+            continue
+        st.elem.set("lane", prev.getID())
+        st.elem.set("startPos", f"{prev.getLength() - want:.2f}")
+        st.elem.set("endPos", f"{prev.getLength():.2f}")
+        moved += 1
+    return moved
 
 
 def _lane_class(permissions: set[str]) -> str | None:
@@ -456,6 +490,11 @@ def _split(
     if twins:
         summary.dropped.append(
             f"{twins} platforms added on the opposite track of stations OSM maps with a stop on one track only"
+        )
+    moved = _move_off_short_edges(net, stops)
+    if moved:
+        summary.dropped.append(
+            f"{moved} stops on edges shorter than a platform moved back to the end of the single edge before them"
         )
     by_class: dict[str, list[_Stop]] = defaultdict(list)
     lengthened = 0
