@@ -88,10 +88,11 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "6"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "7"  # bump when the options or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 _OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
 TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
+END_CLEARANCE_M = 3.0  # a moved stop ends this far before the end of its edge
 MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
 _WARN_SUMMARY = re.compile(r"^Warning: (\d+) total messages of type: (.*)$")
 
@@ -356,9 +357,10 @@ def _move_off_short_edges(net: Any, stops: dict[str, _Stop]) -> int:
         prev = next((ln for ln in before[0].getLanes() if _lane_class(set(ln.getPermissions())) == st.vclass), None)
         if prev is None or prev.getLength() < want:
             continue
+        end = max(want, prev.getLength() - END_CLEARANCE_M)  # the halt mark a little short of the junction
         st.elem.set("lane", prev.getID())
-        st.elem.set("startPos", f"{prev.getLength() - want:.2f}")
-        st.elem.set("endPos", f"{prev.getLength():.2f}")
+        st.elem.set("startPos", f"{end - want:.2f}")
+        st.elem.set("endPos", f"{end:.2f}")
         moved += 1
     return moved
 
