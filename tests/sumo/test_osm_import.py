@@ -140,3 +140,35 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
     assert summary["n_arrived"] == summary["n_trains"] == 2
     assert summary["n_stops_served"] == summary["n_stops_scheduled"]
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
+
+
+def test_bbox_and_lines_keep_a_study_small(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    full = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "full")], cache_dir=cache))
+    small = _ok(
+        run_railsim(
+            [
+                "network",
+                "import",
+                str(HELSINKI),
+                "--out",
+                str(tmp_path / "box"),
+                "--bbox",
+                "24.935,60.164,24.945,60.172",
+            ],
+            cache_dir=cache,
+        )
+    )
+
+    def km(text: str) -> float:
+        return float(text.split("  track ")[1].split(" km")[0])
+
+    assert 0 < km(small) < 0.8 * km(full)
+    two = _ok(
+        run_railsim(
+            ["network", "import", str(HELSINKI), "--out", str(tmp_path / "l"), "--lines", "4,6T"], cache_dir=cache
+        )
+    )
+    assert "tram: 2 lines (4, 6T)" in two
+    lines = yaml.safe_load((tmp_path / "l" / "helsinki_centre_rail.lines.yaml").read_text(encoding="utf-8"))["lines"]
+    assert sorted(ln["ref"] for ln in lines) == ["4", "6T"]
