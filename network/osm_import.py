@@ -20,10 +20,10 @@ RailwayScenario.md``, is where most come from; where we depart from it, the reas
     on a line's way), and add as few ``bidi`` edges as it can. The tutorial's ``--railway.topology.all-bidi``
     (and the plain ``repair``) make *both* tracks of a double-track line ``bidi`` far more often; railsim then
     has to work out which track each direction should use. Minimal repair keeps OSM's own one-way tracks.
-    An extract **without route relations** (no rail line comes out) gives minimal repair nothing to follow:
-    netconvert runs a second time with the full ``--railway.topology.repair``, which joins tracks that meet
-    without a connection (São Paulo's metro line 1 at Paraíso: no path south of it without it) at the price of
-    more ``bidi`` edges.
+    An extract **without route relations** gives minimal repair nothing to follow. ``RAILSIM_OSM_REPAIR=full``
+    then runs netconvert a second time with the full ``--railway.topology.repair``, which joins more tracks
+    that meet without a connection at the price of more ``bidi`` edges (on São Paulo's extract it joined
+    nothing a timetable needed and made line 1 single track in places, so it is not the default).
 ``--railway.topology.repair.stop-turn``
     A turnaround connection at every stop: a unit can reverse at a terminus platform (railsim's turnbacks
     between trips need a connection from an edge onto its bidi partner; a dead-end terminus has none).
@@ -49,6 +49,12 @@ ptstop output mixes tram, metro and train stops, and railsim runs one class per 
 (the lines: id, ref, name, class, stop sequence with station names, in both directions when OSM has both);
 ``<name>.stations.yaml`` (each station: name, class, stop ids, lon/lat of its platforms' centre — what the
 GTFS import matches against); ``<name>.import.yaml`` (the summary below) and ``netconvert.log``.
+
+**Stops are completed** before they are written: a station OSM maps with a stop position on one track only
+gets a copy on the opposite track within :data:`TWIN_RADIUS_M` (:func:`_twin_stops`); a stop on an edge shorter
+than a platform moves to the end of the single edge before it (:func:`_move_off_short_edges`); a stop shorter
+than :data:`MIN_STOP_M` (netconvert writes some tram stops 0 m long) is widened within its lane; stops no line
+serves are dropped when the extract has lines. Each is counted in the summary.
 
 **The summary** (:class:`ImportSummary`, printed by the CLI): lines per class, stations per class, km of track
 (a ``bidi`` pair counted once), switches (nodes where a rail track diverges or merges), the bidi share of the
