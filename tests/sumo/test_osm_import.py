@@ -108,7 +108,7 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     world = tmp_path / "hel"
     _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(world)], cache_dir=cache))
-    scenario = tmp_path / "tram4.yaml"
+    scenario = tmp_path / "tram9.yaml"
     out = _ok(
         run_railsim(
             [
@@ -118,7 +118,7 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
                 "--headway-s",
                 "600",
                 "--lines",
-                "4",
+                "9",
                 "--world",
                 str(world),
                 "--from",
@@ -134,7 +134,7 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
     assert "on tram" in out and "rotations: auto" in out
     doc = yaml.safe_load(scenario.read_text(encoding="utf-8"))
     assert doc["world"]["vclass"] == "tram" and doc["vehicles"]["tram"]["length_m"] == 27.0
-    assert len(doc["services"]) == 2  # line 4, both directions
+    assert len(doc["services"]) == 2  # line 9, both directions
     _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
     assert summary["n_arrived"] == summary["n_trains"] == 2
