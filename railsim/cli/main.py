@@ -26,6 +26,7 @@ Exit codes, and nothing else: 0 ok; 1 a run finished with a collision; 2 bad inp
 errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`); 4 an internal
 error — a bug in railsim, including ``RecursionError`` and ``MemoryError``: one line naming the exception and a
 log file that holds the traceback (:func:`report_internal_error`), never a bare traceback on the terminal.
+A reader that closes the output early (``railsim ... | head``) ends the command quietly, exit 0.
 """
 
 from __future__ import annotations
@@ -107,6 +108,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("railsim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # whoever read our output stopped reading (`railsim ... | head`): not a failure
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit flush does not fail again
+        return 0
     except Exception as exc:  # noqa: BLE001 - the last guard: a bug must not print a bare traceback
         return report_internal_error(exc, argv)
 

@@ -14,6 +14,7 @@ writes: ``*.net.xml``, ``*.stops.<class>.add.xml``, ``*.stations.yaml`` (and ``*
 from __future__ import annotations
 
 import math
+import os
 from collections.abc import Sequence
 from dataclasses import dataclass, field
 from datetime import date as Date
@@ -187,8 +188,8 @@ def import_timetable(
     built = build_scenario(
         planned,
         name=out_path.stem.removesuffix(".yaml"),
-        net=world.net.resolve(),
-        stops_file=world.stops[chosen].resolve(),
+        net=_relative(world.net, out_path),
+        stops_file=_relative(world.stops[chosen], out_path),
         vclass=chosen,
         start_s=from_s,
         turnback_min_s=turnback_min_s,
@@ -256,8 +257,8 @@ def timetable_from_lines(
     built = build_scenario(
         planned,
         name=out_path.stem,
-        net=world.net.resolve(),
-        stops_file=world.stops[chosen].resolve(),
+        net=_relative(world.net, out_path),
+        stops_file=_relative(world.stops[chosen], out_path),
         vclass=chosen,
         start_s=from_s,
         turnback_min_s=turnback_min_s,
@@ -326,6 +327,15 @@ class _Routes:
             )
             self._turn[key] = any(x in ahead and y in back for x, y in self.reversals.items())
         return self._turn[key]
+
+
+def _relative(path: Path, scenario: Path) -> Path:
+    """``path`` as the scenario file will name it: relative to the scenario's folder (a scenario and its world
+    move together), absolute when they lie on different drives."""
+    try:
+        return Path(os.path.relpath(path.resolve(), scenario.resolve().parent))
+    except ValueError:
+        return path.resolve()
 
 
 def _hhmm(t_s: float) -> str:
