@@ -5,6 +5,8 @@ notebook can do the same)::
 
     railsim network build NAME|FILE --out DIR   build a world (net.xml, stops.add.xml, topology.json)   cli.network
     railsim network show NAME|FILE              readable summary of a world                              cli.network
+    railsim network import OSM --out DIR        rail world from an OpenStreetMap extract                 cli.network
+    railsim timetable import FEED --world DIR   scenario from a GTFS feed (or --from-lines)              cli.timetable
     railsim validate SCENARIO                   check a scenario file without running it                 cli.scenario
     railsim run SCENARIO --out DIR [--seed N]   run one simulation and write its outputs                 cli.run
     railsim reproduce EXPERIMENT --out DIR      re-run a paper experiment and draw its figures           cli.reproduce
@@ -24,6 +26,7 @@ Exit codes, and nothing else: 0 ok; 1 a run finished with a collision; 2 bad inp
 errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`); 4 an internal
 error — a bug in railsim, including ``RecursionError`` and ``MemoryError``: one line naming the exception and a
 log file that holds the traceback (:func:`report_internal_error`), never a bare traceback on the terminal.
+A reader that closes the output early (``railsim ... | head``) ends the command quietly, exit 0.
 """
 
 from __future__ import annotations
@@ -37,7 +40,20 @@ import traceback
 from collections.abc import Callable, Sequence
 from types import ModuleType
 
-from railsim.cli import export, headway, network, plot, report, reproduce, robustness, run, scenario, study, sweep
+from railsim.cli import (
+    export,
+    headway,
+    network,
+    plot,
+    report,
+    reproduce,
+    robustness,
+    run,
+    scenario,
+    study,
+    sweep,
+    timetable,
+)
 from railsim.errors import (
     EXIT_CONFIG_ERROR,
     EXIT_INTERNAL_ERROR,
@@ -49,6 +65,7 @@ from railsim.errors import (
 # The command groups, in help order; each module has ``add_commands(subparsers)``.
 COMMAND_GROUPS: tuple[ModuleType, ...] = (
     network,
+    timetable,
     scenario,
     run,
     reproduce,
@@ -91,6 +108,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     except KeyboardInterrupt:
         print("railsim: interrupted", file=sys.stderr)
         return 130
+    except BrokenPipeError:  # whoever read our output stopped reading (`railsim ... | head`): not a failure
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())  # so the exit flush does not fail again
+        return 0
     except Exception as exc:  # noqa: BLE001 - the last guard: a bug must not print a bare traceback
         return report_internal_error(exc, argv)
 

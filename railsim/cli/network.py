@@ -1,11 +1,15 @@
-"""``railsim network build|show``: build a world into a folder, or print a readable summary of it.
+"""``railsim network build|show|import``: build a world into a folder, print a summary of it, or import OSM.
 
     railsim network build NAME|FILE --out DIR [-p KEY=VALUE ...]
+    railsim network import OSM_FILE --out DIR [--bbox W,S,E,N] [--lines L1,L2]
     railsim network show  NAME|FILE [-p KEY=VALUE ...]
     railsim network show  FILE.net.xml [-a stops.add.xml ...] [--signals strip|keep] [--vclass CLASS]
 
 A ``.net.xml`` is an existing SUMO network read as it is (:mod:`network.external`): stations come from the
 trainStops/busStops of the ``-a`` additional files.
+
+``import`` runs netconvert on an OpenStreetMap extract with the options a rail study needs and writes the
+net, one stops file per rail class, the lines and stations as YAML (:mod:`network.osm_import`).
 
 ``-p`` sets a parameter of a shipped world (``railsim network show y_junction -p S1=600``); values are read
 as YAML scalars. ConfigError propagates to ``railsim.cli.main`` (one line, exit code 2).
@@ -120,6 +124,15 @@ def cmd_show(args: argparse.Namespace) -> int:
     return 0
 
 
+def cmd_import(args: argparse.Namespace) -> int:
+    from network.osm_import import import_osm, parse_bbox
+
+    lines = [x for x in (args.lines or "").split(",") if x.strip()] or None
+    summary = import_osm(args.osm_file, Path(args.out), bbox=parse_bbox(args.bbox), lines=lines)
+    print(summary.text())
+    return 0
+
+
 def add_commands(subparsers: Any) -> None:
     net = subparsers.add_parser("network", help="build or inspect a world (SUMO net + topology)")
     sub = net.add_subparsers(dest="network_command", metavar="ACTION", required=True)
@@ -146,3 +159,9 @@ def add_commands(subparsers: Any) -> None:
     )
     s.add_argument("--vclass", default=None, help=".net.xml only: rail vClass of railsim's trains (default: auto)")
     s.set_defaults(func=cmd_show)
+    i = sub.add_parser("import", help="import an OpenStreetMap extract: rail net, stops per class, lines, stations")
+    i.add_argument("osm_file", metavar="OSM_FILE", help="OpenStreetMap XML (.osm, .osm.xml, .osm.gz)")
+    i.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    i.add_argument("--bbox", metavar="W,S,E,N", help="keep only the track inside this lon/lat box")
+    i.add_argument("--lines", metavar="L1,L2", help="keep only these line refs (OSM route 'ref') and their stops")
+    i.set_defaults(func=cmd_import)

@@ -1,0 +1,174 @@
+"""Open data in: ``railsim network import`` on real OSM extracts, ``railsim timetable import`` on a real GTFS
+feed, and the scenarios they write run in SUMO (tests/data/osm, tests/data/gtfs: sources and licences)."""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+import sumolib
+import yaml
+
+from tests.helpers import read_summary, run_railsim
+
+DATA = Path(__file__).resolve().parents[1] / "data"
+HELSINKI = DATA / "osm" / "helsinki_centre_rail.osm.gz"
+SAO_PAULO = DATA / "osm" / "sao_paulo_centre_rail.osm.gz"
+SPTRANS = DATA / "gtfs" / "sao_paulo_rail_cut.zip"
+
+pytestmark = pytest.mark.sumo
+
+
+def _ok(res: object) -> str:
+    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
+    return str(res.stdout)  # type: ignore[attr-defined]
+
+
+def test_network_import_splits_stops_by_class_and_lists_the_lines(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    out = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "w")], cache_dir=cache))
+    assert "tram: 10 lines (1, 10, 2, 3, 4, 5, 6, 6T, 7, 9), 17 stations" in out
+    assert "switches" in out and "km" in out and "dropped:" in out
+    world = tmp_path / "w"
+    files = {p.name for p in world.iterdir()}
+    assert {"helsinki_centre_rail.net.xml", "helsinki_centre_rail.stops.tram.add.xml"} <= files
+    assert "helsinki_centre_rail.stops.subway.add.xml" in files
+    net = sumolib.net.readNet(str(world / "helsinki_centre_rail.net.xml"))
+    for stop in ET.parse(world / "helsinki_centre_rail.stops.tram.add.xml").getroot():
+        # every stop can be served: 30 m, or its whole lane if shorter (netconvert writes some tram stops 0 m long)
+        length = float(stop.get("endPos", 0)) - float(stop.get("startPos", 0))
+        lane_m = net.getLane(stop.get("lane")).getLength()
+        assert length >= min(30.0, lane_m) - 0.01 and length > 0, stop.get("id")
+    lines = yaml.safe_load((world / "helsinki_centre_rail.lines.yaml").read_text(encoding="utf-8"))["lines"]
+    six_t = next(ln for ln in lines if ln["ref"] == "6T")
+    assert six_t["class"] == "tram" and len(six_t["directions"]) == 2
+    assert six_t["directions"][0]["stations"][0] == "Fredrikinkatu"
+    stations = yaml.safe_load((world / "helsinki_centre_rail.stations.yaml").read_text(encoding="utf-8"))["stations"]
+    assert all(60.15 < s["lat"] < 60.19 and 24.92 < s["lon"] < 24.97 for s in stations)  # central Helsinki
+    again = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "w2")], cache_dir=cache))
+    assert "(cached)" in again
+
+
+def test_a_pbf_or_a_missing_line_is_a_one_line_error(tmp_path: Path) -> None:
+    pbf = tmp_path / "city.osm.pbf"
+    pbf.write_bytes(b"\x00\x00")
+    res = run_railsim(["network", "import", str(pbf), "--out", str(tmp_path / "w")], cache_dir=tmp_path / "c")
+    assert res.returncode == 2 and "osmium cat city.osm.pbf -o city.osm" in res.stderr
+    res = run_railsim(
+        ["network", "import", str(HELSINKI), "--out", str(tmp_path / "w"), "--lines", "99"], cache_dir=tmp_path / "c"
+    )
+    assert res.returncode == 2 and res.stderr.count("\n") == 1 and "--lines: no rail line ['99']" in res.stderr
+
+
+def test_gtfs_timetable_on_the_imported_city_runs_clean(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    world = tmp_path / "spo"
+    _ok(run_railsim(["network", "import", str(SAO_PAULO), "--out", str(world)], cache_dir=cache))
+    scenario = tmp_path / "l2.yaml"
+    out = _ok(
+        run_railsim(
+            [
+                "timetable",
+                "import",
+                str(SPTRANS),
+                "--world",
+                str(world),
+                "--date",
+                "2019-10-01",
+                "--from",
+                "07:00",
+                "--to",
+                "07:05",
+                "--routes",
+                "METRÔ L2",
+                "--out",
+                str(scenario),
+            ],
+            cache_dir=cache,
+        )
+    )
+    assert "on subway" in out and "expanded from frequencies.txt" in out
+    assert "unmatched: 'Sacomã'" in out  # line 2 runs beyond the extract: its outer stations do not match
+    doc = yaml.safe_load(scenario.read_text(encoding="utf-8"))
+    services = {s["id"]: s for s in doc["services"]}
+    assert set(services) == {"l2_clinicas_chacara-klabin", "l2_chacara-klabin_clinicas"}
+    n_trips = sum(len(s["departures"]["times"]) for s in services.values())
+    assert n_trips >= 6
+    res = run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache)
+    _ok(res)
+    summary = read_summary(tmp_path / "run")
+    assert summary["status"] == "completed"
+    assert summary["n_arrived"] == summary["n_trains"] == n_trips
+    assert summary["n_stops_served"] == summary["n_stops_scheduled"] > 0
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
+
+
+def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    world = tmp_path / "hel"
+    _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(world)], cache_dir=cache))
+    scenario = tmp_path / "tram9.yaml"
+    out = _ok(
+        run_railsim(
+            [
+                "timetable",
+                "import",
+                "--from-lines",
+                "--headway-s",
+                "600",
+                "--lines",
+                "9",
+                "--world",
+                str(world),
+                "--from",
+                "07:00",
+                "--to",
+                "07:10",
+                "--out",
+                str(scenario),
+            ],
+            cache_dir=cache,
+        )
+    )
+    assert "on tram" in out and "rotations: auto" in out
+    doc = yaml.safe_load(scenario.read_text(encoding="utf-8"))
+    assert doc["world"]["vclass"] == "tram" and doc["vehicles"]["tram"]["length_m"] == 27.0
+    assert len(doc["services"]) == 2  # line 9, both directions
+    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    summary = read_summary(tmp_path / "run")
+    assert summary["n_arrived"] == summary["n_trains"] == 2
+    assert summary["n_stops_served"] == summary["n_stops_scheduled"]
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0
+
+
+def test_bbox_and_lines_keep_a_study_small(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    full = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "full")], cache_dir=cache))
+    small = _ok(
+        run_railsim(
+            [
+                "network",
+                "import",
+                str(HELSINKI),
+                "--out",
+                str(tmp_path / "box"),
+                "--bbox",
+                "24.935,60.164,24.945,60.172",
+            ],
+            cache_dir=cache,
+        )
+    )
+
+    def km(text: str) -> float:
+        return float(text.split("  track ")[1].split(" km")[0])
+
+    assert 0 < km(small) < 0.8 * km(full)
+    two = _ok(
+        run_railsim(
+            ["network", "import", str(HELSINKI), "--out", str(tmp_path / "l"), "--lines", "4,6T"], cache_dir=cache
+        )
+    )
+    assert "tram: 2 lines (4, 6T)" in two
+    lines = yaml.safe_load((tmp_path / "l" / "helsinki_centre_rail.lines.yaml").read_text(encoding="utf-8"))["lines"]
+    assert sorted(ln["ref"] for ln in lines) == ["4", "6T"]
