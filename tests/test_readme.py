@@ -16,10 +16,9 @@ hours, the plan runs a smaller version — what changes and why:
 
 * ``scenarios/`` in the folder is a copy of the clone's, with **small horizons**: in ``chongqing_line3_peak.yaml``
   (and the sweep base ``sweeps/line3_short.yaml``, the days ``chongqing_line3_day.yaml`` and
-  ``chongqing_line3_day_depots.yaml``, the study scenario ``studies/line3_peak_mb_0730_0800.yaml``) every service's
-  last departure is its first + 5 min (the days: + 20 min), and the peaks keep only the formations whose trips still
-  exist; the sweep ``line3_headway_coupling.yaml`` keeps one headway (150 s) and one seed. Same commands, same
-  flags.
+  ``chongqing_line3_day_depots.yaml``) every service's last departure is its first + 5 min (the days: + 20 min), and
+  the peaks keep only the formations whose trips still exist; the sweep ``line3_headway_coupling.yaml`` keeps one
+  headway (150 s) and one seed. Same commands, same flags.
 * ``my_line.yaml`` and ``nets/my.net.xml`` + ``nets/stops.add.xml`` ("your own" files) are the test line
   ``tests/data/lines/mini_y.yaml`` and the passing-loop net of ``tests/test_external_net.py``.
 * ``make demo``/``make test`` run as ``make -n`` (a dry run: the demo's two commands are in the next block; the
@@ -114,8 +113,8 @@ PLAN: dict[str, str | None] = {
     ): f"railsim study vc-vs-mb {HELP}",
     # robustness
     (
-        "railsim robustness scenarios/studies/line3_peak_mb_0730_0800.yaml --disturbances "
-        "scenarios/disturbances/line3_peak.yaml --runs 2 --headways 150 --out out/rob_small --workers 2"
+        "railsim robustness scenarios/chongqing_line3_peak.yaml --disturbances scenarios/disturbances/line3_peak.yaml "
+        "--runs 2 --headways 150 --services airport_up,airport_down --out out/rob_small --workers 2"
     ): None,
     "railsim robustness SCENARIO --runs 200 --headways 110,130,150 --out out/rob --workers 2": (
         f"railsim robustness {HELP}"
@@ -131,7 +130,7 @@ PLAN: dict[str, str | None] = {
     "railsim report out/depots": None,
     # paper experiments
     "railsim run scenarios/paper002_topology_switch.yaml --out out/paper002_run": None,
-    "railsim plot out/paper002_run --out fig/paper002/": None,
+    "railsim plot out/ca_arrival --out fig/ca_arrival/": None,
     "railsim reproduce paper002 --out out/paper002": None,
     "railsim run scenarios/paper003_ca_arrival.yaml --out out/ca_arrival": None,
     "railsim reproduce paper000 --out out/paper000 --seeds 5": f"railsim reproduce {HELP}",
@@ -162,7 +161,7 @@ PROMISED: dict[str, list[str]] = {
     "line-studies.md": ["out/sweep/cases.csv", "out/sweep/report.md"],
     "service-day.md": ["out/day/trips.csv", "out/day/time-distance.png", "out/depots/trips.csv"],
     "robustness.md": ["out/rob_small/robustness.md"],
-    "paper-experiments.md": ["out/paper002_run/summary.json", "out/ca_arrival/summary.json"],
+    "paper-experiments.md": ["out/paper002_run/summary.json", "out/ca_arrival/summary.json", "fig/ca_arrival/gaps.png"],
 }
 
 _COMMENT = re.compile(r"\s+#\s.*$")
@@ -247,14 +246,6 @@ def _small_sweep(raw: dict[str, Any]) -> None:
     raw["seeds"] = raw["seeds"][:1]
 
 
-def _small_study(path: Path) -> None:
-    """The 07:30-08:00 study scenario's Airport departures cut to 07:30-07:35 (edited as text: its clock times are
-    unquoted, which railsim reads as clock times and plain YAML as numbers)."""
-    text = path.read_text(encoding="utf-8")
-    assert text.count("last: 08:00") == 2, path
-    path.write_text(text.replace("last: 08:00", "last: 07:35"), encoding="utf-8")
-
-
 def _workdir(tmp: Path) -> Path:
     from tests.test_external_net import build_passing_loop
 
@@ -265,7 +256,6 @@ def _workdir(tmp: Path) -> Path:
     _edit(work / "scenarios" / "sweeps" / "line3_headway_coupling.yaml", _small_sweep)
     _edit(work / "scenarios" / "chongqing_line3_day.yaml", _small_day)
     _edit(work / "scenarios" / "chongqing_line3_day_depots.yaml", _small_day)
-    _small_study(work / "scenarios" / "studies" / "line3_peak_mb_0730_0800.yaml")
     fcd = yaml.safe_load((work / "scenarios" / "chongqing_line3_peak.yaml").read_text(encoding="utf-8"))
     fcd["simulation"]["duration_s"] = 600  # the Airport units only: all inserted by then (a Jurenba unit waits)
     fcd["services"], fcd["formations"] = fcd["services"][:2], []
