@@ -1,26 +1,33 @@
-"""Issue 21, "a README that is true": every shell command block of README.md runs, in order, and succeeds.
+"""Docs that are true: every shell command block of README.md and of every page of docs/guide/ (and
+docs/performance.md) runs, in order, and succeeds.
 
-The blocks run as bash scripts (``set -euo pipefail``) in a fresh folder outside the clone, with the venv's
-``bin`` first on ``PATH`` (``railsim``, ``python``, ``sumo``, ``sumo-gui``) and a shared world cache — so the
-commands are also checked from a working directory that is not the clone. The Python block runs there too.
+The pages are found by :func:`doc_pages`: README.md, every ``docs/guide/*.md`` (a new page is picked up without
+touching this file) and ``docs/performance.md``. Each page's ```` ```bash ```` blocks run as bash scripts
+(``set -euo pipefail``) in a fresh folder of their own outside the clone, with the venv's ``bin`` first on
+``PATH`` (``railsim``, ``python``, ``sumo``, ``sumo-gui``) and a world cache shared by the pages — so the commands
+are also checked from a working directory that is not the clone, and a page never leans on another page's
+outputs. The README's Python block runs there too. Other shell fences (``sh``, ``shell``, ``console``) are
+refused, and only the README may hold a Python block, so no command escapes the check.
 
-Every README command must have an entry in :data:`PLAN`; a command added to the README without one fails
-:func:`test_every_readme_command_is_planned` until someone decides how the suite runs it. Where a full run would
-take minutes to hours, the plan runs a smaller version — what changes and why:
+Every command must have an entry in :data:`PLAN` (one entry per distinct command; the same command on two pages
+shares it); a command added to a page without one fails :func:`test_every_doc_command_is_planned` until someone
+decides how the suite runs it, and an entry no page uses any more fails too. Where a full run would take minutes to
+hours, the plan runs a smaller version — what changes and why:
 
 * ``scenarios/`` in the folder is a copy of the clone's, with **small horizons**: in ``chongqing_line3_peak.yaml``
-  (and the sweep base ``sweeps/line3_short.yaml``, the day ``chongqing_line3_day.yaml``) every service's last
-  departure is its first + 5 min (the day: + 20 min), and the peaks keep only the formations whose trips still
-  exist; the sweep ``line3_headway_coupling.yaml`` keeps one headway (150 s) and one seed. Same commands, same
-  flags.
+  (and the sweep base ``sweeps/line3_short.yaml``, the days ``chongqing_line3_day.yaml`` and
+  ``chongqing_line3_day_depots.yaml``) every service's last departure is its first + 5 min (the days: + 20 min), and
+  the peaks keep only the formations whose trips still exist; the sweep ``line3_headway_coupling.yaml`` keeps one
+  headway (150 s) and one seed. Same commands, same flags.
 * ``my_line.yaml`` and ``nets/my.net.xml`` + ``nets/stops.add.xml`` ("your own" files) are the test line
   ``tests/data/lines/mini_y.yaml`` and the passing-loop net of ``tests/test_external_net.py``.
 * ``make demo``/``make test`` run as ``make -n`` (a dry run: the demo's two commands are in the next block; the
   test suite would run this test again).
-* ``railsim study vc-vs-mb`` (about 50 min; tested in ``tests/test_study.py``) and three benchmarks
+* ``railsim study vc-vs-mb`` (about 50 min; tested in ``tests/test_study.py``), ``railsim robustness`` with 200
+  runs, ``railsim reproduce`` of papers 000, 001 and 004 (minutes to hours) and three benchmarks
   (``optimizers_000``, ``controllers_000``, ``junction_planner``: minutes each) run with ``--help``;
   ``benchmarks/engine.py`` gets the small peak as its scenario (one repetition), ``benchmarks/scale.py`` 8 and 16
-  trains for 20 s, ``benchmarks/controllers_001.py`` a 500 m section.
+  trains for 20 s, ``benchmarks/controllers_001.py`` a 500 m section, ``benchmarks/service_day.py`` 3 minutes.
 * sumo-gui commands run under ``xvfb-run`` (a virtual display; apt: xvfb) and quit at the end; where there is
   no ``xvfb-run`` they only check that ``sumo-gui`` is on the PATH. The replay command replays a 600 s run
   of the small peak's Airport units with ``outputs.sumo: [fcd]`` made just before it.
@@ -45,18 +52,27 @@ from tests.helpers import DATA, ROOT
 pytestmark = [pytest.mark.sumo, pytest.mark.slow]
 
 README = ROOT / "README.md"
+GUIDE = ROOT / "docs" / "guide"
+PERFORMANCE = ROOT / "docs" / "performance.md"
 GUI = shutil.which("xvfb-run") is not None
 GUI_ARGS = "--start --quit-on-end"
-SUMO_GUI = "xvfb-run -a sumo-gui" if GUI else None
 HELP = "--help"
+SHELL_FENCES = ("sh", "shell", "console", "zsh", "shell-session")  # refused: write ```bash so the block is run
 
-# README command (comment stripped) -> the shell text the test runs instead (None: exactly the README's)
+
+def doc_pages() -> list[Path]:
+    """Every page whose shell blocks must run: the README, each guide page (found, not listed), performance."""
+    return [README, *sorted(GUIDE.glob("*.md")), PERFORMANCE]
+
+
+# command (comment stripped) -> the shell text the test runs instead (None: exactly the page's)
 PLAN: dict[str, str | None] = {
     "make demo": f"make -n -C {ROOT} demo",
     "make test": f"make -n -C {ROOT} test",
     "railsim network build chongqing_line3 --out nets/": None,
     "railsim network show y_junction": None,
     "railsim network build my_line.yaml --out nets/": None,
+    "railsim network show nets/my.net.xml -a nets/stops.add.xml": None,
     "railsim validate scenarios/chongqing_line3_peak.yaml": None,
     "railsim run scenarios/chongqing_line3_peak.yaml --out out/peak --seed 7": None,
     "railsim run scenarios/chongqing_line3_peak.yaml --out out/peak_gui --gui": (
@@ -81,7 +97,11 @@ PLAN: dict[str, str | None] = {
     "railsim plot out/peak --kind time-distance --out fig/": None,
     "railsim export out/peak --format parquet": None,
     "railsim report out/peak --format html": None,
+    # line studies
+    "railsim validate scenarios/sweeps/line3_headway_coupling.yaml": None,
     "railsim sweep scenarios/sweeps/line3_headway_coupling.yaml --out out/sweep --workers 2": None,
+    "railsim report out/sweep": None,
+    "railsim export out/sweep --format csv": None,
     (
         'railsim min-headway scenarios/chongqing_line3_peak.yaml --path "services[0].departures.headway_s" '
         '--lo 60 --hi 240 --set "formations=[]"'
@@ -91,7 +111,11 @@ PLAN: dict[str, str | None] = {
         "railsim study vc-vs-mb --out out/study_up --services airport_up --bisect --no-control --sensitivity "
         "--workers 2"
     ): f"railsim study vc-vs-mb {HELP}",
-    "railsim report out/sweep": None,
+    # robustness
+    (
+        "railsim robustness scenarios/chongqing_line3_peak.yaml --disturbances scenarios/disturbances/line3_peak.yaml "
+        "--runs 2 --headways 150 --services airport_up,airport_down --out out/rob_small --workers 2"
+    ): None,
     "railsim robustness SCENARIO --runs 200 --headways 110,130,150 --out out/rob --workers 2": (
         f"railsim robustness {HELP}"
     ),
@@ -99,8 +123,20 @@ PLAN: dict[str, str | None] = {
         "railsim study vc-vs-mb --out out/study --disturbances scenarios/disturbances/line3_peak.yaml --runs 200 "
         "--robust-headways 110,130,150 --workers 2"
     ): f"railsim study vc-vs-mb {HELP}",
-    "railsim network show nets/my.net.xml -a nets/stops.add.xml": None,
+    # a service day
     "railsim run scenarios/chongqing_line3_day.yaml --out out/day": None,
+    "railsim plot out/day --kind time-distance": None,
+    "railsim run scenarios/chongqing_line3_day_depots.yaml --out out/depots": None,
+    "railsim report out/depots": None,
+    # paper experiments
+    "railsim run scenarios/paper002_topology_switch.yaml --out out/paper002_run": None,
+    "railsim plot out/ca_arrival --out fig/ca_arrival/": None,
+    "railsim reproduce paper002 --out out/paper002": None,
+    "railsim run scenarios/paper003_ca_arrival.yaml --out out/ca_arrival": None,
+    "railsim reproduce paper000 --out out/paper000 --seeds 5": f"railsim reproduce {HELP}",
+    "railsim reproduce paper001 --out out/paper001 --scenario B": f"railsim reproduce {HELP}",
+    "railsim reproduce paper004 --out out/paper004 --workers 2": f"railsim reproduce {HELP}",
+    # benchmarks
     ".venv/bin/python benchmarks/engine.py": "python benchmarks/engine.py scenarios/chongqing_line3_peak.yaml --reps 1",
     ".venv/bin/python benchmarks/scale.py": "python benchmarks/scale.py --sizes 8,16 --horizon-s 20",
     ".venv/bin/python benchmarks/controllers_001.py": "python benchmarks/controllers_001.py 500",
@@ -110,13 +146,32 @@ PLAN: dict[str, str | None] = {
     ".venv/bin/python benchmarks/service_day.py": "python benchmarks/service_day.py --hours 0.05",
 }
 
+# what a page's blocks must leave behind in its folder (pages not named here: only that every block succeeds)
+PROMISED: dict[str, list[str]] = {
+    "README.md": [
+        "out/peak/summary.json",
+        "out/peak/report.html",
+        "out/peak/time-distance.png",
+        "out/peak/speed.png",
+        "out/sweep/cases.csv",
+        "out/paper002",
+    ],
+    "run.md": ["out/peak/report.html", "fig/time-distance.png", "out/peak/export", "out/peak/time-distance.png"],
+    "sumo-files-and-gui.md": ["out/peak/sumo_run.sumocfg", "out/fcd/sumo_fcd.xml"],
+    "line-studies.md": ["out/sweep/cases.csv", "out/sweep/report.md"],
+    "service-day.md": ["out/day/trips.csv", "out/day/time-distance.png", "out/depots/trips.csv"],
+    "robustness.md": ["out/rob_small/robustness.md"],
+    "paper-experiments.md": ["out/paper002_run/summary.json", "out/ca_arrival/summary.json", "fig/ca_arrival/gaps.png"],
+}
+
 _COMMENT = re.compile(r"\s+#\s.*$")
 
 
-def readme_blocks(lang: str) -> list[list[str]]:
-    """The README's fenced ``lang`` blocks; for shell blocks each line without its trailing comment."""
-    blocks, current = [], None
-    for line in README.read_text(encoding="utf-8").splitlines():
+def fenced_blocks(path: Path, lang: str) -> list[list[str]]:
+    """The page's fenced ``lang`` blocks; for shell blocks each line without its trailing comment."""
+    blocks: list[list[str]] = []
+    current: list[str] | None = None
+    for line in path.read_text(encoding="utf-8").splitlines():
         if current is None and line.strip() == f"```{lang}":
             current = []
         elif current is not None and line.strip() == "```":
@@ -129,13 +184,33 @@ def readme_blocks(lang: str) -> list[list[str]]:
     return blocks
 
 
-def test_every_readme_command_is_planned() -> None:
-    commands = [c for block in readme_blocks("bash") for c in block]
-    assert commands, "no ```bash block found in README.md"
-    unplanned = [c for c in commands if c not in PLAN]
-    assert not unplanned, f"README commands without an entry in tests/test_readme.py PLAN: {unplanned}"
-    stale = [c for c in PLAN if c not in commands]
-    assert not stale, f"PLAN entries no longer in README.md: {stale}"
+def readme_blocks(lang: str) -> list[list[str]]:
+    return fenced_blocks(README, lang)
+
+
+def _commands(path: Path) -> list[str]:
+    return [c for block in fenced_blocks(path, "bash") for c in block]
+
+
+def test_every_doc_command_is_planned() -> None:
+    pages = doc_pages()
+    assert (GUIDE / "README.md").is_file() and len(pages) >= 8, pages
+    by_page = {p.relative_to(ROOT).as_posix(): _commands(p) for p in pages}
+    assert by_page["README.md"], "no ```bash block found in README.md"
+    unplanned = [(page, c) for page, cmds in by_page.items() for c in cmds if c not in PLAN]
+    assert not unplanned, f"doc commands without an entry in tests/test_readme.py PLAN: {unplanned}"
+    used = {c for cmds in by_page.values() for c in cmds}
+    stale = [c for c in PLAN if c not in used]
+    assert not stale, f"PLAN entries no page uses any more: {stale}"
+
+
+def test_docs_fence_shell_as_bash_and_python_only_in_the_readme() -> None:
+    """A ```sh or ```console block would not be run; a Python block outside the README would not be either."""
+    for page in [*doc_pages(), *sorted((ROOT / "docs").glob("*.md"))]:
+        fences = {line.strip()[3:] for line in page.read_text(encoding="utf-8").splitlines() if line.startswith("```")}
+        assert not fences & set(SHELL_FENCES), f"{page}: use ```bash for shell commands (they are run), got {fences}"
+        if page != README:
+            assert "python" not in fences, f"{page}: a Python block here is not run; show it in README.md or as bash"
 
 
 # ------------------------------------------------------------------------------------------- the small copies
@@ -180,6 +255,7 @@ def _workdir(tmp: Path) -> Path:
     _edit(work / "scenarios" / "sweeps" / "line3_short.yaml", _small_peak)
     _edit(work / "scenarios" / "sweeps" / "line3_headway_coupling.yaml", _small_sweep)
     _edit(work / "scenarios" / "chongqing_line3_day.yaml", _small_day)
+    _edit(work / "scenarios" / "chongqing_line3_day_depots.yaml", _small_day)
     fcd = yaml.safe_load((work / "scenarios" / "chongqing_line3_peak.yaml").read_text(encoding="utf-8"))
     fcd["simulation"]["duration_s"] = 600  # the Airport units only: all inserted by then (a Jurenba unit waits)
     fcd["services"], fcd["formations"] = fcd["services"][:2], []
@@ -195,30 +271,38 @@ def _workdir(tmp: Path) -> Path:
     return work
 
 
-def _env(tmp: Path) -> dict[str, str]:
+@pytest.fixture(scope="session")
+def world_cache(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """One world cache for every page of this worker: Line 3 is built once, not once per page."""
+    return tmp_path_factory.mktemp("readme_cache")
+
+
+def _env(cache: Path) -> dict[str, str]:
     bin_dir = str(Path(sys.executable).parent)
-    return dict(os.environ, PATH=bin_dir + os.pathsep + os.environ.get("PATH", ""), RAILSIM_CACHE=str(tmp / "cache"))
+    return dict(os.environ, PATH=bin_dir + os.pathsep + os.environ.get("PATH", ""), RAILSIM_CACHE=str(cache))
 
 
-@pytest.mark.timeout(3600)  # about 5 min on an idle 2-core machine; the suite's 900 s is too tight under load
-def test_every_readme_block_runs_from_another_folder(tmp_path: Path) -> None:
+def _page_id(page: Path) -> str:
+    return page.relative_to(ROOT).as_posix()
+
+
+@pytest.mark.timeout(3600)  # the README alone takes about 5 min on an idle 2-core machine; more under load
+@pytest.mark.parametrize("page", [p for p in doc_pages() if _commands(p)], ids=_page_id)
+def test_every_doc_block_runs_from_another_folder(page: Path, tmp_path: Path, world_cache: Path) -> None:
     work = _workdir(tmp_path)
-    env = _env(tmp_path)
-    for n, block in enumerate(readme_blocks("bash")):
+    env = _env(world_cache)
+    for n, block in enumerate(fenced_blocks(page, "bash")):
         script = "\n".join(["set -euo pipefail", *(PLAN[c] or c for c in block)])
         res = subprocess.run(["bash", "-c", script], cwd=work, env=env, capture_output=True, text=True, timeout=1200)
         assert res.returncode == 0, (
-            f"README bash block {n} failed:\n{script}\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
+            f"{_page_id(page)} bash block {n} failed:\n{script}\n{res.stdout[-3000:]}\n{res.stderr[-3000:]}"
         )
-        assert "Traceback" not in res.stderr, f"block {n}:\n{res.stderr[-3000:]}"
-    # what the blocks promise exists
-    assert (work / "out" / "peak" / "summary.json").is_file() and (work / "out" / "peak" / "report.html").is_file()
-    assert {p.name for p in (work / "out" / "peak").glob("*.png")} >= {"time-distance.png", "speed.png"}
-    assert (work / "fig" / "time-distance.png").is_file()
-    assert (work / "out" / "sweep" / "cases.csv").is_file() and (work / "out" / "day" / "trips.csv").is_file()
+        assert "Traceback" not in res.stderr, f"{_page_id(page)} block {n}:\n{res.stderr[-3000:]}"
+    missing = [p for p in PROMISED.get(page.name, []) if not (work / p).exists()]
+    assert not missing, f"{_page_id(page)}: its commands did not write {missing}"
 
 
-def test_readme_python_block_runs_from_another_folder(tmp_path: Path) -> None:
+def test_readme_python_block_runs_from_another_folder(tmp_path: Path, world_cache: Path) -> None:
     (block,) = readme_blocks("python")
     code = "\n".join(block)
     original = 'scenario.load(scenario.shipped("chongqing_line3_peak"))'
@@ -234,7 +318,7 @@ def test_readme_python_block_runs_from_another_folder(tmp_path: Path) -> None:
     work = tmp_path / "elsewhere"
     work.mkdir()
     res = subprocess.run(
-        [sys.executable, "-c", code], cwd=work, env=_env(tmp_path), capture_output=True, text=True, timeout=900
+        [sys.executable, "-c", code], cwd=work, env=_env(world_cache), capture_output=True, text=True, timeout=900
     )
     assert res.returncode == 0, res.stderr[-3000:]
     assert (work / "out" / "peak" / "summary.json").is_file()
