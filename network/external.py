@@ -48,7 +48,7 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
 * **Flat crossings**: foe movements inside one node that share no track, from SUMO's own foe matrix
   (``graph.graph["crossings"]``, :func:`_mark_crossings`); the engine interlocks them, and single track, as
-  route resources (README, "Interlocking").
+  route resources (docs/model.md, "Interlocking").
 
 **Rail signals** (``signals``). Measured with SUMO 1.28 (``shared/notes/sumo_rail_findings.md``): fixed-block
 signals hold virtually coupled followers back; moving-block arbitration is not platoon-aware (a crossing

@@ -55,7 +55,7 @@ segment (the leader's position there is exact: constant acceleration within its 
 refuses.
 
 The model that SUMO actually flies (issue 18) is :func:`sumo_corrected_params`: switch interval 21.6 s (the
-interlocking's release + throw + approach, README "Junction planner online"), 20 m trains, ``S_0`` = 15 m and
+interlocking's release + throw + approach, docs/guide/paper-experiments.md, "Paper E: the junction planner online"), 20 m trains, ``S_0`` = 15 m and
 the guard on (T = 0.2 s, b = 1.5 m/s², margin 10 m).
 """
 
@@ -171,14 +171,14 @@ def safety_margin_m(
     return np.maximum(closing, 0.0) * delay_s + params.pred_length_m + params.standstill_gap_m
 
 
-SUMO_SWITCH_INTERVAL_S = 21.6  # t_ls of the SUMO Table 3 runs (README "Junction planner online")
+SUMO_SWITCH_INTERVAL_S = 21.6  # t_ls of the SUMO Table 3 runs (docs/guide/paper-experiments.md, "Paper E: the junction planner online")
 
 
 def sumo_corrected_params(**overrides: float | bool) -> JunctionParams:
     """The planner model the engine can fly (issue 18): the Table 3 SUMO runs' numbers instead of the paper's.
 
     ``throw_time_s`` = 21.6 s (the interlocking releases a switch when the first train's 20 m body has cleared it,
-    throws for 10 s and must grant the next lock before the second train's braking point: README), trains of
+    throws for 10 s and must grant the next lock before the second train's braking point: docs/guide/paper-experiments.md), trains of
     ``pred_length_m`` = 20 m, ``S_0`` = 15 m (the gap the followers' CACC holds at 15 m/s) and the
     relative-braking-distance guard (T = 0.2 s, b = 1.5 m/s², margin 10 m). Keyword overrides win.
     """

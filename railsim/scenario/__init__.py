@@ -91,7 +91,7 @@ The schema (every key; ``#`` comments give type, range and default)::
       trace_stride_s: 1.0                 # >= step_s; default max(1.0, step_s)
       sumo: []                            # subset of [tripinfo, stops, fcd, collisions]; default []
       formats: [csv]                      # subset of [csv, parquet]; default [csv]
-    interlocking:                         # optional (README, "Interlocking")
+    interlocking:                         # optional (docs/model.md, "Interlocking")
       overlap_m: 20                       # >= 0; authority ends this far before what is not reserved; default 20
       stall_timeout_s: 300                # > 0; a train standing this long for no reason stalls the run
 

@@ -380,7 +380,7 @@ class OutputSpec:
 
 @dataclass(frozen=True)
 class InterlockingSpec:
-    """Interlocking knobs (README, "Interlocking"); None keeps the engine's default.
+    """Interlocking knobs (docs/model.md, "Interlocking"); None keeps the engine's default.
 
     ``overlap_m``: the distance between the end of a train's movement authority and the first point, single-track
     section or crossing not reserved for it (and beyond the destination platform's end): what a train may overrun
