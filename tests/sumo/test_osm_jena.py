@@ -29,7 +29,10 @@ def test_jena_imports_as_a_multi_line_tram_network_and_line_4_runs_clean(tmp_pat
     lines = yaml.safe_load((world / "jena_tram_2014.lines.yaml").read_text(encoding="utf-8"))["lines"]
     assert {"1", "2", "3", "4", "5"} <= {line["ref"] for line in lines}
     stations = yaml.safe_load((world / "jena_tram_2014.stations.yaml").read_text(encoding="utf-8"))["stations"]
-    assert len([s for s in stations if not s["name"].isdigit()]) >= 40  # named ones; 3 OSM stops have no name
+    assert len(stations) >= 40
+    assert not any(
+        s["name"].isdigit() for s in stations
+    )  # six OSM stop positions have no name: named after their platform
     # lines 1-5 share the trunk through the centre: a station several lines serve is a merge of lines
     served_by: dict[str, set[str]] = {}
     for line in lines:
