@@ -15,6 +15,14 @@ RailwayScenario.md``, is where most come from; where we depart from it, the reas
     stays, with its tram permission). The tutorial filters with osmfilter first; this does it in one step.
 ``--keep-edges.in-geo-boundary W,S,E,N`` (``--bbox``)
     Keep a study small: only edges inside the box (lon/lat).
+``--light-rail-as-tram`` (an option of the import, off by default)
+    SUMO's type map gives ``railway=light_rail`` track the class ``rail_urban`` and ``railway=tram`` track
+    ``tram``. Where one fleet runs on both — a German *Stadtbahn* such as Cologne's, light rail in the tunnels
+    and on its own right of way, tram track in the streets — that splits its stations into two classes, no
+    vehicle class can drive a line from one to the other, and netconvert drops every ``railway=tram_stop``
+    beside light-rail track (no compatible lane). The option adds railsim's type file
+    (:func:`light_rail_as_tram_types`) that makes ``railway.light_rail`` a ``tram`` track. The import names the
+    case when it sees stations of both classes.
 ``--railway.topology.repair.minimal``
     Repair the OSM track graph only as far as the OSM lines need it (missing connections, a direction error
     on a line's way), and add as few ``bidi`` edges as it can. The tutorial's ``--railway.topology.all-bidi``
@@ -89,17 +97,22 @@ import yaml
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.geo import net_to_lonlat, read_location
+from network.geo import distance_m, net_to_lonlat, read_location
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "7"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "8"  # bump when the options or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 _OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
 TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
 END_CLEARANCE_M = 3.0  # a moved stop ends this far before the end of its edge
 MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
+UNNAMED_RADIUS_M = 100.0  # an OSM stop without a name takes the name of a named stop or platform within this
+_STOP_TAGS = {
+    "railway": {"stop", "tram_stop", "halt", "station", "platform"},
+    "public_transport": {"stop_position", "platform", "station"},
+}
 _WARN_SUMMARY = re.compile(r"^Warning: (\d+) total messages of type: (.*)$")
 
 
@@ -140,18 +153,40 @@ class ImportSummary:
         return "\n".join(out)
 
 
+LIGHT_RAIL_AS_TRAM_TYPES = "light_rail_as_tram.typ.xml"
+
+
+def light_rail_as_tram_types() -> str:
+    """railsim's netconvert type file for ``--light-rail-as-tram``: ``railway.light_rail`` is ``tram`` track
+    (SUMO's own entry, with the class changed; later type files override earlier ones of the same id)."""
+    return (
+        "<types>\n"
+        '    <type id="railway.light_rail" numLanes="1" speed="27.78" priority="19" oneway="true" allow="tram"/>\n'
+        "</types>\n"
+    )
+
+
 def netconvert_args(
-    osm_file: Path, out: Path, name: str, bbox: Sequence[float] | None, repair: str = "minimal"
+    osm_file: Path,
+    out: Path,
+    name: str,
+    bbox: Sequence[float] | None,
+    repair: str = "minimal",
+    light_rail_as_tram: bool = False,
 ) -> list[str]:
     """The netconvert command line for ``osm_file`` (module docstring: each option and why); ``repair`` is
-    ``minimal`` (the extract has rail lines) or ``full`` (it has none: nothing for a minimal repair to follow)."""
+    ``minimal`` (the extract has rail lines) or ``full`` (it has none: nothing for a minimal repair to follow);
+    ``light_rail_as_tram`` adds ``out/``:data:`LIGHT_RAIL_AS_TRAM_TYPES` (the caller writes it)."""
     typemap = netconvert_binary().parents[1] / "data" / "typemap"
+    types = [typemap / "osmNetconvert.typ.xml", typemap / "osmNetconvertExtraRail.typ.xml"]
+    if light_rail_as_tram:
+        types.append(out / LIGHT_RAIL_AS_TRAM_TYPES)
     args = [
         str(netconvert_binary()),
         "--osm-files",
         str(osm_file),
         "--type-files",
-        f"{typemap / 'osmNetconvert.typ.xml'},{typemap / 'osmNetconvertExtraRail.typ.xml'}",
+        ",".join(str(t) for t in types),
         "--keep-edges.by-vclass",
         ",".join(RAIL_CLASSES),
         "--railway.topology.repair.minimal" if repair == "minimal" else "--railway.topology.repair",
@@ -220,10 +255,13 @@ def _file_hash(path: Path) -> str:
     return h.hexdigest()
 
 
-def _cache_key(osm_file: Path, bbox: Sequence[float] | None, lines: Sequence[str] | None) -> str:
+def _cache_key(
+    osm_file: Path, bbox: Sequence[float] | None, lines: Sequence[str] | None, light_rail_as_tram: bool = False
+) -> str:
     payload = json.dumps(
         {
             "input": _file_hash(osm_file),
+            "light_rail_as_tram": light_rail_as_tram,
             "bbox": list(bbox) if bbox else None,
             "lines": sorted(lines) if lines else None,
             "version": OSM_IMPORT_VERSION,
@@ -238,18 +276,29 @@ def _has_rail_lines(ptlines: Path) -> bool:
     return any(ln["vclass"] in RAIL_CLASSES for ln in _read_lines(ptlines))
 
 
-def _run_netconvert(osm_file: Path, work: Path, name: str, bbox: Sequence[float] | None) -> list[str]:
+def _run_netconvert(
+    osm_file: Path, work: Path, name: str, bbox: Sequence[float] | None, light_rail_as_tram: bool = False
+) -> list[str]:
     """Run netconvert (minimal repair; again with full repair when no rail line came out); its warnings on
     success, a ConfigError naming SUMO's error otherwise."""
-    warnings = _netconvert_once(osm_file, work, name, bbox, "minimal")
+    if light_rail_as_tram:
+        (work / LIGHT_RAIL_AS_TRAM_TYPES).write_text(light_rail_as_tram_types(), encoding="utf-8")
+    warnings = _netconvert_once(osm_file, work, name, bbox, "minimal", light_rail_as_tram)
     if _has_rail_lines(work / f"{name}.ptlines.xml") or os.environ.get("RAILSIM_OSM_REPAIR") != "full":
         return warnings
     log.info("%s: no rail lines in the extract: repairing the whole track topology", osm_file.name)
-    return _netconvert_once(osm_file, work, name, bbox, "full")
+    return _netconvert_once(osm_file, work, name, bbox, "full", light_rail_as_tram)
 
 
-def _netconvert_once(osm_file: Path, work: Path, name: str, bbox: Sequence[float] | None, repair: str) -> list[str]:
-    args = netconvert_args(osm_file, work, name, bbox, repair)
+def _netconvert_once(
+    osm_file: Path,
+    work: Path,
+    name: str,
+    bbox: Sequence[float] | None,
+    repair: str,
+    light_rail_as_tram: bool = False,
+) -> list[str]:
+    args = netconvert_args(osm_file, work, name, bbox, repair, light_rail_as_tram)
     try:
         proc = subprocess.run(args, capture_output=True, text=True, timeout=1800)
     except (OSError, subprocess.TimeoutExpired) as exc:
@@ -432,11 +481,71 @@ def _track_stats(net: Any) -> tuple[float, int, float]:
     return total / 1000.0, switches, (bidi / total if total else 0.0)
 
 
+def _osm_named_stops(osm_file: Path) -> list[tuple[float, float, str]]:
+    """``(lon, lat, name)`` of every named OSM node tagged as a stop, platform or station (:data:`_STOP_TAGS`)."""
+    import gzip
+
+    opener = gzip.open if osm_file.name.endswith(".gz") else open
+    out: list[tuple[float, float, str]] = []
+    with opener(osm_file, "rb") as fh:
+        for _, elem in ET.iterparse(fh, events=("end",)):
+            if elem.tag == "node":
+                tags = {t.get("k", ""): t.get("v", "") for t in elem.iter("tag")}
+                if tags.get("name") and any(tags.get(k) in v for k, v in _STOP_TAGS.items()):
+                    out.append((float(elem.get("lon", "nan")), float(elem.get("lat", "nan")), tags["name"]))
+                elem.clear()
+            elif elem.tag in ("way", "relation"):
+                elem.clear()
+    return out
+
+
+def _stop_xy(net: Any, st: _Stop) -> tuple[float, float]:
+    from sumolib.geomhelper import positionAtShapeOffset
+
+    lane = net.getLane(st.elem.get("lane", ""))
+    mid = 0.5 * (float(st.elem.get("startPos", 0.0)) + float(st.elem.get("endPos", lane.getLength())))
+    x, y = positionAtShapeOffset(lane.getShape(), mid)[:2]
+    return float(x), float(y)
+
+
+def _name_unnamed_stops(net: Any, loc: Any, stops: dict[str, _Stop], osm_named: list[tuple[float, float, str]]) -> int:
+    """Name every stop netconvert wrote without a name (module docstring); the number named from a neighbour.
+    Distances in metres on the net's plane, or between lon/lat when the net is geo-referenced (OSM's nodes)."""
+
+    def where(st: _Stop) -> tuple[float, float]:
+        x, y = _stop_xy(net, st)
+        return net_to_lonlat(loc, x, y) if loc is not None else (x, y)
+
+    def dist(a: tuple[float, float], b: tuple[float, float]) -> float:
+        return distance_m(a[0], a[1], b[0], b[1]) if loc is not None else math.hypot(a[0] - b[0], a[1] - b[1])
+
+    unnamed = [sid for sid, st in stops.items() if not st.elem.get("name")]
+    candidates: list[tuple[tuple[float, float], str, str | None]] = [
+        (where(st), st.name, st.vclass) for st in stops.values() if st.elem.get("name")
+    ]
+    if loc is not None:
+        candidates += [((lon, lat), nm, None) for lon, lat, nm in osm_named]
+    named = 0
+    for sid in unnamed:
+        st = stops[sid]
+        here = where(st)
+        near = [(dist(here, pos), nm) for pos, nm, vc in candidates if vc in (None, st.vclass)]
+        d_m, nm = min(near, default=(math.inf, ""))
+        if d_m <= UNNAMED_RADIUS_M:
+            named += 1
+        else:
+            nm = f"stop {sid}"
+        st.elem.set("name", nm)
+        stops[sid] = _Stop(st.elem, st.vclass, nm)
+    return named
+
+
 def _split(
     work: Path,
     name: str,
     lines_wanted: Sequence[str] | None,
     warnings: list[str],
+    osm_file: Path | None = None,
 ) -> ImportSummary:
     """Split the ptstops by class, write lines/stations YAML and the summary (files stay in ``work``)."""
     import sumolib
@@ -462,6 +571,13 @@ def _split(
         stops[elem.get("id", "")] = _Stop(elem, vc, elem.get("name") or elem.get("id") or "")
     if off_rail:
         summary.dropped.append(f"{off_rail} stops on lanes of no rail class (bus stops on streets)")
+    n_unnamed = sum(1 for st in stops.values() if not st.elem.get("name"))
+    if n_unnamed:
+        named = _name_unnamed_stops(net, loc, stops, _osm_named_stops(osm_file) if osm_file is not None else [])
+        summary.dropped.append(
+            f"{n_unnamed} stops without a name in OSM: {named} named after a named stop or platform within "
+            f"{UNNAMED_RADIUS_M:g} m, {n_unnamed - named} called 'stop <id>'"
+        )
     all_lines = _read_lines(work / f"{name}.ptlines.xml")
     road = Counter(ln["vclass"] for ln in all_lines if ln["vclass"] not in RAIL_CLASSES)
     if road:
@@ -525,6 +641,12 @@ def _split(
         summary.files[f"stops ({vc})"] = path.name
         summary.stops[vc] = len(members)
         summary.stations[vc] = len({st.name for st in members})
+    if summary.stations.get("tram") and summary.stations.get("rail_urban"):
+        summary.dropped.append(
+            f"stations on tram track ({summary.stations['tram']}) and on light-rail track "
+            f"({summary.stations['rail_urban']}): if one fleet runs on both (a Stadtbahn), import with "
+            "--light-rail-as-tram"
+        )
     stations = _stations(net, loc, stops)
     (work / f"{name}.stations.yaml").write_text(
         yaml.safe_dump({"stations": stations}, sort_keys=False, allow_unicode=True), encoding="utf-8"
@@ -605,13 +727,14 @@ def import_osm(
     *,
     bbox: Sequence[float] | None = None,
     lines: Sequence[str] | None = None,
+    light_rail_as_tram: bool = False,
 ) -> ImportSummary:
     """Import an OSM file into ``out_dir`` (module docstring); cached by input hash and options."""
     t0 = time.perf_counter()
     osm_path = Path(osm_file).resolve()
     _check_input(osm_path)
     name = re.sub(r"[^A-Za-z0-9_.-]+", "_", _input_name(osm_path))
-    key = _cache_key(osm_path, bbox, lines)
+    key = _cache_key(osm_path, bbox, lines, light_rail_as_tram)
     folder = cache_root() / f"osm-{key}"
     summary_file = folder / f"{name}.import.yaml"
     cached = summary_file.exists()
@@ -619,8 +742,8 @@ def import_osm(
         folder.parent.mkdir(parents=True, exist_ok=True)
         work = Path(tempfile.mkdtemp(prefix=f".osm-{key}-", dir=folder.parent))
         try:
-            warnings = _run_netconvert(osm_path, work, name, bbox)
-            summary = _split(work, name, lines, warnings)
+            warnings = _run_netconvert(osm_path, work, name, bbox, light_rail_as_tram)
+            summary = _split(work, name, lines, warnings, osm_path)
             (work / f"{name}.import.yaml").write_text(yaml.safe_dump(asdict(summary), sort_keys=False), "utf-8")
             try:
                 os.replace(work, folder)
@@ -633,7 +756,7 @@ def import_osm(
     out = Path(out_dir)
     out.mkdir(parents=True, exist_ok=True)
     for path in folder.iterdir():
-        if path.name.endswith((".ptstops.xml", ".ptlines.xml")):
+        if path.name.endswith((".ptstops.xml", ".ptlines.xml")) or path.name == LIGHT_RAIL_AS_TRAM_TYPES:
             continue  # netconvert's raw outputs stay in the cache; the split files are what a user needs
         shutil.copyfile(path, out / path.name)
     summary.cached = cached

@@ -1,7 +1,7 @@
 """``railsim network build|show|import``: build a world into a folder, print a summary of it, or import OSM.
 
     railsim network build NAME|FILE --out DIR [-p KEY=VALUE ...]
-    railsim network import OSM_FILE --out DIR [--bbox W,S,E,N] [--lines L1,L2]
+    railsim network import OSM_FILE --out DIR [--bbox W,S,E,N] [--lines L1,L2] [--light-rail-as-tram]
     railsim network show  NAME|FILE [-p KEY=VALUE ...]
     railsim network show  FILE.net.xml [-a stops.add.xml ...] [--signals strip|keep] [--vclass CLASS]
 
@@ -128,7 +128,13 @@ def cmd_import(args: argparse.Namespace) -> int:
     from network.osm_import import import_osm, parse_bbox
 
     lines = [x for x in (args.lines or "").split(",") if x.strip()] or None
-    summary = import_osm(args.osm_file, Path(args.out), bbox=parse_bbox(args.bbox), lines=lines)
+    summary = import_osm(
+        args.osm_file,
+        Path(args.out),
+        bbox=parse_bbox(args.bbox),
+        lines=lines,
+        light_rail_as_tram=args.light_rail_as_tram,
+    )
     print(summary.text())
     return 0
 
@@ -164,4 +170,9 @@ def add_commands(subparsers: Any) -> None:
     i.add_argument("--out", required=True, metavar="DIR", help="output folder")
     i.add_argument("--bbox", metavar="W,S,E,N", help="keep only the track inside this lon/lat box")
     i.add_argument("--lines", metavar="L1,L2", help="keep only these line refs (OSM route 'ref') and their stops")
+    i.add_argument(
+        "--light-rail-as-tram",
+        action="store_true",
+        help="railway=light_rail track is tram track (one fleet on both, a Stadtbahn): one class, one network",
+    )
     i.set_defaults(func=cmd_import)

@@ -137,17 +137,25 @@ def plan_trips(
     return out, short
 
 
+def _revisits(run: Sequence[str]) -> bool:
+    """A station twice in one run: the trip reverses there (an OSM line that visits a stub, A-B-A) or loops. A ring
+    (first station again at the end, at least four stations, no other repeat) is no revisit."""
+    body = list(run[:-1]) if len(run) >= 4 and run[0] == run[-1] else list(run)
+    return len(set(body)) != len(body)
+
+
 def longest_routable(stations: Sequence[str], routable: Callable[[Sequence[str]], bool]) -> tuple[int, int]:
     """``(first, last)`` indices of the longest run of consecutive ``stations`` the world has a route through
-    (``routable(chain)``: a route from the first through every station to the last, no reversal). A feed's
-    line may leave the extract and come back, or run over track the OSM data does not connect: the trip is
-    cut to its longest part the world can drive rather than refused."""
+    (``routable(chain)``: a route from the first through every station to the last, no reversal) that visits no
+    station twice (:func:`_revisits`: a reversal the route search may still find a way around). A feed's line
+    may leave the extract and come back, or run over track the OSM data does not connect: the trip is cut to its
+    longest part the world can drive rather than refused."""
     best = (0, 0)
     i = 0
     n = len(stations)
     while i < n - 1:
         j = i + 1
-        while j < n and routable(stations[i : j + 1]):
+        while j < n and not _revisits(stations[i : j + 1]) and routable(stations[i : j + 1]):
             j += 1
         if j - 1 - i > best[1] - best[0]:
             best = (i, j - 1)

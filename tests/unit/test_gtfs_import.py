@@ -193,6 +193,16 @@ def test_a_trip_is_cut_to_its_longest_part_the_world_can_drive() -> None:
     assert len(notes) == 1 and "kept D-G (4 stations)" in notes[0]
 
 
+def test_a_line_that_visits_a_stub_and_comes_back_is_cut_at_the_reversal() -> None:
+    # Jena's line 34 runs ... Emil-Wölk-Straße, Lobeda-West, Emil-Wölk-Straße ...: a reversal at Lobeda-West,
+    # even where the route search finds a way through all three (a turnaround loop or a bidi edge)
+    def anywhere(chain: object) -> bool:
+        return True
+
+    assert longest_routable(list("ABCBDE"), anywhere) == (2, 5)  # C-B-D-E, not through the reversal at C
+    assert longest_routable(list("ABCDA"), anywhere) == (0, 4)  # a ring back to its first station is no reversal
+
+
 def test_utm_inverse_on_reference_points() -> None:
     lon0, lat0 = utm_to_lonlat(500000.0, 0.0, 31, south=False)
     assert math.isclose(lon0, 3.0, abs_tol=1e-9) and math.isclose(lat0, 0.0, abs_tol=1e-9)
