@@ -171,7 +171,8 @@ def safety_margin_m(
     return np.maximum(closing, 0.0) * delay_s + params.pred_length_m + params.standstill_gap_m
 
 
-SUMO_SWITCH_INTERVAL_S = 21.6  # t_ls of the SUMO Table 3 runs (docs/guide/paper-experiments.md, "Paper E: the junction planner online")
+# t_ls of the SUMO Table 3 runs (docs/guide/paper-experiments.md, "Paper E: the junction planner online")
+SUMO_SWITCH_INTERVAL_S = 21.6
 
 
 def sumo_corrected_params(**overrides: float | bool) -> JunctionParams:
