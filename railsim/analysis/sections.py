@@ -230,7 +230,7 @@ def _require_chainage(scn: Any, bundle: Any, source: Path) -> None:
 
 
 def _service_frame(svc: Any, bundle: Any) -> ServiceFrame:
-    route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+    route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via), svc.platforms)
     stations: list[str] = []
     mark: dict[str, float] = {}
     centre: dict[str, float] = {}

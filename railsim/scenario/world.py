@@ -18,7 +18,7 @@ import dataclasses
 from collections.abc import Collection, Mapping
 
 from railsim.errors import ConfigError
-from railsim.scenario.model import Scenario, TriggerSpec
+from railsim.scenario.model import Scenario, ServiceSpec, TriggerSpec
 from railsim.scenario.validate import did_you_mean
 
 
@@ -43,6 +43,8 @@ def check_against_world(
         base = f"services[{i}]"
         station(svc.from_station, f"{base}.from")
         station(svc.to_station, f"{base}.to")
+        for st in svc.platforms:
+            station(st, f"{base}.platforms.{st}")
         for j, st in enumerate(svc.via):
             station(st, f"{base}.via[{j}]")
         for j, st in enumerate(svc.skip):
@@ -64,12 +66,25 @@ def check_against_world(
                 )
 
 
-def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
+def with_station_ids(
+    scn: Scenario, aliases: Mapping[str, str], stop_stations: Mapping[str, str] | None = None
+) -> Scenario:
     """The scenario with every station it names by an alias (a name or stop id of an external net's station)
-    replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario)."""
+    replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario).
+
+    A stop id (a key of ``stop_stations``: stop id -> station id) in a service's ``from``, ``to`` or ``via``
+    also *pins* that platform (``ServiceSpec.platforms``), as ``{station: X, platform: STOP_ID}`` does."""
+    stops = stop_stations or {}
 
     def sid(name: str) -> str:
         return aliases.get(name, name)
+
+    def pins(svc: ServiceSpec) -> dict[str, str]:
+        out = {sid(k): v for k, v in svc.platforms.items()}
+        for name in (svc.from_station, svc.to_station, *svc.via):
+            if name in stops:
+                out.setdefault(stops[name], name)
+        return out
 
     def trig(t: TriggerSpec | None) -> TriggerSpec | None:
         return t if t is None or t.station is None else dataclasses.replace(t, station=sid(t.station))
@@ -82,6 +97,7 @@ def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
             via=tuple(sid(v) for v in svc.via),
             skip=tuple(sid(v) for v in svc.skip),
             dwell_by_station={sid(k): v for k, v in svc.dwell_by_station.items()},
+            platforms=pins(svc),
         )
         for svc in scn.services
     )

@@ -33,7 +33,7 @@ def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None)
         scenario = scn_mod.with_station_ids(scenario, bundle.station_aliases)
     trips = []
     for svc in scenario.services:
-        route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+        route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via), svc.platforms)
         veh = scenario.vehicles[svc.vehicle]
         stops = make_stops(
             route,
