@@ -37,13 +37,14 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
 * **Routes** (:meth:`NetworkBundle.route_between`) choose, among the platforms of every station named, the
   combination with a path in the direction of travel and the shortest length (Dijkstra on metres). Routes
   listed in the bundle (``railsim network show``) are those between every ordered pair of stations (up to
-  :data:`MAX_LISTED_STATIONS` stations).
+  :data:`MAX_LISTED_STATIONS` stations by ``route_between``, up to :data:`MAX_ROUTED_STATIONS` by one search per
+  platform; beyond, none, and ``graph.graph["routes_note"]`` says why).
 * **Line chainage** (what a generated world's line description gives: a ``line`` and a ``km`` per station, so
   the line studies — sections, UIC 406 capacity, the train graph, the report — work on a user's net too):
   :func:`line_chainage` takes the listed route along the most stations as the ``main`` line, km = distance
   along that route from its first station's platform centre (its direction of travel is ``up``, the opposite
   ``down``), and places the stations left on ``branch1``, ``branch2``... from the nearest station already
-  placed. Nets with more stations than :data:`MAX_LISTED_STATIONS` get none (``line`` "", ``km`` 0). There are
+  placed. Nets with more stations than :data:`MAX_ROUTED_STATIONS` get none (``line`` "", ``km`` 0). There are
   no gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
 * **Flat crossings**: foe movements inside one node that share no track, from SUMO's own foe matrix
@@ -90,8 +91,17 @@ import networkx as nx
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.running_side import RUNNING_SIDES, mark_wrong_line
-from network.topology import NetworkBundle, PlatformInfo, RouteInfo, StationInfo, SwitchInfo, flat_crossings
+from network.running_side import RUNNING_SIDES, WRONG_LINE_FACTOR, mark_wrong_line
+from network.topology import (
+    NetworkBundle,
+    PlatformInfo,
+    RouteInfo,
+    StationInfo,
+    SwitchInfo,
+    flat_crossings,
+    make_route,
+    serves_in_order,
+)
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -100,7 +110,8 @@ EXTERNAL_VERSION = "2"  # bump when the way a net is read changes (invalidates t
 RAIL_VCLASSES = ("rail_urban", "subway", "rail", "rail_electric", "rail_fast", "tram")  # auto preference order
 SIGNAL_MODES = ("strip", "keep")
 DEFAULT_THROW_TIME_S = 6.0  # a typical electric point machine (a SUMO net records no throw time)
-MAX_LISTED_STATIONS = 30  # bundle.routes lists every station pair only up to this many stations
+MAX_LISTED_STATIONS = 30  # up to this many stations bundle.routes asks route_between for every station pair
+MAX_ROUTED_STATIONS = 150  # ... up to this many, one search per platform; beyond, no routes (and no line km)
 _STOP_TAGS = ("trainStop", "busStop")
 INSERTION_CHECKS = "collision leaderGap followerGap junction stop arrivalSpeed speedLimit pedestrian"
 _COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
@@ -289,7 +300,9 @@ def _choose_vclass(
                 f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}",
             )
     edges = net.getEdges(withInternal=False)
-    counts = {vc: sum(1 for e in edges if any(_rail_lane(ln, vc, open_as) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
+    counts = {
+        vc: sum(1 for e in edges if any(_rail_lane(ln, vc, open_as) for ln in e.getLanes())) for vc in RAIL_VCLASSES
+    }
     if not any(counts.values()):
         found = sorted({p for e in edges for ln in e.getLanes() for p in ln.getPermissions()})
         raise ConfigError(
@@ -803,19 +816,48 @@ def load_net(
             except ValueError:
                 continue
             routes[r.id] = r
+    elif len(stations) <= MAX_ROUTED_STATIONS:
+        routes = _routes_one_search_per_platform(bundle)
     else:
-        log.info(
-            "%s: %d stations: no routes listed and no line chainage (more than %d)",
-            name,
-            len(stations),
-            MAX_LISTED_STATIONS,
+        note = (
+            f"{len(stations)} stations: no routes listed and no line chainage (more than {MAX_ROUTED_STATIONS}: "
+            f"{len(stations) * (len(stations) - 1)} station pairs)"
         )
+        graph.graph["routes_note"] = note
+        log.info("%s: %s", name, note)
     placed = line_chainage(list(stations), routes.values())
     stations = {
         sid: dataclasses.replace(st, line=placed[sid][0], km=placed[sid][1]) if sid in placed else st
         for sid, st in stations.items()
     }
     return dataclasses.replace(bundle, routes=routes, stations=stations)
+
+
+def _routes_one_search_per_platform(bundle: NetworkBundle) -> dict[str, RouteInfo]:
+    """The route between every ordered pair of stations of a net too big for a search per pair: one Dijkstra from
+    each platform (the same costs as :meth:`NetworkBundle.route_between`, the wrong line costed up), and for every
+    other station the cheapest of its platforms' paths that serves both stations in order (a platform behind the
+    first one on the same edge does not)."""
+    g = bundle.graph
+    routes: dict[str, RouteInfo] = {}
+    for a, st in bundle.stations.items():
+        found: dict[str, list[tuple[float, list[str]]]] = {}
+        for p in st.platforms:
+            factor = WRONG_LINE_FACTOR if g.nodes[p.edge].get("wrong_line") else 1.0
+            first = float(g.nodes[p.edge]["length_m"]) * factor
+            dist, paths = nx.single_source_dijkstra(g, p.edge, weight="cost_m")
+            for b, other in bundle.stations.items():
+                if b != a:
+                    found.setdefault(b, []).extend(
+                        (first + dist[q.edge], paths[q.edge]) for q in other.platforms if q.edge in dist
+                    )
+        for b, candidates in found.items():
+            for _, path in sorted(candidates, key=lambda c: c[0]):
+                route = make_route(g, f"{a}->{b}", path)
+                if serves_in_order(route, (a, b)):
+                    routes[route.id] = route
+                    break
+    return routes
 
 
 def _stations_along(route: RouteInfo) -> list[tuple[str, float]]:

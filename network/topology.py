@@ -392,12 +392,19 @@ class NetworkBundle:
             partial = extended
         for _, path in sorted(partial, key=lambda c: c[0]):
             route = make_route(g, rid, path)
-            if _serves_in_order(route, chain):
+            if serves_in_order(route, chain):
                 return route
         via_txt = f" via {', '.join(via)}" if via else ""
         hint = "end the trip at a turnback instead"
         if external:
             hint = "a service that needs a reversal must be split into two services at the reversal station"
+            missing = _unconnected_leg(g, [plats(sid) for sid in chain], chain)
+            if missing is not None:
+                raise ValueError(
+                    f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r}: no track "
+                    f"joins {missing[0]!r} and {missing[1]!r} (a missing connection, or track the trains' vClass may "
+                    "not use): not a question of reversing"
+                )
         if pins:
             hint = f"the pinned platforms ({', '.join(pins.values())}) may lie on tracks that do not connect; {hint}"
         raise ValueError(
@@ -406,12 +413,30 @@ class NetworkBundle:
         )
 
 
+def _unconnected_leg(
+    g: nx.DiGraph, platforms: Sequence[Sequence[PlatformInfo]], chain: Sequence[str]
+) -> tuple[str, str] | None:
+    """The first pair of consecutive stations of ``chain`` whose platforms no track joins at all, whatever the
+    direction (an edge and its bidi partner are one track), or None when every leg is joined and only the direction
+    of travel is wrong (a reversal would be needed)."""
+    track = nx.Graph(g.edges())
+    track.add_nodes_from(g.nodes)
+    track.add_edges_from((n, b) for n, b in g.nodes(data="bidi") if b in g)
+    for k in range(len(chain) - 1):
+        sources = {p.edge for p in platforms[k]}
+        targets = {p.edge for p in platforms[k + 1]}
+        reach = set(nx.multi_source_dijkstra_path_length(track, sources)) if sources else set()
+        if not reach & targets:
+            return chain[k], chain[k + 1]
+    return None
+
+
 def _step_m(g: nx.DiGraph, a: str, b: str) -> float:
     """Metres run from the end of piece ``a`` to the end of piece ``b`` (internal lanes + ``b``)."""
     return sum(v[1] for v in g.edges[a, b]["via"]) + g.nodes[b]["length_m"]
 
 
-def _serves_in_order(route: RouteInfo, chain: Sequence[str]) -> bool:
+def serves_in_order(route: RouteInfo, chain: Sequence[str]) -> bool:
     """The route's first edge holds the first station, its last edge the last, and all come in order."""
     chain = [c for i, c in enumerate(chain) if i == 0 or c != chain[i - 1]]  # "via" naming an end is harmless
     k = 0
