@@ -119,6 +119,17 @@ _COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 Where = tuple[Any, str]  # (source, field prefix) for errors in the options: (scenario, "world") or (cli, "--")
 
 
+_WARNED: set[str] = set()  # warnings already given in this process (``railsim validate`` reads a net twice)
+
+
+def _warn_once(message: str, *args: Any) -> None:
+    """``log.warning`` once per process for one and the same message: a net read twice warns once."""
+    text = message % args if args else message
+    if text not in _WARNED:
+        _WARNED.add(text)
+        log.warning("%s", text)
+
+
 def _opt(where: Where, name: str) -> str:
     """Field name of option ``name`` in an error: ``world.vclass`` in a scenario, ``--vclass`` on the CLI."""
     return f"--{name}" if where[1] == "--" else f"{where[1]}.{name}"
@@ -616,7 +627,7 @@ def _stations(
         key = st.name or st.id
         groups.setdefault(key, []).append((st, plat))
     if skipped:
-        log.warning(
+        _warn_once(
             "%d stops on track our %s trains do not run on skipped (%s)",
             sum(len(v) for v in skipped.values()),
             vclass,
@@ -776,7 +787,7 @@ def load_net(
             sim_net,
         )
     elif n_signals:
-        log.warning(
+        _warn_once(
             "%s: keeping %d SUMO rail signals (signals: keep): railsim's trains do not obey them and "
             "SUMO-driven trains do not obey railsim's interlocking",
             net_file.name,

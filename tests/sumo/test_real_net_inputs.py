@@ -133,3 +133,13 @@ def test_network_show_lists_routes_and_line_km_on_a_40_station_line(tmp_path: Pa
     assert "no line km" not in res.stdout
     line = next(ln for ln in res.stdout.splitlines() if ln.strip().startswith("stop-39 "))
     assert "main" in line and "km  19.500" in line, line
+
+
+def test_validate_warns_once_about_skipped_stops(tmp_path: Path) -> None:
+    net, stops = build_metro_and_tram(tmp_path)
+    raw = {"name": "mixed", "world": {"net": str(net), "additional": [str(stops)], "vclass": "subway"}, **_COMMON}
+    raw["services"] = [_service("s", "alpha", "Colón", 0)]
+    scn = _write(tmp_path, "mixed.yaml", yaml.safe_dump(raw, sort_keys=False, allow_unicode=True))
+    res = run_railsim(["validate", str(scn)], cache_dir=tmp_path / "c")
+    assert res.returncode == 0, res.stderr
+    assert len([ln for ln in res.stderr.splitlines() if "skipped" in ln]) == 1, res.stderr
