@@ -104,6 +104,41 @@ class Dispatcher:
                         f"leader {leader.train_id} at {follower.trip.origin.station_id!r}: {why}, before the start "
                         "of its route (no room on the platform's edge)",
                     )
+        self._check_followers_joining_on_the_way()
+
+    def _check_followers_joining_on_the_way(self) -> None:
+        """A follower that couples on departure at a station its leader only calls at is put on behind the
+        leader standing there (:class:`~railsim.engine.coupling.FormationBook`). If the platform's edge is too
+        short for that (the follower's front would lie before the start of its route) it could never be put on:
+        it used to wait until the end of the run (``never_inserted``, exit 3). Refused here, naming the reason."""
+        for leader in self.fleet.trains.values():
+            for f in self.formations.of_leader.get(leader.train_id, ()):
+                follower = self.formations.follower_of(f)
+                station = follower.trip.origin.station_id
+                if (
+                    not self.formations.couples_on_departure(follower.train_id)
+                    or self.chained(follower.train_id)
+                    or station == leader.trip.origin.station_id
+                ):
+                    continue
+                stop = next((s for s in leader.trip.stops if s.station_id == station and s.kind == "station"), None)
+                if stop is None:
+                    continue  # the leader does not call there: the formation book reports it at run time
+                depart_m = self.behind_chainage_m(follower, leader, stop.mark_m, f.target_gap_m)
+                if depart_m is None or depart_m < 0.0:
+                    why = (
+                        "their routes share no track there"
+                        if depart_m is None
+                        else f"its front would be {-depart_m:.1f} m before the start of its route"
+                    )
+                    raise ConfigError(
+                        self.fleet.source,
+                        "formations",
+                        f"formation {f.id!r}: follower {follower.train_id} cannot be put on {f.target_gap_m:g} m "
+                        f"behind leader {leader.train_id} standing at {station!r}: {why} (the platform's edge is "
+                        "too short for both trains; start the follower where its leader starts, or shorten "
+                        "target_gap_m)",
+                    )
 
     def _planned_start_m(self, tr: TrainRuntime) -> float | None:
         """Where ``tr``'s front starts: its platform mark, or behind its leader in a same-origin chain."""
