@@ -22,7 +22,7 @@ the net), sampled at three points along each edge; a parallel edge must be besid
 from __future__ import annotations
 
 import math
-from collections.abc import Iterable, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
 RUNNING_SIDES = ("right", "left")
@@ -67,7 +67,7 @@ def _turn(a: float, b: float) -> float:
     return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
 
 
-def wrong_line_edges(shapes: dict[str, Sequence[Point]], bidi: dict[str, str | None], side: str) -> set[str]:
+def wrong_line_edges(shapes: Mapping[str, Sequence[Point]], bidi: Mapping[str, str | None], side: str) -> set[str]:
     """Edges that are the wrong line for their direction of travel under ``side`` running (module docstring).
 
     ``shapes`` maps each rail edge to its lane shape (x, y) in travel order; ``bidi`` to its bidi partner.
@@ -120,7 +120,7 @@ def wrong_line_edges(shapes: dict[str, Sequence[Point]], bidi: dict[str, str | N
     return wrong
 
 
-def mark_wrong_line(graph: Any, shapes: dict[str, Sequence[Point]], side: str) -> int:
+def mark_wrong_line(graph: Any, shapes: Mapping[str, Sequence[Point]], side: str) -> int:
     """Flag wrong-line edges on the track graph (``wrong_line`` node attribute) and raise the routing cost
     (``cost_m``) of every connection onto one by :data:`WRONG_LINE_FACTOR`. Returns how many edges were flagged."""
     bidi = {n: graph.nodes[n].get("bidi") for n in graph.nodes}

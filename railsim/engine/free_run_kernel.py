@@ -28,7 +28,7 @@ from numba import njit
 
 from controllers import line_kernels
 from railsim.physics import plant_kernel
-from railsim.engine.trips import FREE_RUN_MISSED_M
+from railsim.engine.settings import FREE_RUN_MISSED_M
 
 LOOKAHEAD_M = 4000.0  # the restrictions window ahead of the front (trips.free_run_reference)
 

@@ -31,10 +31,11 @@ from typing import Any
 
 import numpy as np
 
+from railsim.engine.settings import FREE_RUN_MISSED_M
+
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
 SHORT_PLATFORM_OVERRUN_M = 1.0  # ... and a halt up to 1 m past its end still serves it (never a dropped stop)
-FREE_RUN_MISSED_M = 0.5  # the free run passes a stop its front is this far beyond (the engine's missed-stop tolerance)
 REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses (railsim.engine.turnback)
 
 
