@@ -197,7 +197,7 @@ class LineFrame:
             from network.external import load_world
 
             bundle = load_world(scn.world, resolved)
-            scn = scenario_mod.with_station_ids(scn, bundle.station_aliases)
+            scn = scenario_mod.with_station_ids(scn, bundle)
             _require_chainage(scn, bundle, resolved)
         else:
             name_or_path, params = scn.world.build_args()

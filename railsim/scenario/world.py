@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Collection, Mapping
+from typing import Protocol
 
 from railsim.errors import ConfigError
 from railsim.scenario.model import Scenario, ServiceSpec, TriggerSpec
@@ -66,15 +67,23 @@ def check_against_world(
                 )
 
 
-def with_station_ids(
-    scn: Scenario, aliases: Mapping[str, str], stop_stations: Mapping[str, str] | None = None
-) -> Scenario:
+class NamedStations(Protocol):
+    """What :func:`with_station_ids` needs of a world (a ``network.NetworkBundle``)."""
+
+    @property
+    def station_aliases(self) -> Mapping[str, str]: ...  # name or stop id -> station id
+
+    @property
+    def stop_stations(self) -> Mapping[str, str]: ...  # stop id -> station id
+
+
+def with_station_ids(scn: Scenario, world: NamedStations) -> Scenario:
     """The scenario with every station it names by an alias (a name or stop id of an external net's station)
     replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario).
 
-    A stop id (a key of ``stop_stations``: stop id -> station id) in a service's ``from``, ``to`` or ``via``
-    also *pins* that platform (``ServiceSpec.platforms``), as ``{station: X, platform: STOP_ID}`` does."""
-    stops = stop_stations or {}
+    A stop id in a service's ``from``, ``to`` or ``via`` also *pins* that platform (``ServiceSpec.platforms``), as
+    ``{station: X, platform: STOP_ID}`` does."""
+    aliases, stops = world.station_aliases, world.stop_stations
 
     def sid(name: str) -> str:
         return aliases.get(name, name)
