@@ -78,36 +78,50 @@ def _routes_given_to_sumo(out: Path) -> dict[str, str]:
     return found
 
 
+def _run(folder: Path, services: list[dict]) -> tuple[Path, dict, list[dict[str, str]], dict[str, str]]:
+    net, stops = build_double_bidi(folder)
+    raw = {"name": "double_bidi", "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON}
+    raw["services"] = services
+    raw["simulation"] = {**_COMMON["simulation"], "duration_s": 1800}
+    scn = _write(folder, "double_bidi.yaml", yaml.safe_dump(raw, sort_keys=False))
+    out = folder / "out"
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=600)
+    assert res.returncode == 0, res.stderr + res.stdout
+    s = read_summary(out)
+    assert s["n_arrived"] == s["n_trains"] and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    return out, s, read_csv(out / "events.csv"), _routes_given_to_sumo(out)
+
+
 @pytest.mark.sumo
-def test_opposing_trains_run_on_their_own_tracks_and_a_pin_holds(tmp_path: Path) -> None:
-    net, stops = build_double_bidi(tmp_path)
+def test_opposing_trains_run_on_their_own_tracks(tmp_path: Path) -> None:
+    services = [
+        {**_service("east", "aston", "bury", 0), "departures": {"times": [0, 240]}},
+        {**_service("west", "Bury", "Aston", 0), "departures": {"times": [0, 240]}},
+    ]
+    out, s, events, routes = _run(tmp_path, services)
+    assert s["n_trains"] == 4
+    assert [e for e in events if e["kind"] in ("departure_held", "section_reserved")] == []
+    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
+    for trip_id in ("east.000", "west.000", "east.001", "west.001"):
+        assert float(trips[trip_id]["departure_s"]) == pytest.approx(float(trip_id[-1]) * 240, abs=2.0), trip_id
+    assert routes["east.000"] == routes["east.001"] == "S"
+    assert routes["west.000"] == routes["west.001"] == "-N"
+
+
+@pytest.mark.sumo
+def test_a_pinned_platform_holds_against_the_running_side(tmp_path: Path) -> None:
     services = [
         {**_service("east", "aston", "bury", 0), "departures": {"times": [0, 240]}},
         {**_service("west", "Bury", "Aston", 0), "departures": {"times": [0, 240]}},
         _service("pinned", {"station": "Aston", "platform": "a_n"}, "bury", 480),
         _service("by_stop", "Bury", "a_s_w", 480),  # a stop id pins the platform: the south track, westbound
     ]
-    raw = {"name": "double_bidi", "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON}
-    raw["services"] = services
-    raw["simulation"] = {**_COMMON["simulation"], "duration_s": 1800}
-    scn = _write(tmp_path, "double_bidi.yaml", yaml.safe_dump(raw, sort_keys=False))
-    out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=600)
-    assert res.returncode == 0, res.stderr + res.stdout
-    s = read_summary(out)
-    assert s["n_arrived"] == s["n_trains"] == 6 and s["collisions"] == 0 and s["sumo_collisions"] == 0
-    events = read_csv(out / "events.csv")
-    assert [e for e in events if e["kind"] == "departure_held"] == []
-    # the pinned trains run against the others, so both tracks are single-track sections; east and west never
-    # need the same one
+    _, s, events, routes = _run(tmp_path, services)
+    assert s["n_trains"] == 6
+    assert routes["pinned.000"] == "N" and routes["by_stop.000"] == "-S"
+    # the pinned trains run against the others, so both tracks are single-track sections: interlocked, and east
+    # and west never need the same one
     reserved = [(e["subject"], e["detail"]) for e in events if e["kind"] == "section_reserved"]
     east = {sec for sec, d in reserved if "east." in d}
     west = {sec for sec, d in reserved if "west." in d}
     assert east and west and not east & west, reserved
-    trips = {r["trip_id"]: r for r in read_csv(out / "trips.csv")}
-    for trip_id in ("east.000", "west.000", "east.001", "west.001"):
-        assert float(trips[trip_id]["departure_s"]) == pytest.approx(float(trip_id[-1]) * 240, abs=2.0), trip_id
-    routes = _routes_given_to_sumo(out)
-    assert routes["east.000"] == routes["east.001"] == "S"
-    assert routes["west.000"] == routes["west.001"] == "-N"
-    assert routes["pinned.000"] == "N" and routes["by_stop.000"] == "-S"
