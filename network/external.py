@@ -37,13 +37,14 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
 * **Routes** (:meth:`NetworkBundle.route_between`) choose, among the platforms of every station named, the
   combination with a path in the direction of travel and the shortest length (Dijkstra on metres). Routes
   listed in the bundle (``railsim network show``) are those between every ordered pair of stations (up to
-  :data:`MAX_LISTED_STATIONS` stations).
+  :data:`MAX_LISTED_STATIONS` stations by ``route_between``, up to :data:`MAX_ROUTED_STATIONS` by one search per
+  platform; beyond, none, and ``graph.graph["routes_note"]`` says why).
 * **Line chainage** (what a generated world's line description gives: a ``line`` and a ``km`` per station, so
   the line studies — sections, UIC 406 capacity, the train graph, the report — work on a user's net too):
   :func:`line_chainage` takes the listed route along the most stations as the ``main`` line, km = distance
   along that route from its first station's platform centre (its direction of travel is ``up``, the opposite
   ``down``), and places the stations left on ``branch1``, ``branch2``... from the nearest station already
-  placed. Nets with more stations than :data:`MAX_LISTED_STATIONS` get none (``line`` "", ``km`` 0). There are
+  placed. Nets with more stations than :data:`MAX_ROUTED_STATIONS` get none (``line`` "", ``km`` 0). There are
   no gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
 * **Flat crossings**: foe movements inside one node that share no track, from SUMO's own foe matrix
@@ -79,6 +80,7 @@ import math
 import re
 import subprocess
 import tempfile
+import unicodedata
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -89,7 +91,17 @@ import networkx as nx
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.topology import NetworkBundle, PlatformInfo, RouteInfo, StationInfo, SwitchInfo, flat_crossings
+from network.running_side import RUNNING_SIDES, WRONG_LINE_FACTOR, mark_wrong_line
+from network.topology import (
+    NetworkBundle,
+    PlatformInfo,
+    RouteInfo,
+    StationInfo,
+    SwitchInfo,
+    flat_crossings,
+    make_route,
+    serves_in_order,
+)
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
@@ -98,12 +110,24 @@ EXTERNAL_VERSION = "2"  # bump when the way a net is read changes (invalidates t
 RAIL_VCLASSES = ("rail_urban", "subway", "rail", "rail_electric", "rail_fast", "tram")  # auto preference order
 SIGNAL_MODES = ("strip", "keep")
 DEFAULT_THROW_TIME_S = 6.0  # a typical electric point machine (a SUMO net records no throw time)
-MAX_LISTED_STATIONS = 30  # bundle.routes lists every station pair only up to this many stations
+MAX_LISTED_STATIONS = 30  # up to this many stations bundle.routes asks route_between for every station pair
+MAX_ROUTED_STATIONS = 150  # ... up to this many, one search per platform; beyond, no routes (and no line km)
 _STOP_TAGS = ("trainStop", "busStop")
 INSERTION_CHECKS = "collision leaderGap followerGap junction stop arrivalSpeed speedLimit pedestrian"
 _COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 
 Where = tuple[Any, str]  # (source, field prefix) for errors in the options: (scenario, "world") or (cli, "--")
+
+
+_WARNED: set[str] = set()  # warnings already given in this process (``railsim validate`` reads a net twice)
+
+
+def _warn_once(message: str, *args: Any) -> None:
+    """``log.warning`` once per process for one and the same message: a net read twice warns once."""
+    text = message % args if args else message
+    if text not in _WARNED:
+        _WARNED.add(text)
+        log.warning("%s", text)
 
 
 def _opt(where: Where, name: str) -> str:
@@ -231,7 +255,10 @@ def read_stops(additional: Sequence[Path]) -> list[_Stop]:
 
 
 def _slug(text: str) -> str:
-    return re.sub(r"[^a-z0-9]+", "-", text.lower()).strip("-")
+    """A station id from a stop name: letters transliterated to ASCII (``Colón`` -> ``colon``: Unicode NFKD
+    splits the accent off its letter and the accent is dropped), lower case, ``-`` for anything else."""
+    ascii_text = "".join(c for c in unicodedata.normalize("NFKD", text) if not unicodedata.combining(c))
+    return re.sub(r"[^a-z0-9]+", "-", ascii_text.lower()).strip("-")
 
 
 def _heading(shape: Sequence[tuple[float, ...]], at_end: bool) -> float:
@@ -254,21 +281,27 @@ def _turn(a: float, b: float) -> float:
     return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
 
 
-def _rail_lane(lane: Any, vclass: str) -> bool:
+def _rail_lane(lane: Any, vclass: str, open_as: str | None = None) -> bool:
     """A lane railsim's trains (``vclass``) may use: it allows the class and is not a road lane.
 
     A road lane is one that also allows ``passenger`` cars: SUMO lanes without an ``allow`` list allow every
     class, and OSM imports' road types disallow only some rail classes (a street in SUMO's A10KW OSM net
     allows ``subway`` and ``rail_fast``), so "allows a rail class" alone would make streets into track. Trams
     run on streets: for ``tram`` a lane shared with cars counts unless it is open to every class (SUMO's
-    default, recognised by ``ship``, which no street lists).
+    default, recognised by ``ship``, which no street lists). ``open_as`` (the world option
+    ``unrestricted_lanes``) makes such open lanes track of that one rail class: a net drawn without any lane
+    permissions (nothing but trains on it) is then usable.
     """
+    if open_as is not None and lane.allows("ship"):
+        return vclass == open_as
     if not lane.allows(vclass):
         return False
     return not lane.allows("ship") if vclass == "tram" else not lane.allows("passenger")
 
 
-def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where) -> str:
+def _choose_vclass(
+    net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where, open_as: str | None = None
+) -> str:
     src = where[0]
     if vclass is not None:
         if vclass not in RAIL_VCLASSES:
@@ -278,7 +311,9 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
                 f"expected a rail vClass railsim can drive ({', '.join(RAIL_VCLASSES)}), got {vclass!r}",
             )
     edges = net.getEdges(withInternal=False)
-    counts = {vc: sum(1 for e in edges if any(_rail_lane(ln, vc) for ln in e.getLanes())) for vc in RAIL_VCLASSES}
+    counts = {
+        vc: sum(1 for e in edges if any(_rail_lane(ln, vc, open_as) for ln in e.getLanes())) for vc in RAIL_VCLASSES
+    }
     if not any(counts.values()):
         found = sorted({p for e in edges for ln in e.getLanes() for p in ln.getPermissions()})
         raise ConfigError(
@@ -302,7 +337,7 @@ def _choose_vclass(net: Any, stops: list[_Stop], vclass: str | None, net_file: P
         ln = _lane(net, st.lane)
         if ln is not None:
             for vc in RAIL_VCLASSES:
-                lane_ok[vc] += int(_rail_lane(ln, vc))
+                lane_ok[vc] += int(_rail_lane(ln, vc, open_as))
     return max(RAIL_VCLASSES, key=lambda vc: (lane_ok[vc], counts[vc], -RAIL_VCLASSES.index(vc)))
 
 
@@ -326,14 +361,18 @@ def _via_chain(net: Any, conn: Any) -> list[list[Any]]:
     return chain
 
 
-def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
+def _build_graph(
+    net: Any, vclass: str, name: str, running_side: str = "right", open_as: str | None = None
+) -> nx.DiGraph:
     g = nx.DiGraph(name=name, kind="external", vclass=vclass, gradients={}, points={}, reversals={})
+    shapes: dict[str, list[tuple[float, float]]] = {}
     for e in net.getEdges(withInternal=False):
-        lanes = [ln for ln in e.getLanes() if _rail_lane(ln, vclass)]
+        lanes = [ln for ln in e.getLanes() if _rail_lane(ln, vclass, open_as)]
         if not lanes:
             continue
         ln = lanes[0]
         shape = ln.getShape()
+        shapes[e.getID()] = [(float(p[0]), float(p[1])) for p in shape]
         (x0, y0, *_), (x1, y1, *_) = shape[0], shape[-1]
         bidi = e.getBidi()
         g.add_node(
@@ -361,7 +400,11 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
         for to_edge, conns in e.getOutgoing().items():
             tid = to_edge.getID()
             if tid == bidi and tid in g:
-                turn = [c for c in conns if _rail_lane(c.getFromLane(), vclass) and _rail_lane(c.getToLane(), vclass)]
+                turn = [
+                    c
+                    for c in conns
+                    if _rail_lane(c.getFromLane(), vclass, open_as) and _rail_lane(c.getToLane(), vclass, open_as)
+                ]
                 if turn:
                     g.graph["reversals"][eid] = [tid, _via_chain(net, turn[0])]
                 continue
@@ -370,7 +413,9 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             usable = [
                 c
                 for c in conns
-                if c.getDirection() != "t" and _rail_lane(c.getFromLane(), vclass) and _rail_lane(c.getToLane(), vclass)
+                if c.getDirection() != "t"
+                and _rail_lane(c.getFromLane(), vclass, open_as)
+                and _rail_lane(c.getToLane(), vclass, open_as)
             ]
             if not usable:
                 continue
@@ -379,6 +424,14 @@ def _build_graph(net: Any, vclass: str, name: str) -> nx.DiGraph:
             g.add_edge(eid, tid, node=e.getToNode().getID(), via=via, switch=None, leg=None, cost_m=cost)
             g.edges[eid, tid]["link"] = usable[0]  # removed again by _mark_crossings (sumolib objects stay out)
     _mark_crossings(g, net)
+    n_wrong = mark_wrong_line(g, shapes, running_side)
+    if n_wrong:
+        log.info(
+            "%s: %d bidi edges run beside a track of the same direction on the %s: routes keep to their own track",
+            name,
+            n_wrong,
+            running_side,
+        )
     return g
 
 
@@ -526,7 +579,7 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
 
 
 def _stations(
-    net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str
+    net: Any, g: nx.DiGraph, stops: list[_Stop], vclass: str, open_as: str | None = None
 ) -> tuple[dict[str, StationInfo], dict[str, str]]:
     """Stations grouped by stop name, their platforms on the graph, and the alias table (name/stop id -> id)."""
     from sumolib.geomhelper import positionAtShapeOffset
@@ -534,6 +587,7 @@ def _stations(
     groups: dict[str, list[tuple[_Stop, PlatformInfo]]] = {}
     names: dict[str, str] = {}
     seen: set[str] = set()
+    skipped: dict[str, list[str]] = {}  # other rail class -> stop ids on its track
     for st in stops:
         where = f"{st.tag}[id={st.id}]"
         if st.id in seen:
@@ -543,9 +597,13 @@ def _stations(
         if lane is None:
             raise ConfigError(st.file, f"{where}.lane", f"expected a lane of the network, got {st.lane!r}")
         edge_id = lane.getEdge().getID()
-        if edge_id not in g or not _rail_lane(lane, vclass):
+        if edge_id not in g or not _rail_lane(lane, vclass, open_as):
             if st.tag == "busStop":
                 log.debug("skipping busStop %s on non-rail lane %s", st.id, st.lane)
+                continue
+            other = [vc for vc in RAIL_VCLASSES if vc != vclass and _rail_lane(lane, vc, open_as)]
+            if other:  # a stop of another rail mode (a tram stop in a metro study): not ours
+                skipped.setdefault(other[0], []).append(st.id)
                 continue
             perms = ", ".join(sorted(lane.getPermissions())) or "nothing"
             raise ConfigError(
@@ -568,6 +626,13 @@ def _stations(
         plat = PlatformInfo(_compass(x1 - x0, y1 - y0), st.id, edge_id, start, min(end, length))
         key = st.name or st.id
         groups.setdefault(key, []).append((st, plat))
+    if skipped:
+        _warn_once(
+            "%d stops on track our %s trains do not run on skipped (%s)",
+            sum(len(v) for v in skipped.values()),
+            vclass,
+            "; ".join(f"{vc}: {', '.join(ids[:3])}{', ...' if len(ids) > 3 else ''}" for vc, ids in skipped.items()),
+        )
     stations: dict[str, StationInfo] = {}
     aliases: dict[str, str] = {}
     for key, members in groups.items():
@@ -666,12 +731,15 @@ def load_net(
     signals: str = "strip",
     vclass: str | None = None,
     throw_time_s: float = DEFAULT_THROW_TIME_S,
+    running_side: str = "right",
+    unrestricted_lanes: str | None = None,
     where: Where = (None, "world"),
 ) -> NetworkBundle:
     """Read an existing SUMO net (+ additional files with trainStops) into a :class:`NetworkBundle`.
 
     ``signals`` is ``strip`` or ``keep`` (module docstring), ``vclass`` the rail vClass railsim's trains get
-    (``None``: chosen from the net), ``throw_time_s`` the throw time of every switch. ``where`` names the
+    (``None``: chosen from the net), ``throw_time_s`` the throw time of every switch, ``running_side`` the side
+    trains keep on a double track drawn as two bidi tracks (:mod:`network.running_side`). ``where`` names the
     source and field prefix of these options in error messages (e.g. ``(scenario file, "world")``).
     """
     src = where[0]
@@ -685,6 +753,16 @@ def load_net(
         raise ConfigError(src, _opt(where, "signals"), f"expected one of {', '.join(SIGNAL_MODES)}, got {signals!r}")
     if not (isinstance(throw_time_s, (int, float)) and math.isfinite(throw_time_s) and throw_time_s >= 0):
         raise ConfigError(src, _opt(where, "throw_time_s"), f"expected a number >= 0, got {throw_time_s!r}")
+    if unrestricted_lanes is not None and unrestricted_lanes not in RAIL_VCLASSES:
+        raise ConfigError(
+            src,
+            _opt(where, "unrestricted_lanes"),
+            f"expected a rail vClass ({', '.join(RAIL_VCLASSES)}), got {unrestricted_lanes!r}",
+        )
+    if running_side not in RUNNING_SIDES:
+        raise ConfigError(
+            src, _opt(where, "running_side"), f"expected one of {', '.join(RUNNING_SIDES)}, got {running_side!r}"
+        )
     check_net_header(net_file)
     stops = read_stops(adds)
     key_src = "|".join(
@@ -709,7 +787,7 @@ def load_net(
             sim_net,
         )
     elif n_signals:
-        log.warning(
+        _warn_once(
             "%s: keeping %d SUMO rail signals (signals: keep): railsim's trains do not obey them and "
             "SUMO-driven trains do not obey railsim's interlocking",
             net_file.name,
@@ -717,12 +795,12 @@ def load_net(
         )
     else:
         log.info("%s: no rail signals (signals: %s has nothing to do)", net_file.name, signals)
-    chosen = _choose_vclass(net, stops, vclass, net_file, where)
+    chosen = _choose_vclass(net, stops, vclass, net_file, where, unrestricted_lanes)
     name = net_file.name.removesuffix(".xml").removesuffix(".net")
-    graph = _build_graph(net, chosen, name)
+    graph = _build_graph(net, chosen, name, running_side, unrestricted_lanes)
     graph.graph["signals"] = {"mode": signals, "count": n_signals}
     switches = find_switches(graph, throw_time_s)
-    stations, aliases = _stations(net, graph, stops, chosen)
+    stations, aliases = _stations(net, graph, stops, chosen, unrestricted_lanes)
     _preflight(sim_net, adds, folder)  # last: our own checks give the more precise messages
     stops_file = next((p for p in adds if any(s.file == p for s in stops)), adds[0] if adds else net_file)
     bundle = NetworkBundle(
@@ -749,19 +827,48 @@ def load_net(
             except ValueError:
                 continue
             routes[r.id] = r
+    elif len(stations) <= MAX_ROUTED_STATIONS:
+        routes = _routes_one_search_per_platform(bundle)
     else:
-        log.info(
-            "%s: %d stations: no routes listed and no line chainage (more than %d)",
-            name,
-            len(stations),
-            MAX_LISTED_STATIONS,
+        note = (
+            f"{len(stations)} stations: no routes listed and no line chainage (more than {MAX_ROUTED_STATIONS}: "
+            f"{len(stations) * (len(stations) - 1)} station pairs)"
         )
+        graph.graph["routes_note"] = note
+        log.info("%s: %s", name, note)
     placed = line_chainage(list(stations), routes.values())
     stations = {
         sid: dataclasses.replace(st, line=placed[sid][0], km=placed[sid][1]) if sid in placed else st
         for sid, st in stations.items()
     }
     return dataclasses.replace(bundle, routes=routes, stations=stations)
+
+
+def _routes_one_search_per_platform(bundle: NetworkBundle) -> dict[str, RouteInfo]:
+    """The route between every ordered pair of stations of a net too big for a search per pair: one Dijkstra from
+    each platform (the same costs as :meth:`NetworkBundle.route_between`, the wrong line costed up), and for every
+    other station the cheapest of its platforms' paths that serves both stations in order (a platform behind the
+    first one on the same edge does not)."""
+    g = bundle.graph
+    routes: dict[str, RouteInfo] = {}
+    for a, st in bundle.stations.items():
+        found: dict[str, list[tuple[float, list[str]]]] = {}
+        for p in st.platforms:
+            factor = WRONG_LINE_FACTOR if g.nodes[p.edge].get("wrong_line") else 1.0
+            first = float(g.nodes[p.edge]["length_m"]) * factor
+            dist, paths = nx.single_source_dijkstra(g, p.edge, weight="cost_m")
+            for b, other in bundle.stations.items():
+                if b != a:
+                    found.setdefault(b, []).extend(
+                        (first + dist[q.edge], paths[q.edge]) for q in other.platforms if q.edge in dist
+                    )
+        for b, candidates in found.items():
+            for _, path in sorted(candidates, key=lambda c: c[0]):
+                route = make_route(g, f"{a}->{b}", path)
+                if serves_in_order(route, (a, b)):
+                    routes[route.id] = route
+                    break
+    return routes
 
 
 def _stations_along(route: RouteInfo) -> list[tuple[str, float]]:

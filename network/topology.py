@@ -34,12 +34,14 @@ route's first edge and **includes the internal junction lanes**, which is what S
 from __future__ import annotations
 
 import functools
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import networkx as nx
+
+from network.running_side import WRONG_LINE_FACTOR
 
 
 @dataclass(frozen=True)
@@ -316,30 +318,63 @@ class NetworkBundle:
     signals: str = "none"  # generated worlds have none; external: "strip" | "keep"
     n_rail_signals: int = 0  # rail_signal nodes in the user's net
 
-    def route_between(self, from_station: str, to_station: str, via: Sequence[str] = ()) -> RouteInfo:
+    @functools.cached_property
+    def stop_stations(self) -> dict[str, str]:
+        """Every platform's stop id -> its station id."""
+        return {p.stop_id: sid for sid, st in self.stations.items() for p in st.platforms}
+
+    def route_between(
+        self,
+        from_station: str,
+        to_station: str,
+        via: Sequence[str] = (),
+        platforms: Mapping[str, str] | None = None,
+    ) -> RouteInfo:
         """Route for a service from ``from_station`` to ``to_station`` (optionally through ``via`` stations).
 
         It starts on the edge holding ``from_station``'s platform in the travel direction (a train starting
         there is inserted with its front at the platform end minus 1 m) and ends on the edge holding
-        ``to_station``'s platform. Raises KeyError for an unknown station, ValueError if unreachable.
+        ``to_station``'s platform. ``platforms`` pins stations to one platform (station id -> stop id); the
+        others take the platform of the cheapest route (on an external net: metres, the wrong line of a double
+        track costed up, :mod:`network.running_side`). Raises KeyError for an unknown station or platform,
+        ValueError if unreachable.
         """
+        pins = dict(platforms or {})
         for sid in (from_station, to_station, *via):
             if sid not in self.stations:
                 raise KeyError(
                     f"unknown station {sid!r} in world {self.name!r}; known: {', '.join(sorted(self.stations))}"
                 )
+        for sid, stop_id in pins.items():
+            if sid not in self.stations or all(p.stop_id != stop_id for p in self.stations[sid].platforms):
+                known = ", ".join(p.stop_id for p in self.stations[sid].platforms) if sid in self.stations else ""
+                raise KeyError(f"station {sid!r} has no platform {stop_id!r} (its platforms: {known})")
         if from_station == to_station:
             raise ValueError(f"a route needs two different stations, got {from_station!r} twice")
         chain = (from_station, *via, to_station)
         g = self.graph
-        weight = "cost_m" if g.graph.get("kind") == "external" else None  # metres; generated worlds: hops
+        external = g.graph.get("kind") == "external"
+        weight = "cost_m" if external else None  # metres; generated worlds: hops
         rid = f"{from_station}->{to_station}" + (f" via {','.join(via)}" if via else "")
-        # stage by stage over the stations named: the best partial route (length_m, edges) ending at each
+        if pins:  # a route id names one path: a pinned route is another one
+            rid += " at " + ",".join(pins[s] for s in dict.fromkeys(chain) if s in pins)
+
+        def plats(sid: str) -> list[PlatformInfo]:
+            return [p for p in self.stations[sid].platforms if sid not in pins or p.stop_id == pins[sid]]
+
+        def first_cost(edge: str) -> float:
+            factor = WRONG_LINE_FACTOR if external and g.nodes[edge].get("wrong_line") else 1.0
+            return float(g.nodes[edge]["length_m"]) * factor
+
+        def step_cost(a: str, b: str) -> float:
+            return float(g.edges[a, b]["cost_m"]) if external else _step_m(g, a, b)
+
+        # stage by stage over the stations named: the best partial route (cost, edges) ending at each
         # platform of the current station; a generated world has one platform per direction of travel
-        partial = [(g.nodes[p.edge]["length_m"], [p.edge]) for p in self.stations[from_station].platforms]
+        partial = [(first_cost(p.edge), [p.edge]) for p in plats(from_station)]
         for sid in chain[1:]:
             extended: list[tuple[float, list[str]]] = []
-            for plat in self.stations[sid].platforms:
+            for plat in plats(sid):
                 best: tuple[float, list[str]] | None = None
                 for length, path in partial:
                     try:
@@ -349,7 +384,7 @@ class NetworkBundle:
                     full = path + step
                     if len(set(full)) != len(full):
                         continue  # via stations out of order would revisit track
-                    total = length + sum(_step_m(g, a, b) for a, b in zip(full[len(path) - 1 :], step))
+                    total = length + sum(step_cost(a, b) for a, b in zip(full[len(path) - 1 :], step))
                     if best is None or total < best[0] - 1e-9:
                         best = (total, full)
                 if best is not None:
@@ -357,16 +392,43 @@ class NetworkBundle:
             partial = extended
         for _, path in sorted(partial, key=lambda c: c[0]):
             route = make_route(g, rid, path)
-            if _serves_in_order(route, chain):
+            if serves_in_order(route, chain):
                 return route
         via_txt = f" via {', '.join(via)}" if via else ""
         hint = "end the trip at a turnback instead"
-        if g.graph.get("kind") == "external":
+        if external:
             hint = "a service that needs a reversal must be split into two services at the reversal station"
+            missing = _unconnected_leg(g, [plats(sid) for sid in chain], chain)
+            if missing is not None:
+                raise ValueError(
+                    f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r}: no track "
+                    f"joins {missing[0]!r} and {missing[1]!r} (a missing connection, or track the trains' vClass may "
+                    "not use): not a question of reversing"
+                )
+        if pins:
+            hint = f"the pinned platforms ({', '.join(pins.values())}) may lie on tracks that do not connect; {hint}"
         raise ValueError(
             f"no route from {from_station!r} to {to_station!r}{via_txt} in world {self.name!r} "
             f"(trains do not reverse on the way; {hint})"
         )
+
+
+def _unconnected_leg(
+    g: nx.DiGraph, platforms: Sequence[Sequence[PlatformInfo]], chain: Sequence[str]
+) -> tuple[str, str] | None:
+    """The first pair of consecutive stations of ``chain`` whose platforms no track joins at all, whatever the
+    direction (an edge and its bidi partner are one track), or None when every leg is joined and only the direction
+    of travel is wrong (a reversal would be needed)."""
+    track = nx.Graph(g.edges())
+    track.add_nodes_from(g.nodes)
+    track.add_edges_from((n, b) for n, b in g.nodes(data="bidi") if b in g)
+    for k in range(len(chain) - 1):
+        sources = {p.edge for p in platforms[k]}
+        targets = {p.edge for p in platforms[k + 1]}
+        reach = set(nx.multi_source_dijkstra_path_length(track, sources)) if sources else set()
+        if not reach & targets:
+            return chain[k], chain[k + 1]
+    return None
 
 
 def _step_m(g: nx.DiGraph, a: str, b: str) -> float:
@@ -374,7 +436,7 @@ def _step_m(g: nx.DiGraph, a: str, b: str) -> float:
     return sum(v[1] for v in g.edges[a, b]["via"]) + g.nodes[b]["length_m"]
 
 
-def _serves_in_order(route: RouteInfo, chain: Sequence[str]) -> bool:
+def serves_in_order(route: RouteInfo, chain: Sequence[str]) -> bool:
     """The route's first edge holds the first station, its last edge the last, and all come in order."""
     chain = [c for i, c in enumerate(chain) if i == 0 or c != chain[i - 1]]  # "via" naming an end is harmless
     k = 0

@@ -27,6 +27,8 @@ def load_world(world: Any, source: Any = None) -> NetworkBundle:
         signals=world.signals,
         vclass=world.vclass,
         throw_time_s=world.throw_time_s,
+        running_side=world.running_side,
+        unrestricted_lanes=world.unrestricted_lanes,
         where=(source, "world"),
     )
 

@@ -109,7 +109,9 @@ def _monitor() -> tuple[object, object]:
 
 
 def _running(sumo_stopped: bool = False, window_end_m: float = 501.0) -> object:
-    trip = SimpleNamespace(vehicle=BARE, stops=(SimpleNamespace(station_id="c", window_end_m=window_end_m),))
+    trip = SimpleNamespace(
+        vehicle=BARE, stops=(SimpleNamespace(station_id="c", window_end_m=window_end_m, served_end_m=window_end_m),)
+    )
     return SimpleNamespace(
         train_id="x", front_m=500.0, trip=trip, view=_FlatView(), next_stop=0, sumo_stopped=sumo_stopped, sumo_edge="e1"
     )

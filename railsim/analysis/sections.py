@@ -197,7 +197,7 @@ class LineFrame:
             from network.world import load_world
 
             bundle = load_world(scn.world, resolved)
-            scn = scenario_mod.with_station_ids(scn, bundle.station_aliases)
+            scn = scenario_mod.with_station_ids(scn, bundle)
             _require_chainage(scn, bundle, resolved)
         else:
             name_or_path, params = scn.world.build_args()
@@ -230,7 +230,7 @@ def _require_chainage(scn: Any, bundle: Any, source: Path) -> None:
 
 
 def _service_frame(svc: Any, bundle: Any) -> ServiceFrame:
-    route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+    route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via), svc.platforms)
     stations: list[str] = []
     mark: dict[str, float] = {}
     centre: dict[str, float] = {}

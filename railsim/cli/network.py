@@ -84,6 +84,8 @@ def summary(bundle: Any) -> str:
         )
     lines.append("")
     lines.append(f"routes ({len(bundle.routes)}; km = first stop to last stop along the route):")
+    if not bundle.routes and bundle.graph.graph.get("routes_note"):
+        lines.append(f"  none listed: {bundle.graph.graph['routes_note']}")
     for r in bundle.routes.values():
         sws = ", ".join(f"{s.switch_id}({s.leg}) @{s.point_m:.0f} m" for s in r.switches) or "no switches"
         lines.append(

@@ -52,7 +52,7 @@ class Fleet:
         """Create every trip of every service (see the module docstring)."""
         for svc in scenario.services:
             try:
-                route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+                route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via), svc.platforms)
             except (KeyError, ValueError) as exc:
                 raise ConfigError(self.source, f"services[{svc.id}]", f"no route: {exc}") from None
             vehicle = scenario.vehicles[svc.vehicle]

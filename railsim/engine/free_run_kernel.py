@@ -28,6 +28,7 @@ from numba import njit
 
 from controllers import line_kernels
 from railsim.physics import plant_kernel
+from railsim.engine.settings import FREE_RUN_MISSED_M
 
 LOOKAHEAD_M = 4000.0  # the restrictions window ahead of the front (trips.free_run_reference)
 
@@ -87,7 +88,8 @@ def free_run(
     max_time_s: float,
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Arrival and departure time per stop (NaN: not reached; stop 0 is the origin) and whether the loop ran
-    through. ``stops`` rows: ``(mark, window start, window end, dwell, is destination)``. False when the law
+    through. ``stops`` rows: ``(mark, window start, window end, dwell, is destination, served end)``; a stop the
+    front runs more than ``FREE_RUN_MISSED_M`` past its served end is passed (NaN), as in the reference. False when the law
     returned a non-finite command: the caller re-runs the interpreted loop, which raises its clear error."""
     n_stops = stops.shape[0]
     arrivals = np.full(n_stops, np.nan)
@@ -132,10 +134,14 @@ def free_run(
                 departures[idx] = t
                 dwelling = False
                 idx += 1
-        elif v == 0.0 and stops[idx, 1] <= x <= stops[idx, 2]:
+        elif v == 0.0 and stops[idx, 1] <= x <= stops[idx, 5]:
             arrivals[idx] = t
             if stops[idx, 4] != 0.0:
                 break
             dwell_until = t + stops[idx, 3] + 1.0  # SUMO registers the stop ~1 s after the halt
             dwelling = True
+        elif x > stops[idx, 5] + FREE_RUN_MISSED_M:
+            if stops[idx, 4] != 0.0:
+                break
+            idx += 1
     return arrivals, departures, True

@@ -101,6 +101,7 @@ class Dispatcher:
         self.extensions = extensions  # on_inserted: exact plants, …
         self.bridge: SumoInsertion = unwired("Dispatcher", "bridge")  # exists while the run is under way: connect()
         self._held: dict[str, str] = {}  # trip -> the reason its departure is held (logged when it changes)
+        self._retries: dict[str, int] = {}  # trip -> retries of its held departure (only the first is logged)
         self._stop_memo: dict[str, tuple[float, float, float, float]] = {}  # train -> (t, v, front, least stop)
 
     def connect(self, bridge: SumoInsertion) -> None:
@@ -130,6 +131,41 @@ class Dispatcher:
                         f"formation {f.id!r}: follower {follower.train_id} cannot start {f.target_gap_m:g} m behind "
                         f"leader {leader.train_id} at {follower.trip.origin.station_id!r}: {why}, before the start "
                         "of its route (no room on the platform's edge)",
+                    )
+        self._check_followers_joining_on_the_way()
+
+    def _check_followers_joining_on_the_way(self) -> None:
+        """A follower that couples on departure at a station its leader only calls at is put on behind the
+        leader standing there (:class:`~railsim.engine.coupling.FormationBook`). If the platform's edge is too
+        short for that (the follower's front would lie before the start of its route) it could never be put on:
+        it used to wait until the end of the run (``never_inserted``, exit 3). Refused here, naming the reason."""
+        for leader in self.fleet.trains.values():
+            for f in self.formations.of_leader.get(leader.train_id, ()):
+                follower = self.formations.follower_of(f)
+                station = follower.trip.origin.station_id
+                if (
+                    not self.formations.couples_on_departure(follower.train_id)
+                    or self.chained(follower.train_id)
+                    or station == leader.trip.origin.station_id
+                ):
+                    continue
+                stop = next((s for s in leader.trip.stops if s.station_id == station and s.kind == "station"), None)
+                if stop is None:
+                    continue  # the leader does not call there: the formation book reports it at run time
+                depart_m = self.behind_chainage_m(follower, leader, stop.mark_m, f.target_gap_m)
+                if depart_m is None or depart_m < 0.0:
+                    why = (
+                        "their routes share no track there"
+                        if depart_m is None
+                        else f"its front would be {-depart_m:.1f} m before the start of its route"
+                    )
+                    raise ConfigError(
+                        self.fleet.source,
+                        "formations",
+                        f"formation {f.id!r}: follower {follower.train_id} cannot be put on {f.target_gap_m:g} m "
+                        f"behind leader {leader.train_id} standing at {station!r}: {why} (the platform's edge is "
+                        "too short for both trains; start the follower where its leader starts, or shorten "
+                        "target_gap_m)",
                     )
 
     def _planned_start_m(self, tr: TrainRuntime) -> float | None:
@@ -252,6 +288,7 @@ class Dispatcher:
         tr.depart_chainage_m = tr.start_front_m = depart_m
         tr.inserted_s = self.layer.now_s
         self._held.pop(tr.train_id, None)
+        self._report_retries(tr.train_id)
         self.events.record(
             self.layer.now_s, "train_inserted", tr.train_id, service=trip.service_id, chainage_m=round(depart_m, 3)
         )
@@ -266,11 +303,24 @@ class Dispatcher:
             self.events.record(self.layer.now_s, "departure_held", tr.train_id, reason=reason)
 
     def _hold(self, tr: TrainRuntime, reason: str) -> None:
-        """The departure waits (module docstring): logged when the reason changes, retried later."""
+        """The departure waits (module docstring): logged when the reason changes, retried later. Only the first
+        retry is a ``departure_retry`` event; the rest are counted and summarised once the train is inserted or
+        the run ends (``departure_retries`` with ``count``): a train held for an hour at a 1 s retry used to
+        write 3,600 identical rows."""
         self._log_held(tr, reason)
+        n = self._retries.get(tr.train_id, 0)
+        self._retries[tr.train_id] = n + 1
         self.layer.at(
-            self.layer.now_s + self.settings.departure_retry_s, self._inserter(tr), "departure_retry", tr.train_id
+            self.layer.now_s + self.settings.departure_retry_s,
+            self._inserter(tr),
+            "departure_retry" if n == 0 else None,
+            tr.train_id,
         )
+
+    def _report_retries(self, train_id: str) -> None:
+        count = self._retries.pop(train_id, 0)
+        if count > 1:
+            self.events.record(self.layer.now_s, "departure_retries", train_id, count=count)
 
     def report_never_inserted(self, t: float) -> list[str]:
         """End of the run: one ``never_inserted`` event per trip that never entered the world; their ids."""
@@ -282,6 +332,7 @@ class Dispatcher:
                 else "its departure never came (its leader never stood at its origin)"
             )
             reason = self._held.get(tid, default)
+            self._report_retries(tid)
             self.events.record(t, "never_inserted", tid, reason=reason)
         return ids
 

@@ -17,6 +17,14 @@ and SUMO registered that train's stop there. Passing a switch without its lock i
 event. An extension may take over the requests for some trains and switches (its ``manages_lock`` hook: the
 junction planner requests in its planned order).
 
+**Stops within the overlap.** A platform may end closer to the points (or a single-track section, a crossing)
+than the overlap: OSM nets put stops a few metres before the points. The authority before a resource not yet
+granted then reaches the train's stopping mark (plus the margin its ATO keeps before an authority end), never
+less (:meth:`RouteLocks._reach_stop`): the train halts at its mark, SUMO registers the stop, and the resource is
+requested from there. Ending the authority the overlap short, a train with a platform 22 m before the points
+halted 2 m short of its mark, outside a short platform's window: SUMO never registered the stop and the run
+stalled. The overlap left beyond such a stop is the distance from the mark to the point.
+
 **Merges.** At a merge (two tracks joining, SUMO's trailing points) a train on the other leg appears on our
 track the moment it passes the point: its rear is at the point. So before a merge not locked for it a train's
 authority ends ``max(overlap, its separation margin)`` before the point (:meth:`RouteLocks.protect_merges`), so
@@ -448,7 +456,7 @@ class RouteLocks:
             for sec in self.sections[tr.train_id]:
                 req = reqs.get(sec.section_id)
                 if sec.end_m > tr.front_m and sec.guard_m > tr.front_m - 1e-6 and (req is None or not req.granted):
-                    end = min(end, sec.guard_m - self.settings.protection_margin_m)
+                    end = min(end, self._reach_stop(tr, sec.guard_m - self.settings.protection_margin_m, sec.guard_m))
                     break
         switches = tr.trip.route.switches
         behind_m = tr.front_m - 1e-6
@@ -458,8 +466,26 @@ class RouteLocks:
             if rs.point_m <= behind_m or rs.switch_id in tr.released:
                 continue
             if not self.interlocking.is_locked_for(tr.train_id, rs.switch_id, rs.leg):
-                return min(end, rs.point_m - self._margin_m(tr.train_id, rs.switch_id))
+                return min(
+                    end, self._reach_stop(tr, rs.point_m - self._margin_m(tr.train_id, rs.switch_id), rs.point_m)
+                )
         return end
+
+    def _reach_stop(self, tr: TrainRuntime, end_m: float, point_m: float) -> float:
+        """The authority end ``end_m`` before a resource at ``point_m``, carried on to the train's next station
+        stop when that stop's mark lies before the point but within the overlap (plus the margin the ATO keeps
+        before its authority end): the train stops at its mark, not short of it (module docstring, "Stops
+        within the overlap")."""
+        k = tr.next_stop
+        stops = tr.trip.stops
+        if k >= len(stops):
+            return end_m
+        stop = stops[k]
+        if stop.kind != "station" or stop.mark_m >= point_m or tr.front_m > stop.window_end_m:
+            return end_m
+        params = getattr(tr.controllers.get("ato"), "params", None)
+        reach_m = stop.mark_m + float(getattr(params, "authority_margin_m", 0.0))
+        return max(end_m, reach_m)
 
     def _first_switch(self, tr: TrainRuntime, switches: Any, behind_m: float) -> int:
         """How many of the route's first switches lie behind ``behind_m`` (the loop above skips them anyway).

@@ -93,7 +93,7 @@ class Simulation:
             scenario, self.bundle.stations.keys(), self.bundle.switches.keys(), self.bundle.station_aliases
         )
         if self.bundle.station_aliases:  # an external net: stations named by name or stop id -> station ids
-            scenario = self.scenario = scn_mod.with_station_ids(scenario, self.bundle.station_aliases)
+            scenario = self.scenario = scn_mod.with_station_ids(scenario, self.bundle)
 
         # ---- event layer: clock, log, formation state machine, interlocking, radio channels
         self.layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(self.rng.integers(2**63)))

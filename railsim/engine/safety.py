@@ -261,7 +261,7 @@ class SafetyMonitor:
         stop = tr.trip.stops[tr.next_stop] if tr.next_stop < len(tr.trip.stops) else None
         station = None if stop is None else stop.station_id
         detail = dict(railsim_mps=round(railsim_v_mps, 3), sumo_mps=round(sumo_v_mps, 3), next_stop=station)
-        if stop is not None and tr.front_m + least_m <= stop.window_end_m + self.settings.missed_stop_tolerance_m:
+        if stop is not None and tr.front_m + least_m <= stop.served_end_m + self.settings.missed_stop_tolerance_m:
             # halted early inside the window it could still have stopped in: its stopping error shows where
             self.events.record(t, "sumo_forced_halt", tr.train_id, front_m=round(tr.front_m, 3), **detail)
             log.warning("SUMO halted %s at %s from %.2f m/s in one step", tr.train_id, station, railsim_v_mps)

@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 from typing import Any
 
 INF = float("inf")
+FREE_RUN_MISSED_M = 0.5  # the planned free run passes a stop its front is this far beyond (the missed-stop tolerance)
 INSERTION_REACTION_S = 1.0  # a train approaching a departure needs this long to react before it brakes
 DWELL_REGISTRATION_S = 1.0  # SUMO dwell given to a destination stop (the trip ends when SUMO registers it)
 # SUMO never drives our trains (speedMode 32), but it still checks insertion with the vType's Krauss model: its

@@ -11,6 +11,8 @@ A *service* in a scenario (``from: yudong, to: jiangbei-airport-t2, departures: 
   train: there the front halts at the platform end, in a window of :data:`SHORT_PLATFORM_WINDOW_M` that ends at
   the platform end (never before the platform's edge begins), and SUMO is given that window as a stop on the
   lane (``lane_stop_m``), because it would never register a trainStop the train does not fit on;
+  A halt up to :data:`SHORT_PLATFORM_OVERRUN_M` past a short platform's end still serves it (``overrun_m``; SUMO's
+  stop on the lane reaches that far): a sub-metre overrun of a 25 m stop is a stopping error, not a dropped stop;
 * the dwell at each intermediate stop;
 * the **planned** (timetable) times, from a free run of the same train with the same ATO and physics on an
   empty line (:func:`plan_free_run`). Delay = actual − planned, so delay measures what the other trains, the
@@ -29,8 +31,11 @@ from typing import Any
 
 import numpy as np
 
+from railsim.engine.settings import FREE_RUN_MISSED_M
+
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
+SHORT_PLATFORM_OVERRUN_M = 1.0  # ... and a halt up to 1 m past its end still serves it (never a dropped stop)
 REVERSAL = "reversal"  # TripStop.kind of the stop where a unit reverses (railsim.engine.turnback)
 
 
@@ -51,11 +56,17 @@ class TripStop:
     # handed to SUMO as a stop on the lane; None for a platform the whole train fits on (SUMO's trainStop)
     lane_stop_m: tuple[float, float] | None = None
     platform_m: float = 0.0  # platform length [m]
+    overrun_m: float = 0.0  # a halt this far past the window's end is still served (a short platform's overrun)
 
     @property
     def short_platform(self) -> bool:
         """The train is longer than the platform: it stands with its front at the platform end."""
         return self.lane_stop_m is not None
+
+    @property
+    def served_end_m(self) -> float:
+        """The farthest front position at which a halt serves the stop: the window's end plus ``overrun_m``."""
+        return self.window_end_m + self.overrun_m
 
 
 def sumo_stops(
@@ -147,6 +158,10 @@ def make_stops(
         if rs.station_id in skip and not (is_origin or is_dest):
             continue
         mark, window_start, lane_stop = _stop_window(rs, length_m)
+        overrun_m = 0.0
+        if lane_stop is not None:  # SUMO's stop on the lane reaches as far past the platform as the edge allows
+            overrun_m = max(0.0, min(SHORT_PLATFORM_OVERRUN_M, _edge_end_m(route, rs) - rs.end_m))
+            lane_stop = (lane_stop[0], lane_stop[1] + overrun_m)
         stops.append(
             TripStop(
                 station_id=rs.station_id,
@@ -159,11 +174,20 @@ def make_stops(
                 dwell_s=0.0 if (is_origin or is_dest) else float(dwell_by_station.get(rs.station_id, dwell_default_s)),
                 is_origin=is_origin,
                 is_destination=is_dest,
+                overrun_m=overrun_m,
             )
         )
         if is_dest:
             break
     return tuple(stops)
+
+
+def _edge_end_m(route: Any, rs: Any) -> float:
+    """Route chainage of the end of the edge a platform lies on (where the next internal or normal edge begins)."""
+    edge_start_m = rs.start_m - rs.start_pos_m
+    later = [float(x) for x in route.edge_start_m if x > edge_start_m + 1e-6]
+    later += [float(x) for _, x in route.internal_start_m if x > edge_start_m + 1e-6]
+    return min(later, default=float(route.length_m))
 
 
 def _stop_window(rs: Any, length_m: float) -> tuple[float, float, tuple[float, float] | None]:
@@ -232,9 +256,12 @@ def _free_run_compiled(
         return None
     view = route_view(trip.route)
     stops = np.array(
-        [(s.mark_m, s.window_start_m, s.window_end_m, s.dwell_s, float(s.is_destination)) for s in trip.stops],
+        [
+            (s.mark_m, s.window_start_m, s.window_end_m, s.dwell_s, float(s.is_destination), s.served_end_m)
+            for s in trip.stops
+        ],
         dtype=np.float64,
-    ).reshape(-1, 5)
+    ).reshape(-1, 6)
     arr_t, dep_t, ok = free_run_kernel.free_run(
         ato.packed(veh, dt_s),
         plant_kernel.pack(veh, dt_s),
@@ -297,11 +324,15 @@ def free_run_reference(
                 departures[stop.station_id] = t
                 dwell_until = None
                 idx += 1
-        elif v == 0.0 and stop.window_start_m <= x <= stop.window_end_m:
+        elif v == 0.0 and stop.window_start_m <= x <= stop.served_end_m:
             arrivals[stop.station_id] = t
             if stop.is_destination:
                 break
             dwell_until = t + stop.dwell_s + 1.0  # SUMO registers the stop ~1 s after the halt
+        elif x > stop.served_end_m + FREE_RUN_MISSED_M:
+            if stop.is_destination:
+                break  # the plan has no arrival: the run says so (railsim.engine.fleet)
+            idx += 1  # the plan runs past it, as the run would: the later stops keep their planned times
     return arrivals, departures
 
 

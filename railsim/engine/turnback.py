@@ -57,7 +57,7 @@ from network.topology import make_route
 from railsim.engine.events.log import EventLog
 from railsim.engine.fleet import Fleet
 from railsim.engine.routeview import route_view
-from railsim.engine.settings import DWELL_REGISTRATION_S
+from railsim.engine.settings import DWELL_REGISTRATION_S, INF
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import REVERSAL, TripStop, sumo_stops
 from railsim.engine.wiring import set_once, unwired
@@ -139,14 +139,60 @@ class Turnbacks:
 
     # ------------------------------------------------------------------ chaining
     def _path(self, pred: TrainRuntime, succ: TrainRuntime) -> list[str] | None:
-        key = (pred.trip.route.edges[-1], succ.trip.route.edges[0])
+        return self._path_edges(pred.trip.route.edges[-1], succ.trip.route.edges[0])
+
+    def _path_edges(self, from_edge: str, to_edge: str) -> list[str] | None:
+        key = (from_edge, to_edge)
         if key not in self._paths:
             self._paths[key] = turnback_path(self.graph, *key)
         return self._paths[key]
 
     def _ready_s(self, tr: TrainRuntime) -> float:
+        """When the unit of ``tr`` may leave again by the plan: planned arrival + minimum turnback (never, for a
+        trip whose plan has no arrival: chaining it from its departure time would invent a turnback)."""
         dest = tr.trip.destination.station_id
-        return tr.trip.planned_arrival_s.get(dest, tr.trip.depart_s) + self.spec.turnback_min_at(dest)
+        arrival_s = tr.trip.planned_arrival_s.get(dest)
+        if arrival_s is None:
+            return INF
+        return arrival_s + self.spec.turnback_min_at(dest)
+
+    def _warn_unturnable(self, order: list[TrainRuntime]) -> None:
+        """One warning line per terminus where trips arrive and later trips depart but no arriving unit can turn
+        onto any departure (``units: auto`` then starts a new unit for each), naming the reason; and one per trip
+        whose plan has no arrival (it is never chained)."""
+        for tr in order:
+            if tr.trip.destination.station_id not in tr.trip.planned_arrival_s:
+                log.warning(
+                    "rotations: %s is not chained to a next trip: its plan never reaches %s (no planned arrival)",
+                    tr.train_id,
+                    tr.trip.destination.station_id,
+                )
+        arriving: dict[str, set[str]] = {}
+        departing: dict[str, set[str]] = {}
+        for tr in order:
+            arriving.setdefault(tr.trip.destination.station_id, set()).add(tr.trip.route.edges[-1])
+            departing.setdefault(tr.trip.origin.station_id, set()).add(tr.trip.route.edges[0])
+        reversals = {a for a, _, rev in self.graph.edges(data="reversal") if rev}
+        plain = nx.subgraph_view(self.graph, filter_edge=lambda a, b: not self.graph.edges[a, b].get("reversal"))
+        weight = _arc_m(self.graph)
+        for station in sorted(set(arriving) & set(departing)):
+            ins, outs = sorted(arriving[station]), sorted(departing[station])
+            if any(self._path_edges(a, d) is not None for a in ins for d in outs):
+                continue
+            reach: set[str] = set()
+            for a in ins:
+                reach |= set(nx.single_source_dijkstra_path_length(plain, a, cutoff=TURNBACK_SEARCH_M, weight=weight))
+            if not reach & reversals:
+                why = (
+                    f"dead end: no turnaround within {TURNBACK_SEARCH_M:g} m of the arrival track "
+                    f"({', '.join(ins)}; a unit reverses on a bidi edge with a turnaround)"
+                )
+            else:
+                why = (
+                    f"the arrival platforms ({', '.join(ins)}) and departure platforms ({', '.join(outs)}) lie on "
+                    "different tracks with no turnaround between them"
+                )
+            log.warning("rotations: no unit can turn at %s: %s; every departure there starts a new unit", station, why)
 
     def _chain(self) -> None:
         trains = self.fleet.trains
@@ -173,6 +219,7 @@ class Turnbacks:
             return
         waiting: dict[str, list[TrainRuntime]] = {}  # station -> units' last trips, in arrival order
         order = sorted(trains.values(), key=lambda tr: (tr.trip.depart_s, tr.train_id))
+        self._warn_unturnable(order)
         for tr in order:
             pool = waiting.setdefault(tr.trip.origin.station_id, [])
             for gone in [p for p in pool if tr.trip.depart_s - self._ready_s(p) > self.spec.max_layover_s]:

@@ -79,6 +79,8 @@ class WorldSpec:
     signals: str = "strip"  # net worlds: strip | keep SUMO's rail signals (network.external)
     vclass: str | None = None  # net worlds: the rail vClass of our trains (None: chosen from the net)
     throw_time_s: float = 6.0  # net worlds: throw time of every switch (a SUMO net has none)
+    running_side: str = "right"  # net worlds: the track each direction keeps on double track (network.running_side)
+    unrestricted_lanes: str | None = None  # net worlds: the rail vClass of lanes that allow every class
 
     @property
     def label(self) -> str:
@@ -159,6 +161,7 @@ class ServiceSpec:
     start_before_switch: str | None = None  # or: the front starts start_distance_m before this switch's point
     start_distance_m: float = 0.0
     departures_after: RelativeDeparturesSpec | None = None  # set when the departures are relative to a service
+    platforms: dict[str, str] = field(default_factory=dict)  # pinned platforms: station -> stop id (external nets)
 
     def dwell_s(self, station: str) -> float:
         """Scheduled dwell at ``station`` [s]."""

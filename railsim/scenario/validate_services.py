@@ -99,11 +99,15 @@ def service(
         body, path, ("id", "from", "to", "vehicle", "departures"), ("via", "dwell_s", "skip", "roles", "start")
     )
     sid = ck.ident(m["id"], f"{path}.id")
-    origin = ck.string(m["from"], f"{path}.from")
-    dest = ck.string(m["to"], f"{path}.to")
+    pins: dict[str, str] = {}
+    origin = _place(ck, m["from"], f"{path}.from", pins)
+    dest = _place(ck, m["to"], f"{path}.to", pins)
     if origin == dest:
         raise ck.fail(f"{path}.to", f"expected a station other than 'from', got {dest!r}")
-    via = ck.string_list(m.get("via") or [], f"{path}.via")
+    via_in = m.get("via") or []
+    if not isinstance(via_in, list):
+        raise ck.expect(f"{path}.via", "a list of stations", via_in)
+    via = [_place(ck, v, f"{path}.via[{j}]", pins) for j, v in enumerate(via_in)]
     skip = ck.string_list(m.get("skip") or [], f"{path}.skip")
     for j, st in enumerate(skip):
         if st in (origin, dest):
@@ -170,12 +174,13 @@ def service(
         start_before_switch=start_switch,
         start_distance_m=start_distance,
         departures_after=after,
+        platforms=pins,
     )
     raw = {
         "id": sid,
-        "from": origin,
-        "to": dest,
-        "via": via,
+        "from": _place_raw(origin, pins),
+        "to": _place_raw(dest, pins),
+        "via": [_place_raw(v, pins) for v in via],
         "vehicle": vehicle,
         "departures": dep_raw,
         "dwell_s": dwell_raw,
@@ -187,6 +192,24 @@ def service(
     elif start_in:
         raw["start"] = {"offset_m": start_offset, "speed_kmh": start_kmh}
     return spec, raw
+
+
+def _place(ck: Checker, value: Any, path: str, pins: dict[str, str]) -> str:
+    """A station of a service's ``from``/``to``/``via``: its id, name or stop id, or ``{station, platform}``
+    pinning the stop id ``platform`` (recorded in ``pins``). Returns the station as written."""
+    if not isinstance(value, dict):
+        return ck.string(value, path)
+    m = ck.mapping(value, path, ("station", "platform"))
+    station = ck.string(m["station"], f"{path}.station")
+    platform = ck.string(m["platform"], f"{path}.platform")
+    if pins.get(station, platform) != platform:
+        raise ck.fail(f"{path}.platform", f"expected the platform pinned before ({pins[station]!r}), got {platform!r}")
+    pins[station] = platform
+    return station
+
+
+def _place_raw(station: str, pins: dict[str, str]) -> Any:
+    return {"station": station, "platform": pins[station]} if station in pins else station
 
 
 def time_point(ck: Checker, value: Any, path: str, sim: SimulationSpec) -> float:

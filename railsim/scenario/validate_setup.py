@@ -52,8 +52,14 @@ def world(ck: Checker, value: Any) -> tuple[WorldSpec, Any]:
         line = ck.path_value(m["line"], "world.line")
         return WorldSpec(kind="line", line=line), {"line": str(line)}
     from network.external import DEFAULT_THROW_TIME_S, RAIL_VCLASSES, SIGNAL_MODES
+    from network.running_side import RUNNING_SIDES
 
-    m = ck.mapping(value, "world", ("net",), ("additional", "signals", "vclass", "throw_time_s"))
+    m = ck.mapping(
+        value,
+        "world",
+        ("net",),
+        ("additional", "signals", "vclass", "throw_time_s", "running_side", "unrestricted_lanes"),
+    )
     net = ck.path_value(m["net"], "world.net")
     extra = m.get("additional") or []
     if not isinstance(extra, list):
@@ -63,13 +69,31 @@ def world(ck: Checker, value: Any) -> tuple[WorldSpec, Any]:
     vclass = m.get("vclass")
     vclass = None if vclass in (None, "auto") else ck.string(vclass, "world.vclass", RAIL_VCLASSES)
     throw = ck.number(m.get("throw_time_s", DEFAULT_THROW_TIME_S), "world.throw_time_s", ge=0.0)
-    return WorldSpec(kind="net", net=net, additional=additional, signals=signals, vclass=vclass, throw_time_s=throw), {
+    side = ck.string(m.get("running_side", "right"), "world.running_side", RUNNING_SIDES)
+    open_as = m.get("unrestricted_lanes")
+    open_as = None if open_as in (None, "none") else ck.string(open_as, "world.unrestricted_lanes", RAIL_VCLASSES)
+    spec = WorldSpec(
+        kind="net",
+        net=net,
+        additional=additional,
+        signals=signals,
+        vclass=vclass,
+        throw_time_s=throw,
+        running_side=side,
+        unrestricted_lanes=open_as,
+    )
+    raw: dict[str, Any] = {
         "net": str(net),
         "additional": [str(p) for p in additional],
         "signals": signals,
         "vclass": vclass or "auto",
         "throw_time_s": throw,
     }
+    if "running_side" in m:  # written back only when given: the raw of older scenarios stays as it was
+        raw["running_side"] = side
+    if open_as is not None:
+        raw["unrestricted_lanes"] = open_as
+    return spec, raw
 
 
 def simulation(ck: Checker, value: Any) -> tuple[SimulationSpec, dict[str, Any]]:

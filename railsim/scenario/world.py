@@ -16,9 +16,10 @@ from __future__ import annotations
 
 import dataclasses
 from collections.abc import Collection, Mapping
+from typing import Protocol
 
 from railsim.errors import ConfigError
-from railsim.scenario.model import Scenario, TriggerSpec
+from railsim.scenario.model import Scenario, ServiceSpec, TriggerSpec
 from railsim.scenario.validate import did_you_mean
 
 
@@ -43,6 +44,8 @@ def check_against_world(
         base = f"services[{i}]"
         station(svc.from_station, f"{base}.from")
         station(svc.to_station, f"{base}.to")
+        for st in svc.platforms:
+            station(st, f"{base}.platforms.{st}")
         for j, st in enumerate(svc.via):
             station(st, f"{base}.via[{j}]")
         for j, st in enumerate(svc.skip):
@@ -64,12 +67,33 @@ def check_against_world(
                 )
 
 
-def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
+class NamedStations(Protocol):
+    """What :func:`with_station_ids` needs of a world (a ``network.NetworkBundle``)."""
+
+    @property
+    def station_aliases(self) -> Mapping[str, str]: ...  # name or stop id -> station id
+
+    @property
+    def stop_stations(self) -> Mapping[str, str]: ...  # stop id -> station id
+
+
+def with_station_ids(scn: Scenario, world: NamedStations) -> Scenario:
     """The scenario with every station it names by an alias (a name or stop id of an external net's station)
-    replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario)."""
+    replaced by the station id. ``raw`` keeps what the user wrote (it loads back to the same scenario).
+
+    A stop id in a service's ``from``, ``to`` or ``via`` also *pins* that platform (``ServiceSpec.platforms``), as
+    ``{station: X, platform: STOP_ID}`` does."""
+    aliases, stops = world.station_aliases, world.stop_stations
 
     def sid(name: str) -> str:
         return aliases.get(name, name)
+
+    def pins(svc: ServiceSpec) -> dict[str, str]:
+        out = {sid(k): v for k, v in svc.platforms.items()}
+        for name in (svc.from_station, svc.to_station, *svc.via):
+            if name in stops:
+                out.setdefault(stops[name], name)
+        return out
 
     def trig(t: TriggerSpec | None) -> TriggerSpec | None:
         return t if t is None or t.station is None else dataclasses.replace(t, station=sid(t.station))
@@ -82,6 +106,7 @@ def with_station_ids(scn: Scenario, aliases: Mapping[str, str]) -> Scenario:
             via=tuple(sid(v) for v in svc.via),
             skip=tuple(sid(v) for v in svc.skip),
             dwell_by_station={sid(k): v for k, v in svc.dwell_by_station.items()},
+            platforms=pins(svc),
         )
         for svc in scn.services
     )

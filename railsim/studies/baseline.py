@@ -30,10 +30,10 @@ def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None)
     sim = scenario.simulation
     bundle = load_world(scenario.world, scenario.source)
     if bundle.station_aliases:  # an external net: stations named by name or stop id -> station ids
-        scenario = scn_mod.with_station_ids(scenario, bundle.station_aliases)
+        scenario = scn_mod.with_station_ids(scenario, bundle)
     trips = []
     for svc in scenario.services:
-        route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via))
+        route = bundle.route_between(svc.from_station, svc.to_station, tuple(svc.via), svc.platforms)
         veh = scenario.vehicles[svc.vehicle]
         stops = make_stops(
             route,

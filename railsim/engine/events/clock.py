@@ -163,8 +163,8 @@ class EventLayer:
         """An independent child stream of the scenario generator (deterministic in call order)."""
         return self.rng.spawn(1)[0]
 
-    def at(self, t_s: float, callback: Callable[[float], object], kind: str, subject: str = "") -> ScheduledCall:
-        """Call ``callback(t_s)`` at exactly ``t_s``; the firing is logged as ``kind``/``subject``.
+    def at(self, t_s: float, callback: Callable[[float], object], kind: str | None, subject: str = "") -> ScheduledCall:
+        """Call ``callback(t_s)`` at exactly ``t_s``; the firing is logged as ``kind``/``subject`` (not if None).
 
         ``t_s`` may equal now (it fires on the next :meth:`advance_to`, stamped ``t_s``); before now raises.
         The log row is written before the callback runs, so anything the callback logs comes after it.
