@@ -2,6 +2,6 @@
 
 import sys
 
-from railsim.cli.main import main
+from railsim.cli.launch import main
 
 sys.exit(main())

@@ -21,7 +21,9 @@ notebook can do the same)::
 
 Exit codes, and nothing else: 0 ok; 1 a run finished with a collision; 2 bad input (a
 :class:`railsim.errors.ConfigError`, one line ``railsim: error: <file>: <field>: <message>``; argparse's usage
-errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`); 4 an internal
+errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`) or an environment
+error — a full disk, a file-size limit, no permission, a run folder in use (:class:`railsim.errors.RunFolderError`,
+any ``OSError``): one line with the path and the OS's reason; 130 Ctrl-C, at any moment, one line; 4 an internal
 error — a bug in railsim, including ``RecursionError`` and ``MemoryError``: one line naming the exception and a
 log file that holds the traceback (:func:`report_internal_error`), never a bare traceback on the terminal.
 """
@@ -31,18 +33,21 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
 import tempfile
 import traceback
 from collections.abc import Callable, Sequence
 from types import ModuleType
 
+from railsim.cli import values
 from railsim.cli import export, headway, network, plot, report, reproduce, robustness, run, scenario, study, sweep
 from railsim.errors import (
     EXIT_CONFIG_ERROR,
     EXIT_INTERNAL_ERROR,
     EXIT_SIMULATION_ERROR,
     ConfigError,
+    RunFolderError,
     SimulationError,
 )
 
@@ -63,7 +68,7 @@ COMMAND_GROUPS: tuple[ModuleType, ...] = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="railsim", description="Virtually coupled trains on SUMO rail networks.")
+    parser = values.OneLineParser(prog="railsim", description="Virtually coupled trains on SUMO rail networks.")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for group in COMMAND_GROUPS:
@@ -72,6 +77,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    if hasattr(signal, "SIGXFSZ"):  # a file-size limit (ulimit -f) must be an error on write, not a killed process
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.WARNING - 10 * min(args.verbose, 2)
@@ -88,11 +95,26 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SimulationError as err:
         print(f"railsim: simulation error: {err}", file=sys.stderr)
         return EXIT_SIMULATION_ERROR
+    except RunFolderError as err:
+        print(f"railsim: error: {err}", file=sys.stderr)
+        return EXIT_SIMULATION_ERROR
+    except OSError as err:  # the machine refused: a path and the OS's words, not a bug
+        print(f"railsim: error: {environment_message(err)}", file=sys.stderr)
+        return EXIT_SIMULATION_ERROR
     except KeyboardInterrupt:
         print("railsim: interrupted", file=sys.stderr)
         return 130
     except Exception as exc:  # noqa: BLE001 - the last guard: a bug must not print a bare traceback
         return report_internal_error(exc, argv)
+
+
+def environment_message(err: OSError) -> str:
+    """``PATH: OS reason`` for an OS error (the path escaped and bounded, as every quoted user value)."""
+    from railsim.inputs import excerpt
+
+    reason = err.strerror or type(err).__name__
+    path = err.filename if err.filename is not None else None
+    return f"{excerpt(str(path), 200)[1:-1]}: {reason}" if path is not None else f"{reason}"
 
 
 def report_internal_error(exc: BaseException, argv: Sequence[str] | None) -> int:

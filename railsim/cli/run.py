@@ -13,15 +13,18 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.errors import ConfigError, SimulationError
 from railsim.record.snapshot import OUTPUT_FILES, output_file_name
 
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("run", help="run a scenario and write trips/stops/formations/events/summary")
-    p.add_argument("scenario", help="scenario YAML file")
-    p.add_argument("--out", required=True, help="output folder (created; files are replaced atomically)")
-    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument("scenario", type=values.path, help="scenario YAML file")
+    p.add_argument(
+        "--out", required=True, type=values.path, help="output folder (created; files are replaced atomically)"
+    )
+    p.add_argument("--seed", type=values.seed, default=None, help="override the scenario's seed")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
     p.add_argument("--gui", action="store_true", help="run it in sumo-gui (through traci: slower, for looking)")
     p.set_defaults(func=cmd_run)

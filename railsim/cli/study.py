@@ -18,6 +18,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.cli.robustness import add_robustness_options, float_list
 from railsim.errors import ConfigError
 from railsim.studies.vc_vs_mb import DEFAULT_MB, DEFAULT_SERVICES, DEFAULT_VC, vc_vs_mb
@@ -31,10 +32,16 @@ def add_commands(sub: Any) -> None:
         help="minimum headway, capacity, running time, energy and gaps of moving "
         "block vs virtual coupling, side by side (DIR/vc_vs_mb.md)",
     )
-    q.add_argument("--out", required=True, help="output folder (probes are kept and reused on a re-run)")
-    q.add_argument("--workers", type=int, default=1, help="probes run in parallel (default 1)")
-    q.add_argument("--mb", default=str(DEFAULT_MB), help="moving-block scenario (default: %(default)s)")
-    q.add_argument("--vc", default=str(DEFAULT_VC), help="virtual-coupling scenario (default: %(default)s)")
+    q.add_argument(
+        "--out", required=True, type=values.path, help="output folder (probes are kept and reused on a re-run)"
+    )
+    q.add_argument("--workers", type=values.count, default=1, help="probes run in parallel (default 1)")
+    q.add_argument(
+        "--mb", default=str(DEFAULT_MB), type=values.path, help="moving-block scenario (default: %(default)s)"
+    )
+    q.add_argument(
+        "--vc", default=str(DEFAULT_VC), type=values.path, help="virtual-coupling scenario (default: %(default)s)"
+    )
     q.add_argument(
         "--services",
         default=",".join(DEFAULT_SERVICES),
