@@ -34,6 +34,7 @@ Paper-specific follower logic (Paper D's state machine) plugs in through ``follo
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import Any
 
@@ -44,6 +45,8 @@ from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 FollowerHook = Callable[[float, TrainRuntime, Any, Ahead], None]
 COUPLED_STATES = ("coupling", "coupled")
@@ -61,6 +64,7 @@ class FormationBook:
     """The engine's view of formations: leader/follower maps over the formation state machine."""
 
     def __init__(self, fleet: Fleet, manager: FormationManager, settings: EngineSettings, dt_s: float) -> None:
+        self.not_coupling: dict[str, str] = {}  # formation id -> why it cannot couple (depot_start_reasons)
         self.fleet = fleet
         self.manager = manager
         self.settings = settings
@@ -122,9 +126,37 @@ class FormationBook:
                 self.manager.request_decouple(f.id, at_s=float(f.decouple.at_s))
 
     def across_turnbacks(self, turnbacks: Any) -> None:
-        """Wire the rotations port: which trips start by a turnback; check the order of formations across one."""
+        """Wire the rotations port: which trips start by a turnback; check the order of formations across one;
+        note the formations that cannot couple on departure because their follower's unit comes straight out of
+        a depot onto its origin platform (:meth:`depot_start_reasons`)."""
         self.chained = turnbacks.chained
         turnbacks.check_formation_order(self.on_departure_pairs(), self.leader_id)
+        self.not_coupling = self.depot_start_reasons(turnbacks)
+        for fid, reason in self.not_coupling.items():
+            log.warning("formation %s will not couple on departure: %s", fid, reason)
+            self.manager.record(0.0, "couple_not_possible", fid, reason=reason)
+
+    def depot_start_reasons(self, turnbacks: Any) -> dict[str, str]:
+        """``{formation id: why}`` for each ``on_departure`` formation whose follower's first trip is reached by a
+        depot-out run that ends on the very platform the trip departs from (no turnback there). That unit stands
+        at the platform before its leader arrives, ahead of it: it cannot come out behind its leader, which is
+        what coupling on departure means, so it runs its trip uncoupled. (A depot-out run that reaches the
+        opposite platform turns back there and waits for its leader like any chained follower.) The reason is an
+        event (``couple_not_possible``) and a line of the summary, never a silent drop."""
+        reasons: dict[str, str] = {}
+        for f in self.of_follower.values():
+            follower = self.follower_of(f)
+            if not trig(f.couple, "on_departure") or follower.train_id not in turnbacks.prev_of:
+                continue
+            before = self.fleet.trains[turnbacks.prev_of[follower.train_id]]
+            if before.trip.kind == "depot_out" and follower.trip.stops[0].kind != "reversal":
+                reasons[f.id] = (
+                    f"the follower's unit comes from the depot by {before.train_id} straight onto its departure "
+                    f"platform at {follower.trip.origin.station_id!r}, ahead of its leader "
+                    f"{self.leader_of(f).train_id}; it runs its trip uncoupled (choose a depot from which it "
+                    "reaches the opposite platform and turns back, or let another trip lead)"
+                )
+        return reasons
 
     def turnback_waits(self) -> tuple[Callable[[TrainRuntime], bool], Callable[[float, TrainRuntime], bool]]:
         """The two waits the stop book applies across a turnback: :meth:`waits_for_leader`, :meth:`holds_departure`."""

@@ -57,7 +57,9 @@ def test_rerun_without_disturbances_does_not_read_the_earlier_runs_delays(tmp_pa
     assert _manifest_matches_folder(out)["status"] == "completed"
     report = run_railsim(["report", str(out)], cache_dir=cache)
     assert report.returncode == 0, report.stderr
-    assert "Punctuality" not in (out / "report.md").read_text(encoding="utf-8") if (out / "report.md").exists() else True
+    assert (
+        "Punctuality" not in (out / "report.md").read_text(encoding="utf-8") if (out / "report.md").exists() else True
+    )
     assert not list(tmp_path.glob(".out.*")), "staging folder or lock left behind"
 
 

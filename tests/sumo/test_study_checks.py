@@ -19,7 +19,9 @@ def test_a_sweep_with_a_case_validate_refuses_runs_nothing(tmp_path: Path) -> No
     bad = {"formations[0].follower": {"service": "main_down", "trip": 0}}  # scenario.load accepts it; run does not
     sweep.write_text(yaml.safe_dump({"base": str(base), "cases": [{}, bad], "seeds": [1]}), encoding="utf-8")
     out = tmp_path / "out"
-    res = run_railsim(["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(
+        ["sweep", str(sweep), "--out", str(out), "--workers", "1", "--no-progress"], cache_dir=tmp_path / "c"
+    )
     assert res.returncode == 2, (res.returncode, res.stdout, res.stderr)
     line = res.stderr.strip()
     assert len(line.splitlines()) == 1 and "Traceback" not in line
