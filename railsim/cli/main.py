@@ -87,8 +87,14 @@ def main(argv: Sequence[str] | None = None) -> int:
     if func is None:
         parser.print_help()
         return 0
+    return run_guarded(lambda: int(func(args) or 0), argv)
+
+
+def run_guarded(body: Callable[[], int], argv: Sequence[str] | None = None) -> int:
+    """Run ``body`` (a command) and turn what it raises into the exit codes of the module docstring, one line on
+    stderr each; ``argv`` goes into an internal error's log file."""
     try:
-        return int(func(args) or 0)
+        return body()
     except ConfigError as err:
         print(f"railsim: error: {err}", file=sys.stderr)
         return EXIT_CONFIG_ERROR

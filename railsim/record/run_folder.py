@@ -11,8 +11,8 @@ run. Three mechanisms make it so:
    ``DIR``; only when it is done (completed, failed with its outputs written, or interrupted with its tables up to
    the time reached) are its files moved into ``DIR`` (:meth:`Staging.commit`). ``DIR`` that did not exist is the
    staging folder renamed (one atomic step); an existing ``DIR`` first loses its manifest, then every file of the
-   previous run it lists (or, without a manifest, every file name a run writes), then gets this run's files and
-   last this run's manifest. A run that cannot finish writing (a full disk, a file-size limit) discards its
+   previous run it lists (or, without a manifest, every file name a run writes) and the report and export made
+   from it (:data:`DERIVED`), then gets this run's files and last this run's manifest. A run that cannot finish writing (a full disk, a file-size limit) discards its
    staging folder and leaves ``DIR`` as it was.
 3. **A manifest** (:data:`MANIFEST_PATH`, ``DIR/.railsim/manifest.json``): this run's status and, per file, its
    name, size in bytes and SHA-256. It sits in a sub-folder so that the run's own files (``summary.json``
@@ -45,6 +45,9 @@ MANIFEST_FORMAT = 1
 # without a manifest before a new run's files go in
 _EXTRA_STEMS = ("delays",)
 _SUMO_OUTPUT_PREFIX = "sumo_"
+# what ``railsim report`` and ``railsim export`` write into a run folder by default: they describe the run they
+# were made from, so they go with it when a new run replaces the folder
+DERIVED = ("report.md", "report.html", "report_figures", "export")
 
 
 def lock_path(out: Path) -> Path:
@@ -188,6 +191,12 @@ class Staging:
         for name in _previous_files(out):
             with contextlib.suppress(FileNotFoundError, IsADirectoryError):
                 (out / name).unlink()
+        for name in DERIVED:  # the previous run's report and export
+            path = out / name
+            if path.is_dir() and not path.is_symlink():
+                shutil.rmtree(path, ignore_errors=True)
+            elif path.exists() or path.is_symlink():
+                path.unlink()
         for entry in entries:
             target = out / entry["name"]
             target.parent.mkdir(parents=True, exist_ok=True)

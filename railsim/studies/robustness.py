@@ -174,11 +174,22 @@ def check_plan(plan: RobustnessPlan) -> None:
                 plan.scenario, "disturbances", "the scenario has no disturbances: section (or give a file)"
             )
         return
-    source = plan.disturbances_source or "<disturbances>"
-    try:
-        from railsim.studies.world import run_checks
+    check_disturbances_file(plan.scenario, plan.disturbances, plan.disturbances_source or "<disturbances>")
 
-        run_checks(scenario.load(plan.scenario, {"disturbances": dict(plan.disturbances)}))
+
+def check_disturbances_file(
+    scenario_path: Path, disturbances: Mapping[str, Any], source: Path | str, world_check: bool = True
+) -> None:
+    """Every check ``railsim run`` makes on ``scenario_path`` with its ``disturbances:`` section replaced by
+    ``disturbances`` (``world_check``: those against the built world too); an error in that section is reported
+    against ``source``, the user's file, never the sweep file a study generates from it."""
+    from railsim import scenario
+    from railsim.studies.world import run_checks
+
+    try:
+        scn = scenario.load(scenario_path, {"disturbances": dict(disturbances)})
+        if world_check:
+            run_checks(scn)
     except ConfigError as err:
         if err.field is not None and err.field.startswith("disturbances"):
             raise ConfigError(source, err.field, err.message) from None
