@@ -75,3 +75,12 @@ def test_a_billion_robustness_runs_are_refused_at_once() -> None:
 def test_robustness_seeds_beyond_sumos_range_are_refused() -> None:
     with pytest.raises(ConfigError, match="--first-seed"):
         check_plan(RobustnessPlan(scenario=BASE, runs=10, first_seed=2**31 - 5))
+
+
+def test_an_empty_row_file_does_not_block_resuming(tmp_path: Path) -> None:
+    from railsim.studies.sweep.tables import read_rows, write_row
+
+    write_row(tmp_path, "aaaaaaaaaaaa", {"case_id": "aaaaaaaaaaaa", "status": "ok"})
+    (tmp_path / "rows" / "bbbbbbbbbbbb.json").write_bytes(b"")  # a row file a failed disk left empty
+    (tmp_path / "rows" / "cccccccccccc.json").write_text("[1, 2]", encoding="utf-8")  # not a row
+    assert list(read_rows(tmp_path)) == ["aaaaaaaaaaaa"]
