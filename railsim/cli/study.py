@@ -84,6 +84,8 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
         raise ConfigError("<command line>", "--services", "expected at least one service id")
     if args.robustness_only and not args.disturbances:
         raise ConfigError("<command line>", "--robustness-only", "expected --disturbances FILE with it")
+    if args.disturbances:  # the robustness runs come last: their input is checked before anything runs
+        _check_robustness(args, services)
     if args.robustness_only:
         print(_robustness(args, services))
         return 0
@@ -122,6 +124,29 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
         report.write_text(report.read_text(encoding="utf-8") + "\n" + _robustness(args, services), encoding="utf-8")
     print(f"report: {Path(args.out) / 'vc_vs_mb.md'}")
     return 0 if all(r.headway_s is not None for r in results.values()) else 1
+
+
+def _check_robustness(args: argparse.Namespace, services: list[str]) -> None:
+    """Both regimes' robustness plans checked as ``railsim robustness`` checks its own, the disturbances file
+    named as the user's."""
+    from railsim.studies.robustness import check_plan, load_disturbances
+    from railsim.studies.vc_robustness import regime_plans
+
+    source = Path(args.disturbances)
+    plans = regime_plans(
+        Path(args.mb),
+        Path(args.vc),
+        load_disturbances(source),
+        float_list(args.robust_headways, "--robust-headways"),
+        services,
+        runs=args.runs,
+        first_seed=args.first_seed,
+        baseline_runs=args.baseline_runs,
+        intensities=float_list(args.intensities, "--intensities"),
+        disturbances_source=source,
+    )
+    for plan in plans.values():
+        check_plan(plan)
 
 
 def _robustness(args: argparse.Namespace, services: list[str]) -> str:
