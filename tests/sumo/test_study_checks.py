@@ -45,3 +45,19 @@ def test_robustness_reports_a_bad_disturbances_file_against_that_file(tmp_path: 
     assert len(line.splitlines()) == 1
     assert line.startswith(f"railsim: error: {dist}: disturbances.incidents[0].station"), line
     assert "robustness_sweep" not in line
+
+
+def test_vc_vs_mb_checks_its_disturbances_file_before_the_capacity_search(tmp_path: Path) -> None:
+    dist = tmp_path / "study_disturbances.yaml"
+    dist.write_text(yaml.safe_dump({"disturbances": {"running_time": {"low": 2.0, "high": 1.0}}}), encoding="utf-8")
+    out = tmp_path / "out"
+    res = run_railsim(
+        ["study", "vc-vs-mb", "--out", str(out), "--disturbances", str(dist), "--runs", "2", "--no-progress"],
+        cache_dir=tmp_path / "c",
+        timeout=900,
+    )
+    assert res.returncode == 2, (res.returncode, res.stderr[-800:])
+    line = res.stderr.strip()
+    assert len(line.splitlines()) == 1, line
+    assert line.startswith(f"railsim: error: {dist}: disturbances.running_time.low"), line
+    assert not (out / "mb").exists() and not (out / "vc").exists(), "the capacity search ran first"

@@ -78,7 +78,7 @@ def _connect(dask_address: str) -> Any:
     if "error" in result:
         exc = result["error"]
         reason = excerpt(f"{type(exc).__name__}: {exc}", 160)
-        raise ConfigError(None, "--dask", f"cannot connect to a Dask scheduler at {shown}: {reason}")
+        raise ConfigError(None, "--dask", f"cannot connect to the Dask scheduler at {shown}: {reason}")
     return result["client"]
 
 
