@@ -199,9 +199,8 @@ def load_sweep(path: str | Path) -> SweepSpec:
         link[p] = s
 
     seeds_raw = data.get("seeds")
-    if seeds_raw is None:
-        seeds = [_base_seed(base)]
-    else:
+    seeds: list[int] = []  # none given: the base scenario's own seed, read once the count is known to be sane
+    if seeds_raw is not None:
         if not isinstance(seeds_raw, list) or not seeds_raw:
             raise v.fail("seeds", "expected a non-empty list of integers >= 0")
         seeds = []
@@ -226,8 +225,10 @@ def load_sweep(path: str | Path) -> SweepSpec:
         raise v.fail("timeout_s", f"expected a finite number of seconds >= {MIN_TIMEOUT_S:g}, got {excerpt(timeout)}")
 
     # count before expanding: a grid's product can be astronomically large in a few lines of YAML
-    n_cases = len(case_defs) * math.prod(len(values) for values in grid.values()) * len(seeds)
+    n_cases = len(case_defs) * math.prod(len(values) for values in grid.values()) * max(1, len(seeds))
     check_cases(n_cases, src, "grid" if grid else "cases")
+    if not seeds:
+        seeds = [_base_seed(base)]
 
     cases: list[Case] = []
     seen: dict[str, int] = {}
