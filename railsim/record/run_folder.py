@@ -186,12 +186,13 @@ class Staging:
             self.committed = True
             return
         old_manifest = out / MANIFEST_PATH
+        held_a_run = old_manifest.is_file() or (out / "summary.json").is_file()  # else: a folder of the user's
         with contextlib.suppress(FileNotFoundError):
             old_manifest.unlink()  # from here on the folder reads as incomplete until the new manifest is in
-        for name in _previous_files(out):
+        for name in _previous_files(out) if held_a_run else ():
             with contextlib.suppress(FileNotFoundError, IsADirectoryError):
                 (out / name).unlink()
-        for name in DERIVED:  # the previous run's report and export
+        for name in DERIVED if held_a_run else ():  # the previous run's report and export
             path = out / name
             if path.is_dir() and not path.is_symlink():
                 shutil.rmtree(path, ignore_errors=True)
@@ -220,7 +221,7 @@ def writing(out: Path | str) -> Iterator[Staging]:
     An ``OSError`` in the block (a full disk, a file-size limit, no permission) becomes one
     :class:`RunFolderError` naming the file and the OS's reason; ``out`` is left as it was.
     """
-    out = Path(out)
+    out = Path(out).absolute()  # "." has no name to put a lock or a staging folder beside
     check_out(out)
     with locked(out):
         staging = Staging(out)

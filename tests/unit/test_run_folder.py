@@ -107,3 +107,17 @@ def test_manifest_lists_name_bytes_and_sha256(tmp_path: Path) -> None:
     assert data["files"] == [
         {"name": "trips.csv", "bytes": 3, "sha256": "ba7816bf8f01cfea414140de5dae2223b00361a396177a9cb410ff61f20015ad"}
     ]
+
+
+def test_a_folder_that_never_held_a_run_keeps_everything_of_its_own(tmp_path: Path) -> None:
+    out = tmp_path / "project"
+    (out / "export").mkdir(parents=True)
+    (out / "export" / "mine.csv").write_text("x\n", encoding="utf-8")
+    (out / "trips.csv").write_text("my own table\n", encoding="utf-8")
+    with run_folder.writing(out) as staging:
+        _fake_run(staging.path, {"summary.json": "{}"})
+        staging.commit("completed")
+    assert (out / "export" / "mine.csv").is_file() and (out / "trips.csv").read_text(
+        encoding="utf-8"
+    ) == "my own table\n"
+    assert run_folder.member(out, "trips.csv") is None  # not this run's: readers do not take it
