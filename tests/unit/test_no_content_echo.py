@@ -40,13 +40,18 @@ def test_world_line_at_a_foreign_file_prints_nothing_of_it(
         assert piece not in message, err
 
 
-def test_a_3000_character_id_is_quoted_in_80(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_a_3000_character_station_id_is_quoted_in_80(tmp_path: Path) -> None:
+    from railsim import scenario
+    from railsim.errors import ConfigError
+
     data = yaml.safe_load((DATA / "scenarios" / "disturbed_line.yaml").read_text(encoding="utf-8"))
-    data["services"][0]["vehicle"] = "Q" * 3000  # an id the scenario does not know: quoted back in the message
+    data["services"][0]["from"] = "Q" * 3000  # checked against the world's stations, then quoted back
     path = tmp_path / "long.yaml"
     path.write_text(yaml.safe_dump(data), encoding="utf-8")
-    rc = main(["validate", "--no-world-check", str(path)])
-    err = capsys.readouterr().err
-    assert rc == 2, err
-    longest = max(len(tok) for tok in err.replace("'", " ").split())
-    assert longest <= 80, longest
+    scn = scenario.load(path)
+    with pytest.raises(ConfigError) as err:
+        scenario.check_against_world(scn, ["s1", "s2", "s3", "s4"], [])
+    text = str(err.value)
+    assert err.value.field == "services[0].from"
+    longest = max(len(tok) for tok in text.replace("'", " ").split())
+    assert longest <= 80, (longest, len(text))
