@@ -236,6 +236,12 @@ class _Reader:
         if not isinstance(data, Mapping):
             got = describe_kind(data) if not path else _describe(data)  # the top level: a file's content, unquoted
             raise ConfigError(source, path or None, f"expected a mapping, got {got}")
+        if not path and data and not any(key in allowed for key in data):
+            # none of a line description's keys: some other file (a password file, a config) named by mistake;
+            # its content is not ours to print, not even a key
+            raise ConfigError(
+                source, None, f"not a line description (it has none of the keys {', '.join(allowed[:5])}, ...)"
+            )
         for key in data:
             if key not in allowed:
                 raise ConfigError(

@@ -13,11 +13,28 @@ Internal bugs stay ordinary exceptions: the CLI writes their traceback to a log 
 
 from __future__ import annotations
 
+import re
 from pathlib import Path
 from typing import Any
 
 
 MAX_MESSAGE_CHARS = 1000
+QUOTE_CHARS = 80  # the longest quote of a user value (railsim.inputs.EXCERPT_CHARS)
+# a quoted value ('…' or "…") or an unbroken run of characters longer than a quote may be
+_Q = QUOTE_CHARS - 1
+_LONG_QUOTE = re.compile(rf"'[^'\n]{{{_Q},}}'|\"[^\"\n]{{{_Q},}}\"|\S{{{2 * QUOTE_CHARS},}}")
+
+
+def bound_quotes(message: str) -> str:
+    """``message`` with every quoted value longer than :data:`QUOTE_CHARS` cut to that length (``...`` marks the
+    cut): the last guard for a message that quoted a user's value without :func:`railsim.inputs.excerpt`."""
+
+    def cut(m: re.Match[str]) -> str:
+        text = m.group(0)
+        limit = QUOTE_CHARS if text[0] in "'\"" else 2 * QUOTE_CHARS
+        return text if len(text) <= limit else text[: limit - 4] + "..." + (text[0] if text[0] in "'\"" else "")
+
+    return _LONG_QUOTE.sub(cut, message)
 
 
 class ConfigError(Exception):
@@ -34,6 +51,7 @@ class ConfigError(Exception):
         # a field path holds the user's keys: one with a newline or another control character is shown escaped
         self.field = field if field is None or field.isprintable() else field.encode("unicode_escape").decode("ascii")
         message = " ".join(message.split()) if "\n" in message else message  # one line, whatever went in
+        message = bound_quotes(message)
         self.message = message if len(message) <= MAX_MESSAGE_CHARS else message[: MAX_MESSAGE_CHARS - 3] + "..."
         super().__init__(self.__str__())
 
@@ -47,6 +65,14 @@ class SimulationError(Exception):
     """A run could not continue (SUMO refused an operation, a world is inconsistent with a scenario).
 
     The CLI reports these on one line with exit code 3; the partial outputs already written stay on disk.
+    """
+
+
+class RunFolderError(Exception):
+    """The machine refused a run's outputs: a full disk, a file-size limit, no permission, a folder in use.
+
+    The message names the path and the OS's reason on one line; the CLI prints it and exits with code 3
+    (:data:`EXIT_SIMULATION_ERROR`: an environment error, not bad input and not a bug).
     """
 
 

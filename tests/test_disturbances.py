@@ -206,7 +206,7 @@ def _with(section: Any) -> dict[str, Any]:
             "disturbances.departure[0].services[0]",
             "expected a service id",
         ),
-        ({"running_time": {"low": 0.0}}, "disturbances.running_time.low", "in (0, 1]"),
+        ({"running_time": {"low": 0.0}}, "disturbances.running_time.low", "in [0.5, 1]"),
         ({"running_time": {"low": 0.9, "high": 1.2}}, "disturbances.running_time.high", "in [0.9, 1]"),
         ({"incidents": [{"trip": "a.009", "station": "s2", "hold_s": 5}]}, "disturbances.incidents[0].trip", ""),
         ({"incidents": [{"hold_s": 5}]}, "disturbances.incidents[0].rate_per_h", "missing required key"),

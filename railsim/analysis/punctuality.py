@@ -28,15 +28,21 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from railsim.record import run_folder
+
 PUNCTUALITY_MIN = (1, 3, 5)  # thresholds of the punctuality shares [min]
 CDF_GRID_S = (0, 30, 60, 90, 120, 180, 240, 300, 420, 600, 900, 1200, 1800)  # the delay CDF's points [s]
 RECOVERED_S = 60.0  # an arrival with at most this much secondary delay counts as recovered
 
 
 def load(run_dir: Path) -> pd.DataFrame | None:
-    """``delays.csv`` of a run, or None if the run had no ``disturbances:`` section."""
-    path = Path(run_dir) / "delays.csv"
-    return pd.read_csv(path) if path.is_file() else None
+    """``delays.csv`` of a run, or None if the run had no ``disturbances:`` section.
+
+    Only the run's own file counts: one its manifest does not list (an earlier run's) is not read
+    (:func:`railsim.record.run_folder.member`).
+    """
+    path = run_folder.member(run_dir, "delays.csv")
+    return pd.read_csv(path) if path is not None else None
 
 
 def kpis(delays: pd.DataFrame, incidents: Sequence[Mapping[str, Any]] = ()) -> dict[str, Any]:

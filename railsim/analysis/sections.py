@@ -50,6 +50,7 @@ import numpy as np
 import pandas as pd
 
 from railsim.errors import ConfigError
+from railsim.record import run_folder
 
 SECTION_COLUMNS = [
     "trip_id",
@@ -90,19 +91,24 @@ def read_table(run_dir: str | Path, stem: str) -> pd.DataFrame:
     """
     run = require_run_dir(run_dir)
     pq, csv = run / f"{stem}.parquet", run / f"{stem}.csv"
+    own_pq, own_csv = run_folder.member(run, pq.name), run_folder.member(run, csv.name)  # the manifest's files only
     try:
-        if pq.exists():
+        if own_pq is not None:
             return pd.read_parquet(pq)
-        if csv.exists():
+        if own_csv is not None:
             return pd.read_csv(csv, keep_default_na=True)
     except Exception as exc:  # pandas raises many kinds for a corrupt file
         raise ConfigError(pq if pq.exists() else csv, None, f"cannot read the table: {exc}") from None
+    if pq.exists() or csv.exists():
+        raise ConfigError(run, stem, f"{stem} is not a file of the run its manifest describes (an earlier run's?)")
     raise ConfigError(run, stem, f"expected {stem}.csv or {stem}.parquet in the run folder, found neither")
 
 
 def read_summary(run_dir: str | Path) -> dict[str, Any]:
     """``summary.json`` of a run folder (ConfigError if missing or not JSON)."""
     path = Path(run_dir) / "summary.json"
+    if path.is_file() and run_folder.member(run_dir, "summary.json") is None:
+        raise ConfigError(path, None, "not the summary of the run its manifest describes (an earlier run's?)")
     try:
         return dict(json.loads(path.read_text(encoding="utf-8")))
     except FileNotFoundError:

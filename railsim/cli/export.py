@@ -11,6 +11,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from railsim.cli import values
 from railsim.report.export import FORMATS, READERS, export
 
 
@@ -19,7 +20,7 @@ def add_commands(sub: Any) -> None:
         "export",
         help="write a run's trip/stop/formation/event/section tables (or a sweep's cases) as CSV, Parquet or JSON",
     )
-    p.add_argument("folder", help="run folder (railsim run) or sweep folder (railsim sweep)")
+    p.add_argument("folder", type=values.path, help="run folder (railsim run) or sweep folder (railsim sweep)")
     p.add_argument(
         "--format",
         choices=FORMATS,
@@ -27,7 +28,7 @@ def add_commands(sub: Any) -> None:
         dest="fmt",
         help='read back with pd.read_csv, pd.read_parquet or pd.read_json(path, orient="records")',
     )
-    p.add_argument("--out", default=None, help="output folder (default: FOLDER/export)")
+    p.add_argument("--out", default=None, type=values.path, help="output folder (default: FOLDER/export)")
     p.add_argument("--trace", action="store_true", help="also export the per-train trace (large)")
     p.set_defaults(func=cmd_export)
 

@@ -13,6 +13,7 @@ import argparse
 from collections.abc import Sequence
 from typing import Any
 
+from railsim.cli import values
 from railsim.cli.sweep import require_one_backend
 from railsim.errors import ConfigError
 from railsim.studies.headway import DELAY_STATS, find_min_headway
@@ -64,7 +65,7 @@ def add_commands(sub: Any) -> None:
         description="Find the smallest headway in [lo, hi] at which a scenario runs without "
         "collision, with every stop served, every trip arrived and the arrival delay below a threshold.",
     )
-    p.add_argument("scenario", metavar="SCENARIO", help="base scenario YAML file")
+    p.add_argument("scenario", metavar="SCENARIO", type=values.path, help="base scenario YAML file")
     p.add_argument(
         "--path",
         action="append",
@@ -77,7 +78,7 @@ def add_commands(sub: Any) -> None:
     p.add_argument("--tol", type=float, default=5.0, help="resolution of the answer [s] (default 5)")
     p.add_argument("--max-delay", type=float, default=120.0, help="arrival delay threshold [s] (default 120)")
     p.add_argument("--delay-stat", choices=DELAY_STATS, default="max", help="delay statistic (default max)")
-    p.add_argument("--seed", type=int, default=None, help="seed of the search probes (default: the scenario's)")
+    p.add_argument("--seed", type=values.seed, default=None, help="seed of the search probes (default: the scenario's)")
     p.add_argument(
         "--confirm-seed",
         type=int,
@@ -93,10 +94,17 @@ def add_commands(sub: Any) -> None:
         metavar="PATH=VALUE",
         help="extra override applied to every probe (value in YAML), repeatable",
     )
-    p.add_argument("--workers", type=int, default=None, help="probes run in parallel (local processes, default 1)")
+    p.add_argument(
+        "--workers", type=values.count, default=None, help="probes run in parallel (local processes, default 1)"
+    )
     p.add_argument("--dask", default=None, metavar="ADDRESS", help="run the probes on this Dask scheduler")
-    p.add_argument("--timeout", type=float, default=None, metavar="S", help="wall-clock limit per probe [s]")
-    p.add_argument("--out", default=None, help="folder for headway.json, probes.csv and the probe rows (resumable)")
+    p.add_argument("--timeout", type=values.seconds, default=None, metavar="S", help="wall-clock limit per probe [s]")
+    p.add_argument(
+        "--out",
+        default=None,
+        type=values.path,
+        help="folder for headway.json, probes.csv and the probe rows (resumable)",
+    )
     p.add_argument("--keep-runs", action="store_true", help="keep every probe's run outputs under OUT/runs/")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
     p.set_defaults(func=cmd_min_headway)

@@ -23,7 +23,9 @@ notebook can do the same)::
 
 Exit codes, and nothing else: 0 ok; 1 a run finished with a collision; 2 bad input (a
 :class:`railsim.errors.ConfigError`, one line ``railsim: error: <file>: <field>: <message>``; argparse's usage
-errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`); 4 an internal
+errors too); 3 a simulation that could not continue (:class:`railsim.errors.SimulationError`) or an environment
+error — a full disk, a file-size limit, no permission, a run folder in use (:class:`railsim.errors.RunFolderError`,
+any ``OSError``): one line with the path and the OS's reason; 130 Ctrl-C, at any moment, one line; 4 an internal
 error — a bug in railsim, including ``RecursionError`` and ``MemoryError``: one line naming the exception and a
 log file that holds the traceback (:func:`report_internal_error`), never a bare traceback on the terminal.
 A reader that closes the output early (``railsim ... | head``) ends the command quietly, exit 0.
@@ -34,6 +36,7 @@ from __future__ import annotations
 import argparse
 import logging
 import os
+import signal
 import sys
 import tempfile
 import traceback
@@ -53,12 +56,14 @@ from railsim.cli import (
     study,
     sweep,
     timetable,
+    values,
 )
 from railsim.errors import (
     EXIT_CONFIG_ERROR,
     EXIT_INTERNAL_ERROR,
     EXIT_SIMULATION_ERROR,
     ConfigError,
+    RunFolderError,
     SimulationError,
 )
 
@@ -80,7 +85,7 @@ COMMAND_GROUPS: tuple[ModuleType, ...] = (
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog="railsim", description="Virtually coupled trains on SUMO rail networks.")
+    parser = values.OneLineParser(prog="railsim", description="Virtually coupled trains on SUMO rail networks.")
     parser.add_argument("-v", "--verbose", action="count", default=0, help="more log output (-vv for debug)")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     for group in COMMAND_GROUPS:
@@ -89,6 +94,8 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    if hasattr(signal, "SIGXFSZ"):  # a file-size limit (ulimit -f) must be an error on write, not a killed process
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)
     parser = build_parser()
     args = parser.parse_args(argv)
     level = logging.WARNING - 10 * min(args.verbose, 2)
@@ -97,13 +104,25 @@ def main(argv: Sequence[str] | None = None) -> int:
     if func is None:
         parser.print_help()
         return 0
+    return run_guarded(lambda: int(func(args) or 0), argv)
+
+
+def run_guarded(body: Callable[[], int], argv: Sequence[str] | None = None) -> int:
+    """Run ``body`` (a command) and turn what it raises into the exit codes of the module docstring, one line on
+    stderr each; ``argv`` goes into an internal error's log file."""
     try:
-        return int(func(args) or 0)
+        return body()
     except ConfigError as err:
         print(f"railsim: error: {err}", file=sys.stderr)
         return EXIT_CONFIG_ERROR
     except SimulationError as err:
         print(f"railsim: simulation error: {err}", file=sys.stderr)
+        return EXIT_SIMULATION_ERROR
+    except RunFolderError as err:
+        print(f"railsim: error: {err}", file=sys.stderr)
+        return EXIT_SIMULATION_ERROR
+    except OSError as err:  # the machine refused: a path and the OS's words, not a bug
+        print(f"railsim: error: {environment_message(err)}", file=sys.stderr)
         return EXIT_SIMULATION_ERROR
     except KeyboardInterrupt:
         print("railsim: interrupted", file=sys.stderr)
@@ -113,6 +132,15 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 0
     except Exception as exc:  # noqa: BLE001 - the last guard: a bug must not print a bare traceback
         return report_internal_error(exc, argv)
+
+
+def environment_message(err: OSError) -> str:
+    """``PATH: OS reason`` for an OS error (the path escaped and bounded, as every quoted user value)."""
+    from railsim.inputs import excerpt
+
+    reason = err.strerror or type(err).__name__
+    path = err.filename if err.filename is not None else None
+    return f"{excerpt(str(path), 200)[1:-1]}: {reason}" if path is not None else f"{reason}"
 
 
 def report_internal_error(exc: BaseException, argv: Sequence[str] | None) -> int:

@@ -23,6 +23,7 @@ from typing import Any
 
 import yaml
 
+from railsim.cli import values
 from railsim.errors import ConfigError
 
 
@@ -145,12 +146,16 @@ def add_commands(subparsers: Any) -> None:
     net = subparsers.add_parser("network", help="build or inspect a world (SUMO net + topology)")
     sub = net.add_subparsers(dest="network_command", metavar="ACTION", required=True)
     b = sub.add_parser("build", help="build a world: DIR/<name>.net.xml, .stops.add.xml, .topology.json")
-    b.add_argument("world", metavar="NAME|FILE", help="a shipped world name or a line-description YAML file")
-    b.add_argument("--out", required=True, metavar="DIR", help="output folder")
+    b.add_argument(
+        "world", metavar="NAME|FILE", type=values.path, help="a shipped world name or a line-description YAML file"
+    )
+    b.add_argument("--out", required=True, metavar="DIR", type=values.path, help="output folder")
     b.add_argument("-p", "--param", action="append", metavar="KEY=VALUE", help="world parameter (repeatable)")
     b.set_defaults(func=cmd_build)
     s = sub.add_parser("show", help="print a readable summary of a world (or of an existing SUMO .net.xml)")
-    s.add_argument("world", metavar="NAME|FILE", help="a shipped world, a line description or a SUMO .net.xml")
+    s.add_argument(
+        "world", metavar="NAME|FILE", type=values.path, help="a shipped world, a line description or a SUMO .net.xml"
+    )
     s.add_argument("-p", "--param", action="append", metavar="KEY=VALUE", help="world parameter (repeatable)")
     s.add_argument(
         "-a",

@@ -23,6 +23,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.errors import ConfigError
 
 LINE_KINDS = ("time-distance", "speed", "gap", "headway")  # railsim.report.plots.line.KINDS (not imported: matplotlib)
@@ -31,7 +32,7 @@ KINDS = ("auto", "paper000", "paper003", *LINE_KINDS)
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("plot", help="write figures (PNG) for finished run folders")
-    p.add_argument("runs", nargs="+", help="run output folders (from railsim run)")
+    p.add_argument("runs", nargs="+", type=values.path, help="run output folders (from railsim run)")
     p.add_argument(
         "--out",
         default=None,

@@ -11,12 +11,13 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from railsim.cli import values
 from railsim.report.document import FORMATS, write_report
 
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("report", help="write a one-page Markdown or HTML report of a run or a sweep folder")
-    p.add_argument("folder", help="run folder (railsim run) or sweep folder (railsim sweep)")
+    p.add_argument("folder", type=values.path, help="run folder (railsim run) or sweep folder (railsim sweep)")
     p.add_argument(
         "--format",
         choices=FORMATS,

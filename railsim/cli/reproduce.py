@@ -15,18 +15,21 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.studies.reproduce import reproduce_paper001, reproduce_paper002, reproduce_paper004
 
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("reproduce", help="re-run a paper experiment in its numpy model and write its figures")
     p.add_argument("experiment", choices=["paper000", "paper001", "paper002", "paper004"], help="which experiment")
-    p.add_argument("--seeds", type=int, default=5, help="paper000: seeds 0 … N−1 per case")
+    p.add_argument("--seeds", type=values.count, default=5, help="paper000: seeds 0 … N−1 per case")
     p.add_argument("--settings", nargs="*", default=["S-D", "S-E"], choices=["S-D", "S-E"], help="paper000")
     p.add_argument("--methods", nargs="*", default=["dmpc", "mcf_dmpc", "opo_mcf_dmpc"], help="paper000")
-    p.add_argument("--workers", type=int, default=None, help="paper004: local worker processes (default: cores)")
+    p.add_argument(
+        "--workers", type=values.count, default=None, help="paper004: local worker processes (default: cores)"
+    )
     p.add_argument("--dask", default=None, metavar="ADDRESS", help="paper004: run the cases on this Dask scheduler")
-    p.add_argument("--out", required=True, help="output folder")
+    p.add_argument("--out", required=True, type=values.path, help="output folder")
     p.add_argument(
         "--topology",
         choices=["union", "path"],

@@ -15,6 +15,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.cli.sweep import require_one_backend
 from railsim.errors import ConfigError
 
@@ -46,6 +47,7 @@ def cmd_robustness(args: argparse.Namespace) -> int:
         headways_s=headways,
         intensities=float_list(args.intensities, "--intensities"),
         disturbances=load_disturbances(Path(args.disturbances)) if args.disturbances else None,
+        disturbances_source=Path(args.disturbances) if args.disturbances else None,
         baseline_runs=args.baseline_runs,
         label=args.label or scenario.stem,
     )
@@ -68,10 +70,10 @@ def cmd_robustness(args: argparse.Namespace) -> int:
 
 def add_robustness_options(p: Any) -> None:
     """Options shared with ``railsim study vc-vs-mb --disturbances``."""
-    p.add_argument("--runs", type=int, default=20, help="Monte-Carlo runs (seeds) per point (default 20)")
-    p.add_argument("--first-seed", type=int, default=1, help="seeds first-seed … first-seed + runs − 1")
+    p.add_argument("--runs", type=values.count, default=20, help="Monte-Carlo runs (seeds) per point (default 20)")
+    p.add_argument("--first-seed", type=values.seed, default=1, help="seeds first-seed … first-seed + runs − 1")
     p.add_argument("--intensities", default=None, help="comma-separated disturbances.intensity values to sweep")
-    p.add_argument("--baseline-runs", type=int, default=1, help="undisturbed runs per headway (default 1)")
+    p.add_argument("--baseline-runs", type=values.count, default=1, help="undisturbed runs per headway (default 1)")
 
 
 def add_commands(sub: Any) -> None:
@@ -82,15 +84,28 @@ def add_commands(sub: Any) -> None:
         "punctuality, knock-on delay and the stability curve (DIR/robustness.md).",
     )
     p.add_argument(
-        "scenario", metavar="SCENARIO", help="scenario file (with a disturbances: section, or --disturbances)"
+        "scenario",
+        metavar="SCENARIO",
+        type=values.path,
+        help="scenario file (with a disturbances: section, or --disturbances)",
     )
-    p.add_argument("--out", required=True, help="output folder (runs/, baseline/, robustness.md/.json, plots)")
+    p.add_argument(
+        "--out", required=True, type=values.path, help="output folder (runs/, baseline/, robustness.md/.json, plots)"
+    )
     add_robustness_options(p)
     p.add_argument("--headways", default=None, help="comma-separated headways [s] of the headway services")
     p.add_argument("--services", default=None, help="services whose headway moves (default: all timetabled by headway)")
-    p.add_argument("--disturbances", default=None, metavar="FILE", help="replace the scenario's disturbances: section")
+    p.add_argument(
+        "--disturbances",
+        default=None,
+        metavar="FILE",
+        type=values.path,
+        help="replace the scenario's disturbances: section",
+    )
     p.add_argument("--label", default=None, help="name in the report (default: the scenario's file name)")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: number of cores)")
+    p.add_argument(
+        "--workers", type=values.count, default=None, help="local worker processes (default: number of cores)"
+    )
     p.add_argument("--dask", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
     p.set_defaults(func=cmd_robustness)

@@ -2,8 +2,10 @@
 
 Exit codes: 0 the run went through; 1 a collision (railsim's or SUMO's); 2 bad input; 3 the run could not
 continue (a desync, a stall: one line from :class:`railsim.errors.SimulationError`) or a train was never
-inserted (the summary names it); 130/143 Ctrl-C (SIGINT)/SIGTERM stopped it — the outputs up to the simulated
-time reached are written and ``summary.json`` says ``status: interrupted`` (:mod:`railsim.engine.interrupt`).
+inserted (the summary names it), or its outputs could not be written (a full disk, a file-size limit: the
+folder is left as it was) or the folder is in use by another run; 130/143 Ctrl-C (SIGINT)/SIGTERM stopped it —
+the outputs up to the simulated time reached are written and ``summary.json`` says ``status: interrupted``
+(:mod:`railsim.engine.interrupt`). The folder holds this run's files only (docs/guide/run-folders.md).
 """
 
 from __future__ import annotations
@@ -13,15 +15,21 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.errors import ConfigError, SimulationError
 from railsim.record.snapshot import OUTPUT_FILES, output_file_name
 
 
 def add_commands(sub: Any) -> None:
     p = sub.add_parser("run", help="run a scenario and write trips/stops/formations/events/summary")
-    p.add_argument("scenario", help="scenario YAML file")
-    p.add_argument("--out", required=True, help="output folder (created; files are replaced atomically)")
-    p.add_argument("--seed", type=int, default=None, help="override the scenario's seed")
+    p.add_argument("scenario", type=values.path, help="scenario YAML file")
+    p.add_argument(
+        "--out",
+        required=True,
+        type=values.path,
+        help="output folder: holds this run only, written as a whole (docs/guide/run-folders.md)",
+    )
+    p.add_argument("--seed", type=values.seed, default=None, help="override the scenario's seed")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
     p.add_argument("--gui", action="store_true", help="run it in sumo-gui (through traci: slower, for looking)")
     p.set_defaults(func=cmd_run)
@@ -54,6 +62,8 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
     if summary["formations"]:
         ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
         lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
+        for fid, why in (summary.get("formations_not_coupling") or {}).items():
+            lines.append(f"  formation {fid} cannot couple on departure: {why}")
     shown = [f for f in OUTPUT_FILES if f.kind != "sumo" and f.stem not in ("scenario.resolved", "versions")]
     files = ", ".join([*(f.file_name for f in shown), output_file_name("sumo_run")])
     lines.append(f"  outputs: {out_dir}/ ({files})")

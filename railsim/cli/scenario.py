@@ -27,6 +27,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim import scenario as scenario_mod
 from railsim.studies.world import run_checks
 
@@ -69,7 +70,12 @@ def add_commands(subparsers: argparse._SubParsersAction) -> None:
         "check railsim run makes before its first step (world, routes, formations, insertion, interlocking), "
         "without starting SUMO.",
     )
-    p.add_argument("scenario", metavar="SCENARIO", help="scenario YAML file (or a sweep file: every case is checked)")
+    p.add_argument(
+        "scenario",
+        metavar="SCENARIO",
+        type=values.path,
+        help="scenario YAML file (or a sweep file: every case is checked)",
+    )
     p.add_argument(
         "--world-check",
         action=argparse.BooleanOptionalAction,

@@ -18,6 +18,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from railsim.cli import values
 from railsim.cli.robustness import add_robustness_options, float_list
 from railsim.errors import ConfigError
 from railsim.studies.vc_vs_mb import DEFAULT_MB, DEFAULT_SERVICES, DEFAULT_VC, vc_vs_mb
@@ -31,10 +32,16 @@ def add_commands(sub: Any) -> None:
         help="minimum headway, capacity, running time, energy and gaps of moving "
         "block vs virtual coupling, side by side (DIR/vc_vs_mb.md)",
     )
-    q.add_argument("--out", required=True, help="output folder (probes are kept and reused on a re-run)")
-    q.add_argument("--workers", type=int, default=1, help="probes run in parallel (default 1)")
-    q.add_argument("--mb", default=str(DEFAULT_MB), help="moving-block scenario (default: %(default)s)")
-    q.add_argument("--vc", default=str(DEFAULT_VC), help="virtual-coupling scenario (default: %(default)s)")
+    q.add_argument(
+        "--out", required=True, type=values.path, help="output folder (probes are kept and reused on a re-run)"
+    )
+    q.add_argument("--workers", type=values.count, default=1, help="probes run in parallel (default 1)")
+    q.add_argument(
+        "--mb", default=str(DEFAULT_MB), type=values.path, help="moving-block scenario (default: %(default)s)"
+    )
+    q.add_argument(
+        "--vc", default=str(DEFAULT_VC), type=values.path, help="virtual-coupling scenario (default: %(default)s)"
+    )
     q.add_argument(
         "--services",
         default=",".join(DEFAULT_SERVICES),
@@ -77,6 +84,8 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
         raise ConfigError("<command line>", "--services", "expected at least one service id")
     if args.robustness_only and not args.disturbances:
         raise ConfigError("<command line>", "--robustness-only", "expected --disturbances FILE with it")
+    if args.disturbances:  # the robustness runs come last: their input is checked before anything runs
+        _check_robustness(args, services)
     if args.robustness_only:
         print(_robustness(args, services))
         return 0
@@ -115,6 +124,29 @@ def cmd_vc_vs_mb(args: argparse.Namespace) -> int:
         report.write_text(report.read_text(encoding="utf-8") + "\n" + _robustness(args, services), encoding="utf-8")
     print(f"report: {Path(args.out) / 'vc_vs_mb.md'}")
     return 0 if all(r.headway_s is not None for r in results.values()) else 1
+
+
+def _check_robustness(args: argparse.Namespace, services: list[str]) -> None:
+    """Both regimes' robustness plans checked as ``railsim robustness`` checks its own, the disturbances file
+    named as the user's."""
+    from railsim.studies.robustness import check_plan, load_disturbances
+    from railsim.studies.vc_robustness import regime_plans
+
+    source = Path(args.disturbances)
+    plans = regime_plans(
+        Path(args.mb),
+        Path(args.vc),
+        load_disturbances(source),
+        float_list(args.robust_headways, "--robust-headways"),
+        services,
+        runs=args.runs,
+        first_seed=args.first_seed,
+        baseline_runs=args.baseline_runs,
+        intensities=float_list(args.intensities, "--intensities"),
+        disturbances_source=source,
+    )
+    for plan in plans.values():
+        check_plan(plan)
 
 
 def _robustness(args: argparse.Namespace, services: list[str]) -> str:

@@ -12,6 +12,7 @@ from __future__ import annotations
 import argparse
 from typing import Any
 
+from railsim.cli import values
 from railsim.errors import ConfigError
 from railsim.studies.sweep import load_sweep, run_sweep
 
@@ -46,12 +47,18 @@ def add_commands(sub: Any) -> None:
         description="Run every case of a sweep file in its own process, locally or on a Dask "
         "cluster; re-running the same command resumes (finished cases are skipped).",
     )
-    p.add_argument("sweep", metavar="SWEEP", help="sweep YAML file (base scenario, grid, cases, seeds)")
-    p.add_argument("--out", required=True, help="sweep folder: rows/, cases.parquet, cases.csv, sweep.yaml")
-    p.add_argument("--workers", type=int, default=None, help="local worker processes (default: number of cores)")
+    p.add_argument(
+        "sweep", metavar="SWEEP", type=values.path, help="sweep YAML file (base scenario, grid, cases, seeds)"
+    )
+    p.add_argument(
+        "--out", required=True, type=values.path, help="sweep folder: rows/, cases.parquet, cases.csv, sweep.yaml"
+    )
+    p.add_argument(
+        "--workers", type=values.count, default=None, help="local worker processes (default: number of cores)"
+    )
     p.add_argument("--dask", default=None, metavar="ADDRESS", help="run on this Dask scheduler (tcp://host:8786)")
     p.add_argument("--retry-failed", action="store_true", help="run failed cases again")
     p.add_argument("--keep-runs", action="store_true", help="keep every case's run outputs under DIR/runs/<case_id>")
-    p.add_argument("--timeout", type=float, default=None, metavar="S", help="wall-clock limit per case [s]")
+    p.add_argument("--timeout", type=values.seconds, default=None, metavar="S", help="wall-clock limit per case [s]")
     p.add_argument("--no-progress", action="store_true", help="no progress bar even on a terminal")
     p.set_defaults(func=cmd_sweep)

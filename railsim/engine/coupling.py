@@ -34,6 +34,7 @@ formation, ahead)``, run before the state machine is fed (:mod:`railsim.engine.e
 
 from __future__ import annotations
 
+import logging
 from collections.abc import Callable
 from typing import Any, Protocol
 
@@ -46,6 +47,8 @@ from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.engine.wiring import set_once, unwired
 from railsim.errors import ConfigError
+
+log = logging.getLogger(__name__)
 
 COUPLED_STATES = ("coupling", "coupled")
 # a unit that comes round by its turnback asks to couple once it is this close behind its leader's rear, before
@@ -84,6 +87,7 @@ class FormationBook:
         chained: Callable[[str], bool],
         extensions: ExtensionSet,
     ) -> None:
+        self.not_coupling: dict[str, str] = {}  # formation id -> why it cannot couple (depot_start_reasons)
         self.fleet = fleet
         self.manager = manager
         self.settings = settings
@@ -155,8 +159,36 @@ class FormationBook:
         set_once(self, "current_stop", stops.current)
 
     def across_turnbacks(self, turnbacks: Any) -> None:
-        """Check the order of the formations coupling across a turnback (the rotations port)."""
+        """Check the order of the formations coupling across a turnback (the rotations port); note the formations
+        that cannot couple on departure because their follower's unit comes straight out of a depot onto its origin
+        platform (:meth:`depot_start_reasons`)."""
         turnbacks.check_formation_order(self.on_departure_pairs(), self.leader_id)
+        self.not_coupling = self.depot_start_reasons(turnbacks)
+        for fid, reason in self.not_coupling.items():
+            log.warning("formation %s will not couple on departure: %s", fid, reason)
+            self.manager.record(0.0, "couple_not_possible", fid, reason=reason)
+
+    def depot_start_reasons(self, turnbacks: Any) -> dict[str, str]:
+        """``{formation id: why}`` for each ``on_departure`` formation whose follower's first trip is reached by a
+        depot-out run that ends on the very platform the trip departs from (no turnback there). That unit stands
+        at the platform before its leader arrives, ahead of it: it cannot come out behind its leader, which is
+        what coupling on departure means, so it runs its trip uncoupled. (A depot-out run that reaches the
+        opposite platform turns back there and waits for its leader like any chained follower.) The reason is an
+        event (``couple_not_possible``) and a line of the summary, never a silent drop."""
+        reasons: dict[str, str] = {}
+        for f in self.of_follower.values():
+            follower = self.follower_of(f)
+            if not trig(f.couple, "on_departure") or follower.train_id not in turnbacks.prev_of:
+                continue
+            before = self.fleet.trains[turnbacks.prev_of[follower.train_id]]
+            if before.trip.kind == "depot_out" and follower.trip.stops[0].kind != "reversal":
+                reasons[f.id] = (
+                    f"the follower's unit comes from the depot by {before.train_id} straight onto its departure "
+                    f"platform at {follower.trip.origin.station_id!r}, ahead of its leader "
+                    f"{self.leader_of(f).train_id}; it runs its trip uncoupled (choose a depot from which it "
+                    "reaches the opposite platform and turns back, or let another trip lead)"
+                )
+        return reasons
 
     def turnback_waits(self) -> tuple[Callable[[TrainRuntime], bool], Callable[[float, TrainRuntime], bool]]:
         """The two waits the stop book applies across a turnback: :meth:`waits_for_leader`, :meth:`holds_departure`."""

@@ -346,6 +346,8 @@ class Simulation:
             if self.depots.runs or self.depots.unreached:
                 extra["fleet"].update(self.depots.summary())
         extra.update(primary_delays.summary(self.primary))
+        if self.formations.not_coupling:  # formations that cannot couple, and why (never a silent drop)
+            extra["formations_not_coupling"] = dict(sorted(self.formations.not_coupling.items()))
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,

@@ -18,7 +18,7 @@ The section (every part optional, all zero by default; the validator is
       departure:              # late departures from the origin platform
         - {services: [airport_up], prob: 0.3, dist: exponential, mean_s: 30}
       running_time:           # per-trip performance factor on the traction and speed envelope
-        {services: [airport_up], low: 0.95, high: 1.0}           # uniform; 1 = nominal
+        {services: [airport_up], low: 0.95, high: 1.0}           # uniform in [0.5, 1]; 1 = nominal
       incidents:
         - {trip: airport_up.004, station: sigongli, hold_s: 120} # hold one train at one stop
         - {rate_per_h: 2, hold_s: 90, stations: [sigongli], from_s: 0, until_s: 3600}   # Poisson incidents
@@ -118,7 +118,7 @@ class DelayRule:
 
 @dataclass(frozen=True)
 class PerformanceSpec:
-    """A per-trip performance factor, uniform on ``[low, high]`` (≤ 1), for ``services`` (empty = all)."""
+    """A per-trip performance factor, uniform on ``[low, high]`` (0.5 ≤ low ≤ high ≤ 1), for ``services`` (empty = all)."""
 
     low: float = 1.0
     high: float = 1.0

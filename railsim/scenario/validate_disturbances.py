@@ -22,7 +22,7 @@ from railsim.scenario.disturbances import (
     PerformanceSpec,
 )
 from railsim.scenario.clock import format_clock
-from railsim.scenario.model import ServiceSpec
+from railsim.scenario.model import MIN_RUNNING_TIME_FACTOR, ServiceSpec
 from railsim.scenario.validate import Checker, did_you_mean
 from railsim.scenario.validate_services import trip_name
 
@@ -175,7 +175,7 @@ def _performance(
     ck: Checker, value: Any, path: str, service_ids: Sequence[str]
 ) -> tuple[PerformanceSpec, dict[str, Any]]:
     m = ck.mapping(value if value is not None else {}, path, (), ("low", "high", "services"))
-    low = ck.number(m.get("low", 1.0), f"{path}.low", gt=0.0, le=1.0)
+    low = ck.number(m.get("low", 1.0), f"{path}.low", ge=MIN_RUNNING_TIME_FACTOR, le=1.0)
     high = ck.number(m.get("high", 1.0), f"{path}.high", ge=low, le=1.0)
     svcs = _services(ck, m["services"], f"{path}.services", service_ids) if m.get("services") else ()
     return PerformanceSpec(low, high, svcs), {"low": low, "high": high, "services": list(svcs)}

@@ -14,6 +14,7 @@ import copy
 from typing import Any
 
 from railsim.scenario.model import (
+    MAX_OVERLAP_M,
     MAX_SEED,
     MAX_STEP_S,
     MAX_STEPS,
@@ -136,7 +137,7 @@ def interlocking(ck: Checker, value: Any) -> tuple[InterlockingSpec, dict[str, A
     m = ck.mapping(value, "interlocking", (), ("overlap_m", "stall_timeout_s", "platform_berths"))
     raw: dict[str, Any] = {}
     if "overlap_m" in m:
-        raw["overlap_m"] = ck.number(m["overlap_m"], "interlocking.overlap_m", ge=0.0)
+        raw["overlap_m"] = ck.number(m["overlap_m"], "interlocking.overlap_m", ge=0.0, le=MAX_OVERLAP_M)
     if "stall_timeout_s" in m:
         raw["stall_timeout_s"] = ck.number(m["stall_timeout_s"], "interlocking.stall_timeout_s", gt=0.0)
     if "platform_berths" in m:

@@ -52,6 +52,9 @@ def check_against_world(
             station(st, f"{base}.skip[{j}]")
         for st in svc.dwell_by_station:
             station(st, f"{base}.dwell_s.stations.{st}")
+    if scn.rotations is not None:
+        for st in scn.rotations.turnback_min_by_station:
+            station(st, f"rotations.turnback_min_by_station.{st}")
     for i, fm in enumerate(scn.formations):
         for key, trig in (("couple", fm.couple), ("decouple", fm.decouple)):
             if trig is None:

@@ -50,6 +50,8 @@ from typing import Any
 
 from railsim.errors import ConfigError
 from railsim.record import output
+from railsim.scenario.model import MAX_SEED
+from railsim.studies.bounds import check_cases
 from railsim.studies.sweep import Case, CaseTask, case_id, execute, read_rows, write_row
 
 DELAY_STATS = ("max", "p95")
@@ -272,10 +274,21 @@ def find_min_headway(
         except ConfigError as err:
             raise ConfigError(src, f"headway {h:g} s", str(err).replace("<overrides>", "override")) from None
 
-    load_at(lo_s)
-    scn_hi = load_at(hi_s)
+    from railsim.studies.world import run_checks
+
+    check_cases(int(math.ceil((hi_s - lo_s) / tol_s - 1e-9)) + 1, src, "tol_s", "headways on the grid")
+    for h in (lo_s, hi_s):  # the two ends stand for the grid: every check railsim run makes, before any probe
+        checked = load_at(h)
+        try:
+            run_checks(checked)
+        except ConfigError as err:
+            raise ConfigError(src, f"headway {h:g} s", str(err).replace("<overrides>", "override")) from None
+    scn_hi = checked
     seed = int(scn_hi.simulation.seed if seed is None else seed)
     confirm = [seed + 1] if confirm_seeds is None else [int(s) for s in confirm_seeds if int(s) != seed]
+    for s in (seed, *confirm):
+        if not 0 <= s <= MAX_SEED:
+            raise ConfigError(src, "seed", f"expected seeds in [0, {MAX_SEED}] (SUMO's seed range), got {s}")
     criteria = FeasibilityCriteria(max_delay_s=float(max_delay_s), delay_stat=delay_stat)
     grid = _grid(float(lo_s), float(hi_s), float(tol_s))
     out = Path(out_dir) if out_dir is not None else None

@@ -66,6 +66,7 @@ class RobustnessPlan:
     headways_s: tuple[float, ...] = ()
     intensities: tuple[float, ...] = ()
     disturbances: Mapping[str, Any] | None = None  # replaces the scenario's own section
+    disturbances_source: Path | None = None  # the file it came from (named in messages)
     baseline_runs: int = 1
     label: str = ""
 
@@ -138,19 +139,61 @@ def _spec(plan: RobustnessPlan, folder: Path, seeds: Sequence[int], baseline: bo
 
 
 def check_plan(plan: RobustnessPlan) -> None:
-    """Bad input as one line: too few runs, non-positive headways, a scenario without disturbances."""
+    """Bad input as one line, before anything runs: too few or too many runs, seeds beyond SUMO's range,
+    non-positive headways, a scenario without disturbances, and a disturbances file the scenario refuses (named
+    as the user's file, not the sweep file generated from it)."""
     from railsim import scenario
+    from railsim.scenario.model import MAX_SEED
+    from railsim.studies.bounds import check_cases
 
     if plan.runs < 2:
         raise ConfigError("<command line>", "--runs", f"expected at least 2 runs (for an interval), got {plan.runs}")
+    points = max(1, len(plan.headways_s)) * max(1, len(plan.intensities))
+    check_cases(
+        plan.runs * points + max(1, plan.baseline_runs) * max(1, len(plan.headways_s)),
+        "<command line>",
+        "--runs",
+        "runs",
+    )
+    if plan.first_seed < 0 or plan.first_seed + plan.runs - 1 > MAX_SEED:
+        raise ConfigError(
+            "<command line>",
+            "--first-seed",
+            f"expected seeds in [0, {MAX_SEED}] (SUMO's seed range), got {plan.first_seed} … "
+            f"{plan.first_seed + plan.runs - 1}",
+        )
     for h in plan.headways_s:
         if not (math.isfinite(h) and h > 0):
             raise ConfigError("<command line>", "--headways", f"expected headways in seconds > 0, got {h!r}")
     for x in plan.intensities:
         if not (math.isfinite(x) and 0 <= x <= 100):
             raise ConfigError("<command line>", "--intensities", f"expected intensities in [0, 100], got {x!r}")
-    if plan.disturbances is None and scenario.load(plan.scenario).disturbances is None:
-        raise ConfigError(plan.scenario, "disturbances", "the scenario has no disturbances: section (or give a file)")
+    if plan.disturbances is None:
+        if scenario.load(plan.scenario).disturbances is None:
+            raise ConfigError(
+                plan.scenario, "disturbances", "the scenario has no disturbances: section (or give a file)"
+            )
+        return
+    check_disturbances_file(plan.scenario, plan.disturbances, plan.disturbances_source or "<disturbances>")
+
+
+def check_disturbances_file(
+    scenario_path: Path, disturbances: Mapping[str, Any], source: Path | str, world_check: bool = True
+) -> None:
+    """Every check ``railsim run`` makes on ``scenario_path`` with its ``disturbances:`` section replaced by
+    ``disturbances`` (``world_check``: those against the built world too); an error in that section is reported
+    against ``source``, the user's file, never the sweep file a study generates from it."""
+    from railsim import scenario
+    from railsim.studies.world import run_checks
+
+    try:
+        scn = scenario.load(scenario_path, {"disturbances": dict(disturbances)})
+        if world_check:
+            run_checks(scn)
+    except ConfigError as err:
+        if err.field is not None and err.field.startswith("disturbances"):
+            raise ConfigError(source, err.field, err.message) from None
+        raise
 
 
 def run_robustness(

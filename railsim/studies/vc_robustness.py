@@ -20,10 +20,41 @@ from pathlib import Path
 from typing import Any
 
 from railsim.record import output
-from railsim.studies.robustness import RobustnessPlan, ci95, markdown, run_robustness
+from railsim.studies.robustness import RobustnessPlan, check_plan, ci95, markdown, run_robustness
 from railsim.studies.vc_vs_mb import headway_paths
 
 REGIMES = (("mb", "(a) moving block"), ("vc", "(b) virtual coupling"))
+
+
+def regime_plans(
+    mb_scenario: Path,
+    vc_scenario: Path,
+    disturbances: Mapping[str, Any],
+    headways_s: Sequence[float],
+    services: Sequence[str],
+    runs: int,
+    first_seed: int = 1,
+    baseline_runs: int = 1,
+    intensities: Sequence[float] = (),
+    disturbances_source: Path | None = None,
+) -> dict[str, RobustnessPlan]:
+    """The robustness plan of each regime (``mb``, ``vc``): same disturbances, headways and seeds."""
+    plans = {}
+    for key, label in REGIMES:
+        scn = Path(mb_scenario if key == "mb" else vc_scenario)
+        plans[key] = RobustnessPlan(
+            scenario=scn,
+            runs=runs,
+            first_seed=first_seed,
+            headway_paths=tuple(headway_paths(scn, services)),
+            headways_s=tuple(headways_s),
+            intensities=tuple(intensities),
+            disturbances=disturbances,
+            disturbances_source=disturbances_source,
+            baseline_runs=baseline_runs,
+            label=label,
+        )
+    return plans
 
 
 def compare_robustness(
@@ -45,20 +76,14 @@ def compare_robustness(
     from railsim.report.plots.robustness import robustness_figures
 
     out = Path(out_dir) / "robustness"
+    plans = regime_plans(
+        mb_scenario, vc_scenario, disturbances, headways_s, services, runs, first_seed, baseline_runs, intensities
+    )
+    for plan in plans.values():  # both regimes checked before either runs
+        check_plan(plan)
     results: dict[str, Any] = {}
     for key, label in REGIMES:
-        scn = Path(mb_scenario if key == "mb" else vc_scenario)
-        plan = RobustnessPlan(
-            scenario=scn,
-            runs=runs,
-            first_seed=first_seed,
-            headway_paths=tuple(headway_paths(scn, services)),
-            headways_s=tuple(headways_s),
-            intensities=tuple(intensities),
-            disturbances=disturbances,
-            baseline_runs=baseline_runs,
-            label=label,
-        )
+        plan = plans[key]
         results[label] = run_robustness(plan, out / key, workers=workers, dask_address=dask_address, progress=progress)
     plots = robustness_figures(results, out)
     lines = ["## Robustness under primary delays (same seeds in both regimes)", ""]

@@ -15,16 +15,19 @@ from __future__ import annotations
 
 import concurrent.futures as cf
 import os
+import threading
 from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
 from railsim.errors import ConfigError
+from railsim.inputs import excerpt
 from railsim.studies.sweep.child import ChildControl, run_case
 from railsim.studies.sweep.spec import Case, override_cells
 
 DASK_CONNECT_TIMEOUT_S = 10.0  # how long to try reaching a Dask scheduler before giving up
+DASK_HANDSHAKE_GRACE_S = 5.0  # and how much longer its handshake may take before the address is refused
 
 
 @dataclass(frozen=True)
@@ -38,16 +41,45 @@ class CaseTask:
 
 
 def _connect(dask_address: str) -> Any:
+    """A ``distributed.Client`` of the scheduler at ``dask_address``, or one ConfigError (exit 2) within
+    :data:`DASK_CONNECT_TIMEOUT_S` + :data:`DASK_HANDSHAKE_GRACE_S` seconds.
+
+    ``Client(timeout=...)`` bounds the TCP connect but not always the handshake after it: a port that accepts and
+    never answers kept it waiting for ever, and an HTTP server's reply read as a Dask frame header asked for
+    exabytes of memory. So the client is made in a helper thread that is given a hard deadline, and anything it
+    raises (a ``MemoryError`` too) means "not a Dask scheduler"; the thread is a daemon, so a connection that
+    never answers does not keep railsim alive.
+    """
     try:
         from distributed import Client
     except ImportError:  # an optional extra: only --dask needs it
         raise ConfigError(
             None, "--dask", "needs the dask extra: pip install 'railsim[dask]' (dask and distributed)"
         ) from None
-    try:
-        return Client(dask_address, timeout=f"{DASK_CONNECT_TIMEOUT_S}s")
-    except (OSError, TimeoutError, ValueError) as exc:
-        raise ConfigError(None, "--dask", f"cannot connect to the Dask scheduler at {dask_address!r}: {exc}") from None
+    shown = excerpt(dask_address)
+    result: dict[str, Any] = {}
+
+    def attempt() -> None:
+        try:
+            result["client"] = Client(dask_address, timeout=f"{DASK_CONNECT_TIMEOUT_S}s")
+        except BaseException as exc:  # noqa: BLE001 - whatever the address does, it is reported as one line
+            result["error"] = exc
+
+    thread = threading.Thread(target=attempt, name="railsim-dask-connect", daemon=True)
+    thread.start()
+    thread.join(DASK_CONNECT_TIMEOUT_S + DASK_HANDSHAKE_GRACE_S)
+    if thread.is_alive():
+        raise ConfigError(
+            None,
+            "--dask",
+            f"no Dask scheduler answered at {shown} within {DASK_CONNECT_TIMEOUT_S + DASK_HANDSHAKE_GRACE_S:g} s "
+            "(a port that accepts but never answers, or not a Dask scheduler)",
+        )
+    if "error" in result:
+        exc = result["error"]
+        reason = excerpt(f"{type(exc).__name__}: {exc}", 160)
+        raise ConfigError(None, "--dask", f"cannot connect to the Dask scheduler at {shown}: {reason}")
+    return result["client"]
 
 
 def execute(

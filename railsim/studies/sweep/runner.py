@@ -108,7 +108,7 @@ def run_sweep(
         raise ConfigError(None, "--timeout", f"expected seconds > 0, got {timeout_s}")
     out = Path(out_dir)
     _check_folder(spec, out)
-    validate_cases(spec)
+    validate_cases(spec, full=True)  # every check railsim run makes, before the first case runs
     out.mkdir(parents=True, exist_ok=True)
     output.write_yaml(out / "sweep.yaml", {**spec.raw, "base_sha256": spec.base_sha256, "n_cases": len(spec.cases)})
     done = read_rows(out)

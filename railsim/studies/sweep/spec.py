@@ -21,8 +21,12 @@ from pathlib import Path
 from typing import Any
 
 from railsim.errors import ConfigError
-from railsim.inputs import describe_kind
+from railsim.inputs import describe_kind, excerpt
 from railsim.scenario import OVERRIDE_PATH_RE, parse_yaml, read_text
+from railsim.scenario.model import MAX_SEED
+from railsim.studies.bounds import check_cases
+
+MIN_TIMEOUT_S = 1.0  # a case's wall-clock limit: SUMO alone takes longer to start
 
 SWEEP_KEYS = ("name", "description", "base", "grid", "link", "cases", "seeds", "timeout_s")
 RESERVED_COLUMNS = ("case_id", "status", "error", "seed", "wall_s")
@@ -195,22 +199,36 @@ def load_sweep(path: str | Path) -> SweepSpec:
         link[p] = s
 
     seeds_raw = data.get("seeds")
-    if seeds_raw is None:
-        seeds = [_base_seed(base)]
-    else:
+    seeds: list[int] = []  # none given: the base scenario's own seed, read once the count is known to be sane
+    if seeds_raw is not None:
         if not isinstance(seeds_raw, list) or not seeds_raw:
             raise v.fail("seeds", "expected a non-empty list of integers >= 0")
         seeds = []
+        seen_seeds: set[int] = set()
         for j, s in enumerate(seeds_raw):
-            if isinstance(s, bool) or not isinstance(s, int) or s < 0:
-                raise v.fail(f"seeds[{j}]", f"expected an integer >= 0, got {s!r}")
-            if s in seeds:
+            if isinstance(s, bool) or not isinstance(s, int) or not 0 <= s <= MAX_SEED:
+                raise v.fail(
+                    f"seeds[{j}]", f"expected an integer in [0, {MAX_SEED}] (SUMO's seed range), got {excerpt(s)}"
+                )
+            if s in seen_seeds:
                 raise v.fail(f"seeds[{j}]", f"seed {s} is listed twice")
+            seen_seeds.add(s)
             seeds.append(s)
 
     timeout = data.get("timeout_s")
-    if timeout is not None and (isinstance(timeout, bool) or not isinstance(timeout, (int, float)) or timeout <= 0):
-        raise v.fail("timeout_s", f"expected a number of seconds > 0, got {timeout!r}")
+    if timeout is not None and (
+        isinstance(timeout, bool)
+        or not isinstance(timeout, (int, float))
+        or not math.isfinite(timeout)
+        or timeout < MIN_TIMEOUT_S
+    ):
+        raise v.fail("timeout_s", f"expected a finite number of seconds >= {MIN_TIMEOUT_S:g}, got {excerpt(timeout)}")
+
+    # count before expanding: a grid's product can be astronomically large in a few lines of YAML
+    n_cases = len(case_defs) * math.prod(len(values) for values in grid.values()) * max(1, len(seeds))
+    check_cases(n_cases, src, "grid" if grid else "cases")
+    if not seeds:
+        seeds = [_base_seed(base)]
 
     cases: list[Case] = []
     seen: dict[str, int] = {}
@@ -280,7 +298,12 @@ def validate_cases(spec: SweepSpec, world_check: bool = True, full: bool = False
     from railsim import scenario
     from railsim.studies.world import run_checks, world_check as check_world
 
+    checked: set[str] = set()
     for k, case in enumerate(spec.cases):
+        key = case_id(case.overrides, 0)  # the checks do not depend on the seed: each override set once
+        if key in checked:
+            continue
+        checked.add(key)
         try:
             scn = scenario.load(spec.base, case.overrides)
             if world_check:  # station/switch ids depend on the overridden services: every case (builds are cached)

@@ -9,12 +9,15 @@ expansion order (:func:`write_tables`), so they never hold a duplicate or a half
 from __future__ import annotations
 
 import json
+import logging
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from railsim.record import output
 from railsim.studies.sweep.spec import SweepSpec
+
+log = logging.getLogger(__name__)
 
 # Columns that measure wall-clock time: they differ between runs of the same case; every other column may not.
 WALL_CLOCK_COLUMNS = ("wall_s", "engine_wall_s")
@@ -30,12 +33,23 @@ def write_row(out_dir: Path, case_id: str, row: Mapping[str, Any]) -> None:
 
 
 def read_rows(out_dir: Path) -> dict[str, dict[str, Any]]:
-    """The persisted rows of a sweep folder, by case id (unreadable half-files cannot exist: writes are atomic)."""
+    """The persisted rows of a sweep folder, by case id.
+
+    railsim's own writes are atomic, so a half-written row cannot come from it; a row file that is empty or not a
+    JSON object anyway (a disk that failed, an edit by hand) is not a finished case: it is left out with a warning,
+    and the case runs again (its new row replaces the file)."""
     rows: dict[str, dict[str, Any]] = {}
     folder = _rows_dir(out_dir)
     if folder.is_dir():
         for path in sorted(folder.glob("*.json")):
-            rows[path.stem] = json.loads(path.read_text(encoding="utf-8"))
+            try:
+                row = json.loads(path.read_text(encoding="utf-8"))
+            except (OSError, ValueError):
+                row = None
+            if not isinstance(row, dict):
+                log.warning("%s: not a readable row; case %s runs again", path, path.stem)
+                continue
+            rows[path.stem] = row
     return rows
 
 

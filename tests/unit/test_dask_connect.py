@@ -1,0 +1,83 @@
+"""``--dask`` at something that is not a Dask scheduler ends in one ConfigError (exit 2) within 30 s.
+
+Two local servers on 127.0.0.1 stand in for a wrong address: one accepts and never answers (a firewall, a stuck
+service), one answers every connection with an HTTP response (a web server's port).
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+from collections.abc import Iterator
+
+import pytest
+
+pytest.importorskip("distributed")
+
+from railsim.errors import ConfigError  # noqa: E402
+from railsim.studies.sweep.parallel import _connect  # noqa: E402
+
+
+def _serve(respond: bytes | None) -> Iterator[int]:
+    srv = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+    srv.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
+    srv.bind(("127.0.0.1", 0))
+    srv.listen(8)
+    stop = threading.Event()
+    held: list[socket.socket] = []
+
+    def loop() -> None:
+        srv.settimeout(0.2)
+        while not stop.is_set():
+            try:
+                conn, _ = srv.accept()
+            except OSError:
+                continue
+            held.append(conn)
+            if respond is not None:
+                try:
+                    conn.settimeout(1.0)
+                    conn.recv(65536)
+                except OSError:
+                    pass
+                try:
+                    conn.sendall(respond)
+                except OSError:
+                    pass
+
+    th = threading.Thread(target=loop, daemon=True)
+    th.start()
+    try:
+        yield srv.getsockname()[1]
+    finally:
+        stop.set()
+        th.join(2)
+        for c in held:
+            c.close()
+        srv.close()
+
+
+@pytest.fixture
+def silent_port() -> Iterator[int]:
+    yield from _serve(None)
+
+
+@pytest.fixture
+def http_port() -> Iterator[int]:
+    body = b"<html>not dask</html>"
+    yield from _serve(b"HTTP/1.1 200 OK\r\nContent-Length: %d\r\n\r\n%s" % (len(body), body) * 50)
+
+
+@pytest.mark.parametrize("server", ["silent_port", "http_port"])
+def test_dask_at_a_port_that_is_no_scheduler_is_refused_within_30_s(
+    server: str, request: pytest.FixtureRequest
+) -> None:
+    port = request.getfixturevalue(server)
+    t0 = time.perf_counter()
+    with pytest.raises(ConfigError) as err:
+        _connect(f"tcp://127.0.0.1:{port}")
+    elapsed = time.perf_counter() - t0
+    assert elapsed < 30.0, elapsed
+    assert err.value.field == "--dask" and f"127.0.0.1:{port}" in str(err.value)
+    assert "\n" not in str(err.value)
