@@ -19,6 +19,14 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   coupling timeout), so the pair leaves together. Which unit leads
   is the scenario's choice, checked against the order the units stand in after the turnback
   (:meth:`railsim.engine.turnback.Turnbacks.check_formation_order`).
+* **Joining at a station** (``couple: {at_station: X}``): the leader stays at ``X`` after its dwell, with no
+  route set beyond it, until the pair is coupled and the follower's dwell there is over (at most one coupling
+  timeout: :meth:`_holds_for_station_join`, :meth:`route_waits_for_join`); the follower asks to couple on its
+  final approach and halts the target gap behind it (:meth:`_join_at_station`). The pair must fit on the
+  platform (checked at registration).
+* **Nothing silent.** A formation that cannot couple where it asked (at a station, after a switch) is a
+  ``coupling_failed`` event with the reason (``timeout``, ``wrong_order``, ``blocked``, ``aborted``,
+  ``not_reached``); :meth:`where_asked` is the summary's ``formations_asked`` block.
 * **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
   mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
   tail clears it (:meth:`tail_m`).
