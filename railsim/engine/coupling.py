@@ -552,7 +552,7 @@ class FormationBook:
         its final approach to the coupled halt position, whichever comes first: it then halts ``target gap``
         behind the leader (:meth:`mark_offset_m`) and the pair locks in standing or in the last metres (Paper D's
         station-entry case). Given up, with a ``coupling_failed`` event, when the follower stands at ``X`` before
-        its leader (``wrong_order``) or another train is between them (``blocked``)."""
+        its leader (``wrong_order``) or another train that stops at ``X`` is between them (``blocked``)."""
         if f.id in self._joins_asked or f.id in self._failed or follower.status != "running":
             return
         station = f.couple.station
@@ -571,8 +571,10 @@ class FormationBook:
         if a is None:
             return
         if a.train_id != leader.train_id:
-            self._fail(t, f, "blocked", station=station, by=a.train_id)
-            return
+            other = self.fleet.trains.get(a.train_id)
+            if other is not None and any(s.station_id == station for s in other.trip.stops[other.next_stop :]):
+                self._fail(t, f, "blocked", station=station, by=a.train_id)  # it will stand at X between them
+            return  # (one that turns off before X only delays the follower)
         stop = follower.trip.stops[fi]
         lstop = leader.trip.stops[li]
         halt_m = stop.mark_m - (

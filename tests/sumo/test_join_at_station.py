@@ -9,6 +9,7 @@ Real SUMO runs of the mini line (:file:`tests/data/scenarios/mini_line.yaml`, 22
 * the same with the follower 400 s late and a 120 s coupling timeout: the leader waits 120 s, leaves alone, and a
   ``coupling_failed`` event says ``timeout``; the summary's ``formations_asked`` block says where it was asked and
   why it did not couple;
+* a train of its own between the two: the join is given up (``blocked``, naming it) and the leader does not wait;
 * ``couple: {after_switch: c_down}`` with the follower (the branch unit) reaching the merge before its leader: a
   ``coupling_failed`` event with the reason ``wrong_order`` (it was silent before);
 * a platform too short for the pair is refused before the run, naming the field and the lengths.
@@ -123,6 +124,23 @@ def test_a_follower_too_late_ends_the_wait_after_the_timeout_and_says_why(tmp_pa
     assert summary["formations_asked"] == [
         {"id": "join", "asked": "at_station c", "coupled": False, "where": None, "reason": "timeout"}
     ]
+
+
+@pytest.mark.sumo
+def test_a_train_between_leader_and_follower_ends_the_wait_and_says_why(tmp_path: Path) -> None:
+    data = _join_world(120.0)
+    # a train of its own (no formation) leaves A between the two: it, not the follower, comes up behind the leader
+    data["services"].insert(
+        1, {"id": "mid", "from": "a", "to": "e", "vehicle": "cq6", "departures": {"times": [60]}, "dwell_s": DWELL_S}
+    )
+    out, events = _run(tmp_path, "between", data)
+    failed = _kinds(events, "coupling_failed", "join")
+    assert len(failed) == 1 and failed[0]["reason"] == "blocked" and failed[0]["by"] == "mid.000"
+    assert not _kinds(events, "coupled", "join")
+    # the leader does not keep the train between them waiting: it leaves C on its own dwell
+    lead = _at(out, "c")[LEADER]
+    assert float(lead["departure_s"]) <= float(lead["arrival_s"]) + DWELL_S + 3.0
+    assert read_summary(out)["formations_asked"][0]["reason"] == "blocked"
 
 
 @pytest.mark.sumo
