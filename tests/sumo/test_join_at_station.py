@@ -9,6 +9,7 @@ Real SUMO runs of the mini line (:file:`tests/data/scenarios/mini_line.yaml`, 22
 * the same with the follower 400 s late and a 120 s coupling timeout: the leader waits 120 s, leaves alone, and a
   ``coupling_failed`` event says ``timeout``; the summary's ``formations_asked`` block says where it was asked and
   why it did not couple;
+* the follower at C before its leader: ``wrong_order``, and the leader does not wait there;
 * a train of its own between the two: the join is given up (``blocked``, naming it) and the leader does not wait;
 * ``couple: {after_switch: c_down}`` with the follower (the branch unit) reaching the merge before its leader: a
   ``coupling_failed`` event with the reason ``wrong_order`` (it was silent before);
@@ -124,6 +125,17 @@ def test_a_follower_too_late_ends_the_wait_after_the_timeout_and_says_why(tmp_pa
     assert summary["formations_asked"] == [
         {"id": "join", "asked": "at_station c", "coupled": False, "where": None, "reason": "timeout"}
     ]
+
+
+@pytest.mark.sumo
+def test_a_follower_at_the_station_before_its_leader_is_a_wrong_order(tmp_path: Path) -> None:
+    data = _join_world(0.0)
+    data["services"][0]["departures"] = {"times": [80]}  # the leader leaves A 80 s after its follower
+    out, events = _run(tmp_path, "reversed", data)
+    failed = _kinds(events, "coupling_failed", "join")
+    assert len(failed) == 1 and failed[0]["reason"] == "wrong_order" and failed[0]["station"] == "c"
+    assert not _kinds(events, "departure_held_for_follower", LEADER)
+    assert read_summary(out)["formations_asked"][0]["reason"] == "wrong_order"
 
 
 @pytest.mark.sumo
