@@ -21,12 +21,11 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   (:meth:`railsim.engine.turnback.Turnbacks.check_formation_order`).
 * **Joining at a station** (``couple: {at_station: X}``): the leader stays at ``X`` after its dwell, with no
   route set beyond it, until the pair is coupled and the follower's dwell there is over (at most one coupling
-  timeout: :meth:`_holds_for_station_join`, :meth:`route_waits_for_join`); the follower asks to couple on its
-  final approach and halts the target gap behind it (:meth:`_join_at_station`). The pair must fit on the
-  platform (checked at registration).
+  timeout) and the follower asks to couple on its final approach and halts the target gap behind it
+  (:mod:`railsim.engine.joins`). The pair must fit on the platform (checked at registration).
 * **Nothing silent.** A formation that cannot couple where it asked (at a station, after a switch) is a
   ``coupling_failed`` event with the reason (``timeout``, ``wrong_order``, ``blocked``, ``aborted``,
-  ``not_reached``); :meth:`where_asked` is the summary's ``formations_asked`` block.
+  ``not_reached``; :meth:`railsim.engine.joins.Joins.where_asked`).
 * **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
   mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
   tail clears it (:meth:`tail_m`).
@@ -48,6 +47,7 @@ from typing import Any, Protocol
 from railsim.engine.events.formations import Formation, FormationManager
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
+from railsim.engine.joins import COUPLE_REACH_M, Joins, trig
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
@@ -56,9 +56,6 @@ from railsim.engine.wiring import set_once, unwired
 from railsim.errors import ConfigError
 
 COUPLED_STATES = ("coupling", "coupled")
-# a unit that comes round by its turnback asks to couple once it is this close behind its leader's rear, before
-# the separation controller (margin 50 m on Line 3) would stop it further back
-COUPLE_REACH_M = 150.0
 
 
 class InsertsBehind(Protocol):
@@ -73,11 +70,6 @@ class KnowsStops(Protocol):
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop ``tr`` heads for or stands at, and how far behind its mark it halts."""
-
-
-def trig(trigger: Any, kind: str) -> bool:
-    """True if a formation trigger (``couple``/``decouple``, possibly None) is of ``kind``."""
-    return trigger is not None and trigger.kind == kind
 
 
 class FormationBook:
@@ -114,11 +106,7 @@ class FormationBook:
         self._held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell ended (held for the follower)
         # (formation, leader's stop index) -> when the leader's dwell ended there (held for a convoy's follower)
         self._convoy_held_since_s: dict[tuple[str, int], float] = {}
-        self._joins_asked: set[str] = set()  # at_station formations whose couple request went out at the station
-        # formations that asked for a place (at_station, after_switch): why they did not couple there, and where
-        # they did (the summary's ``formations_asked`` block, :meth:`where_asked`)
-        self._failed: dict[str, str] = {}
-        self._coupled_where: dict[str, str] = {}
+        self.join_book = Joins(self)  # joins at stations; where formations that asked for a place coupled, or why not
 
     # ------------------------------------------------------------------ registration
     def add(self, f: Any, where: str = "formations") -> None:
@@ -152,37 +140,9 @@ class FormationBook:
                 for key in d:
                     d[key] += shift
         if trig(f.couple, "at_station"):
-            self._check_join_platform(f, leader, follower, where)
+            self.join_book.check_platform(f, leader, follower, where)
         self.of_follower[follower.train_id] = f
         self.of_leader.setdefault(leader.train_id, []).append(f)
-
-    def _check_join_platform(self, f: Any, leader: TrainRuntime, follower: TrainRuntime, where: str) -> None:
-        """``couple: {at_station: X}``: both trips stop at ``X`` and the pair (leader, target gap, follower) fits
-        on the leader's platform there, else a :class:`ConfigError` before the run."""
-        station = f.couple.station
-        field = f"{where}.couple.at_station"
-        for role, tr in (("leader", leader), ("follower", follower)):
-            if self._stop_index(tr, station) is None:
-                raise ConfigError(
-                    self.fleet.source,
-                    field,
-                    f"expected a station both trips stop at, got {station!r} (the {role} {tr.train_id} does not stop there)",
-                )
-        stop = leader.trip.stops[self._stop_index(leader, station) or 0]
-        lead_m, fol_m, gap_m = leader.trip.vehicle.length_m, follower.trip.vehicle.length_m, float(f.target_gap_m)
-        need_m = lead_m + gap_m + fol_m + 1.0  # the leader's front halts 1 m before the platform end
-        if stop.platform_m < need_m:
-            raise ConfigError(
-                self.fleet.source,
-                field,
-                f"expected a platform the pair fits on, got {stop.platform_m:.1f} m at {station!r}: the pair needs "
-                f"{need_m:.1f} m (leader {lead_m} m + gap {gap_m} m + follower {fol_m} m + 1 m before the end)",
-            )
-
-    @staticmethod
-    def _stop_index(tr: TrainRuntime, station: str) -> int | None:
-        """Index of ``tr``'s first station stop at ``station``, or None."""
-        return next((i for i, s in enumerate(tr.trip.stops) if s.station_id == station and s.kind != "reversal"), None)
 
     def schedule_commands(self, formations: Any) -> None:
         """Timed couple/decouple triggers of the scenario's formations (``at_s``)."""
@@ -262,61 +222,10 @@ class FormationBook:
         stop, _ = self.current_stop(tr)
         return any(
             self._holds_for_join(t, f, stop)
-            or self._holds_for_station_join(t, f, stop)
+            or self.join_book.holds(t, f, stop)
             or self._holds_for_convoy(t, tr, f, stop)
             for f in self.of_leader.get(tr.train_id, ())
         )
-
-    def route_waits_for_join(self, tr: TrainRuntime, point_m: float) -> bool:
-        """True while leader ``tr`` is at (or on its way to) the station where a follower joins it
-        (``couple: {at_station: X}``) and the pair is not coupled yet, for a switch or section at ``point_m``
-        beyond that platform: its route out is set once the two are coupled — one lock for the pair
-        (:mod:`railsim.engine.locking`) — or once the join is given up. Set earlier, the lock would be the
-        leader's alone and the follower would wait at the points for the leader to clear them."""
-        for f in self.of_leader.get(tr.train_id, ()):
-            if not trig(f.couple, "at_station") or f.id in self._failed:
-                continue
-            li = self._stop_index(tr, f.couple.station)
-            if li is None or tr.next_stop != li or point_m <= tr.trip.stops[li].window_end_m:
-                continue
-            fol = self.follower_of(f)
-            fi = self._stop_index(fol, f.couple.station)
-            if self.manager.state(f.id) == "coupled" or fi is None or fol.next_stop > fi:
-                continue
-            if fol.status in ("scheduled", "inserting", "running"):
-                return True
-        return False
-
-    def _holds_for_station_join(self, t: float, f: Any, stop: TripStop | None) -> bool:
-        """``couple: {at_station: X}``, the leader at ``X`` after its dwell: until the pair is coupled and the
-        follower's dwell there has ended (they leave together), at most one coupling timeout after the leader's
-        own dwell ended. A join given up (wrong order, blocked) does not hold it; one that times out here is a
-        ``coupling_failed`` event with the reason ``timeout`` (an attempt under way is aborted: the follower
-        runs on on its own)."""
-        if not trig(f.couple, "at_station") or stop is None or stop.station_id != f.couple.station:
-            return False
-        if f.id in self._failed:
-            return False
-        fol = self.follower_of(f)
-        state = self.manager.state(f.id)
-        if state == "coupled":
-            fstop, _ = self.current_stop(fol)
-            return (
-                fol.status == "running"
-                and fstop is not None
-                and fstop.station_id == stop.station_id
-                and not fol.held_for_route
-            )
-        fi = self._stop_index(fol, stop.station_id)
-        if fol.status not in ("scheduled", "inserting", "running") or fi is None or fol.next_stop > fi:
-            return False
-        waited_s = t - self._held_since_s.setdefault(f.id, t)
-        if waited_s < float(f.coupling_timeout_s):
-            return True
-        self._fail(t, f, "timeout", station=stop.station_id, waited_s=round(waited_s, 3))
-        if state == "coupling":
-            self.manager.request_decouple(f.id)
-        return False
 
     def _holds_for_join(self, t: float, f: Any, stop: TripStop | None) -> bool:
         """At the origin of a chained follower that couples on departure: until the pair is coupled, the attempt
@@ -518,9 +427,10 @@ class FormationBook:
         if a is not None and a.train_id == leader.train_id and trig(f.couple, "after_switch"):
             self._couple_after_merge(tr, f)
         elif trig(f.couple, "after_switch"):
-            self._merge_out_of_order(t, tr, leader, f, a)
+            if f.id not in self._merged:
+                self.join_book.merge_out_of_order(t, tr, leader, f, a)
         if trig(f.couple, "at_station"):
-            self._join_at_station(t, tr, leader, f, a)
+            self.join_book.run_in(t, tr, leader, f, a)
         if a is not None and a.train_id == leader.train_id:
             # the state machine judges the error against the controller's effective target (gap policy: larger
             # than the standstill target at speed), expressed around the formation's own target
@@ -532,8 +442,8 @@ class FormationBook:
             self.manager.observe_apart(t, f.id)
         if self.manager.state(f.id) == "coupled" and tr.arrived_s is None:  # an arrived train is no longer coupled
             tr.coupled_s += self.dt_s
-            if f.id not in self._coupled_where:
-                self._note_coupled(f, leader)
+            if f.id not in self.join_book.coupled_where:
+                self.join_book.note_coupled(f, leader)
 
     def _couple_after_merge(self, follower: TrainRuntime, f: Any) -> None:
         """``couple: {after_switch: X}``: ask once, when the follower's front is past switch ``X`` (its leader is
@@ -546,112 +456,6 @@ class FormationBook:
             self._merged.add(f.id)
             self.manager.request_couple(f.id)
 
-    def _join_at_station(self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> None:
-        """``couple: {at_station: X}``: the follower runs in behind its leader standing at ``X`` (held there,
-        :meth:`_holds_for_station_join`) and asks to couple once within :data:`COUPLE_REACH_M` of its rear or on
-        its final approach to the coupled halt position, whichever comes first: it then halts ``target gap``
-        behind the leader (:meth:`mark_offset_m`) and the pair locks in standing or in the last metres (Paper D's
-        station-entry case). Given up, with a ``coupling_failed`` event, when the follower stands at ``X`` before
-        its leader (``wrong_order``) or another train that stops at ``X`` is between them (``blocked``)."""
-        if f.id in self._joins_asked or f.id in self._failed or follower.status != "running":
-            return
-        station = f.couple.station
-        fi, li = self._stop_index(follower, station), self._stop_index(leader, station)
-        if fi is None or li is None or follower.next_stop != fi:
-            return
-        leader_there = leader.status == "running" and leader.next_stop == li and leader.sumo_stopped
-        if not leader_there:
-            if (
-                follower.sumo_stopped
-                and leader.status in ("scheduled", "inserting", "running")
-                and leader.next_stop <= li
-            ):
-                self._fail(t, f, "wrong_order", station=station, detail="the follower stands at the station first")
-            return
-        if a is None:
-            return
-        if a.train_id != leader.train_id:
-            other = self.fleet.trains.get(a.train_id)
-            if other is not None and any(s.station_id == station for s in other.trip.stops[other.next_stop :]):
-                self._fail(t, f, "blocked", station=station, by=a.train_id)  # it will stand at X between them
-            return  # (one that turns off before X only delays the follower)
-        stop = follower.trip.stops[fi]
-        lstop = leader.trip.stops[li]
-        halt_m = stop.mark_m - (
-            self.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
-        )
-        if a.gap_m <= COUPLE_REACH_M or self.in_final_approach(follower, halt_m):
-            self._joins_asked.add(f.id)
-            self.manager.request_couple(f.id)
-
-    def _merge_out_of_order(
-        self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None
-    ) -> None:
-        """``couple: {after_switch: X}`` with the follower's front past ``X`` and its leader not directly ahead:
-        the leader has not passed ``X`` yet (``wrong_order``: the follower reached the merge first) or another
-        train runs between them (``blocked``). Logged once as ``coupling_failed``; a leader that comes to be
-        directly ahead later still gets the couple request (:meth:`_couple_after_merge`)."""
-        if f.id in self._merged or f.id in self._failed:
-            return
-        sw = f.couple.switch
-        if not any(rs.switch_id == sw and follower.front_m >= rs.point_m for rs in follower.trip.route.switches):
-            return
-        leader_past = leader.status == "arrived" or (
-            leader.status == "running"
-            and any(rs.switch_id == sw and leader.front_m >= rs.point_m for rs in leader.trip.route.switches)
-        )
-        if not leader_past:
-            self._fail(t, f, "wrong_order", switch=sw, detail="the follower reached the merge first")
-        elif a is not None:
-            self._fail(t, f, "blocked", switch=sw, by=a.train_id)
-
-    def _fail(self, t: float, f: Any, reason: str, **detail: Any) -> None:
-        """Formation ``f`` cannot couple where it asked: a ``coupling_failed`` event with the reason, once."""
-        self._failed[f.id] = reason
-        self.manager.record(t, "coupling_failed", f.id, reason=reason, asked=_asked(f), **detail)
-
-    def _note_coupled(self, f: Any, leader: TrainRuntime) -> None:
-        """The pair just became coupled: where, for a formation that asked for a place."""
-        if trig(f.couple, "at_station"):
-            li = self._stop_index(leader, f.couple.station)
-            at_x = leader.status == "running" and leader.next_stop == li
-            self._coupled_where[f.id] = f"at_station {f.couple.station}" if at_x else "elsewhere"
-        elif trig(f.couple, "after_switch"):
-            self._coupled_where[f.id] = f"after_switch {f.couple.switch}"
-        else:
-            self._coupled_where[f.id] = _asked(f)
-
-    def where_asked(self, t: float) -> dict[str, Any]:
-        """The summary's ``formations_asked`` block — one entry per formation that asked to couple at a station or
-        after a switch: ``{id, asked, coupled, where, reason}`` (``coupled``: there, as asked) — or nothing when
-        none asked. A formation that neither coupled nor failed by the end of the run gets a ``coupling_failed``
-        event with the reason ``not_reached`` (its units never met there), or ``timeout`` when its state machine
-        gave up an attempt."""
-        rows = []
-        for f in self.of_follower.values():
-            if not (trig(f.couple, "at_station") or trig(f.couple, "after_switch")):
-                continue
-            where = self._coupled_where.get(f.id)
-            coupled = where is not None and where == _asked(f)
-            if not coupled and f.id not in self._failed:
-                stats = self.manager.stats(f.id)
-                if stats.failures:
-                    self._failed[f.id] = "timeout"  # the state machine logged it (coupling_failed, timeout)
-                elif stats.aborts:
-                    self._fail(t, f, "aborted")
-                else:
-                    self._fail(t, f, "not_reached")
-            rows.append(
-                {
-                    "id": f.id,
-                    "asked": _asked(f),
-                    "coupled": coupled,
-                    "where": where,
-                    "reason": None if coupled else self._failed.get(f.id),
-                }
-            )
-        return {"formations_asked": rows} if rows else {}
-
     def on_off_line(self, t: float, tr: TrainRuntime) -> None:
         """``tr`` arrived or left the line: its formations' coupled time stops counting."""
         fs = list(self.of_leader.get(tr.train_id, ()))
@@ -659,17 +463,3 @@ class FormationBook:
             fs.append(self.of_follower[tr.train_id])
         for f in fs:
             self.manager.stop_clock(t, f.id)
-
-
-def _asked(f: Any) -> str:
-    """Where formation ``f`` asked to couple, as the summary names it (``at_station X``, ``after_switch X`` …)."""
-    c = f.couple
-    if c is None:
-        return "by event"
-    if c.kind == "at_station":
-        return f"at_station {c.station}"
-    if c.kind == "after_switch":
-        return f"after_switch {c.switch}"
-    if c.kind == "at_s":
-        return f"at_s {c.at_s}"
-    return str(c.kind)

@@ -346,7 +346,7 @@ class Simulation:
             if self.depots.runs or self.depots.unreached:
                 extra["fleet"].update(self.depots.summary())
         extra.update(primary_delays.summary(self.primary))
-        extra.update(self.formations.where_asked(self.end_s))  # before the events are read: it may log the last
+        extra.update(self.formations.join_book.where_asked(self.end_s))  # may log events: before they are read
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,
