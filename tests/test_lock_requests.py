@@ -69,8 +69,13 @@ def _train(tid: str, front_m: float, stops: list[TripStop], depart_s: float = 0.
     )
 
 
+def _no_join(tr: Any, point_m: float) -> bool:
+    """No leader here waits at a station for a follower to join it (railsim.engine.joins.Joins.route_waits)."""
+    return False
+
+
 def _crossing_locks(*trains: Any) -> RouteLocks:
-    formations = SimpleNamespace(of_follower={}, of_leader={})
+    formations = SimpleNamespace(of_follower={}, of_leader={}, join_book=SimpleNamespace(route_waits=_no_join))
     locks = RouteLocks(
         SimpleNamespace(trains={t.train_id: t for t in trains}),
         SimpleNamespace(),
@@ -145,6 +150,7 @@ def _switch_locks(leader: Any, follower: Any) -> tuple[EventLayer, Interlocking,
     formation = SimpleNamespace(id="f1")
     state = next(iter(sorted(COUPLED_STATES)))
     formations = SimpleNamespace(
+        join_book=SimpleNamespace(route_waits=_no_join),
         of_follower={follower.train_id: formation},
         of_leader={leader.train_id: [formation]},
         leader_of=lambda f: leader,
@@ -200,7 +206,7 @@ def test_before_a_merge_not_locked_for_it_a_train_stops_its_separation_margin_sh
     il = Interlocking(layer)
     for sid in ("merge_sw", "facing_sw"):
         il.add_switch(Switch(sid, throw_time_s=0.0))
-    formations = SimpleNamespace(of_follower={}, of_leader={})
+    formations = SimpleNamespace(of_follower={}, of_leader={}, join_book=SimpleNamespace(route_waits=_no_join))
     fleet = SimpleNamespace(trains={"guarded": guarded, "plain": plain})
     locks = RouteLocks(fleet, il, formations, EventLog(), EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
     locks.protect_merges(g)
@@ -221,7 +227,7 @@ def _one_switch_locks(tr: Any) -> tuple[EventLayer, RouteLocks]:
     layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
     il = Interlocking(layer)
     il.add_switch(Switch("sw", throw_time_s=0.0))
-    formations = SimpleNamespace(of_follower={}, of_leader={})
+    formations = SimpleNamespace(of_follower={}, of_leader={}, join_book=SimpleNamespace(route_waits=_no_join))
     fleet = SimpleNamespace(trains={tr.train_id: tr})
     return layer, RouteLocks(fleet, il, formations, EventLog(), EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
 

@@ -62,8 +62,17 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
     if summary["formations"]:
         ok = sum(1 for f in summary["formations"].values() if (f["couple_successes"] or 0) > 0)
         lines.append(f"  formations: {ok}/{len(summary['formations'])} coupled at least once")
-        for fid, why in (summary.get("formations_not_coupling") or {}).items():
-            lines.append(f"  formation {fid} cannot couple on departure: {why}")
+        for fid, because in (summary.get("formations_not_coupling") or {}).items():
+            lines.append(f"  formation {fid} cannot couple on departure: {because}")
+    asked = summary.get("formations_asked")
+    if asked:
+        ok = sum(1 for f in asked if f["coupled"])
+        why: dict[str, int] = {}
+        for f in asked:
+            if not f["coupled"]:
+                why[str(f["reason"])] = why.get(str(f["reason"]), 0) + 1
+        reasons = "".join(f", {n} {r}" for r, n in sorted(why.items()))
+        lines.append(f"  formations coupled where asked: {ok}/{len(asked)}{reasons}")
     shown = [f for f in OUTPUT_FILES if f.kind != "sumo" and f.stem not in ("scenario.resolved", "versions")]
     files = ", ".join([*(f.file_name for f in shown), output_file_name("sumo_run")])
     lines.append(f"  outputs: {out_dir}/ ({files})")

@@ -19,6 +19,13 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   coupling timeout), so the pair leaves together. Which unit leads
   is the scenario's choice, checked against the order the units stand in after the turnback
   (:meth:`railsim.engine.turnback.Turnbacks.check_formation_order`).
+* **Joining at a station** (``couple: {at_station: X}``): the leader stays at ``X`` after its dwell, with no
+  route set beyond it, until the pair is coupled and the follower's dwell there is over (at most one coupling
+  timeout) and the follower asks to couple on its final approach and halts the target gap behind it
+  (:mod:`railsim.engine.joins`). The pair must fit on the platform (checked at registration).
+* **Nothing silent.** A formation that cannot couple where it asked (at a station, after a switch) is a
+  ``coupling_failed`` event with the reason (``timeout``, ``wrong_order``, ``blocked``, ``aborted``,
+  ``not_reached``; :meth:`railsim.engine.joins.Joins.where_asked`).
 * **Coupling changes geometry.** A coupled follower stops ``leader length + target gap`` behind the leader's
   mark (:meth:`mark_offset_m`, recursive for chains); a coupled leader keeps a restriction until its formation's
   tail clears it (:meth:`tail_m`).
@@ -41,6 +48,7 @@ from typing import Any, Protocol
 from railsim.engine.events.formations import Formation, FormationManager
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
+from railsim.engine.joins import COUPLE_REACH_M, Joins, trig
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
@@ -51,9 +59,6 @@ from railsim.errors import ConfigError
 log = logging.getLogger(__name__)
 
 COUPLED_STATES = ("coupling", "coupled")
-# a unit that comes round by its turnback asks to couple once it is this close behind its leader's rear, before
-# the separation controller (margin 50 m on Line 3) would stop it further back
-COUPLE_REACH_M = 150.0
 
 
 class InsertsBehind(Protocol):
@@ -68,11 +73,6 @@ class KnowsStops(Protocol):
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop ``tr`` heads for or stands at, and how far behind its mark it halts."""
-
-
-def trig(trigger: Any, kind: str) -> bool:
-    """True if a formation trigger (``couple``/``decouple``, possibly None) is of ``kind``."""
-    return trigger is not None and trigger.kind == kind
 
 
 class FormationBook:
@@ -110,6 +110,7 @@ class FormationBook:
         self._held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell ended (held for the follower)
         # (formation, leader's stop index) -> when the leader's dwell ended there (held for a convoy's follower)
         self._convoy_held_since_s: dict[tuple[str, int], float] = {}
+        self.join_book = Joins(self)  # joins at stations; where formations that asked for a place coupled, or why not
 
     # ------------------------------------------------------------------ registration
     def add(self, f: Any, where: str = "formations") -> None:
@@ -142,6 +143,8 @@ class FormationBook:
             for d in (follower.trip.planned_arrival_s, follower.trip.planned_departure_s):
                 for key in d:
                     d[key] += shift
+        if trig(f.couple, "at_station"):
+            self.join_book.check_platform(f, leader, follower, where)
         self.of_follower[follower.train_id] = f
         self.of_leader.setdefault(leader.train_id, []).append(f)
 
@@ -167,6 +170,16 @@ class FormationBook:
         for fid, reason in self.not_coupling.items():
             log.warning("formation %s will not couple on departure: %s", fid, reason)
             self.manager.record(0.0, "couple_not_possible", fid, reason=reason)
+
+    def why_not_coupled(self, end_s: float) -> dict[str, Any]:
+        """The summary's entries on formations that did not couple where they asked, and why: per formation that
+        asked at a station or after a switch (``formations_asked``, which may log ``not_reached`` events, so it is
+        called before the events are read) and those that cannot couple on departure after a depot run
+        (``formations_not_coupling``). Empty when no formation asked for either: the summary then has neither key."""
+        out: dict[str, Any] = dict(self.join_book.where_asked(end_s))
+        if self.not_coupling:
+            out["formations_not_coupling"] = dict(sorted(self.not_coupling.items()))
+        return out
 
     def depot_start_reasons(self, turnbacks: Any) -> dict[str, str]:
         """``{formation id: why}`` for each ``on_departure`` formation whose follower's first trip is reached by a
@@ -250,7 +263,9 @@ class FormationBook:
         serve when the formation departs together (:meth:`_holds_for_convoy`)."""
         stop, _ = self.current_stop(tr)
         return any(
-            self._holds_for_join(t, f, stop) or self._holds_for_convoy(t, tr, f, stop)
+            self._holds_for_join(t, f, stop)
+            or self.join_book.holds(t, f, stop)
+            or self._holds_for_convoy(t, tr, f, stop)
             for f in self.of_leader.get(tr.train_id, ())
         )
 
@@ -403,9 +418,6 @@ class FormationBook:
                     trig(f.decouple, "at_station") and f.decouple.station == stop.station_id
                 ) or self._last_stop_before_switch(tr, stop, f):
                     self.manager.request_decouple(f.id)
-        f = self.of_follower.get(tr.train_id)
-        if f is not None and trig(f.couple, "at_station") and f.couple.station == stop.station_id:
-            self.manager.request_couple(f.id)
 
     def _last_stop_before_switch(self, leader: TrainRuntime, stop: TripStop, f: Any) -> bool:
         if not trig(f.decouple, "before_switch"):
@@ -456,6 +468,11 @@ class FormationBook:
             self.manager.request_couple(f.id)
         if a is not None and a.train_id == leader.train_id and trig(f.couple, "after_switch"):
             self._couple_after_merge(tr, f)
+        elif trig(f.couple, "after_switch"):
+            if f.id not in self._merged:
+                self.join_book.merge_out_of_order(t, tr, leader, f, a)
+        if trig(f.couple, "at_station"):
+            self.join_book.run_in(t, tr, leader, f, a)
         if a is not None and a.train_id == leader.train_id:
             # the state machine judges the error against the controller's effective target (gap policy: larger
             # than the standstill target at speed), expressed around the formation's own target
@@ -467,6 +484,8 @@ class FormationBook:
             self.manager.observe_apart(t, f.id)
         if self.manager.state(f.id) == "coupled" and tr.arrived_s is None:  # an arrived train is no longer coupled
             tr.coupled_s += self.dt_s
+            if f.id not in self.join_book.coupled_where:
+                self.join_book.note_coupled(f, leader)
 
     def _couple_after_merge(self, follower: TrainRuntime, f: Any) -> None:
         """``couple: {after_switch: X}``: ask once, when the follower's front is past switch ``X`` (its leader is

@@ -287,6 +287,7 @@ class RouteLocks:
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
                 and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
+                and not self.formations.join_book.route_waits(tr, rs.point_m)
                 and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
                 and not self.extensions.manages_lock(tr.train_id, sid)
                 and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))

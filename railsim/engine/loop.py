@@ -346,8 +346,7 @@ class Simulation:
             if self.depots.runs or self.depots.unreached:
                 extra["fleet"].update(self.depots.summary())
         extra.update(primary_delays.summary(self.primary))
-        if self.formations.not_coupling:  # formations that cannot couple, and why (never a silent drop)
-            extra["formations_not_coupling"] = dict(sorted(self.formations.not_coupling.items()))
+        extra.update(self.formations.why_not_coupled(self.end_s))  # never a silent drop; may log events
         return RunSnapshot(
             scenario_name=self.scenario.name,
             seed=self.seed,

@@ -182,8 +182,8 @@ class TripRef:
 class TriggerSpec:
     """When a formation couples or decouples.
 
-    ``kind`` is one of ``at_s`` (simulation time ``at_s``), ``at_station`` (when both trains depart
-    ``station`` for coupling; on departing ``station`` for decoupling), ``on_departure`` (couple from the
+    ``kind`` is one of ``at_s`` (simulation time ``at_s``), ``at_station`` (coupling: the follower joins its
+    leader standing at ``station``, which waits for it; decoupling: on departing ``station``), ``on_departure`` (couple from the
     follower's departure on), ``after_switch`` (couple once the follower's front is past ``switch`` with its
     leader ahead on its track: a merge) or ``before_switch`` (decouple before the follower reaches ``switch``).
     """

@@ -1,0 +1,268 @@
+"""Where formations couple: joining at a station, and a reason for every formation that does not couple where
+it asked (the engine side of ``couple: {at_station: X}`` and ``couple: {after_switch: X}``; docs/model.md,
+"Formations: where they couple").
+
+* **Joining at a station.** Both trips stop at ``X`` and the pair fits on the leader's platform there
+  (:meth:`Joins.check_platform`, before the run). The leader stays at ``X`` after its dwell
+  (:meth:`Joins.holds`, the stop book's ``departure_held_for_follower``) with no route set beyond it
+  (:meth:`Joins.route_waits`: the pair takes one lock once coupled), until the two are coupled and the follower's
+  dwell there has ended — at most one coupling timeout after its own dwell. The follower runs in behind it and asks
+  to couple on its final approach (:meth:`Joins.run_in`); as a coupling follower it halts the target gap behind
+  its leader (:meth:`railsim.engine.coupling.FormationBook.mark_offset_m`) and locks in standing (Paper D's
+  station-entry case).
+* **Nothing silent.** A join or a merge that cannot couple is a ``coupling_failed`` event with its ``reason``:
+  ``timeout``, ``wrong_order`` (the follower was first), ``blocked`` (a train between them), ``aborted``,
+  ``not_reached`` (the run ended first); :meth:`Joins.where_asked` is the summary's ``formations_asked`` block.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from typing import Any, Protocol
+
+from railsim.engine.events.formations import FormationManager
+from railsim.engine.fleet import Fleet
+from railsim.engine.occupancy import Ahead
+from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import TripStop
+from railsim.errors import ConfigError
+
+# a follower asks to couple once this close behind its leader standing at a platform: a unit that comes round by
+# its turnback (before the separation controller, margin 50 m on Line 3, would stop it further back), or one that
+# joins at a station (there, on its final approach if that comes first)
+COUPLE_REACH_M = 150.0
+
+
+def trig(trigger: Any, kind: str) -> bool:
+    """True if a formation trigger (``couple``/``decouple``, possibly None) is of ``kind``."""
+    return trigger is not None and trigger.kind == kind
+
+
+def stop_index(tr: TrainRuntime, station: str) -> int | None:
+    """Index of ``tr``'s first station stop at ``station``, or None."""
+    return next((i for i, s in enumerate(tr.trip.stops) if s.station_id == station and s.kind != "reversal"), None)
+
+
+class FormationsView(Protocol):
+    """What the joins ask of the formation book (:class:`railsim.engine.coupling.FormationBook`)."""
+
+    manager: FormationManager
+    fleet: Fleet
+    of_follower: dict[str, Any]
+    of_leader: dict[str, list[Any]]
+    current_stop: Callable[[TrainRuntime], tuple[TripStop | None, float]]
+
+    def follower_of(self, f: Any) -> TrainRuntime:
+        """The follower of formation ``f``."""
+
+    def mark_offset_m(self, tr: TrainRuntime, stop: TripStop) -> float:
+        """How far behind the platform mark ``tr`` halts."""
+
+    def in_final_approach(self, tr: TrainRuntime, mark_m: float) -> bool:
+        """``tr`` is close enough to ``mark_m`` that station braking is (about to be) under way."""
+
+
+class Joins:
+    """Joins at stations and the coupled-where-asked record of every formation that asked for a place."""
+
+    def __init__(self, book: FormationsView) -> None:
+        self.book = book
+        self.requested: set[str] = set()  # joins whose couple request went out at the station
+        self.failed: dict[str, str] = {}  # formation -> why it did not couple where it asked
+        self.coupled_where: dict[str, str] = {}  # formation -> where it coupled
+        self.held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell at the station ended
+
+    def check_platform(self, f: Any, leader: TrainRuntime, follower: TrainRuntime, where: str) -> None:
+        """``couple: {at_station: X}``: both trips stop at ``X`` and the pair (leader, target gap, follower) fits
+        on the leader's platform there, else a :class:`ConfigError` before the run."""
+        station = f.couple.station
+        field = f"{where}.couple.at_station"
+        for role, tr in (("leader", leader), ("follower", follower)):
+            if stop_index(tr, station) is None:
+                raise ConfigError(
+                    self.book.fleet.source,
+                    field,
+                    f"expected a station both trips stop at, got {station!r} "
+                    f"(the {role} {tr.train_id} does not stop there)",
+                )
+        stop = leader.trip.stops[stop_index(leader, station) or 0]
+        lead_m, fol_m, gap_m = leader.trip.vehicle.length_m, follower.trip.vehicle.length_m, float(f.target_gap_m)
+        need_m = lead_m + gap_m + fol_m + 1.0  # the leader's front halts 1 m before the platform end
+        if stop.platform_m < need_m:
+            raise ConfigError(
+                self.book.fleet.source,
+                field,
+                f"expected a platform the pair fits on, got {stop.platform_m:.1f} m at {station!r}: the pair needs "
+                f"{need_m:.1f} m (leader {lead_m} m + gap {gap_m} m + follower {fol_m} m + 1 m before the end)",
+            )
+
+    def route_waits(self, tr: TrainRuntime, point_m: float) -> bool:
+        """True while leader ``tr`` is at (or on its way to) the station where a follower joins it
+        (``couple: {at_station: X}``) and the pair is not coupled yet, for a switch or section at ``point_m``
+        beyond that platform: its route out is set once the two are coupled — one lock for the pair
+        (:mod:`railsim.engine.locking`) — or once the join is given up. Set earlier, the lock would be the
+        leader's alone and the follower would wait at the points for the leader to clear them."""
+        for f in self.book.of_leader.get(tr.train_id, ()):
+            if not trig(f.couple, "at_station") or f.id in self.failed:
+                continue
+            li = stop_index(tr, f.couple.station)
+            if li is None or tr.next_stop != li or point_m <= tr.trip.stops[li].window_end_m:
+                continue
+            fol = self.book.follower_of(f)
+            fi = stop_index(fol, f.couple.station)
+            if self.book.manager.state(f.id) == "coupled" or fi is None or fol.next_stop > fi:
+                continue
+            if fol.status in ("scheduled", "inserting", "running"):
+                return True
+        return False
+
+    def holds(self, t: float, f: Any, stop: TripStop | None) -> bool:
+        """``couple: {at_station: X}``, the leader at ``X`` after its dwell: until the pair is coupled and the
+        follower's dwell there has ended (they leave together), at most one coupling timeout after the leader's
+        own dwell ended. A join given up (wrong order, blocked) does not hold it; one that times out here is a
+        ``coupling_failed`` event with the reason ``timeout`` (an attempt under way is aborted: the follower
+        runs on on its own)."""
+        if not trig(f.couple, "at_station") or stop is None or stop.station_id != f.couple.station:
+            return False
+        if f.id in self.failed:
+            return False
+        fol = self.book.follower_of(f)
+        state = self.book.manager.state(f.id)
+        if state == "coupled":
+            fstop, _ = self.book.current_stop(fol)
+            return (
+                fol.status == "running"
+                and fstop is not None
+                and fstop.station_id == stop.station_id
+                and not fol.held_for_route
+            )
+        fi = stop_index(fol, stop.station_id)
+        if fol.status not in ("scheduled", "inserting", "running") or fi is None or fol.next_stop > fi:
+            return False
+        waited_s = t - self.held_since_s.setdefault(f.id, t)
+        if waited_s < float(f.coupling_timeout_s):
+            return True
+        self.fail(t, f, "timeout", station=stop.station_id, waited_s=round(waited_s, 3))
+        if state == "coupling":
+            self.book.manager.request_decouple(f.id)
+        return False
+
+    def run_in(self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> None:
+        """``couple: {at_station: X}``: the follower runs in behind its leader standing at ``X`` (held there,
+        :meth:`holds`) and asks to couple once within :data:`COUPLE_REACH_M` of its rear or on its final approach
+        to the coupled halt position, whichever comes first: it then halts ``target gap`` behind the leader
+        (``FormationBook.mark_offset_m``) and the pair locks in standing or in the last metres (Paper D's
+        station-entry case). Given up, with a ``coupling_failed`` event, when the follower stands at ``X`` before
+        its leader (``wrong_order``) or another train that stops at ``X`` is between them (``blocked``)."""
+        if f.id in self.requested or f.id in self.failed or follower.status != "running":
+            return
+        station = f.couple.station
+        fi, li = stop_index(follower, station), stop_index(leader, station)
+        if fi is None or li is None or follower.next_stop != fi:
+            return
+        leader_there = leader.status == "running" and leader.next_stop == li and leader.sumo_stopped
+        if not leader_there:
+            if (
+                follower.sumo_stopped
+                and leader.status in ("scheduled", "inserting", "running")
+                and leader.next_stop <= li
+            ):
+                self.fail(t, f, "wrong_order", station=station, detail="the follower stands at the station first")
+            return
+        if a is None:
+            return
+        if a.train_id != leader.train_id:
+            other = self.book.fleet.trains.get(a.train_id)
+            if other is not None and any(s.station_id == station for s in other.trip.stops[other.next_stop :]):
+                self.fail(t, f, "blocked", station=station, by=a.train_id)  # it will stand at X between them
+            return  # (one that turns off before X only delays the follower)
+        stop = follower.trip.stops[fi]
+        lstop = leader.trip.stops[li]
+        halt_m = stop.mark_m - (
+            self.book.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
+        )
+        if a.gap_m <= COUPLE_REACH_M or self.book.in_final_approach(follower, halt_m):
+            self.requested.add(f.id)
+            self.book.manager.request_couple(f.id)
+
+    def merge_out_of_order(
+        self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None
+    ) -> None:
+        """``couple: {after_switch: X}`` with the follower's front past ``X`` and its leader not directly ahead:
+        the leader has not passed ``X`` yet (``wrong_order``: the follower reached the merge first) or another
+        train runs between them (``blocked``). Logged once as ``coupling_failed``; a leader that comes to be
+        directly ahead later still gets the couple request (``FormationBook._couple_after_merge``)."""
+        if f.id in self.failed:
+            return
+        sw = f.couple.switch
+        if not any(rs.switch_id == sw and follower.front_m >= rs.point_m for rs in follower.trip.route.switches):
+            return
+        leader_past = leader.status == "arrived" or (
+            leader.status == "running"
+            and any(rs.switch_id == sw and leader.front_m >= rs.point_m for rs in leader.trip.route.switches)
+        )
+        if not leader_past:
+            self.fail(t, f, "wrong_order", switch=sw, detail="the follower reached the merge first")
+        elif a is not None:
+            self.fail(t, f, "blocked", switch=sw, by=a.train_id)
+
+    def fail(self, t: float, f: Any, reason: str, **detail: Any) -> None:
+        """Formation ``f`` cannot couple where it asked: a ``coupling_failed`` event with the reason, once."""
+        self.failed[f.id] = reason
+        self.book.manager.record(t, "coupling_failed", f.id, reason=reason, asked=asked(f), **detail)
+
+    def note_coupled(self, f: Any, leader: TrainRuntime) -> None:
+        """The pair just became coupled: where, for a formation that asked for a place."""
+        if trig(f.couple, "at_station"):
+            li = stop_index(leader, f.couple.station)
+            at_x = leader.status == "running" and leader.next_stop == li
+            self.coupled_where[f.id] = f"at_station {f.couple.station}" if at_x else "elsewhere"
+        elif trig(f.couple, "after_switch"):
+            self.coupled_where[f.id] = f"after_switch {f.couple.switch}"
+        else:
+            self.coupled_where[f.id] = asked(f)
+
+    def where_asked(self, t: float) -> dict[str, Any]:
+        """The summary's ``formations_asked`` block — one entry per formation that asked to couple at a station or
+        after a switch: ``{id, asked, coupled, where, reason}`` (``coupled``: there, as asked) — or nothing when
+        none asked. A formation that neither coupled nor failed by the end of the run gets a ``coupling_failed``
+        event with the reason ``not_reached`` (its units never met there), or ``timeout`` when its state machine
+        gave up an attempt."""
+        rows = []
+        for f in self.book.of_follower.values():
+            if not (trig(f.couple, "at_station") or trig(f.couple, "after_switch")):
+                continue
+            where = self.coupled_where.get(f.id)
+            coupled = where is not None and where == asked(f)
+            if not coupled and f.id not in self.failed:
+                stats = self.book.manager.stats(f.id)
+                if stats.failures:
+                    self.failed[f.id] = "timeout"  # the state machine logged it (coupling_failed, timeout)
+                elif stats.aborts:
+                    self.fail(t, f, "aborted")
+                else:
+                    self.fail(t, f, "not_reached")
+            rows.append(
+                {
+                    "id": f.id,
+                    "asked": asked(f),
+                    "coupled": coupled,
+                    "where": where,
+                    "reason": None if coupled else self.failed.get(f.id),
+                }
+            )
+        return {"formations_asked": rows} if rows else {}
+
+
+def asked(f: Any) -> str:
+    """Where formation ``f`` asked to couple, as the summary names it (``at_station X``, ``after_switch X`` …)."""
+    c = f.couple
+    if c is None:
+        return "by event"
+    if c.kind == "at_station":
+        return f"at_station {c.station}"
+    if c.kind == "after_switch":
+        return f"after_switch {c.switch}"
+    if c.kind == "at_s":
+        return f"at_s {c.at_s}"
+    return str(c.kind)
