@@ -72,16 +72,8 @@ from controllers import line_kernels
 from controllers.base import Command, Observation, SpeedLimit, register
 from controllers.braking import (
     _lag_ratio,
-    allowed_speed_mps,
-    build_up_delay_s,
-    discrete_required_decel_mps2,
-    discrete_stop_distance_bound_m,
-    discrete_stop_distance_m,
     params_from_mapping,
     require,
-    required_decel_mps2,
-    required_decel_surely_below,
-    traction_limit_mps2,
 )
 from railsim.physics.vehicle import G_MPS2, VehicleParams
 
@@ -209,8 +201,7 @@ class Ato:
         the train leads a formation that long behind it, and every restriction's end moves on by it (it holds
         until the formation's rear clears).
 
-        Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
-        the same bits (``tests/test_line_kernels.py``)."""
+        The law itself is :func:`controllers.line_kernels.ato`, written once and compiled; this packs its inputs."""
         packed = self._packed
         if veh is not self._packed_vehicle or dt != self._packed_dt:
             packed = self._pack(veh, dt)
@@ -250,152 +241,6 @@ class Ato:
         )
         self._packed_vehicle, self._packed_dt = veh, dt
         return self._packed
-
-    def decide_reference(
-        self,
-        veh: VehicleParams,
-        dt: float,
-        x: float,
-        speed_mps: float,
-        applied_now: float,
-        length_m: float,
-        grade: float,
-        line_speed_mps: float,
-        speed_limits: tuple[SpeedLimit, ...],
-        stop: tuple[float, float, float, bool] | None,
-        authority_end_m: float | None,
-        tail_m: float = 0.0,
-    ) -> tuple[float, bool, str]:
-        """The law in Python: the reference :meth:`decide` must reproduce bit for bit (and the readable one)."""
-        if tail_m > 0.0:
-            speed_limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in speed_limits)
-        p = self.params
-        v = max(speed_mps, 0.0)
-        m_eff = veh.effective_mass_kg
-        rho = veh.resistance_n(v, grade) / m_eff  # resistance + gradient as a deceleration [m/s²]
-        net_now = applied_now - rho
-        service = veh.service_decel_mps2
-        tau = veh.actuator_time_constant_s
-        lead_s = self.position_lead * dt
-        standing = v <= _STANDING_MPS
-        # Net braking the train can plan with: on a downhill part of the brake only holds the train.
-        b_service_net = max(service + rho, 0.05)
-        b_plan = p.planning_decel_fraction * min(service, b_service_net)
-        hold_applied = -min(service, max(p.hold_decel_mps2, -rho + 0.1))
-
-        if stop is not None:
-            mark_m, window_start_m, window_end_m, dwelling = stop
-            in_window = window_start_m - p.stop_tolerance_m <= x <= window_end_m + p.stop_tolerance_m
-            if dwelling or (standing and in_window):
-                return hold_applied, False, "hold"
-
-        # ---- cruise target: line speed, vehicle limit, restrictions under the train (rear rule)
-        v_target = min(line_speed_mps, veh.max_speed_mps) - p.speed_margin_mps
-        jerk = veh.jerk_limit_mps3
-        delay_plan = build_up_delay_s(applied_now, b_plan, tau, jerk)
-        brake_net = math.inf  # most restrictive braking sub-law (net acceleration, <= 0)
-        phase = "cruise"
-        braking_now = net_now <= -0.3 * b_plan
-        far_m = (
-            _restriction_far_m(v, v_target, b_plan, p.release_fraction * b_plan, delay_plan, net_now)
-            if speed_limits
-            else 0.0
-        )
-        for lim in speed_limits:
-            v_lim = lim.speed_mps - p.speed_margin_mps
-            if lim.start_m <= x < lim.end_m + length_m:
-                v_target = min(v_target, v_lim)
-            elif x < lim.start_m <= x + far_m:  # farther restrictions change nothing yet (_restriction_far_m)
-                d = lim.start_m - x
-                v_target = min(v_target, allowed_speed_mps(d, b_plan, delay_plan, 0.0, v_lim))
-                if v > v_lim:
-                    b_req = required_decel_mps2(v, d, delay_plan, net_now, v_lim)
-                    if b_req >= b_plan or (braking_now and b_req >= p.release_fraction * b_plan):
-                        if -min(b_req, b_service_net) < brake_net:
-                            brake_net = -min(b_req, b_service_net)
-                            phase = "restriction"
-        v_target = max(v_target, 0.0)
-
-        # ---- stop points: the stopping mark (aimed inside the window) and the end of authority
-        points: list[float] = []
-        if stop is not None:
-            lo = window_start_m + p.stop_tolerance_m
-            hi = window_end_m - p.stop_tolerance_m
-            aim = min(max(mark_m, lo), hi) if lo <= hi else 0.5 * (window_start_m + window_end_m)
-            points.append(aim)
-        emergency = False
-        if authority_end_m is not None:
-            points.append(authority_end_m - p.authority_margin_m)
-            hard_m = authority_end_m - x
-            if lead_s > 0.0:  # the plant runs lead_s·v farther than the Euler sum (module docstring)
-                hard_m -= lead_s * v
-            # the cheap upper bound first: far from the end of authority the exact sum is not needed
-            if (
-                v > 0.0
-                and hard_m < discrete_stop_distance_bound_m(v, net_now, b_service_net, dt, tau)
-                and discrete_stop_distance_m(v, net_now, b_service_net, dt, tau) > hard_m
-            ):
-                emergency = True
-        ramp_m = v * 0.5 * max(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
-        for point_m in points:
-            d = point_m - x
-            if lead_s > 0.0:
-                d -= lead_s * v
-            if standing and d <= p.stop_tolerance_m:
-                return hold_applied, False, "hold"
-            if v <= p.creep_speed_mps and d <= p.creep_zone_m:
-                v_target = min(v_target, p.creep_speed_mps)
-            if d <= 0.0:
-                brake_net = -b_service_net
-                phase = "stop"
-                continue
-            room_m = d - v * dt - ramp_m
-            triggered = room_m <= discrete_stop_distance_bound_m(v, net_now, b_plan, dt, tau) and (
-                room_m <= discrete_stop_distance_m(v, net_now, b_plan, dt, tau)
-            )
-            if triggered or braking_now:
-                b_release = p.release_fraction * b_plan
-                if not triggered and required_decel_surely_below(v, net_now, d, dt, tau, b_release):
-                    continue  # braking for something else, this point far off: no solve needed to stay released
-                b_req = discrete_required_decel_mps2(v, net_now, d, dt, tau, b_service_net)
-                if (triggered or b_req >= b_release) and -b_req < brake_net:
-                    brake_net = -b_req
-                    phase = "stop"
-
-        # ---- cruise law and the minimum
-        traction = min(traction_limit_mps2(veh, v), p.max_accel_mps2)
-        if v >= veh.max_speed_mps:
-            traction = 0.0
-        cruise_net = p.speed_gain_per_s * (v_target - v)
-        cruise_net = min(max(cruise_net, -b_plan), traction - rho)
-        net = min(cruise_net, brake_net)
-        if net < cruise_net and phase == "cruise":
-            phase = "brake"
-        if emergency:
-            return -veh.emergency_decel_mps2, True, "emergency"
-        applied = net + rho  # VehicleParams.net_to_applied(net, v, grade), the same operations
-        return min(max(applied, -service), traction), False, phase
-
-
-def _restriction_far_m(
-    v: float, v_target: float, b_plan: float, b_release: float, delay_s: float, net_now: float
-) -> float:
-    """Distance beyond which a speed restriction ahead changes neither the cruise target nor the braking.
-
-    Its braking curve allows ``≥ v_target`` once ``d ≥ v_target²/(2·b_plan) + v_target·T`` (the quadratic of
-    :func:`allowed_speed_mps` with ``a0 = 0``, whatever the restriction's speed), and the deceleration it requires
-    (:func:`required_decel_mps2` with ``a0 = net_now``) stays below ``b_release`` once
-    ``d > dead-time run + v_after²/(2·b_release)``. A millimetre and a relative 1e-9 on top cover rounding,
-    so skipping a restriction beyond this distance gives the command the full loop gives.
-    """
-    t = delay_s
-    if net_now < 0.0 and v + net_now * t < 0.0:  # stands within the dead time: no braking required at all
-        t = v / -net_now
-    v_after = max(v + net_now * t, 0.0)
-    dead_m = v * t + 0.5 * net_now * t * t
-    vt = max(v_target, 0.0)
-    far_m = max(vt * vt / (2.0 * b_plan) + vt * delay_s, dead_m + v_after * v_after / (2.0 * b_release))
-    return far_m * (1.0 + 1e-9) + 1e-3
 
 
 @register("ato")

@@ -38,6 +38,12 @@ time constant τ before it becomes the applied acceleration; resistance and grad
    braking (ρ is taken at the present speed; re-solving every step corrects it) and the jerk limit (ignored here;
    ATO starts braking early by the ramp's dead time and plans below service braking).
 
+**Defined once.** Each law is written once, compiled with numba, in :mod:`controllers.line_kernels` (the ATO and
+separation laws call them inside their own compiled code); its interpreted form (the dispatcher's ``py_func``, or
+``NUMBA_DISABLE_JIT=1``) is the readable reference. The functions here are their adapters for callers on Python
+values: keyword defaults, floats, the lag ``τ`` given as a time (the lag ratio ``r`` is computed once per
+``(dt, τ)``) — no arithmetic of the laws' own.
+
 All decelerations here are **net** (what the train really does), positive numbers; callers convert to the
 applied command with :meth:`railsim.physics.vehicle.VehicleParams.net_to_applied`.
 """
@@ -51,13 +57,10 @@ from typing import Any
 
 import numpy as np
 
+from controllers import line_kernels
 from railsim.errors import require  # noqa: F401 - re-exported: controllers check parameters with it
 from railsim.physics.dynamics import traction_limit_mps2  # noqa: F401 - re-exported: one definition of the envelope
 from railsim.physics.vehicle import G_MPS2, VehicleParams
-
-# Smallest deceleration the solvers consider [m/s²]: below it a stop is "never" (distance diverges).
-_MIN_DECEL_MPS2 = 1e-4
-_SOLVE_TOLERANCE_M = 1e-3  # discrete_required_decel_mps2 stops when the distance is this close [m]
 
 
 def build_up_delay_s(
@@ -67,16 +70,11 @@ def build_up_delay_s(
     jerk_limit_mps3: float = math.inf,
     reaction_s: float = 0.0,
 ) -> float:
-    """Equivalent dead time before the full deceleration ``decel_mps2`` acts [s].
-
-    ``reaction_s`` (detection, communication, decision) + the actuator lag ``lag_s`` + half the jerk-limited ramp
-    from the present acceleration to ``−decel_mps2``. Pass ``jerk_limit_mps3=math.inf`` for emergency braking,
-    which bypasses the jerk limit.
-    """
-    ramp_s = 0.0
-    if math.isfinite(jerk_limit_mps3) and jerk_limit_mps3 > 0.0:
-        ramp_s = max(accel_now_mps2 + decel_mps2, 0.0) / jerk_limit_mps3
-    return max(reaction_s, 0.0) + max(lag_s, 0.0) + 0.5 * ramp_s
+    """Equivalent dead time before the full deceleration ``decel_mps2`` acts [s]
+    (:func:`controllers.line_kernels.build_up_delay_s`). ``jerk_limit_mps3=math.inf``: emergency braking."""
+    return line_kernels.build_up_delay_s(  # type: ignore[no-any-return]
+        float(accel_now_mps2), float(decel_mps2), float(lag_s), float(jerk_limit_mps3), float(reaction_s)
+    )
 
 
 def stopping_distance_m(
@@ -86,21 +84,11 @@ def stopping_distance_m(
     accel_now_mps2: float = 0.0,
     target_speed_mps: float = 0.0,
 ) -> float:
-    """Distance [m] to get down to ``target_speed_mps`` (dead-time model, see module docstring).
-
-    During the dead time the speed follows ``accel_now_mps2`` but never goes below zero.
-    """
-    v = max(speed_mps, 0.0)
-    t = max(delay_s, 0.0)
-    a0 = accel_now_mps2
-    if a0 < 0.0 and v + a0 * t < 0.0:  # already braking hard enough to stand within the dead time
-        t = v / -a0
-    v_after = max(v + a0 * t, 0.0)
-    dist = v * t + 0.5 * a0 * t * t
-    v_end = max(target_speed_mps, 0.0)
-    if v_after > v_end:
-        dist += (v_after * v_after - v_end * v_end) / (2.0 * decel_mps2)
-    return dist
+    """Distance [m] to get down to ``target_speed_mps`` (dead-time model:
+    :func:`controllers.line_kernels.stopping_distance_m`)."""
+    return line_kernels.stopping_distance_m(  # type: ignore[no-any-return]
+        float(speed_mps), float(decel_mps2), float(delay_s), float(accel_now_mps2), float(target_speed_mps)
+    )
 
 
 def allowed_speed_mps(
@@ -110,24 +98,11 @@ def allowed_speed_mps(
     accel_now_mps2: float = 0.0,
     target_speed_mps: float = 0.0,
 ) -> float:
-    """Highest speed [m/s] from which the train gets down to ``target_speed_mps`` within ``distance_m``.
-
-    Inverse of :func:`stopping_distance_m` for the branch where the dead time ends above the target speed:
-    with ``w = v + a0·T``: ``w² + 2·b·T·w − (2·b·d + v_end² + a0·b·T²) = 0``. At or past the point
-    (``distance_m ≤ 0``) it is the target speed itself.
-    """
-    b = decel_mps2
-    t = max(delay_s, 0.0)
-    a0 = accel_now_mps2
-    v_end = max(target_speed_mps, 0.0)
-    d = distance_m
-    if d <= 0.0:
-        return v_end  # at or past the point: the target speed itself
-    disc = b * b * t * t + 2.0 * b * d + v_end * v_end + a0 * b * t * t
-    if disc <= 0.0:
-        return 0.0
-    w = -b * t + math.sqrt(disc)
-    return max(w - a0 * t, 0.0)
+    """Highest speed [m/s] from which the train gets down to ``target_speed_mps`` within ``distance_m`` (the
+    braking curve: :func:`controllers.line_kernels.allowed_speed_mps`)."""
+    return line_kernels.allowed_speed_mps(  # type: ignore[no-any-return]
+        float(distance_m), float(decel_mps2), float(delay_s), float(accel_now_mps2), float(target_speed_mps)
+    )
 
 
 def required_decel_mps2(
@@ -137,24 +112,12 @@ def required_decel_mps2(
     accel_now_mps2: float = 0.0,
     target_speed_mps: float = 0.0,
 ) -> float:
-    """Constant deceleration [m/s²] that brings ``speed_mps`` down to ``target_speed_mps`` within ``distance_m``.
-
-    Dead-time model with a fixed delay (see :func:`stopping_distance_m`). ``0`` when no braking is needed,
-    ``math.inf`` when the dead time alone already uses up the distance.
-    """
-    v = max(speed_mps, 0.0)
-    t = max(delay_s, 0.0)
-    a0 = accel_now_mps2
-    if a0 < 0.0 and v + a0 * t < 0.0:
-        t = v / -a0
-    v_after = max(v + a0 * t, 0.0)
-    v_end = max(target_speed_mps, 0.0)
-    if v_after <= v_end:
-        return 0.0
-    room = distance_m - (v * t + 0.5 * a0 * t * t)
-    if room <= 0.0:
-        return math.inf
-    return (v_after * v_after - v_end * v_end) / (2.0 * room)
+    """Constant deceleration [m/s²] that brings ``speed_mps`` down to ``target_speed_mps`` within ``distance_m``
+    (:func:`controllers.line_kernels.required_decel_mps2`): 0 when no braking is needed, ``math.inf`` when the
+    dead time alone already uses up the distance."""
+    return line_kernels.required_decel_mps2(  # type: ignore[no-any-return]
+        float(speed_mps), float(distance_m), float(delay_s), float(accel_now_mps2), float(target_speed_mps)
+    )
 
 
 def net_braking_mps2(
@@ -191,88 +154,37 @@ def _lag_ratio(dt_s: float, lag_s: float) -> float:
     return r
 
 
-def _trivial_stop_m(speed_mps: float, net_accel_now_mps2: float, decel_mps2: float) -> float | None:
-    """0 for a train standing without drive, infinity for a vanishing deceleration, else None (sum needed)."""
-    if speed_mps <= 0.0 and net_accel_now_mps2 <= 0.0:
-        return 0.0
-    if decel_mps2 <= _MIN_DECEL_MPS2:
-        return math.inf
-    return None
-
-
 def discrete_stop_distance_m(
-    speed_mps: float,
-    net_accel_now_mps2: float,
-    decel_mps2: float,
-    dt_s: float,
-    lag_s: float,
+    speed_mps: float, net_accel_now_mps2: float, decel_mps2: float, dt_s: float, lag_s: float
 ) -> float:
-    """Distance [m] the plant runs until it stands when the net command ``−decel_mps2`` is held from now on.
-
-    Exact for the plant's discrete recursion (lag, Euler positions, speed clamp at 0) with constant resistance;
-    see the module docstring. ``net_accel_now_mps2`` is last step's net acceleration (applied − resistance).
-    """
-    v = speed_mps
-    b = decel_mps2
-    trivial = _trivial_stop_m(v, net_accel_now_mps2, b)
-    if trivial is not None:
-        return trivial
+    """Distance [m] the plant runs until it stands when the net command ``−decel_mps2`` is held from now on,
+    exact for its discrete recursion (:func:`controllers.line_kernels.discrete_stop_distance_m`)."""
     r = _lag_ratio(dt_s, lag_s)
-    s = r / (1.0 - r)
-    c = net_accel_now_mps2 + b
-    cds = c * dt_s * s
-    bdt = b * dt_s
-    # First step with V_j <= 0 (V_j = v − j·b·dt + c·dt·s·(1 − r^j)): start from the crossing of the asymptote
-    # (r^j -> 0), then walk to the exact one.
-    n = max(1, math.ceil((v + cds) / bdt))
-    while n > 1 and v - (n - 1) * bdt + cds * (1.0 - r ** (n - 1)) <= 0.0:
-        n -= 1
-    while v - n * bdt + cds * (1.0 - r**n) > 0.0:
-        n += 1
-    m = n - 1
-    if m <= 0:
-        return 0.0
-    total = m * (v + cds) - bdt * m * (m + 1) / 2.0 - cds * s * (1.0 - r**m)
-    return max(total * dt_s, 0.0)
+    return line_kernels.discrete_stop_distance_m(  # type: ignore[no-any-return]
+        float(speed_mps), float(net_accel_now_mps2), float(decel_mps2), float(dt_s), r
+    )
 
 
 def discrete_stop_distance_bound_m(
-    speed_mps: float,
-    net_accel_now_mps2: float,
-    decel_mps2: float,
-    dt_s: float,
-    lag_s: float,
+    speed_mps: float, net_accel_now_mps2: float, decel_mps2: float, dt_s: float, lag_s: float
 ) -> float:
-    """An upper bound on :func:`discrete_stop_distance_m` in a few operations (a screen before the exact sum).
-
-    With ``W = v + max(c·dt·s, 0)`` every speed of the recursion is ``V_j ≤ W − j·b·dt`` (the lag term
-    ``c·dt·s·(1 − r^j)`` lies between 0 and ``c·dt·s``), so the distance ``dt·Σ V_j`` over the steps with
-    ``V_j > 0`` is at most ``dt·Σ_j max(W − j·b·dt, 0) ≤ W²/(2·b)``. A relative and an absolute slack of 1e-9
-    cover the rounding of the exact sum, so ``x > bound`` proves ``x > discrete_stop_distance_m(...)`` and the
-    callers skip the exact evaluation (ATO cruising far from its stop points: every step).
-    """
-    trivial = _trivial_stop_m(speed_mps, net_accel_now_mps2, decel_mps2)
-    if trivial is not None:
-        return trivial
+    """An upper bound on :func:`discrete_stop_distance_m` in a few operations
+    (:func:`controllers.line_kernels.discrete_stop_distance_bound_m`)."""
     r = _lag_ratio(dt_s, lag_s)
-    cds = (net_accel_now_mps2 + decel_mps2) * dt_s * (r / (1.0 - r))
-    w = max(speed_mps, 0.0) + max(cds, 0.0)
-    return w * w / (2.0 * decel_mps2) * (1.0 + 1e-9) + 1e-9
+    return line_kernels.discrete_stop_distance_bound_m(  # type: ignore[no-any-return]
+        float(speed_mps), float(net_accel_now_mps2), float(decel_mps2), float(dt_s), r
+    )
 
 
 def required_decel_surely_below(
     speed_mps: float, net_accel_now_mps2: float, distance_m: float, dt_s: float, lag_s: float, decel_mps2: float
 ) -> bool:
-    """True when :func:`discrete_required_decel_mps2` for ``distance_m`` is certainly below ``decel_mps2``.
-
-    The distance run braking at ``decel_mps2`` is at most :func:`discrete_stop_distance_bound_m`; with
-    ``distance_m`` beyond that bound by more than ten times the solver's tolerance, the root lies below
-    ``decel_mps2`` (the distance falls with the deceleration) and every answer the solver gives (within its
-    tolerance of the root, or a bracket end on the root's side) does too. The ATO uses it to skip the solve
-    while it only checks whether braking is still needed.
-    """
-    bound = discrete_stop_distance_bound_m(speed_mps, net_accel_now_mps2, decel_mps2, dt_s, lag_s)
-    return distance_m > bound * (1.0 + 1e-6) + 10.0 * _SOLVE_TOLERANCE_M
+    """True when :func:`discrete_required_decel_mps2` for ``distance_m`` is certainly below ``decel_mps2``
+    (:func:`controllers.line_kernels.required_decel_surely_below`)."""
+    r = _lag_ratio(dt_s, lag_s)
+    return line_kernels.required_decel_surely_below(  # type: ignore[no-any-return]
+        float(speed_mps), float(net_accel_now_mps2), float(distance_m), float(dt_s), r, float(decel_mps2)
+    )
 
 
 def discrete_required_decel_mps2(
@@ -282,67 +194,19 @@ def discrete_required_decel_mps2(
     dt_s: float,
     lag_s: float,
     max_decel_mps2: float,
-    tolerance_m: float = _SOLVE_TOLERANCE_M,
 ) -> float:
-    """Constant net deceleration [m/s²] that makes :func:`discrete_stop_distance_m` equal ``distance_m``.
-
-    Returns ``max_decel_mps2`` when even that is not enough (the caller decides whether that is an emergency)
-    and a value in ``(0, max_decel_mps2]`` otherwise. Bracketed secant (Illinois) on ``D(b) − d``, which is
-    continuous and decreasing; typically 3–6 evaluations.
-    """
-    if distance_m <= 0.0:
-        return max_decel_mps2
-
-    def f(b: float) -> float:
-        return discrete_stop_distance_m(speed_mps, net_accel_now_mps2, b, dt_s, lag_s) - distance_m
-
-    hi = max_decel_mps2
-    f_hi = f(hi)
-    if f_hi >= 0.0:
-        return hi
-    # Initial guess from the continuous lag model, the Euler offset folded into the distance.
-    lo = _MIN_DECEL_MPS2
-    guess = required_decel_mps2(speed_mps, distance_m + 0.5 * speed_mps * dt_s, lag_s, net_accel_now_mps2)
-    if 0.0 < guess < hi:
-        f_guess = f(guess)
-        if abs(f_guess) <= tolerance_m:
-            return guess
-        if f_guess > 0.0:
-            lo, f_lo = guess, f_guess
-        else:
-            hi, f_hi = guess, f_guess
-            f_lo = f(lo)
-    else:
-        f_lo = f(lo)
-    if not math.isfinite(f_lo):
-        # A vanishing deceleration never stops: bisect geometrically until the distance is finite.
-        while not math.isfinite(f_lo) and lo < hi:
-            lo = min(lo * 10.0, hi)
-            f_lo = f(lo)
-    if f_lo <= 0.0:  # even the gentlest braking stops short (standing, or creeping uphill)
-        return lo
-    side = 0
-    b = hi
-    for _ in range(60):
-        b = (lo * f_hi - hi * f_lo) / (f_hi - f_lo) if f_hi != f_lo else 0.5 * (lo + hi)
-        if not lo < b < hi:
-            b = 0.5 * (lo + hi)
-        fb = f(b)
-        if abs(fb) <= tolerance_m:
-            return b
-        if fb > 0.0:
-            lo, f_lo = b, fb
-            if side == 1:
-                f_hi *= 0.5
-            side = 1
-        else:
-            hi, f_hi = b, fb
-            if side == -1:
-                f_lo *= 0.5
-            side = -1
-        if hi - lo < 1e-9:
-            break
-    return b
+    """Constant net deceleration [m/s²] that makes :func:`discrete_stop_distance_m` equal ``distance_m``, or
+    ``max_decel_mps2`` when even that is not enough (:func:`controllers.line_kernels.discrete_required_decel_mps2`)."""
+    r = _lag_ratio(dt_s, lag_s)
+    return line_kernels.discrete_required_decel_mps2(  # type: ignore[no-any-return]
+        float(speed_mps),
+        float(net_accel_now_mps2),
+        float(distance_m),
+        float(dt_s),
+        float(lag_s),
+        r,
+        float(max_decel_mps2),
+    )
 
 
 # ------------------------------------------------------------------------------------------ parameter parsing

@@ -1,21 +1,23 @@
-"""The line controllers' laws compiled with numba: ATO and moving-block separation, bit for bit.
+"""The line controllers' laws, written once and compiled with numba: ATO, moving-block separation, braking curves.
 
-Why: the line laws run for every train at every step. :meth:`controllers.ato.Ato.decide` was the largest single
-share of the step loop (about a sixth of a Line 3 run, issue 20) and separation the next: in the interpreter
-each call costs tens of microseconds — a few hundred float operations, each a Python object — and the ATO's exact
-discrete stop predictor sums and solves (:func:`controllers.braking.discrete_required_decel_mps2` evaluates the
-stop sum up to 60 times). Compiled, the same arithmetic costs about a microsecond plus the call.
+Why compiled: the line laws run for every train at every step. In the interpreter each call of the ATO costs tens
+of microseconds — a few hundred float operations, each a Python object — and its exact discrete stop predictor
+sums and solves (:func:`discrete_required_decel_mps2` evaluates the stop sum up to 60 times). Compiled, the same
+arithmetic costs about a microsecond plus the call.
 
-**Bit for bit.** The engine's outputs are pinned by a golden test, so this is a transcription, not a
-re-derivation, of :meth:`Ato.decide_reference <controllers.ato.Ato.decide_reference>`,
-:meth:`Separation.decide_reference <controllers.separation.Separation.decide_reference>` and the
-:mod:`controllers.braking` functions they call: every expression keeps the reference's operands and evaluation
-order, and only IEEE operations are used (``+ − × ÷ √``, comparisons, and ``pow`` of two doubles — a float power
-in CPython is libm's ``pow``, so the integer exponents of the stop sum are converted to float here, where numba
-would otherwise multiply by squaring). Python's ``min``/``max`` return their *first* argument on ties and with
-NaN; :func:`_mn`/:func:`_mx` do the same (numba's would not always: ``max(-0.0, 0.0)``). The lag ratio
-``e^{−dt/τ}`` is the reference's own cached value, computed by the caller. ``tests/test_line_kernels.py``
-compares each law with its reference on random inputs and along whole closed-loop runs, bit for bit.
+**Written once.** Each law is defined here and nowhere else: :class:`controllers.ato.Ato` and
+:class:`controllers.separation.Separation` pack their inputs and call :func:`ato` / :func:`separation`; the
+engine's compiled loops (``railsim.engine.free_run_kernel``, ``railsim.engine.line_step_kernel``) call them
+inside their own; :mod:`controllers.braking` gives the braking curves keyword arguments for callers on Python
+values. The interpreted form of each function — the dispatcher's ``py_func``, or every function at once with
+``NUMBA_DISABLE_JIT=1`` — is the readable reference, and it gives the same bits as the compiled one: only IEEE
+operations are used (``+ − × ÷ √``, comparisons, and ``pow`` of two doubles — the integer exponents of the stop sum
+are converted to float, where numba would otherwise multiply by squaring, so CPython and numba both call libm's
+``pow``), fastmath stays off, and :func:`_mn`/:func:`_mx` return their *first* argument on ties and with NaN, as
+Python's ``min``/``max`` do (numba's would not always: ``max(-0.0, 0.0)``). The models behind the braking curves
+are derived in :mod:`controllers.braking`'s docstring; the ATO and separation laws in their classes' modules.
+``tests/test_line_kernels.py`` holds the laws to closed forms and closed-loop outcomes, and the compiled form to
+the interpreted one.
 
 Inputs are packed once per (controller, vehicle, step length) into a float array (:data:`ATO_FIELDS`,
 :data:`SEPARATION_FIELDS`); restrictions come as an ``(n, 3)`` array of ``(start, end, speed)``. Phases come back
@@ -79,8 +81,8 @@ ATO_FIELDS = (
 )
 SEPARATION_FIELDS = _VEHICLE_FIELDS + ("margin_m", "reaction_time_s", "barrier_rate_per_s") + _STEP_FIELDS
 
-_MIN_DECEL_MPS2 = 1e-4  # controllers.braking._MIN_DECEL_MPS2
-_SOLVE_TOLERANCE_M = 1e-3  # controllers.braking._SOLVE_TOLERANCE_M
+_MIN_DECEL_MPS2 = 1e-4  # smallest deceleration the solvers consider: below it a stop is "never" [m/s²]
+_SOLVE_TOLERANCE_M = 1e-3  # discrete_required_decel_mps2 stops when the distance is this close [m]
 _STANDING_MPS = 1e-3  # controllers.ato._STANDING_MPS
 _SPEED_EPS_MPS = 1e-6  # railsim.physics.dynamics.SPEED_EPS_MPS
 _NO_TRIVIAL = -1.0  # _trivial_stop_m: "the sum is needed" (its real answers are 0 and inf)
@@ -133,15 +135,25 @@ def _mx(a: float, b: float) -> float:
 
 
 @njit(cache=True)
-def build_up_delay_s(accel_now: float, decel: float, lag_s: float, jerk: float) -> float:
+def build_up_delay_s(accel_now: float, decel: float, lag_s: float, jerk: float, reaction_s: float) -> float:
+    """Equivalent dead time before the full deceleration ``decel`` acts [s].
+
+    ``reaction_s`` (detection, communication, decision) + the actuator lag ``lag_s`` + half the jerk-limited ramp
+    from the present acceleration ``accel_now`` to ``−decel``. ``jerk = inf`` for emergency braking, which
+    bypasses the jerk limit."""
     ramp_s = 0.0
     if math.isfinite(jerk) and jerk > 0.0:
         ramp_s = _mx(accel_now + decel, 0.0) / jerk
-    return _mx(0.0, 0.0) + _mx(lag_s, 0.0) + 0.5 * ramp_s
+    return _mx(reaction_s, 0.0) + _mx(lag_s, 0.0) + 0.5 * ramp_s
 
 
 @njit(cache=True)
 def allowed_speed_mps(distance_m: float, decel: float, delay_s: float, accel_now: float, target: float) -> float:
+    """Highest speed [m/s] from which the train gets down to ``target`` within ``distance_m``.
+
+    Inverse of :func:`stopping_distance_m` for the branch where the dead time ends above the target speed:
+    with ``w = v + a0·T``: ``w² + 2·b·T·w − (2·b·d + v_end² + a0·b·T²) = 0``. At or past the point
+    (``distance_m ≤ 0``) it is the target speed itself."""
     b = decel
     t = _mx(delay_s, 0.0)
     a0 = accel_now
@@ -169,6 +181,8 @@ def _dead_time(speed: float, delay_s: float, a0: float) -> tuple[float, float, f
 
 @njit(cache=True)
 def required_decel_mps2(speed: float, distance_m: float, delay_s: float, accel_now: float, target: float) -> float:
+    """Constant deceleration [m/s²] that brings ``speed`` down to ``target`` within ``distance_m`` (dead-time model
+    with a fixed delay): ``0`` when no braking is needed, ``inf`` when the dead time alone uses up the distance."""
     v, t, v_after = _dead_time(speed, delay_s, accel_now)
     a0 = accel_now
     v_end = _mx(target, 0.0)
@@ -182,6 +196,7 @@ def required_decel_mps2(speed: float, distance_m: float, delay_s: float, accel_n
 
 @njit(cache=True, inline="always")
 def _trivial_stop_m(speed: float, net_now: float, decel: float) -> float:
+    """0 for a train standing without drive, infinity for a vanishing deceleration, else :data:`_NO_TRIVIAL`."""
     if speed <= 0.0 and net_now <= 0.0:
         return 0.0
     if decel <= _MIN_DECEL_MPS2:
@@ -191,6 +206,12 @@ def _trivial_stop_m(speed: float, net_now: float, decel: float) -> float:
 
 @njit(cache=True)
 def discrete_stop_distance_m(speed: float, net_now: float, decel: float, dt_s: float, r: float) -> float:
+    """Distance [m] the plant runs until it stands when the net command ``−decel`` is held from now on.
+
+    Exact for the plant's discrete recursion (lag ratio ``r = e^{−dt/τ}``, Euler positions, speed clamp at 0) with
+    constant resistance (:mod:`controllers.braking`). ``net_now`` is last step's net acceleration (applied −
+    resistance). The first step with ``V_j ≤ 0`` is found from the crossing of the asymptote (``r^j → 0``), then
+    walked to the exact one."""
     v = speed
     b = decel
     trivial = _trivial_stop_m(v, net_now, b)
@@ -214,6 +235,12 @@ def discrete_stop_distance_m(speed: float, net_now: float, decel: float, dt_s: f
 
 @njit(cache=True)
 def discrete_stop_distance_bound_m(speed: float, net_now: float, decel: float, dt_s: float, r: float) -> float:
+    """An upper bound on :func:`discrete_stop_distance_m` in a few operations (a screen before the exact sum).
+
+    With ``W = v + max(c·dt·s, 0)`` every speed of the recursion is ``V_j ≤ W − j·b·dt`` (the lag term
+    ``c·dt·s·(1 − r^j)`` lies between 0 and ``c·dt·s``), so the distance ``dt·Σ V_j`` over the steps with
+    ``V_j > 0`` is at most ``W²/(2·b)``. A relative and an absolute slack of 1e-9 cover the rounding of the exact
+    sum, so ``x > bound`` proves ``x > discrete_stop_distance_m(...)`` (ATO cruising far from its stop points)."""
     trivial = _trivial_stop_m(speed, net_now, decel)
     if trivial != _NO_TRIVIAL:
         return trivial
@@ -226,6 +253,9 @@ def discrete_stop_distance_bound_m(speed: float, net_now: float, decel: float, d
 def required_decel_surely_below(
     speed: float, net_now: float, distance_m: float, dt_s: float, r: float, decel: float
 ) -> bool:
+    """True when :func:`discrete_required_decel_mps2` for ``distance_m`` is certainly below ``decel``: the distance
+    is beyond :func:`discrete_stop_distance_bound_m` at ``decel`` by more than ten times the solver's tolerance,
+    so the root (the distance falls with the deceleration) and every answer of the solver lie below it."""
     bound = discrete_stop_distance_bound_m(speed, net_now, decel, dt_s, r)
     return distance_m > bound * (1.0 + 1e-6) + 10.0 * _SOLVE_TOLERANCE_M
 
@@ -234,6 +264,12 @@ def required_decel_surely_below(
 def discrete_required_decel_mps2(
     speed: float, net_now: float, distance_m: float, dt_s: float, lag_s: float, r: float, max_decel: float
 ) -> float:
+    """Constant net deceleration [m/s²] that makes :func:`discrete_stop_distance_m` equal ``distance_m``.
+
+    ``max_decel`` when even that is not enough (the caller decides whether that is an emergency), else a value in
+    ``(0, max_decel]``. Bracketed secant (Illinois) on ``D(b) − d``, which is continuous and decreasing, started
+    from the continuous lag model's answer (``lag_s``; the Euler offset folded into the distance); typically 3–6
+    evaluations."""
     if distance_m <= 0.0:
         return max_decel
     tol = _SOLVE_TOLERANCE_M
@@ -288,6 +324,13 @@ def discrete_required_decel_mps2(
 def _restriction_far_m(
     v: float, v_target: float, b_plan: float, b_release: float, delay_s: float, net_now: float
 ) -> float:
+    """Distance beyond which a speed restriction ahead changes neither the ATO's cruise target nor its braking.
+
+    Its braking curve allows ``≥ v_target`` once ``d ≥ v_target²/(2·b_plan) + v_target·T`` (the quadratic of
+    :func:`allowed_speed_mps` with ``a0 = 0``, whatever the restriction's speed), and the deceleration it requires
+    (:func:`required_decel_mps2` with ``a0 = net_now``) stays below ``b_release`` once
+    ``d > dead-time run + v_after²/(2·b_release)``. A millimetre and a relative 1e-9 on top cover rounding,
+    so skipping a restriction beyond this distance gives the command the full loop gives."""
     t = delay_s
     if net_now < 0.0 and v + net_now * t < 0.0:
         t = v / -net_now
@@ -299,11 +342,13 @@ def _restriction_far_m(
 
 
 @njit(cache=True)
-def stopping_distance_m(speed: float, decel: float, delay_s: float, accel_now: float) -> float:
+def stopping_distance_m(speed: float, decel: float, delay_s: float, accel_now: float, target: float) -> float:
+    """Distance [m] to get down to ``target`` (dead-time model, :mod:`controllers.braking`); during the dead time
+    the speed follows ``accel_now`` but never goes below zero."""
     v, t, v_after = _dead_time(speed, delay_s, accel_now)
     a0 = accel_now
     dist = v * t + 0.5 * a0 * t * t
-    v_end = _mx(0.0, 0.0)
+    v_end = _mx(target, 0.0)
     if v_after > v_end:
         dist += (v_after * v_after - v_end * v_end) / (2.0 * decel)
     return dist
@@ -331,8 +376,8 @@ def _traction_limit_mps2(mass: float, rot: float, f0: float, power: float, v: fl
 def separation(
     p: np.ndarray, x: float, speed_mps: float, a0: float, grade: float, pred_rear_m: float, pred_age_s: float
 ) -> tuple[float, bool, int, float, float]:
-    """:meth:`controllers.separation.Separation.decide_reference` on packed inputs:
-    ``(applied accel, emergency, phase index, free distance, barrier)``."""
+    """Moving-block separation (:mod:`controllers.separation`) against a predecessor rear ``pred_rear_m`` known
+    ``pred_age_s`` ago, on packed inputs: ``(applied accel, emergency, phase index, free distance, barrier)``."""
     mass, rot, davis_a, davis_b, davis_c = p[0], p[1], p[2], p[3], p[4]
     f0, power, service, emergency_decel = p[6], p[7], p[8], p[9]
     jerk, tau = p[10], p[11]
@@ -343,26 +388,28 @@ def separation(
     traction = _traction_limit_mps2(mass, rot, f0, power, v)
     b = _mx(service + mass * g_mps2 * grade / 1000.0 / (mass * rot), 0.05)  # net_braking_mps2 without Davis
     age_s = _mx(pred_age_s, 0.0)
-    reaction_s = reaction_time + age_s + dt_s
-    ramp_s = 0.0  # build_up_delay_s(a0, b, tau, jerk, reaction_s)
-    if math.isfinite(jerk) and jerk > 0.0:
-        ramp_s = _mx(a0 + b, 0.0) / jerk
-    delay = _mx(reaction_s, 0.0) + _mx(tau, 0.0) + 0.5 * ramp_s
+    reaction_s = reaction_time + age_s + dt_s  # + one step: a command is held until the next decision
+    delay = build_up_delay_s(a0, b, tau, jerk, reaction_s)
     free_m = pred_rear_m - margin - x
-    h = free_m - stopping_distance_m(v, b, delay, a0) - v * dt_s - _STANDSTILL_BUFFER_M
+    # The barrier aims one step of travel plus a small standstill buffer short of the boundary: the law is
+    # continuous-time, the plant is sampled and lagged, and the train should come to rest *before* rear − margin.
+    h = free_m - stopping_distance_m(v, b, delay, a0, 0.0) - v * dt_s - _STANDSTILL_BUFFER_M
     phase = _FOLLOW
     if h < 0.0 and v > 0.0:
+        # Inside the braking curve's allowance already (a predecessor appeared close, a long outage): emergency
+        # only if service braking, predicted exactly for the plant plus the jerk ramp, no longer stops in time.
         rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
         ramp_m = 0.5 * v * _mx(a0 + service, 0.0) / jerk
         if discrete_stop_distance_m(v, a0 - rho, b, dt_s, r) + ramp_m > free_m:
             return -emergency_decel, True, _SEP_EMERGENCY, free_m, h
         phase = _SEP_BRAKE
     slope_s = delay + _mx(v + a0 * delay, 0.0) / b
-    gamma = _mn(barrier_rate, 0.5 / dt_s)
+    gamma = _mn(barrier_rate, 0.5 / dt_s)  # a sampled barrier with γ·dt near 1 rings
     net_cap = (gamma * h - v) / slope_s if slope_s > 0.0 else math.inf
     if not math.isfinite(net_cap):
         return traction, False, phase, free_m, h
     if v < _CRAWL_MPS and free_m - _STANDSTILL_BUFFER_M < _CRAWL_ZONE_M:
+        # The barrier approaches its end point asymptotically; rather than crawl for minutes, halt.
         net_cap = _mn(net_cap, -_CRAWL_STOP_DECEL_MPS2)
         phase = _HALT
     applied = net_cap + _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
@@ -388,8 +435,11 @@ def ato(
     authority_end_m: float,
     tail_m: float,
 ) -> tuple[float, bool, int]:
-    """:meth:`controllers.ato.Ato.decide_reference` on packed inputs: ``(applied accel, emergency, phase index)``."""
-    # (the ATO's build-up delay has no reaction time: build_up_delay_s's first term is max(0, 0))
+    """The ATO law (:mod:`controllers.ato`) on packed inputs: ``(applied accel, emergency, phase index)``.
+
+    ``limits``: restrictions ``(start, end, speed)``; the next stop (``mark_m``, its window, ``dwelling``) is read
+    only with ``has_stop``, the end of authority only with ``has_authority``; ``tail_m`` > 0: the train leads a
+    formation that long, and every restriction's end moves on by it."""
     mass, rot, davis_a, davis_b, davis_c = p[0], p[1], p[2], p[3], p[4]
     max_speed, f0, power, service, emergency_decel = p[5], p[6], p[7], p[8], p[9]
     jerk, tau = p[10], p[11]
@@ -398,9 +448,10 @@ def ato(
     g_mps2, dt, r, lead_s = p[22], p[23], p[24], p[25]
 
     v = _mx(speed_mps, 0.0)
-    rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
+    rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)  # as a deceleration [m/s²]
     net_now = applied_now - rho
     standing = v <= _STANDING_MPS
+    # Net braking the train can plan with: on a downhill part of the brake only holds the train.
     b_service_net = _mx(service + rho, 0.05)
     b_plan = plan_frac * _mn(service, b_service_net)
     hold_applied = -_mn(service, _mx(hold_decel, -rho + 0.1))
@@ -410,9 +461,10 @@ def ato(
         if dwelling or (standing and in_window):
             return hold_applied, False, _HOLD
 
+    # ---- cruise target: line speed, vehicle limit, restrictions under the train (rear rule)
     v_target = _mn(line_speed_mps, max_speed) - speed_margin
-    delay_plan = build_up_delay_s(applied_now, b_plan, tau, jerk)
-    brake_net = math.inf
+    delay_plan = build_up_delay_s(applied_now, b_plan, tau, jerk, 0.0)
+    brake_net = math.inf  # most restrictive braking sub-law (net acceleration, <= 0)
     phase = _CRUISE
     braking_now = net_now <= -0.3 * b_plan
     n_lim = limits.shape[0]
@@ -424,7 +476,7 @@ def ato(
         v_lim = lim_speed - speed_margin
         if start_m <= x < end_m + length_m:
             v_target = _mn(v_target, v_lim)
-        elif x < start_m <= x + far_m:
+        elif x < start_m <= x + far_m:  # farther restrictions change nothing yet (_restriction_far_m)
             d = start_m - x
             v_target = _mn(v_target, allowed_speed_mps(d, b_plan, delay_plan, 0.0, v_lim))
             if v > v_lim:
@@ -435,6 +487,7 @@ def ato(
                         phase = _RESTRICTION
     v_target = _mx(v_target, 0.0)
 
+    # ---- stop points: the stopping mark (aimed inside the window) and the end of authority
     points = np.empty(2)
     n_points = 0
     if has_stop:
@@ -448,8 +501,9 @@ def ato(
         points[n_points] = authority_end_m - authority_margin
         n_points += 1
         hard_m = authority_end_m - x
-        if lead_s > 0.0:
+        if lead_s > 0.0:  # the plant runs lead_s·v farther than the Euler sum (controllers.ato)
             hard_m -= lead_s * v
+        # the cheap upper bound first: far from the end of authority the exact sum is not needed
         if (
             v > 0.0
             and hard_m < discrete_stop_distance_bound_m(v, net_now, b_service_net, dt, r)
@@ -476,12 +530,13 @@ def ato(
         if triggered or braking_now:
             b_release = release_frac * b_plan
             if not triggered and required_decel_surely_below(v, net_now, d, dt, r, b_release):
-                continue
+                continue  # braking for something else, this point far off: no solve needed to stay released
             b_req = discrete_required_decel_mps2(v, net_now, d, dt, tau, r, b_service_net)
             if (triggered or b_req >= b_release) and -b_req < brake_net:
                 brake_net = -b_req
                 phase = _STOP
 
+    # ---- cruise law and the minimum
     traction = _mn(_traction_limit_mps2(mass, rot, f0, power, v), max_accel)
     if v >= max_speed:
         traction = 0.0
@@ -492,5 +547,5 @@ def ato(
         phase = _BRAKE
     if emergency:
         return -emergency_decel, True, _EMERGENCY
-    applied = net + rho
+    applied = net + rho  # VehicleParams.net_to_applied(net, v, grade), the same operations
     return _mn(_mx(applied, -service), traction), False, phase

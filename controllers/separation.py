@@ -52,12 +52,8 @@ from controllers import line_kernels
 from controllers.base import Command, Observation, register
 from controllers.braking import (
     _lag_ratio,
-    build_up_delay_s,
-    discrete_stop_distance_m,
-    net_braking_mps2,
     params_from_mapping,
     require,
-    stopping_distance_m,
     traction_limit_mps2,
 )
 from railsim.physics.vehicle import G_MPS2, VehicleParams
@@ -125,8 +121,8 @@ class Separation:
         """The law against a known predecessor rear, on plain values; :meth:`command` is this on an observation.
         The engine calls it directly for a train whose separation role is this class (no observation built).
 
-        Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
-        the same bits (``tests/test_line_kernels.py``)."""
+        The law itself is :func:`controllers.line_kernels.separation`, written once and compiled; this packs its
+        inputs."""
         accel, emergency, phase, free_m, h = self.values(veh, dt_s, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)
         info = {"phase": line_kernels.SEPARATION_PHASES[phase], "free_m": free_m, "barrier_m": h}
         return Command(accel, emergency=emergency, info=info)
@@ -162,53 +158,6 @@ class Separation:
             )
             self._packed_vehicle, self._packed_dt = veh, dt_s
         return self._packed
-
-    def decide_reference(
-        self,
-        veh: VehicleParams,
-        dt_s: float,
-        x: float,
-        speed_mps: float,
-        a0: float,
-        grade: float,
-        pred_rear_m: float,
-        pred_age_s: float,
-    ) -> Command:
-        """The law in Python: the reference :meth:`decide` must reproduce bit for bit (and the readable one)."""
-        v = max(speed_mps, 0.0)
-        traction = traction_limit_mps2(veh, v)
-        p = self.params
-        b = max(net_braking_mps2(veh, veh.service_decel_mps2, grade), 0.05)
-        age_s = max(pred_age_s, 0.0)
-        reaction_s = p.reaction_time_s + age_s + dt_s  # + one step: a command is held until the next decision
-        delay = build_up_delay_s(a0, b, veh.actuator_time_constant_s, veh.jerk_limit_mps3, reaction_s)
-        free_m = pred_rear_m - p.margin_m - x
-        # The barrier aims one step of travel plus a small standstill buffer short of the boundary: the law
-        # is continuous-time, the plant is sampled and lagged, and the train should come to rest *before*
-        # rear − margin rather than converge onto it.
-        h = free_m - stopping_distance_m(v, b, delay, a0) - v * dt_s - _STANDSTILL_BUFFER_M
-        info: dict[str, Any] = {"phase": "follow", "free_m": free_m, "barrier_m": h}
-        if h < 0.0 and v > 0.0:
-            # Inside the braking curve's allowance already (a predecessor appeared close, a long outage):
-            # emergency only if service braking, predicted exactly for the plant (lag, Euler) plus the jerk
-            # ramp, would no longer stop before rear − margin.
-            rho = veh.resistance_n(v, grade) / veh.effective_mass_kg
-            ramp_m = 0.5 * v * max(a0 + veh.service_decel_mps2, 0.0) / veh.jerk_limit_mps3
-            if discrete_stop_distance_m(v, a0 - rho, b, dt_s, veh.actuator_time_constant_s) + ramp_m > free_m:
-                info["phase"] = "emergency"
-                return Command(-veh.emergency_decel_mps2, emergency=True, info=info)
-            info["phase"] = "brake"
-        slope_s = delay + max(v + a0 * delay, 0.0) / b
-        gamma = min(p.barrier_rate_per_s, 0.5 / dt_s)  # a sampled barrier with γ·dt near 1 rings
-        net_cap = (gamma * h - v) / slope_s if slope_s > 0.0 else math.inf
-        if not math.isfinite(net_cap):
-            return Command(traction, info=info)
-        if v < _CRAWL_MPS and free_m - _STANDSTILL_BUFFER_M < _CRAWL_ZONE_M:
-            # The barrier approaches its end point asymptotically; rather than crawl for minutes, halt.
-            net_cap = min(net_cap, -_CRAWL_STOP_DECEL_MPS2)
-            info["phase"] = "halt"
-        applied = veh.net_to_applied(net_cap, v, grade)
-        return Command(min(max(applied, -veh.service_decel_mps2), traction), info=info)
 
 
 @register("separation")

@@ -67,3 +67,23 @@ def run_mapping(
     path.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
     out = folder / name
     return run_railsim(["run", str(path), "--out", str(out), "--no-progress"], timeout=timeout), out
+
+
+def interpreted(module: Any) -> Any:
+    """A fresh copy of ``module`` with numba's JIT off (``NUMBA_DISABLE_JIT`` for that module alone): every
+    ``@njit`` function in it is the plain Python function as written — the reference its compiled form must give
+    the same bits as. The copy is not registered in ``sys.modules``; the module's own imports are shared."""
+    import importlib.util
+
+    from numba import config
+
+    spec = importlib.util.spec_from_file_location(f"{module.__name__}_interpreted", module.__file__)
+    assert spec is not None and spec.loader is not None
+    copy = importlib.util.module_from_spec(spec)
+    disabled = config.DISABLE_JIT
+    config.DISABLE_JIT = True
+    try:
+        spec.loader.exec_module(copy)
+    finally:
+        config.DISABLE_JIT = disabled
+    return copy

@@ -686,7 +686,7 @@ def test_restrictions_beyond_the_far_distance_change_nothing(
 ) -> None:
     """The ATO skips restrictions farther than _restriction_far_m: there the braking curve allows at least the
     cruise target and the required deceleration is below the release level, so the loop would change nothing."""
-    from controllers.ato import _restriction_far_m
+    from controllers.line_kernels import _restriction_far_m
 
     d = _restriction_far_m(v, v_target, b_plan, release * b_plan, delay, net_now) + beyond
     assert allowed_speed_mps(d, b_plan, delay, 0.0, v_lim) >= v_target

@@ -402,6 +402,37 @@ def test_position_updates() -> None:
     assert res["forward"].advance_m == 10.0 * 0.5
 
 
+@pytest.mark.parametrize("method", ["euler", "ballistic", "forward"])
+def test_one_step_by_hand(method: str) -> None:
+    """Every stage of one step computed by hand on a train with lag, jerk limit, Davis resistance and a gradient:
+    the jerk limit caps the target, the lag moves the applied value by 1 − e^{−dt/τ} of the way, resistance and
+    gradient come off, Euler's speed update, the three position updates and the energy follow."""
+    veh = bare(
+        rotating_mass_factor=1.25,
+        davis_a_n=100.0,
+        davis_b_n_per_mps=10.0,
+        davis_c_n_per_mps2=2.0,
+        traction_max_force_n=2.0e3,
+        jerk_limit_mps3=0.4,
+        actuator_time_constant_s=0.5,
+    )
+    v, a_prev, u_prev, dt, grade = 10.0, 0.2, 0.3, 0.5, 5.0
+    res = step(veh, PlantState(v, a_prev, u_prev), 1.2, dt, grade, step_method=method)
+    m_eff = 1000.0 * 1.25
+    u = 0.3 + 0.4 * 0.5  # the command 1.2 (under the 1.6 m/s² envelope), jerk-limited to 0.5
+    a = 0.2 + (u - 0.2) * (1.0 - math.exp(-0.5 / 0.5))
+    resistance_n = 100.0 + 10.0 * 10.0 + 2.0 * 100.0 + 1000.0 * G_MPS2 * 5.0 / 1000.0
+    v_next = 10.0 + (a - resistance_n / m_eff) * 0.5
+    advance = {"euler": v_next * dt, "ballistic": (v + v_next) / 2.0 * dt, "forward": v * dt}[method]
+    assert res.target_accel_mps2 == pytest.approx(u, rel=1e-15)
+    assert res.applied_accel_mps2 == pytest.approx(a, rel=1e-14)
+    assert res.v_next_mps == pytest.approx(v_next, rel=1e-14)
+    assert res.net_accel_mps2 == pytest.approx((v_next - v) / dt, rel=1e-12)
+    assert res.advance_m == pytest.approx(advance, rel=1e-14)
+    assert res.traction_energy_j == pytest.approx(a * m_eff * (v + v_next) / 2.0 * dt, rel=1e-14)
+    assert res.saturations == {JERK_LIMITED}
+
+
 # ---------------------------------------------------------------------------------------------- invalid input
 
 

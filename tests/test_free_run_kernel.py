@@ -1,8 +1,8 @@
 """The compiled free run and plant step give the same bits as the interpreted ones (issue 20).
 
-* :func:`railsim.physics.plant_kernel.step` against :func:`railsim.physics.dynamics.step_values` on random states
-  (speeds from standstill to over the top speed, commands beyond both envelopes, gradients, emergency, every step
-  method, three vehicles including one without actuator lag): all seven outputs equal, mask included.
+* :func:`railsim.physics.plant_kernel.step` (the plant, written once) against its interpreted form on random
+  states (speeds from standstill to over the top speed, commands beyond both envelopes, gradients, emergency,
+  every step method, three vehicles including one without actuator lag): all seven outputs equal, mask included.
 * :func:`railsim.engine.free_run_kernel.free_run` (through ``trips._free_run_compiled``) against
   :func:`railsim.engine.trips.free_run_reference`, whole trips: every distinct trip of the mini line at step
   lengths 0.1/0.5/1.0 s and the three step methods, at full performance and slowed (the running-time factors of
@@ -22,7 +22,7 @@ import pytest
 
 from railsim.physics import dynamics, plant_kernel
 from railsim.physics.vehicle import VehicleParams, preset
-from tests.helpers import DATA, ROOT, run_python
+from tests.helpers import DATA, ROOT, interpreted, run_python
 
 VEHICLES = [
     preset("cq3_6car"),
@@ -38,7 +38,10 @@ def test_mask_bits_are_dynamics_flag_order() -> None:
 
 
 @pytest.mark.parametrize("method", dynamics.STEP_METHODS)
-def test_plant_kernel_is_step_values_bit_for_bit(method: str) -> None:
+def test_compiled_plant_step_is_its_interpreted_form(method: str) -> None:
+    """The plant step is written once (:func:`plant_kernel.step`); compiled, it gives the bits of its interpreted
+    form on random states, and :func:`dynamics.step_values` hands over and returns the same values."""
+    reference = interpreted(plant_kernel)
     rng = np.random.default_rng(7)
     n_checked, masks = 0, set()
     for k in range(6000):
@@ -49,8 +52,7 @@ def test_plant_kernel_is_step_values_bit_for_bit(method: str) -> None:
         u = float(rng.uniform(-3.0, 3.0))
         grad = float(rng.choice([0.0, rng.uniform(-40.0, 40.0)]))
         emergency = bool(rng.random() < 0.15)
-        ref = dynamics.step_values(veh, state, u, dt, grad, emergency, method)
-        got = plant_kernel.step(
+        args = (
             plant_kernel.pack(veh, dt),
             state.speed_mps,
             state.applied_accel_mps2,
@@ -61,9 +63,11 @@ def test_plant_kernel_is_step_values_bit_for_bit(method: str) -> None:
             emergency,
             plant_kernel.method_index(method),
         )
-        assert got == ref, (veh.name, dt, state, u, grad, emergency)
+        compiled = plant_kernel.step(*args)
+        assert compiled == reference.step(*args), (veh.name, dt, state, u, grad, emergency)
+        assert dynamics.step_values(veh, state, u, dt, grad, emergency, method) == compiled
         n_checked += 1
-        masks.add(ref[6])
+        masks.add(compiled[6])
     assert n_checked == 6000 and len(masks) >= 8  # many saturation combinations were met
 
 

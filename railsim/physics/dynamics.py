@@ -60,10 +60,10 @@ Position update (``step_method``) — which discrete model a run uses must match
   engine reproduces it with the spec 002 §7.3 adapter (set SUMO's speed to ``v_k`` under the Euler update and
   keep ``v_{k+1}`` one step ahead in Python).
 
-Units are SI throughout. :func:`step` is pure float arithmetic (no numpy) because the engine calls it for every
-train every step; :func:`step_many` is the same plant over numpy arrays for many trains at once and gives
-bit-identical results; :func:`simulate` runs one train open-loop or under a callable law (numpy-only paper
-reproductions and tests).
+Units are SI throughout. The step itself is written once, compiled, in :mod:`railsim.physics.plant_kernel`;
+:func:`step_values` (plain values, for the engine's every train and step) and :func:`step` (a :class:`StepResult`)
+check their inputs and call it for one train, :func:`step_many` for many trains at once (numpy arrays), and
+:func:`simulate` runs one train open-loop or under a callable law (numpy-only paper reproductions and tests).
 """
 
 from __future__ import annotations
@@ -71,11 +71,12 @@ from __future__ import annotations
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from functools import lru_cache
 
 import numpy as np
 
-from railsim.physics.vehicle import G_MPS2, VehicleParams
+from railsim.physics import plant_kernel
+from railsim.physics.plant_kernel import SPEED_EPS_MPS, STEP_METHODS
+from railsim.physics.vehicle import VehicleParams
 
 __all__ = [
     "BRAKE_LIMITED",
@@ -101,11 +102,6 @@ __all__ = [
     "traction_limit_mps2",
 ]
 
-# Floor on the speed in P/v: keeps the power branch finite at standstill (F0 caps the force there anyway).
-SPEED_EPS_MPS = 1e-6
-
-STEP_METHODS = ("euler", "ballistic", "forward")
-
 TRACTION_LIMITED = "traction_limited"
 POWER_LIMITED = "power_limited"
 OVERSPEED_CUT = "overspeed_cut"
@@ -126,7 +122,6 @@ _FLAG_ORDER = (
 )
 SATURATION_FLAGS = frozenset(_FLAG_ORDER)
 _BIT = {name: 1 << i for i, name in enumerate(_FLAG_ORDER)}
-_B_TRACTION, _B_POWER, _B_OVERSPEED, _B_BRAKE, _B_JERK, _B_OVERRIDE, _B_HOLD = (_BIT[n] for n in _FLAG_ORDER)
 _MASK_SETS: tuple[frozenset[str], ...] = tuple(
     frozenset(name for name in _FLAG_ORDER if mask & _BIT[name]) for mask in range(1 << len(_FLAG_ORDER))
 )
@@ -220,16 +215,6 @@ def least_stop_distance_m(vehicle: VehicleParams, speed_mps: float, gradient_per
     return speed_mps * speed_mps / (2.0 * decel)
 
 
-@lru_cache(maxsize=256)
-def _lag_gain(tau_s: float, dt_s: float) -> float:
-    """``1 − exp(−dt/τ)`` (computed as −expm1 for accuracy when dt ≪ τ); 1.0 for τ = 0."""
-    if not tau_s >= 0.0:
-        raise ValueError(f"actuator_time_constant_s must be >= 0, got {tau_s!r}")
-    if tau_s == 0.0:
-        return 1.0
-    return -math.expm1(-dt_s / tau_s)
-
-
 def _check_inputs(speed_mps: float, u_cmd_mps2: float, dt_s: float, gradient_permille: float, step_method: str) -> None:
     # One place for the messages; called only when the fast checks in step() fail.
     if not (dt_s > 0.0 and dt_s < _INF):
@@ -291,81 +276,32 @@ def step_values(
     ):
         _check_inputs(v, u_cmd_mps2, dt_s, gradient_permille, step_method)
 
-    m_eff = vehicle.mass_kg * vehicle.rotating_mass_factor
-    mask = 0
+    return plant_kernel.step(  # type: ignore[no-any-return]
+        _packed(vehicle, dt_s),
+        float(v),
+        float(state.applied_accel_mps2),
+        float(state.target_accel_mps2),
+        float(u_cmd_mps2),
+        float(dt_s),
+        float(gradient_permille),
+        bool(emergency),
+        _METHOD_INDEX[step_method],
+    )
 
-    # 1. Envelope at the current speed.
-    if v >= vehicle.max_speed_mps:
-        upper, upper_bit = 0.0, _B_OVERSPEED
-    else:
-        power_force_n = vehicle.traction_max_power_w / (v if v > SPEED_EPS_MPS else SPEED_EPS_MPS)
-        f0 = vehicle.traction_max_force_n
-        if f0 <= power_force_n:
-            upper, upper_bit = f0 / m_eff, _B_TRACTION
-        else:
-            upper, upper_bit = power_force_n / m_eff, _B_POWER
-    lower = -vehicle.emergency_decel_mps2 if emergency else -vehicle.service_decel_mps2
 
-    u_env = u_cmd_mps2
-    if u_env > upper:
-        u_env = upper
-        mask |= upper_bit
-    elif u_env < lower:
-        u_env = lower
-        mask |= _B_BRAKE
+_METHOD_INDEX = {name: i for i, name in enumerate(STEP_METHODS)}
+# The kernel's packed vehicle by the vehicle's identity (kept in the entry so its id cannot be reused), per dt.
+_PACKED: dict[int, tuple[VehicleParams, float, np.ndarray]] = {}
 
-    # 2. Jerk limit on the target (bypassed by emergency); the envelope has the last word.
-    u = u_env
-    if not emergency:
-        u_prev = state.target_accel_mps2
-        du = vehicle.jerk_limit_mps3 * dt_s
-        if u > u_prev + du:
-            u = u_prev + du
-        elif u < u_prev - du:
-            u = u_prev - du
-        if u > upper:
-            u = upper
-            mask |= upper_bit | _B_OVERRIDE
-        elif u < lower:
-            u = lower
-            mask |= _B_BRAKE | _B_OVERRIDE
-        if u != u_env:
-            mask |= _B_JERK
 
-    # 3. First-order actuator lag (exact ZOH), then the physical envelope on the applied force.
-    gain = _lag_gain(vehicle.actuator_time_constant_s, dt_s)
-    if gain == 1.0:
-        a = u
-    else:
-        a_prev = state.applied_accel_mps2
-        a = a_prev + (u - a_prev) * gain
-        if a > upper:
-            a = upper
-            mask |= upper_bit
-        elif a < lower:
-            a = lower
-            mask |= _B_BRAKE
-
-    # 4.–5. Resistance and speed; no rolling backwards, holding brake at standstill.
-    a_net = a - vehicle.resistance_n(v, gradient_permille) / m_eff
-    v_raw = v + a_net * dt_s
-    if v_raw < 0.0 or (v == 0.0 and a <= 0.0 and v_raw > 0.0):
-        v_next = 0.0
-        mask |= _B_HOLD
-    else:
-        v_next = v_raw
-
-    # 6. Position advance and energy.
-    if step_method == "euler":
-        advance = v_next * dt_s
-    elif step_method == "ballistic":
-        # SUMO's MSVehicle::getDeltaPos: (v + 0.5·ACCEL2SPEED(SPEED2ACCEL(v_next − v)))·dt, same operation order.
-        advance = (v + 0.5 * ((v_next - v) / dt_s * dt_s)) * dt_s
-    else:
-        advance = v * dt_s
-    energy = a * m_eff * (v + v_next) * 0.5 * dt_s if a > 0.0 else 0.0
-
-    return v_next, a, u, (v_next - v) / dt_s, advance, energy, mask
+def _packed(vehicle: VehicleParams, dt_s: float) -> np.ndarray:
+    """:func:`plant_kernel.pack` for ``vehicle`` and ``dt_s``, remembered (a run steps a few vehicles at one dt)."""
+    entry = _PACKED.get(id(vehicle))
+    if entry is None or entry[0] is not vehicle or entry[1] != dt_s:
+        if len(_PACKED) > 4096:
+            _PACKED.clear()
+        entry = _PACKED[id(vehicle)] = (vehicle, dt_s, plant_kernel.pack(vehicle, dt_s))
+    return entry[2]
 
 
 # ----------------------------------------------------------------------------------------------------------------
@@ -374,60 +310,26 @@ def step_values(
 
 @dataclass(frozen=True)
 class FleetParams:
-    """Per-train parameter arrays for :func:`step_many` (build with :meth:`from_vehicles`)."""
+    """The trains of :func:`step_many` (build with :meth:`from_vehicles`); their packed parameters per step length."""
 
     vehicles: tuple[VehicleParams, ...]
-    mass_kg: np.ndarray
-    m_eff_kg: np.ndarray
-    davis_a_n: np.ndarray
-    davis_b_n_per_mps: np.ndarray
-    davis_c_n_per_mps2: np.ndarray
-    max_speed_mps: np.ndarray
-    traction_max_force_n: np.ndarray
-    traction_max_power_w: np.ndarray
-    service_decel_mps2: np.ndarray
-    emergency_decel_mps2: np.ndarray
-    jerk_limit_mps3: np.ndarray
-    actuator_time_constant_s: np.ndarray
-    _gain_cache: dict[float, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
+    _packed_cache: dict[float, np.ndarray] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def from_vehicles(cls, vehicles: Sequence[VehicleParams]) -> FleetParams:
-        vs = tuple(vehicles)
-
-        def col(name: str) -> np.ndarray:
-            arr = np.array([float(getattr(v, name)) for v in vs], dtype=float)
-            arr.flags.writeable = False
-            return arr
-
-        m_eff = np.array([v.mass_kg * v.rotating_mass_factor for v in vs], dtype=float)
-        m_eff.flags.writeable = False
-        return cls(
-            vehicles=vs,
-            mass_kg=col("mass_kg"),
-            m_eff_kg=m_eff,
-            davis_a_n=col("davis_a_n"),
-            davis_b_n_per_mps=col("davis_b_n_per_mps"),
-            davis_c_n_per_mps2=col("davis_c_n_per_mps2"),
-            max_speed_mps=col("max_speed_mps"),
-            traction_max_force_n=col("traction_max_force_n"),
-            traction_max_power_w=col("traction_max_power_w"),
-            service_decel_mps2=col("service_decel_mps2"),
-            emergency_decel_mps2=col("emergency_decel_mps2"),
-            jerk_limit_mps3=col("jerk_limit_mps3"),
-            actuator_time_constant_s=col("actuator_time_constant_s"),
-        )
+        return cls(vehicles=tuple(vehicles))
 
     def __len__(self) -> int:
         return len(self.vehicles)
 
-    def lag_gain(self, dt_s: float) -> np.ndarray:
-        """Per-train ``1 − exp(−dt/τ)``, from the same scalar function as :func:`step` (bit-identical)."""
-        gain = self._gain_cache.get(dt_s)
-        if gain is None:
-            gain = np.array([_lag_gain(float(t), dt_s) for t in self.actuator_time_constant_s], dtype=float)
-            self._gain_cache[dt_s] = gain
-        return gain
+    def packed(self, dt_s: float) -> np.ndarray:
+        """Row ``i``: train ``i``'s :func:`plant_kernel.pack` for ``dt_s`` (remembered per ``dt_s``)."""
+        packed = self._packed_cache.get(dt_s)
+        if packed is None:
+            packed = np.array([plant_kernel.pack(v, dt_s) for v in self.vehicles], dtype=np.float64)
+            packed = packed.reshape(len(self.vehicles), len(plant_kernel.PLANT_FIELDS) + 1)
+            self._packed_cache[dt_s] = packed
+        return packed
 
 
 @dataclass(frozen=True)
@@ -457,12 +359,12 @@ def step_many(
     emergency: bool | np.ndarray = False,
     step_method: str = "euler",
 ) -> FleetStepResult:
-    """:func:`step` for all trains of ``fleet`` at once (same order of operations, bit-identical results)."""
+    """:func:`step` for all trains of ``fleet`` at once (:func:`plant_kernel.step_fleet`: the same law, train by train)."""
     n = len(fleet)
-    v = np.asarray(speed_mps, dtype=float)
-    a_prev = np.asarray(applied_accel_mps2, dtype=float)
-    u_prev = np.asarray(target_accel_mps2, dtype=float)
-    u_cmd = np.asarray(u_cmd_mps2, dtype=float)
+    v = np.ascontiguousarray(speed_mps, dtype=float)
+    a_prev = np.ascontiguousarray(applied_accel_mps2, dtype=float)
+    u_prev = np.ascontiguousarray(target_accel_mps2, dtype=float)
+    u_cmd = np.ascontiguousarray(u_cmd_mps2, dtype=float)
     grad = np.broadcast_to(np.asarray(gradient_permille, dtype=float), (n,))
     emerg = np.broadcast_to(np.asarray(emergency, dtype=bool), (n,))
     for name, arr in (
@@ -488,67 +390,18 @@ def step_many(
     if step_method not in STEP_METHODS:
         raise ValueError(f"step_method must be one of {', '.join(STEP_METHODS)}, got {step_method!r}")
 
-    m_eff = fleet.m_eff_kg
-    mask = np.zeros(n, dtype=np.int64)
-
-    # 1. Envelope.
-    overspeed = v >= fleet.max_speed_mps
-    power_force = fleet.traction_max_power_w / np.maximum(v, SPEED_EPS_MPS)
-    f0 = fleet.traction_max_force_n
-    force_branch = f0 <= power_force
-    upper = np.where(overspeed, 0.0, np.where(force_branch, f0, power_force) / m_eff)
-    upper_bit = np.where(overspeed, _B_OVERSPEED, np.where(force_branch, _B_TRACTION, _B_POWER))
-    lower = np.where(emerg, -fleet.emergency_decel_mps2, -fleet.service_decel_mps2)
-    hi = u_cmd > upper
-    lo = ~hi & (u_cmd < lower)
-    u_env = np.where(hi, upper, np.where(lo, lower, u_cmd))
-    mask |= np.where(hi, upper_bit, 0) | np.where(lo, _B_BRAKE, 0)
-
-    # 2. Jerk limit (not for emergency), envelope wins.
-    du = fleet.jerk_limit_mps3 * dt_s
-    up_j = u_prev + du
-    dn_j = u_prev - du
-    u_j = np.where(u_env > up_j, up_j, np.where(u_env < dn_j, dn_j, u_env))
-    hi2 = u_j > upper
-    lo2 = ~hi2 & (u_j < lower)
-    u_j = np.where(hi2, upper, np.where(lo2, lower, u_j))
-    normal = ~emerg
-    mask |= np.where(normal & hi2, upper_bit | _B_OVERRIDE, 0) | np.where(normal & lo2, _B_BRAKE | _B_OVERRIDE, 0)
-    mask |= np.where(normal & (u_j != u_env), _B_JERK, 0)
-    u = np.where(normal, u_j, u_env)
-
-    # 3. Actuator lag, envelope on the applied value.
-    gain = fleet.lag_gain(dt_s)
-    instant = gain == 1.0
-    a_lag = a_prev + (u - a_prev) * gain
-    hi3 = ~instant & (a_lag > upper)
-    lo3 = ~instant & ~hi3 & (a_lag < lower)
-    a = np.where(instant, u, np.where(hi3, upper, np.where(lo3, lower, a_lag)))
-    mask |= np.where(hi3, upper_bit, 0) | np.where(lo3, _B_BRAKE, 0)
-
-    # 4.–5. Same expression as VehicleParams.resistance_n, element-wise.
-    speed_abs = np.abs(v)
-    davis = np.where(
-        speed_abs == 0.0,
-        0.0,
-        fleet.davis_a_n + fleet.davis_b_n_per_mps * speed_abs + fleet.davis_c_n_per_mps2 * speed_abs * speed_abs,
+    out, mask = plant_kernel.step_fleet(
+        fleet.packed(dt_s),
+        v,
+        a_prev,
+        u_prev,
+        u_cmd,
+        float(dt_s),
+        np.ascontiguousarray(grad),
+        np.ascontiguousarray(emerg),
+        _METHOD_INDEX[step_method],
     )
-    resistance = davis + fleet.mass_kg * G_MPS2 * grad / 1000.0
-    a_net = a - resistance / m_eff
-    v_raw = v + a_net * dt_s
-    hold = (v_raw < 0.0) | ((v == 0.0) & (a <= 0.0) & (v_raw > 0.0))
-    v_next = np.where(hold, 0.0, v_raw)
-    mask |= np.where(hold, _B_HOLD, 0)
-
-    # 6.
-    if step_method == "euler":
-        advance = v_next * dt_s
-    elif step_method == "ballistic":
-        advance = (v + 0.5 * ((v_next - v) / dt_s * dt_s)) * dt_s
-    else:
-        advance = v * dt_s
-    energy = np.where(a > 0.0, a * m_eff * (v + v_next) * 0.5 * dt_s, 0.0)
-    return FleetStepResult(v_next, a, u, (v_next - v) / dt_s, advance, energy, mask)
+    return FleetStepResult(out[0], out[1], out[2], out[3], out[4], out[5], mask)
 
 
 # ----------------------------------------------------------------------------------------------------------------

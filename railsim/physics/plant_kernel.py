@@ -1,27 +1,35 @@
-"""The plant step compiled with numba, bit for bit: :func:`railsim.physics.dynamics.step_values` on packed inputs.
+"""The plant step, written once and compiled with numba: one train's step (:func:`step`), a fleet's (:func:`step_fleet`).
 
-Why: a loop that steps one train thousands of times — a trip's free run (the plan, and every primarily delayed
-trip's running-time loss, :mod:`railsim.engine.free_run_kernel`) — pays the interpreter for every float
-operation of every step. Called from other compiled code the step costs a few nanoseconds.
+The model — the order of operations, the envelopes, the flags — is described in :mod:`railsim.physics.dynamics`,
+whose :func:`~railsim.physics.dynamics.step`, :func:`~railsim.physics.dynamics.step_values` and
+:func:`~railsim.physics.dynamics.step_many` check their inputs and call the functions here. The engine's compiled
+loops (``railsim.engine.free_run_kernel``, ``railsim.engine.line_step_kernel``) call :func:`step` inside their own
+code, where a step costs a few nanoseconds.
 
-**Bit for bit**, as :mod:`controllers.line_kernels`: the same operands in the same order, IEEE operations only
-(the lag gain ``1 − e^{−dt/τ}`` is the caller's, from :func:`dynamics._lag_gain`). Inputs are not validated here:
-callers check what they hand over (a non-finite command falls back to the interpreted step, which raises its
-clear error). ``tests/test_free_run_kernel.py`` compares it with :func:`dynamics.step_values` on random states.
+**Written once.** The interpreted form of :func:`step` (the module loaded with the JIT off,
+``tests.helpers.interpreted``, or ``NUMBA_DISABLE_JIT=1``) is the readable reference, and it gives the same bits as
+the compiled one: IEEE operations only, fastmath off, and the lag gain ``1 − e^{−dt/τ}`` computed once per
+``(τ, dt)`` in Python (:func:`lag_gain`) and handed over packed. Inputs are not validated here: the callers check
+what they hand over (:func:`railsim.physics.dynamics.step_values` raises its clear errors first).
 
 The vehicle comes packed by :func:`pack` (:data:`PLANT_FIELDS`, then the lag gain); the step method as an index
-into :data:`dynamics.STEP_METHODS`.
+into :data:`STEP_METHODS`.
 """
 
 from __future__ import annotations
 
+import math
+from functools import lru_cache
+
 import numpy as np
 from numba import njit
 
-from railsim.physics import dynamics
 from railsim.physics.units import G_MPS2
 from railsim.physics.vehicle import VehicleParams
 
+# Floor on the speed in P/v: keeps the power branch finite at standstill (F0 caps the force there anyway).
+SPEED_EPS_MPS = 1e-6
+STEP_METHODS = ("euler", "ballistic", "forward")
 PLANT_FIELDS = (
     "mass_kg",
     "rotating_mass_factor",
@@ -35,21 +43,31 @@ PLANT_FIELDS = (
     "emergency_decel_mps2",
     "jerk_limit_mps3",
 )
-_SPEED_EPS_MPS = dynamics.SPEED_EPS_MPS
 _G = G_MPS2
-_B_TRACTION, _B_POWER, _B_OVERSPEED = 1, 2, 4  # dynamics._FLAG_ORDER's bits (checked in the test)
+# The saturation mask's bits, in the order of railsim.physics.dynamics._FLAG_ORDER (checked in the tests)
+_B_TRACTION, _B_POWER, _B_OVERSPEED = 1, 2, 4
 _B_BRAKE, _B_JERK, _B_OVERRIDE, _B_HOLD = 8, 16, 32, 64
+
+
+@lru_cache(maxsize=256)
+def lag_gain(tau_s: float, dt_s: float) -> float:
+    """``1 − exp(−dt/τ)`` (computed as −expm1 for accuracy when dt ≪ τ); 1.0 for τ = 0."""
+    if not tau_s >= 0.0:
+        raise ValueError(f"actuator_time_constant_s must be >= 0, got {tau_s!r}")
+    if tau_s == 0.0:
+        return 1.0
+    return -math.expm1(-dt_s / tau_s)
 
 
 def pack(vehicle: VehicleParams, dt_s: float) -> np.ndarray:
     """The vehicle's plant parameters and the lag gain for ``dt_s``, as the kernel reads them."""
-    gain = dynamics._lag_gain(vehicle.actuator_time_constant_s, dt_s)
+    gain = lag_gain(vehicle.actuator_time_constant_s, dt_s)
     return np.array([float(getattr(vehicle, f)) for f in PLANT_FIELDS] + [gain], dtype=np.float64)
 
 
 def method_index(step_method: str) -> int:
-    """The kernel's code for a step method (its index in :data:`dynamics.STEP_METHODS`)."""
-    return dynamics.STEP_METHODS.index(step_method)
+    """The kernel's code for a step method (its index in :data:`STEP_METHODS`)."""
+    return STEP_METHODS.index(step_method)
 
 
 @njit(cache=True)
@@ -64,17 +82,19 @@ def step(
     emergency: bool,
     method: int,
 ) -> tuple[float, float, float, float, float, float, int]:
-    """:func:`dynamics.step_values`: ``(v_next, applied a_k, target u_k, net acceleration, advance, traction
-    energy, saturation mask)``."""
+    """One step of one train (:mod:`railsim.physics.dynamics`, steps 1–6): ``(v_next, applied a_k, target u_k,
+    net acceleration, advance, traction energy, saturation mask)``."""
     mass, rot, davis_a, davis_b, davis_c = p[0], p[1], p[2], p[3], p[4]
     max_speed, f0, power, service, emergency_decel, jerk, gain = p[5], p[6], p[7], p[8], p[9], p[10], p[11]
     m_eff = mass * rot
     mask = 0
+
+    # 1. Envelope at the current speed.
     upper_bit = 0
     if v >= max_speed:
         upper, upper_bit = 0.0, _B_OVERSPEED
     else:
-        power_force_n = power / (v if v > _SPEED_EPS_MPS else _SPEED_EPS_MPS)
+        power_force_n = power / (v if v > SPEED_EPS_MPS else SPEED_EPS_MPS)
         if f0 <= power_force_n:
             upper, upper_bit = f0 / m_eff, _B_TRACTION
         else:
@@ -89,6 +109,7 @@ def step(
         u_env = lower
         mask |= _B_BRAKE
 
+    # 2. Jerk limit on the target (bypassed by emergency); the envelope has the last word.
     u = u_env
     if not emergency:
         du = jerk * dt_s
@@ -105,6 +126,7 @@ def step(
         if u != u_env:
             mask |= _B_JERK
 
+    # 3. First-order actuator lag (exact ZOH), then the physical envelope on the applied force.
     if gain == 1.0:
         a = u
     else:
@@ -116,6 +138,7 @@ def step(
             a = lower
             mask |= _B_BRAKE
 
+    # 4.–5. Resistance (VehicleParams.resistance_n's expression) and speed; no rolling backwards, holding brake.
     speed = abs(v)
     davis = 0.0 if speed == 0.0 else davis_a + davis_b * speed + davis_c * speed * speed
     resistance_n = davis + mass * _G * gradient_permille / 1000.0
@@ -127,11 +150,38 @@ def step(
     else:
         v_next = v_raw
 
+    # 6. Position advance and energy.
     if method == 0:  # euler
         advance = v_next * dt_s
-    elif method == 1:  # ballistic
+    elif method == 1:  # ballistic: SUMO's MSVehicle::getDeltaPos, (v + 0.5·ACCEL2SPEED(SPEED2ACCEL(Δv)))·dt
         advance = (v + 0.5 * ((v_next - v) / dt_s * dt_s)) * dt_s
     else:  # forward
         advance = v * dt_s
     energy = a * m_eff * (v + v_next) * 0.5 * dt_s if a > 0.0 else 0.0
     return v_next, a, u, (v_next - v) / dt_s, advance, energy, mask
+
+
+@njit(cache=True)
+def step_fleet(
+    p: np.ndarray,
+    v: np.ndarray,
+    applied_prev: np.ndarray,
+    target_prev: np.ndarray,
+    u_cmd_mps2: np.ndarray,
+    dt_s: float,
+    gradient_permille: np.ndarray,
+    emergency: np.ndarray,
+    method: int,
+) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`step` for every train ``i`` (row ``i`` of ``p``): a ``(6, n)`` array of the six float outputs (rows in
+    :func:`step`'s order) and the ``n`` saturation masks."""
+    n = v.shape[0]
+    out = np.empty((6, n))
+    mask = np.empty(n, dtype=np.int64)
+    for i in range(n):
+        v_next, a, u, net, advance, energy, m = step(
+            p[i], v[i], applied_prev[i], target_prev[i], u_cmd_mps2[i], dt_s, gradient_permille[i], emergency[i], method
+        )
+        out[0, i], out[1, i], out[2, i], out[3, i], out[4, i], out[5, i] = v_next, a, u, net, advance, energy
+        mask[i] = m
+    return out, mask
