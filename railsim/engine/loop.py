@@ -266,7 +266,13 @@ class Simulation:
         bridge = self.bridge
         present = set(bridge.present_ids())
         on_line = self.fleet.active()  # handed to SUMO: present, or still waiting in its queue (guarded)
-        self.dispatcher.guard_pending([tr for tr in on_line if tr.status == "inserting" and tr.sumo_id not in present])
+        pending = [tr for tr in on_line if tr.status == "inserting" and tr.sumo_id not in present]
+        self.dispatcher.guard_pending(pending)
+        self.watchdog.pending(
+            t,
+            [tr for tr in pending if tr.status == "inserting"],  # (guard_pending may have withdrawn some)
+            lambda tr: self.dispatcher.blocker(tr, tr.front_m),
+        )
         active = [tr for tr in on_line if tr.sumo_id in present]
         for tr in active:
             if tr.status == "inserting":
