@@ -56,7 +56,7 @@ from typing import Any, Protocol
 import networkx as nx
 
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
-from railsim.engine.events.interlocking import Interlocking
+from railsim.engine.events.interlocking import Interlocking, RequestState
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.extensions.base import ExtensionSet
@@ -266,7 +266,12 @@ class RouteLocks:
         switch — granted first, it would hold the points the train in front needs, and neither could ever move (a
         unit waiting at a platform for its pocket track and a through train behind it; a follower that decouples
         before the points to take the other leg, its leader held up behind a third train). The one exception is a
-        coupled follower taking the points on its leader's leg: it rides on its leader's request."""
+        coupled follower taking the points on its leader's leg: it rides on its leader's request.
+
+        Routes are set in order: while a train waits for a switch it asked for in an earlier step, it asks for no
+        switch beyond it. Else it could be granted the next points while a train coming from the other leg of the
+        first takes that switch and passes in front of it: it then holds the points the train in front needs
+        (Jena, points ``1854212868``: a deadlock at 1,163 s of the peak)."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr)
@@ -276,6 +281,7 @@ class RouteLocks:
         # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
         request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
         behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
+        waiting_m = INF  # the first switch on its route it waits for: no switch beyond it is requested yet
         for rs in tr.trip.route.switches:
             sid = rs.switch_id
             if sid in tr.released:
@@ -284,6 +290,7 @@ class RouteLocks:
                 continue
             if (
                 sid not in tr.locks
+                and rs.point_m <= waiting_m
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
                 and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
@@ -296,6 +303,14 @@ class RouteLocks:
                     req = self.interlocking.request(holders, sid, rs.leg)
                     for h in holders:
                         self.fleet.trains[h].locks[sid] = req
+            held = tr.locks.get(sid)
+            if (
+                held is not None
+                and held.state == RequestState.WAITING
+                and held.requested_s < t  # (a request made this step is granted at once if the switch is free)
+                and rs.point_m < waiting_m
+            ):
+                waiting_m = rs.point_m
             if (
                 sid in tr.locks
                 and tr.front_m > rs.point_m

@@ -109,3 +109,23 @@ def test_jena_line_1_units_turn_round_the_zwatzen_loop_and_leave_on_time(tmp_pat
     turns = [e for e in events if e["kind"] == "unit_turnback" and '"loop":true' in e["detail"]]
     assert len(turns) == 3
     assert not [e for e in events if e["kind"] in ("stop_missed", "reversal_missed")]
+
+
+def test_jena_lines_2_3_34_no_train_takes_the_points_beyond_a_switch_it_still_waits_for(tmp_path: Path) -> None:
+    """Tram ``2_jena-ost_winzerla.000`` waited 52 s for points ``1839997594``, held by
+    ``3_lobeda-ost_jena-ost.000``, and was meanwhile granted the next points on its route (``1854212868``). Tram 3
+    then passed ``1839997594`` in front of it and needed ``1854212868``; tram 2 stood behind tram 3 and held the
+    points tram 3 waited for: a deadlock, the run failed at 1,163.5 s. A train now asks for a switch only once it
+    no longer waits for a switch before it on its route."""
+    cache = tmp_path / "cache"
+    world = tmp_path / "jena"
+    _ok(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
+    scenario = tmp_path / "lines.yaml"
+    args = ["timetable", "import", "--from-lines", "--headway-s", "600", "--lines", "2,3,34", "--world", str(world)]
+    _ok(run_railsim([*args, "--from", "07:00", "--to", "07:20", "--out", str(scenario)], cache_dir=cache))
+    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    summary = read_summary(tmp_path / "run")
+    assert summary["status"] == "completed"
+    assert summary["n_arrived"] == summary["n_trains"] == 16
+    assert summary["n_stops_served"] == summary["n_stops_scheduled"] == 438
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
