@@ -51,6 +51,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import networkx as nx
@@ -146,6 +147,9 @@ class RouteLocks:
         self.clock = clock  # the event layer's time (single-track releases are stamped with it)
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
+        # does the unit of this trip run a next trip? (rotations: ``Turnbacks.next_of``; set by the engine)
+        self.continues: Callable[[str], bool] = lambda _train_id: False
+        self._parked: dict[str, list[SectionRequest]] = {}  # arrived trip -> sections kept for its unit's next trip
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
         # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
@@ -359,15 +363,45 @@ class RouteLocks:
         return tuple(group)
 
     def release_all(self, tr: TrainRuntime) -> None:
-        """A train that arrived or left the line gives up every lock and section it still holds."""
+        """A train that arrived or left the line gives up every lock and section it still holds — except the
+        sections a train that arrived still stands in while its unit runs a next trip (``continues``): those wait
+        for :meth:`hand_over`. Released at once, the section went to a train waiting to enter it head-on, while
+        the unit reversed and ran to its departure platform inside it (Jena, Ernst-Abbe-Platz: a frontal
+        collision)."""
         if self.tracks is not None:
-            for req in self.section_requests.get(tr.train_id, {}).values():
-                if tr.train_id not in req.released_by:
-                    self.tracks.release(self.clock.now_s, tr.train_id, req)
+            rear_m = tr.front_m - tr.trip.vehicle.length_m
+            ends = {sec.section_id: sec.end_m for sec in self.sections.get(tr.train_id, ())}
+            for sid, req in self.section_requests.get(tr.train_id, {}).items():
+                if tr.train_id in req.released_by:
+                    continue
+                if tr.status == "arrived" and self.continues(tr.train_id) and rear_m <= ends.get(sid, -INF):
+                    self._parked.setdefault(tr.train_id, []).append(req)
+                    continue
+                self.tracks.release(self.clock.now_s, tr.train_id, req)
         for sid in list(tr.locks):
             if sid not in tr.released:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    def hand_over(self, t: float, pred: TrainRuntime, succ: TrainRuntime | None) -> None:
+        """``pred`` arrived and its unit starts ``succ`` where it stands (None: the unit leaves the line): the
+        sections ``pred`` still stands in pass to ``succ`` if its route runs on in them (:meth:`release_all`),
+        else they are released."""
+        parked = self._parked.pop(pred.train_id, [])
+        if self.tracks is None:
+            return
+        mine = {sec.section_id: sec for sec in self.sections.get(succ.train_id, ())} if succ is not None else {}
+        for req in parked:
+            sec = mine.get(req.section_id)
+            reqs = self.section_requests[succ.train_id] if succ is not None and sec is not None else {}
+            new = None
+            if succ is not None and sec is not None and sec.section_id not in reqs:
+                new = self.tracks.hand_over(t, req, succ.train_id, sec.direction)
+            if new is None:
+                self.tracks.release(t, pred.train_id, req)
+            else:
+                req.released_by.add(pred.train_id)
+                reqs[req.section_id] = new
 
     # ------------------------------------------------------------------ who waits for whom
     def held_by(self, tr: TrainRuntime) -> list[str]:
