@@ -51,12 +51,13 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from collections.abc import Callable
 from typing import Any, Protocol
 
 import networkx as nx
 
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
-from railsim.engine.events.interlocking import Interlocking
+from railsim.engine.events.interlocking import Interlocking, RequestState
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.extensions.base import ExtensionSet
@@ -146,6 +147,9 @@ class RouteLocks:
         self.clock = clock  # the event layer's time (single-track releases are stamped with it)
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
+        # does the unit of this trip run a next trip? (rotations: ``Turnbacks.next_of``; set by the engine)
+        self.continues: Callable[[str], bool] = lambda _train_id: False
+        self._parked: dict[str, list[SectionRequest]] = {}  # arrived trip -> sections kept for its unit's next trip
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
         # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
@@ -266,7 +270,12 @@ class RouteLocks:
         switch — granted first, it would hold the points the train in front needs, and neither could ever move (a
         unit waiting at a platform for its pocket track and a through train behind it; a follower that decouples
         before the points to take the other leg, its leader held up behind a third train). The one exception is a
-        coupled follower taking the points on its leader's leg: it rides on its leader's request."""
+        coupled follower taking the points on its leader's leg: it rides on its leader's request.
+
+        Routes are set in order: while a train waits for a switch it asked for in an earlier step, it asks for no
+        switch beyond it. Else it could be granted the next points while a train coming from the other leg of the
+        first takes that switch and passes in front of it: it then holds the points the train in front needs
+        (Jena, points ``1854212868``: a deadlock at 1,163 s of the peak)."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr)
@@ -276,6 +285,7 @@ class RouteLocks:
         # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
         request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
         behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
+        waiting_m = INF  # the first switch on its route it waits for: no switch beyond it is requested yet
         for rs in tr.trip.route.switches:
             sid = rs.switch_id
             if sid in tr.released:
@@ -284,6 +294,7 @@ class RouteLocks:
                 continue
             if (
                 sid not in tr.locks
+                and rs.point_m <= waiting_m
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
                 and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
@@ -297,6 +308,14 @@ class RouteLocks:
                     req = self.interlocking.request(holders, sid, rs.leg)
                     for h in holders:
                         self.fleet.trains[h].locks[sid] = req
+            held = tr.locks.get(sid)
+            if (
+                held is not None
+                and held.state == RequestState.WAITING
+                and held.requested_s < t  # (a request made this step is granted at once if the switch is free)
+                and rs.point_m < waiting_m
+            ):
+                waiting_m = rs.point_m
             if (
                 sid in tr.locks
                 and tr.front_m > rs.point_m
@@ -345,15 +364,45 @@ class RouteLocks:
         return tuple(group)
 
     def release_all(self, tr: TrainRuntime) -> None:
-        """A train that arrived or left the line gives up every lock and section it still holds."""
+        """A train that arrived or left the line gives up every lock and section it still holds — except the
+        sections a train that arrived still stands in while its unit runs a next trip (``continues``): those wait
+        for :meth:`hand_over`. Released at once, the section went to a train waiting to enter it head-on, while
+        the unit reversed and ran to its departure platform inside it (Jena, Ernst-Abbe-Platz: a frontal
+        collision)."""
         if self.tracks is not None:
-            for req in self.section_requests.get(tr.train_id, {}).values():
-                if tr.train_id not in req.released_by:
-                    self.tracks.release(self.clock.now_s, tr.train_id, req)
+            rear_m = tr.front_m - tr.trip.vehicle.length_m
+            ends = {sec.section_id: sec.end_m for sec in self.sections.get(tr.train_id, ())}
+            for sid, req in self.section_requests.get(tr.train_id, {}).items():
+                if tr.train_id in req.released_by:
+                    continue
+                if tr.status == "arrived" and self.continues(tr.train_id) and rear_m <= ends.get(sid, -INF):
+                    self._parked.setdefault(tr.train_id, []).append(req)
+                    continue
+                self.tracks.release(self.clock.now_s, tr.train_id, req)
         for sid in list(tr.locks):
             if sid not in tr.released:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    def hand_over(self, t: float, pred: TrainRuntime, succ: TrainRuntime | None) -> None:
+        """``pred`` arrived and its unit starts ``succ`` where it stands (None: the unit leaves the line): the
+        sections ``pred`` still stands in pass to ``succ`` if its route runs on in them (:meth:`release_all`),
+        else they are released."""
+        parked = self._parked.pop(pred.train_id, [])
+        if self.tracks is None:
+            return
+        mine = {sec.section_id: sec for sec in self.sections.get(succ.train_id, ())} if succ is not None else {}
+        for req in parked:
+            sec = mine.get(req.section_id)
+            reqs = self.section_requests[succ.train_id] if succ is not None and sec is not None else {}
+            new = None
+            if succ is not None and sec is not None and sec.section_id not in reqs:
+                new = self.tracks.hand_over(t, req, succ.train_id, sec.direction)
+            if new is None:
+                self.tracks.release(t, pred.train_id, req)
+            else:
+                req.released_by.add(pred.train_id)
+                reqs[req.section_id] = new
 
     # ------------------------------------------------------------------ who waits for whom
     def held_by(self, tr: TrainRuntime) -> list[str]:

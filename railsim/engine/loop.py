@@ -126,6 +126,7 @@ class Simulation:
             self.fleet, self.interlocking, self.formations, self.events, self.settings, self.extensions, self.layer
         )
         self.locks.protect_merges(self.bundle.graph)
+        self.locks.continues = self.turnbacks.next_of.__contains__
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
         pax = primary_delays.passenger_demand(self.primary)
         self.stops = StopBook(self.formations, self.locks, self.events, self.settings, self.recorder.stop_record, pax)
@@ -266,7 +267,13 @@ class Simulation:
         bridge = self.bridge
         present = set(bridge.present_ids())
         on_line = self.fleet.active()  # handed to SUMO: present, or still waiting in its queue (guarded)
-        self.dispatcher.guard_pending([tr for tr in on_line if tr.status == "inserting" and tr.sumo_id not in present])
+        pending = [tr for tr in on_line if tr.status == "inserting" and tr.sumo_id not in present]
+        self.dispatcher.guard_pending(pending)
+        self.watchdog.pending(
+            t,
+            [tr for tr in pending if tr.status == "inserting"],  # (guard_pending may have withdrawn some)
+            lambda tr: self.dispatcher.blocker(tr, tr.front_m),
+        )
         active = [tr for tr in on_line if tr.sumo_id in present]
         for tr in active:
             if tr.status == "inserting":
@@ -307,7 +314,9 @@ class Simulation:
         self.recording.step(t, active, ahead, reports)
         for tr in active:  # trains that finished this step leave SUMO now, or their unit runs its next trip
             if tr.status == "arrived":
-                if self.turnbacks.handover(t, tr) is None:  # no next trip for its unit
+                succ = self.turnbacks.handover(t, tr)
+                self.locks.hand_over(t, tr, succ)  # the sections it stands in pass to its unit's next trip
+                if succ is None:  # no next trip for its unit
                     bridge.remove(tr.sumo_id)
                 self.formations.on_off_line(t, tr)
 

@@ -104,6 +104,8 @@ class StopBook:
         v = tr.plant.speed_mps
         mark = stop.mark_m - offset
         if stopped_now and not tr.sumo_stopped:
+            if stop.is_origin and tr.front_m < stop.window_start_m - self.settings.missed_stop_tolerance_m:
+                return  # a unit still standing at its last trip's end, to run round a loop to its platform
             self._registered(t, tr, stop, mark, v)
             return
         if tr.sumo_stopped and not stopped_now:  # dwell over: departure

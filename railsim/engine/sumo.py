@@ -7,8 +7,8 @@ runs an independent collision check. Everything else (physics limits, interlocki
 What this module does, and why (numbers in ``shared/notes/sumo_rail_findings.md``):
 
 * **Start/close.** One simulation per process (a second ``libsumo.start`` silently restarts the first), so the
-  bridge refuses to start twice and always closes. SUMO options: ``--railsignal.default-classes tram`` (no
-  block-based insertion on our signal-free nets), collision checks on junctions with ``mingap-factor 0``,
+  bridge refuses to start twice and always closes. SUMO options: ``--railsignal.default-classes`` naming no
+  class our trains have (:func:`rail_signal_classes`: no block-based insertion for them), collision checks on junctions with ``mingap-factor 0``,
   ``--time-to-teleport -1`` (a teleport would hide a deadlock), a seed, and the step method the scenario's
   discrete model needs (Euler: ``x += v_new·dt``; ballistic: ``x += (v_old+v_new)/2·dt``).
 * **Insert.** Trains are added at run time with ``depart="now"``, ``departSpeed="0"`` and their station stops;
@@ -152,6 +152,15 @@ class TrainStates:
         self.index = {vid: i for i, vid in enumerate(self.ids)}
 
 
+def rail_signal_classes(vtypes: Sequence[VTypeSpec]) -> str:
+    """The value of ``--railsignal.default-classes``: no vehicle class of ours. SUMO puts a train of a listed
+    class on only once its block up to the next rail signal is free; on a signal-free net with bidi track that is
+    the rest of its route, so a tram handed to SUMO at a single-track terminus stayed in SUMO's queue until the
+    opposing tram had cleared the line (SUMO's default lists every rail class but tram). ``tram`` while no train
+    is a tram, else none."""
+    return "tram" if all(v.vclass != "tram" for v in vtypes) else ""
+
+
 class SumoBridge:
     """Owns one libsumo simulation. Use as a context manager so SUMO is always closed."""
 
@@ -178,7 +187,7 @@ class SumoBridge:
             "--seed",
             str(int(cfg.seed)),
             "--railsignal.default-classes",
-            "tram",
+            rail_signal_classes(cfg.vtypes),
             "--collision.action",
             "warn",
             "--collision.check-junctions",

@@ -19,7 +19,9 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   track to the departure platform's track with exactly one such reversal: on a **bidi platform track** the unit
   reverses where it stands; with a **turnback track beyond the platform** it runs into the track, stops short of
   its end, reverses and runs back to the departure platform (crossover switches on the way are locked as on any
-  route).
+  route). Where no reversal reaches the departure track, a **turning loop** does: the unit runs on round the loop
+  (at most :data:`LOOP_SEARCH_M`) to the departure platform and waits there for its departure, with no reversal
+  stop (a tram terminus such as Jena's Zwätzen Schleife).
 * **The successor's route** is that path followed by the trip's own route; its first stop is a *reversal stop*
   (:data:`REVERSAL`) on the edge before the turnaround. Because the route chainage runs through the
   turnaround's internal lane like SUMO's odometer, the successor's chainage stays equal to SUMO's position
@@ -67,6 +69,7 @@ log = logging.getLogger(__name__)
 
 REVERSAL_HOLD_S = 5.0  # a reversing unit stands at least this long after SUMO flipped it (cab change)
 TURNBACK_SEARCH_M = 5000.0  # a turnback path longer than this is not a turnback
+LOOP_SEARCH_M = 1500.0  # a path round a turning loop longer than this is a trip, not a turn
 END_MARGIN_M = 1.0  # a unit stops this far short of the end of a turnback track
 BOARDING_MARGIN_S = 60.0  # a reversed unit is at its departure platform this long before it departs
 
@@ -85,22 +88,27 @@ def _arc_m(g: nx.DiGraph) -> Callable[[str, str, dict[str, Any]], float]:
 
 
 def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | None:
-    """Shortest edge path ``from_edge`` → ``to_edge`` through exactly one reversal arc (None if there is none)."""
-    reversals = {a: b for a, b, rev in g.edges(data="reversal") if rev}
-    if not reversals:
-        return None
+    """Shortest edge path ``from_edge`` → ``to_edge`` through exactly one reversal arc; where there is none, the
+    shortest path round a **turning loop** (no reversal, at most :data:`LOOP_SEARCH_M`: a tram terminus where the
+    track runs round and back to the departure platform); None if there is neither."""
     weight = _arc_m(g)
     plain = nx.subgraph_view(g, filter_edge=lambda a, b: not g.edges[a, b].get("reversal"))
     ahead = nx.single_source_dijkstra(plain, from_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
-    back = nx.single_source_dijkstra(plain.reverse(copy=False), to_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
+    reversals = {a: b for a, b, rev in g.edges(data="reversal") if rev}
     best: tuple[float, list[str]] | None = None
-    for a, b in sorted(reversals.items()):
-        if a not in ahead[0] or b not in back[0]:
-            continue
-        total = ahead[0][a] + back[0][b]
-        if best is None or total < best[0] - 1e-9:
-            best = (total, ahead[1][a] + list(reversed(back[1][b])))
-    return None if best is None else best[1]
+    if reversals:
+        back = nx.single_source_dijkstra(plain.reverse(copy=False), to_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
+        for a, b in sorted(reversals.items()):
+            if a not in ahead[0] or b not in back[0]:
+                continue
+            total = ahead[0][a] + back[0][b]
+            if best is None or total < best[0] - 1e-9:
+                best = (total, ahead[1][a] + list(reversed(back[1][b])))
+    if best is not None:
+        return best[1]
+    if to_edge != from_edge and ahead[0].get(to_edge, INF) <= LOOP_SEARCH_M:
+        return list(ahead[1][to_edge])  # round the loop: the unit runs on to its departure platform
+    return None
 
 
 class SumoReroute(Protocol):
@@ -125,6 +133,7 @@ class Turnbacks:
         self.turnbacks: list[dict[str, Any]] = []  # one row per handover
         self._paths: dict[tuple[str, str], list[str] | None] = {}
         self._pinned: set[str] = set()  # trips whose unit is fixed: a formation coupling across their turnback
+        self._loops: set[str] = set()  # trips whose unit turns round a loop (no reversal) before them
         self.swaps = 0
         self.bridge: SumoReroute = unwired("Turnbacks", "bridge")  # exists while the run is under way: connect()
         if spec is None:
@@ -316,7 +325,24 @@ class Turnbacks:
         route = make_route(self.graph, f"{pred.trip.route.edges[-1]}~>{trip.route.id}", edges)
         k0 = len(path) - 1  # the old route's first edge in the new route
         shift_m = route.edge_start_m[k0] - trip.route.edge_start_m[0]
-        kr = next(i for i in range(len(edges) - 1) if self.graph.edges[edges[i], edges[i + 1]].get("reversal"))
+        moved = tuple(
+            dataclasses.replace(
+                s,
+                mark_m=s.mark_m + shift_m,
+                window_start_m=s.window_start_m + shift_m,
+                window_end_m=s.window_end_m + shift_m,
+            )
+            for s in trip.stops
+        )
+        trip.route = route
+        trip.frame_shift_m = shift_m
+        succ.view = route_view(route)
+        succ.next_stop = 0
+        kr = next((i for i in range(len(edges) - 1) if self.graph.edges[edges[i], edges[i + 1]].get("reversal")), None)
+        if kr is None:  # round a turning loop: no reversal, the unit runs on to its departure platform
+            self._loops.add(succ.train_id)
+            trip.stops = moved
+            return
         end_m = route.edge_start_m[kr] + self.graph.nodes[edges[kr]]["length_m"]
         length_m = trip.vehicle.length_m
         reversal = TripStop(
@@ -328,20 +354,7 @@ class Turnbacks:
             dwell_s=REVERSAL_HOLD_S,
             kind=REVERSAL,
         )
-        moved = tuple(
-            dataclasses.replace(
-                s,
-                mark_m=s.mark_m + shift_m,
-                window_start_m=s.window_start_m + shift_m,
-                window_end_m=s.window_end_m + shift_m,
-            )
-            for s in trip.stops
-        )
-        trip.route = route
         trip.stops = (reversal, *moved)
-        trip.frame_shift_m = shift_m
-        succ.view = route_view(route)
-        succ.next_stop = 0
 
     # ------------------------------------------------------------------ run time
     def handover(self, t: float, pred: TrainRuntime) -> TrainRuntime | None:
@@ -356,15 +369,17 @@ class Turnbacks:
         lane_pos_m = pred.front_m - pred.view.edge_start_m[-1]
         front_m = succ.view.edge_start_m[0] + lane_pos_m
         rev = trip.stops[0]
-        reverses = rev.kind == REVERSAL  # else it departs where it stands (``link``)
+        reverses = rev.kind == REVERSAL  # else it runs round a loop, or departs where it stands (``link``)
+        loops = succ.train_id in self._loops
         if reverses and front_m >= rev.window_start_m - 1e-6:  # on the reversal edge already: it reverses here
             trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
         # a unit that runs on where it stands (into or out of a depot run) does not turn back: no minimum
-        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses else 0.0
+        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses or loops else 0.0
         until_s = max(trip.depart_s + trip.departure_delay_s, arrival_s + min_s)  # a primary late start too
-        # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration
-        origin_s = DWELL_REGISTRATION_S if reverses else max(DWELL_REGISTRATION_S, until_s - t)
+        # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration;
+        # a unit that runs to its departure platform first is held there by ``until``
+        origin_s = DWELL_REGISTRATION_S if reverses or loops else max(DWELL_REGISTRATION_S, until_s - t)
         stops = sumo_stops(trip.stops, origin_until_s=until_s, origin_duration_s=origin_s)
         self.bridge.reroute(succ.sumo_id, trip.route.edges, stops)
         odometer_m = pred.front_m - pred.depart_chainage_m
@@ -397,6 +412,7 @@ class Turnbacks:
             after=pred.train_id,
             station=pred.trip.destination.station_id,
             earliest_departure_s=round(until_s, 3),
+            **({"loop": True} if loops else {}),
         )
         return succ
 

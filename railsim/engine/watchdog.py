@@ -33,6 +33,12 @@ held by a train standing out a radio outage; a follower stood 300 s behind its l
 too short for both); its clock runs once every such train stands for no reason. A circular wait is still found
 by the deadlock search below.
 
+**Trains SUMO never puts on.** A train handed to SUMO waits in its insertion queue until SUMO finds the spot
+free. While a train of ours stands on or near that spot (the dispatcher's departure rule names one), the wait has
+a reason; once none does and SUMO still has not put it on after ``stall_timeout_s``, the train gets a ``stalled``
+event (``waiting_for``: ``insertion by SUMO``) and the run fails: a train in railsim's books as on the line but
+not in the world would otherwise hold its sections for ever, with no trace row and no report.
+
 At the horizon the same rule runs once more with a shorter wait (:data:`END_STANDING_S`, or the timeout if that
 is shorter): a run whose trains did not arrive because they stood still never ends as a silent success.
 """
@@ -72,6 +78,7 @@ class StallWatch:
         self.locks = locks
         self.berth_waits: Mapping[str, tuple[str, str]] = berths.waiting if berths is not None else {}
         self.standing_since: dict[str, tuple[float, TrainRuntime]] = {}
+        self.pending_since: dict[str, tuple[float, TrainRuntime]] = {}  # handed to SUMO, spot free, not put on
         self.failure: str | None = None
 
     def check(self, t: float, active: list[TrainRuntime], ahead: Mapping[str, Ahead | None] | None = None) -> None:
@@ -95,6 +102,38 @@ class StallWatch:
                 self.standing_since[tr.train_id] = (t, tr)
         self._deadlock(t, ahead)
         self._report(t, self.settings.stall_timeout_s, "")
+
+    def pending(self, t: float, pending: list[TrainRuntime], blocker: Callable[[TrainRuntime], str | None]) -> None:
+        """Every step, the trains handed to SUMO that it has not put on yet; ``blocker(tr)``: why its spot is not
+        free (a train of ours on or near it), or None. Stalls the run once one waited ``stall_timeout_s`` with its
+        spot free (module docstring)."""
+        waiting = {tr.train_id for tr in pending}
+        for train_id in [k for k in self.pending_since if k not in waiting]:
+            del self.pending_since[train_id]  # put on (or withdrawn)
+        for tr in pending:
+            if blocker(tr) is not None:
+                self.pending_since.pop(tr.train_id, None)
+            elif tr.train_id not in self.pending_since:
+                self.pending_since[tr.train_id] = (t, tr)
+        if self.failure is not None:
+            return
+        stuck = [(since, tr) for since, tr in self.pending_since.values() if t - since >= self.settings.stall_timeout_s]
+        for since, tr in stuck:
+            self.events.record(
+                t,
+                "stalled",
+                tr.train_id,
+                chainage_m=round(tr.front_m, 3),
+                edge=tr.view.edges[tr.view.edge_at(tr.front_m)],
+                standing_s=round(t - since, 3),
+                waiting_for="insertion by SUMO",
+            )
+        if stuck:
+            names = ", ".join(f"{tr.train_id} at {tr.front_m:.0f} m" for _, tr in stuck)
+            self.failure = (
+                f"stalled: {names} handed to SUMO but never put on (its spot free for at least "
+                f"{self.settings.stall_timeout_s:g} s)"
+            )
 
     def _radio_wait(self, t: float, tr: TrainRuntime, ahead: Mapping[str, Ahead | None]) -> bool:
         """Does ``tr`` stand behind a train ahead while an outage cuts either off? (Asked of standing trains only.)"""

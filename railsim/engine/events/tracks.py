@@ -71,6 +71,25 @@ class TrackSections:
             sec.queue.remove(req)  # withdrawn before it was granted (the train left the line)
             self._serve(t_s, req.section_id)
 
+    def hand_over(self, t_s: float, req: SectionRequest, train_id: str, direction: int) -> SectionRequest | None:
+        """A unit standing in the section starts its next trip (``train_id``, in ``direction``): the granted
+        ``req`` passes to it at once, with no waiting train let in between, if every other holder runs in that
+        direction; the new request, or None (then ``req`` is released as usual)."""
+        sec = self._sections[req.section_id]
+        if req not in sec.holders or any(h.direction != direction for h in sec.holders if h is not req):
+            return None
+        new = SectionRequest((train_id,), req.section_id, direction, t_s, granted_s=t_s)
+        sec.holders[sec.holders.index(req)] = new
+        self.events.record(
+            t_s,
+            "section_handed_over",
+            req.section_id,
+            trains=[train_id],
+            after=list(req.holder_ids),
+            direction=direction,
+        )
+        return new
+
     def _serve(self, t_s: float, section_id: str) -> None:
         sec = self._sections[section_id]
         for req in list(sec.queue):
