@@ -336,6 +336,10 @@ class Dispatcher:
             self.events.record(t, "never_inserted", tid, reason=reason)
         return ids
 
+    def blocker_at_front(self, tr: TrainRuntime) -> str | None:
+        """Why ``tr``'s spot (its front where it was handed to SUMO) is not free: :meth:`blocker` there."""
+        return self.blocker(tr, tr.front_m)
+
     def blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
         """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring)."""
         length = tr.trip.vehicle.length_m

@@ -73,6 +73,7 @@ from railsim.engine.single_track import (
 )
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
+from railsim.engine.wiring import set_once, unwired
 
 log = logging.getLogger(__name__)
 
@@ -147,8 +148,8 @@ class RouteLocks:
         self.clock = clock  # the event layer's time (single-track releases are stamped with it)
         self.sections: dict[str, list[RouteSection]] = {}  # train id -> contested sections on its route
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
-        # does the unit of this trip run a next trip? (rotations: ``Turnbacks.next_of``; set by the engine)
-        self.continues: Callable[[str], bool] = lambda _train_id: False
+        # does the unit of this trip run a next trip? (rotations: ``Turnbacks.next_of``; set_up_shared_track)
+        self.continues: Callable[[str], bool] = unwired("RouteLocks", "continues")
         self._parked: dict[str, list[SectionRequest]] = {}  # arrived trip -> sections kept for its unit's next trip
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
@@ -183,9 +184,11 @@ class RouteLocks:
             return self.merge_margin_m[train_id]
         return self.settings.protection_margin_m
 
-    def set_up_shared_track(self, graph: Any) -> None:
+    def set_up_shared_track(self, graph: Any, continues: Callable[[str], bool]) -> None:
         """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
-        cross on different movements (see the module docstring)."""
+        cross on different movements (see the module docstring); ``continues(train_id)``: does the unit of that trip
+        run a next trip (the rotations), whose sections it keeps on arrival (:meth:`hand_over`)."""
+        set_once(self, "continues", continues)
         smap = section_map(graph)
         if not smap and not graph.graph.get("crossings"):
             return

@@ -104,9 +104,8 @@ class Simulation:
         self.channels = comm_channels(self.layer, scenario)
         disturbances = Disturbances.from_faults(scenario.faults, self.rng)  # its two streams, in this order
 
-        # ---- the ports, each given its collaborators when built, in dependency order. The true cycles are closed
-        # once: FormationBook.wire (the dispatcher and the stop book ask the formation book back) and the ExtensionSet
-        # the ports get empty and install() fills; the SUMO bridge, which exists only in run(), is connected there.
+        # ---- the ports, given their collaborators when built, in dependency order. True cycles are closed once:
+        # FormationBook.wire, the ExtensionSet install() fills; the SUMO bridge is connected in run().
         self.extensions = ExtensionSet()
         self.fleet = Fleet(scenario.source)
         self.fleet.build(scenario, self.bundle, self.dt, self.step_method)
@@ -126,7 +125,6 @@ class Simulation:
             self.fleet, self.interlocking, self.formations, self.events, self.settings, self.extensions, self.layer
         )
         self.locks.protect_merges(self.bundle.graph)
-        self.locks.continues = self.turnbacks.next_of.__contains__
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
         pax = primary_delays.passenger_demand(self.primary)
         self.stops = StopBook(self.formations, self.locks, self.events, self.settings, self.recorder.stop_record, pax)
@@ -145,7 +143,7 @@ class Simulation:
         )
         self.formations.wire(self.dispatcher, self.stops)
         primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
-        self.locks.set_up_shared_track(self.bundle.graph)
+        self.locks.set_up_shared_track(self.bundle.graph, self.turnbacks.next_of.__contains__)
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
         self.safety.set_up_crossings(self.bundle.graph)
         self.control = ControlStage(
@@ -168,10 +166,8 @@ class Simulation:
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
         self.dispatcher.schedule_departures()
-        timed.schedule(
-            timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety),
-            scenario,
-        )
+        ports = timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety)
+        timed.schedule(ports, scenario)
         ctx = ExtensionContext(
             scenario=scenario,
             trains=self.trains,
@@ -268,12 +264,8 @@ class Simulation:
         present = set(bridge.present_ids())
         on_line = self.fleet.active()  # handed to SUMO: present, or still waiting in its queue (guarded)
         pending = [tr for tr in on_line if tr.status == "inserting" and tr.sumo_id not in present]
-        self.dispatcher.guard_pending(pending)
-        self.watchdog.pending(
-            t,
-            [tr for tr in pending if tr.status == "inserting"],  # (guard_pending may have withdrawn some)
-            lambda tr: self.dispatcher.blocker(tr, tr.front_m),
-        )
+        self.dispatcher.guard_pending(pending)  # it may withdraw some: the watchdog sees those still inserting
+        self.watchdog.pending(t, [tr for tr in pending if tr.status == "inserting"], self.dispatcher.blocker_at_front)
         active = [tr for tr in on_line if tr.sumo_id in present]
         for tr in active:
             if tr.status == "inserting":
