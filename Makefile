@@ -1,4 +1,5 @@
 # Two commands on a fresh machine: `make demo` and `make test`. Both bootstrap .venv from this repo's files.
+# `make check` is the developer's loop: lint and the unit tier (tests/unit/, no process started, about a minute).
 PY      ?= python3
 VENV    := .venv
 BIN     := $(VENV)/bin
@@ -8,7 +9,7 @@ OUT     ?= out/demo
 # pytest-xdist workers for `make test`: the machines have 2 cores (`make test WORKERS=0` runs in one process)
 WORKERS ?= 2
 
-.PHONY: venv demo lint test test-fast format bench clean
+.PHONY: venv demo lint check test test-fast format bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -30,11 +31,16 @@ lint: $(STAMP)
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 
+# Test tiers by folder (tests/conftest.py): unit, sumo, golden, long. `make test` (CI) runs them all and prints
+# the 25 slowest tests; `make test-fast` leaves out golden and long.
+check: lint
+	$(BIN)/python -m pytest -q -n $(WORKERS) tests/unit
+
 test: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS)
+	$(BIN)/python -m pytest -q -n $(WORKERS) --durations=25
 
 test-fast: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS) -m "not slow"
+	$(BIN)/python -m pytest -q -n $(WORKERS) tests/unit tests/sumo
 
 # Format the tree (`make test` checks it is formatted).
 format: $(STAMP)

@@ -21,7 +21,7 @@ import pytest
 import yaml
 
 from tests.helpers import DATA, ROOT, read_csv, read_summary, run_railsim
-from tests.test_external_net import _write
+from tests.sumo.test_external_net import _write
 from tests.test_turnback import POCKET_PAIR, _run_pocket_day
 
 

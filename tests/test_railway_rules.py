@@ -15,7 +15,7 @@ import pytest
 import yaml
 
 from tests.helpers import read_csv, read_summary, run_python, run_railsim
-from tests.test_external_net import _edge, _netconvert, _stops, _write
+from tests.sumo.test_external_net import _edge, _netconvert, _stops, _write
 
 FOLLOWER_GAP_M = 30.0
 

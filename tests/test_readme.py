@@ -14,7 +14,7 @@ take minutes to hours, the plan runs a smaller version — what changes and why:
   exist; the sweep ``line3_headway_coupling.yaml`` keeps one headway (150 s) and one seed. Same commands, same
   flags.
 * ``my_line.yaml`` and ``nets/my.net.xml`` + ``nets/stops.add.xml`` ("your own" files) are the test line
-  ``tests/data/lines/mini_y.yaml`` and the passing-loop net of ``tests/test_external_net.py``.
+  ``tests/data/lines/mini_y.yaml`` and the passing-loop net of ``tests/sumo/test_external_net.py``.
 * ``make demo``/``make test`` run as ``make -n`` (a dry run: the demo's two commands are in the next block; the
   test suite would run this test again).
 * ``railsim study vc-vs-mb`` (about 50 min; tested in ``tests/test_study.py``) and three benchmarks
@@ -172,7 +172,7 @@ def _small_sweep(raw: dict[str, Any]) -> None:
 
 
 def _workdir(tmp: Path) -> Path:
-    from tests.test_external_net import build_passing_loop
+    from tests.sumo.test_external_net import build_passing_loop
 
     work = tmp / "work"
     shutil.copytree(ROOT / "scenarios", work / "scenarios")

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from tests.helpers import read_csv, read_summary, run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _stops, _write, build_passing_loop
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _stops, _write, build_passing_loop
 
 
 def build_single_line(folder: Path) -> tuple[Path, Path]:

@@ -21,7 +21,7 @@ import pytest
 import yaml
 
 from tests.helpers import DATA, read_csv, read_summary, run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _stops, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _stops, _write
 from tests.test_single_track import build_single_line
 
 STEP_S = float(_COMMON["simulation"]["step_s"])  # type: ignore[index]

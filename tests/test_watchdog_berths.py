@@ -1,7 +1,7 @@
 """The stall watchdog knows platform berths (railsim/engine/watchdog.py, railsim/engine/platforms.py).
 
 A train standing at the limit of a platform the train ahead occupies waits for that train, as behind a platform
-entry signal at danger. Constructed on the event layer without SUMO (as tests/test_locking_deadlock.py): the
+entry signal at danger. Constructed on the event layer without SUMO (as tests/unit/test_locking_deadlock.py): the
 berth port's ``waiting`` map says who stands at a berth limit for whose platform, the trains are plain objects
 with the fields the watchdog reads. Three cases:
 
