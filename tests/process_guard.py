@@ -23,6 +23,7 @@ broad ``except``.
 
 from __future__ import annotations
 
+import _posixsubprocess
 import importlib.abc
 import importlib.machinery
 import multiprocessing.process
@@ -34,7 +35,6 @@ from contextlib import contextmanager
 from types import ModuleType
 from typing import Any
 
-import _posixsubprocess
 import pytest
 
 # SUMO's in-process bindings: importing one of these, or starting/stepping a simulation through it, is a SUMO run

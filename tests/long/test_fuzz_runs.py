@@ -9,7 +9,9 @@ the sample reaches the unusual corners it is meant to is in ``tests/unit/test_fu
 from __future__ import annotations
 
 from pathlib import Path
+
 import pytest
+
 from tests import fuzz_runs
 from tests.unit.test_fuzz_runs_unit import SAMPLE
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from tests import fuzz
 from tests.helpers import run_railsim
 

@@ -9,7 +9,9 @@ from __future__ import annotations
 import json
 import math
 from pathlib import Path
+
 import pytest
+
 from railsim.studies import headway, sweep
 from tests.unit.test_headway import BASE, PATHS
 

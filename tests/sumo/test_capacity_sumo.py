@@ -6,7 +6,9 @@ Here: the tests of it that run SUMO or a railsim child process; the others are i
 from __future__ import annotations
 
 from pathlib import Path
+
 import pytest
+
 from railsim.analysis.capacity import (
     CapacityReport,
     analyse_run,

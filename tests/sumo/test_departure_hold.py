@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from tests.helpers import ROOT, read_csv, read_summary, run_railsim
 
 SCENARIO = ROOT / "tests" / "data" / "scenarios" / "departure_hold.yaml"

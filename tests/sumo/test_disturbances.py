@@ -178,8 +178,8 @@ def test_knock_on_through_a_rotation_is_secondary_delay(tmp_path: Path) -> None:
     the return trip scheduled at 400 s cannot leave before arrival + 60 s: that late start is the return trip's
     secondary delay (it had no disturbance of its own) on top of its undisturbed delay, to a step or two, and the
     fleet block counts it."""
-    from tests.test_single_track import build_single_line
-    from tests.test_turnback import SHUTTLE, _run
+    from tests.sumo.test_single_track import build_single_line
+    from tests.sumo.test_turnback import SHUTTLE, _run
 
     net, stops = build_single_line(tmp_path)
     services = copy.deepcopy(SHUTTLE)

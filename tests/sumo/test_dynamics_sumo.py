@@ -10,13 +10,12 @@ import os
 import subprocess
 import sys
 import textwrap
+
 import numpy as np
 import pytest
-from railsim.physics.dynamics import (
-    simulate,
-)
-from tests.unit.test_dynamics import CQ3
 
+from railsim.physics.dynamics import simulate
+from tests.unit.test_dynamics import CQ3
 
 _SUMO_SCRIPT = textwrap.dedent(
     """

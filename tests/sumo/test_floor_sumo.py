@@ -6,10 +6,11 @@ Here: the tests of it that run SUMO or a railsim child process; the others are i
 from __future__ import annotations
 
 from pathlib import Path
+
 import pytest
+
 from railsim import scenario
 from railsim.studies.floor import regime_floor
-
 
 ROOT = Path(__file__).resolve().parents[2]
 

@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from tests.helpers import mini_line, read_csv, read_summary, run_mapping
 
 

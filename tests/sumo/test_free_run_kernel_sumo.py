@@ -6,10 +6,11 @@ Here: the tests of it that run SUMO or a railsim child process; the others are i
 from __future__ import annotations
 
 import json
+
 import pytest
+
 from railsim.physics import dynamics
 from tests.helpers import DATA, ROOT, run_python
-
 
 CHILD = r"""
 import dataclasses, json, sys, tempfile

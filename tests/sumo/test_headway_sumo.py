@@ -7,7 +7,8 @@ Here: the tests of it that run SUMO or a railsim child process; the others are i
 from __future__ import annotations
 
 from pathlib import Path
-from helpers import run_railsim
+
+from tests.helpers import run_railsim
 from tests.unit.test_headway import BASE, PATHS
 
 

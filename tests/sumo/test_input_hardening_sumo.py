@@ -6,6 +6,7 @@ Here: the tests of it that run SUMO or a railsim child process; the others are i
 from __future__ import annotations
 
 from pathlib import Path
+
 from tests import fuzz
 from tests.helpers import ROOT
 from tests.unit.test_input_hardening import CORRIDOR, _rejected

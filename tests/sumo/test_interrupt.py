@@ -18,7 +18,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from tests.helpers import DATA, ROOT, read_csv, read_summary, railsim_cmd
+from tests.helpers import DATA, ROOT, railsim_cmd, read_csv, read_summary
 
 HORIZON_S = 7200
 

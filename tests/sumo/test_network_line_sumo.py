@@ -8,11 +8,12 @@ from __future__ import annotations
 import os
 import subprocess
 from pathlib import Path
+
 import pytest
 import yaml
+
 from railsim.errors import ConfigError
 from tests.unit.test_network_line import BAD_CASES, GOOD, _bad
-
 
 REPO = Path(__file__).resolve().parents[2]
 

@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import pytest
 import yaml
+
 from railsim import scenario as S
 from railsim.errors import ConfigError
 from tests.sumo.test_depart_together import DATA

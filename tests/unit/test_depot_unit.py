@@ -6,8 +6,10 @@ Here: the tests of it that start no process; the others are in ``tests/sumo/test
 from __future__ import annotations
 
 from pathlib import Path
+
 import pytest
 import yaml
+
 from tests.helpers import DATA
 
 

@@ -7,8 +7,10 @@ from __future__ import annotations
 
 import copy
 from typing import Any
+
 import numpy as np
 import pytest
+
 from railsim import scenario as S
 from railsim.errors import ConfigError
 from railsim.scenario.disturbances import DelayDist

@@ -8,6 +8,7 @@ Here: the tests of it that start no process; the others are in ``tests/sumo/test
 from __future__ import annotations
 
 import pytest
+
 from controllers.speed_profile import make_speed_profile, reference
 from railsim.physics.vehicle import preset
 

@@ -6,8 +6,10 @@ Here: the tests of it that start no process; the others are in ``tests/sumo/test
 from __future__ import annotations
 
 from pathlib import Path
+
 import pandas as pd
 import pytest
+
 from railsim.record import output
 from railsim.report import export
 from tests.sumo.test_export import _cli_error, _read_back

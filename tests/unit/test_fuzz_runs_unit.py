@@ -1,10 +1,11 @@
-"""The operating fuzz's sample (:mod:`tests.fuzz_runs`, run by ``tests/long/test_fuzz_runs.py``) reaches the unusual
-corners it is meant to (it would otherwise test little): every step method, short and long steps, runs with and
-without formations, heavy message loss, trains that start mid-line.
+"""The operating fuzz (:mod:`tests.fuzz_runs`): a fixed sample of unusual-but-valid mini-line variants run in real SUMO
+keep the safety contract — an exit code of the contract, no traceback, a summary without NaN that never counts fewer
+collisions than SUMO saw, and no collision at all.
+
+Here: the tests of it that start no process; the others are in ``tests/long/test_fuzz_runs.py``.
 """
 
 from __future__ import annotations
-
 
 from tests import fuzz_runs
 

@@ -3,12 +3,11 @@ real search on the small corridor checked against an independent scan of every g
 
 from __future__ import annotations
 
-
 import pytest
-from helpers import ROOT
 
 from railsim.errors import ConfigError
 from railsim.studies import headway
+from tests.helpers import ROOT
 
 BASE = ROOT / "scenarios" / "sweeps" / "corridor_small.yaml"
 PATHS = ("services[0].departures.headway_s", "services[1].departures.headway_s")

@@ -6,6 +6,7 @@ Here: the tests of it that start no process; the others are in ``tests/sumo/test
 from __future__ import annotations
 
 from types import SimpleNamespace
+
 from railsim.engine.routeview import RouteView
 
 

@@ -13,7 +13,6 @@ import yaml
 from network.line import parse_description
 from railsim.errors import ConfigError
 
-
 GOOD: dict[str, Any] = {
     "name": "mini",
     "line_speed_kmh": 80,
