@@ -22,7 +22,7 @@ def test_dmpc_drives_the_coupled_unit_on_line3(tmp_path: Path) -> None:
             svc["departures"] = {"times": ["07:30"]}
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False, allow_unicode=True))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     s = read_summary(tmp_path / "o")
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0

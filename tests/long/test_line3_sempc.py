@@ -22,9 +22,7 @@ def test_sempc_drives_line3_to_every_stop(tmp_path: Path) -> None:
     raw["world"] = "chongqing_line3"
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False, allow_unicode=True))
-    res = run_railsim(
-        ["run", str(path), "--out", str(tmp_path / "out"), "--no-progress"], cache_dir=tmp_path / "cache", timeout=900
-    )
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "out"), "--no-progress"], timeout=900)
     assert res.returncode == 0, res.stderr[-2000:]
     s = read_summary(tmp_path / "out")
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["fallbacks"] == 0

@@ -77,7 +77,7 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
         "2",
         "--no-progress",
     ]
-    res = run_railsim(args, cache_dir=tmp_path / "cache", timeout=900)
+    res = run_railsim(args, timeout=900)
     assert res.returncode == 0, res.stderr + res.stdout
     assert "Traceback" not in res.stderr
     data = json.loads((out / "vc_vs_mb.json").read_text())
@@ -117,7 +117,7 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     )
     assert "UIC 406 occupancy per section" in md
     # a re-run finds every probe already done and gives the same answer
-    again = run_railsim(args, cache_dir=tmp_path / "cache", timeout=900)
+    again = run_railsim(args, timeout=900)
     assert again.returncode == 0, again.stderr
     assert json.loads((out / "vc_vs_mb.json").read_text())["vc"]["headway_s"] == data["vc"]["headway_s"]
 
@@ -136,7 +136,7 @@ def test_bad_input_exits_2_with_one_line(tmp_path: Path, extra: list[str], needl
     args = ["study", "vc-vs-mb", "--out", str(tmp_path / "o"), "--mb", str(mb), "--vc", str(vc)] + extra
     if "--mb" in extra:
         args = ["study", "vc-vs-mb", "--out", str(tmp_path / "o"), "--vc", str(vc)] + extra
-    res = run_railsim(args, cache_dir=tmp_path / "cache")
+    res = run_railsim(args)
     assert res.returncode == 2, res.stderr + res.stdout
     lines = res.stderr.strip().splitlines()
     assert len(lines) == 1 and needle in lines[0], res.stderr

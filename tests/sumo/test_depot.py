@@ -43,7 +43,7 @@ def _invoke(folder: Path, depots: str, services: list[dict[str, Any]], rotations
     scn = folder / "scenario.yaml"
     scn.write_text(yaml.safe_dump(raw, sort_keys=False), encoding="utf-8")
     out = folder / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
     return out, res
 
 

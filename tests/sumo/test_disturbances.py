@@ -200,7 +200,7 @@ def test_knock_on_through_a_rotation_is_secondary_delay(tmp_path: Path) -> None:
     raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
     scn = _write(tmp_path, "disturbed.yaml", yaml.safe_dump(raw, sort_keys=False))
     out2 = tmp_path / "disturbed"
-    res = run_railsim(["run", str(scn), "--out", str(out2), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    res = run_railsim(["run", str(scn), "--out", str(out2), "--no-progress"], timeout=300)
     assert res.returncode == 0, res.stderr
     trips = {r["trip_id"]: r for r in read_csv(out2 / "trips.csv")}
     assert abs(float(trips["out.000"]["departure_s"]) - 400.0) <= DT_S  # the primary late start

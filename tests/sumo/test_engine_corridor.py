@@ -17,9 +17,7 @@ SCENARIO = DATA / "scenarios" / "corridor_platoon.yaml"
 @pytest.fixture(scope="module")
 def corridor(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("corridor")
-    res = run_railsim(
-        ["run", str(SCENARIO), "--out", str(out), "--no-progress"], cache_dir=tmp_path_factory.mktemp("cache")
-    )
+    res = run_railsim(["run", str(SCENARIO), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     return out
 
@@ -90,7 +88,7 @@ def test_a_train_starting_beyond_the_first_edge_is_placed_where_the_scenario_say
     }
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     s = read_summary(tmp_path / "o")
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0

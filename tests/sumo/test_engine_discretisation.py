@@ -57,7 +57,7 @@ def test_positions_follow_the_named_discrete_model(tmp_path: Path, method: str) 
     raw = {**SCENARIO, "simulation": {**SCENARIO["simulation"], "step_method": method}}
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "out"), "--no-progress"], cache_dir=tmp_path / "cache")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "out"), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     rows = read_csv(tmp_path / "out" / "trace.csv")
     x = [float(r["chainage_m"]) for r in rows]

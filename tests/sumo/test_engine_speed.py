@@ -59,7 +59,7 @@ print(json.dumps(rows))
 def test_free_run_plan_on_plain_values_is_the_observed_plan(scenario, tmp_path_factory) -> None:
     """Every distinct trip's planned arrivals and departures are the same floats both ways (JSON keeps all 17
     digits), and a plan reaches the trip's destination (so the comparison covers whole runs)."""
-    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))), cache_dir=tmp_path_factory.mktemp("cache"))
+    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))))
     assert res.returncode == 0, res.stderr[-3000:]
     rows = json.loads(res.stdout.strip().splitlines()[-1])
     assert rows
@@ -92,7 +92,7 @@ def test_the_set_up_is_frozen_for_the_run_and_released_after(tmp_path_factory) -
     """railsim.engine.heap: while the loop runs, everything the set-up built sits in the collector's permanent
     generation (full collections do not walk it again), and the run gives it back when it ends."""
     code = HEAP_CHILD.replace("SCENARIO", repr(str(DATA / "scenarios" / "mini_line.yaml")))
-    res = run_python(code, cache_dir=tmp_path_factory.mktemp("cache"))
+    res = run_python(code)
     assert res.returncode == 0, res.stderr[-3000:]
     got = json.loads(res.stdout.strip().splitlines()[-1])
     assert got["before"] == 0 and got["after"] == 0

@@ -20,7 +20,6 @@ import json
 from pathlib import Path
 from typing import Any
 
-import pytest
 import yaml
 
 from tests.helpers import DATA, read_csv, read_summary, run_python, run_railsim
@@ -31,13 +30,12 @@ JUNCTION_NODE = "main_n3"  # both switches' point, where the four tracks meet
 UP_DEPARTS_S = 28.0  # measured: the two fronts then reach the junction node 2 s apart (195.5 s and 193.5 s)
 
 
-def test_the_generated_junction_is_a_flat_crossing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_the_generated_junction_is_a_flat_crossing(tmp_path: Path) -> None:
     from network.build import build
     from network.generator import generate
     from network.line import load_description
     from railsim.engine.single_track import route_crossings
 
-    monkeypatch.setenv("RAILSIM_CACHE", str(tmp_path / "c"))
     fresh = generate(load_description(DATA / "lines" / "mini_y.yaml")[0], tmp_path / "g")
     cached = build(DATA / "lines" / "mini_y.yaml")  # what a run uses: read back from the topology JSON
     node = fresh.switches["c_up"].sumo_node
@@ -81,7 +79,7 @@ def _events(out: Path) -> list[dict[str, Any]]:
 def test_trains_timed_to_meet_on_the_crossing_take_turns(tmp_path: Path) -> None:
     scn = _scenario(tmp_path)
     out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=600)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=600)
     assert res.returncode == 0, res.stderr + res.stdout
     s = read_summary(out)
     assert s["n_arrived"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
@@ -117,7 +115,7 @@ def test_without_the_crossing_lock_sumo_sees_the_collision_and_the_summary_count
         "from railsim.cli.main import main\n"
         f"sys.exit(main(['run', {str(scn)!r}, '--out', {str(out)!r}, '--no-progress']))\n"
     )
-    res = run_python(code, cache_dir=tmp_path / "c", timeout=600)
+    res = run_python(code, timeout=600)
     assert res.returncode != 0  # a collision is a failed run
     s = read_summary(out)
     assert s["sumo_collisions"] >= 1 and s["collisions"] >= s["sumo_collisions"]

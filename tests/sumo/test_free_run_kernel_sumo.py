@@ -55,7 +55,7 @@ print(json.dumps(rows))
 def test_compiled_free_run_is_the_reference_bit_for_bit(scenario, steps, methods, factors, tmp_path_factory) -> None:
     code = CHILD.replace("SCENARIO", repr(str(scenario))).replace("FACTORS", repr(factors))
     code = code.replace("STEPS", repr(steps)).replace("METHODS", repr(tuple(methods)))
-    res = run_python(code, cache_dir=tmp_path_factory.mktemp("cache"))
+    res = run_python(code)
     assert res.returncode == 0, res.stderr[-3000:]
     rows = json.loads(res.stdout.strip().splitlines()[-1])
     assert len(rows) >= len(steps) * len(methods) * len(factors) * 2  # at least two distinct trips

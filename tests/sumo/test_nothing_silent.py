@@ -33,7 +33,7 @@ def _forced_dmpc(tmp_path: Path) -> Path:
 
 def test_forced_solver_failure_is_an_event_with_its_reason_and_a_rate_limited_warning(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    res = run_railsim(["run", str(_forced_dmpc(tmp_path)), "--out", str(out), "--no-progress"], tmp_path / "c")
+    res = run_railsim(["run", str(_forced_dmpc(tmp_path)), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     summary = read_summary(out)
     events = [e for e in read_csv(out / "events.csv") if e["kind"] == "controller_fallback"]

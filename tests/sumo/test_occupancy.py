@@ -20,11 +20,8 @@ L = 89.4
 
 
 @pytest.fixture(scope="module")
-def bundle(tmp_path_factory: pytest.TempPathFactory):
-    import os
-
-    os.environ["RAILSIM_CACHE"] = str(tmp_path_factory.mktemp("cache"))
-    return network.build(LINE)
+def bundle():
+    return network.build(LINE)  # into the session's world cache (RAILSIM_CACHE, tests/conftest.py)
 
 
 def _switch_point(route, switch_id: str) -> float:

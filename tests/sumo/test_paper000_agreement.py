@@ -31,7 +31,7 @@ def _engine(tmp: Path, raw: dict, name: str) -> Path:
     path = tmp / f"{name}.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False), encoding="utf-8")
     out = tmp / name
-    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"], cache_dir=tmp / "cache")
+    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     return out
 

@@ -23,7 +23,7 @@ SCEN = ROOT / "scenarios"
 
 def _run(tmp: pytest.TempPathFactory, scenario: Path, name: str) -> Path:
     out = tmp.mktemp(name)
-    res = run_railsim(["run", str(scenario), "--out", str(out), "--no-progress"], cache_dir=tmp.getbasetemp() / "cache")
+    res = run_railsim(["run", str(scenario), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     return out
 

@@ -19,7 +19,7 @@ MASS_KG = 6 * 64_800.0
 
 
 def test_sempc_on_the_carriage_model_stops_at_the_mark_within_limits(tmp_path: Path) -> None:
-    res = run_railsim(["run", str(SCENARIO), "--out", str(tmp_path), "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(["run", str(SCENARIO), "--out", str(tmp_path), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     s = read_summary(tmp_path)
     assert s["n_arrived"] == 1 and s["n_stops_served"] == 1 and s["fallbacks"] == 0
@@ -38,6 +38,6 @@ def test_multipoint_needs_euler_steps(tmp_path: Path) -> None:
     raw["simulation"]["step_method"] = "ballistic"
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 2 and "Traceback" not in res.stderr
     assert "simulation.step_method" in res.stderr and "multipoint" in res.stderr

@@ -38,9 +38,7 @@ def _write(tmp_path: Path, name: str, duration_s: float, ato: str | None = None)
 @pytest.mark.parametrize(("name", "ato"), [(NEW[0], "sempc"), (NEW[1], "mpc"), (NEW[2], "afsmc")])
 def test_new_scenarios_run_in_sumo_inside_the_envelope(tmp_path: Path, name: str, ato: str) -> None:
     out = tmp_path / "out"
-    res = run_railsim(
-        ["run", str(_write(tmp_path, name, 40.0, ato)), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c"
-    )
+    res = run_railsim(["run", str(_write(tmp_path, name, 40.0, ato)), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     (m,) = read_summary(out)["paper001"].values()
     assert m["running_steps"] >= 390 and m["e_v_mps"] is not None and m["e_x_m"] is not None
@@ -54,7 +52,7 @@ def test_a_bad_wind_block_names_the_field(tmp_path: Path) -> None:
     raw["vehicles"]["dtype"]["plant_params"]["wind"] = {"kind": "gale", "constant": 0.2}
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["validate", str(path)], cache_dir=tmp_path / "c")
+    res = run_railsim(["validate", str(path)])
     assert res.returncode == 2 and "Traceback" not in res.stderr
     assert "vehicles.dtype.plant_params.wind" in res.stderr and "gale" in res.stderr
 
@@ -63,7 +61,6 @@ def test_e_p_is_where_the_law_stopped_the_train(tmp_path: Path) -> None:
     out = tmp_path / "out"
     res = run_railsim(
         ["run", str(SCEN / "paper001_single_section.yaml"), "--out", str(out), "--no-progress"],
-        cache_dir=tmp_path / "c",
     )
     assert res.returncode == 0, res.stderr[-2000:]
     (m,) = read_summary(out)["paper001"].values()

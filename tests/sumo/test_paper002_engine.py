@@ -25,9 +25,7 @@ SCENARIO = ROOT / "scenarios" / "paper002_topology_switch.yaml"
 @pytest.fixture(scope="module")
 def run(tmp_path_factory: pytest.TempPathFactory) -> Path:
     out = tmp_path_factory.mktemp("p2")
-    res = run_railsim(
-        ["run", str(SCENARIO), "--out", str(out), "--no-progress"], cache_dir=tmp_path_factory.mktemp("cache")
-    )
+    res = run_railsim(["run", str(SCENARIO), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     return out
 
@@ -68,7 +66,7 @@ def test_a_join_that_violates_condition_13_is_refused(tmp_path: Path) -> None:
             svc["start"]["offset_m"] = 90925.0  # 60.7 m behind train 4 (50 m long): x_45 + T·v_45 < 100 m
     path = tmp_path / "bad.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "cache")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 2, res.stderr[-2000:]
     assert "Traceback" not in res.stderr
     line = res.stderr.strip().splitlines()[-1]

@@ -27,7 +27,7 @@ def test_spacing_opening_past_d_max_triggers_passive_decoupling(tmp_path: Path) 
     raw["simulation"]["duration_s"] = 70
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     ev = [
         (float(e["t_s"]), e["kind"], e["subject"], json.loads(e["detail"]))
@@ -51,7 +51,7 @@ def test_monorail_drive_plant_applies_dead_time_and_lag_in_sumo(tmp_path: Path) 
     raw["vehicles"]["mc"]["plant"] = "monorail"
     path = tmp_path / "s.yaml"
     path.write_text(yaml.safe_dump(raw, sort_keys=False))
-    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"], cache_dir=tmp_path / "c")
+    res = run_railsim(["run", str(path), "--out", str(tmp_path / "o"), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     rows = {float(r["t_s"]): r for r in read_csv(tmp_path / "o" / "trace.csv") if r["train"] == "F1.000"}
     cmd0 = float(rows[0.1]["command_mps2"])  # the first command, issued at t = 0.1 s

@@ -40,7 +40,7 @@ def _run(tmp_path: Path, path: Path, raw: dict | None = None) -> Path:
         path = tmp_path / "s.yaml"
         path.write_text(yaml.safe_dump(raw, sort_keys=False))
     out = tmp_path / "out"
-    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "cache")
+    res = run_railsim(["run", str(path), "--out", str(out), "--no-progress"])
     assert res.returncode in (0, 1), res.stderr[-2000:]  # 1 = collision: reported by the assertions below
     return out
 

@@ -52,7 +52,7 @@ def test_short_platform_served_with_the_front_at_its_end_and_last_platform_reach
     }
     scn = _write(tmp_path, "shortplat.yaml", yaml.safe_dump(raw, sort_keys=False))
     out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
     assert res.returncode == 0, res.stderr + res.stdout
     s = read_summary(out)
     assert s["n_arrived"] == 1 and s["n_stops_missed"] == 0 and s["collisions"] == 0 and s["sumo_collisions"] == 0

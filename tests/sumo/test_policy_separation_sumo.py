@@ -41,7 +41,7 @@ def test_rdbm_runs_closer_than_adbm_on_line3(tmp_path: Path) -> None:
         }
         path = tmp_path / f"{mode}.yaml"
         path.write_text(yaml.safe_dump(raw, sort_keys=False))
-        res = run_railsim(["run", str(path), "--out", str(tmp_path / mode), "--no-progress"], cache_dir=tmp_path / "c")
+        res = run_railsim(["run", str(path), "--out", str(tmp_path / mode), "--no-progress"])
         assert res.returncode == 0, res.stderr[-2000:]
         s = read_summary(tmp_path / mode)
         assert s["collisions"] == 0 and s["n_arrived"] == 2 and s["n_stops_missed"] == 0

@@ -56,16 +56,15 @@ def _run(
     """``railsim run`` the services in a child process; assert the exit code; (output folder, summary, stderr)."""
     out = folder / "out"
     scn = _scenario(folder, name, net, stops, services, extra)
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
     assert res.returncode == exit_code, res.stderr + res.stdout
     return out, read_summary(out), res.stderr
 
 
-def test_sections_of_a_line_and_a_loop(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+def test_sections_of_a_line_and_a_loop(tmp_path: Path) -> None:
     from network.external import load_net
     from railsim.engine.single_track import contested, route_sections, section_map
 
-    monkeypatch.setenv("RAILSIM_CACHE", str(tmp_path / "cache"))
     line = load_net(*build_single_line(tmp_path)[:1], [build_single_line(tmp_path)[1]])
     smap = section_map(line.graph)
     assert {smap[e][0] for e in ("AM", "-AM", "MB", "-MB")} == {"track:-AM"}  # one section: M is a plain node
@@ -240,7 +239,7 @@ def test_a_bad_overlap_is_refused_naming_the_field(tmp_path: Path) -> None:
     net, stops = build_merge(tmp_path)
     services = [_service("main", "ash", "zed", 0)]
     scn = _scenario(tmp_path, "bad", net, stops, services, {"interlocking": {"overlap_m": -5}})
-    res = run_railsim(["validate", str(scn)], cache_dir=tmp_path / "c", timeout=120)
+    res = run_railsim(["validate", str(scn)], timeout=120)
     assert res.returncode == 2 and "Traceback" not in res.stderr
     (line,) = [ln for ln in res.stderr.splitlines() if ln.strip()]
     assert "bad.yaml" in line and "interlocking.overlap_m" in line

@@ -38,7 +38,7 @@ def _sumo_binary() -> str:
 
 def test_the_run_folder_loads_in_headless_sumo(tmp_path: Path) -> None:
     out = tmp_path / "out"
-    res = run_railsim(["run", str(_scenario(tmp_path)), "--out", str(out), "--no-progress"], tmp_path / "c")
+    res = run_railsim(["run", str(_scenario(tmp_path)), "--out", str(out), "--no-progress"])
     assert res.returncode == 0, res.stderr[-2000:]
     for name in (sumo_files.VTYPES_FILE, sumo_files.ROUTES_FILE, sumo_files.RUN_CONFIG, sumo_files.REPLAY_CONFIG):
         assert (out / name).is_file(), name

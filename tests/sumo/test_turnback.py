@@ -67,7 +67,7 @@ def _invoke(folder: Path, net: Path, stops: Path, services: list[dict], rotation
     raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
     scn = _write(folder, "scenario.yaml", yaml.safe_dump(raw, sort_keys=False))
     out = folder / "out"
-    return out, run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    return out, run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
 
 
 def _run(folder: Path, net: Path, stops: Path, services: list[dict], rotations: object) -> Path:
@@ -191,7 +191,7 @@ def _run_pocket_day(tmp_path: Path, raw: dict) -> Path:
     raw["rotations"] = {"units": {"u1": ["short_down.000", "short_up.000"]}, "turnback_min_s": 120}
     scn = _write(tmp_path, "pocket.yaml", yaml.safe_dump(raw, sort_keys=False))
     out = tmp_path / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=tmp_path / "c", timeout=300)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
     assert res.returncode == 0, res.stderr[-2000:]
     s = read_summary(out)
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
@@ -283,7 +283,7 @@ def _pair_run(folder: Path, net: Path, stops: Path, back_leader: str, back_s: fl
     raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
     scn = _write(folder, "scenario.yaml", yaml.safe_dump(raw, sort_keys=False))
     out = folder / "out"
-    return out, run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    return out, run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
 
 
 def _check_pair_back(out: Path, leader: str, follower: str) -> None:
@@ -395,7 +395,7 @@ def _late_first_unit(folder: Path, rotations: object) -> Path:
     raw["simulation"] = {**raw["simulation"], "duration_s": 2500}  # type: ignore[dict-item]
     scn = _write(folder, "scenario.yaml", yaml.safe_dump(raw, sort_keys=False))
     out = folder / "out"
-    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], cache_dir=folder / "c", timeout=300)
+    res = run_railsim(["run", str(scn), "--out", str(out), "--no-progress"], timeout=300)
     assert res.returncode == 0, res.stderr + res.stdout
     return out
 
