@@ -14,7 +14,7 @@ from tests.unit.test_shipped_scenarios import SCENARIOS
 
 
 @pytest.mark.parametrize("path", SCENARIOS, ids=[p.stem for p in SCENARIOS])
-def test_shipped_scenario_validates(path: Path, tmp_path: Path) -> None:
+def test_shipped_scenario_validates(path: Path) -> None:
     res = run_railsim(["validate", str(path)])
     assert res.returncode == 0, res.stderr
     assert res.stdout.startswith("ok:"), res.stdout

@@ -12,10 +12,11 @@ wall time several-fold but barely changes the CPU a test needs, so the check doe
 test's CPU goes into its report (``user_properties``) and ``tests/conftest.py`` prints the tier's total and its
 heaviest tests at the end of the run.
 
-The budget: 60 unit tests were measured on a loaded 2-core machine; the median is far under a second, the
-heaviest closed-loop controller tests take 8-12 s. 15 s lets the heaviest honest tests pass with room for a
-slower CPU, and fails a test that has grown a simulation (a minute-long closed loop, a pure-Python day of
-service) — which belongs in ``tests/long/``, or needs a smaller case.
+The budget: measured on the shared 2-core machine under load (``make check``'s summary line), the tier's 813
+tests used 157 s of CPU in all; the median test uses well under 0.1 s, the five heaviest (closed-loop MPC and
+PSO statistics) 7-12 s. :data:`CPU_BUDGET_S` = 20 s is 1.7 times the heaviest, room for a slower CPU, and still
+fails a test that has grown a simulation (a minute-long closed loop, a day of service in pure Python): such a
+test belongs in ``tests/long/`` or needs a smaller case. The tier's total is printed at the end of every run.
 """
 
 from __future__ import annotations
@@ -28,7 +29,7 @@ import pytest
 
 from tests.process_guard import ProcessStarted, forbid_processes
 
-CPU_BUDGET_S = 15.0
+CPU_BUDGET_S = 20.0
 CPU_KEY = pytest.StashKey[float]()
 HITS_KEY = pytest.StashKey[list[str]]()
 
