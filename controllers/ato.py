@@ -210,7 +210,7 @@ class Ato:
         until the formation's rear clears).
 
         Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
-        the same bits (``tests/test_line_kernels.py``)."""
+        the same bits (``tests/unit/test_line_kernels.py``)."""
         packed = self._packed
         if veh is not self._packed_vehicle or dt != self._packed_dt:
             packed = self._pack(veh, dt)

@@ -14,7 +14,7 @@ order, and only IEEE operations are used (``+ − × ÷ √``, comparisons, and 
 in CPython is libm's ``pow``, so the integer exponents of the stop sum are converted to float here, where numba
 would otherwise multiply by squaring). Python's ``min``/``max`` return their *first* argument on ties and with
 NaN; :func:`_mn`/:func:`_mx` do the same (numba's would not always: ``max(-0.0, 0.0)``). The lag ratio
-``e^{−dt/τ}`` is the reference's own cached value, computed by the caller. ``tests/test_line_kernels.py``
+``e^{−dt/τ}`` is the reference's own cached value, computed by the caller. ``tests/unit/test_line_kernels.py``
 compares each law with its reference on random inputs and along whole closed-loop runs, bit for bit.
 
 Inputs are packed once per (controller, vehicle, step length) into a float array (:data:`ATO_FIELDS`,

@@ -126,7 +126,7 @@ class Separation:
         The engine calls it directly for a train whose separation role is this class (no observation built).
 
         Runs the compiled transcription (:mod:`controllers.line_kernels`) of :meth:`decide_reference`, which gives
-        the same bits (``tests/test_line_kernels.py``)."""
+        the same bits (``tests/unit/test_line_kernels.py``)."""
         accel, emergency, phase, free_m, h = self.values(veh, dt_s, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)
         info = {"phase": line_kernels.SEPARATION_PHASES[phase], "free_m": free_m, "barrier_m": h}
         return Command(accel, emergency=emergency, info=info)

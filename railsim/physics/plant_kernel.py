@@ -7,7 +7,7 @@ operation of every step. Called from other compiled code the step costs a few na
 **Bit for bit**, as :mod:`controllers.line_kernels`: the same operands in the same order, IEEE operations only
 (the lag gain ``1 − e^{−dt/τ}`` is the caller's, from :func:`dynamics._lag_gain`). Inputs are not validated here:
 callers check what they hand over (a non-finite command falls back to the interpreted step, which raises its
-clear error). ``tests/test_free_run_kernel.py`` compares it with :func:`dynamics.step_values` on random states.
+clear error). ``tests/unit/test_free_run_kernel.py`` compares it with :func:`dynamics.step_values` on random states.
 
 The vehicle comes packed by :func:`pack` (:data:`PLANT_FIELDS`, then the lag gain); the step method as an index
 into :data:`dynamics.STEP_METHODS`.
