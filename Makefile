@@ -6,8 +6,11 @@ BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 SCENARIO ?= scenarios/chongqing_line3_peak.yaml
 OUT     ?= out/demo
-# pytest-xdist workers for `make test`: the machines have 2 cores (`make test WORKERS=0` runs in one process)
+# pytest-xdist workers for `make test`: the machines have 2 cores (`make test WORKERS=0` runs in one process).
+# worksteal: a worker that runs out of tests takes queued ones from the other, so the minutes-long tests of
+# tests/golden/ and tests/long/ (collected first) do not all wait on one worker.
 WORKERS ?= 2
+PYTEST  := $(BIN)/python -m pytest -q -n $(WORKERS) --dist worksteal
 
 .PHONY: venv demo lint check test test-fast format bench clean
 
@@ -34,13 +37,13 @@ lint: $(STAMP)
 # Test tiers by folder (tests/conftest.py): unit, sumo, golden, long. `make test` (CI) runs them all and prints
 # the 25 slowest tests; `make test-fast` leaves out golden and long.
 check: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS) tests/unit
+	$(PYTEST) tests/unit
 
 test: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS) --durations=25
+	$(PYTEST) --durations=25
 
 test-fast: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS) tests/unit tests/sumo
+	$(PYTEST) tests/unit tests/sumo
 
 # Format the tree (`make test` checks it is formatted).
 format: $(STAMP)
