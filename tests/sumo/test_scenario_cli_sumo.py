@@ -10,9 +10,10 @@ import os
 import subprocess
 
 import pytest
-import railsim_test_controllers  # noqa: E402,F401
 
-from railsim.physics.vehicle import preset_names  # noqa: E402
+from railsim.physics.vehicle import preset_names
+
+# (importing the unit module also puts tests/data/plugins on sys.path and registers the test controllers)
 from tests.unit.test_scenario_cli import BROKEN, EXPECTED, PLUGINS, REPO, VALID
 
 RAILSIM = REPO / ".venv" / "bin" / "railsim"
