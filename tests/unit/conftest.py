@@ -12,11 +12,13 @@ wall time several-fold but barely changes the CPU a test needs, so the check doe
 test's CPU goes into its report (``user_properties``) and ``tests/conftest.py`` prints the tier's total and its
 heaviest tests at the end of the run.
 
-The budget: measured on the shared 2-core machine under load (``make check``'s summary line), the tier's 813
-tests used 157 s of CPU in all; the median test uses well under 0.1 s, the five heaviest (closed-loop MPC and
-PSO statistics) 7-12 s. :data:`CPU_BUDGET_S` = 20 s is 1.7 times the heaviest, room for a slower CPU, and still
-fails a test that has grown a simulation (a minute-long closed loop, a day of service in pure Python): such a
-test belongs in ``tests/long/`` or needs a smaller case. The tier's total is printed at the end of every run.
+The budget, from measurements on the shared 2-core machine under load: the tier's ~810 tests use ~160 s of CPU
+in all; the median test 2.5 ms; the heaviest (closed-loop MPC, PSO statistics) 7-12 s with numba's kernels
+already compiled. On a fresh clone numba compiles its kernels (cached on disk after) inside the first test that
+reaches them: the mcf/opo optimiser test then used 21.7 s. :data:`CPU_BUDGET_S` = 40 s is about twice that
+cold worst case, room for a slower CPU, and still fails a test that has grown a simulation (a minutes-long
+closed loop, a day of service in pure Python): such a test belongs in ``tests/long/`` or needs a smaller case.
+The tier's total and its heaviest tests are printed at the end of every run that includes it.
 """
 
 from __future__ import annotations
@@ -29,7 +31,7 @@ import pytest
 
 from tests.process_guard import ProcessStarted, forbid_processes
 
-CPU_BUDGET_S = 20.0
+CPU_BUDGET_S = 40.0
 CPU_KEY = pytest.StashKey[float]()
 HITS_KEY = pytest.StashKey[list[str]]()
 
