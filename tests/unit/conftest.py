@@ -15,7 +15,7 @@ heaviest tests at the end of the run.
 The budget, from measurements on the shared 2-core machine under load: the tier's ~810 tests use ~160 s of CPU
 in all; the median test 2.5 ms; the heaviest (closed-loop MPC, PSO statistics) 7-12 s with numba's kernels
 already compiled. On a fresh clone numba compiles its kernels (cached on disk after) inside the first test that
-reaches them: the mcf/opo optimiser test then used 21.7 s. :data:`CPU_BUDGET_S` = 40 s is about twice that
+reaches them: the mcf/opo optimiser test then used 21.7-24.1 s. :data:`CPU_BUDGET_S` = 40 s is 1.7 times that
 cold worst case, room for a slower CPU, and still fails a test that has grown a simulation (a minutes-long
 closed loop, a day of service in pure Python): such a test belongs in ``tests/long/`` or needs a smaller case.
 The tier's total and its heaviest tests are printed at the end of every run that includes it.
