@@ -1,14 +1,18 @@
 # Two commands on a fresh machine: `make demo` and `make test`. Both bootstrap .venv from this repo's files.
+# `make check` is the developer's loop: lint and the unit tier (tests/unit/, no process started, about a minute).
 PY      ?= python3
 VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed
 SCENARIO ?= scenarios/chongqing_line3_peak.yaml
 OUT     ?= out/demo
-# pytest-xdist workers for `make test`: the machines have 2 cores (`make test WORKERS=0` runs in one process)
+# pytest-xdist workers for `make test`: the machines have 2 cores (`make test WORKERS=0` runs in one process).
+# worksteal: a worker that runs out of tests takes queued ones from the other, so the minutes-long tests of
+# tests/golden/ and tests/long/ (collected first) do not all wait on one worker.
 WORKERS ?= 2
+PYTEST  := $(BIN)/python -m pytest -q -n $(WORKERS) --dist worksteal
 
-.PHONY: venv demo lint test test-fast format bench clean
+.PHONY: venv demo lint check test test-fast format bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -30,11 +34,16 @@ lint: $(STAMP)
 	$(BIN)/mypy
 	$(BIN)/lint-imports --no-cache
 
+# Test tiers by folder (tests/conftest.py): unit, sumo, golden, long. `make test` (CI) runs them all and prints
+# the 25 slowest tests; `make test-fast` leaves out golden and long.
+check: lint
+	$(PYTEST) tests/unit
+
 test: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS)
+	$(PYTEST) --durations=25
 
 test-fast: lint
-	$(BIN)/python -m pytest -q -n $(WORKERS) -m "not slow"
+	$(PYTEST) tests/unit tests/sumo
 
 # Format the tree (`make test` checks it is formatted).
 format: $(STAMP)

@@ -16,7 +16,7 @@ are converted to float, where numba would otherwise multiply by squaring, so CPy
 ``pow``), fastmath stays off, and :func:`_mn`/:func:`_mx` return their *first* argument on ties and with NaN, as
 Python's ``min``/``max`` do (numba's would not always: ``max(-0.0, 0.0)``). The models behind the braking curves
 are derived in :mod:`controllers.braking`'s docstring; the ATO and separation laws in their classes' modules.
-``tests/test_line_kernels.py`` holds the laws to closed forms and closed-loop outcomes, and the compiled form to
+``tests/unit/test_line_kernels.py`` holds the laws to closed forms and closed-loop outcomes, and the compiled form to
 the interpreted one.
 
 Inputs are packed once per (controller, vehicle, step length) into a float array (:data:`ATO_FIELDS`,

@@ -21,7 +21,7 @@ The contract (:func:`problems`), whatever the variant:
 * **no collision at all**: in a valid scenario the engine keeps trains apart (it brakes, holds departures, refuses
   an insertion that no braking could make safe) — a collision in a variant is a defect to find, not physics.
 
-``tests/test_fuzz_runs.py`` runs a fixed sample in CI; ``python -m tests.fuzz_runs --n 300 --jobs 2`` is a campaign
+``tests/long/test_fuzz_runs.py`` runs a fixed sample in CI; ``python -m tests.fuzz_runs --n 300 --jobs 2`` is a campaign
 (its first campaigns found seven defects this way, each now a test of its own).
 """
 

@@ -1,7 +1,7 @@
 """Golden outputs: fixed-seed runs whose every output file must stay byte-identical across refactors.
 
 The golden set covers the default demo (Line 3 peak hour), one scenario of every paper family (A–E) and one
-scenario on a SUMO net railsim did not generate (the passing-loop net of ``tests/test_external_net.py``). Each
+scenario on a SUMO net railsim did not generate (the passing-loop net of ``tests/sumo/test_external_net.py``). Each
 case runs ``railsim run`` in a child process; its output folder is *normalised* and hashed file by file:
 
 * wall-clock fields are dropped — JSON keys and CSV columns whose name contains ``wall`` or ``solve_time``
@@ -53,7 +53,7 @@ class Case:
 
 
 def _external_passing_loop(folder: Path) -> Path:
-    from tests.test_external_net import _scenario, build_passing_loop
+    from tests.sumo.test_external_net import _scenario, build_passing_loop
 
     net, stops = build_passing_loop(folder)
     return _scenario(folder, "passing", net, stops)
@@ -105,8 +105,8 @@ def normalise(path: Path, tmp_root: Path) -> bytes:
     return text.encode("utf-8")
 
 
-def run_case(case: Case, workdir: Path, keep: Path | None = None) -> dict[str, str]:
-    """Run one case in a child process; return {file name: sha256 of its normalised bytes}."""
+def run_outputs(case: Case, workdir: Path) -> int:
+    """Run one case in a child process, its outputs into ``workdir/out``; return its exit code."""
     workdir.mkdir(parents=True, exist_ok=True)
     scenario = case.scenario(workdir) if callable(case.scenario) else ROOT / case.scenario
     out = workdir / "out"
@@ -117,14 +117,24 @@ def run_case(case: Case, workdir: Path, keep: Path | None = None) -> dict[str, s
     )
     if res.returncode not in (0, 1) or "Traceback" in res.stderr or not (out / "summary.json").is_file():
         raise RuntimeError(f"golden case {case.name} failed (exit {res.returncode}):\n{res.stderr[-3000:]}")
-    hashes: dict[str, str] = {"exit_code": str(res.returncode)}
-    for path in sorted(p for p in out.iterdir() if p.is_file()):
+    return res.returncode
+
+
+def hash_outputs(name: str, workdir: Path, exit_code: int, keep: Path | None = None) -> dict[str, str]:
+    """{file name: sha256 of its normalised bytes} of the outputs in ``workdir/out``, and the run's exit code."""
+    hashes: dict[str, str] = {"exit_code": str(exit_code)}
+    for path in sorted(p for p in (workdir / "out").iterdir() if p.is_file()):
         data = normalise(path, workdir)
         hashes[path.name] = hashlib.sha256(data).hexdigest()
         if keep is not None:
-            (keep / case.name).mkdir(parents=True, exist_ok=True)
-            (keep / case.name / path.name).write_bytes(data)
+            (keep / name).mkdir(parents=True, exist_ok=True)
+            (keep / name / path.name).write_bytes(data)
     return hashes
+
+
+def run_case(case: Case, workdir: Path, keep: Path | None = None) -> dict[str, str]:
+    """Run one case in a child process; return {file name: sha256 of its normalised bytes}."""
+    return hash_outputs(case.name, workdir, run_outputs(case, workdir), keep)
 
 
 def load_golden() -> dict[str, dict[str, str]]:

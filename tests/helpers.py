@@ -7,12 +7,16 @@ interpreter (``railsim run`` or a small script) and inspects what it wrote. One 
 from __future__ import annotations
 
 import csv
+import fcntl
 import json
 import os
 import subprocess
 import sys
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
+
+import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"
@@ -87,3 +91,31 @@ def interpreted(module: Any) -> Any:
     finally:
         config.DISABLE_JIT = disabled
     return copy
+
+
+def session_shared_dir(factory: pytest.TempPathFactory) -> Path:
+    """A folder shared by every xdist worker of this test session (the session's temporary root), not by others."""
+    base = factory.getbasetemp()
+    root = base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
+    shared = root / "shared"
+    shared.mkdir(exist_ok=True)
+    return shared
+
+
+def shared_run(factory: pytest.TempPathFactory, name: str, make: Callable[[Path], None]) -> Path:
+    """The folder ``name`` made once per test session by ``make(folder)``, whichever worker asks first.
+
+    The first caller makes it under an exclusive lock and marks it done; later callers (any worker) wait for the
+    lock and return the folder. A ``make`` that raises leaves no mark, so the next caller tries again and fails
+    with its own error instead of reading half a run.
+    """
+    root = session_shared_dir(factory)
+    folder = root / name
+    with open(root / f"{name}.lock", "w", encoding="utf-8") as lock:
+        fcntl.flock(lock, fcntl.LOCK_EX)
+        done = root / f"{name}.done"
+        if not done.exists():
+            folder.mkdir(exist_ok=True)
+            make(folder)
+            done.touch()
+    return folder

@@ -59,7 +59,7 @@ from railsim.physics.vehicle import VehicleParams
 
 ON_EMPTY_CHOICES = ("raise", "fallback")
 # Two bounds that meet exactly in exact arithmetic may cross by a few ulps (seen: 5e-14 m); such a window is the
-# single point, not empty (found by tests/test_distributed_properties.py).
+# single point, not empty (found by tests/unit/test_distributed_properties.py).
 WINDOW_ROUNDING_M = 1e-9
 
 

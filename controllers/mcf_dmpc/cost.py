@@ -108,7 +108,7 @@ def sequence_costs(
     With numba available the rollout and the cost run fused in the compiled kernel of
     :mod:`controllers.mcf_dmpc.kernels` (the optimisers' hot path: ~9,000 rows per MCF step); otherwise
     :func:`rollout_models` (plain floats for small batches, numpy for large) and :func:`dmpc_cost` score them.
-    Both give the same costs to rounding (``tests/test_paper000_kernels.py``).
+    Both give the same costs to rounding (``tests/unit/test_paper000_kernels.py``).
     """
     seq = np.atleast_2d(np.asarray(seq, dtype=np.int64))
     if seq.shape[1] != pred.steps:

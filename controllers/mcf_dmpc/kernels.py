@@ -21,7 +21,7 @@ trajectories and :func:`batch_costs` scores them on the fly with the terms of
         + ξ_term (ξ_v Δv_Np² + ξ_s e_Np²) + w Σ [max(0, D^(s)_j − ΔS_j) + max(0, −v_j) + max(0, v_j − v_m)]
         + w Σ [max(0, −b^(c) − u_j) + max(0, u_j − a^(m))]
 
-``tests/test_paper000_kernels.py`` pins both to the scalar reference to 1e-12 (relative) on random inputs.
+``tests/unit/test_paper000_kernels.py`` pins both to the scalar reference to 1e-12 (relative) on random inputs.
 
 If numba is not importable the functions still run as plain Python (``NUMBA_AVAILABLE`` is False) — correct
 but ~100× slower; :mod:`controllers.mcf_dmpc.cost` then keeps using the numpy/scalar rollout instead.

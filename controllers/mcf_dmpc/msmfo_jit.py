@@ -8,7 +8,7 @@ evaluation budget) and the fitness of :meth:`controllers.mcf_dmpc.controller.Mcf
 J^(DMPC) of :func:`controllers.mcf_dmpc.kernels.batch_costs`), written as one compiled loop. It draws the *same*
 random numbers from the same :class:`numpy.random.Generator` in the same order (numba runs numpy's bit generator),
 so for a given generator state it returns the same best sequence, cost and evaluation count as the Python
-optimiser — ``tests/test_paper000_msmfo_jit.py`` pins this — and leaves the generator in the same state.
+optimiser — ``tests/unit/test_paper000_msmfo_jit.py`` pins this — and leaves the generator in the same state.
 
 Why it is fast (measured, see ``benchmarks/controllers_000.py``): the Python optimiser spends ~60 % of a step in
 interpreter and numpy call overhead (~400 fitness calls, ~100 iterations of array bookkeeping), and evaluates

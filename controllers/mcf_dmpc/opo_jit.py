@@ -5,7 +5,7 @@ What it is: the same bounded compass search as :func:`~controllers.mcf_dmpc.opo.
 same order, the same acceptance test, the same step halving — scoring its single-model rollouts with
 :func:`controllers.mcf_dmpc.kernels.batch_costs`, the kernel the Python path reaches through
 :func:`~controllers.mcf_dmpc.cost.sequence_costs`. A row's cost does not depend on the batch it is scored in, so
-both paths return the same Θ, costs and counts bit for bit (``tests/test_paper000_opo_jit.py``).
+both paths return the same Θ, costs and counts bit for bit (``tests/unit/test_paper000_opo_jit.py``).
 
 Why: the Python search makes ~10 rollout calls per step (one per iteration), each rebuilding its arguments and
 stacking ~20 rows of Θ in numpy — ~1.5 ms per step, against ~0.2 ms of rollouts. Compiled, it is one call.

@@ -21,7 +21,7 @@ broadcasts its state and ``Command.info["plan"]`` each step. What a follower rea
 Why ``"engine"`` is the default (issue 19): with a leader that sends no plan the follower extrapolates the last
 reported state, and a report one step old (``"previous"``, this runner's former default) misses the leader's
 last step of a 0.2 m/s² ramp — S-E mean |ΔS − D^(e)| 10.5 m against 7.2 m for the engine's age-0 report, the
-whole engine-vs-numpy disagreement. ``tests/test_paper000_agreement.py`` pins the two to each other.
+whole engine-vs-numpy disagreement. ``tests/sumo/test_paper000_agreement.py`` pins the two to each other.
 
 Control noise N(0, σ²) is added to each follower's command after the controller (A8: followers only, not inside
 predictions), from a seeded generator. ``t0_s`` is the clock the controllers see at the first step (the engine

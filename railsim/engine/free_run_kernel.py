@@ -10,7 +10,7 @@ window ahead) run compiled.
 
 **Bit for bit** with the interpreted loop (:func:`railsim.engine.trips.free_run_reference`): the same lookups
 (``RouteView.gradient_at``, ``RouteView.limits_ahead``'s scan), the same law and plant on the same values, the
-same clock and stop logic. ``tests/test_free_run_kernel.py`` compares both on mini lines and Line 3, at three
+same clock and stop logic. ``tests/unit/test_free_run_kernel.py`` compares both on mini lines and Line 3, at three
 step lengths and the three step methods, with and without running-time factors. Only the line ATO
 (:class:`controllers.ato.Ato`) on a plain :class:`~railsim.physics.vehicle.VehicleParams` runs here; any other
 controller or vehicle takes the interpreted loop.

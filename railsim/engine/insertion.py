@@ -384,7 +384,7 @@ class Dispatcher:
         withdrawn from SUMO's queue and its departure held (retried as a standing departure from its origin; a
         follower still to couple is also put on behind its leader again by the formation book, whichever comes
         first). Else SUMO put a follower on, 330 s after it was handed over, 12 m in front of a train running at
-        24 km/h (fuzz variant 275: a collision); ``tests/test_pending_insertion.py``."""
+        24 km/h (fuzz variant 275: a collision); ``tests/sumo/test_pending_insertion.py``."""
         for tr in pending:
             if tr.plant.speed_mps > 0.0:
                 continue  # a start in motion is put on at the next step (or refused by SUMO: held, reported)

@@ -176,7 +176,7 @@ class Knowledge:
             # begins — yet it is ahead of us now: it came onto our track since, where its route joins ours, and
             # no part of it on our track is behind that point. Known: a train standing there (its speed on our
             # track unknown); without this the train behind ran with no separation at all (two fuzz-found
-            # collisions in radio outages: tests/test_knowledge_off_route.py)
+            # collisions in radio outages: tests/sumo/test_knowledge_off_route.py)
             join_m = other.view.join_m(observer.view, pos)
             if join_m is None:
                 return None

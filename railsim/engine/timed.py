@@ -2,7 +2,7 @@
 
 **One table per kind:** each event kind is one entry of :data:`railsim.scenario.events.EVENT_KINDS` (its
 fields and validation) and one entry here, :data:`EVENT_HANDLERS`, under the kind's ``handler_key`` (the
-function that schedules it); ``tests/test_engine_ports.py`` checks the two tables name the same kinds. Each handler gets the ports it acts on (:class:`TimedPorts`), the event's index
+function that schedules it); ``tests/unit/test_engine_ports.py`` checks the two tables name the same kinds. Each handler gets the ports it acts on (:class:`TimedPorts`), the event's index
 and the event.
 """
 

@@ -15,7 +15,7 @@ Both are scored by the same function, :func:`railsim.analysis.paper000.follower_
 |ΔS − D^(e)| over the whole run and the late phase: S-D [300, 500) s (A7), S-E [228, 380) s, the last 40 % of
 its cycle, besides Table IV's whole cycle). What differs between the two columns is only what the engine adds
 (SUMO's positions, the ATO role under min(), the recorder) and the noise stream (same σ, different generator), so
-their means over seeds agree; ``tests/test_paper000_agreement.py`` pins this within 10 %.
+their means over seeds agree; ``tests/sumo/test_paper000_agreement.py`` pins this within 10 %.
 
 :func:`paper000_tables` runs every (setting, method, seed) case, engine runs two at a time, and returns the rows;
 :func:`markdown` formats them as mean ± sd over seeds (``railsim reproduce paper000``).

@@ -14,8 +14,8 @@ import pytest
 import yaml
 
 from tests.helpers import read_csv
-from tests.test_external_net import _service
-from tests.test_single_track import _run, build_single_line
+from tests.sumo.test_external_net import _service
+from tests.sumo.test_single_track import _run, build_single_line
 
 
 @pytest.mark.sumo

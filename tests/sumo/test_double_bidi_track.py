@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from tests.helpers import read_csv, read_summary, run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 
 def build_double_bidi(folder: Path) -> tuple[Path, Path]:

@@ -14,7 +14,7 @@ import pytest
 import yaml
 
 from tests.helpers import run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 
 @pytest.mark.sumo

@@ -18,7 +18,7 @@ import pytest
 import yaml
 
 from tests.helpers import read_summary, run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 
 def _stops_file(folder: Path, name: str, rows: list[tuple[str, str, float, float, str]]) -> Path:

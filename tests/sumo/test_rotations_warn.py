@@ -19,7 +19,7 @@ import yaml
 
 from tests.helpers import read_summary, run_railsim
 from tests.sumo.test_double_bidi_track import build_double_bidi
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 
 def build_dead_ends(folder: Path) -> tuple[Path, Path]:

@@ -19,7 +19,7 @@ import pytest
 import yaml
 
 from tests.helpers import read_csv, read_summary, run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 BIAS_MPS2 = 0.115
 

@@ -17,7 +17,7 @@ import pytest
 import yaml
 
 from tests.helpers import read_csv, read_summary, run_railsim
-from tests.test_external_net import _COMMON, _edge, _netconvert, _service, _write
+from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 GAP_M = 22.0  # platform end to the node
 PLATFORM_M = 91.0  # cq3_6car is 89.4 m long

@@ -33,7 +33,7 @@ Readings and choices
   acts. For ``constant`` and ``uniform`` delays the stream is read in blocks (:class:`_UniformBlock`: one
   numpy call per few thousand messages instead of two per message); a uniform delay is
   ``low + (high − low)·U`` with ``U`` the stream's next double, which is what ``Generator.uniform`` computes,
-  so the draws are the same numbers in the same order (``tests/test_events_comms.py`` checks it).
+  so the draws are the same numbers in the same order (``tests/unit/test_events_comms.py`` checks it).
 - Delays never come out negative. ``normal`` is truncated at 0 by **rejection** (redraw), not by clipping,
   so there is no spike of zero-delay messages; the realised mean is then above ``mean_s`` when ``std_s`` is
   not small against it (``mean_s ≥ 0`` is required, so at least half the draws are accepted). The other

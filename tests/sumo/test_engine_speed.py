@@ -1,0 +1,99 @@
+"""The engine's speed shortcuts give the same bits as the long way (issue 20).
+
+Each shortcut on the hot path has a reference it must reproduce exactly: here the free-run planner's direct
+call of the line ATO's law (no observation objects), against the same law reached through ``command(obs)``.
+Other shortcuts have their own tests beside the code they shortcut (``test_occupancy``: the edge pointer and
+restriction windows; ``test_controllers_line``: the ATO screens; ``test_events_comms``: deliveries).
+"""
+
+from __future__ import annotations
+
+import json
+
+import pytest
+
+from tests.helpers import DATA, ROOT, run_python
+
+CHILD = r"""
+import json, sys, tempfile
+from pathlib import Path
+from controllers.ato import Ato
+from railsim.engine import trips as trips_mod
+from railsim.engine.fleet import ato_factory
+from railsim.engine.loop import Simulation
+from railsim.scenario.loading import load
+
+class ObservedAto(Ato):
+    '''The line ATO reached through command(observation): its type is not Ato, so the planner takes the long way.'''
+
+def observed(factory):
+    def make():
+        ato = factory()
+        twin = ObservedAto.__new__(ObservedAto)
+        twin.__dict__.update(ato.__dict__)
+        return twin
+    return make
+
+scn = load(sys.argv[1])
+with tempfile.TemporaryDirectory() as out:
+    sim = Simulation(scn, Path(out), progress=False)
+seen, rows = set(), []
+for tr in sim.trains.values():
+    trip = tr.trip
+    key = (trip.route.id, trip.stops, trip.start_offset_m, trip.start_speed_mps)
+    if key in seen:
+        continue
+    seen.add(key)
+    factory = ato_factory(sim.scenario, dict(trip.roles), trip.vehicle, sim.step_method)
+    assert type(factory()) is Ato
+    fast = trips_mod._free_run_cached(("fast",) + key, trip, factory, sim.dt, sim.step_method, 6 * 3600.0)
+    slow = trips_mod._free_run_cached(("slow",) + key, trip, observed(factory), sim.dt, sim.step_method, 6 * 3600.0)
+    rows.append([fast, slow])
+print(json.dumps(rows))
+"""
+
+
+@pytest.mark.parametrize(
+    "scenario", [DATA / "scenarios" / "mini_line.yaml", ROOT / "scenarios" / "chongqing_line3_peak.yaml"]
+)
+def test_free_run_plan_on_plain_values_is_the_observed_plan(scenario, tmp_path_factory) -> None:
+    """Every distinct trip's planned arrivals and departures are the same floats both ways (JSON keeps all 17
+    digits), and a plan reaches the trip's destination (so the comparison covers whole runs)."""
+    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))))
+    assert res.returncode == 0, res.stderr[-3000:]
+    rows = json.loads(res.stdout.strip().splitlines()[-1])
+    assert rows
+    for fast, slow in rows:
+        assert fast == slow
+        assert len(fast[0]) >= 2  # origin and at least one station reached
+
+
+HEAP_CHILD = r"""
+import gc, json, tempfile
+from pathlib import Path
+from railsim.engine.loop import Simulation
+from railsim.scenario.loading import load
+
+seen = []
+class Probe(Simulation):
+    def _step(self, t):
+        seen.append(gc.get_freeze_count())
+        super()._step(t)
+
+with tempfile.TemporaryDirectory() as out:
+    sim = Probe(load(SCENARIO), Path(out), progress=False)
+    before = gc.get_freeze_count()
+    sim.run()
+print(json.dumps({"before": before, "during": min(seen), "after": gc.get_freeze_count(), "n_set_up": len(sim.trains)}))
+"""
+
+
+def test_the_set_up_is_frozen_for_the_run_and_released_after(tmp_path_factory) -> None:
+    """railsim.engine.heap: while the loop runs, everything the set-up built sits in the collector's permanent
+    generation (full collections do not walk it again), and the run gives it back when it ends."""
+    code = HEAP_CHILD.replace("SCENARIO", repr(str(DATA / "scenarios" / "mini_line.yaml")))
+    res = run_python(code)
+    assert res.returncode == 0, res.stderr[-3000:]
+    got = json.loads(res.stdout.strip().splitlines()[-1])
+    assert got["before"] == 0 and got["after"] == 0
+    assert got["during"] > 10_000  # the set-up's objects (trips, views, controllers, the network), not a handful

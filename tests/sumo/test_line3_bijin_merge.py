@@ -1,0 +1,91 @@
+"""Down Jurenba units couple behind an Airport unit at the Bijin merge (issue 18, ``chongqing_line3_peak_merge``).
+
+One pair of the scenario, cut short (both end at Huixing, two stations past Bijin), runs in SUMO in a child
+process. What is checked comes from the recorded files: the Airport unit takes the ``bijin_down`` lock first and
+the Jurenba unit only after the switch was thrown; the couple request comes once the Jurenba unit is past the
+switch (``couple: {after_switch: bijin_down}``); the pair couples while standing at Bijin, leaves Bijin together
+and arrives coupled; no collision, no switch violation. A misspelt switch in the trigger is refused (exit 2).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+import yaml
+
+from tests.helpers import ROOT, read_csv, read_summary, run_railsim
+
+SCENARIO = ROOT / "scenarios" / "chongqing_line3_peak_merge.yaml"
+
+
+def _one_pair(tmp: Path, couple: dict[str, str] | None = None) -> Path:
+    """The scenario's down pair (its services, offsets, dwell and formation) with one trip each, to Huixing."""
+    data = yaml.safe_load(SCENARIO.read_text())
+    services = {s["id"]: s for s in data["services"]}
+    lead, follow = services["airport_down_vc"], services["jurenba_down"]
+    lead.update(to="huixing", departures={"times": [900]})
+    follow.update(to="huixing")
+    data["services"] = [lead, follow]
+    merge = next(f for f in data["formations"] if f["id"] == "merge")
+    if couple is not None:
+        merge["couple"] = couple
+    data["formations"] = [merge]
+    data["simulation"]["duration_s"] = 3600
+    path = tmp / "pair.yaml"
+    path.write_text(yaml.safe_dump(data, sort_keys=False))
+    return path
+
+
+def _events(out: Path) -> list[dict]:
+    rows = read_csv(out / "events.csv")
+    for r in rows:
+        r["t_s"] = float(r["t_s"])
+        r["detail"] = json.loads(r["detail"]) if r["detail"] else {}
+    return rows
+
+
+@pytest.fixture(scope="module")
+def pair(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    tmp = tmp_path_factory.mktemp("bijin_merge")
+    out = tmp / "out"
+    res = run_railsim(["run", str(_one_pair(tmp)), "--out", str(out), "--no-progress"])
+    assert res.returncode == 0, res.stderr[-2000:]
+    return out
+
+
+def test_the_pair_couples_at_bijin_without_collision_or_switch_violation(pair: Path) -> None:
+    s = read_summary(pair)
+    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
+    assert s["n_arrived"] == 2 and s["n_stops_missed"] == 0
+    (row,) = read_csv(pair / "formations.csv")
+    assert row["formation"] == "merge0"
+    assert int(row["couple_successes"]) == 1 and row["final_state"] == "coupled"
+    assert float(row["min_gap_m"]) > 20.0  # the follower stood and ran ~30 m behind, never closer than the guard
+
+
+def test_locks_in_the_planned_order_and_coupling_after_the_switch(pair: Path) -> None:
+    ev = _events(pair)
+    grants = [e for e in ev if e["kind"] == "lock_granted" and e["subject"] == "bijin_down"]
+    assert [e["detail"]["holders"] for e in grants] == [["airport_down_vc.000"], ["jurenba_down.000"]]
+    thrown = [e for e in ev if e["kind"] == "throw_end" and e["subject"] == "bijin_down"]
+    assert thrown and grants[1]["t_s"] >= thrown[0]["t_s"]  # the branch leg only after the throw behind the leader
+    (req,) = [e for e in ev if e["kind"] == "couple_requested"]
+    assert req["t_s"] > grants[1]["t_s"]  # asked once the Jurenba unit had run over the switch it was granted
+
+
+def test_the_pair_leaves_bijin_together_and_arrives_together(pair: Path) -> None:
+    stops = {(r["trip_id"], r["station"]): r for r in read_csv(pair / "stops.csv")}
+    a, j = stops[("airport_down_vc.000", "bijin")], stops[("jurenba_down.000", "bijin")]
+    assert float(j["arrival_s"]) > float(a["arrival_s"])  # it came in behind the Airport unit
+    assert abs(float(j["departure_s"]) - float(a["departure_s"])) <= 5.0
+    a_end, j_end = stops[("airport_down_vc.000", "huixing")], stops[("jurenba_down.000", "huixing")]
+    assert abs(float(j_end["arrival_s"]) - float(a_end["arrival_s"])) <= 10.0
+
+
+def test_a_misspelt_merge_switch_is_refused(tmp_path: Path) -> None:
+    res = run_railsim(["validate", str(_one_pair(tmp_path, {"after_switch": "bijin_dwn"}))])
+    assert res.returncode == 2
+    assert "formations[0].couple.after_switch" in res.stderr and "bijin_down" in res.stderr
+    assert "Traceback" not in res.stderr
