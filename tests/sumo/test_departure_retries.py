@@ -18,7 +18,6 @@ from tests.sumo.test_external_net import _service
 from tests.sumo.test_single_track import _run, build_single_line
 
 
-@pytest.mark.sumo
 def test_retries_of_a_held_departure_are_one_row_and_a_count(tmp_path: Path) -> None:
     net, stops = build_single_line(tmp_path)
     services = [_service("east", "aston", "bury", 0), _service("west", "bury", "aston", 0)]

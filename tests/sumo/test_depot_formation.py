@@ -11,12 +11,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import DATA, read_csv, read_summary, run_railsim
-
-pytestmark = pytest.mark.sumo
 
 
 def _run(tmp_path: Path, depot: str) -> tuple[Path, object]:

@@ -92,7 +92,6 @@ def _run(folder: Path, services: list[dict]) -> tuple[Path, dict, list[dict[str,
     return out, s, read_csv(out / "events.csv"), _routes_given_to_sumo(out)
 
 
-@pytest.mark.sumo
 def test_opposing_trains_run_on_their_own_tracks(tmp_path: Path) -> None:
     services = [
         {**_service("east", "aston", "bury", 0), "departures": {"times": [0, 240]}},
@@ -108,7 +107,6 @@ def test_opposing_trains_run_on_their_own_tracks(tmp_path: Path) -> None:
     assert routes["west.000"] == routes["west.001"] == "-N"
 
 
-@pytest.mark.sumo
 def test_a_pinned_platform_holds_against_the_running_side(tmp_path: Path) -> None:
     services = [
         {**_service("east", "aston", "bury", 0), "departures": {"times": [0, 240]}},

@@ -51,7 +51,6 @@ def _default_lambdas(sim: Simulation) -> set[str]:
     return out
 
 
-@pytest.mark.sumo
 def test_no_slot_keeps_its_default_once_the_engine_is_built_and_running(
     tmp_path, monkeypatch: pytest.MonkeyPatch
 ) -> None:

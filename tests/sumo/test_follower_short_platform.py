@@ -10,14 +10,12 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import run_railsim
 from tests.sumo.test_external_net import _COMMON, _edge, _netconvert, _service, _write
 
 
-@pytest.mark.sumo
 def test_follower_that_cannot_be_put_on_behind_its_leader_is_refused_at_once(tmp_path: Path) -> None:
     nodes = '<node id="A" x="0" y="0"/>\n<node id="X" x="2000" y="0"/>\n<node id="B" x="4000" y="0"/>'
     net = _netconvert(tmp_path, "fol", nodes, "\n".join([_edge("AX", "A", "X"), _edge("XB", "X", "B")]))

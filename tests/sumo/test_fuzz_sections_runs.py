@@ -5,12 +5,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 
 from tests import fuzz, fuzz_sections
 from tests.helpers import run_railsim
 
-pytestmark = pytest.mark.sumo
 N_RUNS = 3
 
 

@@ -75,7 +75,6 @@ def _kinds(events: list[dict[str, str]], kind: str, subject: str) -> list[dict[s
     return [json.loads(e["detail"] or "{}") for e in events if e["kind"] == kind and e["subject"] == subject]
 
 
-@pytest.mark.sumo
 def test_a_leader_waits_at_the_station_and_the_pair_leaves_together(tmp_path: Path) -> None:
     # the follower leaves A 80 s after the leader: due at C 80 s after the leader, 60 s after its dwell there ends
     out, events = _run(tmp_path, "late60", _join_world(80.0))
@@ -108,7 +107,6 @@ def test_a_leader_waits_at_the_station_and_the_pair_leaves_together(tmp_path: Pa
     ]
 
 
-@pytest.mark.sumo
 def test_a_follower_too_late_ends_the_wait_after_the_timeout_and_says_why(tmp_path: Path) -> None:
     timeout_s = 120.0
     out, events = _run(tmp_path, "late400", _join_world(420.0, timeout_s=timeout_s))
@@ -127,7 +125,6 @@ def test_a_follower_too_late_ends_the_wait_after_the_timeout_and_says_why(tmp_pa
     ]
 
 
-@pytest.mark.sumo
 def test_a_follower_at_the_station_before_its_leader_is_a_wrong_order(tmp_path: Path) -> None:
     data = _join_world(0.0)
     data["services"][0]["departures"] = {"times": [80]}  # the leader leaves A 80 s after its follower
@@ -138,7 +135,6 @@ def test_a_follower_at_the_station_before_its_leader_is_a_wrong_order(tmp_path: 
     assert read_summary(out)["formations_asked"][0]["reason"] == "wrong_order"
 
 
-@pytest.mark.sumo
 def test_a_train_between_leader_and_follower_ends_the_wait_and_says_why(tmp_path: Path) -> None:
     data = _join_world(120.0)
     # a train of its own (no formation) leaves A between the two: it, not the follower, comes up behind the leader
@@ -155,7 +151,6 @@ def test_a_train_between_leader_and_follower_ends_the_wait_and_says_why(tmp_path
     assert read_summary(out)["formations_asked"][0]["reason"] == "blocked"
 
 
-@pytest.mark.sumo
 def test_a_follower_first_at_the_merge_is_a_reason_not_silence(tmp_path: Path) -> None:
     data = mini_line()
     # down trains: the branch unit br_down.000 (from G at 60 s, over c_down onto the main line) passes the merge

@@ -6,7 +6,6 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-import pytest
 import sumolib
 import yaml
 
@@ -16,8 +15,6 @@ DATA = Path(__file__).resolve().parents[1] / "data"
 HELSINKI = DATA / "osm" / "helsinki_centre_rail.osm.gz"
 SAO_PAULO = DATA / "osm" / "sao_paulo_centre_rail.osm.gz"
 SPTRANS = DATA / "gtfs" / "sao_paulo_rail_cut.zip"
-
-pytestmark = pytest.mark.sumo
 
 
 def _ok(res: object) -> str:

@@ -7,14 +7,11 @@ from __future__ import annotations
 import csv
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import read_summary, run_railsim
 
 JENA = Path(__file__).resolve().parents[1] / "data" / "osm" / "jena_tram_2014.osm.gz"
-
-pytestmark = pytest.mark.sumo
 
 
 def _ok(res: object) -> str:

@@ -8,15 +8,12 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-import pytest
 import yaml
 
 from tests.helpers import run_railsim
 
 COLOGNE = Path(__file__).resolve().parents[1] / "data" / "osm" / "cologne_stadtbahn.osm.gz"
 CENTRE = "6.93,50.92,6.97,50.95"  # Neumarkt, Dom/Hbf, Barbarossaplatz
-
-pytestmark = pytest.mark.sumo
 
 
 def _import(tmp_path: Path, *extra: str) -> tuple[str, dict[str, Any]]:

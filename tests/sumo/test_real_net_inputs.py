@@ -77,7 +77,6 @@ def build_no_permissions(folder: Path) -> tuple[Path, Path]:
     return net, _stops_file(folder, "open", rows)
 
 
-@pytest.mark.sumo
 def test_a_net_without_lane_permissions_runs_when_its_lanes_are_named_rail(tmp_path: Path) -> None:
     net, stops = build_no_permissions(tmp_path)
     raw = {"name": "open", "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON}

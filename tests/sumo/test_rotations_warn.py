@@ -14,7 +14,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import read_summary, run_railsim
@@ -51,7 +50,6 @@ def _run(folder: Path, net: Path, stops: Path, ends: tuple[str, str] = ("alpha",
     return read_summary(out), lines
 
 
-@pytest.mark.sumo
 def test_dead_end_termini_are_named(tmp_path: Path) -> None:
     s, lines = _run(tmp_path, *build_dead_ends(tmp_path))
     assert s["n_arrived"] == 4 and s["fleet"]["units_used"] == 4
@@ -61,7 +59,6 @@ def test_dead_end_termini_are_named(tmp_path: Path) -> None:
         assert "dead end" in line and "no turnaround" in line, line
 
 
-@pytest.mark.sumo
 def test_platforms_on_tracks_without_a_way_between_are_named(tmp_path: Path) -> None:
     s, lines = _run(tmp_path, *build_double_bidi(tmp_path), ends=("aston", "bury"))
     assert s["n_arrived"] == 4 and s["fleet"]["units_used"] == 4

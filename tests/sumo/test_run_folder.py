@@ -16,12 +16,10 @@ import sys
 import time
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import DATA, ROOT, railsim_cmd, read_summary, run_railsim
 
-pytestmark = pytest.mark.sumo
 DISTURBED = DATA / "scenarios" / "disturbed_line.yaml"
 
 

@@ -35,7 +35,6 @@ def build_short_stop(folder: Path) -> tuple[Path, Path]:
     return net, _write(folder, "short.add.xml", "<additional>\n" + "\n".join(rows) + "\n</additional>")
 
 
-@pytest.mark.sumo
 def test_sub_metre_overrun_of_a_25_m_stop_is_served(tmp_path: Path) -> None:
     net, stops = build_short_stop(tmp_path)
     raw = {"name": "short", "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON}

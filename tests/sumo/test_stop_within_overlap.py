@@ -13,7 +13,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import read_csv, read_summary, run_railsim
@@ -79,7 +78,6 @@ def _run(folder: Path, net: Path, stops: Path, services: list[dict]) -> tuple[Pa
     return out, read_summary(out)
 
 
-@pytest.mark.sumo
 def test_stop_22_m_before_points_is_reached(tmp_path: Path) -> None:
     net, stops = build_points(tmp_path)
     out, s = _run(tmp_path, net, stops, [_service("s", "alpha", "bravo", 0)])
@@ -91,7 +89,6 @@ def test_stop_22_m_before_points_is_reached(tmp_path: Path) -> None:
     assert s["switch_violations"] == 0 and s["collisions"] == 0
 
 
-@pytest.mark.sumo
 def test_stop_22_m_before_a_held_single_track_is_reached(tmp_path: Path) -> None:
     net, stops = build_single_track(tmp_path)
     out, s = _run(tmp_path, net, stops, [_service("e", "alpha", "bravo", 0), _service("w", "bw", "aw", 60)])

@@ -4,12 +4,9 @@ from __future__ import annotations
 
 from pathlib import Path
 
-import pytest
 import yaml
 
 from tests.helpers import DATA, mini_line, run_railsim
-
-pytestmark = pytest.mark.sumo
 
 
 def test_a_sweep_with_a_case_validate_refuses_runs_nothing(tmp_path: Path) -> None:
