@@ -20,9 +20,10 @@ from typing import Any
 
 MAX_MESSAGE_CHARS = 1000
 QUOTE_CHARS = 80  # the longest quote of a user value (railsim.inputs.EXCERPT_CHARS)
-# a quoted value ('…' or "…") or an unbroken run of characters longer than a quote may be
+# a quoted value ('…' or "…") or an unbroken run of characters longer than a quote may be; a quote mark inside a
+# word is an apostrophe ("the platform's edge"), neither the start nor the end of a quote
 _Q = QUOTE_CHARS - 1
-_LONG_QUOTE = re.compile(rf"'[^'\n]{{{_Q},}}'|\"[^\"\n]{{{_Q},}}\"|\S{{{2 * QUOTE_CHARS},}}")
+_LONG_QUOTE = re.compile(rf"(?<!\w)'[^'\n]{{{_Q},}}'(?!\w)|(?<!\w)\"[^\"\n]{{{_Q},}}\"(?!\w)|\S{{{2 * QUOTE_CHARS},}}")
 
 
 def bound_quotes(message: str) -> str:

@@ -127,7 +127,7 @@ def test_vc_vs_mb_end_to_end(tmp_path: Path) -> None:
     [
         (["--mb", "no_such.yaml"], "no_such.yaml: expected a scenario file for --mb"),
         (["--services", "nope"], "services: expected a service 'nope'"),
-        (["--workers", "0"], "--workers: expected an integer >= 1"),
+        (["--workers", "0"], "argument --workers: expected an integer in [1,"),
         (["--headway", "-5"], "headway_s: expected a number of seconds > 0"),
     ],
 )

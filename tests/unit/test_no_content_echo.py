@@ -56,3 +56,14 @@ def test_a_3000_character_station_id_is_quoted_in_80(tmp_path: Path) -> None:
     assert "Q" * 60 in text  # the id is quoted, cut short
     longest = max(len(tok) for tok in text.replace("'", " ").split())
     assert longest <= 80, (longest, len(text))
+
+
+def test_an_apostrophe_is_not_a_quote_so_a_long_explanation_stays_whole() -> None:
+    """A message that quotes a short value and says "the platform's edge" is not cut between the two marks (it was:
+    the apostrophe closed a 'quote' that began at the closing mark of 'mid'); a long quoted value still is."""
+    from railsim.errors import QUOTE_CHARS, bound_quotes
+
+    why = "standing at 'mid' (" + "the platform's edge is too short for both trains; " * 3 + "shorten target_gap_m)"
+    assert bound_quotes(why) == why
+    cut = bound_quotes("got '" + "Q" * 3000 + "' instead")
+    assert len(cut) < 3000 and "'" + "Q" * (QUOTE_CHARS - 5) + "...'" in cut and cut.endswith(" instead")
