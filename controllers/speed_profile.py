@@ -12,7 +12,7 @@ The initial reference speed is ``initial_kmh`` or, if absent, the train's speed 
 meant for open-track experiments: it ignores stations (give such services no intermediate stops); the engine's
 min() with the other roles still applies separation and authority limits.
 
-Broadcast plan (issue 19; Paper A §2.5/A17: the follower's DMPC reads its predecessor's predicted states, and
+Broadcast plan (Paper A §2.5/A17: the follower's DMPC reads its predecessor's predicted states, and
 S-E's "leader future known"): with ``plan_horizon_s > 0`` every command carries ``info["plan"]``, this law's own
 closed-loop prediction over the horizon — the same law applied to the predicted state, sampled every
 ``plan_dt_s`` (default: the control step), integrated as the plant does for a constant command over a step

@@ -54,7 +54,7 @@ segment (the leader's position there is exact: constant acceleration within its 
 (closing speed × (T_1 + T_2)) lets a plan close at several m/s tens of metres behind its leader, which the guard
 refuses.
 
-The model that SUMO actually flies (issue 18) is :func:`sumo_corrected_params`: switch interval 21.6 s (the
+The model that SUMO actually flies is :func:`sumo_corrected_params`: switch interval 21.6 s (the
 interlocking's release + throw + approach, docs/guide/paper-experiments.md, "Paper E: the junction planner online"), 20 m trains, ``S_0`` = 15 m and
 the guard on (T = 0.2 s, b = 1.5 m/s², margin 10 m).
 """
@@ -176,7 +176,7 @@ SUMO_SWITCH_INTERVAL_S = 21.6
 
 
 def sumo_corrected_params(**overrides: float | bool) -> JunctionParams:
-    """The planner model the engine can fly (issue 18): the Table 3 SUMO runs' numbers instead of the paper's.
+    """The planner model the engine can fly: the Table 3 SUMO runs' numbers instead of the paper's.
 
     ``throw_time_s`` = 21.6 s (the interlocking releases a switch when the first train's 20 m body has cleared it,
     throws for 10 s and must grant the next lock before the second train's braking point: docs/guide/paper-experiments.md), trains of

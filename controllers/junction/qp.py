@@ -1,6 +1,6 @@
 """``qp_order``: a deterministic junction planner — enumerate the passing orders, solve each by sequential convex QPs.
 
-Why (issue 18). The improved PSO searches accelerations over distance segments and lets the passing order emerge.
+Why a second planner: the improved PSO searches accelerations over distance segments and lets the passing order emerge.
 With the constraints SUMO really imposes — a switch interval of ~21.6 s, an interlocking that frees a switch only
 behind the leader's rear, and the coupled follower's relative-braking-distance guard
 (:func:`controllers.braking.relative_braking_distance_m`) — its swarm rarely finds a feasible plan. Spec 004

@@ -27,7 +27,7 @@ Readings of the ambiguities:
 * A14 — model indices: 0 = IDM, 1 = CACC, 2 = FVD in code (the paper's 1, 2, 3).
 * A35 — the original models' δ (Eq. 7) and t_g (Eq. 9) are not in the paper: δ = 4, t_g = 1.5 s by default.
 
-**Control offsets (ours, issue 19; not in the paper).** Θ carries three more entries after θ1 … θ7: an offset
+**Control offsets (ours; not in the paper).** Θ carries three more entries after θ1 … θ7: an offset
 ``b_m`` [m/s²] per law, added to the law's output before the saturation, ``u = sat(a_m(…; Θ) + b_m)``. With
 ``b_m = 0`` (the Table values, MCF-DMPC, CF-DMPC) the laws are exactly the paper's. OPO may correct them online
 (:mod:`controllers.mcf_dmpc.opo`): under the reading A9 above each law can only hold the running resistance by

@@ -13,8 +13,8 @@ Registered names (factory ``(params, vehicle)``, parameters as in the dataclasse
   shifted by one step and the three single-model sequences, so MCF never does worse than the best single model
   it was offered.
 * ``opo_mcf_dmpc`` — as ``mcf_dmpc`` after OPO (:mod:`controllers.mcf_dmpc.opo`) re-tunes Θ every step (A29:
-  before the sequence search), warm-started from the previous step's Θ. By default (``opo_bias: true``, ours,
-  issue 19) OPO also corrects a control offset per law (:mod:`~controllers.mcf_dmpc.cf_models` docstring);
+  before the sequence search), warm-started from the previous step's Θ. By default (``opo_bias: true``, ours)
+  OPO also corrects a control offset per law (:mod:`~controllers.mcf_dmpc.cf_models` docstring);
   ``opo_bias: false`` is the paper's reading (θ1 … θ7 only).
 * ``dmpc`` — the continuous-u baseline as a sparse OSQP QP (:mod:`controllers.mcf_dmpc.dmpc`); solver failure →
   service braking with ``fallback=True`` and a counter.

@@ -1,5 +1,5 @@
 """MSMFO fused with the MCF cost and compiled: the per-step sequence search of ``mcf_dmpc`` / ``opo_mcf_dmpc``
-in one numba call (issue 19: one OPO-MCF-DMPC step ≤ 20 ms at Table II's budget).
+in one numba call (target: one OPO-MCF-DMPC step ≤ 20 ms at Table II's budget).
 
 What it is: :func:`controllers.mcf_dmpc.optim.mothflame.run_mothflame` with the MSMFO defaults (cyclic rounding
 Eq. 21, chaotic initialisation Eq. 22 "suggested", EOBL Eq. 23 after initialisation and every iteration, flame

@@ -8,7 +8,7 @@ rollout over the horizon with the same cost and constraint penalty —
 
 The control offsets ``b_m`` (ours, :mod:`~controllers.mcf_dmpc.cf_models` docstring) are corrected like any other
 parameter; a box of zero width ``[0, 0]`` keeps a parameter fixed (the paper's reading: ``opo_bias: false``).
-Why the offsets (issue 19, measured on the numpy S-D platoon, seed 0): on θ1 … θ7 alone OPO settles at θ4 ≈
+Why the offsets (measured on the numpy S-D platoon, seed 0): on θ1 … θ7 alone OPO settles at θ4 ≈
 0.025 s⁻², θ6 ≈ 0.024 s⁻¹, θ2 ≈ 21, i.e. at a late-phase spacing offset ω/gain ≈ 3.9 m for both followers,
 because larger gains make the predicted correction of every noise-driven deviation costlier in ξ_u, ξ_Δu than
 the offset they would remove; the DMPC baseline (which sets u = ω directly) holds 0.75–0.9 m.

@@ -1,5 +1,5 @@
 """OPO's compass search compiled: :func:`controllers.mcf_dmpc.opo.opo_step` with the MCF fitness in one numba call
-(issue 19: one OPO-MCF-DMPC step ≤ 20 ms at Table II's budget).
+(target: one OPO-MCF-DMPC step ≤ 20 ms at Table II's budget).
 
 What it is: the same bounded compass search as :func:`~controllers.mcf_dmpc.opo.opo_step` — the same polls in the
 same order, the same acceptance test, the same step halving — scoring its single-model rollouts with

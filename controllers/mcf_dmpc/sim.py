@@ -18,7 +18,7 @@ broadcasts its state and ``Command.info["plan"]`` each step. What a follower rea
 * ``"previous"`` — the whole message of ``t_{k−1}`` (state and plan, age τ);
 * ``"sequential"`` — the fresh message of ``t_k`` (the predecessor decided first, A17 default).
 
-Why ``"engine"`` is the default (issue 19): with a leader that sends no plan the follower extrapolates the last
+Why ``"engine"`` is the default: with a leader that sends no plan the follower extrapolates the last
 reported state, and a report one step old (``"previous"``, this runner's former default) misses the leader's
 last step of a 0.2 m/s² ramp — S-E mean |ΔS − D^(e)| 10.5 m against 7.2 m for the engine's age-0 report, the
 whole engine-vs-numpy disagreement. ``tests/sumo/test_paper000_agreement.py`` pins the two to each other.

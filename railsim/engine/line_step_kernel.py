@@ -6,7 +6,7 @@ junction plan, collision avoidance, exact plant, actuator noise or bias (``Contr
 them the step is: both laws, the smaller acceleration wins (the ATO on a tie, as
 :func:`controllers.base.arbitrate`), then the plant step. Calling the two law kernels and the interpreted plant
 step one after the other cost three Python-level calls and a few hundred interpreted float operations per train
-and step; here it is one call (issue 20).
+and step; here it is one call.
 
 **Bit for bit** with the interpreted path: the same kernels (:func:`controllers.line_kernels.ato`,
 :func:`controllers.line_kernels.separation`, :func:`railsim.physics.plant_kernel.step`, each tested against its

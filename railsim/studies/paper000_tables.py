@@ -1,5 +1,5 @@
 """Paper A's comparison tables (spec 000 S-D Table III, S-E Table IV) over seeds, from the engine and from its
-numpy twin under the same settings (issue 19).
+numpy twin under the same settings.
 
 Two ways to run one scenario file of ``scenarios/paper000_*.yaml``:
 

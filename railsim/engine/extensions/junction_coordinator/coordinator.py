@@ -40,7 +40,7 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    switch (the braking curve of :func:`controllers.junction.baselines.approach_speed_cap`) and waits for its
    lock through the interlocking's movement authority.
 
-``qp_order`` (issue 18, :mod:`controllers.junction.qp`) differs where SUMO runs showed missed couplings: its model
+``qp_order`` (:mod:`controllers.junction.qp`) differs where SUMO runs showed missed couplings: its model
 is the engine's (:func:`.readings.engine_corrected_params`, :func:`.readings.interlocking_model`,
 turnouts held over the train's length, approached inside the ATO's envelope); a granted lock fixes the order at
 its switch; the reference is the plan's exact trajectory from the planner's initial state; followers fly the plan in
