@@ -528,9 +528,13 @@ class RouteLocks:
         """The authority end ``end_m`` before a resource at ``point_m``, carried on to the train's next station
         stop when that stop's mark lies before the point but within the overlap (plus the margin the ATO keeps
         before its authority end): the train stops at its mark, not short of it (module docstring, "Stops
-        within the overlap")."""
+        within the overlap"). A train standing at its next stop runs to the stop after it: that one's mark is
+        carried to, so the train can leave a platform for a next one within the overlap (two platforms of a
+        station one behind the other before a merge: the resource is asked for only at the second)."""
         k = tr.next_stop
         stops = tr.trip.stops
+        if tr.sumo_stopped and k + 1 < len(stops) and stops[k + 1].kind == "station":
+            k += 1
         if k >= len(stops):
             return end_m
         stop = stops[k]

@@ -99,3 +99,43 @@ def test_stop_22_m_before_a_held_single_track_is_reached(tmp_path: Path) -> None
     asked = next(float(e["t_s"]) for e in events if e["kind"] == "section_requested" and "e.000" in e["detail"])
     released = next(float(e["t_s"]) for e in events if e["kind"] == "section_released" and "w.000" in e["detail"])
     assert halted <= asked < released  # it stood at Mid while the westbound train held the single track
+
+
+
+def build_two_stops_before_merge(folder: Path) -> tuple[Path, Path]:
+    """Double track Alpha–J; at J a branch from C joins and the single (bidi) track to Bravo begins: J is a merge
+    and the entry of a single-track section. Two eastbound platforms lie one behind the other before J: Near ends
+    GAP_M before J, Far ends 10 m before Near begins."""
+    nodes = '<node id="A" x="0" y="0"/>\n<node id="J" x="2000" y="0"/>\n<node id="B" x="4000" y="0"/>\n'
+    nodes += '<node id="C" x="200" y="600"/>'
+    edges = [
+        _edge("AJ", "A", "J", spread="right"),
+        _edge("JA", "J", "A", spread="right"),
+        _edge("JB", "J", "B"),
+        _edge("-JB", "B", "J"),
+        _edge("CJ", "C", "J", 16.0, shape="200,600 1600,60 2000,0"),
+    ]
+    net = _netconvert(folder, "mrg", nodes, "\n".join(edges))
+    end = _edge_length(net, "AJ") - GAP_M
+    rows = [
+        _stop("a", "AJ_0", 100, 400, "Alpha"),
+        _stop("f", "AJ_0", end - 2 * PLATFORM_M - 10, end - PLATFORM_M - 10, "Far"),
+        _stop("n", "AJ_0", end - PLATFORM_M, end, "Near"),
+        _stop("b", "JB_0", 1500, 1800, "Bravo"),
+        _stop("bw", "-JB_0", 100, 400, "Bravo"),
+        _stop("aw", "JA_0", 1600, 1900, "Alpha"),
+    ]
+    return net, _write(folder, "mrg.add.xml", "<additional>\n" + "\n".join(rows) + "\n</additional>")
+
+
+def test_a_train_leaves_a_platform_for_the_next_one_within_the_merge_margin(tmp_path: Path) -> None:
+    """Leaving Far, the train needs an authority reaching Near. Near lies within the margin kept before the
+    merge at J, and the merge is asked for only with the single-track section behind it, at Near: the authority
+    ended at the margin, short of Near, and the train stood at Far until the stall watchdog ended the run
+    (Potsdam, Platz der Einheit/Bildungsforum). The authority of a train standing at a platform reaches the
+    next platform's mark when that lies before the resource, as it does for the platform it runs to."""
+    net, stops = build_two_stops_before_merge(tmp_path)
+    services = [_service("e", "alpha", "bravo", 0, via=["far", "near"]), _service("w", "bw", "aw", 900)]
+    out, s = _run(tmp_path, net, stops, services)
+    assert s["n_arrived"] == 2 and s["n_stops_missed"] == 0 and s["max_stopping_error_m"] < 0.1
+    assert s["switch_violations"] == 0 and s["collisions"] == 0 and s["sumo_collisions"] == 0
