@@ -169,10 +169,10 @@ PLAN: dict[str, str | None] = {
         f"railsim network import {DATA}/osm/potsdam_tram_2025.osm.gz --out worlds/potsdam"
     ),
     (
-        "railsim timetable import --from-lines --headway-s 480 --lines 91,94,99 --world worlds/potsdam "
+        "railsim timetable import --from-lines --headway-s 720 --lines 91,93,94,99 --world worlds/potsdam "
         "--from 07:00 --to 09:00 --out potsdam.yaml"
     ): (
-        "railsim timetable import --from-lines --headway-s 480 --lines 91,94,99 --world worlds/potsdam "
+        "railsim timetable import --from-lines --headway-s 720 --lines 91,93,94,99 --world worlds/potsdam "
         "--from 07:00 --to 07:10 --out potsdam.yaml"
     ),
     "railsim run potsdam.yaml --out out/potsdam": None,
