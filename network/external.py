@@ -80,7 +80,6 @@ import math
 import re
 import subprocess
 import tempfile
-import unicodedata
 import xml.etree.ElementTree as ET
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
@@ -89,6 +88,7 @@ from typing import Any
 
 import networkx as nx
 
+from network.names import ascii_letters
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
 from network.running_side import RUNNING_SIDES, WRONG_LINE_FACTOR, mark_wrong_line
@@ -255,9 +255,9 @@ def read_stops(additional: Sequence[Path]) -> list[_Stop]:
 
 
 def _slug(text: str) -> str:
-    """A station id from a stop name: letters transliterated to ASCII (``Colón`` -> ``colon``: Unicode NFKD
-    splits the accent off its letter and the accent is dropped), lower case, ``-`` for anything else."""
-    ascii_text = "".join(c for c in unicodedata.normalize("NFKD", text) if not unicodedata.combining(c))
+    """A station id from a stop name: letters transliterated to ASCII (``Colón`` -> ``colon``, ``Straße`` ->
+    ``strasse``: :func:`network.names.ascii_letters`), lower case, ``-`` for anything else."""
+    ascii_text = ascii_letters(text)
     return re.sub(r"[^a-z0-9]+", "-", ascii_text.lower()).strip("-")
 
 

@@ -43,8 +43,19 @@ is reserved the train's authority ends ``protection_margin_m`` before that point
 switch in front of the section either (a train waiting for a section must not hold or stand on the switch the
 oncoming train needs to leave). A train starting inside a section reserves it before it is inserted (the
 dispatcher holds the departure until then). It releases the section when its rear is ``clearance_m`` past the
-section's end. So a single-track section is entered only when it is reserved to the next passing place. A flat
-crossing (two routes crossing inside one SUMO node) is the same kind of resource with one movement at a time.
+section's end. A flat crossing (two routes crossing inside one SUMO node) is the same kind of resource with one
+movement at a time.
+
+**Consecutive sections.** Points, a siding or a short piece of double track split a single-track line into
+several sections, and the track between two of them may hold no train, or fewer than are coming. A train
+entering single track therefore reserves every section up to the next place where it can wait for an opposing
+train — all of them at once or none (:meth:`RouteLocks._request_run`, :meth:`TrackSections.request_all`). The
+track between two sections is such a passing place for a train only if it holds the train clear of both (rear
+``clearance_m`` past the first, front the overlap before the second's protection point) beside the trains of the
+same direction already bound to wait there. Granted one section alone, two opposing groups each held one
+section and waited at the short piece between for the other's (Jena-Ost: three trams leaving the terminus and
+two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
+is entered only when it is reserved to the next passing place.
 """
 
 from __future__ import annotations
@@ -236,7 +247,7 @@ class RouteLocks:
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
                     and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
                 ):
-                    reqs[sec.section_id] = self.tracks.request(t, (tr.train_id,), sec.section_id, sec.direction)
+                    self._request_run(t, tr, sec)
             elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
                 self.tracks.release(t, tr.train_id, req)
 
@@ -247,13 +258,70 @@ class RouteLocks:
         reqs = self.section_requests[tr.train_id]
         for sec in self.sections[tr.train_id]:
             if sec.start_m - self.settings.protection_margin_m <= depart_m < sec.end_m:
-                req = reqs.get(sec.section_id)
-                if req is None:
-                    req = reqs[sec.section_id] = self.tracks.request(t, (tr.train_id,), sec.section_id, sec.direction)
+                if sec.section_id not in reqs:
+                    self._request_run(t, tr, sec)
+                req = reqs[sec.section_id]
                 if not req.granted:
                     others = ", ".join(self.tracks.waiting_ahead(req)) or "another train"
                     return f"single-track section {sec.section_id} is reserved for {others}"
         return None
+
+    def _request_run(self, t: float, tr: TrainRuntime, first: RouteSection) -> None:
+        """Request ``first`` together with every single-track section after it up to the next passing place
+        for this train (:meth:`_run_from`), all in one group (module docstring, "Consecutive sections")."""
+        assert self.tracks is not None
+        run = self._run_from(tr, first)
+        reqs = self.section_requests[tr.train_id]
+        wanted = [(sec.section_id, sec.direction) for sec in run]
+        inside = any(r.granted for r in reqs.values())  # it is on the single track (or between its sections)
+        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, inside)):
+            reqs[sec.section_id] = req
+
+    def _run_from(self, tr: TrainRuntime, first: RouteSection) -> list[RouteSection]:
+        """``first`` and the single-track sections that follow it on the route with no passing place between:
+        the next one is added while the track between the two cannot hold this train clear of both
+        (:meth:`_passing_room_m`). Sections already requested end the run; flat crossings are requested alone
+        (a train never stands inside one waiting)."""
+        run = [first]
+        if not first.section_id.startswith("track:"):
+            return run
+        reqs = self.section_requests[tr.train_id]
+        later = [
+            s for s in self.sections[tr.train_id] if s.start_m > first.start_m and s.section_id.startswith("track:")
+        ]
+        for nxt in later:
+            if nxt.section_id in reqs or any(s.section_id == nxt.section_id for s in run):
+                break
+            if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m:
+                break
+            run.append(nxt)
+        return run
+
+    def _passing_room_m(self, tr: TrainRuntime, sec: RouteSection, nxt: RouteSection) -> float:
+        """Room left for ``tr`` to wait between ``sec`` and ``nxt`` with its rear clear of ``sec``: from
+        ``clearance_m`` past the end of ``sec`` to where its authority ends before ``nxt`` (the overlap before its
+        protection point), less the room of the trains of the same direction that hold or wait for ``sec`` and
+        will stand there too (those not granted ``nxt`` together with ``sec``), each its length and its
+        separation margin."""
+        assert self.tracks is not None
+        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        for other_id in self.tracks.holders(sec.section_id) + self.tracks.queued(sec.section_id):
+            if other_id == tr.train_id:
+                continue
+            other = self.fleet.trains[other_id]
+            theirs = self.section_requests.get(other_id, {})
+            mine = theirs.get(sec.section_id)
+            if mine is None or mine.direction != sec.direction or other_id in mine.released_by:
+                continue
+            if not any(
+                s.section_id == nxt.section_id and s.direction == nxt.direction for s in self.sections[other_id]
+            ):
+                continue
+            on = theirs.get(nxt.section_id)
+            if on is not None and (on.granted or on in mine.group):
+                continue  # it runs on through nxt: it never waits between the two
+            room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
+        return room_m
 
     def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
         """True if a section right behind this switch point is not yet reserved for the train."""
@@ -528,9 +596,13 @@ class RouteLocks:
         """The authority end ``end_m`` before a resource at ``point_m``, carried on to the train's next station
         stop when that stop's mark lies before the point but within the overlap (plus the margin the ATO keeps
         before its authority end): the train stops at its mark, not short of it (module docstring, "Stops
-        within the overlap")."""
+        within the overlap"). A train standing at its next stop runs to the stop after it: that one's mark is
+        carried to, so the train can leave a platform for a next one within the overlap (two platforms of a
+        station one behind the other before a merge: the resource is asked for only at the second)."""
         k = tr.next_stop
         stops = tr.trip.stops
+        if tr.sumo_stopped and k + 1 < len(stops) and stops[k + 1].kind == "station":
+            k += 1
         if k >= len(stops):
             return end_m
         stop = stops[k]

@@ -9,7 +9,12 @@ registering a *moving* train as stopped is logged as an error event (``stop_regi
 platform shorter than the train (:mod:`railsim.engine.trips`) is served with the front at the platform end and
 recorded as a ``stop_short_platform`` event (platform and train length), not as a missed stop; a halt up to
 ``overrun_m`` (1 m) past such a platform's end is served too (``stop_overrun_served``), as SUMO's stop on the lane
-reaches that far: a train 0.7 m past a 25 m stop used to lose the stop (``stop_missed``).
+reaches that far: a train 0.7 m past a 25 m stop used to lose the stop (``stop_missed``). A train that halts
+past the end of a platform it fits on, by no more than the missed-stop tolerance, is neither missed nor ever
+registered by SUMO (a trainStop registers only a front inside it, and the front may already be on the junction
+after the platform): the engine registers the halt itself, keeps the dwell, and the stop is served with the
+overrun recorded (``stop_overrun_served``; a tram 0.11 m past a 30 m platform in Potsdam stood there until the
+stall watchdog ended the run).
 """
 
 from __future__ import annotations
@@ -144,6 +149,16 @@ class StopBook:
         ):
             tr.halted_s = t
             tr.halt_error_m = tr.front_m - mark
+        if (
+            not tr.sumo_stopped
+            and v == 0.0
+            and stop.lane_stop_m is None
+            and stop.window_end_m + 1e-6 < tr.front_m <= stop.served_end_m + self.settings.missed_stop_tolerance_m
+        ):  # halted just past a platform it fits on: SUMO never registers that trainStop (nor one on a junction)
+            self.drop_stop(tr.sumo_id, stop.stop_id, None)  # if SUMO has not dropped it as run past already
+            self._registered(t, tr, stop, mark, v)
+            tr.dwell_until_s = t + stop.dwell_s  # the engine keeps the dwell (the ATO holds it on its stop point)
+            return
         if not tr.sumo_stopped and tr.front_m > stop.served_end_m + self.settings.missed_stop_tolerance_m:
             self._missed(t, tr, stop)
         elif not tr.sumo_stopped and tr.halted_s is None and v > 0.0:

@@ -23,11 +23,11 @@ from __future__ import annotations
 import difflib
 import math
 import re
-import unicodedata
 from collections.abc import Iterable, Mapping
 from dataclasses import dataclass
 
 from network.geo import distance_m
+from network.names import ascii_letters
 from railsim.timetable.gtfs import GtfsStop
 
 DEFAULT_RADIUS_M = 300.0
@@ -78,9 +78,7 @@ class Match:
 
 def normalise(name: str) -> str:
     """A station name reduced to what identifies it (module docstring, step 1)."""
-    text = name.replace("ß", "ss").replace("ø", "o").replace("Ø", "O").replace("ł", "l").replace("Ł", "L")
-    text = unicodedata.normalize("NFKD", text)
-    text = "".join(ch for ch in text if not unicodedata.combining(ch)).lower()
+    text = ascii_letters(name).lower()
     text = re.sub(r"\([^)]*\)", " ", text)
     words = [w for w in re.split(r"[^a-z0-9]+", text) if w and w not in _STOPWORDS]
     return " ".join(words)

@@ -165,6 +165,17 @@ PLAN: dict[str, str | None] = {
     (
         "railsim network import tests/data/osm/cologne_stadtbahn.osm.gz --out worlds/koeln --light-rail-as-tram"
     ): f"railsim network import {HELP}",
+    "railsim network import tests/data/osm/potsdam_tram_2025.osm.gz --out worlds/potsdam": (
+        f"railsim network import {DATA}/osm/potsdam_tram_2025.osm.gz --out worlds/potsdam"
+    ),
+    (
+        "railsim timetable import --from-lines --headway-s 720 --lines 91,93,94,99 --world worlds/potsdam "
+        "--from 07:00 --to 09:00 --out potsdam.yaml"
+    ): (
+        "railsim timetable import --from-lines --headway-s 720 --lines 91,93,94,99 --world worlds/potsdam "
+        "--from 07:00 --to 07:10 --out potsdam.yaml"
+    ),
+    "railsim run potsdam.yaml --out out/potsdam": None,
     # run folders
     "railsim run scenarios/chongqing_line3_peak.yaml --out out/peak": None,
     (

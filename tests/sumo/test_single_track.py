@@ -273,18 +273,27 @@ def build_no_passing_place(folder: Path) -> tuple[Path, Path]:
     return net, stops
 
 
-def test_a_deadlock_constructed_on_purpose_stops_the_run_naming_the_trains(tmp_path: Path) -> None:
-    """Both trains start at once on opposite sections with no place to pass: each holds its own section and waits
-    for the other's. The run stops with a ``deadlock`` event naming both trains and both sections, exit 3."""
+def test_two_sections_without_a_passing_place_are_reserved_together(tmp_path: Path) -> None:
+    """Both trains start at once towards opposite sections with no place to pass between them (a spur's points
+    split the line): each used to be granted its own first section and wait for the other's — a deadlock. Now a
+    train reserves both sections in one instant or neither: the first to ask runs through, the other waits at
+    its platform, both arrive."""
     net, stops = build_no_passing_place(tmp_path)
     services = [_service("east", "a_out", "b_in", 0), _service("west", "b_out", "a_in", 0)]
-    out, s, stderr = _run(tmp_path, "spur", net, stops, services, exit_code=3)
-    assert "deadlock" in stderr and "east.000" in stderr and "west.000" in stderr
-    (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
-    detail = yaml.safe_load(ev["detail"])
-    assert sorted(detail["trains"]) == ["east.000", "west.000"]
-    assert sorted(detail["resources"]) == ["track:-AM", "track:-MB"]
-    assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["n_arrived"] == 0
+    out, s, stderr = _run(tmp_path, "spur", net, stops, services)
+    assert s["n_arrived"] == s["n_trains"] == 2 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    assert not [e for e in events if e["kind"] == "deadlock"]
+    reserved: dict[str, dict[str, float]] = {}
+    for e in events:
+        if e["kind"] == "section_reserved":
+            for train in yaml.safe_load(e["detail"])["trains"]:
+                reserved.setdefault(train, {}).setdefault(e["subject"], float(e["t_s"]))
+    for train in ("east.000", "west.000"):
+        assert sorted(reserved[train]) == ["track:-AM", "track:-MB"]
+        assert reserved[train]["track:-AM"] == reserved[train]["track:-MB"]  # in one instant
+    held = [e for e in events if e["kind"] == "departure_held"]
+    assert len(held) == 1 and "single-track section" in held[0]["detail"]
 
 
 def test_no_train_is_inserted_between_a_train_and_the_switch_it_holds(tmp_path: Path) -> None:
@@ -350,13 +359,12 @@ def build_short_loop(folder: Path) -> tuple[Path, Path]:
 
 
 @pytest.mark.parametrize("berths", [True, False])
-def test_a_deadlock_through_a_train_standing_behind_another_is_found(tmp_path: Path, berths: bool) -> None:
-    """Three trains, a circular wait that only the occupancy of the track closes: ``zed`` (east) waits on the loop
-    for the M2–B section that ``west`` holds; ``west`` stands on the short loop track (its rear still in M2–B)
-    waiting for the A–M1 section, which ``ex`` holds — ``ex`` stands in it right behind ``zed`` on its way to the
-    loop platform and needs nothing else. Without the ``ahead:`` edge this was a 300 s stall, not a deadlock. With
-    platform berths (the default) ``ex`` stands at the limit of the loop platform ``zed`` occupies, and the edge is
-    that berth wait (``platform:loop``); without them, the train directly ahead (``ahead:zed.000``)."""
+def test_a_passing_loop_too_short_for_the_train_is_no_passing_place(tmp_path: Path, berths: bool) -> None:
+    """Three trains on a line whose loop track L2 (westbound) is shorter than a train plus the overlap. ``west``
+    used to be granted M2–B alone, stand on the short loop track with its rear still in M2–B waiting for A–M1,
+    which ``ex`` held while standing right behind ``zed``, who waited on the loop for M2–B: a circular wait only
+    the occupancy of the track closed (found as a deadlock, with or without platform berths). Now ``west`` reserves
+    M2–B and A–M1 together (L2 cannot hold it), and all three arrive."""
     net, stops = build_short_loop(tmp_path)
     services = [
         _service("zed", "z_out", "b_in", 0),
@@ -364,11 +372,13 @@ def test_a_deadlock_through_a_train_standing_behind_another_is_found(tmp_path: P
         _service("west", "b_out", "a_in", 0),
     ]
     extra = None if berths else {"interlocking": {"platform_berths": False}}
-    out, s, stderr = _run(tmp_path, "occ", net, stops, services, exit_code=3, extra=extra)
-    assert "deadlock" in stderr
-    (ev,) = [e for e in read_csv(out / "events.csv") if e["kind"] == "deadlock"]
-    detail = yaml.safe_load(ev["detail"])
-    assert sorted(detail["trains"]) == ["ex.000", "west.000", "zed.000"]
-    assert ("platform:loop" if berths else "ahead:zed.000") in detail["resources"]
-    assert float(ev["t_s"]) < 300.0  # found by the deadlock search, long before the stall timeout
-    assert s["collisions"] == 0 and s["sumo_collisions"] == 0
+    out, s, stderr = _run(tmp_path, "occ", net, stops, services, extra=extra)
+    assert s["n_arrived"] == s["n_trains"] == 3 and s["collisions"] == 0 and s["sumo_collisions"] == 0
+    events = read_csv(out / "events.csv")
+    assert not [e for e in events if e["kind"] == "deadlock"]
+    grouped = [
+        e
+        for e in events
+        if e["kind"] == "section_requested" and e["subject"] == "track:-AM" and "west.000" in e["detail"]
+    ]
+    assert len(grouped) == 1 and "track:-MB" in yaml.safe_load(grouped[0]["detail"])["with"]
