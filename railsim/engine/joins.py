@@ -31,6 +31,7 @@ from railsim.errors import ConfigError
 # its turnback (before the separation controller, margin 50 m on Line 3, would stop it further back), or one that
 # joins at a station (there, on its final approach if that comes first)
 COUPLE_REACH_M = 150.0
+STANDING_MPS = 0.1  # a follower slower than this behind its waiting leader stands (at the berth limit)
 
 
 def trig(trigger: Any, kind: str) -> bool:
@@ -216,7 +217,7 @@ class Joins:
         """Follower ``follower`` (its leader directly ahead, ``a``) is close enough to ask to couple: within
         :data:`COUPLE_REACH_M` of its leader's rear, or — the leader standing at the station where it waits
         (:meth:`join_station`) — on its final approach to its coupled halt position there, ``target gap`` behind
-        the leader. Asked from farther back, the coupled controller's closing speed (meant for the last metres)
+        the leader, or standing (a berth limit held it before the platform: it is called on). Asked from farther back, the coupled controller's closing speed (meant for the last metres)
         would crawl the whole way."""
         if a.gap_m <= COUPLE_REACH_M:
             return True
@@ -233,7 +234,8 @@ class Joins:
         halt_m = stop.mark_m - (
             self.book.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
         )
-        return self.book.in_final_approach(follower, halt_m)
+        # standing behind its waiting leader (held at the platform's berth limit): called on, it runs in
+        return follower.plant.speed_mps < STANDING_MPS or self.book.in_final_approach(follower, halt_m)
 
     def merge_out_of_order(
         self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None
