@@ -24,56 +24,10 @@ import json
 from pathlib import Path
 from typing import Any
 
-from tests.helpers import DATA, read_csv, read_summary, run_mapping
+from tests.helpers import merge_world, read_csv, read_summary, run_mapping
 
 SWITCH = "c_down"
 GAP_M = 30.0
-
-
-def merge_world(
-    pairs: list[tuple[float, float]], others: list[tuple[str, str, float]] = (), duration_s: float = 1800.0
-) -> dict[str, Any]:
-    """A scenario on the Y world: formation ``k`` is ``lead.00k`` (E -> A, leaving at ``pairs[k][0]``) with
-    ``fol.00k`` (G -> A, leaving at ``pairs[k][1]``) coupling after ``c_down``; ``others``: unrelated trains
-    ``(service id, origin e or g, departure)`` to A."""
-    services: list[dict[str, Any]] = [
-        {"id": "lead", "from": "e", "to": "a", "vehicle": "cq6", "departures": {"times": [p[0] for p in pairs]}},
-        {"id": "fol", "from": "g", "to": "a", "vehicle": "cq6", "departures": {"times": [p[1] for p in pairs]}},
-    ]
-    for sid, origin, depart_s in others:
-        services.append({"id": sid, "from": origin, "to": "a", "vehicle": "cq6", "departures": {"times": [depart_s]}})
-    for s in services:
-        s["dwell_s"] = 20
-    # departures are listed in time order per service: the k-th pair is the k-th trip of each
-    order_l = sorted(range(len(pairs)), key=lambda k: pairs[k][0])
-    order_f = sorted(range(len(pairs)), key=lambda k: pairs[k][1])
-    services[0]["departures"]["times"] = [pairs[k][0] for k in order_l]
-    services[1]["departures"]["times"] = [pairs[k][1] for k in order_f]
-    formations = [
-        {
-            "id": f"m{k}",
-            "leader": {"service": "lead", "trip": order_l.index(k)},
-            "follower": {"service": "fol", "trip": order_f.index(k)},
-            "target_gap_m": GAP_M,
-            "couple": {"after_switch": SWITCH},
-        }
-        for k in range(len(pairs))
-    ]
-    return {
-        "name": "merge_y_formations",
-        "world": {"line": str(DATA / "lines" / "merge_y.yaml")},
-        "simulation": {"step_s": 0.5, "duration_s": duration_s, "seed": 7, "step_method": "euler"},
-        "vehicles": {"cq6": {"preset": "cq3_6car"}},
-        "controllers": {
-            "ato": {"type": "ato"},
-            "sep": {"type": "separation", "params": {"margin_m": 50}},
-            "vc": {"type": "cacc"},
-        },
-        "roles": {"ato": "ato", "separation": "sep", "coupled": "vc"},
-        "services": services,
-        "formations": formations,
-        "outputs": {"trace_stride_s": 1.0, "sumo": [], "formats": ["csv"]},
-    }
 
 
 def _run(tmp_path: Path, name: str, data: dict[str, Any]) -> tuple[Path, list[dict[str, Any]]]:
