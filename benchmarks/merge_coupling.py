@@ -3,9 +3,10 @@
 Each run is one timetable on :file:`tests/data/lines/merge_y.yaml` (``tests.helpers.merge_world``): ``--pairs``
 formations, one every ``--period`` seconds, each a leader from E and a follower from G that couple after the merge
 ``c_down``; the follower leaves G at a random offset from its leader's departure, uniform in
-[``--offset-min``, ``--offset-max``] s (negative: before it — the follower then reaches the merge first), and one
-unrelated train per period on each line leaves between two formations, at a random time in the middle half of the
-period. ``--runs`` runs with seeds 1, 2, …; every run is a ``railsim run`` in a child process.
+[``--offset-min``, ``--offset-max``] s (negative: before it — the follower then reaches the merge first); on each
+line one unrelated train leaves between the units of two successive formations (at a random time at least 60 s
+after the one and before the other). An unrelated train on the main line may so reach the merge between a leader
+and its follower: the merge order holds it back. ``--runs`` runs with seeds 1, 2, …; every run is a ``railsim run`` in a child process.
 
 Prints one JSON object: per run the formations asked, coupled where asked, the failure reasons, collisions and
 switch violations; and over all runs the coupled-where-asked rate.
@@ -31,19 +32,24 @@ from tests.helpers import merge_world, read_summary, run_mapping  # noqa: E402
 
 
 START_S = 120.0  # the first leader leaves E then (a follower may leave G up to this much before it)
+UNRELATED_CLEAR_S = 60.0  # an unrelated train leaves its origin this long after / before the formations' units
 
 
 def timetable(seed: int, pairs: int, period_s: float, offset_min_s: float, offset_max_s: float) -> dict[str, Any]:
     """One run's scenario (module docstring)."""
     rng = np.random.default_rng(seed)
     formation_times = []
-    others = []
     for k in range(pairs):
         lead_s = START_S + k * period_s
         formation_times.append((lead_s, float(round(lead_s + rng.uniform(offset_min_s, offset_max_s), 1))))
-        for line, origin in (("main", "e"), ("branch", "g")):
-            others.append((f"{line}_x{k}", origin, float(round(lead_s + period_s * rng.uniform(0.25, 0.75), 1))))
-    return merge_world(formation_times, others, duration_s=START_S + pairs * period_s + 1500.0)
+    others = []
+    for line, origin, unit in (("main", "e", 0), ("branch", "g", 1)):
+        times = sorted(p[unit] for p in formation_times) + [START_S + pairs * period_s + period_s]
+        for k, (after_s, before_s) in enumerate(zip(times, times[1:])):
+            lo, hi = after_s + UNRELATED_CLEAR_S, before_s - UNRELATED_CLEAR_S
+            if hi > lo:
+                others.append((f"{line}_x{k}", origin, float(round(rng.uniform(lo, hi), 1))))
+    return merge_world(formation_times, others, duration_s=START_S + (pairs + 1) * period_s + 1500.0)
 
 
 def main() -> None:

@@ -1,5 +1,5 @@
-"""The merge order's wait limit (railsim.engine.extensions.merge_order): the coupling timeout, at most half the
-stall timeout, so a train held back at a merge never reads as a stall; and when the extension applies."""
+"""The merge order's wait limit (railsim.engine.extensions.merge_order): the coupling timeout, ending 30 s before the
+stall timeout would, so a train held back at a merge never reads as a stall; and when the extension applies."""
 
 from __future__ import annotations
 
@@ -10,7 +10,7 @@ from railsim.engine.extensions.merge_order import MergeOrder, wait_limit_s
 
 def test_the_wait_limit_is_the_coupling_timeout_at_most_half_the_stall_timeout() -> None:
     assert wait_limit_s(60.0, 300.0) == 60.0
-    assert wait_limit_s(300.0, 300.0) == 150.0
+    assert wait_limit_s(300.0, 300.0) == 270.0
     assert wait_limit_s(300.0, 1000.0) == 300.0
 
 

@@ -15,7 +15,7 @@ What happens in time, per such formation (a :class:`MergePair`):
    as at a signal at danger (``merge_wait_for_leader`` event, once). The alternative, swapping the roles, would
    change which unit leads the coupled train beyond the merge — its stops, its decoupling point, the formation
    the user described — so the follower waits. The wait is bounded: :func:`wait_limit_s` after it began (the
-   formation's coupling timeout, at most half the stall timeout so a wait never reads as a stall) the follower
+   formation's coupling timeout, ending 30 s before the stall timeout would: a wait never reads as a stall) the follower
    goes on alone (``merge_wait_ended``, ``reason: timeout``) and, passing ``X`` first, its formation logs
    ``coupling_failed`` with ``wrong_order`` (:meth:`railsim.engine.joins.Joins.merge_out_of_order`). A leader
    that is not coming (left the line, or past ``X``) ends the wait at once.
@@ -49,13 +49,14 @@ if TYPE_CHECKING:  # pragma: no cover
     from railsim.scenario import Scenario
 
 ON_THE_WAY = ("scheduled", "inserting", "running")
+STALL_MARGIN_S = 30.0  # a wait at a merge ends this long before the stall watchdog would call the train stalled
 
 
 def wait_limit_s(coupling_timeout_s: float, stall_timeout_s: float) -> float:
     """How long a follower waits for its leader at a merge, and how long other trains are held back for it: the
-    formation's coupling timeout, at most half the stall timeout (a held train stands for a reason the stall
-    watchdog cannot see)."""
-    return min(coupling_timeout_s, 0.5 * stall_timeout_s)
+    formation's coupling timeout, at most :data:`STALL_MARGIN_S` short of the stall timeout (a held train stands
+    for a reason the stall watchdog does not see; it starts standing only after the wait began)."""
+    return max(0.0, min(coupling_timeout_s, stall_timeout_s - STALL_MARGIN_S))
 
 
 @dataclass
