@@ -26,7 +26,11 @@ What happens in time, per such formation (a :class:`MergePair`):
    held (it must pass first: holding it would hold the follower too). Bounded by the same limit from the moment the
    leader's front passes ``X`` — before that no train behind it on its leg may ask anyway — after which
    (``merge_priority_lapsed``) a train that passes between them makes the formation ``blocked``.
-3. **Past the merge** the engine takes over: the follower asks to couple once past ``X`` with its leader
+3. **A train between them on the follower's leg goes first.** While the leader has not asked, a train that
+   comes to ``X`` on the follower's leg ahead of the follower and has not asked yet would pass between the two
+   if the leader asked before it; the leader's request waits for it (``merge_leader_yields``, naming it; at
+   most the wait limit), so it passes before the leader.
+4. **Past the merge** the engine takes over: the follower asks to couple once past ``X`` with its leader
    directly ahead, and the leader waits at the first station past ``X`` both serve until they are coupled
    (:meth:`railsim.engine.joins.Joins.join_station`). Two legs cannot both be set at once: the follower passes
    ``X`` at least the leader's clearing time plus one switch throw after it, so the pair closes up on the run to
@@ -43,6 +47,7 @@ from typing import TYPE_CHECKING
 
 from railsim.engine.extensions.base import Extension
 from railsim.engine.extensions.context import ExtensionContext
+from railsim.engine.settings import INF
 
 if TYPE_CHECKING:  # pragma: no cover
     from railsim.engine.train import TrainRuntime
@@ -75,6 +80,8 @@ class MergePair:
     wait_since_s: float | None = None  # the follower waits for its leader since
     leader_asked_s: float | None = None
     leader_past_s: float | None = None  # the leader's front passed the switch point (trains behind it may ask)
+    yield_to: str | None = None  # the leader lets this train of the follower's leg ask first
+    yield_since_s: float | None = None
     done: bool = False  # the follower asked (or gave up waiting): nothing more to keep
 
 
@@ -160,6 +167,7 @@ class MergeOrder(Extension):
             if not self._leader_coming(leader, p):
                 p.done = True  # the leader will not come over the merge: the follower goes its own way
                 return
+            self._yield(t, leader, follower, p)
             if p.wait_since_s is None and self._would_ask(follower, p):
                 p.wait_since_s = t
                 self.ctx.events.record(
@@ -196,6 +204,33 @@ class MergeOrder(Extension):
                 held_s=round(t - p.leader_past_s, 3),
             )
 
+    def _yield(self, t: float, leader: TrainRuntime, follower: TrainRuntime, p: MergePair) -> None:
+        """Before the leader asked, once it is within the request distance: the train on the follower's leg ahead
+        of the follower that has not asked for the merge yet, for which the leader waits (``p.yield_to``), or
+        None — at most the wait limit."""
+        p.yield_to = None
+        if leader.status != "running" or p.point_leader_m - leader.front_m > self.ctx.settings.lock_request_distance_m:
+            return
+        if p.yield_since_s is not None and t - p.yield_since_s >= p.limit_s:
+            return
+        own_m = p.point_follower_m - follower.front_m if follower.status == "running" else INF
+        first, first_m = None, INF
+        for tr in self.ctx.trains.values():
+            if tr.status != "running" or tr.train_id in (p.leader_id, p.follower_id) or p.switch_id in tr.locks:
+                continue
+            if self._leg(tr, p.switch_id) != p.follower_leg:
+                continue
+            point_m = next(rs.point_m for rs in tr.trip.route.switches if rs.switch_id == p.switch_id)
+            to_go_m = point_m - tr.front_m
+            if 0.0 < to_go_m < own_m and to_go_m < first_m:
+                first, first_m = tr.train_id, to_go_m
+        p.yield_to = first
+        if first is not None and p.yield_since_s is None:
+            p.yield_since_s = t
+            self.ctx.events.record(
+                t, "merge_leader_yields", p.leader_id, formation=p.formation_id, switch=p.switch_id, to=first
+            )
+
     @staticmethod
     def _leader_past(leader: TrainRuntime, p: MergePair) -> bool:
         return leader.status == "arrived" or (leader.status == "running" and leader.front_m >= p.point_leader_m)
@@ -219,7 +254,7 @@ class MergeOrder(Extension):
             if p.done or p.switch_id != switch_id:
                 continue
             if p.leader_asked_s is None:
-                if train_id == p.follower_id:
+                if train_id == p.follower_id or (train_id == p.leader_id and p.yield_to is not None):
                     return True
                 continue
             if train_id in (p.leader_id, p.follower_id):
