@@ -15,8 +15,8 @@ What happens in time, per such formation (a :class:`MergePair`):
    as at a signal at danger (``merge_wait_for_leader`` event, once). The alternative, swapping the roles, would
    change which unit leads the coupled train beyond the merge — its stops, its decoupling point, the formation
    the user described — so the follower waits. The wait is bounded: :func:`wait_limit_s` after it began (the
-   formation's coupling timeout, ending 30 s before the stall timeout would: a wait never reads as a stall) the follower
-   goes on alone (``merge_wait_ended``, ``reason: timeout``) and, passing ``X`` first, its formation logs
+   formation's coupling timeout, ending 30 s before the stall timeout would: a wait never reads as a stall) the
+   follower goes on alone (``merge_wait_ended``, ``reason: timeout``) and, passing ``X`` first, its formation logs
    ``coupling_failed`` with ``wrong_order`` (:meth:`railsim.engine.joins.Joins.merge_out_of_order`). A leader
    that is not coming (left the line, or past ``X``) ends the wait at once.
 2. **The leader asked: the follower is next.** From the leader's request until the follower's, no other train
@@ -26,12 +26,13 @@ What happens in time, per such formation (a :class:`MergePair`):
    held (it must pass first: holding it would hold the follower too). Bounded by the same limit from the moment the
    leader's front passes ``X`` — before that no train behind it on its leg may ask anyway — after which
    (``merge_priority_lapsed``) a train that passes between them makes the formation ``blocked``.
-3. **A train between them on the follower's leg goes first.** While the leader has not asked, a train that
+3. **A train between them on the follower's leg goes first.** While the leader has not asked (from the moment it
+   is within the engine's lock request distance of ``X``), a train that
    comes to ``X`` on the follower's leg ahead of the follower and has not asked yet would pass between the two
    if the leader asked before it; the leader's request waits for it (``merge_leader_yields``, naming it; at
    most the wait limit), so it passes before the leader.
 4. **Past the merge** the engine takes over: the follower asks to couple once past ``X`` with its leader
-   directly ahead, and the leader waits at the first station past ``X`` both serve until they are coupled
+   directly ahead and close enough (:meth:`railsim.engine.joins.Joins.close_enough`), and the leader waits at the first station past ``X`` both serve until they are coupled
    (:meth:`railsim.engine.joins.Joins.join_station`). Two legs cannot both be set at once: the follower passes
    ``X`` at least the leader's clearing time plus one switch throw after it, so the pair closes up on the run to
    that station or standing there.
