@@ -34,6 +34,12 @@ COUPLE_REACH_M = 150.0
 STANDING_MPS = 0.1  # a follower slower than this behind its waiting leader stands (at the berth limit)
 
 
+def pair_length_m(f: Any, leader: TrainRuntime, follower: TrainRuntime) -> float:
+    """Platform length formation ``f`` needs to stand on: leader, target gap, follower, and the 1 m the leader's
+    front halts before the platform end."""
+    return leader.trip.vehicle.length_m + float(f.target_gap_m) + follower.trip.vehicle.length_m + 1.0
+
+
 def trig(trigger: Any, kind: str) -> bool:
     """True if a formation trigger (``couple``/``decouple``, possibly None) is of ``kind``."""
     return trigger is not None and trigger.kind == kind
@@ -81,7 +87,8 @@ class Joins:
         """Where the leader of formation ``f`` waits for its follower: ``X`` of ``couple: {at_station: X}``; for
         ``couple: {after_switch: X}`` the first station past ``X`` where both stop (the two units come over the
         merge one switch throw apart at least, so the follower closes up there: it runs in behind its leader and
-        couples standing or on the final approach); None for other triggers or when no such station exists."""
+        couples standing or on the final approach) — if the pair fits on the leader's platform there and it is not
+        the leader's destination; None for other triggers or when there is no such station."""
         if trig(f.couple, "at_station"):
             return str(f.couple.station)
         if not trig(f.couple, "after_switch"):
@@ -101,7 +108,13 @@ class Joins:
                 else [s.station_id for s in tr.trip.stops if s.kind == "station" and s.mark_m > point]
             )
         theirs = set(after[follower.train_id])
-        return next((sid for sid in after[leader.train_id] if sid in theirs), None)
+        station = next((sid for sid in after[leader.train_id] if sid in theirs), None)
+        if station is None:
+            return None
+        stop = leader.trip.stops[stop_index(leader, station) or 0]
+        if stop.is_destination or stop.platform_m < pair_length_m(f, leader, follower):
+            return None  # the pair would not stand on it: no wait there (they couple on the run, or time out)
+        return station
 
     def check_platform(self, f: Any, leader: TrainRuntime, follower: TrainRuntime, where: str) -> None:
         """``couple: {at_station: X}``: both trips stop at ``X`` and the pair (leader, target gap, follower) fits
@@ -118,7 +131,7 @@ class Joins:
                 )
         stop = leader.trip.stops[stop_index(leader, station) or 0]
         lead_m, fol_m, gap_m = leader.trip.vehicle.length_m, follower.trip.vehicle.length_m, float(f.target_gap_m)
-        need_m = lead_m + gap_m + fol_m + 1.0  # the leader's front halts 1 m before the platform end
+        need_m = pair_length_m(f, leader, follower)
         if stop.platform_m < need_m:
             raise ConfigError(
                 self.book.fleet.source,
