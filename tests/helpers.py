@@ -12,7 +12,7 @@ import json
 import os
 import subprocess
 import sys
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -59,6 +59,50 @@ def mini_line() -> dict[str, Any]:
     data: dict[str, Any] = yaml.safe_load((DATA / "scenarios" / "mini_line.yaml").read_text(encoding="utf-8"))
     data["world"] = {"line": str(DATA / "lines" / "mini_y.yaml")}
     return data
+
+
+def merge_world(
+    pairs: Sequence[tuple[float, float]], others: Sequence[tuple[str, str, float]] = (), duration_s: float = 1800.0
+) -> dict[str, Any]:
+    """A scenario on the generated Y world :file:`tests/data/lines/merge_y.yaml` (a branch merging at ``c_down``).
+
+    Formation ``m<k>``: a leader from E and a follower from G, both to A, leaving at ``pairs[k]`` (leader,
+    follower), coupling after ``c_down`` with a 30 m target gap; leaders are trips of service ``lead``, followers
+    of ``fol``, each numbered in departure order. ``others``: unrelated trains ``(service id, origin e or g,
+    departure)`` to A, one service each."""
+    order_l = sorted(range(len(pairs)), key=lambda k: pairs[k][0])
+    order_f = sorted(range(len(pairs)), key=lambda k: pairs[k][1])
+    trains = [("lead", "e", [pairs[k][0] for k in order_l]), ("fol", "g", [pairs[k][1] for k in order_f])]
+    trains += [(sid, origin, [depart_s]) for sid, origin, depart_s in others]
+    services = [
+        {"id": sid, "from": origin, "to": "a", "vehicle": "cq6", "departures": {"times": times}, "dwell_s": 20}
+        for sid, origin, times in trains
+    ]
+    formations = [
+        {
+            "id": f"m{k}",
+            "leader": {"service": "lead", "trip": order_l.index(k)},
+            "follower": {"service": "fol", "trip": order_f.index(k)},
+            "target_gap_m": 30.0,
+            "couple": {"after_switch": "c_down"},
+        }
+        for k in range(len(pairs))
+    ]
+    return {
+        "name": "merge_y_formations",
+        "world": {"line": str(DATA / "lines" / "merge_y.yaml")},
+        "simulation": {"step_s": 0.5, "duration_s": duration_s, "seed": 7, "step_method": "euler"},
+        "vehicles": {"cq6": {"preset": "cq3_6car"}},
+        "controllers": {
+            "ato": {"type": "ato"},
+            "sep": {"type": "separation", "params": {"margin_m": 50}},
+            "vc": {"type": "cacc"},
+        },
+        "roles": {"ato": "ato", "separation": "sep", "coupled": "vc"},
+        "services": services,
+        "formations": formations,
+        "outputs": {"trace_stride_s": 1.0, "sumo": [], "formats": ["csv"]},
+    }
 
 
 def run_mapping(

@@ -467,7 +467,7 @@ class FormationBook:
             self._asked_after_turnback.add(f.id)
             self.manager.request_couple(f.id)
         if a is not None and a.train_id == leader.train_id and trig(f.couple, "after_switch"):
-            self._couple_after_merge(tr, f)
+            self._couple_after_merge(tr, leader, f, a)
         elif trig(f.couple, "after_switch"):
             if f.id not in self._merged:
                 self.join_book.merge_out_of_order(t, tr, leader, f, a)
@@ -487,14 +487,16 @@ class FormationBook:
             if f.id not in self.join_book.coupled_where:
                 self.join_book.note_coupled(f, leader)
 
-    def _couple_after_merge(self, follower: TrainRuntime, f: Any) -> None:
+    def _couple_after_merge(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead) -> None:
         """``couple: {after_switch: X}``: ask once, when the follower's front is past switch ``X`` (its leader is
-        ahead on its track: the two have merged). Before that the follower keeps its own separation."""
+        ahead on its track: the two have merged) and it is close enough to its leader (``Joins.close_enough``:
+        within reach of its rear, or running in behind it at the station where it waits). Before that the
+        follower keeps its own separation."""
         if f.id in self._merged:
             return
         if any(
             rs.switch_id == f.couple.switch and follower.front_m >= rs.point_m for rs in follower.trip.route.switches
-        ):
+        ) and self.join_book.close_enough(follower, leader, f, a):
             self._merged.add(f.id)
             self.manager.request_couple(f.id)
 

@@ -31,6 +31,13 @@ from railsim.errors import ConfigError
 # its turnback (before the separation controller, margin 50 m on Line 3, would stop it further back), or one that
 # joins at a station (there, on its final approach if that comes first)
 COUPLE_REACH_M = 150.0
+STANDING_MPS = 0.1  # a follower slower than this behind its waiting leader stands (at the berth limit)
+
+
+def pair_length_m(f: Any, leader: TrainRuntime, follower: TrainRuntime) -> float:
+    """Platform length formation ``f`` needs to stand on: leader, target gap, follower, and the 1 m the leader's
+    front halts before the platform end."""
+    return leader.trip.vehicle.length_m + float(f.target_gap_m) + follower.trip.vehicle.length_m + 1.0
 
 
 def trig(trigger: Any, kind: str) -> bool:
@@ -55,6 +62,9 @@ class FormationsView(Protocol):
     def follower_of(self, f: Any) -> TrainRuntime:
         """The follower of formation ``f``."""
 
+    def leader_of(self, f: Any) -> TrainRuntime:
+        """The leader of formation ``f``."""
+
     def mark_offset_m(self, tr: TrainRuntime, stop: TripStop) -> float:
         """How far behind the platform mark ``tr`` halts."""
 
@@ -71,6 +81,40 @@ class Joins:
         self.failed: dict[str, str] = {}  # formation -> why it did not couple where it asked
         self.coupled_where: dict[str, str] = {}  # formation -> where it coupled
         self.held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell at the station ended
+        self._join_station: dict[str, str | None] = {}  # formation -> where the leader waits (join_station)
+
+    def join_station(self, f: Any) -> str | None:
+        """Where the leader of formation ``f`` waits for its follower: ``X`` of ``couple: {at_station: X}``; for
+        ``couple: {after_switch: X}`` the first station past ``X`` where both stop (the two units come over the
+        merge one switch throw apart at least, so the follower closes up there: it runs in behind its leader and
+        couples standing or on the final approach) — if the pair fits on the leader's platform there and it is not
+        the leader's destination; None for other triggers or when there is no such station."""
+        if trig(f.couple, "at_station"):
+            return str(f.couple.station)
+        if not trig(f.couple, "after_switch"):
+            return None
+        if f.id not in self._join_station:
+            self._join_station[f.id] = self._first_common_stop_after(f, f.couple.switch)
+        return self._join_station[f.id]
+
+    def _first_common_stop_after(self, f: Any, switch_id: str) -> str | None:
+        leader, follower = self.book.leader_of(f), self.book.follower_of(f)
+        after: dict[str, list[str]] = {}
+        for tr in (leader, follower):
+            point = next((rs.point_m for rs in tr.trip.route.switches if rs.switch_id == switch_id), None)
+            after[tr.train_id] = (
+                []
+                if point is None
+                else [s.station_id for s in tr.trip.stops if s.kind == "station" and s.mark_m > point]
+            )
+        theirs = set(after[follower.train_id])
+        station = next((sid for sid in after[leader.train_id] if sid in theirs), None)
+        if station is None:
+            return None
+        stop = leader.trip.stops[stop_index(leader, station) or 0]
+        if stop.is_destination or stop.platform_m < pair_length_m(f, leader, follower):
+            return None  # the pair would not stand on it: no wait there (they couple on the run, or time out)
+        return station
 
     def check_platform(self, f: Any, leader: TrainRuntime, follower: TrainRuntime, where: str) -> None:
         """``couple: {at_station: X}``: both trips stop at ``X`` and the pair (leader, target gap, follower) fits
@@ -87,7 +131,7 @@ class Joins:
                 )
         stop = leader.trip.stops[stop_index(leader, station) or 0]
         lead_m, fol_m, gap_m = leader.trip.vehicle.length_m, follower.trip.vehicle.length_m, float(f.target_gap_m)
-        need_m = lead_m + gap_m + fol_m + 1.0  # the leader's front halts 1 m before the platform end
+        need_m = pair_length_m(f, leader, follower)
         if stop.platform_m < need_m:
             raise ConfigError(
                 self.book.fleet.source,
@@ -103,13 +147,14 @@ class Joins:
         (:mod:`railsim.engine.locking`) — or once the join is given up. Set earlier, the lock would be the
         leader's alone and the follower would wait at the points for the leader to clear them."""
         for f in self.book.of_leader.get(tr.train_id, ()):
-            if not trig(f.couple, "at_station") or f.id in self.failed:
+            station = self.join_station(f)
+            if station is None or f.id in self.failed:
                 continue
-            li = stop_index(tr, f.couple.station)
+            li = stop_index(tr, station)
             if li is None or tr.next_stop != li or point_m <= tr.trip.stops[li].window_end_m:
                 continue
             fol = self.book.follower_of(f)
-            fi = stop_index(fol, f.couple.station)
+            fi = stop_index(fol, station)
             if self.book.manager.state(f.id) == "coupled" or fi is None or fol.next_stop > fi:
                 continue
             if fol.status in ("scheduled", "inserting", "running"):
@@ -122,7 +167,8 @@ class Joins:
         own dwell ended. A join given up (wrong order, blocked) does not hold it; one that times out here is a
         ``coupling_failed`` event with the reason ``timeout`` (an attempt under way is aborted: the follower
         runs on on its own)."""
-        if not trig(f.couple, "at_station") or stop is None or stop.station_id != f.couple.station:
+        station = self.join_station(f)
+        if station is None or stop is None or stop.station_id != station:
             return False
         if f.id in self.failed:
             return False
@@ -176,14 +222,33 @@ class Joins:
             if other is not None and any(s.station_id == station for s in other.trip.stops[other.next_stop :]):
                 self.fail(t, f, "blocked", station=station, by=a.train_id)  # it will stand at X between them
             return  # (one that turns off before X only delays the follower)
+        if self.close_enough(follower, leader, f, a):
+            self.requested.add(f.id)
+            self.book.manager.request_couple(f.id)
+
+    def close_enough(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead) -> bool:
+        """Follower ``follower`` (its leader directly ahead, ``a``) is close enough to ask to couple: within
+        :data:`COUPLE_REACH_M` of its leader's rear, or — the leader standing at the station where it waits
+        (:meth:`join_station`) — on its final approach to its coupled halt position there, ``target gap`` behind
+        the leader, or standing (a berth limit held it before the platform: it is called on). Asked from farther back, the coupled controller's closing speed (meant for the last metres)
+        would crawl the whole way."""
+        if a.gap_m <= COUPLE_REACH_M:
+            return True
+        station = self.join_station(f)
+        if station is None:
+            return False
+        fi, li = stop_index(follower, station), stop_index(leader, station)
+        if fi is None or li is None or follower.next_stop != fi:
+            return False
+        if not (leader.status == "running" and leader.next_stop == li and leader.sumo_stopped):
+            return False
         stop = follower.trip.stops[fi]
         lstop = leader.trip.stops[li]
         halt_m = stop.mark_m - (
             self.book.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
         )
-        if a.gap_m <= COUPLE_REACH_M or self.book.in_final_approach(follower, halt_m):
-            self.requested.add(f.id)
-            self.book.manager.request_couple(f.id)
+        # standing behind its waiting leader (held at the platform's berth limit): called on, it runs in
+        return follower.plant.speed_mps < STANDING_MPS or self.book.in_final_approach(follower, halt_m)
 
     def merge_out_of_order(
         self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None

@@ -15,7 +15,8 @@ the platform (its length plus its separation margin) stays at the platform after
 short of the crossing with its rear on the platform held the next up train 113 m short of its stopping point,
 and SUMO registered that train's stop there. Passing a switch without its lock is a ``switch_violation``
 event. An extension may take over the requests for some trains and switches (its ``manages_lock`` hook: the
-junction planner requests in its planned order).
+junction planner requests in its planned order), or hold a train's request back for a while (``defers_lock``: a
+merge is kept for a formation's follower, :mod:`railsim.engine.extensions.merge_order`).
 
 **Stops within the overlap.** A platform may end closer to the points (or a single-track section, a crossing)
 than the overlap: OSM nets put stops a few metres before the points. The authority before a resource not yet
@@ -372,6 +373,7 @@ class RouteLocks:
                 and not self.formations.join_book.route_waits(tr, rs.point_m)
                 and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
                 and not self.extensions.manages_lock(tr.train_id, sid)
+                and not self.extensions.defers_lock(tr.train_id, sid)
                 and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
             ):
                 holders = self._lock_group(tr, rs)

@@ -11,8 +11,9 @@ Real SUMO runs of the mini line (:file:`tests/data/scenarios/mini_line.yaml`, 22
   why it did not couple;
 * the follower at C before its leader: ``wrong_order``, and the leader does not wait there;
 * a train of its own between the two: the join is given up (``blocked``, naming it) and the leader does not wait;
-* ``couple: {after_switch: c_down}`` with the follower (the branch unit) reaching the merge before its leader: a
-  ``coupling_failed`` event with the reason ``wrong_order`` (it was silent before);
+* ``couple: {after_switch: c_down}`` with the follower (the branch unit) reaching the merge long before its
+  leader: it waits there one coupling timeout (``merge_wait_for_leader``, ``merge_wait_ended``), then goes first
+  and a ``coupling_failed`` event says ``wrong_order``;
 * a platform too short for the pair is refused before the run, naming the field and the lengths.
 """
 
@@ -153,8 +154,9 @@ def test_a_train_between_leader_and_follower_ends_the_wait_and_says_why(tmp_path
 
 def test_a_follower_first_at_the_merge_is_a_reason_not_silence(tmp_path: Path) -> None:
     data = mini_line()
-    # down trains: the branch unit br_down.000 (from G at 60 s, over c_down onto the main line) passes the merge
-    # long before main_down.001 (from E at 150 s), the leader it asks to couple behind after the merge
+    # down trains: the branch unit br_down.000 (from G at 60 s, over c_down onto the main line) reaches the merge
+    # long before main_down.001 (from E at 150 s), the leader it asks to couple behind after the merge. It waits
+    # for its leader at the merge, but no longer than its 60 s coupling timeout: then it goes first
     data["formations"] = [
         {
             "id": "merge",
@@ -162,11 +164,16 @@ def test_a_follower_first_at_the_merge_is_a_reason_not_silence(tmp_path: Path) -
             "follower": {"service": "br_down", "trip": 0},
             "target_gap_m": GAP_M,
             "couple": {"after_switch": "c_down"},
+            "coupling_timeout_s": 60,
         }
     ]
     res, out = run_mapping(tmp_path, data, "merge_first")
     assert res.returncode == 0, res.stderr
     events = read_csv(out / "events.csv")
+    (wait,) = _kinds(events, "merge_wait_for_leader", "br_down.000")
+    assert wait["leader"] == "main_down.001" and wait["limit_s"] == 60.0
+    (ended,) = _kinds(events, "merge_wait_ended", "br_down.000")
+    assert ended["reason"] == "timeout" and ended["waited_s"] == pytest.approx(60.0, abs=0.6)
     failed = _kinds(events, "coupling_failed", "merge")
     assert len(failed) == 1 and failed[0]["reason"] == "wrong_order" and failed[0]["switch"] == "c_down"
     summary = read_summary(out)

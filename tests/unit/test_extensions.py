@@ -40,6 +40,9 @@ class _Driver(_Recorder):
     def manages_lock(self, train_id: str, switch_id: str) -> bool:
         return (train_id, switch_id) == ("T1", "sw1")
 
+    def defers_lock(self, train_id: str, switch_id: str) -> bool:
+        return (train_id, switch_id) == ("T2", "sw1")
+
     def t2t_receivers(self, train_id: str) -> list[str]:
         return [f"{self.name}-{train_id}"]
 
@@ -63,6 +66,7 @@ def test_hooks_run_in_installation_order_on_the_extensions_that_override_them() 
     assert ext.ato_extras(0.0, None) == {"shared": "c", "a": 1, "c": 1}  # type: ignore[arg-type]  # later wins
     assert ext.driver_of("T1") is b and ext.driver_of("T2") is None
     assert ext.manages_lock("T1", "sw1") and not ext.manages_lock("T1", "sw2")
+    assert ext.defers_lock("T2", "sw1") and not ext.defers_lock("T1", "sw1")
     assert list(ext.t2t_receivers("T1")) == ["b-T1"]
     assert ext.summaries() == {"plant": {"n": 1}}  # one key: the later extension of the same key replaces it
 
@@ -73,7 +77,7 @@ def test_an_empty_set_answers_like_no_extension_and_installs_once() -> None:
     ext.install([])
     assert ext.installed == ()
     assert ext.ato_extras(0.0, None) == {}  # type: ignore[arg-type]
-    assert ext.driver_of("T1") is None and not ext.manages_lock("T1", "sw1")
+    assert ext.driver_of("T1") is None and not ext.manages_lock("T1", "sw1") and not ext.defers_lock("T1", "sw1")
     assert list(ext.t2t_receivers("T1")) == [] and ext.summaries() == {}
     with pytest.raises(RuntimeError, match="installed once"):
         ext.install([])
@@ -85,6 +89,7 @@ def test_every_hook_is_a_no_op_method_of_the_base() -> None:
         assert callable(getattr(Extension, hook))
     assert base.ato_extras(0.0, None) == {}  # type: ignore[arg-type]
     assert base.drives("T1") is False and base.manages_lock("T1", "sw1") is False
+    assert base.defers_lock("T1", "sw1") is False
     assert list(base.t2t_receivers("T1")) == [] and base.summary() == {}
     assert Extension.applies(None) is False  # type: ignore[arg-type]
 

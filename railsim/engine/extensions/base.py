@@ -12,6 +12,7 @@ hook                                       called by               when
 ``ato_extras(t, tr)``                      the control stage       extra observation fields for the ATO role
 ``drives(train_id)``, ``commands(…)``      the control stage       the extension commands this train itself
 ``manages_lock(train_id, switch_id)``      the route locks         it requests this switch for this train
+``defers_lock(train_id, switch_id)``       the route locks         this train may not request this switch yet
 ``follower_step(t, tr, formation, a)``     the formation book      per follower and step, before the state
                                                                    machine is fed (Paper D's follower FSM)
 ``t2t_receivers(train_id)``                the knowledge port      extra receivers of a train's t2t report
@@ -43,6 +44,7 @@ HOOKS = (
     "ato_extras",
     "drives",
     "manages_lock",
+    "defers_lock",
     "follower_step",
     "t2t_receivers",
 )
@@ -100,6 +102,12 @@ class Extension:
         """True if this extension, not the engine's distance rule, requests ``switch_id`` for ``train_id``."""
         return False
 
+    def defers_lock(self, train_id: str, switch_id: str) -> bool:
+        """True while ``train_id`` may not request ``switch_id`` yet under the engine's distance rule (the switch is
+        kept for trains the extension orders first). Deferring only withholds a request: the train's authority
+        still ends before the switch, so it stops short of it."""
+        return False
+
     def follower_step(self, t: float, tr: TrainRuntime, formation: FormationSpec, a: Ahead) -> None:
         """Follower ``tr`` of ``formation`` with train ``a`` ahead, before the formation state machine is fed."""
 
@@ -135,6 +143,7 @@ class ExtensionSet:
         self._ato_extras = self._by_hook["ato_extras"]
         self._drives = self._by_hook["drives"]
         self._manages_lock = self._by_hook["manages_lock"]
+        self._defers_lock = self._by_hook["defers_lock"]
         self._follower_step = self._by_hook["follower_step"]
         self._t2t_receivers = self._by_hook["t2t_receivers"]
 
@@ -144,6 +153,7 @@ class ExtensionSet:
     _ato_extras: tuple[Extension, ...] = ()
     _drives: tuple[Extension, ...] = ()
     _manages_lock: tuple[Extension, ...] = ()
+    _defers_lock: tuple[Extension, ...] = ()
     _follower_step: tuple[Extension, ...] = ()
     _t2t_receivers: tuple[Extension, ...] = ()
 
@@ -179,6 +189,12 @@ class ExtensionSet:
     def manages_lock(self, train_id: str, switch_id: str) -> bool:
         for ext in self._manages_lock:
             if ext.manages_lock(train_id, switch_id):
+                return True
+        return False
+
+    def defers_lock(self, train_id: str, switch_id: str) -> bool:
+        for ext in self._defers_lock:
+            if ext.defers_lock(train_id, switch_id):
                 return True
         return False
 
