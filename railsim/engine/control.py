@@ -129,6 +129,7 @@ class ControlStage:
         self.berths = Berths(trains, events, settings, self._coupled_behind, dt_s)  # railsim.engine.platforms
         self._plant_p: dict[int, tuple[Any, np.ndarray]] = {}  # plant kernel inputs per vehicle (_plant_packed)
         self._method_i = plant_kernel.method_index(step_method)
+        self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray, bool]]] = {}
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -356,12 +357,15 @@ class ControlStage:
             if known is not None:
                 tr.stale_max_s = max(tr.stale_max_s, known[1])
         plant = tr.plant
-        if not self._disturbed_actuator(tr):
-            sep_p = tr.controllers["separation"].packed(veh, self.dt) if known is not None else _NO_PACK
+        ato_p, sep_p, plant_p, disturbed = self._line_inputs(tr, ato, veh)
+        if not disturbed:
+            has_stop, has_authority, has_rear = target is not None, authority is not None, known is not None
+            mark_m, window_start_m, window_end_m, dwelling = target if target is not None else NO_STOP
+            rear_m, age_s = known if known is not None else (0.0, 0.0)
             accel, emergency, role_i, ok, v_next, a_k, u_k, energy_j, mask = line_step_kernel.line_step(
-                ato.packed(veh, self.dt),
-                sep_p,
-                self._plant_packed(veh),
+                ato_p,
+                sep_p if has_rear else _NO_PACK,
+                plant_p,
                 self._method_i,
                 self.dt,
                 x,
@@ -373,13 +377,17 @@ class ControlStage:
                 grad,
                 tr.view.line_speed_mps,
                 limits_array_cached(limits),
-                target is not None,
-                *(target if target is not None else NO_STOP),
-                authority is not None,
+                has_stop,
+                mark_m,
+                window_start_m,
+                window_end_m,
+                dwelling,
+                has_authority,
                 authority if authority is not None else 0.0,
                 tail_m,
-                known is not None,
-                *(known if known is not None else (0.0, 0.0)),
+                has_rear,
+                rear_m,
+                age_s,
             )
             role = "separation" if role_i == line_step_kernel.ROLE_SEPARATION else "ato"
             if ok:
@@ -399,6 +407,19 @@ class ControlStage:
             if sep_accel < accel:
                 role, accel, emergency = "separation", sep_accel, sep_emergency
         return self._apply(t, tr, role, accel, emergency, None, grad)
+
+    def _line_inputs(self, tr: TrainRuntime, ato: Ato, veh: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+        """The compiled line step's inputs that change only with the train's controllers or vehicle: the packed
+        ATO, separation (when it is the line law) and plant, and whether actuator noise or a bias acts on the train
+        (the scenario's faults are fixed for the run). Remembered per train, checked by the identity of what they
+        were packed from, so a controller or vehicle handed to the train later is packed anew."""
+        sep = tr.controllers.get("separation")
+        entry = self._line_in.get(tr.train_id)
+        if entry is None or entry[0] is not ato or entry[1] is not sep or entry[2] is not veh:
+            sep_p = sep.packed(veh, self.dt) if type(sep) is Separation else _NO_PACK
+            packed = (ato.packed(veh, self.dt), sep_p, self._plant_packed(veh), self._disturbed_actuator(tr))
+            entry = self._line_in[tr.train_id] = (ato, sep, veh, packed)
+        return entry[3]
 
     def _disturbed_actuator(self, tr: TrainRuntime) -> bool:
         """Does actuator noise or an injected bias act on this train's command (drawn in :meth:`_apply`)?"""

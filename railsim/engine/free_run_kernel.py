@@ -1,4 +1,4 @@
-"""A trip's free run compiled with numba: the line ATO and the plant stepped along the route in one call.
+"""A trip's free run, written once: the ATO and the plant stepped along the route on an empty line.
 
 A free run (no other trains) gives a trip's planned arrival and departure per station
 (:func:`railsim.engine.trips.plan_free_run`); every trip with a running-time factor needs its own
@@ -8,12 +8,13 @@ Here the whole loop is one call: the ATO law (:func:`controllers.line_kernels.at
 (:func:`railsim.physics.plant_kernel.step`) and the route lookups (gradient under the front, restrictions in the
 window ahead) run compiled.
 
-**Bit for bit** with the interpreted loop (:func:`railsim.engine.trips.free_run_reference`): the same lookups
-(``RouteView.gradient_at``, ``RouteView.limits_ahead``'s scan), the same law and plant on the same values, the
-same clock and stop logic. ``tests/unit/test_free_run_kernel.py`` compares both on mini lines and Line 3, at three
-step lengths and the three step methods, with and without running-time factors. Only the line ATO
-(:class:`controllers.ato.Ato`) on a plain :class:`~railsim.physics.vehicle.VehicleParams` runs here; any other
-controller or vehicle takes the interpreted loop.
+**Written once.** :func:`free_run` is the only definition of the loop (lookups, law, plant, clock, stops). For the
+line ATO (:class:`controllers.ato.Ato`; ``law`` None) it runs compiled, the law being
+:func:`controllers.line_kernels.ato`; any other controller passes its decision as ``law`` (a Python callable) and
+the same function runs interpreted (``free_run.py_func``): numba prunes the ``law is None`` test at compile time,
+so the compiled loop never sees the callable. The interpreted form of the module (``tests.helpers.interpreted``)
+is the reference; ``tests/sumo/test_free_run_kernel_sumo.py`` holds the compiled loop to it bit for bit on the mini
+line and Line 3, at three step lengths and the three step methods, with and without running-time factors.
 
 numba caches compiled code on disk keyed on each function's *own* source file, and :func:`free_run` compiles the
 ATO and plant kernels into itself: after editing ``controllers/line_kernels.py`` or
@@ -23,6 +24,8 @@ fail, and the golden test with it).
 
 from __future__ import annotations
 
+from typing import Any
+
 import numpy as np
 from numba import njit
 
@@ -30,7 +33,7 @@ from controllers import line_kernels
 from railsim.physics import plant_kernel
 from railsim.engine.settings import FREE_RUN_MISSED_M
 
-LOOKAHEAD_M = 4000.0  # the restrictions window ahead of the front (trips.free_run_reference)
+LOOKAHEAD_M = 4000.0  # the restrictions window ahead of the front
 
 
 @njit(cache=True)
@@ -73,6 +76,7 @@ def _limits_ahead(limits: np.ndarray, from_m: float, to_m: float, line_speed_mps
 
 @njit(cache=True)
 def free_run(
+    law: Any,
     ato_p: np.ndarray,
     plant_p: np.ndarray,
     method: int,
@@ -89,8 +93,12 @@ def free_run(
 ) -> tuple[np.ndarray, np.ndarray, bool]:
     """Arrival and departure time per stop (NaN: not reached; stop 0 is the origin) and whether the loop ran
     through. ``stops`` rows: ``(mark, window start, window end, dwell, is destination, served end)``; a stop the
-    front runs more than ``FREE_RUN_MISSED_M`` past its served end is passed (NaN), as in the reference. False when the law
-    returned a non-finite command: the caller re-runs the interpreted loop, which raises its clear error."""
+    front runs more than ``FREE_RUN_MISSED_M`` past its served end is passed (NaN). False when the law returned a
+    NaN command (the caller reports it).
+
+    ``law`` None: the line ATO's law on ``ato_p``. Otherwise ``law(t, stop index, x, v, applied accel, gradient,
+    restrictions window, dwelling) -> (accel, emergency)``, a Python callable, and the loop must be called
+    interpreted (``free_run.py_func``)."""
     n_stops = stops.shape[0]
     arrivals = np.full(n_stops, np.nan)
     departures = np.full(n_stops, np.nan)
@@ -104,24 +112,27 @@ def free_run(
     while idx < n_stops and t < max_time_s:
         grad = _gradient_at(grade_starts, grades, x)
         window = _limits_ahead(limits, x - length_m, x + LOOKAHEAD_M, line_speed_mps)
-        accel, emergency, _ = line_kernels.ato(
-            ato_p,
-            x,
-            v,
-            applied,
-            length_m,
-            grad,
-            line_speed_mps,
-            window,
-            True,
-            stops[idx, 0],
-            stops[idx, 1],
-            stops[idx, 2],
-            dwelling,
-            False,
-            0.0,
-            0.0,
-        )
+        if law is None:  # pruned at compile time: the compiled loop is the line ATO's
+            accel, emergency, _ = line_kernels.ato(
+                ato_p,
+                x,
+                v,
+                applied,
+                length_m,
+                grad,
+                line_speed_mps,
+                window,
+                True,
+                stops[idx, 0],
+                stops[idx, 1],
+                stops[idx, 2],
+                dwelling,
+                False,
+                0.0,
+                0.0,
+            )
+        else:
+            accel, emergency = law(t, idx, x, v, applied, grad, window, dwelling)
         if accel != accel:
             return arrivals, departures, False
         v, applied, target_u, _, advance_m, _, _ = plant_kernel.step(

@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 
-from railsim.engine.settings import FREE_RUN_MISSED_M
 
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
@@ -205,7 +204,7 @@ def plan_free_run(
 ) -> tuple[dict[str, float], dict[str, float]]:
     """Planned arrival/departure per station from a free run (no other trains) of the trip's ATO.
 
-    Pure numpy/python: the same controller and plant as the simulation, integrated with the same step, so the
+    The same controller and plant as the simulation, integrated with the same step (:func:`free_run`), so the
     plan is achievable by construction. Returns ``(arrival_by_station, departure_by_station)`` in absolute
     simulation seconds. Cached per (route, vehicle, stops, controller) so 48 identical trips cost one run.
     """
@@ -231,29 +230,27 @@ def _free_run_cached(
 ) -> tuple[dict[str, float], dict[str, float]]:
     if key in _FREE_RUN_CACHE:
         return _FREE_RUN_CACHE[key]
-    ato = controller_factory()
-    result = _free_run_compiled(trip, ato, dt_s, step_method, max_time_s)
-    if result is None:
-        result = free_run_reference(trip, ato, dt_s, step_method, max_time_s)
+    result = free_run(trip, controller_factory(), dt_s, step_method, max_time_s)
     _FREE_RUN_CACHE[key] = result
     return result
 
 
-def _free_run_compiled(
-    trip: Trip, ato: Any, dt_s: float, step_method: str, max_time_s: float
-) -> tuple[dict[str, float], dict[str, float]] | None:
-    """:func:`free_run_reference` in one compiled call (:mod:`railsim.engine.free_run_kernel`) for the line ATO
-    on a plain vehicle; None for anything else, or when the law gave a non-finite command (the reference then
-    raises its clear error)."""
+def free_run(
+    trip: Trip, ato: Any, dt_s: float, step_method: str, max_time_s: float, loop: Any = None
+) -> tuple[dict[str, float], dict[str, float]]:
+    """Arrival and departure per station of a free run of ``ato`` (times relative to the departure), by the one
+    loop :func:`railsim.engine.free_run_kernel.free_run`: compiled for the line ATO (its law compiled into the
+    loop), interpreted with the controller's :class:`~controllers.base.Observation` for any other (the same
+    values either way, as in the simulation's control stage). ``loop``: the loop function to call instead
+    (the tests pass the interpreted module's, the reference)."""
     from controllers.ato import Ato
     from railsim.engine import free_run_kernel
     from railsim.engine.routeview import route_view
-    from railsim.physics import dynamics, plant_kernel
-    from railsim.physics.vehicle import VehicleParams
+    from railsim.physics import plant_kernel
 
     veh = trip.vehicle
-    if type(ato) is not Ato or type(veh) is not VehicleParams or step_method not in dynamics.STEP_METHODS:
-        return None
+    if step_method not in plant_kernel.STEP_METHODS:
+        raise ValueError(f"step_method must be one of {', '.join(plant_kernel.STEP_METHODS)}, got {step_method!r}")
     view = route_view(trip.route)
     stops = np.array(
         [
@@ -262,8 +259,15 @@ def _free_run_compiled(
         ],
         dtype=np.float64,
     ).reshape(-1, 6)
-    arr_t, dep_t, ok = free_run_kernel.free_run(
-        ato.packed(veh, dt_s),
+    if type(ato) is Ato:
+        law, ato_p = None, ato.packed(veh, dt_s)
+        loop = loop or free_run_kernel.free_run
+    else:
+        law, ato_p = _observed_law(ato, trip, view, dt_s), np.zeros(0)
+        loop = free_run_kernel.free_run.py_func  # a Python controller: the loop as written, interpreted
+    arr_t, dep_t, ok = loop(
+        law,
+        ato_p,
         plant_kernel.pack(veh, dt_s),
         plant_kernel.method_index(step_method),
         dt_s,
@@ -273,15 +277,18 @@ def _free_run_compiled(
         np.array(view.grades, dtype=np.float64).reshape(-1, 3),
         np.array([(lim.start_m, lim.end_m, lim.speed_mps) for lim in view.limits], dtype=np.float64).reshape(-1, 3),
         stops,
-        trip.depart_chainage_m,
-        trip.start_speed_mps,
+        float(trip.depart_chainage_m),
+        float(trip.start_speed_mps),
         max_time_s,
     )
     if not ok:
-        return None
+        raise ValueError(
+            f"trip {trip.trip_id}: the {type(ato).__name__} controller gave a NaN command in the free run that plans it "
+            "(refusing to propagate it)"
+        )
     arrivals: dict[str, float] = {trip.origin.station_id: 0.0}
     departures: dict[str, float] = {trip.origin.station_id: 0.0}
-    for k in range(1, len(trip.stops)):  # in stop order, as the reference fills them
+    for k in range(1, len(trip.stops)):  # in stop order
         stop = trip.stops[k]
         if arr_t[k] == arr_t[k]:
             arrivals[stop.station_id] = float(arr_t[k])
@@ -290,86 +297,27 @@ def _free_run_compiled(
     return arrivals, departures
 
 
-def free_run_reference(
-    trip: Trip, ato: Any, dt_s: float, step_method: str, max_time_s: float
-) -> tuple[dict[str, float], dict[str, float]]:
-    """The free run in the interpreter, step by step (the reference of the compiled one, and the path of any
-    controller other than the line ATO): times relative to the departure."""
-    from railsim.engine.routeview import route_view
-    from railsim.physics import dynamics
+# (t, stop index, x, v, applied accel, gradient, restrictions window (n, 3), dwelling) -> (accel, emergency)
+FreeRunLaw = Callable[[float, int, float, float, float, float, Any, bool], tuple[float, bool]]
+
+
+def _observed_law(ato: Any, trip: Trip, view: Any, dt_s: float) -> FreeRunLaw:
+    """A controller other than the line ATO, asked through its :class:`~controllers.base.Observation` in the
+    free run's interpreted loop."""
+    from controllers.base import Observation, OwnState, SpeedLimit, StopTarget
 
     veh = trip.vehicle
-    view = route_view(trip.route)
-    decide = _decider(ato, trip, view, dt_s)
-    x = trip.depart_chainage_m
-    v, applied, target_u = trip.start_speed_mps, 0.0, 0.0
-    arrivals: dict[str, float] = {trip.origin.station_id: 0.0}
-    departures: dict[str, float] = {trip.origin.station_id: 0.0}
-    t = 0.0
-    idx = 1
-    dwell_until: float | None = None
-    while idx < len(trip.stops) and t < max_time_s:
+
+    def observed(t: float, idx: int, x: float, v: float, a: float, grad: float, window: Any, dwelling: bool) -> Any:
         stop = trip.stops[idx]
-        grad = view.gradient_at(x)
-        limits = view.limits_ahead(x - veh.length_m, x + 4000.0)
-        accel, emergency = decide(t, x, v, applied, grad, limits, stop, dwell_until is not None)
-        plant = dynamics.PlantState(v, applied, target_u)
-        v, applied, target_u, _, advance_m, _, _ = dynamics.step_values(
-            veh, plant, accel, dt_s, grad, emergency, step_method
-        )
-        x += advance_m
-        t += dt_s
-        if dwell_until is not None:
-            if t >= dwell_until:
-                departures[stop.station_id] = t
-                dwell_until = None
-                idx += 1
-        elif v == 0.0 and stop.window_start_m <= x <= stop.served_end_m:
-            arrivals[stop.station_id] = t
-            if stop.is_destination:
-                break
-            dwell_until = t + stop.dwell_s + 1.0  # SUMO registers the stop ~1 s after the halt
-        elif x > stop.served_end_m + FREE_RUN_MISSED_M:
-            if stop.is_destination:
-                break  # the plan has no arrival: the run says so (railsim.engine.fleet)
-            idx += 1  # the plan runs past it, as the run would: the later stops keep their planned times
-    return arrivals, departures
-
-
-# (t, x, v, applied accel, gradient, limits ahead, the next stop, dwelling there) -> (accel, emergency)
-FreeRunDecide = Callable[[float, float, float, float, float, Any, Any, bool], tuple[float, bool]]
-
-
-def _decider(ato: Any, trip: Trip, view: Any, dt_s: float) -> FreeRunDecide:
-    """The free run's controller call: the line ATO's law on plain values (no observation objects: a free run
-    takes thousands of steps per trip), any other ATO through its :class:`~controllers.base.Observation`
-    (the same values either way, as in the simulation's control stage)."""
-    from controllers.ato import Ato
-    from controllers.base import Observation, OwnState, StopTarget
-
-    veh = trip.vehicle
-    line_speed_mps = view.line_speed_mps
-    if type(ato) is Ato:
-        line_ato: Ato = ato
-
-        def law(t: float, x: float, v: float, a: float, grad: float, limits: Any, stop: Any, dwelling: bool) -> Any:
-            target = (stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling)
-            accel, emergency, _ = line_ato.decide(
-                veh, dt_s, x, v, a, veh.length_m, grad, line_speed_mps, limits, target, None
-            )
-            return accel, emergency
-
-        return law
-
-    def observed(t: float, x: float, v: float, a: float, grad: float, limits: Any, stop: Any, dwelling: bool) -> Any:
         obs = Observation(
             t_s=t,
             dt_s=dt_s,
             own=OwnState(trip.trip_id, x, v, a, veh.length_m, grad),
             vehicle=veh,
             route_length_m=trip.route.length_m,
-            speed_limits=limits,
-            line_speed_mps=line_speed_mps,
+            speed_limits=tuple(SpeedLimit(float(r[0]), float(r[1]), float(r[2])) for r in window),
+            line_speed_mps=view.line_speed_mps,
             next_stop=StopTarget(
                 stop.station_id, stop.mark_m, stop.window_start_m, stop.window_end_m, dwelling=dwelling
             ),

@@ -1,10 +1,10 @@
-"""The compiled free run and plant step give the same bits as the interpreted ones (issue 20).
+"""The compiled free run and plant step give the same bits as their interpreted forms.
 
 * :func:`railsim.physics.plant_kernel.step` (the plant, written once) against its interpreted form on random
   states (speeds from standstill to over the top speed, commands beyond both envelopes, gradients, emergency,
   every step method, three vehicles including one without actuator lag): all seven outputs equal, mask included.
-* :func:`railsim.engine.free_run_kernel.free_run` (through ``trips._free_run_compiled``) against
-  :func:`railsim.engine.trips.free_run_reference`, whole trips: every distinct trip of the mini line at step
+* :func:`railsim.engine.free_run_kernel.free_run` (through ``trips.free_run``) against its interpreted form
+  (``tests.helpers.interpreted``), whole trips (``tests/sumo/test_free_run_kernel_sumo.py``): every distinct trip of the mini line at step
   lengths 0.1/0.5/1.0 s and the three step methods, at full performance and slowed (the running-time factors of
   :mod:`railsim.engine.primary_delays`), and the Line 3 peak's trips at 0.5 s. Planned arrival and departure
   dictionaries must be equal (same floats, same keys in the same order). (With the ballistic and forward step
