@@ -12,7 +12,7 @@ OUT     ?= out/demo
 WORKERS ?= 2
 PYTEST  := $(BIN)/python -m pytest -q -n $(WORKERS) --dist worksteal
 
-.PHONY: venv pyc demo lint check test test-fast format bench clean
+.PHONY: venv pyc warm demo lint check test test-fast format bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -29,6 +29,12 @@ venv: $(STAMP)
 pyc: $(STAMP)
 	$(BIN)/python -m compileall -q railsim controllers network tests benchmarks > /dev/null
 
+# Compile numba's kernels into their on-disk cache once (tests/warm.py; a few seconds when they are cached): on a
+# fresh clone the test processes would otherwise each compile the same kernels at once. The test targets run it
+# beside the lint (make -j2), on the core the lint leaves idle.
+warm: pyc
+	$(BIN)/python -m tests.warm
+
 demo: $(STAMP)
 	$(BIN)/railsim network build chongqing_line3 --out $(OUT)/network
 	$(BIN)/railsim run $(SCENARIO) --out $(OUT)
@@ -42,13 +48,16 @@ lint: $(STAMP)
 
 # Test tiers by folder (tests/conftest.py): unit, sumo, golden, long. `make test` (CI) runs them all and prints
 # the 25 slowest tests; `make test-fast` leaves out golden and long.
-check: lint pyc
+check: $(STAMP)
+	$(MAKE) --no-print-directory -j2 lint warm
 	$(PYTEST) tests/unit
 
-test: lint pyc
+test: $(STAMP)
+	$(MAKE) --no-print-directory -j2 lint warm
 	$(PYTEST) --durations=25
 
-test-fast: lint pyc
+test-fast: $(STAMP)
+	$(MAKE) --no-print-directory -j2 lint warm
 	$(PYTEST) tests/unit tests/sumo
 
 # Format the tree (`make test` checks it is formatted).

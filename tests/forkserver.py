@@ -217,6 +217,28 @@ def _exit_code(exc: SystemExit) -> int:
     return 1
 
 
+def _load_compiled_kernels() -> None:
+    """Load every numba kernel of railsim, controllers and network that is compiled in numba's on-disk cache (``make
+    test`` warms it first: :mod:`tests.warm`) for each signature cached, so a child does not load it again; a kernel
+    not cached yet stays as it is (the first child that needs it compiles it). Best effort: numba's cache index is
+    not a public API, and any surprise there only leaves the loading to the children."""
+    try:
+        from numba.core.dispatcher import Dispatcher
+    except ImportError:
+        return
+    for name, module in list(sys.modules.items()):
+        if not name.startswith(("railsim", "controllers", "network")):
+            continue
+        for value in list(vars(module).values()):
+            if not isinstance(value, Dispatcher) or value.__module__ != name:
+                continue
+            try:
+                for key in value._cache._cache_file._load_index():
+                    value.compile(key[0])
+            except Exception:  # noqa: BLE001, S112 - best effort (see above)
+                continue
+
+
 def serve(requests: IO[bytes], replies: IO[bytes]) -> None:
     """Import :data:`PRELOAD`, say ``ready {"SUMO_HOME": ...}`` (or ``noisy`` if the imports wrote to stderr), then fork a child per
     request line and answer with its pid and, when it ended, its exit status."""
@@ -228,6 +250,7 @@ def serve(requests: IO[bytes], replies: IO[bytes]) -> None:
         try:
             for name in PRELOAD:
                 importlib.import_module(name)
+            _load_compiled_kernels()
         finally:
             sys.stderr.flush()
             os.dup2(saved, 2)
