@@ -1,7 +1,9 @@
 """Shared helpers for tests that run SUMO: every SUMO run happens in a child process.
 
-A SUMO crash kills the Python interpreter under libsumo, so a test that runs a simulation starts a fresh
-interpreter (``railsim run`` or a small script) and inspects what it wrote. One crash fails one test.
+A SUMO crash kills the Python interpreter under libsumo, so a test that runs a simulation starts a child process
+(``railsim run`` or a small script) and inspects what it wrote. One crash fails one test. :func:`run_railsim`'s
+children are forked from a server that has imported railsim already (:mod:`tests.forkserver`): the same command in
+its own process, without a second and a half of interpreter start and imports each.
 """
 
 from __future__ import annotations
@@ -27,10 +29,14 @@ def railsim_cmd() -> list[str]:
 
 
 def run_railsim(args: list[str], cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+    """``python -m railsim.cli.main ARGS`` in a child process (forked from :mod:`tests.forkserver`), from the
+    clone's folder; its exit code and text output as :func:`subprocess.run` gives them."""
+    from tests import forkserver
+
     env = dict(os.environ)
     if cache_dir is not None:
         env["RAILSIM_CACHE"] = str(cache_dir)
-    return subprocess.run(railsim_cmd() + args, capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT)
+    return forkserver.run(args, env=env, cwd=ROOT, timeout=timeout)
 
 
 def run_python(code: str, cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:

@@ -129,16 +129,32 @@ def test_rerun_skips_finished_cases(reference: tuple[Path, Path]) -> None:
 
 
 def _children(pid: int) -> set[int]:
-    """Pids of the live child processes of ``pid`` (Linux /proc)."""
-    kids = set()
+    """Pids of the live case processes of the coordinator ``pid`` (Linux /proc): its descendants that lead their own
+    session (each case does; a fork server or resource tracker between them and the coordinator does not)."""
+    parent: dict[int, int] = {}
+    leads_session: set[int] = set()
     for stat in Path("/proc").glob("[0-9]*/stat"):
         try:
             fields = stat.read_text().rsplit(")", 1)[1].split()
         except (OSError, IndexError):
             continue
-        if int(fields[1]) == pid and fields[0] != "Z":
-            kids.add(int(stat.parent.name))
-    return kids
+        if fields[0] == "Z":
+            continue
+        me = int(stat.parent.name)
+        parent[me] = int(fields[1])
+        if int(fields[3]) == me:
+            leads_session.add(me)
+
+    def descends(p: int) -> bool:
+        seen = set()
+        while p in parent and p not in seen:
+            seen.add(p)
+            p = parent[p]
+            if p == pid:
+                return True
+        return False
+
+    return {p for p in leads_session if descends(p)}
 
 
 def _gone(pids: set[int], limit_s: float = 15.0) -> bool:
