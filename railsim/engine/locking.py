@@ -57,6 +57,16 @@ same direction already bound to wait there. Granted one section alone, two oppos
 section and waited at the short piece between for the other's (Jena-Ost: three trams leaving the terminus and
 two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
 is entered only when it is reserved to the next passing place.
+
+**Order on single track.** Trains of one direction leave a place in an order the queue cannot see, so the requests
+keep to it: a train does not ask for a section beyond the train in front of it before that train has
+(:meth:`RouteLocks._behind_first`), asks for no less than the trains of its direction already waiting for the
+section (:meth:`RouteLocks._others_run_on`), and when it asks for a run through several sections, the trains of its
+direction holding the first one alone ask for the rest at that moment (:meth:`RouteLocks._bring_forward`). Each
+closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
+the sections behind an opposing tram that waited for the one behind. A train whose unit turns beyond its last
+section (a terminus) lets the trains leaving that terminus go first (``yields``,
+:class:`~railsim.engine.events.tracks.TrackSections`).
 """
 
 from __future__ import annotations
@@ -236,7 +246,9 @@ class RouteLocks:
         return False
 
     # ------------------------------------------------------------------ single track
-    def _sections_bookkeeping(self, t: float, tr: TrainRuntime) -> None:
+    def _sections_bookkeeping(self, t: float, tr: TrainRuntime, ahead: Any = None) -> None:
+        """Request the sections ahead (in the order trains reach them: never past the train in front, ``ahead``,
+        unless it has asked for that section the same way or leads this train coupled) and release those behind."""
         assert self.tracks is not None
         reqs = self.section_requests[tr.train_id]
         rear = tr.front_m - tr.trip.vehicle.length_m
@@ -248,9 +260,27 @@ class RouteLocks:
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
                     and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
                 ):
-                    self._request_run(t, tr, sec)
+                    run = self._run_from(tr, sec)
+                    if not any(self._behind_first(tr, s, ahead) for s in run):
+                        self._request_run(t, tr, run)
             elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
                 self.tracks.release(t, tr.train_id, req)
+
+    def _behind_first(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
+        """True if the train in front (``ahead``, in this train's frame) stands between this train and the
+        protection point of ``sec`` and has not asked for ``sec`` in the same direction: it must ask first. Else
+        the train behind, asking for two sections at once while the one in front had asked for the first only
+        (it could wait between them), was granted the second; the one in front then waited for it behind an
+        opposing train that waited for the train behind (Jena, ``track:-47054577``)."""
+        if ahead is None or sec.guard_m <= ahead.rear_m:
+            return False
+        theirs = self.section_requests.get(ahead.train_id, {}).get(sec.section_id)
+        if theirs is not None and theirs.direction == sec.direction and ahead.train_id not in theirs.released_by:
+            return False
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is not None and self.formations.manager.state(f.id) in COUPLED_STATES:
+            return self.formations.leader_of(f).train_id != ahead.train_id
+        return True
 
     def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
         """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
@@ -260,23 +290,49 @@ class RouteLocks:
         for sec in self.sections[tr.train_id]:
             if sec.start_m - self.settings.protection_margin_m <= depart_m < sec.end_m:
                 if sec.section_id not in reqs:
-                    self._request_run(t, tr, sec)
+                    self._request_run(t, tr, self._run_from(tr, sec))
                 req = reqs[sec.section_id]
                 if not req.granted:
                     others = ", ".join(self.tracks.waiting_ahead(req)) or "another train"
                     return f"single-track section {sec.section_id} is reserved for {others}"
         return None
 
-    def _request_run(self, t: float, tr: TrainRuntime, first: RouteSection) -> None:
-        """Request ``first`` together with every single-track section after it up to the next passing place
-        for this train (:meth:`_run_from`), all in one group (module docstring, "Consecutive sections")."""
+    def _request_run(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
+        """Request the sections ``run`` (one section and every single-track section after it up to the next
+        passing place for this train, :meth:`_run_from`) in one group (module docstring, "Consecutive sections")."""
         assert self.tracks is not None
-        run = self._run_from(tr, first)
         reqs = self.section_requests[tr.train_id]
         wanted = [(sec.section_id, sec.direction) for sec in run]
-        inside = any(r.granted for r in reqs.values())  # it is on the single track (or between its sections)
-        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, inside)):
+        last = run[-1]
+        turns = (
+            last.section_id.startswith("track:")
+            and not any(
+                s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
+            )
+            and self.continues(tr.train_id)
+        )
+        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=turns)):
             reqs[sec.section_id] = req
+        self._bring_forward(t, tr, run)
+
+    def _bring_forward(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
+        """Trains of ``tr``'s direction that hold or wait for the first section of ``run`` alone, and run on
+        through the next ones, ask for those now: they would leave before ``tr`` and, asking later, wait between
+        the sections behind an opposing train that waits for ``tr`` (Jena-Ost)."""
+        assert self.tracks is not None
+        first = run[0]
+        for other in self.tracks.requests(first.section_id):
+            if other.direction != first.direction or other.group or tr.train_id in other.holder_ids:
+                continue
+            for oid in other.holder_ids:
+                theirs = self.section_requests.get(oid)
+                if theirs is None or oid in other.released_by:
+                    continue
+                for sec in run[1:]:
+                    mine = [s for s in self.sections[oid] if s.section_id == sec.section_id]
+                    if sec.section_id in theirs or not mine or mine[0].direction != sec.direction:
+                        break
+                    theirs[sec.section_id] = self.tracks.request(t, (oid,), sec.section_id, sec.direction)
 
     def _run_from(self, tr: TrainRuntime, first: RouteSection) -> list[RouteSection]:
         """``first`` and the single-track sections that follow it on the route with no passing place between:
@@ -293,10 +349,22 @@ class RouteLocks:
         for nxt in later:
             if nxt.section_id in reqs or any(s.section_id == nxt.section_id for s in run):
                 break
-            if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m:
+            if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
+                run[-1], nxt
+            ):
                 break
             run.append(nxt)
         return run
+
+    def _others_run_on(self, sec: RouteSection, nxt: RouteSection) -> bool:
+        """True if a train of the same direction already waits for ``sec`` together with ``nxt``: a train asks
+        for no less than those before it. Asking for ``sec`` alone, it was granted it first, left ahead of them
+        and waited between the sections for ``nxt``, which they were then granted behind it (Jena-Ost)."""
+        assert self.tracks is not None
+        for req in self.tracks.waiting(sec.section_id):
+            if req.direction == sec.direction and any(r.section_id == nxt.section_id for r in req.group):
+                return True
+        return False
 
     def _passing_room_m(self, tr: TrainRuntime, sec: RouteSection, nxt: RouteSection) -> float:
         """Room left for ``tr`` to wait between ``sec`` and ``nxt`` with its rear clear of ``sec``: from
@@ -309,7 +377,6 @@ class RouteLocks:
         for other_id in self.tracks.holders(sec.section_id) + self.tracks.queued(sec.section_id):
             if other_id == tr.train_id:
                 continue
-            other = self.fleet.trains[other_id]
             theirs = self.section_requests.get(other_id, {})
             mine = theirs.get(sec.section_id)
             if mine is None or mine.direction != sec.direction or other_id in mine.released_by:
@@ -321,14 +388,19 @@ class RouteLocks:
             on = theirs.get(nxt.section_id)
             if on is not None and (on.granted or on in mine.group):
                 continue  # it runs on through nxt: it never waits between the two
+            other = self.fleet.trains[other_id]
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
         return room_m
 
     def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
-        """True if a section right behind this switch point is not yet reserved for the train."""
+        """True if a section or crossing not yet reserved for the train has its protection point at or before
+        this switch point: the train's authority ends before it, so the switch is not the train's yet. A train
+        waiting at the near end of a section held the points at its far end, which the train in the section
+        needed to leave it (Jena, points ``1831585450``; before, only a switch exactly at the protection point
+        was held back)."""
         reqs = self.section_requests.get(tr.train_id, {})
         for sec in self.sections.get(tr.train_id, ()):
-            if sec.guard_m == point_m and sec.start_m > point_m - 1e-6:
+            if sec.guard_m <= point_m + 1e-6 and sec.end_m > tr.front_m:
                 req = reqs.get(sec.section_id)
                 if req is None or not req.granted:
                     return True
@@ -344,13 +416,15 @@ class RouteLocks:
         before the points to take the other leg, its leader held up behind a third train). The one exception is a
         coupled follower taking the points on its leader's leg: it rides on its leader's request.
 
-        Routes are set in order: while a train waits for a switch it asked for in an earlier step, it asks for no
-        switch beyond it. Else it could be granted the next points while a train coming from the other leg of the
-        first takes that switch and passes in front of it: it then holds the points the train in front needs
-        (Jena, points ``1854212868``: a deadlock at 1,163 s of the peak)."""
+        Routes are set in order: while a train waits for a switch it asked for in an earlier step, or asked for in
+        this step while another train holds it or is queued for it first, it asks for no switch beyond it. Else it
+        could be granted the next points while a train coming from the other leg of the first takes that switch
+        and passes in front of it: it then holds the points the train in front needs (Jena, points
+        ``1854212868``: a deadlock at 1,163 s of the peak; points ``1684176122`` beyond the busy merge
+        ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben)."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
-            self._sections_bookkeeping(t, tr)
+            self._sections_bookkeeping(t, tr, ahead)
         # switches behind where the train came on the line are not its business (a unit's next trip comes on
         # the line before its origin platform: it starts with its turnback)
         start_m = tr.trip.depart_chainage_m if tr.trip.stops[0].kind == "station" else tr.start_front_m
@@ -385,7 +459,7 @@ class RouteLocks:
             if (
                 held is not None
                 and held.state == RequestState.WAITING
-                and held.requested_s < t  # (a request made this step is granted at once if the switch is free)
+                and (held.requested_s < t or self._switch_busy(sid, held))
                 and rs.point_m < waiting_m
             ):
                 waiting_m = rs.point_m
@@ -401,6 +475,15 @@ class RouteLocks:
             if sid in tr.locks and tr.front_m - length > rs.point_m + self.settings.clearance_m:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    def _switch_busy(self, switch_id: str, req: Any) -> bool:
+        """True if another group holds ``switch_id`` or is queued for it ahead of ``req`` (a request made this
+        step on a free switch is granted in the same instant; on a busy one it waits)."""
+        holder = self.interlocking.holder(switch_id)
+        if holder is not None and holder != req.holder_ids:
+            return True
+        queue = self.interlocking.queue(switch_id)
+        return bool(queue) and queue[0] is not req
 
     def _rides_with(self, tr: TrainRuntime, leader: TrainRuntime, rs: Any) -> bool:
         """True if ``tr`` is coupled behind ``leader`` and takes switch ``rs`` on the leader's leg."""

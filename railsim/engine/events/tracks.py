@@ -5,11 +5,13 @@ same direction may be in it together (moving-block separation keeps them apart),
 direction may not. A train reserves the section before its protection point and releases it when its rear has
 left; a reservation is granted when nobody holds the section in the other direction **and** no earlier request
 for the other direction waits (first come, first served between directions, so a stream of trains one way
-cannot starve the other). A train already on the single track (it holds or has held a section of its trip, so it
-may stand between two sections) goes before the trains waiting to enter it: its request is **inside** and is
-served before any request of the other direction from outside, however early. Else a group waiting outside kept
-a train standing between two sections from the section it needed to go on, while the group waited for what that
-train's opposite number held (a deadlock).
+cannot starve the other). Two exceptions keep the trains moving. A request never waits for one that itself
+waits for a section its own train holds: that group cannot be served before this train has gone on (a group
+waiting outside kept a train standing between two sections from the section it needed, while the group waited
+for what that train's opposite number held). And a train bound to turn at the end of the single track (its unit
+comes back through the section: a terminus) **yields**: requests of the other direction go first, however late —
+they are the trains leaving that terminus and making room there; let in first, the arriving trams found the
+turning loop full of units waiting to leave through the section they held.
 
 Reservations are immediate (no throw): :meth:`TrackSections.request` grants at once if it can, else queues;
 every :meth:`TrackSections.release` re-examines the queue. :meth:`TrackSections.request_all` asks for several
@@ -38,7 +40,7 @@ class SectionRequest:
     granted_s: float | None = None
     released_by: set[str] = field(default_factory=set)
     group: list[SectionRequest] = field(default_factory=list)  # requests granted only together (request_all)
-    inside: bool = False  # made by a train already on the single track: it goes before requests from outside
+    yields: bool = False  # made by a train bound to turn beyond the section: the other direction goes first
 
     @property
     def granted(self) -> bool:
@@ -65,11 +67,11 @@ class TrackSections:
         return self.request_all(t_s, holder_ids, [(section_id, direction)])[0]
 
     def request_all(
-        self, t_s: float, holder_ids: tuple[str, ...], wanted: list[tuple[str, int]], inside: bool = False
+        self, t_s: float, holder_ids: tuple[str, ...], wanted: list[tuple[str, int]], yields: bool = False
     ) -> list[SectionRequest]:
         """Request the sections ``wanted`` ((section id, direction) in route order) as one group: granted all in
-        the same instant, or none; ``inside``: the train is already on the single track (module docstring)."""
-        reqs = [SectionRequest(holder_ids, sid, direction, t_s, inside=inside) for sid, direction in wanted]
+        the same instant, or none; ``yields``: the train turns beyond them (module docstring)."""
+        reqs = [SectionRequest(holder_ids, sid, direction, t_s, yields=yields) for sid, direction in wanted]
         for req in reqs:
             if len(reqs) > 1:
                 req.group = reqs
@@ -114,19 +116,29 @@ class TrackSections:
 
     def _grantable(self, req: SectionRequest) -> bool:
         """``req`` waits in its section's queue, nobody holds the section the other way, and no request for the
-        other direction waits there that goes first: an earlier one from the same side (both inside or both
-        outside the single track), or one from inside when ``req`` comes from outside."""
+        other direction that goes first waits there (:meth:`_first`)."""
         sec = self._sections[req.section_id]
         if req not in sec.queue or any(h.direction != req.direction for h in sec.holders):
             return False
-        return not any(w.direction != req.direction and self._first(w, req) for w in sec.queue)
+        return not any(self._first(w, req) for w in sec.queue)
 
-    @staticmethod
-    def _first(w: SectionRequest, req: SectionRequest) -> bool:
-        """True if waiting request ``w`` is served before ``req`` (module docstring)."""
-        if w.inside != req.inside:
-            return w.inside
+    def _first(self, w: SectionRequest, req: SectionRequest) -> bool:
+        """True if waiting request ``w`` is served before ``req``: it is for the other direction, does not wait for
+        a section ``req``'s train holds, and is the earlier one — unless exactly one of the two yields (module
+        docstring)."""
+        if w.direction == req.direction or self._waits_for(w, req.holder_ids):
+            return False
+        if w.yields != req.yields:
+            return req.yields
         return w.requested_s < req.requested_s
+
+    def _waits_for(self, w: SectionRequest, trains: tuple[str, ...]) -> bool:
+        """True if a member of ``w``'s group waits for a section one of ``trains`` holds the other way."""
+        for r in w.group or [w]:
+            for h in self._sections[r.section_id].holders:
+                if h.direction != r.direction and not set(h.holder_ids).isdisjoint(trains):
+                    return True
+        return False
 
     def _serve(self, t_s: float, section_id: str) -> None:
         sec = self._sections[section_id]
@@ -142,6 +154,15 @@ class TrackSections:
                     t_s, "section_reserved", r.section_id, trains=list(r.holder_ids), direction=r.direction
                 )
 
+    def requests(self, section_id: str) -> tuple[SectionRequest, ...]:
+        """The requests holding ``section_id`` and those waiting for it."""
+        sec = self._sections[section_id]
+        return tuple(sec.holders) + tuple(sec.queue)
+
+    def waiting(self, section_id: str) -> tuple[SectionRequest, ...]:
+        """The requests waiting for ``section_id`` (not yet granted), in the order they were made."""
+        return tuple(self._sections[section_id].queue)
+
     def queued(self, section_id: str) -> tuple[str, ...]:
         """Trains waiting for ``section_id`` (not yet granted)."""
         return tuple(h for req in self._sections[section_id].queue for h in req.holder_ids)
@@ -155,5 +176,5 @@ class TrackSections:
         first."""
         sec = self._sections[req.section_id]
         out = [h for r in sec.holders if r.direction != req.direction for h in r.holder_ids]
-        out += [h for r in sec.queue if r.direction != req.direction and self._first(r, req) for h in r.holder_ids]
+        out += [h for r in sec.queue if self._first(r, req) for h in r.holder_ids]
         return tuple(dict.fromkeys(x for x in out if x not in req.holder_ids))

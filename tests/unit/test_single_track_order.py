@@ -1,0 +1,177 @@
+"""Who goes first on single track and at points, constructed without SUMO (each case from Jena's tram peak).
+
+* A request never waits for a request of the other direction that itself waits for a section this train holds
+  (a group waiting outside kept a tram between two sections from the section it needed: deadlock).
+* A train bound to turn beyond the section (a terminus loop) yields to the other direction, the trains leaving
+  that terminus (arriving trams filled the Zwätzen Schleife loop while the units there waited to leave).
+* A train asks for no less than the trains of its direction already waiting for the section (asking for the
+  first of two sections alone, a tram left Jena-Ost ahead of trams waiting for both and blocked them).
+* A train does not ask for a section beyond the train in front before that train has (the tram behind was granted
+  both sections near Zwätzen, the one in front waited for it behind an opposing tram).
+* A train granted the first of two sections alone asks for the second as soon as a train behind it asks for
+  both (granted later, it waited between the sections behind an opposing tram that waited for the one behind).
+* No points beyond the protection point of a section not yet reserved are asked for (a tram waiting at the
+  near end of a section held the points at its far end, which the tram in the section needed).
+* Routes are set in order within one step too: a train that has just asked for busy points asks for none beyond
+  them (granted points beyond a busy merge, a tram held them while a tram from the other leg went in front of it).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+import numpy as np
+
+from railsim.engine.events import EventLayer, Interlocking, Switch
+from railsim.engine.events.log import EventLog
+from railsim.engine.events.tracks import TrackSections
+from railsim.engine.extensions import ExtensionSet
+from railsim.engine.locking import RouteLocks
+from railsim.engine.settings import EngineSettings
+from railsim.engine.single_track import RouteSection
+from tests.unit.test_lock_requests import _no_join, _stop, _train
+
+S1, S2 = "track:s1", "track:s2"
+
+
+# ---------------------------------------------------------------- the section queue (TrackSections)
+def test_a_request_never_waits_for_a_group_that_waits_for_this_train() -> None:
+    tracks = TrackSections(EventLog(), [S1, S2])
+    east = tracks.request(0.0, ("east",), S1, 0)  # east holds S1, will need S2 from the piece between
+    west = tracks.request(0.0, ("west",), S2, 1)  # west holds S2, then needs S1
+    assert east.granted and west.granted
+    group = tracks.request_all(10.0, ("east2",), [(S2, 1), (S1, 1)])  # a group outside waits for both (held)
+    assert not any(r.granted for r in group)
+    west_on = tracks.request(20.0, ("west",), S1, 1)  # later than the group, same direction: no conflict
+    east_on = tracks.request(20.0, ("east",), S2, 0)  # the group waits for S1, which east holds
+    tracks.release(30.0, "west", west)
+    assert east_on.granted, "east waited for a group that waited for east's own section"
+    assert not west_on.granted  # east still holds S1
+    tracks.release(40.0, "east", east)
+    assert west_on.granted
+
+
+def test_a_train_bound_to_turn_beyond_the_section_lets_the_trains_leaving_go_first() -> None:
+    tracks = TrackSections(EventLog(), [S1])
+    leaving = tracks.request(0.0, ("leaving.000",), S1, 0)
+    arriving = tracks.request_all(5.0, ("arriving",), [(S1, 1)], yields=True)[0]
+    next_out = tracks.request(50.0, ("leaving.001",), S1, 0)  # later, but it makes room at the terminus
+    assert leaving.granted and next_out.granted and not arriving.granted
+    tracks.release(60.0, "leaving.000", leaving)
+    tracks.release(90.0, "leaving.001", next_out)
+    assert arriving.granted
+    plain = TrackSections(EventLog(), [S1])  # without yielding: first come, first served
+    held = plain.request(0.0, ("leaving.000",), S1, 0)
+    plain.request(5.0, ("arriving",), S1, 1)
+    assert held.granted and not plain.request(50.0, ("leaving.001",), S1, 0).granted
+
+
+# ---------------------------------------------------------------- requests (RouteLocks)
+def _locks(*trains: Any, switches: tuple[str, ...] = ()) -> tuple[EventLayer, RouteLocks]:
+    layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
+    il = Interlocking(layer)
+    for sid in switches:
+        il.add_switch(Switch(sid, throw_time_s=0.0))
+    formations = SimpleNamespace(of_follower={}, of_leader={}, join_book=SimpleNamespace(route_waits=_no_join))
+    fleet = SimpleNamespace(trains={t.train_id: t for t in trains})
+    locks = RouteLocks(fleet, il, formations, EventLog(), EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
+    locks.continues = lambda train_id: False
+    return layer, locks
+
+
+def _two_sections(locks: RouteLocks, *trains: Any, gap_m: float) -> None:
+    """S1 at 1,000-2,000 m and S2 ``gap_m`` after it, the same way for every train."""
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    for t in trains:
+        locks.sections[t.train_id] = [
+            RouteSection(S1, 0, 1000.0, 2000.0, 1000.0),
+            RouteSection(S2, 0, 2000.0 + gap_m, 3000.0 + gap_m, 2000.0 + gap_m),
+        ]
+        locks.section_requests[t.train_id] = {}
+
+
+def _runner(tid: str, front_m: float) -> Any:
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    tr = _train(tid, front_m, stops)
+    tr.trip.vehicle.length_m = 27.0
+    return tr
+
+
+def test_a_train_asks_for_no_less_than_the_trains_of_its_direction_waiting_before_it() -> None:
+    # the piece between S1 and S2 holds one 27 m tram; a asks while nobody else waits there, but a train of its
+    # direction already waits for S1 together with S2: a must not ask for less (it would leave ahead of it)
+    a, b = _runner("a", 500.0), _runner("b", 400.0)
+    _, locks = _locks(a, b)
+    _two_sections(locks, a, b, gap_m=100.0)
+    assert locks.tracks is not None
+    blocker = locks.tracks.request(0.0, ("blocker",), S1, 1)
+    locks.tracks.request_all(0.5, ("waiting",), [(S1, 0), (S2, 0)])  # a train waiting for both, not granted
+    locks.bookkeeping(1.0, a)
+    assert set(locks.section_requests["a"]) == {S1, S2}, "asked for S1 alone past a train waiting for both"
+    locks.tracks.release(2.0, "blocker", blocker)
+    assert locks.section_requests["a"][S2].granted
+
+
+def test_a_train_does_not_ask_for_a_section_beyond_the_train_in_front_before_it() -> None:
+    front, behind = _runner("front", 800.0), _runner("behind", 500.0)
+    _, locks = _locks(front, behind)
+    _two_sections(locks, front, behind, gap_m=40.0)  # no room between: S1 and S2 go together
+    ahead = SimpleNamespace(train_id="front", rear_m=773.0)
+    locks.bookkeeping(1.0, behind, ahead)
+    assert locks.section_requests["behind"] == {}, "the train behind asked before the train in front"
+    locks.bookkeeping(1.0, front)
+    locks.bookkeeping(2.0, behind, ahead)
+    assert set(locks.section_requests["behind"]) == {S1, S2}
+
+
+def test_no_points_beyond_busy_points_are_asked_for_in_the_same_step() -> None:
+    switches = [
+        SimpleNamespace(switch_id="merge", leg="normal", point_m=1000.0),
+        SimpleNamespace(switch_id="beyond", leg="normal", point_m=1300.0),
+    ]
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    tr = _train("t", 600.0, stops, switches=switches)
+    layer, locks = _locks(tr, switches=("merge", "beyond"))
+    locks.interlocking.request(("other",), "merge", "reverse")  # another train holds the merge
+    layer.advance_to(1.0)
+    locks.bookkeeping(1.0, tr)
+    assert "merge" in tr.locks and "beyond" not in tr.locks, "asked for the points beyond busy points"
+    locks.interlocking.release("other", "merge")
+    layer.advance_to(2.0)
+    locks.bookkeeping(2.0, tr)
+    assert "beyond" in tr.locks
+
+
+def test_a_train_granted_the_first_section_alone_asks_for_the_next_when_one_behind_asks_for_both() -> None:
+    a, b = _runner("a", 500.0), _runner("b", 400.0)
+    _, locks = _locks(a, b)
+    _two_sections(locks, a, b, gap_m=70.0)  # 40 m of room between the sections: one 27 m tram
+    assert locks.tracks is not None
+    blocker = locks.tracks.request(0.0, ("blocker",), S2, 1)  # S2 is held the other way
+    locks.bookkeeping(1.0, a)
+    assert set(locks.section_requests["a"]) == {S1} and locks.section_requests["a"][S1].granted  # a waits between
+    locks.bookkeeping(2.0, b)  # no room left between for b: it asks for both
+    assert set(locks.section_requests["b"]) == {S1, S2}
+    assert S2 in locks.section_requests["a"], "a, leaving first, did not ask for S2 when b asked for it"
+    oncoming = locks.tracks.request(3.0, ("oncoming",), S2, 1)
+    locks.tracks.release(4.0, "blocker", blocker)
+    assert locks.section_requests["a"][S2].granted and locks.section_requests["b"][S2].granted
+    assert not oncoming.granted
+
+
+def test_no_points_beyond_the_protection_point_of_a_section_not_reserved() -> None:
+    far = SimpleNamespace(switch_id="far", leg="normal", point_m=1500.0)  # inside the section's span, past its guard
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    tr = _train("t", 600.0, stops, switches=[far])
+    layer, locks = _locks(tr, switches=("far",))
+    locks.tracks = TrackSections(EventLog(), [S1])
+    locks.sections["t"] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0)]
+    locks.section_requests["t"] = {}
+    oncoming = locks.tracks.request(0.0, ("oncoming",), S1, 1)  # holds the section the other way
+    locks.bookkeeping(1.0, tr)
+    assert not locks.section_requests["t"][S1].granted
+    assert "far" not in tr.locks, "asked for points beyond a section it waits for"
+    locks.tracks.release(2.0, "oncoming", oncoming)
+    locks.bookkeeping(3.0, tr)
+    assert "far" in tr.locks
