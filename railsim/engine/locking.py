@@ -57,13 +57,9 @@ section and waited at the short piece between for the other's (Jena-Ost: three t
 two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
 is entered only when it is reserved to the next passing place.
 
-**A crossing right before a section.** A flat crossing is held by one movement at a time and a train never waits
-inside it, but where the next section on the train's route begins so close behind the crossing that the train
-cannot stand between the two, holding the crossing without that section is holding it while waiting. The
-crossing is then asked for only once that section is the train's (:meth:`RouteLocks._crossing_waits_for_next`).
-Else a tram at a platform ending where the crossing begins, granted the crossing on its approach, stood there
-waiting for the single track behind it, while the opposing tram at the end of that single track waited for the
-crossing (Potsdam, Platz der Einheit/West).
+**A crossing right before a section** with no room for the train between the two is asked for only once that
+section is the train's (:meth:`RouteLocks._crossing_waits_for_next`): a tram at a platform ending at the crossing
+held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).
 """
 
 from __future__ import annotations
@@ -261,21 +257,14 @@ class RouteLocks:
                 self.tracks.release(t, tr.train_id, req)
 
     def _crossing_waits_for_next(self, tr: TrainRuntime, sec: RouteSection) -> bool:
-        """True for a flat crossing the train cannot clear before the next section on its route (no room for it
-        between the crossing's end and that section's protection point) while that section is not yet granted
-        (module docstring, "A crossing right before a section")."""
-        if not sec.section_id.startswith("crossing:"):
+        """True for a flat crossing with no room for the train between it and the next section on its route (up to
+        that section's protection point) while that section is not granted (module docstring)."""
+        nxt = next((x for x in self.sections[tr.train_id] if x.start_m > sec.start_m), None)
+        if not sec.section_id.startswith("crossing:") or nxt is None:
             return False
-        reqs = self.section_requests[tr.train_id]
-        for nxt in self.sections[tr.train_id]:
-            if nxt.start_m <= sec.start_m:
-                continue
-            room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
-            if room_m >= tr.trip.vehicle.length_m:
-                return False
-            req = reqs.get(nxt.section_id)
-            return req is None or not req.granted
-        return False
+        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        req = self.section_requests[tr.train_id].get(nxt.section_id)
+        return room_m < tr.trip.vehicle.length_m and (req is None or not req.granted)
 
     def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
         """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
