@@ -67,6 +67,10 @@ closed a circular wait on Jena's peak: a tram granted less than the tram behind 
 the sections behind an opposing tram that waited for the one behind. A train whose unit turns beyond its last
 section (a terminus) lets the trains leaving that terminus go first (``yields``,
 :class:`~railsim.engine.events.tracks.TrackSections`).
+
+**A crossing right before a section** with no room for the train between the two is asked for only once that
+section is the train's (:meth:`RouteLocks._crossing_waits_for_next`): a tram at a platform ending at the crossing
+held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).
 """
 
 from __future__ import annotations
@@ -259,6 +263,7 @@ class RouteLocks:
                     sec.end_m > tr.front_m
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
                     and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
+                    and not self._crossing_waits_for_next(tr, sec)
                 ):
                     run = self._run_from(tr, sec)
                     if not any(self._behind_first(tr, s, ahead) for s in run):
@@ -281,6 +286,16 @@ class RouteLocks:
         if f is not None and self.formations.manager.state(f.id) in COUPLED_STATES:
             return self.formations.leader_of(f).train_id != ahead.train_id
         return True
+
+    def _crossing_waits_for_next(self, tr: TrainRuntime, sec: RouteSection) -> bool:
+        """True for a flat crossing with no room for the train between it and the next section on its route (up to
+        that section's protection point) while that section is not granted (module docstring)."""
+        nxt = next((x for x in self.sections[tr.train_id] if x.start_m > sec.start_m), None)
+        if not sec.section_id.startswith("crossing:") or nxt is None:
+            return False
+        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        req = self.section_requests[tr.train_id].get(nxt.section_id)
+        return room_m < tr.trip.vehicle.length_m and (req is None or not req.granted)
 
     def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
         """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
