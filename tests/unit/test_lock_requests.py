@@ -25,7 +25,8 @@ from railsim.engine.events import EventLayer, Interlocking, Switch
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import TrackSections
 from railsim.engine.extensions import ExtensionSet
-from railsim.engine.locking import SECTION_REQUEST_LEAD_S, RouteLocks, stop_before
+from railsim.engine.locking import RouteLocks
+from railsim.engine.section_requests import SECTION_REQUEST_LEAD_S, stop_before
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import RouteSection
 from railsim.engine.trips import TripStop

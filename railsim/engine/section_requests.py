@@ -1,0 +1,327 @@
+"""Single-track sections and flat crossings on the train side: when a train asks for them, how many at once, in
+which order, and when it lets them go (the engine side of :mod:`railsim.engine.events.tracks`; the sections
+themselves are found by :mod:`railsim.engine.single_track`).
+
+**Single track and flat crossings** (:mod:`railsim.engine.single_track`, :mod:`railsim.engine.events.tracks`): a section of bidi
+track that trains use in both directions is a resource held one direction at a time. A train requests it
+``lock_request_distance_m`` before its protection point (the switch in front of the section, if any) — but with a
+station stop to make before that point, only when it is about to leave that stop (:func:`stop_before`); until it
+is reserved the train's authority ends ``protection_margin_m`` before that point, and it does not ask for the
+switch in front of the section either (a train waiting for a section must not hold or stand on the switch the
+oncoming train needs to leave). A train starting inside a section reserves it before it is inserted (the
+dispatcher holds the departure until then). It releases the section when its rear is ``clearance_m`` past the
+section's end. A flat crossing (two routes crossing inside one SUMO node) is the same kind of resource with one
+movement at a time.
+
+**Consecutive sections.** Points, a siding or a short piece of double track split a single-track line into
+several sections, and the track between two of them may hold no train, or fewer than are coming. A train
+entering single track therefore reserves every section up to the next place where it can wait for an opposing
+train — all of them at once or none (:meth:`SectionRequests._request_run`, :meth:`TrackSections.request_all`). The
+track between two sections is such a passing place for a train only if it holds the train clear of both (rear
+``clearance_m`` past the first, front the overlap before the second's protection point) beside the trains of the
+same direction already bound to wait there. Granted one section alone, two opposing groups each held one
+section and waited at the short piece between for the other's (Jena-Ost: three trams leaving the terminus and
+two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
+is entered only when it is reserved to the next passing place.
+
+**Order on single track.** Trains of one direction leave a place in an order the queue cannot see, so the requests
+keep to it: a train does not ask for a section beyond the train in front of it before that train has
+(:meth:`SectionRequests._behind_first`), asks for no less than the trains of its direction already waiting for the
+section (:meth:`SectionRequests._others_run_on`), and when it asks for a run through several sections, the trains of its
+direction holding the first one alone ask for the rest at that moment (:meth:`SectionRequests._bring_forward`). Each
+closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
+the sections behind an opposing tram that waited for the one behind. A train whose unit turns beyond its last
+section (a terminus) lets the trains leaving that terminus go first (``yields``,
+:class:`~railsim.engine.events.tracks.TrackSections`).
+
+**A crossing right before a section** with no room for the train between the two is asked for only once that
+section is the train's (:meth:`SectionRequests._crossing_waits_for_next`): a tram at a platform ending at the crossing
+held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable
+from typing import Any
+
+from railsim.engine.coupling import COUPLED_STATES, FormationBook
+from railsim.engine.events.log import EventLog
+from railsim.engine.events.tracks import SectionRequest, TrackSections
+from railsim.engine.fleet import Fleet
+from railsim.engine.settings import EngineSettings
+from railsim.engine.single_track import (
+    REVERSING,
+    RouteSection,
+    contested,
+    route_crossings,
+    route_sections,
+    section_map,
+)
+from railsim.engine.train import TrainRuntime
+from railsim.engine.trips import TripStop
+from railsim.engine.wiring import set_once
+
+SECTION_REQUEST_LEAD_S = 20.0  # a train standing at its last stop before a section asks this long before it may go
+
+
+def departure_due_s(tr: TrainRuntime, stop: TripStop) -> float | None:
+    """When the train standing at ``stop`` (its next stop) may leave: its dwell after SUMO registered the halt,
+    at an origin not before the planned (and primarily delayed) departure; None while it is not standing there."""
+    if not tr.sumo_stopped or tr.dwell_started_s is None:
+        return None
+    due_s = tr.dwell_started_s + stop.dwell_s
+    if stop.is_origin:
+        due_s = max(due_s, tr.trip.depart_s + tr.trip.departure_delay_s)
+    return due_s
+
+
+def stop_before(t: float, tr: TrainRuntime, point_m: float) -> bool:
+    """True while the train still has a station stop to make before ``point_m`` and is not about to leave it
+    (within :data:`SECTION_REQUEST_LEAD_S` of its due departure). A single-track section or flat crossing beyond
+    that stop is requested only then — as a route is set from a station's starting signal when the train is
+    ready — not while the train dwells (a unit waiting out its turnback at a terminal held the Bijin crossing
+    for minutes, and the Jurenba trains crossing there stalled)."""
+    stops = tr.trip.stops
+    for k in range(tr.next_stop, len(stops)):
+        stop = stops[k]
+        if stop.window_end_m >= point_m:
+            return False
+        if stop.kind != "station":
+            continue
+        due_s = departure_due_s(tr, stop) if k == tr.next_stop else None
+        if due_s is None or t < due_s - SECTION_REQUEST_LEAD_S:
+            return True
+    return False
+
+
+def separation_margin_m(tr: TrainRuntime) -> float:
+    """The margin the train's moving-block separation controller keeps behind the train ahead (0 without one)."""
+    params = getattr(tr.controllers.get("separation"), "params", None)
+    return float(getattr(params, "margin_m", 0.0))
+
+
+class SectionRequests:
+    """The single-track part of :class:`~railsim.engine.locking.RouteLocks` (its base class): the sections and
+    crossings each train contests, its requests for them and their release. It reads the fleet, the formations and
+    the settings its subclass holds."""
+
+    fleet: Fleet
+    formations: FormationBook
+    settings: EngineSettings
+    events: EventLog
+    tracks: TrackSections | None
+    sections: dict[str, list[RouteSection]]  # train id -> contested sections on its route
+    section_requests: dict[str, dict[str, SectionRequest]]  # train id -> section id -> request
+    continues: Callable[[str], bool]  # does the unit of this trip run a next trip? (rotations)
+
+    def set_up_shared_track(self, graph: Any, continues: Callable[[str], bool]) -> None:
+        """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
+        cross on different movements (see the module docstring); ``continues(train_id)``: does the unit of that trip
+        run a next trip (the rotations), whose sections it keeps on arrival (:meth:`hand_over`)."""
+        set_once(self, "continues", continues)
+        smap = section_map(graph)
+        if not smap and not graph.graph.get("crossings"):
+            return
+        per_train = {
+            tid: sorted(
+                route_sections(tr.trip.route, smap) + route_crossings(tr.trip.route, graph), key=lambda x: x.start_m
+            )
+            for tid, tr in self.fleet.trains.items()
+        }
+        shared = contested(per_train)
+        if not shared:
+            return
+        self.tracks = TrackSections(self.events, sorted(shared))
+        for k, (tid, sections) in enumerate(per_train.items()):
+            # a train reversing in a section gets a direction nobody else has: it holds the section alone
+            mine = [
+                dataclasses.replace(x, direction=2 + k) if x.direction == REVERSING else x
+                for x in sections
+                if x.section_id in shared
+            ]
+            if mine:
+                self.sections[tid] = mine
+                self.section_requests[tid] = {}
+
+    def wanted_by_others(self, tr: TrainRuntime) -> bool:
+        """True if another train waits for a single-track section ``tr`` holds (a unit waiting in a turnback
+        track moves on to its departure platform rather than keep the next unit out)."""
+        if self.tracks is None:
+            return False
+        for sid, req in self.section_requests.get(tr.train_id, {}).items():
+            if req.granted and any(h != tr.train_id for h in self.tracks.queued(sid)):
+                return True
+        return False
+
+    # ------------------------------------------------------------------ single track
+    def _sections_bookkeeping(self, t: float, tr: TrainRuntime, ahead: Any = None) -> None:
+        """Request the sections ahead (in the order trains reach them: never past the train in front, ``ahead``,
+        unless it has asked for that section the same way or leads this train coupled) and release those behind."""
+        assert self.tracks is not None
+        reqs = self.section_requests[tr.train_id]
+        rear = tr.front_m - tr.trip.vehicle.length_m
+        for sec in self.sections[tr.train_id]:
+            req = reqs.get(sec.section_id)
+            if req is None:
+                if (
+                    sec.end_m > tr.front_m
+                    and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
+                    and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
+                    and not self._crossing_waits_for_next(tr, sec)
+                ):
+                    run = self._run_from(tr, sec)
+                    if not any(self._behind_first(tr, s, ahead) for s in run):
+                        self._request_run(t, tr, run)
+            elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
+                self.tracks.release(t, tr.train_id, req)
+
+    def _behind_first(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
+        """True if the train in front (``ahead``, in this train's frame) stands between this train and the
+        protection point of ``sec`` and has not asked for ``sec`` in the same direction: it must ask first. Else
+        the train behind, asking for two sections at once while the one in front had asked for the first only
+        (it could wait between them), was granted the second; the one in front then waited for it behind an
+        opposing train that waited for the train behind (Jena, ``track:-47054577``)."""
+        if ahead is None or sec.guard_m <= ahead.rear_m:
+            return False
+        theirs = self.section_requests.get(ahead.train_id, {}).get(sec.section_id)
+        if theirs is not None and theirs.direction == sec.direction and ahead.train_id not in theirs.released_by:
+            return False
+        f = self.formations.of_follower.get(tr.train_id)
+        if f is not None and self.formations.manager.state(f.id) in COUPLED_STATES:
+            return self.formations.leader_of(f).train_id != ahead.train_id
+        return True
+
+    def _crossing_waits_for_next(self, tr: TrainRuntime, sec: RouteSection) -> bool:
+        """True for a flat crossing with no room for the train between it and the next section on its route (up to
+        that section's protection point) while that section is not granted (module docstring)."""
+        nxt = next((x for x in self.sections[tr.train_id] if x.start_m > sec.start_m), None)
+        if not sec.section_id.startswith("crossing:") or nxt is None:
+            return False
+        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        req = self.section_requests[tr.train_id].get(nxt.section_id)
+        return room_m < tr.trip.vehicle.length_m and (req is None or not req.granted)
+
+    def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
+        """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
+        if self.tracks is None or tr.train_id not in self.sections:
+            return None
+        reqs = self.section_requests[tr.train_id]
+        for sec in self.sections[tr.train_id]:
+            if sec.start_m - self.settings.protection_margin_m <= depart_m < sec.end_m:
+                if sec.section_id not in reqs:
+                    self._request_run(t, tr, self._run_from(tr, sec))
+                req = reqs[sec.section_id]
+                if not req.granted:
+                    others = ", ".join(self.tracks.waiting_ahead(req)) or "another train"
+                    return f"single-track section {sec.section_id} is reserved for {others}"
+        return None
+
+    def _request_run(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
+        """Request the sections ``run`` (one section and every single-track section after it up to the next
+        passing place for this train, :meth:`_run_from`) in one group (module docstring, "Consecutive sections")."""
+        assert self.tracks is not None
+        reqs = self.section_requests[tr.train_id]
+        wanted = [(sec.section_id, sec.direction) for sec in run]
+        last = run[-1]
+        turns = (
+            last.section_id.startswith("track:")
+            and not any(
+                s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
+            )
+            and self.continues(tr.train_id)
+        )
+        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=turns)):
+            reqs[sec.section_id] = req
+        self._bring_forward(t, tr, run)
+
+    def _bring_forward(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
+        """Trains of ``tr``'s direction that hold or wait for the first section of ``run`` alone, and run on
+        through the next ones, ask for those now: they would leave before ``tr`` and, asking later, wait between
+        the sections behind an opposing train that waits for ``tr`` (Jena-Ost)."""
+        assert self.tracks is not None
+        first = run[0]
+        for other in self.tracks.requests(first.section_id):
+            if other.direction != first.direction or other.group or tr.train_id in other.holder_ids:
+                continue
+            for oid in other.holder_ids:
+                theirs = self.section_requests.get(oid)
+                if theirs is None or oid in other.released_by:
+                    continue
+                for sec in run[1:]:
+                    mine = [s for s in self.sections[oid] if s.section_id == sec.section_id]
+                    if sec.section_id in theirs or not mine or mine[0].direction != sec.direction:
+                        break
+                    theirs[sec.section_id] = self.tracks.request(t, (oid,), sec.section_id, sec.direction)
+
+    def _run_from(self, tr: TrainRuntime, first: RouteSection) -> list[RouteSection]:
+        """``first`` and the single-track sections that follow it on the route with no passing place between:
+        the next one is added while the track between the two cannot hold this train clear of both
+        (:meth:`_passing_room_m`). Sections already requested end the run; flat crossings are requested alone
+        (a train never stands inside one waiting)."""
+        run = [first]
+        if not first.section_id.startswith("track:"):
+            return run
+        reqs = self.section_requests[tr.train_id]
+        later = [
+            s for s in self.sections[tr.train_id] if s.start_m > first.start_m and s.section_id.startswith("track:")
+        ]
+        for nxt in later:
+            if nxt.section_id in reqs or any(s.section_id == nxt.section_id for s in run):
+                break
+            if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
+                run[-1], nxt
+            ):
+                break
+            run.append(nxt)
+        return run
+
+    def _others_run_on(self, sec: RouteSection, nxt: RouteSection) -> bool:
+        """True if a train of the same direction already waits for ``sec`` together with ``nxt``: a train asks
+        for no less than those before it. Asking for ``sec`` alone, it was granted it first, left ahead of them
+        and waited between the sections for ``nxt``, which they were then granted behind it (Jena-Ost)."""
+        assert self.tracks is not None
+        for req in self.tracks.waiting(sec.section_id):
+            if req.direction == sec.direction and any(r.section_id == nxt.section_id for r in req.group):
+                return True
+        return False
+
+    def _passing_room_m(self, tr: TrainRuntime, sec: RouteSection, nxt: RouteSection) -> float:
+        """Room left for ``tr`` to wait between ``sec`` and ``nxt`` with its rear clear of ``sec``: from
+        ``clearance_m`` past the end of ``sec`` to where its authority ends before ``nxt`` (the overlap before its
+        protection point), less the room of the trains of the same direction that hold or wait for ``sec`` and
+        will stand there too (those not granted ``nxt`` together with ``sec``), each its length and its
+        separation margin."""
+        assert self.tracks is not None
+        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        for other_id in self.tracks.holders(sec.section_id) + self.tracks.queued(sec.section_id):
+            if other_id == tr.train_id:
+                continue
+            theirs = self.section_requests.get(other_id, {})
+            mine = theirs.get(sec.section_id)
+            if mine is None or mine.direction != sec.direction or other_id in mine.released_by:
+                continue
+            if not any(
+                s.section_id == nxt.section_id and s.direction == nxt.direction for s in self.sections[other_id]
+            ):
+                continue
+            on = theirs.get(nxt.section_id)
+            if on is not None and (on.granted or on in mine.group):
+                continue  # it runs on through nxt: it never waits between the two
+            other = self.fleet.trains[other_id]
+            room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
+        return room_m
+
+    def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
+        """True if a section or crossing not yet reserved for the train has its protection point at or before
+        this switch point: the train's authority ends before it, so the switch is not the train's yet. A train
+        waiting at the near end of a section held the points at its far end, which the train in the section
+        needed to leave it (Jena, points ``1831585450``; before, only a switch exactly at the protection point
+        was held back)."""
+        reqs = self.section_requests.get(tr.train_id, {})
+        for sec in self.sections.get(tr.train_id, ()):
+            if sec.guard_m <= point_m + 1e-6 and sec.end_m > tr.front_m:
+                req = reqs.get(sec.section_id)
+                if req is None or not req.granted:
+                    return True
+        return False
