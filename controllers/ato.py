@@ -75,10 +75,8 @@ from controllers.braking import (
     params_from_mapping,
     require,
 )
-from railsim.physics.vehicle import G_MPS2, VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
-# Below this speed the train counts as standing [m/s].
-_STANDING_MPS = 1e-3
 NO_STOP = (0.0, 0.0, 0.0, False)  # the kernel's stop arguments when there is no next stop (it does not read them)
 # How far a step's position update runs ahead of Euler's ``dt·v_new``, in steps of the speed now (docstring)
 POSITION_LEAD = {"euler": 0.0, "ballistic": 0.5, "forward": 1.0}
@@ -234,7 +232,6 @@ class Ato:
             line_kernels.ATO_FIELDS,
             veh,
             self.params,
-            G_MPS2,
             dt,
             _lag_ratio(dt, veh.actuator_time_constant_s),
             extra=(self.position_lead * dt,),

@@ -60,7 +60,7 @@ import numpy as np
 from controllers import line_kernels
 from railsim.errors import require  # noqa: F401 - re-exported: controllers check parameters with it
 from railsim.physics.dynamics import traction_limit_mps2  # noqa: F401 - re-exported: one definition of the envelope
-from railsim.physics.vehicle import G_MPS2, VehicleParams
+from railsim.physics.vehicle import VehicleParams
 
 
 def build_up_delay_s(
@@ -126,18 +126,25 @@ def net_braking_mps2(
     gradient_permille: float,
     davis_speed_mps: float | None = None,
 ) -> float:
-    """Net deceleration [m/s²] the train achieves with an applied brake ``applied_decel_mps2`` (positive).
+    """Net deceleration [m/s²] the train achieves with an applied brake ``applied_decel_mps2`` (positive)
+    (:func:`controllers.line_kernels.net_braking_mps2`).
 
     The gradient always counts (downhill reduces it). Davis running resistance counts only when
     ``davis_speed_mps`` is given, evaluated at that speed: leaving it out (or taking it at a crawl, where only
     the constant term remains) under-estimates a train's own braking over a whole stop (safe for the train that
     must stop); taking it at the present speed over-estimates it (safe when that train is the obstacle ahead).
     """
-    if davis_speed_mps is None:
-        extra_n = vehicle.mass_kg * G_MPS2 * gradient_permille / 1000.0
-    else:
-        extra_n = vehicle.resistance_n(max(davis_speed_mps, 1e-9), gradient_permille)
-    return applied_decel_mps2 + extra_n / vehicle.effective_mass_kg
+    return line_kernels.net_braking_mps2(  # type: ignore[no-any-return]
+        float(applied_decel_mps2),
+        float(vehicle.mass_kg),
+        float(vehicle.rotating_mass_factor),
+        float(vehicle.davis_a_n),
+        float(vehicle.davis_b_n_per_mps),
+        float(vehicle.davis_c_n_per_mps2),
+        float(gradient_permille),
+        davis_speed_mps is not None,
+        0.0 if davis_speed_mps is None else float(davis_speed_mps),
+    )
 
 
 # --------------------------------------------------------------------------------------------- exact discrete
@@ -264,33 +271,23 @@ def relative_braking_distance_m(
     passes the worst-case extrapolated leader speed as ``leader_speed_mps``); the junction planner
     (:mod:`controllers.junction.model`, :mod:`controllers.junction.qp`) requires it along its plans, so a plan
     the guard would cap is infeasible. Accepts floats or numpy arrays (broadcast); returns a float for floats.
-    Scalars take a plain-float path (the guard runs every step for every coupled train; numpy costs ~10x there)
-    with the same operations in the same order, so both paths give the same bits (tested).
+    The law is :func:`controllers.line_kernels.relative_braking_distance_m`, written once; arrays go through its
+    compiled loop (:func:`controllers.line_kernels.relative_braking_distances_m`) element by element.
     """
-    args = (follower_speed_mps, leader_speed_mps, follower_decel_mps2, leader_decel_mps2, delay_s)
-    if all(isinstance(x, (float, int)) for x in args) and isinstance(follower_accel_mps2, (float, int)):
-        return _rbd_scalar_m(*args, follower_accel_mps2, margin_m)
-    v = np.maximum(np.asarray(follower_speed_mps, dtype=float), 0.0)
-    a0 = np.asarray(follower_accel_mps2, dtype=float)
-    t = np.maximum(np.asarray(delay_s, dtype=float), 0.0)
-    # a follower braking hard enough to stand within the dead time: the dead time ends when it stands
-    stands = (a0 < 0.0) & (v + a0 * t < 0.0)
-    t = np.where(stands, v / np.where(a0 < 0.0, -a0, 1.0), t)
-    v_after = np.maximum(v + a0 * t, 0.0)
-    own_stop = v * t + 0.5 * a0 * t * t + v_after * v_after / (2.0 * np.asarray(follower_decel_mps2, dtype=float))
-    v_l = np.maximum(np.asarray(leader_speed_mps, dtype=float), 0.0)
-    out = own_stop - v_l * v_l / (2.0 * np.asarray(leader_decel_mps2, dtype=float)) + margin_m
-    return float(out) if np.ndim(out) == 0 else out
-
-
-def _rbd_scalar_m(v_f: float, v_l: float, b_f: float, b_l: float, delay_s: float, a0: float, margin_m: float) -> float:
-    """:func:`relative_braking_distance_m` on plain floats: its array expression, operation for operation."""
-    v = max(float(v_f), 0.0)
-    a0 = float(a0)
-    t = max(float(delay_s), 0.0)
-    if a0 < 0.0 and v + a0 * t < 0.0:
-        t = v / -a0
-    v_after = max(v + a0 * t, 0.0)
-    own_stop = v * t + 0.5 * a0 * t * t + v_after * v_after / (2.0 * float(b_f))
-    v_lead = max(float(v_l), 0.0)
-    return float(own_stop - v_lead * v_lead / (2.0 * float(b_l)) + margin_m)
+    args = (
+        follower_speed_mps,
+        leader_speed_mps,
+        follower_decel_mps2,
+        leader_decel_mps2,
+        delay_s,
+        follower_accel_mps2,
+        margin_m,
+    )
+    if all(isinstance(x, (float, int)) for x in args):
+        return float(line_kernels.relative_braking_distance_m(*(float(x) for x in args)))
+    arrays = np.broadcast_arrays(*(np.asarray(x, dtype=np.float64) for x in args))
+    shape = arrays[0].shape
+    flat = [np.ascontiguousarray(a).reshape(-1) for a in arrays]
+    out = np.empty(flat[0].shape[0], dtype=np.float64)
+    line_kernels.relative_braking_distances_m(*flat, out)  # type: ignore[call-arg]
+    return float(out[0]) if not shape else out.reshape(shape)

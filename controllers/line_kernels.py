@@ -29,16 +29,10 @@ from __future__ import annotations
 import math
 
 import numpy as np
+from numba import njit
 
-try:  # numba: a declared dependency (pyproject.toml); without it the same functions run interpreted
-    from numba import njit
-except ImportError:  # pragma: no cover - exercised only in environments without numba
-
-    def njit(*args, **kwargs):  # type: ignore[no-redef]
-        def wrap(fn):
-            return fn
-
-        return wrap(args[0]) if args and callable(args[0]) else wrap
+from railsim.physics import forces
+from railsim.physics.plant_kernel import PLANT_FIELDS
 
 
 ATO_PHASES = ("hold", "cruise", "restriction", "stop", "brake", "emergency")
@@ -46,22 +40,9 @@ _HOLD, _CRUISE, _RESTRICTION, _STOP, _BRAKE, _EMERGENCY = range(6)
 SEPARATION_PHASES = ("follow", "brake", "emergency", "halt")
 _FOLLOW, _SEP_BRAKE, _SEP_EMERGENCY, _HALT = range(4)
 
-_VEHICLE_FIELDS = (
-    "mass_kg",
-    "rotating_mass_factor",
-    "davis_a_n",
-    "davis_b_n_per_mps",
-    "davis_c_n_per_mps2",
-    "max_speed_mps",
-    "traction_max_force_n",
-    "traction_max_power_w",
-    "service_decel_mps2",
-    "emergency_decel_mps2",
-    "jerk_limit_mps3",
-    "actuator_time_constant_s",
-)
-# The packed float arrays: vehicle fields, the law's parameters, then gravity, the step's dt and lag ratio.
-_STEP_FIELDS = ("g_mps2", "dt_s", "lag_ratio")
+_VEHICLE_FIELDS = PLANT_FIELDS + ("actuator_time_constant_s",)  # the plant's, and the lag it predicts
+# The packed float arrays: vehicle fields, the law's parameters, then the step's dt and lag ratio.
+_STEP_FIELDS = ("dt_s", "lag_ratio")
 ATO_FIELDS = (
     _VEHICLE_FIELDS
     + (
@@ -83,20 +64,18 @@ SEPARATION_FIELDS = _VEHICLE_FIELDS + ("margin_m", "reaction_time_s", "barrier_r
 
 _MIN_DECEL_MPS2 = 1e-4  # smallest deceleration the solvers consider: below it a stop is "never" [m/s²]
 _SOLVE_TOLERANCE_M = 1e-3  # discrete_required_decel_mps2 stops when the distance is this close [m]
-_STANDING_MPS = 1e-3  # controllers.ato._STANDING_MPS
-_SPEED_EPS_MPS = 1e-6  # railsim.physics.dynamics.SPEED_EPS_MPS
 _NO_TRIVIAL = -1.0  # _trivial_stop_m: "the sum is needed" (its real answers are 0 and inf)
-_STANDSTILL_BUFFER_M = 1.0  # controllers.separation._STANDSTILL_BUFFER_M
-_CRAWL_MPS = 0.5  # controllers.separation._CRAWL_MPS
-_CRAWL_ZONE_M = 1.0  # controllers.separation._CRAWL_ZONE_M
-_CRAWL_STOP_DECEL_MPS2 = 0.3  # controllers.separation._CRAWL_STOP_DECEL_MPS2
+_STANDING_MPS = 1e-3  # ATO: below this speed the train counts as standing [m/s]
+_STANDSTILL_BUFFER_M = 1.0  # separation: aim to halt this far before rear − margin [m]
+_CRAWL_MPS = 0.5  # separation: below this speed and ...
+_CRAWL_ZONE_M = 1.0  # ... this close to the halting point, brake to a stop [m]
+_CRAWL_STOP_DECEL_MPS2 = 0.3  # separation: net deceleration of that final halt [m/s²]
 
 
 def pack(
     fields: tuple[str, ...],
     vehicle: object,
     params: object,
-    g_mps2: float,
     dt_s: float,
     lag_ratio: float,
     extra: tuple[float, ...] = (),
@@ -107,9 +86,7 @@ def pack(
     if fields[n : n + len(_STEP_FIELDS)] != _STEP_FIELDS:
         raise ValueError(f"{len(extra)} extra value(s) for fields {fields!r}")
     values = [float(getattr(vehicle, f) if hasattr(vehicle, f) else getattr(params, f)) for f in fields[:n]]
-    return np.array(
-        [*values, float(g_mps2), float(dt_s), float(lag_ratio), *(float(e) for e in extra)], dtype=np.float64
-    )
+    return np.array([*values, float(dt_s), float(lag_ratio), *(float(e) for e in extra)], dtype=np.float64)
 
 
 def limits_array(limits: tuple) -> np.ndarray:
@@ -331,10 +308,7 @@ def _restriction_far_m(
     (:func:`required_decel_mps2` with ``a0 = net_now``) stays below ``b_release`` once
     ``d > dead-time run + v_after²/(2·b_release)``. A millimetre and a relative 1e-9 on top cover rounding,
     so skipping a restriction beyond this distance gives the command the full loop gives."""
-    t = delay_s
-    if net_now < 0.0 and v + net_now * t < 0.0:
-        t = v / -net_now
-    v_after = _mx(v + net_now * t, 0.0)
+    v, t, v_after = _dead_time(v, delay_s, net_now)
     dead_m = v * t + 0.5 * net_now * t * t
     vt = _mx(v_target, 0.0)
     far_m = _mx(vt * vt / (2.0 * b_plan) + vt * delay_s, dead_m + v_after * v_after / (2.0 * b_release))
@@ -354,22 +328,54 @@ def stopping_distance_m(speed: float, decel: float, delay_s: float, accel_now: f
     return dist
 
 
-@njit(cache=True, inline="always")
-def _resistance_mps2(
-    mass: float, rot: float, a: float, b: float, c: float, g_mps2: float, v: float, grade: float
+@njit(cache=True)
+def net_braking_mps2(
+    applied_decel: float,
+    mass: float,
+    rot: float,
+    davis_a: float,
+    davis_b: float,
+    davis_c: float,
+    grade: float,
+    with_davis: bool,
+    davis_speed: float,
 ) -> float:
-    """``VehicleParams.resistance_n(v, grade) / effective_mass_kg``."""
-    va = abs(v)
-    davis = 0.0 if va == 0.0 else a + b * va + c * va * va
-    return (davis + mass * g_mps2 * grade / 1000.0) / (mass * rot)
+    """Net deceleration [m/s²] the train achieves with the applied brake ``applied_decel`` (positive).
+
+    The gradient always counts (downhill reduces it); Davis running resistance only ``with_davis``, at
+    ``davis_speed`` (:func:`controllers.braking.net_braking_mps2` says which choice is safe for whom)."""
+    if with_davis:
+        extra_n = forces.resistance_n(mass, davis_a, davis_b, davis_c, _mx(davis_speed, 1e-9), grade)
+    else:
+        extra_n = forces.gradient_force_n(mass, grade)
+    return applied_decel + extra_n / (mass * rot)
 
 
-@njit(cache=True, inline="always")
-def _traction_limit_mps2(mass: float, rot: float, f0: float, power: float, v: float) -> float:
-    """``railsim.physics.dynamics.traction_limit_mps2``."""
-    vv = v if v > _SPEED_EPS_MPS else _SPEED_EPS_MPS
-    power_force_n = power / vv
-    return (f0 if f0 <= power_force_n else power_force_n) / (mass * rot)
+@njit(cache=True)
+def relative_braking_distance_m(
+    v_f: float, v_l: float, b_f: float, b_l: float, delay_s: float, a0: float, margin_m: float
+) -> float:
+    """The coupled follower's safety spacing, front-to-rear [m] (:func:`controllers.braking.relative_braking_distance_m`):
+    the follower's dead-time stop (:func:`stopping_distance_m` to standstill) less the leader's emergency stop
+    ``v_l²/(2·b_l)``, plus ``margin_m``."""
+    v_lead = _mx(v_l, 0.0)
+    return stopping_distance_m(v_f, b_f, delay_s, a0, 0.0) - v_lead * v_lead / (2.0 * b_l) + margin_m
+
+
+@njit(cache=True)
+def relative_braking_distances_m(
+    v_f: np.ndarray,
+    v_l: np.ndarray,
+    b_f: np.ndarray,
+    b_l: np.ndarray,
+    delay_s: np.ndarray,
+    a0: np.ndarray,
+    margin_m: np.ndarray,
+    out: np.ndarray,
+) -> None:
+    """:func:`relative_braking_distance_m` for every ``i`` of equally long 1-d arrays, into ``out``."""
+    for i in range(out.shape[0]):
+        out[i] = relative_braking_distance_m(v_f[i], v_l[i], b_f[i], b_l[i], delay_s[i], a0[i], margin_m[i])
 
 
 @njit(cache=True)
@@ -382,11 +388,11 @@ def separation(
     f0, power, service, emergency_decel = p[6], p[7], p[8], p[9]
     jerk, tau = p[10], p[11]
     margin, reaction_time, barrier_rate = p[12], p[13], p[14]
-    g_mps2, dt_s, r = p[15], p[16], p[17]
+    dt_s, r = p[15], p[16]
 
     v = _mx(speed_mps, 0.0)
-    traction = _traction_limit_mps2(mass, rot, f0, power, v)
-    b = _mx(service + mass * g_mps2 * grade / 1000.0 / (mass * rot), 0.05)  # net_braking_mps2 without Davis
+    traction = forces.traction_limit_mps2(mass, rot, f0, power, v)
+    b = _mx(net_braking_mps2(service, mass, rot, davis_a, davis_b, davis_c, grade, False, 0.0), 0.05)
     age_s = _mx(pred_age_s, 0.0)
     reaction_s = reaction_time + age_s + dt_s  # + one step: a command is held until the next decision
     delay = build_up_delay_s(a0, b, tau, jerk, reaction_s)
@@ -398,7 +404,7 @@ def separation(
     if h < 0.0 and v > 0.0:
         # Inside the braking curve's allowance already (a predecessor appeared close, a long outage): emergency
         # only if service braking, predicted exactly for the plant plus the jerk ramp, no longer stops in time.
-        rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
+        rho = forces.resistance_n(mass, davis_a, davis_b, davis_c, v, grade) / (mass * rot)
         ramp_m = 0.5 * v * _mx(a0 + service, 0.0) / jerk
         if discrete_stop_distance_m(v, a0 - rho, b, dt_s, r) + ramp_m > free_m:
             return -emergency_decel, True, _SEP_EMERGENCY, free_m, h
@@ -412,7 +418,7 @@ def separation(
         # The barrier approaches its end point asymptotically; rather than crawl for minutes, halt.
         net_cap = _mn(net_cap, -_CRAWL_STOP_DECEL_MPS2)
         phase = _HALT
-    applied = net_cap + _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)
+    applied = net_cap + forces.resistance_n(mass, davis_a, davis_b, davis_c, v, grade) / (mass * rot)
     return _mn(_mx(applied, -service), traction), False, phase, free_m, h
 
 
@@ -445,10 +451,10 @@ def ato(
     jerk, tau = p[10], p[11]
     speed_margin, gain, plan_frac, release_frac, max_accel = p[12], p[13], p[14], p[15], p[16]
     authority_margin, stop_tol, creep_speed, creep_zone, hold_decel = p[17], p[18], p[19], p[20], p[21]
-    g_mps2, dt, r, lead_s = p[22], p[23], p[24], p[25]
+    dt, r, lead_s = p[22], p[23], p[24]
 
     v = _mx(speed_mps, 0.0)
-    rho = _resistance_mps2(mass, rot, davis_a, davis_b, davis_c, g_mps2, v, grade)  # as a deceleration [m/s²]
+    rho = forces.resistance_n(mass, davis_a, davis_b, davis_c, v, grade) / (mass * rot)  # a deceleration [m/s²]
     net_now = applied_now - rho
     standing = v <= _STANDING_MPS
     # Net braking the train can plan with: on a downhill part of the brake only holds the train.
@@ -537,7 +543,7 @@ def ato(
                 phase = _STOP
 
     # ---- cruise law and the minimum
-    traction = _mn(_traction_limit_mps2(mass, rot, f0, power, v), max_accel)
+    traction = _mn(forces.traction_limit_mps2(mass, rot, f0, power, v), max_accel)
     if v >= max_speed:
         traction = 0.0
     cruise_net = gain * (v_target - v)

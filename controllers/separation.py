@@ -56,12 +56,7 @@ from controllers.braking import (
     require,
     traction_limit_mps2,
 )
-from railsim.physics.vehicle import G_MPS2, VehicleParams
-
-_STANDSTILL_BUFFER_M = 1.0  # aim to halt this far before rear − margin [m]
-_CRAWL_MPS = 0.5  # below this speed and ...
-_CRAWL_ZONE_M = 1.0  # ... this close to the halting point, brake to a stop [m]
-_CRAWL_STOP_DECEL_MPS2 = 0.3  # net deceleration of that final halt [m/s²]
+from railsim.physics.vehicle import VehicleParams
 
 
 @dataclass(frozen=True)
@@ -152,7 +147,6 @@ class Separation:
                 line_kernels.SEPARATION_FIELDS,
                 veh,
                 self.params,
-                G_MPS2,
                 dt_s,
                 _lag_ratio(dt_s, veh.actuator_time_constant_s),
             )

@@ -74,8 +74,8 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from railsim.physics import plant_kernel
-from railsim.physics.plant_kernel import SPEED_EPS_MPS, STEP_METHODS
+from railsim.physics import forces, plant_kernel
+from railsim.physics.plant_kernel import STEP_METHODS
 from railsim.physics.vehicle import VehicleParams
 
 __all__ = [
@@ -178,12 +178,16 @@ class StepResult:
 def traction_limit_mps2(vehicle: VehicleParams, speed_mps: float) -> float:
     """Largest applied traction acceleration ``F_max(v)/m_eff`` [m/s²], ``F_max = min(F0, P/max(v, ε))``.
 
-    The traction cut at ``max_speed_mps`` is not included (the plant applies it on top).
+    The traction cut at ``max_speed_mps`` is not included (the plant applies it on top). The law is
+    :func:`railsim.physics.forces.traction_limit_mps2`, written once.
     """
-    v = speed_mps if speed_mps > SPEED_EPS_MPS else SPEED_EPS_MPS
-    power_force_n = vehicle.traction_max_power_w / v
-    f0 = vehicle.traction_max_force_n
-    return (f0 if f0 <= power_force_n else power_force_n) / (vehicle.mass_kg * vehicle.rotating_mass_factor)
+    return forces.traction_limit_mps2(  # type: ignore[no-any-return]
+        vehicle.mass_kg,
+        vehicle.rotating_mass_factor,
+        vehicle.traction_max_force_n,
+        vehicle.traction_max_power_w,
+        speed_mps,
+    )
 
 
 def brake_limit_mps2(vehicle: VehicleParams, emergency: bool = False) -> float:

@@ -4,7 +4,8 @@ The model — the order of operations, the envelopes, the flags — is described
 whose :func:`~railsim.physics.dynamics.step`, :func:`~railsim.physics.dynamics.step_values` and
 :func:`~railsim.physics.dynamics.step_many` check their inputs and call the functions here. The engine's compiled
 loops (``railsim.engine.free_run_kernel``, ``railsim.engine.line_step_kernel``) call :func:`step` inside their own
-code, where a step costs a few nanoseconds.
+code, where a step costs a few nanoseconds. The forces it applies — running resistance, gradient, the traction
+envelope — are the laws of :mod:`railsim.physics.forces`, called here, not written again.
 
 **Written once.** The interpreted form of :func:`step` (the module loaded with the JIT off,
 ``tests.helpers.interpreted``, or ``NUMBA_DISABLE_JIT=1``) is the readable reference, and it gives the same bits as
@@ -24,11 +25,9 @@ from functools import lru_cache
 import numpy as np
 from numba import njit
 
-from railsim.physics.units import G_MPS2
+from railsim.physics import forces
 from railsim.physics.vehicle import VehicleParams
 
-# Floor on the speed in P/v: keeps the power branch finite at standstill (F0 caps the force there anyway).
-SPEED_EPS_MPS = 1e-6
 STEP_METHODS = ("euler", "ballistic", "forward")
 PLANT_FIELDS = (
     "mass_kg",
@@ -43,7 +42,6 @@ PLANT_FIELDS = (
     "emergency_decel_mps2",
     "jerk_limit_mps3",
 )
-_G = G_MPS2
 # The saturation mask's bits, in the order of railsim.physics.dynamics._FLAG_ORDER (checked in the tests)
 _B_TRACTION, _B_POWER, _B_OVERSPEED = 1, 2, 4
 _B_BRAKE, _B_JERK, _B_OVERRIDE, _B_HOLD = 8, 16, 32, 64
@@ -70,6 +68,17 @@ def method_index(step_method: str) -> int:
     return STEP_METHODS.index(step_method)
 
 
+@njit(cache=True, inline="always")
+def _clip(x: float, lower: float, upper: float, upper_bit: int) -> tuple[float, int]:
+    """``x`` within ``[lower, upper]``, and the mask bit of the bound that clipped it (``upper_bit`` or the brake's;
+    0 when neither did)."""
+    if x > upper:
+        return upper, upper_bit
+    if x < lower:
+        return lower, _B_BRAKE
+    return x, 0
+
+
 @njit(cache=True)
 def step(
     p: np.ndarray,
@@ -89,25 +98,15 @@ def step(
     m_eff = mass * rot
     mask = 0
 
-    # 1. Envelope at the current speed.
-    upper_bit = 0
+    # 1. Envelope at the current speed (the traction envelope of railsim.physics.forces, cut at the design speed).
     if v >= max_speed:
         upper, upper_bit = 0.0, _B_OVERSPEED
     else:
-        power_force_n = power / (v if v > SPEED_EPS_MPS else SPEED_EPS_MPS)
-        if f0 <= power_force_n:
-            upper, upper_bit = f0 / m_eff, _B_TRACTION
-        else:
-            upper, upper_bit = power_force_n / m_eff, _B_POWER
+        force_n, power_limited = forces.traction_force_n(f0, power, v)
+        upper, upper_bit = force_n / m_eff, (_B_POWER if power_limited else _B_TRACTION)
     lower = -emergency_decel if emergency else -service
-
-    u_env = u_cmd_mps2
-    if u_env > upper:
-        u_env = upper
-        mask |= upper_bit
-    elif u_env < lower:
-        u_env = lower
-        mask |= _B_BRAKE
+    u_env, bits = _clip(u_cmd_mps2, lower, upper, upper_bit)
+    mask |= bits
 
     # 2. Jerk limit on the target (bypassed by emergency); the envelope has the last word.
     u = u_env
@@ -117,12 +116,9 @@ def step(
             u = target_prev + du
         elif u < target_prev - du:
             u = target_prev - du
-        if u > upper:
-            u = upper
-            mask |= upper_bit | _B_OVERRIDE
-        elif u < lower:
-            u = lower
-            mask |= _B_BRAKE | _B_OVERRIDE
+        u, bits = _clip(u, lower, upper, upper_bit)
+        if bits:
+            mask |= bits | _B_OVERRIDE
         if u != u_env:
             mask |= _B_JERK
 
@@ -130,19 +126,11 @@ def step(
     if gain == 1.0:
         a = u
     else:
-        a = applied_prev + (u - applied_prev) * gain
-        if a > upper:
-            a = upper
-            mask |= upper_bit
-        elif a < lower:
-            a = lower
-            mask |= _B_BRAKE
+        a, bits = _clip(applied_prev + (u - applied_prev) * gain, lower, upper, upper_bit)
+        mask |= bits
 
-    # 4.–5. Resistance (VehicleParams.resistance_n's expression) and speed; no rolling backwards, holding brake.
-    speed = abs(v)
-    davis = 0.0 if speed == 0.0 else davis_a + davis_b * speed + davis_c * speed * speed
-    resistance_n = davis + mass * _G * gradient_permille / 1000.0
-    a_net = a - resistance_n / m_eff
+    # 4.–5. Resistance (railsim.physics.forces) and speed; no rolling backwards, holding brake.
+    a_net = a - forces.resistance_n(mass, davis_a, davis_b, davis_c, v, gradient_permille) / m_eff
     v_raw = v + a_net * dt_s
     if v_raw < 0.0 or (v == 0.0 and a <= 0.0 and v_raw > 0.0):
         v_next = 0.0

@@ -28,6 +28,7 @@ from typing import Any
 
 import yaml
 
+from railsim.physics import forces
 from railsim.physics.units import G_MPS2  # noqa: F401  (re-exported: vehicle presets use it)
 
 
@@ -59,11 +60,12 @@ class VehicleParams:
     def resistance_n(self, speed_mps: float, gradient_permille: float = 0.0) -> float:
         """Davis running resistance plus gradient resistance [N]; uphill gradients positive.
 
-        A standing train feels no Davis term (static friction is not modelled), only the gradient.
+        A standing train feels no Davis term (static friction is not modelled), only the gradient. The law is
+        :func:`railsim.physics.forces.resistance_n`, written once.
         """
-        v = abs(speed_mps)
-        davis = 0.0 if v == 0.0 else self.davis_a_n + self.davis_b_n_per_mps * v + self.davis_c_n_per_mps2 * v * v
-        return davis + self.mass_kg * G_MPS2 * gradient_permille / 1000.0
+        return forces.resistance_n(  # type: ignore[no-any-return]
+            self.mass_kg, self.davis_a_n, self.davis_b_n_per_mps, self.davis_c_n_per_mps2, speed_mps, gradient_permille
+        )
 
     def net_to_applied(self, net_accel_mps2: float, speed_mps: float, gradient_permille: float = 0.0) -> float:
         """Applied specific force [m/s²] that yields ``net_accel_mps2`` once resistance and gradient act."""

@@ -14,11 +14,13 @@ import dataclasses
 import numpy as np
 import pytest
 
+from controllers import line_kernels
 from controllers.braking import relative_braking_distance_m, stopping_distance_m
 from controllers.junction.model import JunctionParams, SwitchState, sumo_corrected_params
 from controllers.junction.planner import TrainState, YJunctionLayout, build_problem, plan, replan
 from controllers.junction.qp import order_estimates, solve_qp_order
 from controllers.junction.simulate import measure, simulate_plan
+from tests.helpers import interpreted
 
 LAYOUT = YJunctionLayout(S5_m=300.0)
 
@@ -39,21 +41,28 @@ def test_guard_formula_is_the_dead_time_stop_minus_the_leaders_stop(v_f, v_l, a0
     assert np.allclose(arr, expected)
 
 
-def test_guard_scalar_path_gives_the_array_paths_bits():
-    """Plain floats take a fast path: on random inputs (negative speeds, hard braking inside the dead time,
-    zero delay included) it returns exactly the array path's numbers, bit for bit."""
+def test_guard_on_arrays_is_the_law_element_by_element():
+    """Arrays (broadcast against scalars) go through the compiled loop: on random inputs (negative speeds, hard
+    braking inside the dead time, zero delay included) every element has the bits of the law's interpreted form
+    (:func:`controllers.line_kernels.relative_braking_distance_m` with the JIT off), and so has a call on floats."""
+    reference = interpreted(line_kernels).relative_braking_distance_m
     rng = np.random.default_rng(7)
     n = 2000
     v_f, v_l = rng.uniform(-1.0, 30.0, n), rng.uniform(-1.0, 30.0, n)
-    b_f, b_l = rng.uniform(0.05, 2.0, n), rng.uniform(0.05, 2.0, n)
+    b_f = rng.uniform(0.05, 2.0, n)
     delay, a0, margin = rng.uniform(0.0, 3.0, n), rng.uniform(-3.0, 1.5, n), rng.uniform(0.0, 50.0, n)
     delay[:50] = 0.0
-    arr = relative_braking_distance_m(v_f, v_l, b_f, b_l, delay, a0, margin)
+    arr = relative_braking_distance_m(v_f, v_l, b_f, 1.2, delay, a0, margin)
+    assert arr.shape == (n,)
     for k in range(n):
-        one = relative_braking_distance_m(
-            float(v_f[k]), float(v_l[k]), float(b_f[k]), float(b_l[k]), float(delay[k]), float(a0[k]), float(margin[k])
-        )
-        assert type(one) is float and one == arr[k]
+        args = (float(v_f[k]), float(v_l[k]), float(b_f[k]), 1.2, float(delay[k]), float(a0[k]), float(margin[k]))
+        expected = reference(*args)
+        assert arr[k] == expected and float(arr[k]).hex() == float(expected).hex()
+        if k % 100 == 0:
+            one = relative_braking_distance_m(*args)
+            assert type(one) is float and one == expected
+    grid = relative_braking_distance_m(v_f[:6].reshape(2, 3), 5.0, 1.0, 1.2, 0.5, 0.0, 0.0)
+    assert grid.shape == (2, 3)
 
 
 def test_two_trains_paper_model_feasible_order_interval_and_coupling_hold_in_simulation():

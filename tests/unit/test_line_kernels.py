@@ -17,7 +17,7 @@ import math
 import numpy as np
 import pytest
 
-from controllers import line_kernels
+from controllers import braking, line_kernels
 from controllers.ato import NO_STOP, Ato, AtoParams, limits_array_cached
 from controllers.base import SpeedLimit
 from controllers.separation import Separation, SeparationParams
@@ -184,7 +184,8 @@ def test_a_follower_closes_up_and_halts_short_of_rear_minus_margin() -> None:
 @pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
 def test_compiled_braking_curves_are_their_interpreted_form(dt: float) -> None:
     """The braking curves on their own, over the whole input range the laws feed them (standing, creeping,
-    coasting, braking hard, steep gradients, no lag): the same bits compiled and interpreted."""
+    coasting, braking hard, steep gradients, no lag), with the net braking they plan with and the coupled
+    follower's relative braking distance: the same bits compiled and interpreted."""
     rng = np.random.default_rng(22)
     for _ in range(3000):
         v = float(rng.choice([0.0, rng.uniform(0.0, 1.0), rng.uniform(0.0, 30.0)]))
@@ -196,7 +197,23 @@ def test_compiled_braking_curves_are_their_interpreted_form(dt: float) -> None:
         tau = float(rng.choice([0.0, rng.uniform(0.1, 1.0)]))
         jerk = float(rng.choice([math.inf, rng.uniform(0.3, 2.0)]))
         r = math.exp(-dt / tau) if tau > 0.0 else 0.0
+        veh = VEHICLES[int(rng.integers(len(VEHICLES)))]
+        grade = float(rng.choice([0.0, rng.uniform(-35.0, 35.0)]))
+        resistance = (
+            veh.mass_kg,
+            veh.rotating_mass_factor,
+            veh.davis_a_n,
+            veh.davis_b_n_per_mps,
+            veh.davis_c_n_per_mps2,
+        )
+        v_lead, b_lead, margin = (
+            float(rng.uniform(-1.0, 30.0)),
+            float(rng.uniform(0.05, 2.0)),
+            float(rng.uniform(0, 50)),
+        )
         calls = [
+            ("net_braking_mps2", (b, *resistance, grade, bool(rng.random() < 0.5), v)),
+            ("relative_braking_distance_m", (v, v_lead, b, b_lead, delay, a0, margin)),
             ("build_up_delay_s", (a0, b, tau, jerk, delay)),
             ("stopping_distance_m", (v, b, delay, a0, target)),
             ("allowed_speed_mps", (d, b, delay, a0, target)),
@@ -209,3 +226,20 @@ def test_compiled_braking_curves_are_their_interpreted_form(dt: float) -> None:
         for name, args in calls:
             compiled, reference = getattr(line_kernels, name)(*args), getattr(INTERPRETED, name)(*args)
             assert _bits((compiled,)) == _bits((reference,)), (name, args)
+
+
+def test_net_braking_is_the_brake_plus_gradient_and_davis_where_asked() -> None:
+    """Closed form: the applied brake plus the gradient resistance (and Davis at the given speed) over the
+    effective mass; a downhill reduces it, and the Davis term only ever adds."""
+    veh = VEHICLES[0]
+    m_eff = veh.effective_mass_kg
+    for grade in (-30.0, 0.0, 12.0):
+        plain = braking.net_braking_mps2(veh, 1.0, grade)
+        assert plain == pytest.approx(1.0 + veh.mass_kg * 9.81 * grade / 1000.0 / m_eff, rel=1e-12)
+        with_davis = braking.net_braking_mps2(veh, 1.0, grade, davis_speed_mps=15.0)
+        assert with_davis == pytest.approx(1.0 + veh.resistance_n(15.0, grade) / m_eff, rel=1e-15)
+        assert with_davis > plain
+    assert braking.net_braking_mps2(veh, 1.0, -30.0) < 1.0 < braking.net_braking_mps2(veh, 1.0, 12.0)
+    # at a standstill (a crawl, 1e-9 m/s) only Davis's constant term acts
+    crawl = braking.net_braking_mps2(veh, 1.0, 0.0, davis_speed_mps=0.0)
+    assert crawl == pytest.approx(1.0 + veh.davis_a_n / m_eff, rel=1e-9)
