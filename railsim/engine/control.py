@@ -12,12 +12,27 @@ Per train and step (docs/architecture.md, "The step loop"):
    ``drives`` a train (the junction planner) takes over its roles while it flies a plan (its ``commands``).
 3. **Arbitration** — the most restrictive command wins (:func:`controllers.base.arbitrate`; a role whose command
    is ``additive`` — Paper D's arrival-case CA — adds its braking to the others' instead, bounded by the vehicle's
-   emergency deceleration; the CA's sensor reading carries the others' minimum as ``service_accel_mps2``); emergency braking
-   intervals and non-finite commands are events, and so is every role's fallback (``controller_fallback``
-   with the reason, plus a rate-limited WARNING: :mod:`railsim.engine.fallbacks`).
+   emergency deceleration; the CA's sensor reading carries the others' minimum as ``service_accel_mps2``);
+   emergency braking intervals and non-finite commands are events, and so is every role's fallback
+   (``controller_fallback`` with the reason, plus a rate-limited WARNING: :mod:`railsim.engine.fallbacks`).
 4. **Plant** — :func:`railsim.physics.dynamics.step` (envelopes, jerk, lag, resistance, gradient) with
    actuator noise and injected biases, or an exact plant extension (carriages, monorail drive) whose step's
    mean speed SUMO is handed. The return value is the speed SUMO applies during the coming step.
+
+One decision, two implementations
+    :meth:`ControlStage.control` is the one place where a train's commands are decided: it reads the train's
+    situation, works out which roles command it now, and hands the decision to one of two implementations of
+    steps 2–4. Most trains on a line, most of the time, are *line trains*: the line ATO
+    (:class:`controllers.ato.Ato`) and, with a train ahead, the line moving-block separation
+    (:class:`controllers.separation.Separation`) are their only roles, their plant is the standard one and no
+    actuator fault acts on them. For them the two laws, the minimum and the plant step are one compiled call
+    (:meth:`ControlStage._line_step`, :func:`railsim.engine.line_step_kernel.line_step`) — the same law functions
+    (:mod:`controllers.line_kernels`) and the same plant (:mod:`railsim.physics.plant_kernel`) on the same
+    values, so it gives the bits the general implementation would. Every other train goes through
+    :meth:`ControlStage._role_commands` (each role's :class:`~controllers.base.Command`; the line laws are asked
+    on plain values, any other controller gets its :class:`~controllers.base.Observation`) and
+    :meth:`ControlStage._finish` (arbitration, fallbacks, noise, the plant). Neither implementation chooses
+    roles: the choice is made once, in :meth:`~ControlStage.control`.
 """
 
 from __future__ import annotations
@@ -129,7 +144,7 @@ class ControlStage:
         self.berths = Berths(trains, events, settings, self._coupled_behind, dt_s)  # railsim.engine.platforms
         self._plant_p: dict[int, tuple[Any, np.ndarray]] = {}  # plant kernel inputs per vehicle (_plant_packed)
         self._method_i = plant_kernel.method_index(step_method)
-        self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray, bool]]] = {}
+        self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -192,28 +207,21 @@ class ControlStage:
             authority_end_m=authority,
         )
 
-    # ------------------------------------------------------------------ roles
+    # ------------------------------------------------------------------ the decision
     def control(self, t: float, tr: TrainRuntime, a: Ahead | None) -> float:
-        """Decide and apply this train's command; return the speed handed to SUMO for the coming step.
+        """Decide this train's command and step its plant; return the speed handed to SUMO for the coming step.
 
-        The line controllers (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are
-        called on plain values (their ``decide``); every other controller gets its :class:`Observation`, built
-        from the same values (``base``, only when one is needed)."""
+        The one place where a train's commands are decided (module docstring, "One decision, two
+        implementations"): the situation, the roles that command the train now, then the compiled line step for a
+        line train or the roles one by one for any other, each ending in arbitration and the plant step."""
         sit = self._situation(t, tr, a)
-        own_pos, own_v, grad, limits, _, target, authority, tail_m = sit
-        veh = tr.trip.vehicle
-        base: dict[str, Any] | None = None
-        commands: dict[str, Command] = {}
         f = self.formations.of_follower.get(tr.train_id)
         fstate = self.formations.manager.state(f.id) if f is not None else "free"
         leader = self.formations.leader_of(f) if f is not None else None
         ato = tr.controllers["ato"]
         if fstate in COUPLED_STATES and tr.controllers.get("ato_closing") is not None and not tr.degraded:
             ato = tr.controllers["ato_closing"]
-        ato_extras = self.extensions.ato_extras(t, tr)
-        applied_now = tr.plant.applied_accel_mps2
-        src = self.extensions.driver_of(tr.train_id)
-        planned = src is not None
+        driver = self.extensions.driver_of(tr.train_id)  # an extension flying a plan for this train, or None
         vc_role = (
             f is not None
             and fstate in COUPLED_STATES
@@ -221,10 +229,45 @@ class ControlStage:
             and (leader.on_line or leader.status == "arrived")  # arrived this step: it stands there, still ahead
             and tr.controllers.get("coupled") is not None
         )
+        if driver is None and not vc_role and self._is_line_train(tr, a, ato):
+            return self._line_step(t, tr, a, ato, sit)
+        commands = self._role_commands(t, tr, a, sit, ato, driver, vc_role, fstate, f, leader)
+        return self._finish(t, tr, commands, sit[2])
+
+    def _is_line_train(self, tr: TrainRuntime, a: Ahead | None, ato: Any) -> bool:
+        """No formation role and no plan flown (the caller checked), the line ATO, the line separation if a train is
+        ahead, no collision avoidance, the standard plant and no actuator fault: the compiled line step decides."""
+        return (
+            type(ato) is Ato
+            and (a is None or type(tr.controllers["separation"]) is Separation)
+            and tr.exact_plant is None
+            and tr.controllers.get("ca") is None
+            and not self._disturbed_actuator(tr)
+        )
+
+    def _role_commands(
+        self,
+        t: float,
+        tr: TrainRuntime,
+        a: Ahead | None,
+        sit: Situation,
+        ato: Any,
+        driver: Any,
+        vc_role: bool,
+        fstate: str,
+        f: Any,
+        leader: TrainRuntime | None,
+    ) -> dict[str, Command]:
+        """Every role's command, the ATO's first (it wins a tie). The line controllers
+        (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are asked on plain values
+        (their ``decide``); every other controller gets its :class:`Observation`, built from the same values
+        (``base``, only when one is needed)."""
+        own_pos, own_v, grad, limits, _, target, authority, tail_m = sit
+        veh = tr.trip.vehicle
+        applied_now = tr.plant.applied_accel_mps2
+        base: dict[str, Any] | None = None
+        commands: dict[str, Command] = {}
         if type(ato) is Ato:  # the line ATO reads no extras
-            line_roles = a is None or type(tr.controllers["separation"]) is Separation
-            if line_roles and not (planned or vc_role) and tr.exact_plant is None and tr.controllers.get("ca") is None:
-                return self._line_train(t, tr, a, ato, sit)
             accel, emergency, phase = ato.decide(
                 veh,
                 self.dt,
@@ -242,28 +285,25 @@ class ControlStage:
             commands["ato"] = Command(accel, emergency=emergency, info={"phase": phase})
         else:
             base = self._base(t, tr, sit)
-            commands["ato"] = ato.command(Observation(**base, extras=ato_extras))
+            commands["ato"] = ato.command(Observation(**base, extras=self.extensions.ato_extras(t, tr)))
 
-        if planned:
-            assert src is not None
+        if driver is not None:  # the plan's commands stand in for the other roles
             base = base or self._base(t, tr, sit)
-            src.commands(t, tr, a, base, commands, own_pos, own_v, fstate)
-            return self._finish(t, tr, commands, grad)
+            driver.commands(t, tr, a, base, commands, own_pos, own_v, fstate)
+            return commands
         used_vc = False
         if vc_role:
             assert f is not None and leader is not None
             base = base or self._base(t, tr, sit)
             used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
-            other = self.trains[a.train_id]
             sep = tr.controllers["separation"]
             if type(sep) is Separation:
-                known = self.knowledge.known_rear_age(tr, other, "t2g", "ground", ahead=True)
+                known = self._known_rear(tr, a)
                 if known is not None:
-                    tr.stale_max_s = max(tr.stale_max_s, known[1])
                     commands["separation"] = sep.decide(veh, self.dt, own_pos, own_v, applied_now, grad, *known)
             else:
-                pred = self.knowledge.known_state(tr, other, "t2g", "ground", ahead=True)
+                pred = self.knowledge.known_state(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
                 if pred is not None:
                     tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
                     base = base or self._base(t, tr, sit)
@@ -271,7 +311,15 @@ class ControlStage:
         ca_ctl = tr.controllers.get("ca")
         if ca_ctl is not None:  # collision avoidance on the train's own sensor: works with the radio down
             self._collision_avoidance(t, tr, a, ca_ctl, base or self._base(t, tr, sit), fstate, commands)
-        return self._finish(t, tr, commands, grad)
+        return commands
+
+    def _known_rear(self, tr: TrainRuntime, a: Ahead) -> tuple[float, float] | None:
+        """The rear of the train ahead and the age of that knowledge, as the ground reports it (all that moving-block
+        separation reads); the train's staleness record follows it."""
+        known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
+        if known is not None:
+            tr.stale_max_s = max(tr.stale_max_s, known[1])
+        return known
 
     def _coupled(
         self,
@@ -343,84 +391,77 @@ class ControlStage:
                 trigger_m=ca_cmd.info.get("trigger_m"),
             )
 
-    def _line_train(self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation) -> float:
-        """The common case on plain values: the line ATO's command, then the line :class:`Separation` against the
-        train ahead, arbitrated like :func:`controllers.base.arbitrate` (the smaller acceleration wins, the ATO on a
-        tie) — the same numbers as the general path, without a :class:`Command` per role (neither law falls back,
-        adds, or carries a plan). Without actuator noise or bias on the train, the laws, the arbitration and the
-        plant step are one compiled call (:mod:`railsim.engine.line_step_kernel`)."""
+    # ------------------------------------------------------------------ the compiled line step
+    def _line_step(self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation) -> float:
+        """A line train's decision, arbitration and plant step in one compiled call
+        (:func:`railsim.engine.line_step_kernel.line_step`): the line ATO, then the line separation against the
+        known rear of the train ahead, the smaller acceleration winning (the ATO on a tie, as
+        :func:`controllers.base.arbitrate`), then the plant. It is what :meth:`_role_commands` and
+        :meth:`_finish` would do for these two roles — neither law falls back, adds, or carries a plan — on the
+        same values. A non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records
+        it and brakes."""
         x, v, grad, limits, _, target, authority, tail_m = sit
         veh = tr.trip.vehicle
-        known = None
-        if a is not None:
-            known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
-            if known is not None:
-                tr.stale_max_s = max(tr.stale_max_s, known[1])
+        known = self._known_rear(tr, a) if a is not None else None
         plant = tr.plant
-        ato_p, sep_p, plant_p, disturbed = self._line_inputs(tr, ato, veh)
-        if not disturbed:
-            has_stop, has_authority, has_rear = target is not None, authority is not None, known is not None
-            mark_m, window_start_m, window_end_m, dwelling = target if target is not None else NO_STOP
-            rear_m, age_s = known if known is not None else (0.0, 0.0)
-            accel, emergency, role_i, ok, v_next, a_k, u_k, energy_j, mask = line_step_kernel.line_step(
-                ato_p,
-                sep_p if has_rear else _NO_PACK,
-                plant_p,
-                self._method_i,
-                self.dt,
-                x,
-                v,
-                plant.speed_mps,
-                plant.applied_accel_mps2,
-                plant.target_accel_mps2,
-                veh.length_m,
-                grad,
-                tr.view.line_speed_mps,
-                limits_array_cached(limits),
-                has_stop,
-                mark_m,
-                window_start_m,
-                window_end_m,
-                dwelling,
-                has_authority,
-                authority if authority is not None else 0.0,
-                tail_m,
-                has_rear,
-                rear_m,
-                age_s,
-            )
-            role = "separation" if role_i == line_step_kernel.ROLE_SEPARATION else "ato"
-            if ok:
-                self._emergency_events(t, tr, role, emergency)
-                tr.last_plan = None
-                return self._commit(tr, role, accel, v_next, a_k, u_k, energy_j, mask)
+        ato_p, sep_p, plant_p = self._line_inputs(tr, ato, veh)
+        has_stop, has_authority, has_rear = target is not None, authority is not None, known is not None
+        mark_m, window_start_m, window_end_m, dwelling = target if target is not None else NO_STOP
+        rear_m, age_s = known if known is not None else (0.0, 0.0)
+        accel, emergency, role_i, ok, v_next, a_k, u_k, energy_j, mask = line_step_kernel.line_step(
+            ato_p,
+            sep_p if has_rear else _NO_PACK,
+            plant_p,
+            self._method_i,
+            self.dt,
+            x,
+            v,
+            plant.speed_mps,
+            plant.applied_accel_mps2,
+            plant.target_accel_mps2,
+            veh.length_m,
+            grad,
+            tr.view.line_speed_mps,
+            limits_array_cached(limits),
+            has_stop,
+            mark_m,
+            window_start_m,
+            window_end_m,
+            dwelling,
+            has_authority,
+            authority if authority is not None else 0.0,
+            tail_m,
+            has_rear,
+            rear_m,
+            age_s,
+        )
+        role = "separation" if role_i == line_step_kernel.ROLE_SEPARATION else "ato"
+        if not ok:
             return self._apply(t, tr, role, accel, emergency, None, grad)  # non-finite: recorded, braked
-        accel, emergency, _ = ato.decide(
-            veh, self.dt, x, v, plant.applied_accel_mps2, veh.length_m, grad, tr.view.line_speed_mps, limits,
-            target, authority, tail_m,
-        )  # fmt: skip
-        role = "ato"
-        if known is not None:
-            sep_accel, sep_emergency, _, _, _ = tr.controllers["separation"].values(
-                veh, self.dt, x, v, plant.applied_accel_mps2, grad, known[0], known[1]
-            )
-            if sep_accel < accel:
-                role, accel, emergency = "separation", sep_accel, sep_emergency
-        return self._apply(t, tr, role, accel, emergency, None, grad)
+        self._emergency_events(t, tr, role, emergency)
+        tr.last_plan = None
+        return self._commit(tr, role, accel, v_next, a_k, u_k, energy_j, mask)
 
-    def _line_inputs(self, tr: TrainRuntime, ato: Ato, veh: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray, bool]:
+    def _line_inputs(self, tr: TrainRuntime, ato: Ato, veh: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """The compiled line step's inputs that change only with the train's controllers or vehicle: the packed
-        ATO, separation (when it is the line law) and plant, and whether actuator noise or a bias acts on the train
-        (the scenario's faults are fixed for the run). Remembered per train, checked by the identity of what they
-        were packed from, so a controller or vehicle handed to the train later is packed anew."""
+        ATO, separation (when it is the line law) and plant. Remembered per train, checked by the identity of what
+        they were packed from, so a controller or vehicle handed to the train later is packed anew."""
         sep = tr.controllers.get("separation")
         entry = self._line_in.get(tr.train_id)
         if entry is None or entry[0] is not ato or entry[1] is not sep or entry[2] is not veh:
             sep_p = sep.packed(veh, self.dt) if type(sep) is Separation else _NO_PACK
-            packed = (ato.packed(veh, self.dt), sep_p, self._plant_packed(veh), self._disturbed_actuator(tr))
+            packed = (ato.packed(veh, self.dt), sep_p, self._plant_packed(veh))
             entry = self._line_in[tr.train_id] = (ato, sep, veh, packed)
         return entry[3]
 
+    def _plant_packed(self, veh: Any) -> np.ndarray:
+        """The plant kernel's packed vehicle for this run's step (once per vehicle)."""
+        packed = self._plant_p.get(id(veh))
+        if packed is None or packed[0] is not veh:
+            packed = self._plant_p[id(veh)] = (veh, plant_kernel.pack(veh, self.dt))
+        return packed[1]
+
+    # ------------------------------------------------------------------ actuator faults
     def _disturbed_actuator(self, tr: TrainRuntime) -> bool:
         """Does actuator noise or an injected bias act on this train's command (drawn in :meth:`_apply`)?"""
         return self._actuator_noise_on(tr) or bool(self.dist.biases)
@@ -429,13 +470,6 @@ class ControlStage:
         """Is actuator noise drawn for this train's command (scenario ``faults.actuator_noise``)?"""
         noise_trains = self.dist.actuator_trains
         return self.dist.actuator_sd_mps2 > 0.0 and (noise_trains is None or tr.train_id in noise_trains)
-
-    def _plant_packed(self, veh: Any) -> np.ndarray:
-        """The plant kernel's packed vehicle for this run's step (once per vehicle)."""
-        packed = self._plant_p.get(id(veh))
-        if packed is None or packed[0] is not veh:
-            packed = self._plant_p[id(veh)] = (veh, plant_kernel.pack(veh, self.dt))
-        return packed[1]
 
     # ------------------------------------------------------------------ arbitration and plant
     def _finish(self, t: float, tr: TrainRuntime, commands: dict[str, Command], grad: float) -> float:

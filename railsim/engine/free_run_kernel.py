@@ -17,9 +17,9 @@ is the reference; ``tests/sumo/test_free_run_kernel_sumo.py`` holds the compiled
 line and Line 3, at three step lengths and the three step methods, with and without running-time factors.
 
 numba caches compiled code on disk keyed on each function's *own* source file, and :func:`free_run` compiles the
-ATO and plant kernels into itself: after editing ``controllers/line_kernels.py`` or
-``railsim/physics/plant_kernel.py``, clear ``railsim/engine/__pycache__`` (a stale cache makes the kernel test
-fail, and the golden test with it).
+ATO and plant kernels and the forces they apply into itself: after editing ``controllers/line_kernels.py``,
+``railsim/physics/plant_kernel.py`` or ``railsim/physics/forces.py``, clear ``railsim/engine/__pycache__`` (a stale
+cache makes the kernel test fail, and the golden test with it).
 """
 
 from __future__ import annotations

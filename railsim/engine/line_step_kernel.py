@@ -2,20 +2,20 @@
 
 Most trains on a line, most of the time, are *line trains*: the line ATO (:class:`controllers.ato.Ato`) and the
 moving-block separation (:class:`controllers.separation.Separation`) against the train ahead, no formation role,
-junction plan, collision avoidance, exact plant, actuator noise or bias (``ControlStage._line_train``). For
-them the step is: both laws, the smaller acceleration wins (the ATO on a tie, as
-:func:`controllers.base.arbitrate`), then the plant step. Calling the two law kernels and the interpreted plant
-step one after the other cost three Python-level calls and a few hundred interpreted float operations per train
-and step; here it is one call.
+junction plan, collision avoidance, exact plant, actuator noise or bias. ``ControlStage.control``
+(:mod:`railsim.engine.control`), the one place where a train's commands are decided, hands them here: both laws,
+the smaller acceleration wins (the ATO on a tie, as :func:`controllers.base.arbitrate`), then the plant step — one
+call instead of three Python-level calls and a few hundred interpreted float operations per train and step.
 
-**Bit for bit** with the interpreted path: the same kernels (:func:`controllers.line_kernels.ato`,
-:func:`controllers.line_kernels.separation`, :func:`railsim.physics.plant_kernel.step`, each tested against its
-reference) on the same values, the same comparison for arbitration (a NaN from separation loses, as ``<`` does in
-Python). A non-finite winning command is handed back unstepped (``ok`` False): the engine's general path then
-records it and brakes. The golden test pins the whole loop.
+**Bit for bit** with the roles one by one (``ControlStage._role_commands``, ``arbitrate``, the plant): the same
+law functions (:func:`controllers.line_kernels.ato`, :func:`controllers.line_kernels.separation`,
+:func:`railsim.physics.plant_kernel.step`, each held to its interpreted form) on the same values, the same comparison
+for arbitration (a NaN from separation loses, as ``<`` does in Python); ``tests/unit/test_line_step_kernel.py``
+compares the two. A non-finite winning command is handed back unstepped (``ok`` False): the engine then records it
+and brakes. The golden test pins the whole loop.
 
-numba's disk cache is keyed on each function's own file: after editing ``line_kernels.py`` or ``plant_kernel.py``
-clear ``railsim/engine/__pycache__`` (see :mod:`railsim.engine.free_run_kernel`).
+numba's disk cache is keyed on each function's own file: after editing ``line_kernels.py``, ``plant_kernel.py`` or
+``railsim/physics/forces.py`` clear ``railsim/engine/__pycache__`` (see :mod:`railsim.engine.free_run_kernel`).
 """
 
 from __future__ import annotations

@@ -97,3 +97,57 @@ def test_the_set_up_is_frozen_for_the_run_and_released_after(tmp_path_factory) -
     got = json.loads(res.stdout.strip().splitlines()[-1])
     assert got["before"] == 0 and got["after"] == 0
     assert got["during"] > 10_000  # the set-up's objects (trips, views, controllers, the network), not a handful
+
+
+DECISION_CHILD = r"""
+import json
+from pathlib import Path
+from railsim.engine.control import ControlStage
+from railsim.engine.loop import run
+from railsim.scenario.loading import load
+from tests.golden import hash_outputs
+
+scenario, workdir, mode = Path(SCENARIO), Path(WORKDIR), MODE
+compiled = [0]
+line_step = ControlStage._line_step
+
+def counted(self, *args):
+    compiled[0] += 1
+    return line_step(self, *args)
+
+ControlStage._line_step = counted
+if mode == "roles":  # no train is a line train: every decision goes through the roles one by one
+    ControlStage._is_line_train = lambda self, tr, a, ato: False
+run(load(scenario), workdir / "out", progress=False)
+print(json.dumps({"compiled": compiled[0], "hashes": hash_outputs(mode, workdir, 0)}))
+"""
+
+
+@pytest.mark.parametrize("sensor_noise", [False, True])
+def test_compiled_line_step_decides_what_the_roles_one_by_one_decide(sensor_noise: bool, tmp_path) -> None:
+    """``ControlStage.control`` decides in one place and hands a line train to the compiled line step. The mini
+    line (line trains, a coupled pair, a merge), once as it runs and once with every train sent through its roles
+    one by one (``_role_commands``, ``arbitrate``, the plant), gives the same outputs byte for byte; with sensor
+    noise too (drawn before the decision, so both runs draw the same numbers)."""
+    import yaml
+
+    from tests.helpers import mini_line
+
+    data = mini_line()
+    if sensor_noise:
+        data["faults"]["sensor_noise"] = {"position_sd_m": 0.5, "speed_sd_mps": 0.05}
+    scenario = tmp_path / "mini.yaml"
+    scenario.write_text(yaml.safe_dump(data, sort_keys=False), encoding="utf-8")
+    runs = {}
+    for mode in ("as_run", "roles"):
+        code = (
+            DECISION_CHILD.replace("SCENARIO", repr(str(scenario)))
+            .replace("WORKDIR", repr(str(tmp_path / mode)))
+            .replace("MODE", repr(mode))
+        )
+        res = run_python(code, cache_dir=tmp_path / "cache")
+        assert res.returncode == 0, res.stderr[-3000:]
+        runs[mode] = json.loads(res.stdout.strip().splitlines()[-1])
+    assert runs["as_run"]["compiled"] > 1000 and runs["roles"]["compiled"] == 0
+    assert {"trips.csv", "trace.csv", "events.csv"} <= set(runs["as_run"]["hashes"])
+    assert runs["as_run"]["hashes"] == runs["roles"]["hashes"]

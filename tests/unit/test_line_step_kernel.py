@@ -1,10 +1,12 @@
-"""The fused line step (railsim/engine/line_step_kernel.py) is the separate calls, bit for bit (issue 20).
+"""The compiled line step (railsim/engine/line_step_kernel.py) decides what the roles one by one decide, bit for bit.
 
-On random states (those of ``tests/unit/test_line_kernels.py``: every ATO phase, restrictions, stops, authorities,
-formation tails) with and without a known rear of a train ahead at random distances and ages, at three step
-lengths and the three step methods: ``line_step`` must give the command, emergency flag and winning role of
-``Ato.decide`` then ``Separation.values`` arbitrated as ``ControlStage`` does (the smaller acceleration wins,
-the ATO on a tie), and the plant result of ``dynamics.step_values`` on the true plant state.
+``ControlStage.control`` hands a line train to the compiled line step and every other train to its roles one by
+one (``ControlStage._role_commands``, then ``controllers.base.arbitrate`` and the plant). On random states (those of
+``tests/unit/test_line_kernels.py``: every ATO phase, restrictions, stops, authorities, formation tails) with and
+without a known rear of a train ahead at random distances and ages, at three step lengths and the three step
+methods: ``line_step`` must give the command, emergency flag and winning role that ``Ato.decide`` and
+``Separation.decide`` arbitrated by ``arbitrate`` give, and the plant result of ``dynamics.step_values`` on the
+true plant state.
 """
 
 from __future__ import annotations
@@ -13,6 +15,7 @@ import numpy as np
 import pytest
 
 from controllers.ato import Ato, limits_array_cached
+from controllers.base import Command, arbitrate
 from controllers.separation import Separation, SeparationParams
 from railsim.engine import line_step_kernel
 from railsim.physics import dynamics, plant_kernel
@@ -35,15 +38,15 @@ def test_line_step_is_the_separate_calls(dt: float, method: str) -> None:
         known = None
         if rng.random() < 0.7:
             known = (x + float(rng.uniform(-5.0, 900.0)), float(rng.choice([0.0, rng.uniform(0.0, 3.0)])))
-        # the separate calls, as ControlStage's interpreted line path makes them
-        accel, emergency, _ = ato.decide(
+        # the roles one by one, as ControlStage._role_commands asks them, and the general arbitration
+        a_accel, a_emergency, _ = ato.decide(
             veh, dt, x, v, applied, veh.length_m, grade, line, limits, stop, authority, tail
         )
-        role = "ato"
+        commands = {"ato": Command(a_accel, emergency=a_emergency)}
         if known is not None:
-            s_accel, s_emergency, _, _, _ = sep.values(veh, dt, x, v, applied, grade, *known)
-            if s_accel < accel:
-                role, accel, emergency = "separation", s_accel, s_emergency
+            commands["separation"] = sep.decide(veh, dt, x, v, applied, grade, *known)
+        role, cmd = arbitrate(commands, veh.emergency_decel_mps2)
+        accel, emergency = cmd.accel_mps2, cmd.emergency
         ref = dynamics.step_values(veh, plant, accel, dt, grade, emergency, method)
         got = line_step_kernel.line_step(
             ato.packed(veh, dt),
