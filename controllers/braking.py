@@ -39,10 +39,12 @@ time constant τ before it becomes the applied acceleration; resistance and grad
    ATO starts braking early by the ramp's dead time and plans below service braking).
 
 **Defined once.** Each law is written once, compiled with numba, in :mod:`controllers.line_kernels` (the ATO and
-separation laws call them inside their own compiled code); its interpreted form (the dispatcher's ``py_func``, or
+separation laws call them inside their own compiled code) — the braking curves, the net braking
+(:func:`net_braking_mps2`) and the relative braking distance (:func:`relative_braking_distance_m`); the forces they
+rest on are :mod:`railsim.physics.forces`'s. Each law's interpreted form (the dispatcher's ``py_func``, or
 ``NUMBA_DISABLE_JIT=1``) is the readable reference. The functions here are their adapters for callers on Python
-values: keyword defaults, floats, the lag ``τ`` given as a time (the lag ratio ``r`` is computed once per
-``(dt, τ)``) — no arithmetic of the laws' own.
+values: keyword defaults, floats, a vehicle's fields, the lag ``τ`` given as a time (the lag ratio ``r`` is computed
+once per ``(dt, τ)``), arrays element by element — no arithmetic of the laws' own.
 
 All decelerations here are **net** (what the train really does), positive numbers; callers convert to the
 applied command with :meth:`railsim.physics.vehicle.VehicleParams.net_to_applied`.

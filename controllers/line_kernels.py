@@ -8,8 +8,10 @@ arithmetic costs about a microsecond plus the call.
 **Written once.** Each law is defined here and nowhere else: :class:`controllers.ato.Ato` and
 :class:`controllers.separation.Separation` pack their inputs and call :func:`ato` / :func:`separation`; the
 engine's compiled loops (``railsim.engine.free_run_kernel``, ``railsim.engine.line_step_kernel``) call them
-inside their own; :mod:`controllers.braking` gives the braking curves keyword arguments for callers on Python
-values. The interpreted form of each function — the dispatcher's ``py_func``, or every function at once with
+inside their own; :mod:`controllers.braking` gives the braking curves, the net braking and the relative braking
+distance keyword arguments for callers on Python values. The forces the laws apply (running resistance, gradient,
+traction envelope) are not written here: they are :mod:`railsim.physics.forces`'s, shared with the plant. The
+interpreted form of each function — the dispatcher's ``py_func``, or every function at once with
 ``NUMBA_DISABLE_JIT=1`` — is the readable reference, and it gives the same bits as the compiled one: only IEEE
 operations are used (``+ − × ÷ √``, comparisons, and ``pow`` of two doubles — the integer exponents of the stop sum
 are converted to float, where numba would otherwise multiply by squaring, so CPython and numba both call libm's
