@@ -118,25 +118,11 @@ class Separation:
 
         The law itself is :func:`controllers.line_kernels.separation`, written once and compiled; this packs its
         inputs."""
-        accel, emergency, phase, free_m, h = self.values(veh, dt_s, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)
+        accel, emergency, phase, free_m, h = line_kernels.separation(
+            self.packed(veh, dt_s), x, speed_mps, a0, grade, pred_rear_m, pred_age_s
+        )
         info = {"phase": line_kernels.SEPARATION_PHASES[phase], "free_m": free_m, "barrier_m": h}
         return Command(accel, emergency=emergency, info=info)
-
-    def values(
-        self,
-        veh: VehicleParams,
-        dt_s: float,
-        x: float,
-        speed_mps: float,
-        a0: float,
-        grade: float,
-        pred_rear_m: float,
-        pred_age_s: float,
-    ) -> tuple[float, bool, int, float, float]:
-        """:meth:`decide` without its :class:`Command`: ``(accel, emergency, phase index into
-        line_kernels.SEPARATION_PHASES, free distance, barrier)`` — for the engine's line trains."""
-        packed = self.packed(veh, dt_s)
-        return line_kernels.separation(packed, x, speed_mps, a0, grade, pred_rear_m, pred_age_s)  # type: ignore[no-any-return]
 
     def packed(self, veh: VehicleParams, dt_s: float) -> np.ndarray:
         """The law's inputs for ``veh`` and step ``dt_s`` as :func:`controllers.line_kernels.separation` reads
