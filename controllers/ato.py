@@ -70,11 +70,7 @@ import numpy as np
 
 from controllers import line_kernels
 from controllers.base import Command, Observation, SpeedLimit, register
-from controllers.braking import (
-    _lag_ratio,
-    params_from_mapping,
-    require,
-)
+from controllers.braking import params_from_mapping, require
 from railsim.physics.vehicle import VehicleParams
 
 NO_STOP = (0.0, 0.0, 0.0, False)  # the kernel's stop arguments when there is no next stop (it does not read them)
@@ -228,14 +224,7 @@ class Ato:
         return self._packed
 
     def _pack(self, veh: VehicleParams, dt: float) -> np.ndarray:
-        self._packed = line_kernels.pack(
-            line_kernels.ATO_FIELDS,
-            veh,
-            self.params,
-            dt,
-            _lag_ratio(dt, veh.actuator_time_constant_s),
-            extra=(self.position_lead * dt,),
-        )
+        self._packed = line_kernels.pack(line_kernels.ATO_FIELDS, veh, self.params, dt, (self.position_lead * dt,))
         self._packed_vehicle, self._packed_dt = veh, dt
         return self._packed
 

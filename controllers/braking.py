@@ -152,23 +152,12 @@ def net_braking_mps2(
 # --------------------------------------------------------------------------------------------- exact discrete
 
 
-_LAG_RATIOS: dict[tuple[float, float], float] = {}
-
-
-def _lag_ratio(dt_s: float, lag_s: float) -> float:
-    """``r = e^{−dt/τ}`` (0 without lag), remembered per ``(dt, τ)``: a run asks for one or two pairs."""
-    r = _LAG_RATIOS.get((dt_s, lag_s))
-    if r is None:
-        r = _LAG_RATIOS[(dt_s, lag_s)] = math.exp(-dt_s / lag_s) if lag_s > 0.0 else 0.0
-    return r
-
-
 def discrete_stop_distance_m(
     speed_mps: float, net_accel_now_mps2: float, decel_mps2: float, dt_s: float, lag_s: float
 ) -> float:
     """Distance [m] the plant runs until it stands when the net command ``−decel_mps2`` is held from now on,
     exact for its discrete recursion (:func:`controllers.line_kernels.discrete_stop_distance_m`)."""
-    r = _lag_ratio(dt_s, lag_s)
+    r = line_kernels.lag_ratio(dt_s, lag_s)
     return line_kernels.discrete_stop_distance_m(  # type: ignore[no-any-return]
         float(speed_mps), float(net_accel_now_mps2), float(decel_mps2), float(dt_s), r
     )
@@ -179,7 +168,7 @@ def discrete_stop_distance_bound_m(
 ) -> float:
     """An upper bound on :func:`discrete_stop_distance_m` in a few operations
     (:func:`controllers.line_kernels.discrete_stop_distance_bound_m`)."""
-    r = _lag_ratio(dt_s, lag_s)
+    r = line_kernels.lag_ratio(dt_s, lag_s)
     return line_kernels.discrete_stop_distance_bound_m(  # type: ignore[no-any-return]
         float(speed_mps), float(net_accel_now_mps2), float(decel_mps2), float(dt_s), r
     )
@@ -190,7 +179,7 @@ def required_decel_surely_below(
 ) -> bool:
     """True when :func:`discrete_required_decel_mps2` for ``distance_m`` is certainly below ``decel_mps2``
     (:func:`controllers.line_kernels.required_decel_surely_below`)."""
-    r = _lag_ratio(dt_s, lag_s)
+    r = line_kernels.lag_ratio(dt_s, lag_s)
     return line_kernels.required_decel_surely_below(  # type: ignore[no-any-return]
         float(speed_mps), float(net_accel_now_mps2), float(distance_m), float(dt_s), r, float(decel_mps2)
     )
@@ -206,7 +195,7 @@ def discrete_required_decel_mps2(
 ) -> float:
     """Constant net deceleration [m/s²] that makes :func:`discrete_stop_distance_m` equal ``distance_m``, or
     ``max_decel_mps2`` when even that is not enough (:func:`controllers.line_kernels.discrete_required_decel_mps2`)."""
-    r = _lag_ratio(dt_s, lag_s)
+    r = line_kernels.lag_ratio(dt_s, lag_s)
     return line_kernels.discrete_required_decel_mps2(  # type: ignore[no-any-return]
         float(speed_mps),
         float(net_accel_now_mps2),

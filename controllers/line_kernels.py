@@ -74,21 +74,33 @@ _CRAWL_ZONE_M = 1.0  # ... this close to the halting point, brake to a stop [m]
 _CRAWL_STOP_DECEL_MPS2 = 0.3  # separation: net deceleration of that final halt [m/s²]
 
 
+_LAG_RATIOS: dict[tuple[float, float], float] = {}
+
+
+def lag_ratio(dt_s: float, lag_s: float) -> float:
+    """``r = e^{−dt/τ}`` (0 without lag), remembered per ``(dt, τ)``: a run asks for one or two pairs."""
+    r = _LAG_RATIOS.get((dt_s, lag_s))
+    if r is None:
+        r = _LAG_RATIOS[(dt_s, lag_s)] = math.exp(-dt_s / lag_s) if lag_s > 0.0 else 0.0
+    return r
+
+
 def pack(
     fields: tuple[str, ...],
     vehicle: object,
     params: object,
     dt_s: float,
-    lag_ratio: float,
     extra: tuple[float, ...] = (),
 ) -> np.ndarray:
     """A law's float inputs (``fields``: :data:`ATO_FIELDS` or :data:`SEPARATION_FIELDS`) for one controller,
-    vehicle and step length; ``extra``: the values of the fields after the step's (the ATO's ``lead_s``)."""
+    vehicle and step length (the lag ratio from the vehicle's actuator time constant); ``extra``: the values of the
+    fields after the step's (the ATO's ``lead_s``)."""
     n = len(fields) - len(_STEP_FIELDS) - len(extra)
     if fields[n : n + len(_STEP_FIELDS)] != _STEP_FIELDS:
         raise ValueError(f"{len(extra)} extra value(s) for fields {fields!r}")
     values = [float(getattr(vehicle, f) if hasattr(vehicle, f) else getattr(params, f)) for f in fields[:n]]
-    return np.array([*values, float(dt_s), float(lag_ratio), *(float(e) for e in extra)], dtype=np.float64)
+    r = lag_ratio(dt_s, vehicle.actuator_time_constant_s)  # type: ignore[attr-defined]
+    return np.array([*values, float(dt_s), float(r), *(float(e) for e in extra)], dtype=np.float64)
 
 
 def limits_array(limits: tuple) -> np.ndarray:

@@ -51,7 +51,6 @@ import numpy as np
 from controllers import line_kernels
 from controllers.base import Command, Observation, register
 from controllers.braking import (
-    _lag_ratio,
     params_from_mapping,
     require,
     traction_limit_mps2,
@@ -129,13 +128,7 @@ class Separation:
         them (packed once per vehicle and step; also for a caller's own compiled step,
         ``railsim.engine.line_step_kernel``)."""
         if veh is not self._packed_vehicle or dt_s != self._packed_dt:
-            self._packed = line_kernels.pack(
-                line_kernels.SEPARATION_FIELDS,
-                veh,
-                self.params,
-                dt_s,
-                _lag_ratio(dt_s, veh.actuator_time_constant_s),
-            )
+            self._packed = line_kernels.pack(line_kernels.SEPARATION_FIELDS, veh, self.params, dt_s)
             self._packed_vehicle, self._packed_dt = veh, dt_s
         return self._packed
 
