@@ -34,6 +34,10 @@ the sections behind an opposing tram that waited for the one behind. A train who
 section (a terminus) lets the trains leaving that terminus go first (``yields``,
 :class:`~railsim.engine.events.tracks.TrackSections`).
 
+**A crossing is entered only with its exit clear** (:meth:`SectionRequests._crossing_exit_blocked`): it is asked
+for only when the train fits beyond it in front of the train ahead, as a road vehicle keeps out of a box junction
+it cannot leave.
+
 **A crossing right before a section** with no room for the train between the two is asked for only once that
 section is the train's (:meth:`SectionRequests._crossing_waits_for_next`): a tram at a platform ending at the crossing
 held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).
@@ -169,6 +173,7 @@ class SectionRequests:
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
                     and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
                     and not self._crossing_waits_for_next(tr, sec)
+                    and not self._crossing_exit_blocked(tr, sec, ahead)
                 ):
                     run = self._run_from(tr, sec)
                     if not any(self._behind_first(tr, s, ahead) for s in run):
@@ -201,6 +206,17 @@ class SectionRequests:
         room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
         req = self.section_requests[tr.train_id].get(nxt.section_id)
         return room_m < tr.trip.vehicle.length_m and (req is None or not req.granted)
+
+    def _crossing_exit_blocked(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
+        """True for a flat crossing whose exit is not clear: the train in front (``ahead``, in this train's frame)
+        leaves no room for this train beyond the crossing (its rear ``clearance_m`` past the end, its front its
+        separation margin behind the rear of the one in front). A tram that went in behind a tram waiting for the
+        next crossing stood in this one, and the opposing tram waiting for it stood in that next crossing behind a
+        tram waiting for this one (Jena, crossings ``1684176152`` and ``1684176122``)."""
+        if ahead is None or not sec.section_id.startswith("crossing:"):
+            return False
+        room_m = ahead.rear_m - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
+        return room_m < tr.trip.vehicle.length_m
 
     def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
         """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
