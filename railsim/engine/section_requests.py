@@ -136,7 +136,7 @@ class SectionRequests:
         shared = contested(per_train)
         if not shared:
             return
-        self.tracks = TrackSections(self.events, sorted(shared))
+        self.tracks = TrackSections(self.events, sorted(shared), room_beyond=self._room_beyond)
         for k, (tid, sections) in enumerate(per_train.items()):
             # a train reversing in a section gets a direction nobody else has: it holds the section alone
             mine = [
@@ -327,6 +327,35 @@ class SectionRequests:
             other = self.fleet.trains[other_id]
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
         return room_m
+
+    def _room_beyond(self, req: SectionRequest) -> bool:
+        """True if the terminus beyond ``req``'s section (its train turns there: ``yields``) has room for the train
+        (module docstring, "Terminus"): from ``clearance_m`` past the section's end to the end of its destination
+        platform, less the length and separation margin of every other train standing or bound to stand there —
+        the trains of its direction granted the section and not yet arrived, and the units on the line within that
+        reach before the section on their way out, not yet granted it. With nobody there a train always fits."""
+        tr = self.fleet.trains[req.holder_ids[0]]
+        last = next((s for s in self.sections[tr.train_id] if s.section_id == req.section_id), None)
+        if last is None or any(
+            s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
+        ):
+            return True  # not the section the train turns beyond (a group's earlier member)
+        room_m = tr.trip.stops[-1].served_end_m - (last.end_m + self.settings.clearance_m)
+        used_m = 0.0
+        for other in self.fleet.active():
+            if other.train_id in req.holder_ids:
+                continue
+            theirs = next((s for s in self.sections.get(other.train_id, ()) if s.section_id == last.section_id), None)
+            if theirs is None:
+                continue
+            mine = self.section_requests[other.train_id].get(last.section_id)
+            if theirs.direction == last.direction:
+                there = mine is not None and mine.granted
+            else:
+                there = (mine is None or not mine.granted) and theirs.start_m - other.front_m <= room_m
+            if there:
+                used_m += other.trip.vehicle.length_m + separation_margin_m(other)
+        return used_m == 0.0 or used_m + tr.trip.vehicle.length_m <= room_m
 
     def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
         """True if a section or crossing not yet reserved for the train has its protection point at or before
