@@ -30,9 +30,10 @@ keep to it: a train does not ask for a section beyond the train in front of it b
 section (:meth:`SectionRequests._others_run_on`), and when it asks for a run through several sections, the trains of its
 direction holding the first one alone ask for the rest at that moment (:meth:`SectionRequests._bring_forward`). Each
 closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
-the sections behind an opposing tram that waited for the one behind. A train whose unit turns beyond its last
-section (a terminus) lets the trains leaving that terminus go first (``yields``,
-:class:`~railsim.engine.events.tracks.TrackSections`).
+the sections behind an opposing tram that waited for the one behind. A train whose trip ends beyond its last
+section (a terminus: its unit turns there or leaves service) lets the trains leaving that terminus go first
+(``yields``, :class:`~railsim.engine.events.tracks.TrackSections`), and is let in only while the terminus has room
+for it (:meth:`SectionRequests._room_beyond`).
 
 **A crossing is entered only with its exit clear** (:meth:`SectionRequests._crossing_exit_blocked`): it is asked
 for only when the train fits beyond it in front of the train ahead, as a road vehicle keeps out of a box junction
@@ -240,16 +241,32 @@ class SectionRequests:
         reqs = self.section_requests[tr.train_id]
         wanted = [(sec.section_id, sec.direction) for sec in run]
         last = run[-1]
-        turns = (
-            last.section_id.startswith("track:")
-            and not any(
-                s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
-            )
-            and self.continues(tr.train_id)
-        )
-        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=turns)):
+        ends = self._ends_at_terminus(tr, last)
+        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=ends)):
             reqs[sec.section_id] = req
         self._bring_forward(t, tr, run)
+
+    def _ends_at_terminus(self, tr: TrainRuntime, last: RouteSection) -> bool:
+        """True if ``last`` is the train's last single-track section and a terminus lies beyond it: the train's
+        unit turns there, or (the unit leaves service) another unit bound for the same station through the same
+        section in the same direction turns there. Either way it stands at the terminus, which only the trains
+        leaving make room in."""
+        mine = self.sections[tr.train_id]
+        if not last.section_id.startswith("track:") or any(
+            s.start_m > last.start_m and s.section_id.startswith("track:") for s in mine
+        ):
+            return False
+        if self.continues(tr.train_id):
+            return True
+        station = tr.trip.stops[-1].station_id
+        for oid, theirs in self.sections.items():
+            other = self.fleet.trains[oid]
+            if oid == tr.train_id or other.trip.stops[-1].station_id != station or not self.continues(oid):
+                continue
+            track = [s for s in theirs if s.section_id.startswith("track:")]
+            if track and track[-1].section_id == last.section_id and track[-1].direction == last.direction:
+                return True
+        return False
 
     def _bring_forward(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
         """Trains of ``tr``'s direction that hold or wait for the first section of ``run`` alone, and run on
@@ -329,7 +346,7 @@ class SectionRequests:
         return room_m
 
     def _room_beyond(self, req: SectionRequest) -> bool:
-        """True if the terminus beyond ``req``'s section (its train turns there: ``yields``) has room for the train
+        """True if the terminus beyond ``req``'s section (its train's trip ends there: ``yields``) has room for it
         (module docstring, "Terminus"): from ``clearance_m`` past the section's end to the end of its destination
         platform, less the length and separation margin of every other train standing or bound to stand there —
         the trains of its direction granted the section and not yet arrived, and the units on the line within that

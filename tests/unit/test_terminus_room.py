@@ -1,9 +1,9 @@
 """Room beyond single track and flat crossings, constructed without SUMO (each case from Jena's tram peak).
 
-* A train bound to turn at a terminus beyond a single-track section is granted the section only while the
-  terminus has room for it beside the units standing there and the trains already let in (four trams granted
-  the Zwätzen Schleife approach together filled the loop; the last stood in the section behind a unit waiting
-  to leave through it).
+* A train whose trip ends at a terminus beyond a single-track section (turning there or leaving service) is
+  granted the section only while the terminus has room for it beside the units standing there and the trains
+  already let in (four trams granted the Zwätzen Schleife approach together filled the loop; the last stood in
+  the section behind a unit waiting to leave through it).
 * A flat crossing is asked for only with its exit clear: room for the train beyond it in front of the train
   ahead (a tram that went in behind a tram waiting for the next crossing stood in this one, and the opposing
   tram waited in that next crossing for this one).
@@ -37,11 +37,11 @@ def test_trains_turning_beyond_a_section_are_let_in_only_as_far_as_the_terminus_
     clearance_m = EngineSettings().clearance_m
     dest_m = 2000.0 + clearance_m + 2 * TRAM_M + 2.0 - 1.0  # the stop window ends 1 m past the mark
     arriving = [_tram(tid, 900.0 - 100.0 * k, dest_m) for k, tid in enumerate(("a", "b", "c"))]
-    standing = _tram("standing", 60.0, 900.0)  # a turned unit at the terminus, S1 ahead of it the other way
+    standing = _tram("standing", 60.0, 5000.0)  # a turned unit at the terminus, S1 ahead of it the other way
     _, locks = _locks(*arriving, standing)
     on_line = [*arriving, standing]
     locks.fleet.active = lambda: [t for t in on_line if t.status in ("inserting", "running")]  # type: ignore[method-assign]
-    locks.continues = lambda train_id: train_id != "standing"
+    locks.continues = lambda train_id: train_id not in ("standing", "c")  # c leaves service at the terminus
     locks.tracks = TrackSections(EventLog(), [S1], room_beyond=locks._room_beyond)
     for tr in arriving:
         locks.sections[tr.train_id] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0)]
@@ -62,7 +62,8 @@ def test_trains_turning_beyond_a_section_are_let_in_only_as_far_as_the_terminus_
     assert not locks.section_requests["b"][S1].granted  # the section is the leaving unit's
     standing.front_m = 1200.0
     locks.bookkeeping(3.0, standing)  # it leaves S1: b is let in, c waits (a and b fill the terminus)
-    assert locks.section_requests["b"][S1].granted and not locks.section_requests["c"][S1].granted
+    assert locks.section_requests["b"][S1].granted
+    assert not locks.section_requests["c"][S1].granted, "a train ending its trip at the full terminus was let in"
     a.status = "arrived"  # a leaves service at the terminus: there is room for c
     b = arriving[1]
     b.front_m = 2000.0 + clearance_m + TRAM_M + 1.0

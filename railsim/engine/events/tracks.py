@@ -8,11 +8,11 @@ for the other direction waits (first come, first served between directions, so a
 cannot starve the other). Two exceptions keep the trains moving. A request never waits for one that itself
 waits for a section its own train holds: that group cannot be served before this train has gone on (a group
 waiting outside kept a train standing between two sections from the section it needed, while the group waited
-for what that train's opposite number held). And a train bound to turn at the end of the single track (its unit
-comes back through the section: a terminus) **yields**: requests of the other direction go first, however late —
+for what that train's opposite number held). And a train whose trip ends beyond the single track (a terminus: its
+unit comes back through the section or leaves service there) **yields**: requests of the other direction go first, however late —
 they are the trains leaving that terminus and making room there; let in first, the arriving trams found the
 turning loop full of units waiting to leave through the section they held. Nor is such a request granted while
-the terminus has no **room** for its train beside the units standing there and the trains already let in
+the terminus has no **room** for its train, nor before such requests of its direction made earlier beside the units standing there and the trains already let in
 (``room_beyond``, asked of :mod:`railsim.engine.section_requests`): granted the approach together, four trams
 filled the Zwätzen Schleife loop, and the last stood in the single track behind a unit waiting to leave through it.
 
@@ -44,7 +44,7 @@ class SectionRequest:
     granted_s: float | None = None
     released_by: set[str] = field(default_factory=set)
     group: list[SectionRequest] = field(default_factory=list)  # requests granted only together (request_all)
-    yields: bool = False  # made by a train bound to turn beyond the section: the other direction goes first
+    yields: bool = False  # its train's trip ends beyond the section (a terminus): the other direction goes first
 
     @property
     def granted(self) -> bool:
