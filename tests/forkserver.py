@@ -14,12 +14,12 @@ and its result (or ``SystemExit``) the exit code, ``atexit`` handlers run, outpu
 :class:`subprocess.CompletedProcess` as from :func:`subprocess.run` (``text=True``), and
 :class:`subprocess.TimeoutExpired` (the child killed) on a timeout.
 
-What the fork server cannot reproduce, it does not serve, and :func:`run` falls back to :func:`subprocess.run`:
+A child forked from the server is what a fresh interpreter would be, or the server is not used:
 
-* an environment that differs from the server's in anything read while the interpreter starts or the modules
-  import (``PYTHON*``, ``NUMBA_*``, ``SUMO_HOME``, ``MPLBACKEND``, ``OMP_*``/``OPENBLAS_*``/``MKL_*``);
-* a server whose imports wrote anything to stderr (a warning a fresh process would print on every run);
-* no ``os.fork`` (not POSIX), or a server that died.
+* an environment that differs in anything read while the interpreter starts or the modules import (``PYTHON*``,
+  ``NUMBA_*``, ``SUMO_HOME``, ``MPLBACKEND``, ``OMP_*``/``OPENBLAS_*``/``MKL_*``) gets a server started with it;
+* a server whose imports wrote anything to stderr (a warning a fresh process would print on every run), no
+  ``os.fork`` (not POSIX), or a server that died: :func:`run` falls back to :func:`subprocess.run`.
 
 Tests *about* the process itself (Ctrl-C while the modules import, the console script) start their own
 interpreter with :mod:`subprocess` and do not come here.
@@ -64,21 +64,23 @@ def _start_up_env(env: dict[str, str]) -> dict[str, str]:
 
 
 class _Client:
-    """The pytest process's handle on its fork server (started on first use, once)."""
+    """The pytest process's handle on its fork server: started on first use with the caller's environment, and
+    started again with the new one when a command's start-up environment differs (a test that set ``OMP_*`` for a
+    Dask cluster, say), so every child is forked from a server that started as a fresh interpreter would."""
 
     def __init__(self) -> None:
         self.proc: subprocess.Popen[bytes] | None = None
         self.env: dict[str, str] = {}
         self.sumo_home = ""
         self.broken = not hasattr(os, "fork")
+        self.registered = False
         self.lock = threading.Lock()
 
-    def _start(self) -> bool:
+    def _start(self, env: dict[str, str]) -> bool:
         if self.broken:
             return False
         if self.proc is not None and self.proc.poll() is None:
             return True
-        env = dict(os.environ)
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "tests.forkserver"],
             stdin=subprocess.PIPE,
@@ -96,7 +98,9 @@ class _Client:
             return False
         self.env = _start_up_env(env)
         self.sumo_home = json.loads(hello.removeprefix("ready "))["SUMO_HOME"]
-        atexit.register(self._stop)
+        if not self.registered:
+            atexit.register(self._stop)
+            self.registered = True
         return True
 
     def _stop(self) -> None:
@@ -107,11 +111,18 @@ class _Client:
                 self.proc.wait(timeout=10)
             except subprocess.TimeoutExpired:
                 self.proc.kill()
+                self.proc.wait()
 
     def serves(self, env: dict[str, str]) -> bool:
         """True if a child forked from the server is what a fresh interpreter with ``env`` would be."""
-        if not self._start():
+        if not self._start(env):
             return False
+        if self._same_start(env):
+            return True
+        self._stop()  # a different start-up environment: a server that started with it
+        return self._start(env) and self._same_start(env)
+
+    def _same_start(self, env: dict[str, str]) -> bool:
         asked, served = _start_up_env(env), dict(self.env)
         # SUMO_HOME unset or empty: railsim.engine.sumo sets the package's when it is imported, as the server did
         if not asked.get("SUMO_HOME"):

@@ -39,6 +39,12 @@ def run_railsim(args: list[str], cache_dir: Path | None = None, timeout: float =
     return forkserver.run(args, env=env, cwd=ROOT, timeout=timeout)
 
 
+def ok_stdout(res: subprocess.CompletedProcess) -> str:
+    """The stdout of a railsim command that must have succeeded (its stderr and stdout in the failure message)."""
+    assert res.returncode == 0, res.stderr + res.stdout
+    return str(res.stdout)
+
+
 def run_python(code: str, cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
     env = dict(os.environ)
     if cache_dir is not None:

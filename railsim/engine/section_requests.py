@@ -39,6 +39,10 @@ for it (:meth:`SectionRequests._room_beyond`).
 for only when the train fits beyond it in front of the train ahead, as a road vehicle keeps out of a box junction
 it cannot leave.
 
+**A crossing is entered only with its exit clear** (:meth:`SectionRequests._crossing_exit_blocked`): it is asked
+for only when the train fits beyond it in front of the train ahead, as a road vehicle keeps out of a box junction
+it cannot leave.
+
 **A crossing right before a section** with no room for the train between the two is asked for only once that
 section is the train's (:meth:`SectionRequests._crossing_waits_for_next`): a tram at a platform ending at the crossing
 held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).

@@ -110,8 +110,8 @@ def test_without_the_crossing_lock_sumo_sees_the_collision_and_the_summary_count
     out = tmp_path / "out"
     code = (
         "import sys\n"
-        "import railsim.engine.locking as locking\n"
-        "locking.route_crossings = lambda route, graph: []  # the crossing is not interlocked\n"
+        "import railsim.engine.section_requests as section_requests\n"
+        "section_requests.route_crossings = lambda route, graph: []  # the crossing is not interlocked\n"
         "from railsim.cli.main import main\n"
         f"sys.exit(main(['run', {str(scn)!r}, '--out', {str(out)!r}, '--no-progress']))\n"
     )

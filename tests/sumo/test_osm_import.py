@@ -9,7 +9,7 @@ from pathlib import Path
 import sumolib
 import yaml
 
-from tests.helpers import read_summary, run_railsim
+from tests.helpers import ok_stdout, read_summary, run_railsim
 
 DATA = Path(__file__).resolve().parents[1] / "data"
 HELSINKI = DATA / "osm" / "helsinki_centre_rail.osm.gz"
@@ -17,14 +17,9 @@ SAO_PAULO = DATA / "osm" / "sao_paulo_centre_rail.osm.gz"
 SPTRANS = DATA / "gtfs" / "sao_paulo_rail_cut.zip"
 
 
-def _ok(res: object) -> str:
-    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
-    return str(res.stdout)  # type: ignore[attr-defined]
-
-
 def test_network_import_splits_stops_by_class_and_lists_the_lines(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
-    out = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "w")], cache_dir=cache))
+    out = ok_stdout(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "w")], cache_dir=cache))
     assert "tram: 10 lines (1, 10, 2, 3, 4, 5, 6, 6T, 7, 9), 17 stations" in out
     assert "switches" in out and "km" in out and "dropped:" in out
     world = tmp_path / "w"
@@ -43,7 +38,7 @@ def test_network_import_splits_stops_by_class_and_lists_the_lines(tmp_path: Path
     assert six_t["directions"][0]["stations"][0] == "Fredrikinkatu"
     stations = yaml.safe_load((world / "helsinki_centre_rail.stations.yaml").read_text(encoding="utf-8"))["stations"]
     assert all(60.15 < s["lat"] < 60.19 and 24.92 < s["lon"] < 24.97 for s in stations)  # central Helsinki
-    again = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "w2")], cache_dir=cache))
+    again = ok_stdout(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "w2")], cache_dir=cache))
     assert "(cached)" in again
 
 
@@ -61,9 +56,9 @@ def test_a_pbf_or_a_missing_line_is_a_one_line_error(tmp_path: Path) -> None:
 def test_gtfs_timetable_on_the_imported_city_runs_clean(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     world = tmp_path / "spo"
-    _ok(run_railsim(["network", "import", str(SAO_PAULO), "--out", str(world)], cache_dir=cache))
+    ok_stdout(run_railsim(["network", "import", str(SAO_PAULO), "--out", str(world)], cache_dir=cache))
     scenario = tmp_path / "l2.yaml"
-    out = _ok(
+    out = ok_stdout(
         run_railsim(
             [
                 "timetable",
@@ -93,7 +88,7 @@ def test_gtfs_timetable_on_the_imported_city_runs_clean(tmp_path: Path) -> None:
     n_trips = sum(len(s["departures"]["times"]) for s in services.values())
     assert n_trips >= 6
     res = run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache)
-    _ok(res)
+    ok_stdout(res)
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == n_trips
@@ -104,9 +99,9 @@ def test_gtfs_timetable_on_the_imported_city_runs_clean(tmp_path: Path) -> None:
 def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     world = tmp_path / "hel"
-    _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(world)], cache_dir=cache))
+    ok_stdout(run_railsim(["network", "import", str(HELSINKI), "--out", str(world)], cache_dir=cache))
     scenario = tmp_path / "tram9.yaml"
-    out = _ok(
+    out = ok_stdout(
         run_railsim(
             [
                 "timetable",
@@ -132,7 +127,7 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
     doc = yaml.safe_load(scenario.read_text(encoding="utf-8"))
     assert doc["world"]["vclass"] == "tram" and doc["vehicles"]["tram"]["length_m"] == 27.0
     assert len(doc["services"]) == 2  # line 9, both directions
-    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    ok_stdout(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
     assert summary["n_arrived"] == summary["n_trains"] == 2
     assert summary["n_stops_served"] == summary["n_stops_scheduled"]
@@ -141,8 +136,10 @@ def test_services_from_the_imported_lines_run(tmp_path: Path) -> None:
 
 def test_bbox_and_lines_keep_a_study_small(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
-    full = _ok(run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "full")], cache_dir=cache))
-    small = _ok(
+    full = ok_stdout(
+        run_railsim(["network", "import", str(HELSINKI), "--out", str(tmp_path / "full")], cache_dir=cache)
+    )
+    small = ok_stdout(
         run_railsim(
             [
                 "network",
@@ -161,7 +158,7 @@ def test_bbox_and_lines_keep_a_study_small(tmp_path: Path) -> None:
         return float(text.split("  track ")[1].split(" km")[0])
 
     assert 0 < km(small) < 0.8 * km(full)
-    two = _ok(
+    two = ok_stdout(
         run_railsim(
             ["network", "import", str(HELSINKI), "--out", str(tmp_path / "l"), "--lines", "4,6T"], cache_dir=cache
         )

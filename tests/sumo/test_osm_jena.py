@@ -9,20 +9,15 @@ from pathlib import Path
 
 import yaml
 
-from tests.helpers import read_summary, run_railsim
+from tests.helpers import ok_stdout, read_summary, run_railsim
 
 JENA = Path(__file__).resolve().parents[1] / "data" / "osm" / "jena_tram_2014.osm.gz"
-
-
-def _ok(res: object) -> str:
-    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
-    return str(res.stdout)  # type: ignore[attr-defined]
 
 
 def test_jena_imports_as_a_multi_line_tram_network_and_line_4_runs_clean(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     world = tmp_path / "jena"
-    out = _ok(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
+    out = ok_stdout(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
     assert "tram: 8 lines" in out
     lines = yaml.safe_load((world / "jena_tram_2014.lines.yaml").read_text(encoding="utf-8"))["lines"]
     assert {"1", "2", "3", "4", "5"} <= {line["ref"] for line in lines}
@@ -41,8 +36,8 @@ def test_jena_imports_as_a_multi_line_tram_network_and_line_4_runs_clean(tmp_pat
 
     scenario = tmp_path / "line4.yaml"
     args = ["timetable", "import", "--from-lines", "--headway-s", "600", "--lines", "4", "--world", str(world)]
-    _ok(run_railsim([*args, "--from", "07:00", "--to", "07:10", "--out", str(scenario)], cache_dir=cache))
-    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    ok_stdout(run_railsim([*args, "--from", "07:00", "--to", "07:10", "--out", str(scenario)], cache_dir=cache))
+    ok_stdout(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 2
@@ -58,11 +53,11 @@ def test_jena_line_5_trams_leave_their_single_track_terminus_at_once(tmp_path: P
     with 0/2 arrived."""
     cache = tmp_path / "cache"
     world = tmp_path / "jena"
-    _ok(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
+    ok_stdout(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
     scenario = tmp_path / "line5.yaml"
     args = ["timetable", "import", "--from-lines", "--headway-s", "600", "--lines", "5", "--world", str(world)]
-    _ok(run_railsim([*args, "--from", "07:00", "--to", "07:10", "--out", str(scenario)], cache_dir=cache))
-    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    ok_stdout(run_railsim([*args, "--from", "07:00", "--to", "07:10", "--out", str(scenario)], cache_dir=cache))
+    ok_stdout(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 2
@@ -83,12 +78,12 @@ def test_jena_line_1_units_turn_round_the_zwatzen_loop_and_leave_on_time(tmp_pat
     departure, not take the stop of its last trip for it."""
     cache = tmp_path / "cache"
     world = tmp_path / "jena"
-    _ok(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
+    ok_stdout(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
     scenario = tmp_path / "line1.yaml"
     args = ["timetable", "import", "--from-lines", "--headway-s", "600", "--lines", "1", "--world", str(world)]
-    _ok(run_railsim([*args, "--from", "07:00", "--to", "08:00", "--out", str(scenario)], cache_dir=cache))
+    ok_stdout(run_railsim([*args, "--from", "07:00", "--to", "08:00", "--out", str(scenario)], cache_dir=cache))
     res = run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache)
-    _ok(res)
+    ok_stdout(res)
     assert "no unit can turn at zwatzen-schleife" not in res.stderr + res.stdout
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
@@ -116,11 +111,11 @@ def test_jena_lines_2_3_34_no_train_takes_the_points_beyond_a_switch_it_still_wa
     no longer waits for a switch before it on its route."""
     cache = tmp_path / "cache"
     world = tmp_path / "jena"
-    _ok(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
+    ok_stdout(run_railsim(["network", "import", str(JENA), "--out", str(world)], cache_dir=cache))
     scenario = tmp_path / "lines.yaml"
     args = ["timetable", "import", "--from-lines", "--headway-s", "600", "--lines", "2,3,34", "--world", str(world)]
-    _ok(run_railsim([*args, "--from", "07:00", "--to", "07:20", "--out", str(scenario)], cache_dir=cache))
-    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    ok_stdout(run_railsim([*args, "--from", "07:00", "--to", "07:20", "--out", str(scenario)], cache_dir=cache))
+    ok_stdout(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 16

@@ -8,20 +8,15 @@ from pathlib import Path
 
 import yaml
 
-from tests.helpers import read_csv, read_summary, run_railsim
+from tests.helpers import ok_stdout, read_csv, read_summary, run_railsim
 
 POTSDAM = Path(__file__).resolve().parents[1] / "data" / "osm" / "potsdam_tram_2025.osm.gz"
-
-
-def _ok(res: object) -> str:
-    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
-    return str(res.stdout)  # type: ignore[attr-defined]
 
 
 def test_potsdam_imports_as_a_multi_line_tram_network_and_three_lines_run_clean(tmp_path: Path) -> None:
     cache = tmp_path / "cache"
     world = tmp_path / "potsdam"
-    out = _ok(run_railsim(["network", "import", str(POTSDAM), "--out", str(world)], cache_dir=cache))
+    out = ok_stdout(run_railsim(["network", "import", str(POTSDAM), "--out", str(world)], cache_dir=cache))
     assert "tram: 7 lines (91, 92, 93, 94, 96, 98, 99), 68 stations" in out
     lines = yaml.safe_load((world / "potsdam_tram_2025.lines.yaml").read_text(encoding="utf-8"))["lines"]
     served_by: dict[str, set[str]] = {}
@@ -34,8 +29,8 @@ def test_potsdam_imports_as_a_multi_line_tram_network_and_three_lines_run_clean(
 
     scenario = tmp_path / "peak.yaml"
     args = ["timetable", "import", "--from-lines", "--headway-s", "600", "--lines", "91,94,99", "--world", str(world)]
-    _ok(run_railsim([*args, "--from", "07:00", "--to", "07:20", "--out", str(scenario)], cache_dir=cache))
-    _ok(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
+    ok_stdout(run_railsim([*args, "--from", "07:00", "--to", "07:20", "--out", str(scenario)], cache_dir=cache))
+    ok_stdout(run_railsim(["run", str(scenario), "--out", str(tmp_path / "run"), "--no-progress"], cache_dir=cache))
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 24

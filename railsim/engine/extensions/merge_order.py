@@ -155,15 +155,7 @@ class MergeOrder(Extension):
         if p.leader_asked_s is None and (p.switch_id in leader.locks or self._leader_past(leader, p)):
             p.leader_asked_s = t
             if p.wait_since_s is not None:
-                self.ctx.events.record(
-                    t,
-                    "merge_wait_ended",
-                    p.follower_id,
-                    formation=p.formation_id,
-                    switch=p.switch_id,
-                    reason="leader_asked",
-                    waited_s=round(t - p.wait_since_s, 3),
-                )
+                self._wait_ended(t, p, "leader_asked")
         if p.leader_asked_s is None:
             if not self._leader_coming(leader, p):
                 p.done = True  # the leader will not come over the merge: the follower goes its own way
@@ -182,15 +174,7 @@ class MergeOrder(Extension):
                 )
             elif p.wait_since_s is not None and t - p.wait_since_s >= p.limit_s:
                 p.done = True
-                self.ctx.events.record(
-                    t,
-                    "merge_wait_ended",
-                    p.follower_id,
-                    formation=p.formation_id,
-                    switch=p.switch_id,
-                    reason="timeout",
-                    waited_s=round(t - p.wait_since_s, 3),
-                )
+                self._wait_ended(t, p, "timeout")
         elif p.leader_past_s is None:
             if self._leader_past(leader, p):
                 p.leader_past_s = t
@@ -204,6 +188,19 @@ class MergeOrder(Extension):
                 switch=p.switch_id,
                 held_s=round(t - p.leader_past_s, 3),
             )
+
+    def _wait_ended(self, t: float, p: MergePair, reason: str) -> None:
+        """Record that the follower stops waiting for its leader before the merge (``leader_asked`` or ``timeout``)."""
+        assert p.wait_since_s is not None
+        self.ctx.events.record(
+            t,
+            "merge_wait_ended",
+            p.follower_id,
+            formation=p.formation_id,
+            switch=p.switch_id,
+            reason=reason,
+            waited_s=round(t - p.wait_since_s, 3),
+        )
 
     def _yield(self, t: float, leader: TrainRuntime, follower: TrainRuntime, p: MergePair) -> None:
         """Before the leader asked, once it is within the request distance: the train on the follower's leg ahead
