@@ -99,6 +99,7 @@ class RouteLocks(SectionRequests):
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
         # does the unit of this trip run a next trip? (rotations: ``Turnbacks.next_of``; set_up_shared_track)
         self.continues: Callable[[str], bool] = unwired("RouteLocks", "continues")
+        self.successor: Callable[[str], str | None] = lambda _train_id: None  # no rotations until set up
         self._parked: dict[str, list[SectionRequest]] = {}  # arrived trip -> sections kept for its unit's next trip
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
@@ -404,7 +405,7 @@ class RouteLocks(SectionRequests):
                 break
         facing_m = self.facing_m.get(tr.train_id)
         if facing_m is not None:  # never into track a train facing it stands or runs on
-            end = min(end, facing_m - self.settings.protection_margin_m)
+            end = min(end, self._reach_stop(tr, facing_m - self.settings.protection_margin_m, facing_m))
         switches = tr.trip.route.switches
         behind_m = tr.front_m - 1e-6
         first = self._first_switch(tr, switches, behind_m)

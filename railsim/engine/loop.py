@@ -149,7 +149,7 @@ class Simulation:
         )
         self.formations.wire(self.dispatcher, self.stops)
         primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
-        self.locks.set_up_shared_track(self.bundle.graph, self.turnbacks.next_of.__contains__)
+        self.locks.set_up_shared_track(self.bundle.graph, self.turnbacks.next_of.get)
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
         self.safety.set_up_crossings(self.bundle.graph)
         self.control = ControlStage(

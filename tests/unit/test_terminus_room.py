@@ -42,10 +42,14 @@ def test_trains_turning_beyond_a_section_are_let_in_only_as_far_as_the_terminus_
     on_line = [*arriving, standing]
     locks.fleet.active = lambda: [t for t in on_line if t.status in ("inserting", "running")]  # type: ignore[method-assign]
     locks.continues = lambda train_id: train_id not in ("standing", "c")  # c leaves service at the terminus
+    locks.successor = {"a": "a2", "b": "b2"}.get  # their units turn where they stand and come back through S1
     locks.tracks = TrackSections(EventLog(), [S1], room_beyond=locks._room_beyond)
     for tr in arriving:
         locks.sections[tr.train_id] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0)]
         locks.section_requests[tr.train_id] = {}
+    for tid in ("a2", "b2"):  # (not on the line yet)
+        locks.fleet.trains[tid] = _tram(tid, 0.0, 5000.0)
+        locks.sections[tid] = [RouteSection(S1, 1, 0.0, 1000.0, 0.0)]
     locks.sections["standing"] = [RouteSection(S1, 1, 100.0, 1100.0, 100.0)]
     locks.section_requests["standing"] = {}
     for tr in arriving:
@@ -82,3 +86,51 @@ def test_a_crossing_is_asked_for_only_with_room_beyond_it_in_front_of_the_train_
     clear = SimpleNamespace(train_id="ahead", front_m=exit_m + 40.0 + TRAM_M, rear_m=exit_m + 40.0)
     locks.bookkeeping(2.0, tr, clear)
     assert locks.section_requests["t"][crossing.section_id].granted
+
+
+def test_trains_whose_units_turn_round_a_loop_are_let_in_as_far_as_the_loop_holds_them() -> None:
+    # the approach S1 runs 1,000-2,000 m; each tram's platform ends just past it (room for one tram there), but
+    # its unit runs on round a loop and enters S1 again, the other way, where its next trip waits: the loop's
+    # track (less the overlap before that entry and the clearance after the exit) holds two trams, not one
+    settings = EngineSettings()
+    clearance_m, overlap_m = settings.clearance_m, settings.protection_margin_m
+    dest_m = 2000.0 + clearance_m + TRAM_M + 1.0 - 1.0
+    arriving = [_tram(tid, 900.0 - 100.0 * k, dest_m) for k, tid in enumerate(("a", "b", "c"))]
+    last_edge_m = 2010.0  # each arriving route's last edge (the arrival track) starts here
+    loop_m = 2 * TRAM_M + 5.0 + overlap_m + clearance_m  # from S1's end round to its entry the other way
+    _, locks = _locks(*arriving)
+    locks.fleet.active = lambda: [t for t in arriving if t.status in ("inserting", "running")]  # type: ignore[method-assign]
+    locks.continues = lambda train_id: True
+    locks.successor = lambda train_id: f"{train_id}2"
+    locks.tracks = TrackSections(EventLog(), [S1], room_beyond=locks._room_beyond)
+    back_m = loop_m - (last_edge_m - 2000.0)  # where the next trip's route (from the arrival track) meets S1
+    for tr in arriving:
+        locks.fleet.trains[f"{tr.train_id}2"] = _tram(f"{tr.train_id}2", 0.0, 5000.0)  # (not on the line yet)
+        tr.view.edge_start_m = (0.0, last_edge_m)
+        locks.sections[tr.train_id] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0)]
+        locks.section_requests[tr.train_id] = {}
+        locks.sections[f"{tr.train_id}2"] = [RouteSection(S1, 1, back_m, back_m + 1000.0, back_m)]
+    for tr in arriving:
+        locks.bookkeeping(1.0, tr)
+    granted = [tr.train_id for tr in arriving if locks.section_requests[tr.train_id][S1].granted]
+    assert granted == ["a", "b"], f"granted {granted}: the loop holds two trams (its platform alone one)"
+
+
+def test_a_section_far_from_where_the_unit_turns_is_no_terminus_approach() -> None:
+    # "leaving" passes S1 at the start of its trip (a stub it leaves) and turns 8 km on, where its next trip first
+    # enters another section: it does not yield on S1. "coming" ends beyond S1 and its unit comes back through it.
+    leaving, coming = _tram("leaving", 50.0, 9000.0), _tram("coming", 900.0, 2040.0)
+    _, locks = _locks(leaving, coming)
+    for tid, first in (("leaving2", "track:far"), ("coming2", S1)):
+        locks.fleet.trains[tid] = _tram(tid, 0.0, 5000.0)
+        locks.sections[tid] = [RouteSection(first, 1, 0.0, 500.0, 0.0)]
+    locks.continues = lambda train_id: True
+    locks.successor = lambda train_id: f"{train_id}2"
+    locks.tracks = TrackSections(EventLog(), [S1, "track:far"], room_beyond=locks._room_beyond)
+    locks.sections["leaving"] = [RouteSection(S1, 1, 0.0, 1000.0, 0.0)]
+    locks.sections["coming"] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0)]
+    for tr in (leaving, coming):
+        locks.section_requests[tr.train_id] = {}
+        locks.bookkeeping(1.0, tr)
+    assert not locks.section_requests["leaving"][S1].yields, "a train leaving a stub yielded to the trains coming in"
+    assert locks.section_requests["coming"][S1].yields
