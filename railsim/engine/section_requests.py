@@ -226,14 +226,18 @@ class SectionRequests:
         through that crossing."""
         if ahead is None or not sec.section_id.startswith("crossing:"):
             return False
-        rear_m = ahead.rear_m
-        other = self.fleet.trains.get(ahead.train_id)
-        if other is not None:  # where the train ahead will stand: at the end of its authority, if that comes first
-            rear_m = min(
-                rear_m, self.authority_end_m(other) + (ahead.front_m - other.front_m) - (ahead.front_m - ahead.rear_m)
-            )
-        room_m = rear_m - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
+        room_m = self._ahead_rear_m(ahead) - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
         return room_m < tr.trip.vehicle.length_m
+
+    def _ahead_rear_m(self, ahead: Any) -> float:
+        """Where the rear of the train in front (``ahead``, in the follower's frame) will stand: where it is, or
+        further back at the end of its movement authority less its length, if that comes first."""
+        rear_m = float(ahead.rear_m)
+        other = self.fleet.trains.get(ahead.train_id)
+        if other is not None:
+            end_m = self.authority_end_m(other) + (ahead.front_m - other.front_m)
+            rear_m = min(rear_m, end_m - (ahead.front_m - ahead.rear_m))
+        return rear_m
 
     def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
         """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
