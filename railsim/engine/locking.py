@@ -99,12 +99,15 @@ class RouteLocks(SectionRequests):
         self.section_requests: dict[str, dict[str, SectionRequest]] = {}  # train id -> section id -> request
         # does the unit of this trip run a next trip? (rotations: ``Turnbacks.next_of``; set_up_shared_track)
         self.continues: Callable[[str], bool] = unwired("RouteLocks", "continues")
+        self.successor: Callable[[str], str | None] = lambda _train_id: None  # no rotations until set up
         self._parked: dict[str, list[SectionRequest]] = {}  # arrived trip -> sections kept for its unit's next trip
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
         # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
         self._switch_pointer: dict[str, tuple[Any, int, float]] = {}
         self._route_end: dict[str, tuple[Any, float]] = {}  # train id -> (its trip's stops, authority at the end)
+        # train id -> where the nearest train facing it on its track ahead begins (the loop sets it every step)
+        self.facing_m: dict[str, float] = {}
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on
@@ -374,7 +377,12 @@ class RouteLocks(SectionRequests):
 
     def authority_end_m(self, tr: TrainRuntime) -> float:
         """Route chainage where the train's movement authority ends: before the first switch not locked for it,
-        or the protection point of the first single-track section not reserved for it. At the end of its trip the
+        or the protection point of the first single-track section not reserved for it; a train standing inside a
+        section it does not hold (a unit turning back in it, whose arrival direction another train still holds) may
+        not move at all (its authority ends at its front), and no authority reaches closer than the overlap to a
+        train on its track facing it (``facing_m``: ground truth, as a track circuit shows the track occupied; a
+        unit turned back in a terminus stub is on the partner edges, never "ahead" of a train coming in). At the
+        end of its trip the
         authority reaches the route's end, and at least the overlap beyond the destination platform (a platform
         ending within the overlap of the route's end would otherwise cut the train's stopping window short)."""
         stops = tr.trip.stops  # (a turnback may replace them: the end is remembered per stops tuple)
@@ -388,9 +396,16 @@ class RouteLocks(SectionRequests):
             reqs = self.section_requests[tr.train_id]
             for sec in self.sections[tr.train_id]:
                 req = reqs.get(sec.section_id)
-                if sec.end_m > tr.front_m and sec.guard_m > tr.front_m - 1e-6 and (req is None or not req.granted):
+                if sec.end_m <= tr.front_m or (req is not None and req.granted):
+                    continue
+                if sec.guard_m > tr.front_m - 1e-6:
                     end = min(end, self._reach_stop(tr, sec.guard_m - self.settings.protection_margin_m, sec.guard_m))
-                    break
+                else:  # inside a section it does not hold (a unit turning back in it): it may not move
+                    end = min(end, tr.front_m)
+                break
+        facing_m = self.facing_m.get(tr.train_id)
+        if facing_m is not None:  # never into track a train facing it stands or runs on
+            end = min(end, self._reach_stop(tr, facing_m - self.settings.protection_margin_m, facing_m))
         switches = tr.trip.route.switches
         behind_m = tr.front_m - 1e-6
         first = self._first_switch(tr, switches, behind_m)

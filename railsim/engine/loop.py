@@ -45,7 +45,13 @@ from railsim.engine.occupancy import Ahead, Body, Occupancy
 from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
-from railsim.engine.settings import PERMISSIVE_DECEL_MPS2, PERMISSIVE_SPEED_FACTOR, PERMISSIVE_TAU_S, EngineSettings
+from railsim.engine.settings import (
+    FACING_DECEL_MPS2,
+    PERMISSIVE_DECEL_MPS2,
+    PERMISSIVE_SPEED_FACTOR,
+    PERMISSIVE_TAU_S,
+    EngineSettings,
+)
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
 from railsim.engine.turnback import Turnbacks
@@ -143,7 +149,7 @@ class Simulation:
         )
         self.formations.wire(self.dispatcher, self.stops)
         primary_delays.apply(self.primary, self.fleet, self.formations.couples_on_departure)
-        self.locks.set_up_shared_track(self.bundle.graph, self.turnbacks.next_of.__contains__)
+        self.locks.set_up_shared_track(self.bundle.graph, self.turnbacks.next_of.get)
         self.safety = SafetyMonitor(self.trains, self.layer, self.events, self.settings)
         self.safety.set_up_crossings(self.bundle.graph)
         self.control = ControlStage(
@@ -165,6 +171,7 @@ class Simulation:
         )
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
+        self.occupancy.set_bidi(self.bundle.graph)
         self.dispatcher.schedule_departures()
         ports = timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety)
         timed.schedule(ports, scenario)
@@ -287,6 +294,8 @@ class Simulation:
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
         self.safety.crossing_checks(t, active)
+        if self.occupancy.has_bidi:  # trains facing each other on one track (partner edges)
+            self._facing(t, active)
         self.safety.sumo_reported(t, bridge.collisions())
         self.watchdog.check(t, active, ahead)
 
@@ -334,6 +343,20 @@ class Simulation:
                     target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
                 )
         return truth
+
+    def _facing(self, t: float, active: list[TrainRuntime]) -> None:
+        """Head-on contacts (safety), and for each train the nearest train facing it on the track it may run on
+        next (the route locks end its authority before it): as far as it could brake from its speed at a mild
+        0.5 m/s², at least its sensor range."""
+        facing = self.occupancy.facing
+        self.safety.head_on_checks(t, active, facing)
+        near: dict[str, float] = {}
+        for tr in active:
+            reach_m = self.settings.sensor_range_m + tr.plant.speed_mps**2 / (2.0 * FACING_DECEL_MPS2)
+            hit = facing(tr.train_id, tr.front_m, reach_m)
+            if hit is not None:
+                near[tr.train_id] = hit.near_m
+        self.locks.facing_m = near
 
     # ------------------------------------------------------------------ results
     def snapshot(self) -> RunSnapshot:

@@ -14,12 +14,20 @@ walks its own route forward from the edge under its front; the first edge holdin
 ahead gives the predecessor. Frames are changed on the shared track only (:meth:`RouteView.map_body`): the tail
 of a train that is merging from the other leg is not on our track, so it is not "ahead" of a train waiting at
 the switch — the interlocking, not the gap, protects the junction itself.
+
+**Trains facing each other.** On ``bidi`` track one physical track is two SUMO edges, one per direction, and a
+train running (or standing, turned back) the other way is on the partner edge: the index by edge never puts it
+ahead of anybody. :meth:`Occupancy.facing` finds it (given the partner of every bidi edge and the edge lengths,
+:meth:`Occupancy.set_bidi`): the nearest train on the partner edges of the track ahead, with the part of its body
+there in this train's frame. A position ``x`` metres into an edge is ``length - x`` metres into its partner. The
+safety check counts two such bodies overlapping as a head-on collision, and no movement authority reaches into
+track a facing train stands on.
 """
 
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import NamedTuple
+from typing import Any, NamedTuple
 
 from railsim.engine.routeview import RouteView
 
@@ -52,12 +60,35 @@ class Ahead(NamedTuple):
     offset_m: float  # add to the leader's own chainage to get the follower's frame
 
 
+class Facing(NamedTuple):
+    """The nearest train on the track ahead running (or standing) the other way, in the observer's frame."""
+
+    train_id: str
+    near_m: float  # the end of its body nearest the observer's front (its front, facing us)
+    far_m: float  # the other end
+
+
 class Occupancy:
     """Per-step index of which train covers which edge."""
 
     def __init__(self) -> None:
         self._by_edge: dict[str, list[Body]] = {}
         self.bodies: dict[str, Body] = {}
+        self._bidi: dict[str, tuple[str, float]] = {}  # bidi edge -> (its partner, the partner's length [m])
+
+    @property
+    def has_bidi(self) -> bool:
+        """True if the track has bidi edges (only there can trains face each other on one track)."""
+        return bool(self._bidi)
+
+    def set_bidi(self, graph: Any) -> None:
+        """The partner of every bidi edge of the track graph and its length (:meth:`facing`)."""
+        nodes = graph.nodes
+        self._bidi = {
+            e: (a["bidi"], float(nodes[a["bidi"]]["length_m"]))
+            for e, a in nodes(data=True)
+            if a.get("bidi") is not None and a["bidi"] in nodes
+        }
 
     def update(self, bodies: list[Body]) -> None:
         by_edge: dict[str, list[Body]] = {}
@@ -100,3 +131,50 @@ class Occupancy:
                 return best
             j += 1
         return None
+
+    def facing(self, train_id: str, from_m: float, lookahead_m: float) -> Facing | None:
+        """The nearest train on the partner edges of this train's route from ``from_m`` on (within
+        ``lookahead_m``) whose body lies there at or beyond ``from_m`` (module docstring): it runs or stands
+        the other way on the same track. None on track without partners."""
+        if not self._bidi:
+            return None
+        me = self.bodies[train_id]
+        view = me.view
+        j = view.edge_near(from_m, me.rear_i)
+        limit = from_m + lookahead_m
+        n = len(view.edges)
+        best: Facing | None = None
+        while j < n and view.edge_start_m[j] <= limit:
+            partner = self._bidi.get(view.edges[j])
+            if partner is not None:
+                edge, length_m = partner
+                for other in self._by_edge.get(edge, ()):
+                    if other.train_id == train_id:
+                        continue
+                    span = _on_edge(other, edge)
+                    if span is None:
+                        continue
+                    # x into the partner is length - x here (the part on the junction lane after it: at its end)
+                    near = view.edge_start_m[j] + length_m - min(span[1], length_m)
+                    far = view.edge_start_m[j] + length_m - min(span[0], length_m)
+                    if far >= from_m and near <= limit and (best is None or near < best.near_m):
+                        best = Facing(other.train_id, near, far)
+            if best is not None:
+                return best
+            j += 1
+        return None
+
+
+def _on_edge(body: Body, edge: str) -> tuple[float, float] | None:
+    """The part of ``body`` on ``edge`` as metres into that edge ``(from, to)``, or None (its route frame:
+    ``Occupancy.update`` set the edges under its rear and front)."""
+    view = body.view
+    for i in range(body.rear_i, body.edge_i + 1):
+        if view.edges[i] != edge:
+            continue
+        start = view.edge_start_m[i]
+        end = view.edge_start_m[i + 1] if i + 1 < len(view.edge_start_m) else view.length_m
+        lo = max(body.rear_m, start) - start
+        hi = min(body.front_m, end) - start
+        return lo, hi
+    return None

@@ -8,7 +8,10 @@ counted together in ``collisions`` (docs/architecture.md, "Safety is never hidde
 movements cross at grade (``graph.graph["crossings"]``, :func:`network.topology.flat_crossings`: a diamond, the
 track to a branch crossing the opposite main track at a double-track junction) two trains whose bodies span the
 node at once on foe movements are a collision too (:meth:`SafetyMonitor.crossing_checks`; SUMO's own check calls
-it a ``junction`` collision). Obstacles
+it a ``junction`` collision). On ``bidi`` track a train running or standing the other way is on the partner edge,
+never "ahead" by edge: two such bodies overlapping on one track are a head-on collision
+(:meth:`SafetyMonitor.head_on_checks`, :meth:`railsim.engine.occupancy.Occupancy.facing`; SUMO's ``frontal``).
+Obstacles
 (scenario ``events: obstacle``) are fixed to the track; a train's own ranging sensor (collision avoidance) reads
 the nearest train or obstacle ahead within ``sensor_range_m``.
 
@@ -39,17 +42,20 @@ failure is the backstop.
 from __future__ import annotations
 
 import logging
+from collections.abc import Callable
 from typing import Any
 
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
-from railsim.engine.occupancy import Ahead
+from railsim.engine.occupancy import Ahead, Facing
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
+
+FacingLookup = Callable[[str, float, float], Facing | None]  # (train, from chainage, lookahead) -> facing train
 
 
 class SafetyMonitor:
@@ -192,6 +198,36 @@ class SafetyMonitor:
                     )
                     self.events.record(t, "collision", tr.train_id, leader=other.train_id, crossing=node)
                     log.error("collision at t=%.1f s: %s and %s on crossing %s", t, tr.train_id, other.train_id, node)
+
+    def head_on_checks(self, t: float, active: list[TrainRuntime], facing: FacingLookup) -> None:
+        """Two trains on one track facing each other whose bodies overlap collide head-on (module docstring);
+        ``facing(train, from_m, lookahead_m)``: :meth:`railsim.engine.occupancy.Occupancy.facing`."""
+        for tr in active:
+            length_m = tr.trip.vehicle.length_m
+            hit = facing(tr.train_id, tr.front_m - length_m, length_m)
+            if hit is None or hit.near_m > tr.front_m:
+                continue
+            pair = (min(tr.train_id, hit.train_id), max(tr.train_id, hit.train_id))
+            if pair in self._colliding_pairs:
+                continue
+            self._colliding_pairs.add(pair)
+            overlap_m = tr.front_m - hit.near_m
+            self.collisions.append(
+                {
+                    "t_s": t,
+                    "follower": tr.train_id,
+                    "leader": hit.train_id,
+                    "overlap_m": overlap_m,
+                    "chainage_m": tr.front_m,
+                    "head_on": True,
+                }
+            )
+            self.events.record(
+                t, "collision", tr.train_id, leader=hit.train_id, overlap_m=round(overlap_m, 3), head_on=True
+            )
+            log.error(
+                "collision at t=%.1f s: %s and %s head-on (overlap %.2f m)", t, tr.train_id, hit.train_id, overlap_m
+            )
 
     def sumo_reported(self, t: float, reports: list[dict[str, Any]]) -> None:
         """SUMO's own collision reports of this step (kept apart from ours)."""

@@ -30,13 +30,15 @@ keep to it: a train does not ask for a section beyond the train in front of it b
 section (:meth:`SectionRequests._others_run_on`), and when it asks for a run through several sections, the trains of its
 direction holding the first one alone ask for the rest at that moment (:meth:`SectionRequests._bring_forward`). Each
 closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
-the sections behind an opposing tram that waited for the one behind. A train whose unit turns beyond its last
-section (a terminus) lets the trains leaving that terminus go first (``yields``,
-:class:`~railsim.engine.events.tracks.TrackSections`).
+the sections behind an opposing tram that waited for the one behind. A train whose trip ends beyond its last
+section (a terminus: its unit turns there or leaves service) lets the trains leaving that terminus go first
+(``yields``, :class:`~railsim.engine.events.tracks.TrackSections`), and is let in only while the terminus has room
+for it (:meth:`SectionRequests._room_beyond`: its platform, or the whole turning loop or turnback track its unit
+turns on, beside the units standing there).
 
 **A crossing is entered only with its exit clear** (:meth:`SectionRequests._crossing_exit_blocked`): it is asked
-for only when the train fits beyond it in front of the train ahead, as a road vehicle keeps out of a box junction
-it cannot leave.
+for only when the train fits beyond it in front of the train ahead (where that one will stand: at the end of its
+authority, if that comes first), as a road vehicle keeps out of a box junction it cannot leave.
 
 **A crossing right before a section** with no room for the train between the two is asked for only once that
 section is the train's (:meth:`SectionRequests._crossing_waits_for_next`): a tram at a platform ending at the crossing
@@ -66,6 +68,7 @@ from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.engine.wiring import set_once
 
+TERMINUS_DEPARTURE_HORIZON_S = 300.0  # a departure from a terminus due this soon takes room there (_room_beyond)
 SECTION_REQUEST_LEAD_S = 20.0  # a train standing at its last stop before a section asks this long before it may go
 
 
@@ -117,13 +120,17 @@ class SectionRequests:
     tracks: TrackSections | None
     sections: dict[str, list[RouteSection]]  # train id -> contested sections on its route
     section_requests: dict[str, dict[str, SectionRequest]]  # train id -> section id -> request
+    clock: Any  # the event layer's time (now_s)
     continues: Callable[[str], bool]  # does the unit of this trip run a next trip? (rotations)
+    authority_end_m: Callable[[TrainRuntime], float]  # where a train's movement authority ends (RouteLocks)
+    successor: Callable[[str], str | None]  # the trip the unit of this trip runs next (rotations), or None
 
-    def set_up_shared_track(self, graph: Any, continues: Callable[[str], bool]) -> None:
+    def set_up_shared_track(self, graph: Any, successor: Callable[[str], str | None]) -> None:
         """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
-        cross on different movements (see the module docstring); ``continues(train_id)``: does the unit of that trip
-        run a next trip (the rotations), whose sections it keeps on arrival (:meth:`hand_over`)."""
-        set_once(self, "continues", continues)
+        cross on different movements (see the module docstring); ``successor(train_id)``: the trip the unit of that
+        trip runs next (the rotations) or None; a unit running on keeps its sections on arrival (:meth:`hand_over`)."""
+        set_once(self, "continues", lambda train_id: successor(train_id) is not None)
+        self.successor = successor
         smap = section_map(graph)
         if not smap and not graph.graph.get("crossings"):
             return
@@ -136,7 +143,7 @@ class SectionRequests:
         shared = contested(per_train)
         if not shared:
             return
-        self.tracks = TrackSections(self.events, sorted(shared))
+        self.tracks = TrackSections(self.events, sorted(shared), room_beyond=self._room_beyond)
         for k, (tid, sections) in enumerate(per_train.items()):
             # a train reversing in a section gets a direction nobody else has: it holds the section alone
             mine = [
@@ -212,11 +219,25 @@ class SectionRequests:
         leaves no room for this train beyond the crossing (its rear ``clearance_m`` past the end, its front its
         separation margin behind the rear of the one in front). A tram that went in behind a tram waiting for the
         next crossing stood in this one, and the opposing tram waiting for it stood in that next crossing behind a
-        tram waiting for this one (Jena, crossings ``1684176152`` and ``1684176122``)."""
+        tram waiting for this one (Jena, crossings ``1684176152`` and ``1684176122``). The train in front counts
+        where it will stand: at the end of its movement authority (the overlap before a section or points not yet
+        its own) if that comes first — a tram went into crossing ``259782418`` behind trams still rolling up to the
+        Ernst-Abbe-Platz stub they waited for, and the unit turning in the stub waited for the trams leaving
+        through that crossing."""
         if ahead is None or not sec.section_id.startswith("crossing:"):
             return False
-        room_m = ahead.rear_m - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
+        room_m = self._ahead_rear_m(ahead) - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
         return room_m < tr.trip.vehicle.length_m
+
+    def _ahead_rear_m(self, ahead: Any) -> float:
+        """Where the rear of the train in front (``ahead``, in the follower's frame) will stand: where it is, or
+        further back at the end of its movement authority less its length, if that comes first."""
+        rear_m = float(ahead.rear_m)
+        other = self.fleet.trains.get(ahead.train_id)
+        if other is not None:
+            end_m = self.authority_end_m(other) + (ahead.front_m - other.front_m)
+            rear_m = min(rear_m, end_m - (ahead.front_m - ahead.rear_m))
+        return rear_m
 
     def admit(self, t: float, tr: TrainRuntime, depart_m: float) -> str | None:
         """Before insertion at ``depart_m``: reserve the sections the train starts in; a reason to wait, or None."""
@@ -240,16 +261,42 @@ class SectionRequests:
         reqs = self.section_requests[tr.train_id]
         wanted = [(sec.section_id, sec.direction) for sec in run]
         last = run[-1]
-        turns = (
-            last.section_id.startswith("track:")
-            and not any(
-                s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
-            )
-            and self.continues(tr.train_id)
-        )
-        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=turns)):
+        ends = self._ends_at_terminus(tr, last)
+        for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=ends)):
             reqs[sec.section_id] = req
         self._bring_forward(t, tr, run)
+
+    def _ends_at_terminus(self, tr: TrainRuntime, last: RouteSection) -> bool:
+        """True if ``last`` is the train's last single-track section and a terminus lies beyond it: the train's
+        unit turns there and comes back through ``last`` first (:meth:`_turns_back_through`), or (the unit leaves
+        service) another unit bound for the same station through the same section in the same direction does.
+        Either way it stands at the terminus, which only the trains leaving make room in. A section a train
+        passes far from where its unit turns (a stub it leaves at the start of its trip, double track after it)
+        is no terminus approach: a tram leaving Ernst-Abbe-Platz for Lobeda-Ost, 8 km of double track away, let
+        the trams coming in go first."""
+        mine = self.sections[tr.train_id]
+        if not last.section_id.startswith("track:") or any(
+            s.start_m > last.start_m and s.section_id.startswith("track:") for s in mine
+        ):
+            return False
+        if self.continues(tr.train_id):
+            return self._turns_back_through(tr.train_id, last)
+        station = tr.trip.stops[-1].station_id
+        for oid, theirs in self.sections.items():
+            other = self.fleet.trains[oid]
+            if oid == tr.train_id or other.trip.stops[-1].station_id != station or not self.continues(oid):
+                continue
+            track = [s for s in theirs if s.section_id.startswith("track:")]
+            if track and track[-1].section_id == last.section_id and track[-1].direction == last.direction:
+                return self._turns_back_through(oid, track[-1])
+        return False
+
+    def _turns_back_through(self, train_id: str, last: RouteSection) -> bool:
+        """True if the next trip of ``train_id``'s unit enters single track first through ``last`` (the other
+        way, or turning inside it): the unit is shut in beyond it until it leaves again."""
+        succ_id = self.successor(train_id)
+        track = [s for s in self.sections.get(succ_id or "", ()) if s.section_id.startswith("track:")]
+        return bool(track) and track[0].section_id == last.section_id
 
     def _bring_forward(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
         """Trains of ``tr``'s direction that hold or wait for the first section of ``run`` alone, and run on
@@ -327,6 +374,79 @@ class SectionRequests:
             other = self.fleet.trains[other_id]
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
         return room_m
+
+    def _room_beyond(self, req: SectionRequest) -> bool:
+        """True if the terminus beyond ``req``'s section (its train's trip ends there: ``yields``) has room for it
+        (module docstring, "Terminus"): from ``clearance_m`` past the section's end to the end of its destination
+        platform — or, where its unit turns beyond the platform (round a loop, or by a reversal on a track beyond),
+        the whole track it has there up to where its next trip waits for the section (:meth:`_turning_track_m`,
+        less the overlap) — less the length and separation margin of every other train standing or bound to stand
+        there: the trains of its direction granted the section and not yet arrived, and the units on the line
+        within that reach before the section on their way out, not yet granted it. With nobody there a train
+        always fits. Counting the platform alone, one tram at a time turned at a loop that holds four (Jena,
+        Zwätzen Schleife)."""
+        tr = self.fleet.trains[req.holder_ids[0]]
+        last = next((s for s in self.sections[tr.train_id] if s.section_id == req.section_id), None)
+        if last is None or any(
+            s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
+        ):
+            return True  # not the section the train turns beyond (a group's earlier member)
+        room_m = tr.trip.stops[-1].served_end_m - (last.end_m + self.settings.clearance_m)
+        reach_m = room_m
+        loop_m = self._turning_track_m(tr, last)
+        if loop_m is not None and loop_m - self.settings.protection_margin_m - self.settings.clearance_m > room_m:
+            room_m = loop_m - self.settings.protection_margin_m - self.settings.clearance_m
+            reach_m = loop_m
+        used_m = 0.0
+        for other in self.fleet.active():
+            if other.train_id in req.holder_ids:
+                continue
+            theirs = next((s for s in self.sections.get(other.train_id, ()) if s.section_id == last.section_id), None)
+            if theirs is None:
+                continue
+            mine = self.section_requests[other.train_id].get(last.section_id)
+            if theirs.direction == last.direction:
+                there = mine is not None and mine.granted
+            else:
+                there = (mine is None or not mine.granted) and theirs.guard_m - other.front_m <= reach_m
+            if there:
+                used_m += other.trip.vehicle.length_m + separation_margin_m(other)
+        if loop_m is not None:
+            used_m += self._departures_due_m(last, reach_m)
+        return used_m == 0.0 or used_m + tr.trip.vehicle.length_m <= room_m
+
+    def _departures_due_m(self, last: RouteSection, reach_m: float) -> float:
+        """Room the trips starting at the terminus beyond ``last`` with a unit of their own (no unit turns into
+        them) will take: each not on the line yet and due within :data:`TERMINUS_DEPARTURE_HORIZON_S`, starting
+        within ``reach_m`` before the section the other way. Let in for the whole loop, turning trams found a
+        fresh departure put on in it ahead of them (Jena, Zwätzen Schleife)."""
+        now_s = self.clock.now_s
+        chained = {self.successor(tid) for tid in self.fleet.trains}
+        used_m = 0.0
+        for tid, other in self.fleet.trains.items():
+            if other.status != "scheduled" or tid in chained:
+                continue
+            if other.trip.depart_s + other.trip.departure_delay_s > now_s + TERMINUS_DEPARTURE_HORIZON_S:
+                continue
+            theirs = next((s for s in self.sections.get(tid, ()) if s.section_id == last.section_id), None)
+            if theirs is not None and theirs.direction != last.direction and theirs.guard_m <= reach_m:
+                used_m += other.trip.vehicle.length_m + separation_margin_m(other)
+        return used_m
+
+    def _turning_track_m(self, tr: TrainRuntime, last: RouteSection) -> float | None:
+        """The track a unit turning beyond ``last`` has between leaving the section and coming back to it: from
+        the section's end on ``tr``'s route, on to its arrival track and round its turning path (a loop, or a
+        reversal beyond the platform) to the protection point where its next trip enters the section again. Its
+        next trip's route starts at the start of ``tr``'s last edge (the turnback path first), which ties the two
+        frames together. None without a next trip, or where it turns inside the section (a stub: no track
+        beyond it)."""
+        succ_id = self.successor(tr.train_id)
+        if succ_id is None:
+            return None
+        back = next((s for s in self.sections.get(succ_id, ()) if s.section_id == last.section_id), None)
+        if back is None or back.start_m <= 0.0:
+            return None
+        return float(tr.view.edge_start_m[-1]) + back.guard_m - last.end_m
 
     def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
         """True if a section or crossing not yet reserved for the train has its protection point at or before

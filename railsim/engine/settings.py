@@ -13,6 +13,9 @@ INF = float("inf")
 FREE_RUN_MISSED_M = 0.5  # the planned free run passes a stop its front is this far beyond (the missed-stop tolerance)
 INSERTION_REACTION_S = 1.0  # a train approaching a departure needs this long to react before it brakes
 DWELL_REGISTRATION_S = 1.0  # SUMO dwell given to a destination stop (the trip ends when SUMO registers it)
+FACING_DECEL_MPS2 = (
+    0.5  # a train looks for trains facing it on its track as far as it brakes at this (and its sensor range)
+)
 # SUMO never drives our trains (speedMode 32), but it still checks insertion with the vType's Krauss model: its
 # safe insertion speed is about gap/tau when decel·tau is large, so a tiny tau and a huge decel let a train be
 # inserted exactly where and when the scenario says, at speed, close behind another (our occupancy check, not

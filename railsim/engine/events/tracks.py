@@ -8,10 +8,13 @@ for the other direction waits (first come, first served between directions, so a
 cannot starve the other). Two exceptions keep the trains moving. A request never waits for one that itself
 waits for a section its own train holds: that group cannot be served before this train has gone on (a group
 waiting outside kept a train standing between two sections from the section it needed, while the group waited
-for what that train's opposite number held). And a train bound to turn at the end of the single track (its unit
-comes back through the section: a terminus) **yields**: requests of the other direction go first, however late —
+for what that train's opposite number held). And a train whose trip ends beyond the single track (a terminus: its
+unit comes back through the section or leaves service there) **yields**: requests of the other direction go first, however late —
 they are the trains leaving that terminus and making room there; let in first, the arriving trams found the
-turning loop full of units waiting to leave through the section they held.
+turning loop full of units waiting to leave through the section they held. Nor is such a request granted while
+the terminus has no **room** for its train, nor before such requests of its direction made earlier beside the units standing there and the trains already let in
+(``room_beyond``, asked of :mod:`railsim.engine.section_requests`): granted the approach together, four trams
+filled the Zwätzen Schleife loop, and the last stood in the single track behind a unit waiting to leave through it.
 
 Reservations are immediate (no throw): :meth:`TrackSections.request` grants at once if it can, else queues;
 every :meth:`TrackSections.release` re-examines the queue. :meth:`TrackSections.request_all` asks for several
@@ -24,6 +27,7 @@ waits for, and no train of the other direction can take one section of the group
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 
 from railsim.engine.events.log import EventLog
@@ -40,7 +44,7 @@ class SectionRequest:
     granted_s: float | None = None
     released_by: set[str] = field(default_factory=set)
     group: list[SectionRequest] = field(default_factory=list)  # requests granted only together (request_all)
-    yields: bool = False  # made by a train bound to turn beyond the section: the other direction goes first
+    yields: bool = False  # its train's trip ends beyond the section (a terminus): the other direction goes first
 
     @property
     def granted(self) -> bool:
@@ -56,9 +60,13 @@ class _Section:
 class TrackSections:
     """Every single-track section of a run that trains use in both directions."""
 
-    def __init__(self, events: EventLog, section_ids: list[str]) -> None:
+    def __init__(
+        self, events: EventLog, section_ids: list[str], room_beyond: Callable[[SectionRequest], bool] | None = None
+    ) -> None:
         self.events = events
         self._sections = {sid: _Section() for sid in section_ids}
+        # for a request that yields: is there room for its train at the terminus beyond? (module docstring)
+        self.room_beyond = room_beyond
 
     def __contains__(self, section_id: str) -> bool:
         return section_id in self._sections
@@ -120,6 +128,10 @@ class TrackSections:
         sec = self._sections[req.section_id]
         if req not in sec.queue or any(h.direction != req.direction for h in sec.holders):
             return False
+        if req.yields and self.room_beyond is not None:
+            earlier = sec.queue[: sec.queue.index(req)]
+            if any(w.yields and w.direction == req.direction for w in earlier) or not self.room_beyond(req):
+                return False  # the turning trains are let in in the order they asked, each when there is room
         return not any(self._first(w, req) for w in sec.queue)
 
     def _first(self, w: SectionRequest, req: SectionRequest) -> bool:
