@@ -59,7 +59,8 @@ ptstop output mixes tram, metro and train stops, and railsim runs one class per 
 GTFS import matches against); ``<name>.import.yaml`` (the summary below) and ``netconvert.log``.
 
 **Stops are completed** before they are written: a station OSM maps with a stop position on one track only
-gets a copy on the opposite track within :data:`TWIN_RADIUS_M` (:func:`_twin_stops`); a stop on an edge shorter
+gets a copy on the opposite track within :data:`TWIN_RADIUS_M`, unless that track has a platform of the station
+just before or after (staggered stops; :func:`_twin_stops`); a stop on an edge shorter
 than a platform moves to the end of the single edge before it (:func:`_move_off_short_edges`); a stop shorter
 than :data:`MIN_STOP_M` (netconvert writes some tram stops 0 m long) is widened within its lane; stops no line
 serves are dropped when the extract has lines. Each is counted in the summary.
@@ -262,6 +263,7 @@ def _cache_key(
     payload = json.dumps(
         {
             "input": _file_hash(osm_file),
+            "name": _input_name(osm_file),  # the files are named after it: a renamed copy is its own entry
             "light_rail_as_tram": light_rail_as_tram,
             "bbox": list(bbox) if bbox else None,
             "lines": sorted(lines) if lines else None,
