@@ -59,7 +59,8 @@ ptstop output mixes tram, metro and train stops, and railsim runs one class per 
 GTFS import matches against); ``<name>.import.yaml`` (the summary below) and ``netconvert.log``.
 
 **Stops are completed** before they are written: a station OSM maps with a stop position on one track only
-gets a copy on the opposite track within :data:`TWIN_RADIUS_M` (:func:`_twin_stops`); a stop on an edge shorter
+gets a copy on the opposite track within :data:`TWIN_RADIUS_M`, unless that track has a platform of the station
+just before or after (staggered stops; :func:`_twin_stops`); a stop on an edge shorter
 than a platform moves to the end of the single edge before it (:func:`_move_off_short_edges`); a stop shorter
 than :data:`MIN_STOP_M` (netconvert writes some tram stops 0 m long) is widened within its lane; stops no line
 serves are dropped when the extract has lines. Each is counted in the summary.
@@ -102,10 +103,11 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "8"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "9"  # bump when the options or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 _OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
 TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
+STATION_TRACK_M = 150.0  # a station's platforms on one track lie within this of each other along the track
 END_CLEARANCE_M = 3.0  # a moved stop ends this far before the end of its edge
 MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
 UNNAMED_RADIUS_M = 100.0  # an OSM stop without a name takes the name of a named stop or platform within this
@@ -261,6 +263,7 @@ def _cache_key(
     payload = json.dumps(
         {
             "input": _file_hash(osm_file),
+            "name": _input_name(osm_file),  # the files are named after it: a renamed copy is its own entry
             "light_rail_as_tram": light_rail_as_tram,
             "bbox": list(bbox) if bbox else None,
             "lines": sorted(lines) if lines else None,
@@ -336,8 +339,14 @@ def _ensure_length(st: _Stop, lane_length_m: float) -> int:
 def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
     """Add the missing platform of a double-track station: for each stop, a rail edge of its class running the
     opposite way within :data:`TWIN_RADIUS_M` of the stop's centre (not its own bidi partner, which already
-    carries it) that holds no stop of the same station gets a copy of the stop (id ``<stop>_twin``, same name
-    and length, centred on the point nearest the original). Returns how many were added."""
+    carries it) and holding no stop of the same station — the nearest, one a platform fits on first — gets a copy
+    of the stop (id ``<stop>_twin``, same name and length, centred on the point nearest the original), unless
+    that track already has another platform of the station on an edge within :data:`STATION_TRACK_M` before or
+    after it along the track (:func:`_edges_along`; the stop's own edge does not count, a turning loop joins the
+    two tracks of a terminus). Tram stops are often
+    staggered, each direction's platform on the far side of a junction from the other, so the opposite
+    platform lies on the next edge of the track, not beside the stop; a copy there would make every train stop
+    twice at the station, the second time a few metres on. Returns how many were added."""
     from sumolib.geomhelper import polygonOffsetAndDistanceToPoint, positionAtShapeOffset
 
     def heading(shape: Sequence[Any], offset: float) -> float:
@@ -360,6 +369,7 @@ def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
         h = heading(lane.getShape(), 0.5 * (start + end))
         own = lane.getEdge()
         want = _min_stop_m(st.vclass)
+        others = station_edges[(st.vclass, st.name)] - {own.getID()}  # where the station's other platforms are
         candidates: list[tuple[bool, float, Any, float]] = []  # (too short, distance, lane, offset)
         for e in edges_by_class[st.vclass]:
             if e is own or e is own.getBidi() or e.getID() in station_edges[(st.vclass, st.name)]:
@@ -377,6 +387,8 @@ def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
         if not candidates:
             continue
         _short, _dist, other, offset = min(candidates, key=lambda c: (c[0], c[1]))  # a lane a platform fits on first
+        if not others.isdisjoint(_edges_along(other.getEdge(), STATION_TRACK_M)):
+            continue  # that track has the station's platform already, on an edge before or after this one
         length = min(max(end - start, want), other.getLength())
         a = min(max(offset - 0.5 * length, 0.0), other.getLength() - length)
         elem = ET.Element(st.elem.tag, dict(st.elem.attrib))
@@ -388,6 +400,25 @@ def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
         station_edges[(st.vclass, st.name)].add(other.getEdge().getID())
     stops.update(added)
     return len(added)
+
+
+def _edges_along(edge: Any, reach_m: float) -> set[str]:
+    """The ids of ``edge`` and of the edges every train on it runs over within ``reach_m`` before or after it:
+    forwards while the track does not diverge (one outgoing edge), backwards while no other track joins it (one
+    incoming edge); an edge's own bidi partner, the same track the other way, is never taken."""
+    found = {edge.getID()}
+    for forward in (True, False):
+        current, dist_m = edge, 0.0
+        while dist_m < reach_m:
+            nexts = [
+                e for e in (current.getOutgoing() if forward else current.getIncoming()) if e is not current.getBidi()
+            ]
+            if len(nexts) != 1 or nexts[0].getID() in found:
+                break
+            current = nexts[0]
+            found.add(current.getID())
+            dist_m += current.getLength()
+    return found
 
 
 def _min_stop_m(vclass: str) -> float:

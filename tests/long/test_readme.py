@@ -176,6 +176,17 @@ PLAN: dict[str, str | None] = {
         "--from 07:00 --to 07:10 --out potsdam.yaml"
     ),
     "railsim run potsdam.yaml --out out/potsdam": None,
+    "railsim network import tests/data/osm/dresden_tram_2025.osm.gz --out worlds/dresden": (
+        f"railsim network import {DATA}/osm/dresden_tram_2025.osm.gz --out worlds/dresden"
+    ),
+    (
+        "railsim timetable import --from-lines --headway-s 360 --world worlds/dresden --from 07:00 --to 09:00 "
+        "--out dresden.yaml"
+    ): (
+        "railsim timetable import --from-lines --headway-s 360 --lines 10 --world worlds/dresden "
+        "--from 07:00 --to 07:06 --out dresden.yaml"
+    ),
+    "railsim run dresden.yaml --out out/dresden": None,
     # run folders
     "railsim run scenarios/chongqing_line3_peak.yaml --out out/peak": None,
     (

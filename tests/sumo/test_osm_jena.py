@@ -41,7 +41,7 @@ def test_jena_imports_as_a_multi_line_tram_network_and_line_4_runs_clean(tmp_pat
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 2
-    assert summary["n_stops_served"] == summary["n_stops_scheduled"] > 40
+    assert summary["n_stops_served"] == summary["n_stops_scheduled"] == 40
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
 
 
@@ -61,7 +61,7 @@ def test_jena_line_5_trams_leave_their_single_track_terminus_at_once(tmp_path: P
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 2
-    assert summary["n_stops_served"] == summary["n_stops_scheduled"] == 26
+    assert summary["n_stops_served"] == summary["n_stops_scheduled"] == 24
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
     events = list(csv.DictReader((tmp_path / "run" / "events.csv").open(encoding="utf-8")))
     inserted = {e["subject"]: float(e["t_s"]) for e in events if e["kind"] == "train_inserted"}
@@ -119,5 +119,5 @@ def test_jena_lines_2_3_34_no_train_takes_the_points_beyond_a_switch_it_still_wa
     summary = read_summary(tmp_path / "run")
     assert summary["status"] == "completed"
     assert summary["n_arrived"] == summary["n_trains"] == 16
-    assert summary["n_stops_served"] == summary["n_stops_scheduled"] == 438
+    assert summary["n_stops_served"] == summary["n_stops_scheduled"] == 380
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
