@@ -45,18 +45,11 @@ from railsim.engine.occupancy import Ahead, Body, Occupancy
 from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
-from railsim.engine.settings import (
-    FACING_DECEL_MPS2,
-    PERMISSIVE_DECEL_MPS2,
-    PERMISSIVE_SPEED_FACTOR,
-    PERMISSIVE_TAU_S,
-    EngineSettings,
-)
+from railsim.engine.settings import PERMISSIVE_DECEL_MPS2, PERMISSIVE_SPEED_FACTOR, PERMISSIVE_TAU_S, EngineSettings
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
 from railsim.engine.turnback import Turnbacks
 from railsim.engine.watchdog import StallWatch
-from railsim.physics import dynamics
 from railsim.record.recorder import Recorder
 from railsim.errors import SimulationError
 from railsim.record.snapshot import RunSnapshot
@@ -294,8 +287,10 @@ class Simulation:
             ahead[tr.train_id] = a
             self.safety.truth_checks(t, tr, a)
         self.safety.crossing_checks(t, active)
-        if self.occupancy.has_bidi:  # trains facing each other on one track (partner edges)
-            self._facing(t, active)
+        if self.occupancy.has_bidi:  # trains facing each other on one track (partner edges): contacts, authorities
+            self.safety.head_on_checks(t, active, self.occupancy.facing)
+            fronts = [(tr.train_id, tr.front_m, tr.plant.speed_mps) for tr in active]
+            self.locks.facing_m = self.occupancy.facing_within_braking(fronts, self.settings.sensor_range_m)
         self.safety.sumo_reported(t, bridge.collisions())
         self.watchdog.check(t, active, ahead)
 
@@ -334,29 +329,8 @@ class Simulation:
             expected_v = tr.sent_speed_mps if tr.sent_speed_mps is not None else tr.plant.speed_mps
             if abs(sumo_v - expected_v) > 1e-6 and tr.sent_speed_mps is not None:
                 self.safety.speed_imposed(t, tr, sumo_v, expected_v, self.dt)
-                if tr.exact_plant is not None:
-                    tr.exact_plant.resync(t, tr.front_m, sumo_v)
-                # SUMO holds a dwelling train at 0; adopt SUMO's speed so the plant never drifts from the world
-                tr.plant = dynamics.PlantState(
-                    speed_mps=sumo_v,
-                    applied_accel_mps2=0.0 if sumo_v == 0 else tr.plant.applied_accel_mps2,
-                    target_accel_mps2=0.0 if sumo_v == 0 else tr.plant.target_accel_mps2,
-                )
+                tr.adopt_sumo_speed(t, sumo_v)
         return truth
-
-    def _facing(self, t: float, active: list[TrainRuntime]) -> None:
-        """Head-on contacts (safety), and for each train the nearest train facing it on the track it may run on
-        next (the route locks end its authority before it): as far as it could brake from its speed at a mild
-        0.5 m/s², at least its sensor range."""
-        facing = self.occupancy.facing
-        self.safety.head_on_checks(t, active, facing)
-        near: dict[str, float] = {}
-        for tr in active:
-            reach_m = self.settings.sensor_range_m + tr.plant.speed_mps**2 / (2.0 * FACING_DECEL_MPS2)
-            hit = facing(tr.train_id, tr.front_m, reach_m)
-            if hit is not None:
-                near[tr.train_id] = hit.near_m
-        self.locks.facing_m = near
 
     # ------------------------------------------------------------------ results
     def snapshot(self) -> RunSnapshot:

@@ -30,6 +30,7 @@ from dataclasses import dataclass
 from typing import Any, NamedTuple
 
 from railsim.engine.routeview import RouteView
+from railsim.engine.settings import FACING_DECEL_MPS2
 
 
 @dataclass(slots=True)
@@ -131,6 +132,17 @@ class Occupancy:
                 return best
             j += 1
         return None
+
+    def facing_within_braking(self, fronts: list[tuple[str, float, float]], floor_m: float) -> dict[str, float]:
+        """For each ``(train, front_m, speed_mps)``, where the nearest train facing it begins (its frame), looked
+        for as far as the train brakes from its speed at a mild :data:`FACING_DECEL_MPS2`, at least ``floor_m``
+        (the sensor range); trains with none are left out. The route locks end authorities before it."""
+        near: dict[str, float] = {}
+        for train_id, front_m, speed_mps in fronts:
+            hit = self.facing(train_id, front_m, floor_m + speed_mps**2 / (2.0 * FACING_DECEL_MPS2))
+            if hit is not None:
+                near[train_id] = hit.near_m
+        return near
 
     def facing(self, train_id: str, from_m: float, lookahead_m: float) -> Facing | None:
         """The nearest train on the partner edges of this train's route from ``from_m`` on (within

@@ -87,6 +87,18 @@ class TrainRuntime:
         self.train_id = self.trip.trip_id
         self.sumo_id = self.trip.trip_id
 
+    def adopt_sumo_speed(self, t: float, speed_mps: float) -> None:
+        """SUMO imposed ``speed_mps`` (it holds a dwelling train at 0): the plant takes it, so it never drifts from
+        the world; a standing train keeps no acceleration."""
+        if self.exact_plant is not None:
+            self.exact_plant.resync(t, self.front_m, speed_mps)
+        standing = speed_mps == 0
+        self.plant = dynamics.PlantState(
+            speed_mps=speed_mps,
+            applied_accel_mps2=0.0 if standing else self.plant.applied_accel_mps2,
+            target_accel_mps2=0.0 if standing else self.plant.target_accel_mps2,
+        )
+
     @property
     def on_line(self) -> bool:
         """Inserted and not yet arrived or removed."""
