@@ -41,7 +41,7 @@ sys.path.insert(0, str(ROOT))
 from network.external import load_net  # noqa: E402
 from railsim.errors import ConfigError  # noqa: E402
 
-MAX_SERVICES = 3
+MAX_SERVICES = 3  # default of --services
 STOP_LENGTH_M = 150.0  # survey platform length (or the whole edge if shorter)
 MIN_STOP_EDGE_M = 20.0  # survey stops go on edges at least this long
 
@@ -103,8 +103,8 @@ def _lanes(bundle: Any, edge: str) -> set[str]:
     return {ln.getID() for ln in net.getEdge(edge).getLanes() if ln.allows(bundle.vclass)}
 
 
-def _pick_routes(bundle: Any) -> list[tuple[str, str]]:
-    """Up to MAX_SERVICES (from, to) station pairs: the longest listed route, its opposite, the next longest."""
+def _pick_routes(bundle: Any, max_services: int = MAX_SERVICES) -> list[tuple[str, str]]:
+    """Up to ``max_services`` (from, to) station pairs: the longest listed route, its opposite, the next longest…"""
     ranked = sorted(bundle.routes.values(), key=lambda r: (-len({s.station_id for s in r.stops}), -r.length_m, r.id))
     pairs: list[tuple[str, str]] = []
     for r in ranked:
@@ -112,12 +112,15 @@ def _pick_routes(bundle: Any) -> list[tuple[str, str]]:
         for pair in ((a, b), (b, a)):
             if pair not in pairs and f"{pair[0]}->{pair[1]}" in bundle.routes:
                 pairs.append(pair)
-        if len(pairs) >= MAX_SERVICES:
+        if len(pairs) >= max_services:
             break
-    return pairs[:MAX_SERVICES]
+    return pairs[:max_services]
 
 
-def _scenario(name: str, net: Path, adds: list[Path], pairs: list[tuple[str, str]], duration_s: float) -> dict:
+def _scenario(
+    name: str, net: Path, adds: list[Path], pairs: list[tuple[str, str]], duration_s: float, trips: int = 1
+) -> dict:
+    """Services start 60 s apart; with ``trips`` > 1 each runs again every 300 s, so trains meet and follow."""
     return {
         "name": f"survey_{name}",
         "world": {"net": str(net), "additional": [str(p) for p in adds]},
@@ -126,7 +129,14 @@ def _scenario(name: str, net: Path, adds: list[Path], pairs: list[tuple[str, str
         "controllers": {"ato": {"type": "ato"}, "sep": {"type": "separation"}},
         "roles": {"ato": "ato", "separation": "sep"},
         "services": [
-            {"id": f"s{k}", "from": a, "to": b, "vehicle": "unit", "departures": {"times": [60.0 * k]}, "dwell_s": 20}
+            {
+                "id": f"s{k}",
+                "from": a,
+                "to": b,
+                "vehicle": "unit",
+                "departures": {"times": [60.0 * k + 300.0 * t for t in range(trips)]},
+                "dwell_s": 20,
+            }
             for k, (a, b) in enumerate(pairs)
         ],
     }
@@ -151,7 +161,13 @@ def _outcome(rc: int, err: str, summary: Path | None = None) -> str:
         for key in ("collisions", "sumo_collisions", "switch_violations"):
             if s.get(key):
                 text += f", {key} {s[key]}"
+        if (s.get("sumo_collisions") or 0) > (s.get("collisions") or 0):
+            text += " **HIDDEN COLLISIONS**"  # SUMO saw more than railsim reported: the worst defect
+        if rc != 0:
+            text += f" (exit {rc})"
         return text
+    if rc == 3:
+        return "exit 3: " + _short(err.removeprefix("railsim: error: "))
     if rc == 0:
         return "ok"
     if rc == 2 and "Traceback" not in err:
@@ -159,25 +175,27 @@ def _outcome(rc: int, err: str, summary: Path | None = None) -> str:
     return f"crash (exit {rc}): {_short(err)}"
 
 
-def survey_one(net: Path, out: Path, duration_s: float) -> Row:
+def survey_one(net: Path, out: Path, duration_s: float, services: int = MAX_SERVICES, trips: int = 1) -> Row:
     name = net.parent.name  # one net per folder, named by its folder
     folder = out / name
     folder.mkdir(parents=True, exist_ok=True)
     adds = _stop_files(net)
     try:
         bundle = load_net(net, adds)
-        pairs = _pick_routes(bundle)
+        pairs = _pick_routes(bundle, services)
         if not pairs:
             adds = [*adds, _survey_stops(net, folder)]
             bundle = load_net(net, adds)
-            pairs = _pick_routes(bundle)
+            pairs = _pick_routes(bundle, services)
     except ConfigError as exc:
         return Row(name, "-", "refused at load: " + _short(str(exc)), "-")
     stations = f"{len(bundle.stations)} ({'survey stops' if any(p.name.startswith('survey') for p in adds) else 'own'})"
     if not pairs:
         return Row(name, stations, "no route between any two stations", "-")
     path = folder / "scenario.yaml"
-    path.write_text(yaml.safe_dump(_scenario(name, net, adds, pairs, duration_s), sort_keys=False), encoding="utf-8")
+    path.write_text(
+        yaml.safe_dump(_scenario(name, net, adds, pairs, duration_s, trips), sort_keys=False), encoding="utf-8"
+    )
     rc, err = _railsim(["validate", str(path)], 600)
     validate = "ok" if rc == 0 else _outcome(rc, err)
     run_dir = folder / "run"
@@ -190,8 +208,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("nets", type=Path, help="folder of SUMO nets (*.net.xml, searched recursively)")
     ap.add_argument("--out", type=Path, required=True, help="folder for scenarios, runs and survey.md")
     ap.add_argument("--duration-s", type=float, default=1800.0, help="simulated horizon of each run [s]")
+    ap.add_argument("--services", type=int, default=MAX_SERVICES, help="ATO services per net (routes picked)")
+    ap.add_argument("--trips", type=int, default=1, help="trips per service, 300 s apart (> 1: trains meet)")
     args = ap.parse_args(argv)
-    rows = [survey_one(net, args.out, args.duration_s) for net in sorted(args.nets.rglob("*.net.xml"))]
+    nets = sorted(args.nets.rglob("*.net.xml"))
+    rows = []
+    for net in nets:
+        rows.append(survey_one(net, args.out, args.duration_s, args.services, args.trips))
+        print(
+            f"| {rows[-1].net} | {rows[-1].stations} | {rows[-1].validate} | {rows[-1].run} |",
+            file=sys.stderr,
+            flush=True,
+        )
     table = ["| net | stations | validate | run |", "|---|---|---|---|"] + [
         f"| {r.net} | {r.stations} | {r.validate} | {r.run} |" for r in rows
     ]
