@@ -130,7 +130,8 @@ class Dispatcher:
                         "formations",
                         f"formation {f.id!r}: follower {follower.train_id} cannot start {f.target_gap_m:g} m behind "
                         f"leader {leader.train_id} at {follower.trip.origin.station_id!r}: {why}, before the start "
-                        "of its route (no room on the platform's edge)",
+                        "of its route (no room on the platform's edge; couple it later, e.g. "
+                        "couple: {at_station: ...}, or start the pair where the track behind has room)",
                     )
         self._check_followers_joining_on_the_way()
 

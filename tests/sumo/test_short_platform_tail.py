@@ -52,3 +52,26 @@ def test_a_train_waits_for_the_tail_of_a_train_leaving_the_next_short_platform(t
     )
     held = [e for e in events if e["kind"] == "departure_held" and e["subject"] == "second.000"]
     assert held and "first.000" in held[0]["detail"], held
+
+
+def test_a_pair_that_cannot_start_at_a_dead_end_platform_is_refused_with_the_way_past(tmp_path: Path) -> None:
+    """A leader and follower coupled from their origin need 89.4 + 30 + 89.4 m; at a 99 m platform at a dead end
+    the follower's rear would lie before its route: refused before the run, naming what the user can do."""
+    nodes = '<node id="A" x="0" y="0"/>\n<node id="B" x="100" y="0"/>\n<node id="C" x="2500" y="0"/>'
+    net = _netconvert(tmp_path, "end", nodes, "\n".join([_edge("AB", "A", "B"), _edge("BC", "B", "C")]))
+    stops = _stops(tmp_path, "end", [("a", "AB_0", 0, 99, "Alpha"), ("c", "BC_0", 2000, 2300, "Charlie")])
+    raw = {"name": "end", "world": {"net": str(net), "additional": [str(stops)]}, **_COMMON}
+    raw["services"] = [_service("lead", "alpha", "charlie", 0), _service("follow", "alpha", "charlie", 0)]
+    raw["formations"] = [
+        {
+            "id": "pair",
+            "leader": {"service": "lead", "trip": 0},
+            "follower": {"service": "follow", "trip": 0},
+            "target_gap_m": 30,
+            "couple": {"on_departure": True},
+        }
+    ]
+    scn = _write(tmp_path, "end.yaml", yaml.safe_dump(raw, sort_keys=False))
+    res = run_railsim(["validate", str(scn)], cache_dir=tmp_path / "c")
+    assert res.returncode == 2, res.stderr
+    assert "cannot start 30 m behind" in res.stderr and "couple it later" in res.stderr, res.stderr
