@@ -41,7 +41,7 @@ Stopping on the mark (exact discrete predictor)
 
 Holding and creeping
     The train holds (a brake command of ``hold_decel``) while ``next_stop.dwelling`` is true, while it stands
-    in the platform window (arrival is registered by SUMO about a second after the halt; the engine advances
+    in the platform window (never short of it: SUMO registers no stop there; arrival is registered by SUMO about a second after the halt; the engine advances
     ``next_stop`` when the dwell is over and the departure time ``departure_not_before_s`` has passed), and
     while it stands on a stop point. A train standing short of a stop point (e.g. held by the train ahead) with
     less than ``creep_zone_m`` to go moves up at ``creep_speed`` and stops precisely as above.

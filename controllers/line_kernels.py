@@ -477,7 +477,9 @@ def ato(
     hold_applied = -_mn(service, _mx(hold_decel, -rho + 0.1))
 
     if has_stop:
-        in_window = window_start_m - stop_tol <= x <= window_end_m + stop_tol
+        # not short of the window by any tolerance: SUMO registers no stop there, so a train held just short of
+        # it (by the train ahead) creeps in rather than hold for ever
+        in_window = window_start_m <= x <= window_end_m + stop_tol
         if dwelling or (standing and in_window):
             return hold_applied, False, _HOLD
 
@@ -531,6 +533,24 @@ def ato(
         ):
             emergency = True
     ramp_m = v * 0.5 * _mx(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
+    # One more step of cruise first: out of a restriction (or a station) close before a stop point, cruise asks
+    # for full traction, and the train would be past the point where even service braking stops it in time (a
+    # train leaving a 6.6 m/s junction curve 43 m before its mark overran it by 2.6 m: SUMO's routes_cross_twice
+    # net). If the state after that step could no longer stop there with the service brake, brake now. (Only
+    # then: a braking onset the plan's deceleration still allows one step later stays where it was.)
+    traction = _mn(forces.traction_limit_mps2(mass, rot, f0, power, v), max_accel)
+    if v >= max_speed:
+        traction = 0.0
+    cruise_ahead = _mn(_mx(gain * (v_target - v), -b_plan), traction - rho)
+    speeding_up = cruise_ahead > net_now + 1e-9
+    net_next = net_now + (1.0 - r) * (cruise_ahead - net_now)  # the actuator's lag, no jerk cap: conservative
+    v_next = v + dt * _mx(net_next, 0.0)
+    ramp_next_m = v_next * 0.5 * _mx(net_next + b_service_net, 0.0) / jerk if jerk > 0.0 else 0.0
+    if jerk > 0.0 and net_next > 0.0:  # still speeding up while the jerk-limited brake ramps down through zero:
+        t_up = (
+            net_next / jerk
+        )  # that run (net·t²/2) and the longer braking from the speed gained (v·Δv/b, Δv = net·t/2)
+        ramp_next_m += net_next * t_up * t_up / 2.0 + v_next * t_up * net_next / (2.0 * b_service_net)
     for k in range(n_points):
         d = points[k] - x
         if lead_s > 0.0:
@@ -547,6 +567,11 @@ def ato(
         triggered = room_m <= discrete_stop_distance_bound_m(v, net_now, b_plan, dt, r) and (
             room_m <= discrete_stop_distance_m(v, net_now, b_plan, dt, r)
         )
+        if not triggered and speeding_up:
+            room_next_m = d - v_next * dt - ramp_next_m
+            triggered = room_next_m <= discrete_stop_distance_bound_m(v_next, net_next, b_service_net, dt, r) and (
+                room_next_m <= discrete_stop_distance_m(v_next, net_next, b_service_net, dt, r)
+            )
         if triggered or braking_now:
             b_release = release_frac * b_plan
             if not triggered and required_decel_surely_below(v, net_now, d, dt, r, b_release):
@@ -557,9 +582,6 @@ def ato(
                 phase = _STOP
 
     # ---- cruise law and the minimum
-    traction = _mn(forces.traction_limit_mps2(mass, rot, f0, power, v), max_accel)
-    if v >= max_speed:
-        traction = 0.0
     cruise_net = gain * (v_target - v)
     cruise_net = _mn(_mx(cruise_net, -b_plan), traction - rho)
     net = _mn(cruise_net, brake_net)

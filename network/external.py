@@ -299,6 +299,17 @@ def _rail_lane(lane: Any, vclass: str, open_as: str | None = None) -> bool:
     return not lane.allows("ship") if vclass == "tram" else not lane.allows("passenger")
 
 
+def _open_lanes_hint(edges: Any, open_as: str | None) -> str:
+    """The way past a refusal of a net drawn without lane permissions: name the rail class of its open lanes."""
+    n_open = sum(1 for e in edges if any(ln.allows("ship") for ln in e.getLanes()))
+    if not n_open or open_as is not None:
+        return ""
+    return (
+        f"; {n_open} edge(s) have lanes without permissions: if they are track, name their rail class with the"
+        " world option unrestricted_lanes (e.g. `unrestricted_lanes: rail`; network show: --unrestricted-lanes rail)"
+    )
+
+
 def _choose_vclass(
     net: Any, stops: list[_Stop], vclass: str | None, net_file: Path, where: Where, open_as: str | None = None
 ) -> str:
@@ -321,7 +332,8 @@ def _choose_vclass(
             None,
             "no rail edges (vClass " + "/".join(RAIL_VCLASSES) + "): no lane allows any of them "
             "without also allowing passenger cars"
-            f" (the lanes allow: {', '.join(found[:8]) + (', ...' if len(found) > 8 else '') if found else 'nothing'})",
+            f" (the lanes allow: {', '.join(found[:8]) + (', ...' if len(found) > 8 else '') if found else 'nothing'})"
+            + _open_lanes_hint(edges, open_as),
         )
     if vclass is not None:
         if counts[vclass] == 0:

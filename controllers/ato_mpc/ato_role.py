@@ -186,7 +186,7 @@ class MpcAto:
         )
         in_window = (
             stop is not None
-            and stop.window_start_m - pr.stop_tolerance_m <= own.position_m <= stop.window_end_m + pr.stop_tolerance_m
+            and stop.window_start_m <= own.position_m <= stop.window_end_m + pr.stop_tolerance_m  # SUMO's window
         )
         return profile, in_window
 

@@ -4,6 +4,7 @@
     railsim network import OSM_FILE --out DIR [--bbox W,S,E,N] [--lines L1,L2] [--light-rail-as-tram]
     railsim network show  NAME|FILE [-p KEY=VALUE ...]
     railsim network show  FILE.net.xml [-a stops.add.xml ...] [--signals strip|keep] [--vclass CLASS]
+                          [--unrestricted-lanes CLASS]
 
 A ``.net.xml`` is an existing SUMO network read as it is (:mod:`network.external`): stations come from the
 trainStops/busStops of the ``-a`` additional files.
@@ -117,12 +118,19 @@ def cmd_show(args: argparse.Namespace) -> int:
         if args.param:
             raise ConfigError("<command line>", "-p", "expected no world parameters for a .net.xml")
         bundle = load_net(
-            args.world, args.additional or (), signals=args.signals, vclass=args.vclass, where=("<command line>", "--")
+            args.world,
+            args.additional or (),
+            signals=args.signals,
+            vclass=args.vclass,
+            where=("<command line>", "--"),
+            unrestricted_lanes=args.unrestricted_lanes,
         )
         print(summary(bundle))
         return 0
-    if args.additional or args.vclass or args.signals != "strip":
-        raise ConfigError("<command line>", "-a/--signals/--vclass", "expected these only with a .net.xml file")
+    if args.additional or args.vclass or args.signals != "strip" or args.unrestricted_lanes:
+        raise ConfigError(
+            "<command line>", "-a/--signals/--vclass/--unrestricted-lanes", "expected these only with a .net.xml file"
+        )
     print(summary(build(_world_arg(args.world), **_params(args.param))))
     return 0
 
@@ -171,6 +179,12 @@ def add_commands(subparsers: Any) -> None:
         help=".net.xml only: strip SUMO's rail signals in railsim's copy (default) or keep them",
     )
     s.add_argument("--vclass", default=None, help=".net.xml only: rail vClass of railsim's trains (default: auto)")
+    s.add_argument(
+        "--unrestricted-lanes",
+        default=None,
+        metavar="CLASS",
+        help=".net.xml only: lanes without permissions are track of this rail vClass (world.unrestricted_lanes)",
+    )
     s.set_defaults(func=cmd_show)
     i = sub.add_parser("import", help="import an OpenStreetMap extract: rail net, stops per class, lines, stations")
     i.add_argument("osm_file", metavar="OSM_FILE", help="OpenStreetMap XML (.osm, .osm.xml, .osm.gz)")

@@ -130,7 +130,8 @@ class Dispatcher:
                         "formations",
                         f"formation {f.id!r}: follower {follower.train_id} cannot start {f.target_gap_m:g} m behind "
                         f"leader {leader.train_id} at {follower.trip.origin.station_id!r}: {why}, before the start "
-                        "of its route (no room on the platform's edge)",
+                        "of its route (no room on the platform's edge; couple it later, e.g. "
+                        "couple: {at_station: ...}, or start the pair where the track behind has room)",
                     )
         self._check_followers_joining_on_the_way()
 
@@ -346,29 +347,50 @@ class Dispatcher:
         for other in self.fleet.active():
             if other is tr:
                 continue
-            mapped = other.view.map_body(tr.view, depart_m, length)
-            if mapped is None:
+            pair = self._in_one_frame(tr, depart_m, length, other)
+            if pair is None:
                 continue
-            front_o, rear_o = mapped
-            other_rear_m = other.front_m - other.trip.vehicle.length_m
+            front_o, rear_o, other_front_m, other_rear_m, to_other_m = pair
             if front_o <= other_rear_m:  # it lies behind the other train's rear: the other one is ahead
                 clear_m = other_rear_m - front_o
                 if clear_m < self.settings.insertion_margin_m:  # (a follower put on at its target gap: insert_behind)
                     return f"{other.train_id} ahead is less than {self.settings.insertion_margin_m:g} m clear"
                 continue
-            if rear_o < other.front_m:
+            if rear_o < other_front_m:
                 return f"track occupied by {other.train_id}"
-            if self._cannot_stop_behind(other, rear_o):
+            if self._cannot_stop_behind(other, rear_o - other_front_m):
                 return f"approaching train {other.train_id} could not stop"
-            held = self._locked_ahead_of(other, rear_o)
+            held = self._locked_ahead_of(other, rear_o + to_other_m)
             if held is not None and not self.formations.partners(tr.train_id, other.train_id):
                 # the train behind holds the route through this spot: a train put in between would wait for that
                 # lock in front of its holder, for ever (a deadlock by insertion)
                 return f"{other.train_id} holds the route through here (switch {held})"
         return None
 
-    def _cannot_stop_behind(self, other: TrainRuntime, rear_m: float) -> bool:
-        """Could ``other`` (behind) not stop short of a rear at ``rear_m`` (its frame) with its service brake, after
+    @staticmethod
+    def _in_one_frame(
+        tr: TrainRuntime, depart_m: float, length_m: float, other: TrainRuntime, hint: int = 0
+    ) -> tuple[float, float, float, float, float] | None:
+        """``tr``'s body (front at ``depart_m`` in its frame) and ``other``'s body in one route frame:
+        ``(tr front, tr rear, other front, other rear, offset to other's frame)``, or None if they share no track.
+
+        Usually ``other``'s frame (``tr``'s body mapped onto ``other``'s route). A train standing at a platform
+        shorter than itself has its tail on track before its route begins (SUMO puts it on at the platform; the
+        tail lies on the edges behind): ``tr`` put on there shares no edge of ``other``'s route, yet ``other``'s
+        tail is on ``tr``'s track. Then ``other``'s body is mapped onto ``tr``'s route instead (found on SUMO's
+        ``tools/game/bs3d`` OSM net: a train put on at one short platform 25 m into the tail of a train that had
+        just left the next one)."""
+        mapped = other.view.map_body(tr.view, depart_m, length_m, hint)
+        other_length_m = other.trip.vehicle.length_m
+        if mapped is not None:
+            return mapped[0], mapped[1], other.front_m, other.front_m - other_length_m, 0.0
+        back = tr.view.map_body(other.view, other.front_m, other_length_m, other.edge_i)
+        if back is None:
+            return None
+        return depart_m, depart_m - length_m, back[0], back[1], other.front_m - back[0]
+
+    def _cannot_stop_behind(self, other: TrainRuntime, gap_m: float) -> bool:
+        """Could ``other`` (behind, ``gap_m`` short of a rear) not stop short of it with its service brake, after
         :data:`INSERTION_REACTION_S` and with the insertion margin to spare?"""
         v = other.plant.speed_mps
         needed = (
@@ -376,7 +398,7 @@ class Dispatcher:
             + v * INSERTION_REACTION_S
             + self.settings.insertion_margin_m
         )
-        return rear_m - other.front_m < needed
+        return gap_m < needed
 
     def guard_pending(self, pending: list[TrainRuntime]) -> None:
         """Every step, for the trains handed to SUMO that it has not put on yet (SUMO fills a spot only once it is
@@ -393,8 +415,10 @@ class Dispatcher:
                 if other is tr or other.status != "running":
                     continue
                 mapped = other.view.map_body(tr.view, tr.front_m, length_m)
-                if mapped is None or mapped[1] < other.front_m or not self._cannot_stop_behind(other, mapped[1]):
-                    continue  # not on its track, not in front of it, or far enough ahead
+                if mapped is None or mapped[1] < other.front_m:
+                    continue  # not on its track or not in front of it
+                if not self._cannot_stop_behind(other, mapped[1] - other.front_m):
+                    continue  # far enough ahead
                 self.bridge.remove(tr.sumo_id)
                 tr.status, tr.inserted_s = "scheduled", None
                 self.events.record(self.layer.now_s, "train_withdrawn", tr.train_id, approaching=other.train_id)
@@ -418,20 +442,19 @@ class Dispatcher:
         for other in self.fleet.active():
             if other is tr:
                 continue
-            mapped = other.view.map_body(tr.view, depart_m, veh.length_m, hint)
-            if mapped is None:
+            pair = self._in_one_frame(tr, depart_m, veh.length_m, other, hint)
+            if pair is None:
                 continue
-            front_o, rear_o = mapped
-            other_rear_m = other.front_m - other.trip.vehicle.length_m
-            if approaching_only and (front_o <= other_rear_m or rear_o < other.front_m):
+            front_o, rear_o, other_front_m, other_rear_m, _ = pair
+            if approaching_only and (front_o <= other_rear_m or rear_o < other_front_m):
                 continue
             if front_o <= other_rear_m:  # the other one is ahead (its stopping distance is >= 0: asked only if
                 gap_m = other_rear_m - front_o  # ours alone could not stop within the gap)
                 if gap_m < own_stop_m and gap_m < own_stop_m - self._least_stop_m(other):
                     return f"{other.train_id} ahead is {gap_m:.0f} m clear: it could not stop behind it"
-            elif rear_o < other.front_m:
+            elif rear_o < other_front_m:
                 return f"track occupied by {other.train_id}"
-            elif rear_o - other.front_m < self._least_stop_m(other) - own_stop_m:
+            elif rear_o - other_front_m < self._least_stop_m(other) - own_stop_m:
                 return f"approaching train {other.train_id} could not stop"
         return None
 

@@ -459,7 +459,11 @@ def _set_stops(train_id: str, stops: Sequence[StopSpec]) -> None:
             _api.vehicle.setBusStop(train_id, stop.stop_id, duration, until, flags=_STOP_BUS_STOP)
             continue
         lane = _api.busstop.getLaneID(stop.stop_id)
-        start_m, end_m = stop.lane_stop_m
+        # SUMO rejects a stop that ends past its lane ("invalid position"), even by a rounding error of the route
+        # chainage the window was computed in (a platform ending at its edge's end, an overrun reaching it)
+        lane_m = float(_api.lane.getLength(lane))
+        end_m = min(stop.lane_stop_m[1], lane_m)
+        start_m = max(0.0, min(stop.lane_stop_m[0], end_m))
         _api.vehicle.setStop(
             train_id,
             _api.lane.getEdgeID(lane),

@@ -93,6 +93,19 @@ def test_a_net_without_lane_permissions_runs_when_its_lanes_are_named_rail(tmp_p
     assert s["n_arrived"] == 1 and s["n_stops_served"] == 1 and s["collisions"] == 0
 
 
+def test_the_refusal_of_a_net_without_permissions_names_the_way_past(tmp_path: Path) -> None:
+    """The refusal says which world option makes open lanes track; ``network show`` takes it too."""
+    net, stops = build_no_permissions(tmp_path)
+    res = run_railsim(["network", "show", str(net), "-a", str(stops)], cache_dir=tmp_path / "c")
+    assert res.returncode == 2 and "no rail edges" in res.stderr, res.stderr
+    assert "lanes without permissions" in res.stderr and "unrestricted_lanes" in res.stderr, res.stderr
+    res = run_railsim(
+        ["network", "show", str(net), "-a", str(stops), "--unrestricted-lanes", "subway"], cache_dir=tmp_path / "c"
+    )
+    assert res.returncode == 0, res.stderr
+    assert "rail vClass subway" in res.stdout and "alpha" in res.stdout.lower(), res.stdout
+
+
 def test_a_missing_track_is_named_not_a_reversal(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     from network.external import load_net
 

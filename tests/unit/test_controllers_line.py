@@ -338,6 +338,30 @@ def test_ato_creeps_when_halted_short(dt: float) -> None:
     assert tr.v_mps[-1] == 0.0
 
 
+@pytest.mark.parametrize("short_m", [0.05, 0.4])
+def test_ato_creeps_into_the_window_when_halted_just_short_of_it(short_m: float) -> None:
+    """Held by the train ahead a few decimetres short of a short platform's 2 m window (SUMO's
+    ``tools/game``-style survey nets: the separation role stopped it 0.4 m short), the train used to count as
+    standing in the window and hold for ever — SUMO registers no stop short of its window, so the run stalled."""
+    stop = _stop(1500.0, before_m=1.0, after_m=1.0)
+    tr = run_ato(0.5, stop, x0=stop.window_start_m - short_m, t_end_s=60.0)
+    assert tr.x_m[-1] >= stop.window_start_m and tr.v_mps[-1] == 0.0
+    assert abs(tr.x_m[-1] - stop.mark_m) <= 0.5
+
+
+@pytest.mark.parametrize("dt", [0.5, 1.0])
+def test_ato_stops_on_the_mark_after_a_restriction_just_before_the_platform(dt: float) -> None:
+    """Out of a 6.56 m/s junction curve whose end the rear clears 43 m before the mark, cruise asks for full
+    traction; the braking onset used to be checked for the state before that step and the train overran the
+    mark by 2.6 m at dt = 0.5 s — a missed stop on SUMO's ``reversal/routes_cross_twice`` net. Now the train
+    brakes as soon as one more cruise step would leave it unable to stop there with the service brake. (At
+    dt = 0.1 s the jerk-limited ramp out of traction is still under-predicted: a 2.6 m overrun, known.)"""
+    stop = StopTarget("B", mark_m=534.1, window_start_m=490.1, window_end_m=535.1)
+    tr = run_ato(dt, stop, x0=198.0, limits=(SpeedLimit(399.44, 400.69, 6.56),), t_end_s=150.0)
+    assert abs(tr.x_m[-1] - stop.mark_m) <= 0.5, tr.x_m[-1]
+    assert tr.v_mps[-1] == 0.0
+
+
 def test_ato_stays_put_when_standing_in_window() -> None:
     stop = _stop(1500.0)
     tr = run_ato(0.5, stop, x0=1496.0, t_end_s=20.0, settle_s=100.0)
