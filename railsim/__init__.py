@@ -6,3 +6,7 @@ line is a call here (``railsim.scenario.load``, ``railsim.api.run``, ``network.b
 """
 
 __version__ = "0.1.0"
+
+from railsim import kernel_cache as _kernel_cache
+
+_kernel_cache.configure()  # before any kernel compiles: numba's cache keyed on the kernel sources

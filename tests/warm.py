@@ -1,8 +1,8 @@
 """Compile numba's kernels into their on-disk cache once, before the test processes need them.
 
 The kernels (``@njit(cache=True)``: the line ATO, the free-run planner, the plant and step kernels, Paper A's MCF
-and OPO optimisers) compile on first use and are then cached beside their source. On a fresh clone nothing is cached
-yet, so without this step the first test process (and every child a test starts meanwhile) that reaches a kernel
+and OPO optimisers) compile on first use and are then cached on disk (:mod:`railsim.kernel_cache`: one folder per
+version of their sources). On a fresh clone nothing is cached yet, so without this step the first test process (and every child a test starts meanwhile) that reaches a kernel
 compiles it itself — the same work done several times at once, and up to ~20 s of CPU inside one unit test.
 ``make test`` and ``make check`` run this module once, beside the lint (``python -m tests.warm``): it reaches the
 kernels the way the suite does (Paper A's ``mcf_dmpc`` and ``opo_mcf_dmpc`` controllers on one observation, and a
