@@ -172,17 +172,13 @@ class Joins:
             return False
         if f.id in self.failed:
             return False
-        fol = self.book.follower_of(f)
+        leader, fol = self.book.leader_of(f), self.book.follower_of(f)
+        li, fi = stop_index(leader, station), stop_index(fol, station)
+        if li is None or leader.trip.stops[li] != stop:
+            return False  # a later stop of the same station (a route may stop twice at one, on two platforms)
         state = self.book.manager.state(f.id)
-        if state == "coupled":
-            fstop, _ = self.book.current_stop(fol)
-            return (
-                fol.status == "running"
-                and fstop is not None
-                and fstop.station_id == stop.station_id
-                and not fol.held_for_route
-            )
-        fi = stop_index(fol, stop.station_id)
+        if state == "coupled":  # until the follower's dwell at the join stop itself has ended
+            return fol.status == "running" and fol.next_stop == fi and not fol.held_for_route
         if fol.status not in ("scheduled", "inserting", "running") or fi is None or fol.next_stop > fi:
             return False
         waited_s = t - self.held_since_s.setdefault(f.id, t)
