@@ -243,8 +243,12 @@ class Joins:
         halt_m = stop.mark_m - (
             self.book.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
         )
-        # standing behind its waiting leader (held at the platform's berth limit): called on, it runs in
-        return follower.plant.speed_mps < STANDING_MPS or self.book.in_final_approach(follower, halt_m)
+        # standing behind its waiting leader (held at the platform's berth limit, within one platform and the
+        # couple reach of its halt; not at the station before, about to leave it): called on, it runs in
+        standing = (
+            follower.plant.speed_mps < STANDING_MPS and halt_m - follower.front_m <= stop.platform_m + COUPLE_REACH_M
+        )
+        return standing or self.book.in_final_approach(follower, halt_m)
 
     def merge_out_of_order(
         self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None

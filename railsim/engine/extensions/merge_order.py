@@ -1,7 +1,10 @@
 """Formation order at a merge: the interlocking serves a formation's leader first and its follower next.
 
 A formation that asks to couple after a merge (``couple: {after_switch: X}``) with its two units coming to ``X``
-from different legs can only couple if the follower passes ``X`` right after its leader. The interlocking serves a
+from different legs can only couple if the follower passes ``X`` right after its leader; so can one that joins at
+a station (``couple: {at_station: S}``) with its units coming over a merge before ``S`` from different legs (the
+last such switch before ``S`` is its ``X``: a train of the leader's leg between them would stand at ``S`` behind
+the waiting leader). The interlocking serves a
 switch first come, first served (:mod:`railsim.engine.events.interlocking`), so without help a train of the
 leader's leg that asks between the two takes the points between them, and a follower that reaches the merge first
 passes it first. This extension keeps the order by holding requests back (the ``defers_lock`` hook); it never
@@ -65,6 +68,25 @@ def wait_limit_s(coupling_timeout_s: float, stall_timeout_s: float) -> float:
     return max(0.0, min(coupling_timeout_s, stall_timeout_s - STALL_MARGIN_S))
 
 
+def _merge_before(leader: TrainRuntime, follower: TrainRuntime, f: object) -> str | None:
+    """``couple: {at_station: X}``: the last switch before ``X`` that the two units pass on different legs (where
+    the follower's way joins its leader's), or None when they come to ``X`` on one way."""
+    station = str(f.couple.station)  # type: ignore[attr-defined]
+    marks = {}
+    for tr in (leader, follower):
+        stop = next((s for s in tr.trip.stops if s.station_id == station and s.kind != "reversal"), None)
+        if stop is None:
+            return None
+        marks[tr.train_id] = stop.mark_m
+    legs = {rs.switch_id: rs.leg for rs in follower.trip.route.switches if rs.point_m < marks[follower.train_id]}
+    before = [
+        rs
+        for rs in leader.trip.route.switches
+        if rs.point_m < marks[leader.train_id] and rs.switch_id in legs and legs[rs.switch_id] != rs.leg
+    ]
+    return max(before, key=lambda rs: rs.point_m).switch_id if before else None
+
+
 @dataclass
 class MergePair:
     """One formation coupling after merge ``switch_id``, its units on different legs there."""
@@ -92,7 +114,9 @@ class MergeOrder(Extension):
     @classmethod
     def applies(cls, scenario: Scenario) -> bool:
         """Any formation that asks to couple after a switch."""
-        return any(f.couple is not None and f.couple.kind == "after_switch" for f in scenario.formations)
+        return any(
+            f.couple is not None and f.couple.kind in ("after_switch", "at_station") for f in scenario.formations
+        )
 
     def __init__(self, ctx: ExtensionContext) -> None:
         super().__init__(ctx)
@@ -111,10 +135,12 @@ class MergeOrder(Extension):
         pairs = []
         stall_s = self.ctx.settings.stall_timeout_s
         for fid, f in self.ctx.formations.of_follower.items():
-            if f.couple is None or f.couple.kind != "after_switch":
+            if f.couple is None or f.couple.kind not in ("after_switch", "at_station"):
                 continue
             leader, follower = self.ctx.formations.leader_of(f), self.ctx.trains[fid]
-            sw = str(f.couple.switch)
+            sw = str(f.couple.switch) if f.couple.kind == "after_switch" else _merge_before(leader, follower, f)
+            if sw is None:
+                continue
             points = {}
             for tr in (leader, follower):
                 points[tr.train_id] = next((rs for rs in tr.trip.route.switches if rs.switch_id == sw), None)
