@@ -49,7 +49,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 from tests.helpers import read_csv, read_summary, run_mapping  # noqa: E402
 
 RAILSIM = str(Path(sys.executable).with_name("railsim"))
-START_S = 400.0  # the first leader leaves then (a follower may leave up to this much before it)
+START_S = 120.0  # no unit leaves earlier (the timetable is shifted when a follower would leave before it)
 UNRELATED_CLEAR_S = 60.0  # an unrelated train leaves its origin this long after / before a formation's unit
 
 
@@ -159,8 +159,10 @@ def scenario(base: dict[str, Any], place: Place, kind: str, seed: int, args: arg
         lo, hi = args.station_offset_min, args.station_offset_max
     pairs = []
     for k in range(args.pairs):
-        lead_s = START_S + k * args.period
+        lead_s = k * args.period
         pairs.append((lead_s, float(round(lead_s + lead_to_s - fol_to_s + rng.uniform(lo, hi), 1))))
+    shift_s = max(0.0, START_S - min(min(p) for p in pairs))  # no unit leaves before START_S
+    pairs = [(a + shift_s, b + shift_s) for a, b in pairs]
     order_l = sorted(range(len(pairs)), key=lambda k: pairs[k][0])
     order_f = sorted(range(len(pairs)), key=lambda k: pairs[k][1])
     trains = [
@@ -168,7 +170,7 @@ def scenario(base: dict[str, Any], place: Place, kind: str, seed: int, args: arg
         ("fol", place.follower, [pairs[k][1] for k in order_f]),
     ]
     for name, svc, unit in (("lead_x", place.leader, 0), ("fol_x", place.follower, 1)):
-        times = sorted(p[unit] for p in pairs) + [START_S + (args.pairs + 1) * args.period]
+        times = sorted(p[unit] for p in pairs) + [max(max(p) for p in pairs) + args.period]
         for k, (after_s, before_s) in enumerate(zip(times, times[1:])):
             a_s, b_s = after_s + UNRELATED_CLEAR_S, before_s - UNRELATED_CLEAR_S
             if b_s > a_s:
@@ -190,7 +192,7 @@ def scenario(base: dict[str, Any], place: Place, kind: str, seed: int, args: arg
         if place.decouple_switch is not None:
             fm["decouple"] = {"before_switch": place.decouple_switch}
         formations.append(fm)
-    duration_s = START_S + (args.pairs + 1) * args.period + 3600.0
+    duration_s = max(max(p) for p in pairs) + args.period + 3600.0
     return {
         "name": f"city_coupling_{kind}",
         "world": base["world"],
