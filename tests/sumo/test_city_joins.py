@@ -1,0 +1,100 @@
+"""Joins at a station after a merge, on the generated Y world and on an imported city (real SUMO runs).
+
+* **Y world** (:file:`tests/data/lines/merge_y.yaml`): a formation joining at C (``couple: {at_station: c}``),
+  its leader from E and its follower from G over the merge ``c_down``, and an unrelated train from E 60 s behind
+  the leader. First come, first served it took the merge before the follower and stood at C behind the waiting
+  leader (the join ``blocked``); the merge order now holds it short of ``c_down`` until the follower asked, and
+  the pair couples at C.
+* **Potsdam** (:file:`tests/data/osm/potsdam_tram_2025.osm.gz`, imported with platforms widened to 70 m): lines 91
+  (from Bahnhof Rehbrücke) and 92 (from Bisamkiez) merge before Waldstraße/Horstweg, where both stop twice (OSM
+  maps two stop positions one after the other on the same track). A formation joining there couples at the first
+  of the two stops and the pair leaves together; the leader was held for ever (the follower's *next* stop was at
+  the same station, read as "still at the join station": no train arrived).
+"""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+from typing import Any
+
+from tests.helpers import merge_world, ok_stdout, read_csv, read_summary, run_mapping, run_railsim
+
+POTSDAM = Path(__file__).resolve().parents[1] / "data" / "osm" / "potsdam_tram_2025.osm.gz"
+
+
+def _run(tmp_path: Path, name: str, data: dict[str, Any]) -> tuple[Path, list[dict[str, Any]]]:
+    res, out = run_mapping(tmp_path, data, name)
+    assert res.returncode == 0, res.stderr[-2000:]
+    summary = read_summary(out)
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
+    assert summary["n_arrived"] == summary["n_trains"]
+    events = read_csv(out / "events.csv")
+    for e in events:
+        e["detail"] = json.loads(e["detail"]) if e["detail"] else {}
+    return out, events
+
+
+def test_a_train_behind_the_leader_waits_at_the_merge_for_a_join_at_the_station_after_it(tmp_path: Path) -> None:
+    data = merge_world([(0.0, 140.0)], others=[("mid", "e", 60.0)])
+    data["formations"][0]["couple"] = {"at_station": "c"}
+    out, events = _run(tmp_path, "join_after_merge", data)
+    grants = [
+        h for e in events if e["kind"] == "lock_granted" and e["subject"] == "c_down" for h in e["detail"]["holders"]
+    ]
+    assert grants == ["lead.000", "fol.000", "mid.000"]
+    assert not [e for e in events if e["kind"] == "coupling_failed"]
+    assert read_summary(out)["formations_asked"] == [
+        {"id": "m0", "asked": "at_station c", "coupled": True, "where": "at_station c", "reason": None}
+    ]
+
+
+def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tmp_path: Path) -> None:
+    cache = tmp_path / "cache"
+    world = tmp_path / "potsdam"
+    ok_stdout(
+        run_railsim(["network", "import", str(POTSDAM), "--out", str(world), "--platform-m", "70"], cache_dir=cache)
+    )
+    services = [
+        ("lead", "Bahnhof Rehbrücke", ["Waldstraße/Horstweg"], 0.0),
+        ("fol", "Bisamkiez", ["Magnus-Zeller-Platz", "Waldstraße/Horstweg"], 200.0),
+    ]
+    data = {
+        "name": "potsdam_join",
+        "world": {
+            "net": str(world / "potsdam_tram_2025.net.xml"),
+            "additional": [str(world / "potsdam_tram_2025.stops.tram.add.xml")],
+            "vclass": "tram",
+        },
+        "simulation": {"step_s": 0.5, "duration_s": 1800.0, "seed": 1},
+        "vehicles": {"tram": {"preset": "cq3_6car", "length_m": 27.0, "max_speed_kmh": 70.0}},
+        "controllers": {"ato": {"type": "ato"}, "sep": {"type": "separation"}, "vc": {"type": "cacc"}},
+        "roles": {"ato": "ato", "separation": "sep", "coupled": "vc"},
+        "services": [
+            {
+                "id": sid,
+                "from": origin,
+                "to": "Sporthalle",
+                "via": via,
+                "vehicle": "tram",
+                "dwell_s": 20,
+                "departures": {"times": [dep_s]},
+            }
+            for sid, origin, via, dep_s in services
+        ],
+        "formations": [
+            {
+                "id": "j",
+                "leader": {"service": "lead", "trip": 0},
+                "follower": {"service": "fol", "trip": 0},
+                "target_gap_m": 10.0,
+                "couple": {"at_station": "waldstrasse-horstweg"},
+            }
+        ],
+    }
+    out, _ = _run(tmp_path, "join", data)
+    assert read_summary(out)["formations_asked"][0]["coupled"]
+    at = [r for r in read_csv(out / "stops.csv") if r["station"] == "waldstrasse-horstweg"]
+    first = {r["trip_id"]: r for r in reversed(at)}  # each trip's first stop there
+    assert len(at) == 4  # both trips stop twice at Waldstraße/Horstweg
+    assert abs(float(first["lead.000"]["departure_s"]) - float(first["fol.000"]["departure_s"])) <= 0.5
