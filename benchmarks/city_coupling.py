@@ -8,7 +8,8 @@ topology alone — no station or switch is named here:
 * a **merge** is a switch that two services' routes both pass on different legs and after which they run on the
   same edge; each such (switch, pair of legs) is taken once, with the pair of services that pass it;
 * its **join station** is the first station past the merge where both stop, that is not the leader's
-  destination and whose platform holds leader + target gap + follower (the engine's rule for a join station);
+  destination, where the leader standing has its rear clear of the merge, and whose platform holds leader +
+  target gap + follower (the engine's rule for a join station);
 * where the two routes part again (the next switch both pass on different legs, or one's destination) the pair
   decouples: ``decouple: {before_switch: X}`` before a diverge, nothing when the follower's trip ends first on
   the shared track.
@@ -46,6 +47,7 @@ import yaml
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
+from railsim.engine.joins import MERGE_CLEAR_M  # noqa: E402
 from tests.helpers import read_csv, read_summary, run_mapping  # noqa: E402
 
 RAILSIM = str(Path(sys.executable).with_name("railsim"))
@@ -120,7 +122,13 @@ def _place(ta: Any, tb: Any, ra: Any, rb: Any, svc_a: dict, svc_b: dict, gap_m: 
     after_b = {s.station_id: s for s in tb.stops if s.kind == "station" and s.mark_m > rb.point_m}
     need_m = ta.vehicle.length_m + gap_m + tb.vehicle.length_m + 1.0
     station = next(
-        (s for s in ta.stops if s.kind == "station" and s.mark_m > ra.point_m and s.station_id in after_b),
+        (
+            s
+            for s in ta.stops
+            if s.kind == "station"
+            and s.mark_m - ta.vehicle.length_m - MERGE_CLEAR_M > ra.point_m  # the waiting leader clear of the merge
+            and s.station_id in after_b
+        ),
         None,
     )
     if station is not None and (station.is_destination or station.platform_m < need_m):

@@ -264,11 +264,17 @@ class MergeOrder(Extension):
         return leader.status in ON_THE_WAY and leader.front_m < p.point_leader_m
 
     def _would_ask(self, follower: TrainRuntime, p: MergePair) -> bool:
-        """The follower is on the line within the engine's request distance of the merge."""
-        return (
-            follower.status == "running"
-            and p.point_follower_m - follower.front_m <= self.ctx.settings.lock_request_distance_m
-        )
+        """The follower is on the line within the engine's request distance of the merge and has no stop left to
+        serve before it (or stands at the last one, its route not set): from then on it waits for the merge. A
+        follower still serving stops on its way there is not waiting yet — counted from its first held request,
+        the wait ran out while it was still stations away (the request distance spans several tram stops)."""
+        if follower.status != "running":
+            return False
+        if p.point_follower_m - follower.front_m > self.ctx.settings.lock_request_distance_m:
+            return False
+        stops = follower.trip.stops
+        nxt = follower.next_stop
+        return nxt >= len(stops) or stops[nxt].mark_m > p.point_follower_m or follower.held_for_route
 
     # ------------------------------------------------------------------ the hook
     def defers_lock(self, train_id: str, switch_id: str) -> bool:
