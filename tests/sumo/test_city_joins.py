@@ -5,6 +5,9 @@
   the leader. First come, first served it took the merge before the follower and stood at C behind the waiting
   leader (the join ``blocked``); the merge order now holds it short of ``c_down`` until the follower asked, and
   the pair couples at C.
+* **Y world, a stop before the merge**: the follower dwells 240 s at F, 1.3 km before the merge; its wait for
+  its leader is counted from when it leaves F (it has no stop left before the merge), not from its first held
+  request on the way to F (the wait ran out while it still stood at F, and it went first: `wrong_order`).
 * **Potsdam** (:file:`tests/data/osm/potsdam_tram_2025.osm.gz`, imported with platforms widened to 70 m): lines 91
   (from Bahnhof Rehbrücke) and 92 (from Bisamkiez) merge before Waldstraße/Horstweg, where both stop twice (OSM
   maps two stop positions one after the other on the same track). A formation joining there couples at the first
@@ -98,3 +101,22 @@ def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tm
     first = {r["trip_id"]: r for r in reversed(at)}  # each trip's first stop there
     assert len(at) == 4  # both trips stop twice at Waldstraße/Horstweg
     assert abs(float(first["lead.000"]["departure_s"]) - float(first["fol.000"]["departure_s"])) <= 0.5
+
+
+def test_a_follower_serving_a_stop_before_the_merge_waits_for_its_leader_from_when_it_leaves_it(
+    tmp_path: Path,
+) -> None:
+    # the follower dwells 240 s at F, 1.3 km before the merge (within the engine's 1.5 km request distance); its
+    # leader leaves E 300 s after it. Counted from its first held request (approaching F) the wait ran out before it
+    # left F and it went first ("wrong_order"); counted from its leaving F it waits there for its leader
+    data = merge_world([(300.0, 0.0)])
+    fol = next(s for s in data["services"] if s["id"] == "fol")
+    fol["dwell_s"] = {"default": 20, "stations": {"f": 240}}
+    out, events = _run(tmp_path, "dwell_before_merge", data)
+    ended = [e["detail"] for e in events if e["kind"] == "merge_wait_ended"]
+    assert [e["reason"] for e in ended] == ["leader_asked"]
+    grants = [
+        h for e in events if e["kind"] == "lock_granted" and e["subject"] == "c_down" for h in e["detail"]["holders"]
+    ]
+    assert grants == ["lead.000", "fol.000"]
+    assert read_summary(out)["formations_asked"][0]["coupled"]
