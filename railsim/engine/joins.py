@@ -52,6 +52,21 @@ def stop_index(tr: TrainRuntime, station: str) -> int | None:
     return next((i for i, s in enumerate(tr.trip.stops) if s.station_id == station and s.kind != "reversal"), None)
 
 
+def shared_platform(leader: TrainRuntime, follower: TrainRuntime, station: str) -> tuple[int, int] | None:
+    """The two trips' stops at ``station`` where they join: the first platform both stop at (the follower can
+    only run in behind its leader on the leader's track), else their first stops there; None if one does not stop
+    there."""
+    ours = [i for i, s in enumerate(leader.trip.stops) if s.station_id == station and s.kind != "reversal"]
+    theirs = [i for i, s in enumerate(follower.trip.stops) if s.station_id == station and s.kind != "reversal"]
+    if not ours or not theirs:
+        return None
+    for li in ours:
+        fi = next((i for i in theirs if follower.trip.stops[i].stop_id == leader.trip.stops[li].stop_id), None)
+        if fi is not None:
+            return li, fi
+    return ours[0], theirs[0]
+
+
 class FormationsView(Protocol):
     """What the joins ask of the formation book (:class:`railsim.engine.coupling.FormationBook`)."""
 
@@ -102,8 +117,7 @@ class Joins:
         if f.id not in self._join:
             leader, follower = self.book.leader_of(f), self.book.follower_of(f)
             if trig(f.couple, "at_station"):
-                li, fi = stop_index(leader, str(f.couple.station)), stop_index(follower, str(f.couple.station))
-                self._join[f.id] = None if li is None or fi is None else (li, fi)
+                self._join[f.id] = shared_platform(leader, follower, str(f.couple.station))
             elif trig(f.couple, "after_switch"):
                 self._join[f.id] = self._first_common_stop_after(f, leader, follower, f.couple.switch)
             else:
@@ -148,7 +162,7 @@ class Joins:
                     f"expected a station both trips stop at, got {station!r} "
                     f"(the {role} {tr.train_id} does not stop there)",
                 )
-        stop = leader.trip.stops[stop_index(leader, station) or 0]
+        stop = leader.trip.stops[(shared_platform(leader, follower, station) or (0, 0))[0]]
         lead_m, fol_m, gap_m = leader.trip.vehicle.length_m, follower.trip.vehicle.length_m, float(f.target_gap_m)
         need_m = pair_length_m(f, leader, follower)
         if stop.platform_m < need_m:
@@ -215,9 +229,10 @@ class Joins:
         if f.id in self.requested or f.id in self.failed or follower.status != "running":
             return
         station = f.couple.station
-        fi, li = stop_index(follower, station), stop_index(leader, station)
-        if fi is None or li is None or follower.next_stop != fi:
+        stops = self.join_stops(f)
+        if stops is None or follower.next_stop != stops[1]:
             return
+        li, fi = stops
         leader_there = leader.status == "running" and leader.next_stop == li and leader.sumo_stopped
         if not leader_there:
             if (
@@ -295,8 +310,8 @@ class Joins:
     def note_coupled(self, f: Any, leader: TrainRuntime) -> None:
         """The pair just became coupled: where, for a formation that asked for a place."""
         if trig(f.couple, "at_station"):
-            li = stop_index(leader, f.couple.station)
-            at_x = leader.status == "running" and leader.next_stop == li
+            stops = self.join_stops(f)
+            at_x = stops is not None and leader.status == "running" and leader.next_stop == stops[0]
             self.coupled_where[f.id] = f"at_station {f.couple.station}" if at_x else "elsewhere"
         elif trig(f.couple, "after_switch"):
             self.coupled_where[f.id] = f"after_switch {f.couple.switch}"

@@ -51,6 +51,7 @@ from typing import TYPE_CHECKING
 
 from railsim.engine.extensions.base import Extension
 from railsim.engine.extensions.context import ExtensionContext
+from railsim.engine.joins import shared_platform
 from railsim.engine.settings import INF
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -69,20 +70,18 @@ def wait_limit_s(coupling_timeout_s: float, stall_timeout_s: float) -> float:
 
 
 def _merge_before(leader: TrainRuntime, follower: TrainRuntime, f: object) -> str | None:
-    """``couple: {at_station: X}``: the last switch before ``X`` that the two units pass on different legs (where
-    the follower's way joins its leader's), or None when they come to ``X`` on one way."""
-    station = str(f.couple.station)  # type: ignore[attr-defined]
-    marks = {}
-    for tr in (leader, follower):
-        stop = next((s for s in tr.trip.stops if s.station_id == station and s.kind != "reversal"), None)
-        if stop is None:
-            return None
-        marks[tr.train_id] = stop.mark_m
-    legs = {rs.switch_id: rs.leg for rs in follower.trip.route.switches if rs.point_m < marks[follower.train_id]}
+    """``couple: {at_station: X}``: the last switch before their join stop at ``X`` (the platform both stop at,
+    :func:`railsim.engine.joins.shared_platform`) that the two units pass on different legs (where the follower's
+    way joins its leader's), or None when they come to ``X`` on one way."""
+    stops = shared_platform(leader, follower, str(f.couple.station))  # type: ignore[attr-defined]
+    if stops is None:
+        return None
+    lead_mark_m, fol_mark_m = leader.trip.stops[stops[0]].mark_m, follower.trip.stops[stops[1]].mark_m
+    legs = {rs.switch_id: rs.leg for rs in follower.trip.route.switches if rs.point_m < fol_mark_m}
     before = [
         rs
         for rs in leader.trip.route.switches
-        if rs.point_m < marks[leader.train_id] and rs.switch_id in legs and legs[rs.switch_id] != rs.leg
+        if rs.point_m < lead_mark_m and rs.switch_id in legs and legs[rs.switch_id] != rs.leg
     ]
     return max(before, key=lambda rs: rs.point_m).switch_id if before else None
 
@@ -279,17 +278,33 @@ class MergeOrder(Extension):
     # ------------------------------------------------------------------ the hook
     def defers_lock(self, train_id: str, switch_id: str) -> bool:
         """Hold back the follower's request while it waits for its leader, and any request from the leader's leg
-        between the leader's and the follower's (module docstring)."""
+        between the leader's and the follower's (module docstring) — and, for a train held back at a merge, its
+        requests for switches beyond that merge too: asked out of order, a switch past the merge would be held
+        by a train standing before it, and a leader whose route runs on over it would wait for its own follower
+        (a deadlock)."""
+        tr = self.ctx.trains.get(train_id)
         for p in self.pairs or ():
-            if p.done or p.switch_id != switch_id:
+            if p.done:
                 continue
-            if p.leader_asked_s is None:
-                if train_id == p.follower_id or (train_id == p.leader_id and p.yield_to is not None):
-                    return True
+            if p.switch_id != switch_id and not (tr is not None and self._beyond(tr, switch_id, p.switch_id)):
                 continue
-            if train_id in (p.leader_id, p.follower_id):
-                continue
-            other = self.ctx.trains.get(train_id)
-            if other is not None and self._leg(other, switch_id) == p.leader_leg:
+            if self._holds_back(train_id, p):
                 return True
         return False
+
+    def _holds_back(self, train_id: str, p: MergePair) -> bool:
+        """Train ``train_id``'s request for the merge of pair ``p`` waits (module docstring)."""
+        if p.leader_asked_s is None:
+            return train_id == p.follower_id or (train_id == p.leader_id and p.yield_to is not None)
+        if train_id in (p.leader_id, p.follower_id):
+            return False
+        other = self.ctx.trains.get(train_id)
+        return other is not None and self._leg(other, p.switch_id) == p.leader_leg
+
+    @staticmethod
+    def _beyond(tr: TrainRuntime, switch_id: str, merge_id: str) -> bool:
+        """``switch_id`` lies past merge ``merge_id`` on ``tr``'s route, and ``tr`` has not asked for the merge."""
+        if merge_id in tr.locks:
+            return False
+        points = {rs.switch_id: rs.point_m for rs in tr.trip.route.switches}
+        return switch_id in points and merge_id in points and points[switch_id] > points[merge_id]
