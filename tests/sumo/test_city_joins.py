@@ -13,6 +13,10 @@
   maps two stop positions one after the other on the same track). A formation joining there couples at the first
   of the two stops and the pair leaves together; the leader was held for ever (the follower's *next* stop was at
   the same station, read as "still at the join station": no train arrived).
+* **Potsdam, a platform just past the merge**: lines 91 and 93 merge at points ``30566579`` right before the
+  second platform of Platz der Einheit/West (the first lies before the points on line 91). The leader waits at
+  the second (waiting at the first it held the points its follower needed: ``timeout``), the follower, held short
+  of the points behind it, asks to couple standing there, and the pair couples.
 """
 
 from __future__ import annotations
@@ -52,17 +56,15 @@ def test_a_train_behind_the_leader_waits_at_the_merge_for_a_join_at_the_station_
     ]
 
 
-def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tmp_path: Path) -> None:
-    cache = tmp_path / "cache"
+def _potsdam(
+    tmp_path: Path, services: list[tuple[str, str, str, list[str], float]], formation: dict[str, Any]
+) -> dict[str, Any]:
+    """A scenario on Potsdam imported with 70 m platforms: one trip per service ``(id, from, to, via,
+    departure)``, one formation ``j`` (leader ``lead``, follower ``fol``, 10 m target gap)."""
     world = tmp_path / "potsdam"
-    ok_stdout(
-        run_railsim(["network", "import", str(POTSDAM), "--out", str(world), "--platform-m", "70"], cache_dir=cache)
-    )
-    services = [
-        ("lead", "Bahnhof Rehbrücke", ["Waldstraße/Horstweg"], 0.0),
-        ("fol", "Bisamkiez", ["Magnus-Zeller-Platz", "Waldstraße/Horstweg"], 200.0),
-    ]
-    data = {
+    args = ["network", "import", str(POTSDAM), "--out", str(world), "--platform-m", "70"]
+    ok_stdout(run_railsim(args, cache_dir=tmp_path / "cache"))
+    return {
         "name": "potsdam_join",
         "world": {
             "net": str(world / "potsdam_tram_2025.net.xml"),
@@ -77,13 +79,13 @@ def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tm
             {
                 "id": sid,
                 "from": origin,
-                "to": "Sporthalle",
+                "to": dest,
                 "via": via,
                 "vehicle": "tram",
                 "dwell_s": 20,
                 "departures": {"times": [dep_s]},
             }
-            for sid, origin, via, dep_s in services
+            for sid, origin, dest, via, dep_s in services
         ],
         "formations": [
             {
@@ -91,10 +93,18 @@ def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tm
                 "leader": {"service": "lead", "trip": 0},
                 "follower": {"service": "fol", "trip": 0},
                 "target_gap_m": 10.0,
-                "couple": {"at_station": "waldstrasse-horstweg"},
+                **formation,
             }
         ],
     }
+
+
+def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tmp_path: Path) -> None:
+    services = [
+        ("lead", "Bahnhof Rehbrücke", "Sporthalle", ["Waldstraße/Horstweg"], 0.0),
+        ("fol", "Bisamkiez", "Sporthalle", ["Magnus-Zeller-Platz", "Waldstraße/Horstweg"], 200.0),
+    ]
+    data = _potsdam(tmp_path, services, {"couple": {"at_station": "waldstrasse-horstweg"}})
     out, _ = _run(tmp_path, "join", data)
     assert read_summary(out)["formations_asked"][0]["coupled"]
     at = [r for r in read_csv(out / "stops.csv") if r["station"] == "waldstrasse-horstweg"]
@@ -120,3 +130,19 @@ def test_a_follower_serving_a_stop_before_the_merge_waits_for_its_leader_from_wh
     ]
     assert grants == ["lead.000", "fol.000"]
     assert read_summary(out)["formations_asked"][0]["coupled"]
+
+
+def test_a_follower_held_short_of_the_merge_by_its_waiting_leader_couples_on_potsdam(tmp_path: Path) -> None:
+    # lines 91 (from Dortustraße) and 93 (from Platz der Einheit/Nord) merge at points 30566579, right before the
+    # second platform of Platz der Einheit/West; the first lies before the merge on the leader's way
+    services = [
+        ("lead", "Dortustraße", "Alter Markt/Landtag", ["Platz der Einheit/West"], 0.0),
+        ("fol", "Platz der Einheit/Nord", "Platz der Einheit/Bildungsforum", ["Platz der Einheit/West"], 100.0),
+    ]
+    couple = {"couple": {"after_switch": "30566579"}, "decouple": {"before_switch": "4073068946"}}
+    out, events = _run(tmp_path, "held_short", _potsdam(tmp_path, services, couple))
+    assert read_summary(out)["formations_asked"] == [
+        {"id": "j", "asked": "after_switch 30566579", "coupled": True, "where": "after_switch 30566579", "reason": None}
+    ]
+    held = [e["detail"]["station"] for e in events if e["kind"] == "departure_held_for_follower"]
+    assert held == ["platz-der-einheit-west"]
