@@ -211,6 +211,10 @@ class Joins:
             return fol.status == "running" and fol.next_stop == fi and not fol.held_for_route
         if fol.status not in ("scheduled", "inserting", "running") or fol.next_stop > fi:
             return False
+        between = self._between_after_merge(f, leader, fol, stop) if state == "free" else None
+        if between is not None:  # it runs in behind the leader: the follower cannot (no wait to the timeout)
+            self.fail(t, f, "blocked", station=stop.station_id, by=between)
+            return False
         waited_s = t - self.held_since_s.setdefault(f.id, t)
         if waited_s < float(f.coupling_timeout_s):
             return True
@@ -218,6 +222,27 @@ class Joins:
         if state == "coupling":
             self.book.manager.request_decouple(f.id)
         return False
+
+    def _between_after_merge(self, f: Any, leader: TrainRuntime, fol: TrainRuntime, stop: TripStop) -> str | None:
+        """``couple: {after_switch: X}``, the leader waiting at its join stop and the follower not past ``X``: the
+        id of another train past ``X`` whose next stop is the leader's platform (it will stand behind the leader,
+        between the two), or None."""
+        if not trig(f.couple, "after_switch"):
+            return None
+        sw = f.couple.switch
+
+        def past(tr: TrainRuntime) -> bool:
+            return any(rs.switch_id == sw and tr.front_m >= rs.point_m for rs in tr.trip.route.switches)
+
+        if past(fol):
+            return None
+        for other in self.book.fleet.active():
+            if other is leader or other is fol or other.status != "running":
+                continue
+            nxt = other.next_stop
+            if nxt < len(other.trip.stops) and other.trip.stops[nxt].stop_id == stop.stop_id and past(other):
+                return other.train_id
+        return None
 
     def run_in(self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> None:
         """``couple: {at_station: X}``: the follower runs in behind its leader standing at ``X`` (held there,
