@@ -225,8 +225,8 @@ class Joins:
 
     def _between_after_merge(self, f: Any, leader: TrainRuntime, fol: TrainRuntime, stop: TripStop) -> str | None:
         """``couple: {after_switch: X}``, the leader waiting at its join stop and the follower not past ``X``: the
-        id of another train past ``X`` whose next stop is the leader's platform (it will stand behind the leader,
-        between the two), or None."""
+        id of another train past ``X`` (or holding it, stopped short of it) whose next stop is the leader's platform (it
+        will stand behind the leader, between the two), or None."""
         if not trig(f.couple, "after_switch"):
             return None
         sw = f.couple.switch
@@ -240,7 +240,11 @@ class Joins:
             if other is leader or other is fol or other.status != "running":
                 continue
             nxt = other.next_stop
-            if nxt < len(other.trip.stops) and other.trip.stops[nxt].stop_id == stop.stop_id and past(other):
+            if nxt >= len(other.trip.stops) or other.trip.stops[nxt].stop_id != stop.stop_id:
+                continue
+            req = other.locks.get(sw)
+            holds_points = req is not None and req.granted_s is not None and req.released_s is None
+            if past(other) or holds_points:  # over the merge, or the points are its (it stands short of them)
                 return other.train_id
         return None
 
