@@ -230,7 +230,8 @@ class MergeOrder(Extension):
     def _yield(self, t: float, leader: TrainRuntime, follower: TrainRuntime, p: MergePair) -> None:
         """Before the leader asked, once it is within the request distance: the train on the follower's leg ahead
         of the follower that has not asked for the merge yet, for which the leader waits (``p.yield_to``), or
-        None — at most the wait limit."""
+        None — at most the wait limit. With the follower not on the line yet, a train due to leave before it
+        (within the wait limit) from a platform before the merge counts too."""
         p.yield_to = None
         if leader.status != "running" or p.point_leader_m - leader.front_m > self.ctx.settings.lock_request_distance_m:
             return
@@ -239,12 +240,21 @@ class MergeOrder(Extension):
         own_m = p.point_follower_m - follower.front_m if follower.status == "running" else INF
         first, first_m = None, INF
         for tr in self.ctx.trains.values():
-            if tr.status != "running" or tr.train_id in (p.leader_id, p.follower_id) or p.switch_id in tr.locks:
+            if tr.train_id in (p.leader_id, p.follower_id) or p.switch_id in tr.locks:
                 continue
             if self._leg(tr, p.switch_id) != p.follower_leg:
                 continue
             point_m = next(rs.point_m for rs in tr.trip.route.switches if rs.switch_id == p.switch_id)
-            to_go_m = point_m - tr.front_m
+            if tr.status == "running":
+                to_go_m = point_m - tr.front_m
+            elif tr.status in ("scheduled", "inserting") and follower.status in ("scheduled", "inserting"):
+                # not on the line yet, but due to leave before the follower (which is not on the line either)
+                # from a platform before the merge: it will come between the two as well
+                if tr.trip.depart_s >= follower.trip.depart_s or tr.trip.depart_s - t > p.limit_s:
+                    continue
+                to_go_m = point_m - tr.trip.depart_chainage_m
+            else:
+                continue
             if 0.0 < to_go_m < own_m and to_go_m < first_m:
                 first, first_m = tr.train_id, to_go_m
         p.yield_to = first
