@@ -8,6 +8,9 @@
 * **Y world, a stop before the merge**: the follower dwells 240 s at F, 1.3 km before the merge; its wait for
   its leader is counted from when it leaves F (it has no stop left before the merge), not from its first held
   request on the way to F (the wait ran out while it still stood at F, and it went first: `wrong_order`).
+* **Y world, a branch train due before the follower**: it leaves G after the leader asked for the merge and
+  before the follower leaves; the leader yields to it (``merge_leader_yields``) although it was not on the line
+  yet, instead of letting it run between the two.
 * **Potsdam** (:file:`tests/data/osm/potsdam_tram_2025.osm.gz`, imported with platforms widened to 70 m): lines 91
   (from Bahnhof Rehbrücke) and 92 (from Bisamkiez) merge before Waldstraße/Horstweg, where both stop twice (OSM
   maps two stop positions one after the other on the same track). A formation joining there couples at the first
@@ -146,3 +149,15 @@ def test_a_follower_held_short_of_the_merge_by_its_waiting_leader_couples_on_pot
     ]
     held = [e["detail"]["station"] for e in events if e["kind"] == "departure_held_for_follower"]
     assert held == ["platz-der-einheit-west"]
+
+
+def test_the_leader_yields_to_a_branch_train_due_before_its_follower(tmp_path: Path) -> None:
+    # br.000 leaves G 120 s after the leader left E, the follower 200 s after: when the leader came within the
+    # request distance of the merge neither was on the line, it asked at once and br.000 ran between the two
+    out, events = _run(tmp_path, "yield_scheduled", merge_world([(0.0, 200.0)], others=[("br", "g", 120.0)]))
+    grants = [
+        h for e in events if e["kind"] == "lock_granted" and e["subject"] == "c_down" for h in e["detail"]["holders"]
+    ]
+    assert grants == ["br.000", "lead.000", "fol.000"]
+    assert [e["detail"]["to"] for e in events if e["kind"] == "merge_leader_yields"] == ["br.000"]
+    assert read_summary(out)["formations_asked"][0]["coupled"]
