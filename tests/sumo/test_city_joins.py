@@ -152,9 +152,9 @@ def test_a_follower_held_short_of_the_merge_by_its_waiting_leader_couples_on_pot
 
 
 def test_the_leader_yields_to_a_branch_train_due_before_its_follower(tmp_path: Path) -> None:
-    # br.000 leaves G 120 s after the leader left E, the follower 200 s after: when the leader came within the
+    # br.000 leaves G 250 s after the leader left E, the follower 330 s after: when the leader came within the
     # request distance of the merge neither was on the line, it asked at once and br.000 ran between the two
-    out, events = _run(tmp_path, "yield_scheduled", merge_world([(0.0, 200.0)], others=[("br", "g", 120.0)]))
+    out, events = _run(tmp_path, "yield_scheduled", merge_world([(0.0, 330.0)], others=[("br", "g", 250.0)]))
     grants = [
         h for e in events if e["kind"] == "lock_granted" and e["subject"] == "c_down" for h in e["detail"]["holders"]
     ]
