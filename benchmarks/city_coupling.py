@@ -252,7 +252,7 @@ def main() -> None:
     ap.add_argument("--out", type=Path, default=None, help="keep the run folders here (default: a temporary folder)")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    folder = args.out or Path(tempfile.mkdtemp(prefix="city_coupling_"))
+    folder = (args.out or Path(tempfile.mkdtemp(prefix="city_coupling_"))).resolve()  # railsim runs elsewhere
     folder.mkdir(parents=True, exist_ok=True)
     base_path = _import(args, folder)
     base = yaml.safe_load(base_path.read_text(encoding="utf-8"))
