@@ -62,8 +62,10 @@ GTFS import matches against); ``<name>.import.yaml`` (the summary below) and ``n
 gets a copy on the opposite track within :data:`TWIN_RADIUS_M`, unless that track has a platform of the station
 just before or after (staggered stops; :func:`_twin_stops`); a stop on an edge shorter
 than a platform moves to the end of the single edge before it (:func:`_move_off_short_edges`); a stop shorter
-than :data:`MIN_STOP_M` (netconvert writes some tram stops 0 m long) is widened within its lane; stops no line
-serves are dropped when the extract has lines. Each is counted in the summary.
+than :data:`MIN_STOP_M` (netconvert writes some tram stops 0 m long) — or than ``platform_m`` when the import
+asks for it (OSM maps a stop position, not the platform's length: trams coupled in pairs need longer platforms
+than one unit) — is widened around its centre within its lane; stops no line serves are dropped when the extract
+has lines. Each is counted in the summary.
 
 **The summary** (:class:`ImportSummary`, printed by the CLI): lines per class, stations per class, km of track
 (a ``bidi`` pair counted once), switches (nodes where a rail track diverges or merges), the bidi share of the
@@ -258,10 +260,16 @@ def _file_hash(path: Path) -> str:
 
 
 def _cache_key(
-    osm_file: Path, bbox: Sequence[float] | None, lines: Sequence[str] | None, light_rail_as_tram: bool = False
+    osm_file: Path,
+    bbox: Sequence[float] | None,
+    lines: Sequence[str] | None,
+    light_rail_as_tram: bool = False,
+    platform_m: float | None = None,
 ) -> str:
+    options = {"platform_m": platform_m} if platform_m else {}  # (absent by default: earlier keys stay valid)
     payload = json.dumps(
-        {
+        options
+        | {
             "input": _file_hash(osm_file),
             "name": _input_name(osm_file),  # the files are named after it: a renamed copy is its own entry
             "light_rail_as_tram": light_rail_as_tram,
@@ -323,9 +331,10 @@ class _Stop:
     name: str
 
 
-def _ensure_length(st: _Stop, lane_length_m: float) -> int:
-    """Widen a stop shorter than :data:`MIN_STOP_M` around its centre, within its lane; 1 if it was widened."""
-    want = min(MIN_STOP_M["tram" if st.vclass == "tram" else "other"], lane_length_m)
+def _ensure_length(st: _Stop, lane_length_m: float, platform_m: float | None = None) -> int:
+    """Widen a stop shorter than ``platform_m`` (default :data:`MIN_STOP_M` of its class) around its centre,
+    within its lane; 1 if it was widened."""
+    want = min(platform_m or MIN_STOP_M["tram" if st.vclass == "tram" else "other"], lane_length_m)
     start = float(st.elem.get("startPos", 0.0))
     end = float(st.elem.get("endPos", lane_length_m))
     if end - start >= want - 1e-6:
@@ -577,6 +586,7 @@ def _split(
     lines_wanted: Sequence[str] | None,
     warnings: list[str],
     osm_file: Path | None = None,
+    platform_m: float | None = None,
 ) -> ImportSummary:
     """Split the ptstops by class, write lines/stations YAML and the summary (files stay in ``work``)."""
     import sumolib
@@ -655,11 +665,12 @@ def _split(
     lengthened = 0
     for st in stops.values():
         by_class[st.vclass].append(st)
-        lengthened += _ensure_length(st, net.getLane(st.elem.get("lane", "")).getLength())
+        lengthened += _ensure_length(st, net.getLane(st.elem.get("lane", "")).getLength(), platform_m)
     if lengthened:
+        to = f"{platform_m:g} m" if platform_m else f"{MIN_STOP_M['tram']:g} m (tram) / {MIN_STOP_M['other']:g} m"
         summary.dropped.append(
             f"{lengthened} stops shorter than a platform (netconvert gives some tram stops 0 m) widened around "
-            f"their centre to {MIN_STOP_M['tram']:g} m (tram) / {MIN_STOP_M['other']:g} m, within their lane"
+            f"their centre to {to}, within their lane"
         )
     for vc, members in sorted(by_class.items()):
         root = ET.Element("additional")
@@ -759,13 +770,15 @@ def import_osm(
     bbox: Sequence[float] | None = None,
     lines: Sequence[str] | None = None,
     light_rail_as_tram: bool = False,
+    platform_m: float | None = None,
 ) -> ImportSummary:
-    """Import an OSM file into ``out_dir`` (module docstring); cached by input hash and options."""
+    """Import an OSM file into ``out_dir`` (module docstring); cached by input hash and options. ``platform_m``:
+    the length every stop is widened to (within its lane) when shorter; default :data:`MIN_STOP_M`."""
     t0 = time.perf_counter()
     osm_path = Path(osm_file).resolve()
     _check_input(osm_path)
     name = re.sub(r"[^A-Za-z0-9_.-]+", "_", _input_name(osm_path))
-    key = _cache_key(osm_path, bbox, lines, light_rail_as_tram)
+    key = _cache_key(osm_path, bbox, lines, light_rail_as_tram, platform_m)
     folder = cache_root() / f"osm-{key}"
     summary_file = folder / f"{name}.import.yaml"
     cached = summary_file.exists()
@@ -774,7 +787,7 @@ def import_osm(
         work = Path(tempfile.mkdtemp(prefix=f".osm-{key}-", dir=folder.parent))
         try:
             warnings = _run_netconvert(osm_path, work, name, bbox, light_rail_as_tram)
-            summary = _split(work, name, lines, warnings, osm_path)
+            summary = _split(work, name, lines, warnings, osm_path, platform_m)
             (work / f"{name}.import.yaml").write_text(yaml.safe_dump(asdict(summary), sort_keys=False), "utf-8")
             try:
                 os.replace(work, folder)

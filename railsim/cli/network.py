@@ -145,6 +145,7 @@ def cmd_import(args: argparse.Namespace) -> int:
         bbox=parse_bbox(args.bbox),
         lines=lines,
         light_rail_as_tram=args.light_rail_as_tram,
+        platform_m=args.platform_m,
     )
     print(summary.text())
     return 0
@@ -195,5 +196,13 @@ def add_commands(subparsers: Any) -> None:
         "--light-rail-as-tram",
         action="store_true",
         help="railway=light_rail track is tram track (one fleet on both, a Stadtbahn): one class, one network",
+    )
+    i.add_argument(
+        "--platform-m",
+        type=values.metres,
+        default=None,
+        metavar="M",
+        help="widen every stop shorter than M metres to M (within its track edge; default 30 tram, 60 other): "
+        "OSM has stop positions, not platform lengths, and a coupled pair needs room for two units",
     )
     i.set_defaults(func=cmd_import)

@@ -74,3 +74,14 @@ def count(text: str) -> int:
     if not 1 <= value <= MAX_COUNT:
         raise _fail(f"an integer in [1, {MAX_COUNT}]", text)
     return value
+
+
+def metres(text: str) -> float:
+    """A length in metres: a finite number > 0 (at most 10 km)."""
+    try:
+        value = float(text)
+    except ValueError:
+        raise _fail("a length in metres in (0, 10000]", text) from None
+    if not math.isfinite(value) or not 0.0 < value <= 10000.0:
+        raise _fail("a length in metres in (0, 10000]", text)
+    return value

@@ -48,7 +48,7 @@ from typing import Any, Protocol
 from railsim.engine.events.formations import Formation, FormationManager
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
-from railsim.engine.joins import COUPLE_REACH_M, Joins, trig
+from railsim.engine.joins import COUPLE_REACH_M, STANDING_MPS, Joins, trig
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
@@ -488,14 +488,18 @@ class FormationBook:
                 self.join_book.note_coupled(f, leader)
 
     def _couple_after_merge(self, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead) -> None:
-        """``couple: {after_switch: X}``: ask once, when the follower's front is past switch ``X`` (its leader is
-        ahead on its track: the two have merged) and it is close enough to its leader (``Joins.close_enough``:
-        within reach of its rear, or running in behind it at the station where it waits). Before that the
-        follower keeps its own separation."""
+        """``couple: {after_switch: X}``: ask once, when the follower's front is past switch ``X`` — or it has
+        asked for ``X`` and stands with its leader directly ahead past it, standing too: a platform starting just
+        past the merge holds a follower short of ``X`` behind its leader waiting there — and it is close enough to its leader
+        (``Joins.close_enough``: within reach of its rear, or running in behind it at the station where it waits).
+        Before that the follower keeps its own separation."""
         if f.id in self._merged:
             return
-        if any(
-            rs.switch_id == f.couple.switch and follower.front_m >= rs.point_m for rs in follower.trip.route.switches
+        sw = f.couple.switch
+        held_short = sw in follower.locks and follower.plant.speed_mps < STANDING_MPS and leader.sumo_stopped
+        if (
+            held_short
+            or any(rs.switch_id == sw and follower.front_m >= rs.point_m for rs in follower.trip.route.switches)
         ) and self.join_book.close_enough(follower, leader, f, a):
             self._merged.add(f.id)
             self.manager.request_couple(f.id)

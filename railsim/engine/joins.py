@@ -31,6 +31,8 @@ from railsim.errors import ConfigError
 # its turnback (before the separation controller, margin 50 m on Line 3, would stop it further back), or one that
 # joins at a station (there, on its final approach if that comes first)
 COUPLE_REACH_M = 150.0
+MERGE_CLEAR_M = 10.0  # a leader waiting past a merge stands with its rear this far past the points (the lock's
+# release clearance, ``EngineSettings.clearance_m``) — a platform closer to the merge is no join station
 STANDING_MPS = 0.1  # a follower slower than this behind its waiting leader stands (at the berth limit)
 
 
@@ -48,6 +50,21 @@ def trig(trigger: Any, kind: str) -> bool:
 def stop_index(tr: TrainRuntime, station: str) -> int | None:
     """Index of ``tr``'s first station stop at ``station``, or None."""
     return next((i for i, s in enumerate(tr.trip.stops) if s.station_id == station and s.kind != "reversal"), None)
+
+
+def shared_platform(leader: TrainRuntime, follower: TrainRuntime, station: str) -> tuple[int, int] | None:
+    """The two trips' stops at ``station`` where they join: the first platform both stop at (the follower can
+    only run in behind its leader on the leader's track), else their first stops there; None if one does not stop
+    there."""
+    ours = [i for i, s in enumerate(leader.trip.stops) if s.station_id == station and s.kind != "reversal"]
+    theirs = [i for i, s in enumerate(follower.trip.stops) if s.station_id == station and s.kind != "reversal"]
+    if not ours or not theirs:
+        return None
+    for li in ours:
+        fi = next((i for i in theirs if follower.trip.stops[i].stop_id == leader.trip.stops[li].stop_id), None)
+        if fi is not None:
+            return li, fi
+    return ours[0], theirs[0]
 
 
 class FormationsView(Protocol):
@@ -81,40 +98,56 @@ class Joins:
         self.failed: dict[str, str] = {}  # formation -> why it did not couple where it asked
         self.coupled_where: dict[str, str] = {}  # formation -> where it coupled
         self.held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell at the station ended
-        self._join_station: dict[str, str | None] = {}  # formation -> where the leader waits (join_station)
+        self._join: dict[str, tuple[int, int] | None] = {}  # formation -> (leader, follower) join stop indices
 
     def join_station(self, f: Any) -> str | None:
-        """Where the leader of formation ``f`` waits for its follower: ``X`` of ``couple: {at_station: X}``; for
-        ``couple: {after_switch: X}`` the first station past ``X`` where both stop (the two units come over the
-        merge one switch throw apart at least, so the follower closes up there: it runs in behind its leader and
-        couples standing or on the final approach) — if the pair fits on the leader's platform there and it is not
-        the leader's destination; None for other triggers or when there is no such station."""
-        if trig(f.couple, "at_station"):
-            return str(f.couple.station)
-        if not trig(f.couple, "after_switch"):
-            return None
-        if f.id not in self._join_station:
-            self._join_station[f.id] = self._first_common_stop_after(f, f.couple.switch)
-        return self._join_station[f.id]
+        """Where the leader of formation ``f`` waits for its follower (:meth:`join_stops`): a station id, or None."""
+        stops = self.join_stops(f)
+        return None if stops is None else self.book.leader_of(f).trip.stops[stops[0]].station_id
 
-    def _first_common_stop_after(self, f: Any, switch_id: str) -> str | None:
-        leader, follower = self.book.leader_of(f), self.book.follower_of(f)
-        after: dict[str, list[str]] = {}
+    def join_stops(self, f: Any) -> tuple[int, int] | None:
+        """The leader's and the follower's stop (indices in their trips) where the leader of formation ``f`` waits
+        for its follower: their first stops at ``X`` for ``couple: {at_station: X}``; for ``couple:
+        {after_switch: X}`` the first stop past ``X`` where both stop (the two units come over the merge one switch
+        throw apart at least, so the follower closes up there: it runs in behind its leader and couples standing or
+        on the final approach) — if the pair fits on the leader's platform there, the leader standing there is
+        clear of the merge, and it is not the leader's destination; None for other triggers or when there is no
+        such stop. Indices, not station ids: a route may stop twice at one station, on two platforms one behind
+        the other (OSM maps a stop position per platform), one before the merge and one after it."""
+        if f.id not in self._join:
+            leader, follower = self.book.leader_of(f), self.book.follower_of(f)
+            if trig(f.couple, "at_station"):
+                self._join[f.id] = shared_platform(leader, follower, str(f.couple.station))
+            elif trig(f.couple, "after_switch"):
+                self._join[f.id] = self._first_common_stop_after(f, leader, follower, f.couple.switch)
+            else:
+                self._join[f.id] = None
+        return self._join[f.id]
+
+    def _first_common_stop_after(
+        self, f: Any, leader: TrainRuntime, follower: TrainRuntime, switch_id: str
+    ) -> tuple[int, int] | None:
+        after: dict[str, list[int]] = {}
         for tr in (leader, follower):
             point = next((rs.point_m for rs in tr.trip.route.switches if rs.switch_id == switch_id), None)
+            # the leader waits there standing clear of the merge (its rear past the points' clearance), else it
+            # would hold the points its follower needs
+            clear_m = tr.trip.vehicle.length_m + MERGE_CLEAR_M if tr is leader else 0.0
             after[tr.train_id] = (
                 []
                 if point is None
-                else [s.station_id for s in tr.trip.stops if s.kind == "station" and s.mark_m > point]
+                else [i for i, s in enumerate(tr.trip.stops) if s.kind == "station" and s.mark_m - clear_m > point]
             )
-        theirs = set(after[follower.train_id])
-        station = next((sid for sid in after[leader.train_id] if sid in theirs), None)
-        if station is None:
+        theirs: dict[str, int] = {}
+        for i in after[follower.train_id]:
+            theirs.setdefault(follower.trip.stops[i].station_id, i)
+        li = next((i for i in after[leader.train_id] if leader.trip.stops[i].station_id in theirs), None)
+        if li is None:
             return None
-        stop = leader.trip.stops[stop_index(leader, station) or 0]
+        stop = leader.trip.stops[li]
         if stop.is_destination or stop.platform_m < pair_length_m(f, leader, follower):
             return None  # the pair would not stand on it: no wait there (they couple on the run, or time out)
-        return station
+        return li, theirs[stop.station_id]
 
     def check_platform(self, f: Any, leader: TrainRuntime, follower: TrainRuntime, where: str) -> None:
         """``couple: {at_station: X}``: both trips stop at ``X`` and the pair (leader, target gap, follower) fits
@@ -129,7 +162,7 @@ class Joins:
                     f"expected a station both trips stop at, got {station!r} "
                     f"(the {role} {tr.train_id} does not stop there)",
                 )
-        stop = leader.trip.stops[stop_index(leader, station) or 0]
+        stop = leader.trip.stops[(shared_platform(leader, follower, station) or (0, 0))[0]]
         lead_m, fol_m, gap_m = leader.trip.vehicle.length_m, follower.trip.vehicle.length_m, float(f.target_gap_m)
         need_m = pair_length_m(f, leader, follower)
         if stop.platform_m < need_m:
@@ -147,15 +180,14 @@ class Joins:
         (:mod:`railsim.engine.locking`) — or once the join is given up. Set earlier, the lock would be the
         leader's alone and the follower would wait at the points for the leader to clear them."""
         for f in self.book.of_leader.get(tr.train_id, ()):
-            station = self.join_station(f)
-            if station is None or f.id in self.failed:
+            stops = self.join_stops(f)
+            if stops is None or f.id in self.failed:
                 continue
-            li = stop_index(tr, station)
-            if li is None or tr.next_stop != li or point_m <= tr.trip.stops[li].window_end_m:
+            li, fi = stops
+            if tr.next_stop != li or point_m <= tr.trip.stops[li].window_end_m:
                 continue
             fol = self.book.follower_of(f)
-            fi = stop_index(fol, station)
-            if self.book.manager.state(f.id) == "coupled" or fi is None or fol.next_stop > fi:
+            if self.book.manager.state(f.id) == "coupled" or fol.next_stop > fi:
                 continue
             if fol.status in ("scheduled", "inserting", "running"):
                 return True
@@ -167,23 +199,21 @@ class Joins:
         own dwell ended. A join given up (wrong order, blocked) does not hold it; one that times out here is a
         ``coupling_failed`` event with the reason ``timeout`` (an attempt under way is aborted: the follower
         runs on on its own)."""
-        station = self.join_station(f)
-        if station is None or stop is None or stop.station_id != station:
+        stops = self.join_stops(f)
+        if stops is None or stop is None or f.id in self.failed:
             return False
-        if f.id in self.failed:
-            return False
-        fol = self.book.follower_of(f)
+        leader, fol = self.book.leader_of(f), self.book.follower_of(f)
+        li, fi = stops
+        if leader.next_stop != li or leader.trip.stops[li] is not stop:
+            return False  # not at the join stop (another stop of the same station is not it)
         state = self.book.manager.state(f.id)
-        if state == "coupled":
-            fstop, _ = self.book.current_stop(fol)
-            return (
-                fol.status == "running"
-                and fstop is not None
-                and fstop.station_id == stop.station_id
-                and not fol.held_for_route
-            )
-        fi = stop_index(fol, stop.station_id)
-        if fol.status not in ("scheduled", "inserting", "running") or fi is None or fol.next_stop > fi:
+        if state == "coupled":  # until the follower's dwell at the join stop itself has ended
+            return fol.status == "running" and fol.next_stop == fi and not fol.held_for_route
+        if fol.status not in ("scheduled", "inserting", "running") or fol.next_stop > fi:
+            return False
+        between = self._between_after_merge(f, leader, fol, stop) if state == "free" else None
+        if between is not None:  # it runs in behind the leader: the follower cannot (no wait to the timeout)
+            self.fail(t, f, "blocked", station=stop.station_id, by=between)
             return False
         waited_s = t - self.held_since_s.setdefault(f.id, t)
         if waited_s < float(f.coupling_timeout_s):
@@ -192,6 +222,31 @@ class Joins:
         if state == "coupling":
             self.book.manager.request_decouple(f.id)
         return False
+
+    def _between_after_merge(self, f: Any, leader: TrainRuntime, fol: TrainRuntime, stop: TripStop) -> str | None:
+        """``couple: {after_switch: X}``, the leader waiting at its join stop and the follower not past ``X``: the
+        id of another train past ``X`` (or holding it, stopped short of it) whose next stop is the leader's platform (it
+        will stand behind the leader, between the two), or None."""
+        if not trig(f.couple, "after_switch"):
+            return None
+        sw = f.couple.switch
+
+        def past(tr: TrainRuntime) -> bool:
+            return any(rs.switch_id == sw and tr.front_m >= rs.point_m for rs in tr.trip.route.switches)
+
+        if past(fol):
+            return None
+        for other in self.book.fleet.active():
+            if other is leader or other is fol or other.status != "running":
+                continue
+            nxt = other.next_stop
+            if nxt >= len(other.trip.stops) or other.trip.stops[nxt].stop_id != stop.stop_id:
+                continue
+            req = other.locks.get(sw)
+            holds_points = req is not None and req.granted_s is not None and req.released_s is None
+            if past(other) or holds_points:  # over the merge, or the points are its (it stands short of them)
+                return other.train_id
+        return None
 
     def run_in(self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None) -> None:
         """``couple: {at_station: X}``: the follower runs in behind its leader standing at ``X`` (held there,
@@ -203,9 +258,10 @@ class Joins:
         if f.id in self.requested or f.id in self.failed or follower.status != "running":
             return
         station = f.couple.station
-        fi, li = stop_index(follower, station), stop_index(leader, station)
-        if fi is None or li is None or follower.next_stop != fi:
+        stops = self.join_stops(f)
+        if stops is None or follower.next_stop != stops[1]:
             return
+        li, fi = stops
         leader_there = leader.status == "running" and leader.next_stop == li and leader.sumo_stopped
         if not leader_there:
             if (
@@ -234,11 +290,11 @@ class Joins:
         would crawl the whole way."""
         if a.gap_m <= COUPLE_REACH_M:
             return True
-        station = self.join_station(f)
-        if station is None:
+        stops = self.join_stops(f)
+        if stops is None:
             return False
-        fi, li = stop_index(follower, station), stop_index(leader, station)
-        if fi is None or li is None or follower.next_stop != fi:
+        li, fi = stops
+        if follower.next_stop != fi:
             return False
         if not (leader.status == "running" and leader.next_stop == li and leader.sumo_stopped):
             return False
@@ -247,8 +303,12 @@ class Joins:
         halt_m = stop.mark_m - (
             self.book.mark_offset_m(leader, lstop) + leader.trip.vehicle.length_m + float(f.target_gap_m)
         )
-        # standing behind its waiting leader (held at the platform's berth limit): called on, it runs in
-        return follower.plant.speed_mps < STANDING_MPS or self.book.in_final_approach(follower, halt_m)
+        # standing behind its waiting leader (held at the platform's berth limit, within one platform and the
+        # couple reach of its halt; not at the station before, about to leave it): called on, it runs in
+        standing = (
+            follower.plant.speed_mps < STANDING_MPS and halt_m - follower.front_m <= stop.platform_m + COUPLE_REACH_M
+        )
+        return standing or self.book.in_final_approach(follower, halt_m)
 
     def merge_out_of_order(
         self, t: float, follower: TrainRuntime, leader: TrainRuntime, f: Any, a: Ahead | None
@@ -279,8 +339,8 @@ class Joins:
     def note_coupled(self, f: Any, leader: TrainRuntime) -> None:
         """The pair just became coupled: where, for a formation that asked for a place."""
         if trig(f.couple, "at_station"):
-            li = stop_index(leader, f.couple.station)
-            at_x = leader.status == "running" and leader.next_stop == li
+            stops = self.join_stops(f)
+            at_x = stops is not None and leader.status == "running" and leader.next_stop == stops[0]
             self.coupled_where[f.id] = f"at_station {f.couple.station}" if at_x else "elsewhere"
         elif trig(f.couple, "after_switch"):
             self.coupled_where[f.id] = f"after_switch {f.couple.switch}"

@@ -27,7 +27,8 @@ hours, the plan runs a smaller version — what changes and why:
   runs, ``railsim reproduce`` of papers 000, 001 and 004 (minutes to hours) and three benchmarks
   (``optimizers_000``, ``controllers_000``, ``junction_planner``: minutes each) run with ``--help``;
   ``benchmarks/engine.py`` gets the small peak as its scenario (one repetition), ``benchmarks/scale.py`` 8 and 16
-  trains for 20 s, ``benchmarks/controllers_001.py`` a 500 m section, ``benchmarks/service_day.py`` 3 minutes.
+  trains for 20 s, ``benchmarks/controllers_001.py`` a 500 m section, ``benchmarks/service_day.py`` 3 minutes,
+  ``benchmarks/city_coupling.py`` one run of one formation; the Potsdam timetables 07:00-07:10.
 * sumo-gui commands run under ``xvfb-run`` (a virtual display; apt: xvfb) and quit at the end; where there is
   no ``xvfb-run`` they only check that ``sumo-gui`` is on the PATH. The replay command replays a 600 s run
   of the small peak's Airport units with ``outputs.sumo: [fcd]`` made just before it.
@@ -187,6 +188,25 @@ PLAN: dict[str, str | None] = {
         "--from 07:00 --to 07:06 --out dresden.yaml"
     ),
     "railsim run dresden.yaml --out out/dresden": None,
+    # coupling places on an imported city
+    (
+        ".venv/bin/python benchmarks/city_coupling.py --osm tests/data/osm/potsdam_tram_2025.osm.gz --runs 16 "
+        "--out out/city_coupling"
+    ): (
+        f"python benchmarks/city_coupling.py --osm {DATA}/osm/potsdam_tram_2025.osm.gz --runs 1 --pairs 1 "
+        "--out out/city_coupling"
+    ),
+    "railsim network import tests/data/osm/potsdam_tram_2025.osm.gz --out worlds/potsdam70 --platform-m 70": (
+        f"railsim network import {DATA}/osm/potsdam_tram_2025.osm.gz --out worlds/potsdam70 --platform-m 70"
+    ),
+    (
+        "railsim timetable import --from-lines --headway-s 720 --lines 91,93,94,99 --world worlds/potsdam70 "
+        "--from 07:00 --to 09:00 --out potsdam_trunk.yaml"
+    ): (
+        "railsim timetable import --from-lines --headway-s 720 --lines 91,93,94,99 --world worlds/potsdam70 "
+        "--from 07:00 --to 07:10 --out potsdam_trunk.yaml"
+    ),
+    "railsim run potsdam_trunk.yaml --out out/potsdam_trunk": None,
     # run folders
     "railsim run scenarios/chongqing_line3_peak.yaml --out out/peak": None,
     (

@@ -22,6 +22,8 @@ from railsim.cli.main import main
         ["run", "s\x00.yaml", "--out", "o"],
         ["run", "s.yaml", "--out", "o\x00x"],
         ["validate", ""],
+        ["network", "import", "x.osm", "--out", "w", "--platform-m", "-3"],
+        ["network", "import", "x.osm", "--out", "w", "--platform-m", "nan"],
     ],
 )
 def test_bad_cli_value_is_one_line_exit_2(argv: list[str], capsys: pytest.CaptureFixture[str]) -> None:

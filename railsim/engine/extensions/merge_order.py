@@ -1,7 +1,10 @@
 """Formation order at a merge: the interlocking serves a formation's leader first and its follower next.
 
 A formation that asks to couple after a merge (``couple: {after_switch: X}``) with its two units coming to ``X``
-from different legs can only couple if the follower passes ``X`` right after its leader. The interlocking serves a
+from different legs can only couple if the follower passes ``X`` right after its leader; so can one that joins at
+a station (``couple: {at_station: S}``) with its units coming over a merge before ``S`` from different legs (the
+last such switch before ``S`` is its ``X``: a train of the leader's leg between them would stand at ``S`` behind
+the waiting leader). The interlocking serves a
 switch first come, first served (:mod:`railsim.engine.events.interlocking`), so without help a train of the
 leader's leg that asks between the two takes the points between them, and a follower that reaches the merge first
 passes it first. This extension keeps the order by holding requests back (the ``defers_lock`` hook); it never
@@ -48,6 +51,7 @@ from typing import TYPE_CHECKING
 
 from railsim.engine.extensions.base import Extension
 from railsim.engine.extensions.context import ExtensionContext
+from railsim.engine.joins import shared_platform
 from railsim.engine.settings import INF
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -63,6 +67,23 @@ def wait_limit_s(coupling_timeout_s: float, stall_timeout_s: float) -> float:
     formation's coupling timeout, at most :data:`STALL_MARGIN_S` short of the stall timeout (a held train stands
     for a reason the stall watchdog does not see; it starts standing only after the wait began)."""
     return max(0.0, min(coupling_timeout_s, stall_timeout_s - STALL_MARGIN_S))
+
+
+def _merge_before(leader: TrainRuntime, follower: TrainRuntime, f: object) -> str | None:
+    """``couple: {at_station: X}``: the last switch before their join stop at ``X`` (the platform both stop at,
+    :func:`railsim.engine.joins.shared_platform`) that the two units pass on different legs (where the follower's
+    way joins its leader's), or None when they come to ``X`` on one way."""
+    stops = shared_platform(leader, follower, str(f.couple.station))  # type: ignore[attr-defined]
+    if stops is None:
+        return None
+    lead_mark_m, fol_mark_m = leader.trip.stops[stops[0]].mark_m, follower.trip.stops[stops[1]].mark_m
+    legs = {rs.switch_id: rs.leg for rs in follower.trip.route.switches if rs.point_m < fol_mark_m}
+    before = [
+        rs
+        for rs in leader.trip.route.switches
+        if rs.point_m < lead_mark_m and rs.switch_id in legs and legs[rs.switch_id] != rs.leg
+    ]
+    return max(before, key=lambda rs: rs.point_m).switch_id if before else None
 
 
 @dataclass
@@ -92,7 +113,9 @@ class MergeOrder(Extension):
     @classmethod
     def applies(cls, scenario: Scenario) -> bool:
         """Any formation that asks to couple after a switch."""
-        return any(f.couple is not None and f.couple.kind == "after_switch" for f in scenario.formations)
+        return any(
+            f.couple is not None and f.couple.kind in ("after_switch", "at_station") for f in scenario.formations
+        )
 
     def __init__(self, ctx: ExtensionContext) -> None:
         super().__init__(ctx)
@@ -111,10 +134,12 @@ class MergeOrder(Extension):
         pairs = []
         stall_s = self.ctx.settings.stall_timeout_s
         for fid, f in self.ctx.formations.of_follower.items():
-            if f.couple is None or f.couple.kind != "after_switch":
+            if f.couple is None or f.couple.kind not in ("after_switch", "at_station"):
                 continue
             leader, follower = self.ctx.formations.leader_of(f), self.ctx.trains[fid]
-            sw = str(f.couple.switch)
+            sw = str(f.couple.switch) if f.couple.kind == "after_switch" else _merge_before(leader, follower, f)
+            if sw is None:
+                continue
             points = {}
             for tr in (leader, follower):
                 points[tr.train_id] = next((rs for rs in tr.trip.route.switches if rs.switch_id == sw), None)
@@ -205,7 +230,8 @@ class MergeOrder(Extension):
     def _yield(self, t: float, leader: TrainRuntime, follower: TrainRuntime, p: MergePair) -> None:
         """Before the leader asked, once it is within the request distance: the train on the follower's leg ahead
         of the follower that has not asked for the merge yet, for which the leader waits (``p.yield_to``), or
-        None — at most the wait limit."""
+        None — at most the wait limit. With the follower not on the line yet, a train due to leave before it
+        (within the wait limit) from a platform before the merge counts too."""
         p.yield_to = None
         if leader.status != "running" or p.point_leader_m - leader.front_m > self.ctx.settings.lock_request_distance_m:
             return
@@ -214,12 +240,21 @@ class MergeOrder(Extension):
         own_m = p.point_follower_m - follower.front_m if follower.status == "running" else INF
         first, first_m = None, INF
         for tr in self.ctx.trains.values():
-            if tr.status != "running" or tr.train_id in (p.leader_id, p.follower_id) or p.switch_id in tr.locks:
+            if tr.train_id in (p.leader_id, p.follower_id) or p.switch_id in tr.locks:
                 continue
             if self._leg(tr, p.switch_id) != p.follower_leg:
                 continue
             point_m = next(rs.point_m for rs in tr.trip.route.switches if rs.switch_id == p.switch_id)
-            to_go_m = point_m - tr.front_m
+            if tr.status == "running":
+                to_go_m = point_m - tr.front_m
+            elif tr.status in ("scheduled", "inserting") and follower.status in ("scheduled", "inserting"):
+                # not on the line yet, but due to leave before the follower (which is not on the line either)
+                # from a platform before the merge: it will come between the two as well
+                if tr.trip.depart_s >= follower.trip.depart_s or tr.trip.depart_s - t > p.limit_s:
+                    continue
+                to_go_m = point_m - tr.trip.depart_chainage_m
+            else:
+                continue
             if 0.0 < to_go_m < own_m and to_go_m < first_m:
                 first, first_m = tr.train_id, to_go_m
         p.yield_to = first
@@ -238,26 +273,48 @@ class MergeOrder(Extension):
         return leader.status in ON_THE_WAY and leader.front_m < p.point_leader_m
 
     def _would_ask(self, follower: TrainRuntime, p: MergePair) -> bool:
-        """The follower is on the line within the engine's request distance of the merge."""
-        return (
-            follower.status == "running"
-            and p.point_follower_m - follower.front_m <= self.ctx.settings.lock_request_distance_m
-        )
+        """The follower is on the line within the engine's request distance of the merge and has no stop left to
+        serve before it (or stands at the last one, its route not set): from then on it waits for the merge. A
+        follower still serving stops on its way there is not waiting yet — counted from its first held request,
+        the wait ran out while it was still stations away (the request distance spans several tram stops)."""
+        if follower.status != "running":
+            return False
+        if p.point_follower_m - follower.front_m > self.ctx.settings.lock_request_distance_m:
+            return False
+        stops = follower.trip.stops
+        nxt = follower.next_stop
+        return nxt >= len(stops) or stops[nxt].mark_m > p.point_follower_m or follower.held_for_route
 
     # ------------------------------------------------------------------ the hook
     def defers_lock(self, train_id: str, switch_id: str) -> bool:
         """Hold back the follower's request while it waits for its leader, and any request from the leader's leg
-        between the leader's and the follower's (module docstring)."""
+        between the leader's and the follower's (module docstring) — and, for a train held back at a merge, its
+        requests for switches beyond that merge too: asked out of order, a switch past the merge would be held
+        by a train standing before it, and a leader whose route runs on over it would wait for its own follower
+        (a deadlock)."""
+        tr = self.ctx.trains.get(train_id)
         for p in self.pairs or ():
-            if p.done or p.switch_id != switch_id:
+            if p.done:
                 continue
-            if p.leader_asked_s is None:
-                if train_id == p.follower_id or (train_id == p.leader_id and p.yield_to is not None):
-                    return True
+            if p.switch_id != switch_id and not (tr is not None and self._beyond(tr, switch_id, p.switch_id)):
                 continue
-            if train_id in (p.leader_id, p.follower_id):
-                continue
-            other = self.ctx.trains.get(train_id)
-            if other is not None and self._leg(other, switch_id) == p.leader_leg:
+            if self._holds_back(train_id, p):
                 return True
         return False
+
+    def _holds_back(self, train_id: str, p: MergePair) -> bool:
+        """Train ``train_id``'s request for the merge of pair ``p`` waits (module docstring)."""
+        if p.leader_asked_s is None:
+            return train_id == p.follower_id or (train_id == p.leader_id and p.yield_to is not None)
+        if train_id in (p.leader_id, p.follower_id):
+            return False
+        other = self.ctx.trains.get(train_id)
+        return other is not None and self._leg(other, p.switch_id) == p.leader_leg
+
+    @staticmethod
+    def _beyond(tr: TrainRuntime, switch_id: str, merge_id: str) -> bool:
+        """``switch_id`` lies past merge ``merge_id`` on ``tr``'s route, and ``tr`` has not asked for the merge."""
+        if merge_id in tr.locks:
+            return False
+        points = {rs.switch_id: rs.point_m for rs in tr.trip.route.switches}
+        return switch_id in points and merge_id in points and points[switch_id] > points[merge_id]
