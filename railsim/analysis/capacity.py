@@ -385,6 +385,8 @@ def analyse_run(
 
         # UIC 406: one stairway per path in the window (a formation: leader's claim, follower's rear)
         length = float(first.length_m)
+        if length <= 0.0:  # two stops at one mark (an imported route stopping twice at one station): no running
+            continue
         blocks = model.blocks(length)
         stairs = []
         for row in win.itertuples(index=False):

@@ -292,11 +292,13 @@ class SectionRequests:
         return False
 
     def _turns_back_through(self, train_id: str, last: RouteSection) -> bool:
-        """True if the next trip of ``train_id``'s unit enters single track first through ``last`` (the other
-        way, or turning inside it): the unit is shut in beyond it until it leaves again."""
+        """True if the next trip of ``train_id``'s unit enters single track first through ``last`` the other way
+        (beyond it, or reversing inside it): the unit is shut in beyond it until it leaves again. A unit that
+        leaves through ``last`` the same way (a terminus platform on a loop inside the section: Jena's Winzerla)
+        is not shut in: nothing comes back against the trains behind it."""
         succ_id = self.successor(train_id)
         track = [s for s in self.sections.get(succ_id or "", ()) if s.section_id.startswith("track:")]
-        return bool(track) and track[0].section_id == last.section_id
+        return bool(track) and track[0].section_id == last.section_id and track[0].direction != last.direction
 
     def _bring_forward(self, t: float, tr: TrainRuntime, run: list[RouteSection]) -> None:
         """Trains of ``tr``'s direction that hold or wait for the first section of ``run`` alone, and run on

@@ -49,7 +49,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-from railsim.errors import ConfigError
 
 _CLEAR_DT_S = 0.05  # integration step of the leader's departure [s]
 
@@ -240,12 +239,9 @@ def regime_floor(scn: Any, reference_services: tuple[str, ...] | list[str]) -> R
     reference also stops — the strict and cycle floors of the pattern (module docstring). The dependent unit runs
     coupled where a ``pairs`` formation (an ``on_departure`` coupling) holds it: from its origin to the last stop
     before its ``before_switch`` decoupling point."""
-    import network
+    from network.world import load_world
 
-    if scn.world.kind == "net":
-        raise ConfigError(scn.source or "<scenario>", "world", "analytic floors need a shipped world or line file")
-    name_or_path, params = scn.world.build_args()
-    world = network.build(name_or_path, **params)
+    world = load_world(scn.world, scn.source)  # built, or read from a net as it is
     patterns = []
     notes_all: dict[str, Any] = {}
     for ref_id in reference_services:

@@ -134,3 +134,21 @@ def test_a_section_far_from_where_the_unit_turns_is_no_terminus_approach() -> No
         locks.bookkeeping(1.0, tr)
     assert not locks.section_requests["leaving"][S1].yields, "a train leaving a stub yielded to the trains coming in"
     assert locks.section_requests["coming"][S1].yields
+
+
+def test_a_unit_that_leaves_its_terminus_through_the_section_the_same_way_is_no_terminus_approach() -> None:
+    # Jena's Winzerla: the terminus platform lies on a loop inside the last single-track section, and the unit's
+    # next trip leaves through that section in the same direction. Counted as a terminus approach, the room beyond
+    # the section was negative (the platform lies inside it), the tram never got in and the peak stalled.
+    coming = _tram("coming", 900.0, 1500.0)
+    _, locks = _locks(coming)
+    locks.fleet.trains["coming2"] = _tram("coming2", 0.0, 5000.0)
+    locks.sections["coming2"] = [RouteSection(S1, 0, 0.0, 500.0, 0.0)]
+    locks.continues = lambda train_id: True
+    locks.successor = lambda train_id: f"{train_id}2"
+    locks.tracks = TrackSections(EventLog(), [S1], room_beyond=locks._room_beyond)
+    locks.sections["coming"] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0)]
+    locks.section_requests["coming"] = {}
+    locks.bookkeeping(1.0, coming)
+    assert not locks.section_requests["coming"][S1].yields, "a unit leaving through the section the same way yielded"
+    assert locks.section_requests["coming"][S1].granted
