@@ -358,6 +358,8 @@ def analyse_run(
         paths = paths_all[
             (paths_all["direction"] == direction) & (paths_all["from_station"] == a) & (paths_all["to_station"] == b)
         ].sort_values("departure_s", kind="mergesort")
+        if paths.empty:  # only followers ran here, their leaders elsewhere (before a merge): each is a path
+            paths = grp.sort_values("departure_s", kind="mergesort")
         first = grp.iloc[0]
         label = {
             "direction": direction,

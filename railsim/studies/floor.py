@@ -240,8 +240,10 @@ def regime_floor(scn: Any, reference_services: tuple[str, ...] | list[str]) -> R
     coupled where a ``pairs`` formation (an ``on_departure`` coupling) holds it: from its origin to the last stop
     before its ``before_switch`` decoupling point."""
     from network.world import load_world
+    from railsim.scenario import with_station_ids
 
     world = load_world(scn.world, scn.source)  # built, or read from a net as it is
+    scn = with_station_ids(scn, world)  # an imported net's stations may go by their names
     patterns = []
     notes_all: dict[str, Any] = {}
     for ref_id in reference_services:
