@@ -11,11 +11,11 @@
 * **Y world, a branch train due before the follower**: it leaves G after the leader asked for the merge and
   before the follower leaves; the leader yields to it (``merge_leader_yields``) although it was not on the line
   yet, instead of letting it run between the two.
-* **Potsdam** (:file:`tests/data/osm/potsdam_tram_2025.osm.gz`, imported with platforms widened to 70 m): lines 91
-  (from Bahnhof Rehbrücke) and 92 (from Bisamkiez) merge before Waldstraße/Horstweg, where both stop twice (OSM
-  maps two stop positions one after the other on the same track). A formation joining there couples at the first
-  of the two stops and the pair leaves together; the leader was held for ever (the follower's *next* stop was at
-  the same station, read as "still at the join station": no train arrived).
+* **Dresden** (:file:`tests/data/osm/dresden_tram_2025.osm.gz`, imported with platforms widened to 70 m): lines 9
+  (from Zoo) and 11 (from Strehlener Platz) merge before Lennéplatz, where both stop twice (OSM maps two stop
+  positions one after the other on the same track). A formation joining there couples at the first of the two
+  stops and the pair leaves together; the leader was held for ever (the follower's *next* stop was at the same
+  station, read as "still at the join station": no train arrived).
 * **Potsdam, a platform just past the merge**: lines 91 and 93 merge at points ``30566579`` right before the
   second platform of Platz der Einheit/West (the first lies before the points on line 91). The leader waits at
   the second (waiting at the first it held the points its follower needed: ``timeout``), the follower, held short
@@ -30,7 +30,9 @@ from typing import Any
 
 from tests.helpers import merge_world, ok_stdout, read_csv, read_summary, run_mapping, run_railsim
 
-POTSDAM = Path(__file__).resolve().parents[1] / "data" / "osm" / "potsdam_tram_2025.osm.gz"
+OSM = Path(__file__).resolve().parents[1] / "data" / "osm"
+POTSDAM = OSM / "potsdam_tram_2025.osm.gz"
+DRESDEN = OSM / "dresden_tram_2025.osm.gz"
 
 
 def _run(tmp_path: Path, name: str, data: dict[str, Any]) -> tuple[Path, list[dict[str, Any]]]:
@@ -60,18 +62,23 @@ def test_a_train_behind_the_leader_waits_at_the_merge_for_a_join_at_the_station_
 
 
 def _potsdam(
-    tmp_path: Path, services: list[tuple[str, str, str, list[str], float]], formation: dict[str, Any]
+    tmp_path: Path,
+    services: list[tuple[str, str, str, list[str], float]],
+    formation: dict[str, Any],
+    osm: Path = POTSDAM,
 ) -> dict[str, Any]:
-    """A scenario on Potsdam imported with 70 m platforms: one trip per service ``(id, from, to, via,
-    departure)``, one formation ``j`` (leader ``lead``, follower ``fol``, 10 m target gap)."""
-    world = tmp_path / "potsdam"
-    args = ["network", "import", str(POTSDAM), "--out", str(world), "--platform-m", "70"]
+    """A scenario on a city imported with 70 m platforms (Potsdam unless ``osm`` names another extract): one trip
+    per service ``(id, from, to, via, departure)``, one formation ``j`` (leader ``lead``, follower ``fol``, 10 m
+    target gap)."""
+    world = tmp_path / "city"
+    stem = osm.name.removesuffix(".osm.gz")
+    args = ["network", "import", str(osm), "--out", str(world), "--platform-m", "70"]
     ok_stdout(run_railsim(args, cache_dir=tmp_path / "cache"))
     return {
-        "name": "potsdam_join",
+        "name": "city_join",
         "world": {
-            "net": str(world / "potsdam_tram_2025.net.xml"),
-            "additional": [str(world / "potsdam_tram_2025.stops.tram.add.xml")],
+            "net": str(world / f"{stem}.net.xml"),
+            "additional": [str(world / f"{stem}.stops.tram.add.xml")],
             "vclass": "tram",
         },
         "simulation": {"step_s": 0.5, "duration_s": 1800.0, "seed": 1},
@@ -102,17 +109,17 @@ def _potsdam(
     }
 
 
-def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_potsdam(tmp_path: Path) -> None:
+def test_a_join_at_a_station_served_twice_in_a_row_leaves_together_on_dresden(tmp_path: Path) -> None:
     services = [
-        ("lead", "Bahnhof Rehbrücke", "Sporthalle", ["Waldstraße/Horstweg"], 0.0),
-        ("fol", "Bisamkiez", "Sporthalle", ["Magnus-Zeller-Platz", "Waldstraße/Horstweg"], 200.0),
+        ("lead", "Zoo", "Hauptbahnhof Nord", ["Lennéplatz"], 0.0),
+        ("fol", "Strehlener Platz", "Hauptbahnhof Nord", ["Lennéplatz"], 120.0),
     ]
-    data = _potsdam(tmp_path, services, {"couple": {"at_station": "waldstrasse-horstweg"}})
+    data = _potsdam(tmp_path, services, {"couple": {"at_station": "lenneplatz"}}, osm=DRESDEN)
     out, _ = _run(tmp_path, "join", data)
     assert read_summary(out)["formations_asked"][0]["coupled"]
-    at = [r for r in read_csv(out / "stops.csv") if r["station"] == "waldstrasse-horstweg"]
+    at = [r for r in read_csv(out / "stops.csv") if r["station"] == "lenneplatz"]
     first = {r["trip_id"]: r for r in reversed(at)}  # each trip's first stop there
-    assert len(at) == 4  # both trips stop twice at Waldstraße/Horstweg
+    assert len(at) == 4  # both trips stop twice at Lennéplatz (OSM maps two stop positions one after the other)
     assert abs(float(first["lead.000"]["departure_s"]) - float(first["fol.000"]["departure_s"])) <= 0.5
 
 
