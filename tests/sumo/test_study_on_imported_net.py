@@ -43,4 +43,4 @@ def test_the_vc_vs_mb_study_runs_on_an_imported_city(tmp_path: Path) -> None:
     report = (tmp_path / "study" / "vc_vs_mb.md").read_text(encoding="utf-8")
     assert "## Analytic floors" in report
     formations_row = next(line for line in report.splitlines() if line.startswith("| formations coupling"))
-    assert "| 0 / – | 4 / 10 m |" in formations_row  # every line-99 tram coupled behind its line-91 leader
+    assert "| 0 / – | 7 / 10 m |" in formations_row  # the 7 line-99 trams (07:00-08:00) each coupled to its leader
