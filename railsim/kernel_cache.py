@@ -5,7 +5,7 @@ cached on disk (``@njit(cache=True)``). numba checks a cached function against t
 file only: the compiled line step inlines the ATO law of ``controllers/line_kernels.py`` and the forces of
 ``railsim/physics/forces.py``, so after a change to one of those (an edit, a ``git pull``) the step would go on
 running the old law, silently. railsim therefore gives numba a cache folder per version of the kernel sources:
-``$RAILSIM_CACHE/numba/<hash>`` (default ``~/.cache/railsim/numba/<hash>``), the hash taken over every Python file
+``~/.cache/railsim/numba/<hash>`` (``$XDG_CACHE_HOME`` if set), the hash taken over every Python file
 of ``controllers/`` and ``railsim/physics/`` and the engine's ``*_kernel.py``. A changed source means a new folder
 and a fresh compile; an unchanged tree finds its kernels again. Set ``NUMBA_CACHE_DIR`` yourself to choose the
 folder (railsim then leaves it alone, and keeping it in step with the sources is yours).
@@ -41,9 +41,10 @@ def sources_hash(root: Path = ROOT) -> str:
 
 
 def cache_dir(root: Path = ROOT) -> Path:
-    """The folder for this version of the kernels (module docstring)."""
-    base = os.environ.get("RAILSIM_CACHE")
-    return (Path(base) if base else Path.home() / ".cache" / "railsim") / "numba" / sources_hash(root)
+    """The folder for this version of the kernels (module docstring): under ``$XDG_CACHE_HOME`` (default
+    ``~/.cache``), not under ``$RAILSIM_CACHE``, so runs that keep their worlds apart still share compiled code."""
+    base = os.environ.get("XDG_CACHE_HOME")
+    return (Path(base) if base else Path.home() / ".cache") / "railsim" / "numba" / sources_hash(root)
 
 
 def configure() -> None:

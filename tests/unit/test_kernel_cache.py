@@ -40,17 +40,18 @@ def test_the_folder_changes_with_a_law_in_another_module_and_only_with_kernel_so
     assert kernel_cache.sources_hash(tmp_path) != before
 
 
-def test_configure_names_a_folder_under_the_railsim_cache_and_respects_the_users_choice(
+def test_configure_names_a_folder_under_the_user_cache_and_respects_the_users_choice(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
-    monkeypatch.setenv("RAILSIM_CACHE", str(tmp_path))
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    monkeypatch.setenv("RAILSIM_CACHE", str(tmp_path / "worlds"))  # worlds apart: compiled code still shared
     monkeypatch.delenv("NUMBA_CACHE_DIR", raising=False)
     import numba.core.config
 
     monkeypatch.setattr(numba.core.config, "CACHE_DIR", numba.core.config.CACHE_DIR)  # restored afterwards
     kernel_cache.configure()
     folder = Path(os.environ["NUMBA_CACHE_DIR"])
-    assert folder.parent == tmp_path / "numba" and folder.name == kernel_cache.sources_hash()
+    assert folder.parent == tmp_path / "railsim" / "numba" and folder.name == kernel_cache.sources_hash()
     assert numba.core.config.CACHE_DIR == str(folder)
     monkeypatch.setenv("NUMBA_CACHE_DIR", str(tmp_path / "mine"))
     kernel_cache.configure()
