@@ -136,6 +136,13 @@ def test_a_second_run_into_a_folder_in_use_is_refused(tmp_path: Path) -> None:
     assert not lock.exists()
 
 
+def _interactive_sigint() -> None:
+    """In the child before exec: SIGINT as an interactive shell leaves it (default). A test worker may run with
+    SIGINT ignored, which a child inherits and railsim rightly keeps (as for a background job): the Ctrl-C then
+    never came, and the run finished with 0."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+
+
 def test_ctrl_c_during_start_up_is_one_line_and_130(tmp_path: Path) -> None:
     """SIGINT at several moments of start-up (imports, scenario, world): never a traceback, always 130."""
     env = dict(os.environ, RAILSIM_CACHE=str(tmp_path / "cache"))
@@ -148,6 +155,7 @@ def test_ctrl_c_during_start_up_is_one_line_and_130(tmp_path: Path) -> None:
             text=True,
             env=env,
             cwd=ROOT,
+            preexec_fn=_interactive_sigint,
         )
         time.sleep(delay_s)
         if proc.poll() is None:
