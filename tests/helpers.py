@@ -129,6 +129,21 @@ def run_mapping(
     return run_railsim(["run", str(path), "--out", str(out), "--no-progress"], timeout=timeout), out
 
 
+def run_clean(folder: Path, data: dict[str, Any], name: str) -> tuple[Path, list[dict[str, Any]]]:
+    """:func:`run_mapping`, and require a clean run (exit 0, no collision of railsim's or SUMO's, no switch
+    violation, every trip arrived); (the outputs, the events with ``detail`` parsed and ``t_s`` a float)."""
+    res, out = run_mapping(folder, data, name)
+    assert res.returncode == 0, res.stderr[-2000:]
+    summary = read_summary(out)
+    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
+    assert summary["n_arrived"] == summary["n_trains"]
+    events: list[dict[str, Any]] = list(read_csv(out / "events.csv"))
+    for e in events:
+        e["detail"] = json.loads(e["detail"]) if e["detail"] else {}
+        e["t_s"] = float(e["t_s"])
+    return out, events
+
+
 def interpreted(module: Any) -> Any:
     """A fresh copy of ``module`` with numba's JIT off (``NUMBA_DISABLE_JIT`` for that module alone): every
     ``@njit`` function in it is the plain Python function as written — the reference its compiled form must give

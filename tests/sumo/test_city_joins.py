@@ -24,11 +24,10 @@
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
-from tests.helpers import merge_world, ok_stdout, read_csv, read_summary, run_mapping, run_railsim
+from tests.helpers import merge_world, run_clean, ok_stdout, read_csv, read_summary, run_railsim
 
 OSM = Path(__file__).resolve().parents[1] / "data" / "osm"
 POTSDAM = OSM / "potsdam_tram_2025.osm.gz"
@@ -36,15 +35,7 @@ DRESDEN = OSM / "dresden_tram_2025.osm.gz"
 
 
 def _run(tmp_path: Path, name: str, data: dict[str, Any]) -> tuple[Path, list[dict[str, Any]]]:
-    res, out = run_mapping(tmp_path, data, name)
-    assert res.returncode == 0, res.stderr[-2000:]
-    summary = read_summary(out)
-    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
-    assert summary["n_arrived"] == summary["n_trains"]
-    events = read_csv(out / "events.csv")
-    for e in events:
-        e["detail"] = json.loads(e["detail"]) if e["detail"] else {}
-    return out, events
+    return run_clean(tmp_path, data, name)
 
 
 def test_a_train_behind_the_leader_waits_at_the_merge_for_a_join_at_the_station_after_it(tmp_path: Path) -> None:

@@ -20,27 +20,17 @@ Every case: 0 collisions, 0 switch violations, every train arrived, ``formations
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 from typing import Any
 
-from tests.helpers import merge_world, read_csv, read_summary, run_mapping
+from tests.helpers import merge_world, run_clean, read_csv, read_summary
 
 SWITCH = "c_down"
 GAP_M = 30.0
 
 
 def _run(tmp_path: Path, name: str, data: dict[str, Any]) -> tuple[Path, list[dict[str, Any]]]:
-    res, out = run_mapping(tmp_path, data, name)
-    assert res.returncode == 0, res.stderr[-2000:]
-    summary = read_summary(out)
-    assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
-    assert summary["n_arrived"] == summary["n_trains"]
-    events = read_csv(out / "events.csv")
-    for e in events:
-        e["detail"] = json.loads(e["detail"]) if e["detail"] else {}
-        e["t_s"] = float(e["t_s"])
-    return out, events
+    return run_clean(tmp_path, data, name)
 
 
 def _grants(events: list[dict[str, Any]]) -> list[str]:

@@ -7,20 +7,10 @@ crossing stood in this one, and the opposing tram waited in that next crossing f
 from __future__ import annotations
 
 from types import SimpleNamespace
-from typing import Any
 
 from railsim.engine.single_track import RouteSection
-from tests.unit.test_lock_requests import _crossing_locks, _stop, _train
-
-
-TRAM_M = 27.0
-
-
-def _tram(tid: str, front_m: float, destination_m: float) -> Any:
-    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("Z", destination_m, 1.0, destination=True)]
-    tr = _train(tid, front_m, stops)
-    tr.trip.vehicle.length_m = TRAM_M
-    return tr
+from tests.unit.test_lock_requests import _crossing_locks
+from tests.unit.test_terminus_room import TRAM_M, _tram
 
 
 def test_a_crossing_is_asked_for_only_with_room_beyond_it_in_front_of_the_train_ahead() -> None:

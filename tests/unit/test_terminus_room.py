@@ -1,24 +1,20 @@
-"""Room beyond single track and flat crossings, constructed without SUMO (each case from Jena's tram peak).
+"""Room at a terminus beyond single track, constructed without SUMO (each case from Jena's tram peak).
 
-* A train whose trip ends at a terminus beyond a single-track section (turning there or leaving service) is
-  granted the section only while the terminus has room for it beside the units standing there and the trains
-  already let in (four trams granted the Zwätzen Schleife approach together filled the loop; the last stood in
-  the section behind a unit waiting to leave through it).
-* A flat crossing is asked for only with its exit clear: room for the train beyond it in front of the train
-  ahead (a tram that went in behind a tram waiting for the next crossing stood in this one, and the opposing
-  tram waited in that next crossing for this one).
+A train whose trip ends at a terminus beyond a single-track section (turning there or leaving service) is
+granted the section only while the terminus has room for it beside the units standing there and the trains
+already let in (four trams granted the Zwätzen Schleife approach together filled the loop; the last stood in
+the section behind a unit waiting to leave through it).
 """
 
 from __future__ import annotations
 
-from types import SimpleNamespace
 from typing import Any
 
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import TrackSections
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import RouteSection
-from tests.unit.test_lock_requests import _crossing_locks, _stop, _train
+from tests.unit.test_lock_requests import _stop, _train
 from tests.unit.test_single_track_order import _locks
 
 S1 = "track:approach"
@@ -73,19 +69,6 @@ def test_trains_turning_beyond_a_section_are_let_in_only_as_far_as_the_terminus_
     b.front_m = 2000.0 + clearance_m + TRAM_M + 1.0
     locks.bookkeeping(4.0, b)
     assert locks.section_requests["c"][S1].granted
-
-
-def test_a_crossing_is_asked_for_only_with_room_beyond_it_in_front_of_the_train_ahead() -> None:
-    tr = _tram("t", 900.0, 3000.0)
-    locks = _crossing_locks(tr)
-    crossing = locks.sections["t"][0]
-    exit_m = crossing.end_m + locks.settings.clearance_m
-    blocked = SimpleNamespace(train_id="ahead", front_m=exit_m + 20.0 + TRAM_M, rear_m=exit_m + 20.0)
-    locks.bookkeeping(1.0, tr, blocked)
-    assert locks.section_requests["t"] == {}, "asked for a crossing it could not leave"
-    clear = SimpleNamespace(train_id="ahead", front_m=exit_m + 40.0 + TRAM_M, rear_m=exit_m + 40.0)
-    locks.bookkeeping(2.0, tr, clear)
-    assert locks.section_requests["t"][crossing.section_id].granted
 
 
 def test_trains_whose_units_turn_round_a_loop_are_let_in_as_far_as_the_loop_holds_them() -> None:
