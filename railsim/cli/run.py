@@ -73,6 +73,17 @@ def format_summary(summary: dict[str, Any], out_dir: Path) -> str:
                 why[str(f["reason"])] = why.get(str(f["reason"]), 0) + 1
         reasons = "".join(f", {n} {r}" for r, n in sorted(why.items()))
         lines.append(f"  formations coupled where asked: {ok}/{len(asked)}{reasons}")
+        for f in asked:
+            on_run = f.get("on_run")
+            if on_run:
+                gap = on_run["least_gap_m"]
+                where = "not past the merge yet" if gap is None else f"at best {gap:g} m behind it"
+                lines.append(
+                    f"  formation {f['id']} cannot couple on the run after its merge: its follower may pass "
+                    f"{on_run['switch_interval_s']:g} s after its leader, which stands {on_run['leader_to_halt_s']:g} s "
+                    f"after the merge; {on_run['hold_s']:g} s before that (the coupled state's hold) the follower is {where} "
+                    f"(target {on_run['target_gap_m']:g} m): it couples standing"
+                )
     shown = [f for f in OUTPUT_FILES if f.kind != "sumo" and f.stem not in ("scenario.resolved", "versions")]
     files = ", ".join([*(f.file_name for f in shown), output_file_name("sumo_run")])
     lines.append(f"  outputs: {out_dir}/ ({files})")

@@ -42,7 +42,7 @@ formation, ahead)``, run before the state machine is fed (:mod:`railsim.engine.e
 from __future__ import annotations
 
 import logging
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 from railsim.engine.events.formations import Formation, FormationManager
@@ -147,6 +147,11 @@ class FormationBook:
             self.join_book.check_platform(f, leader, follower, where)
         self.of_follower[follower.train_id] = f
         self.of_leader.setdefault(leader.train_id, []).append(f)
+
+    def note_on_run_infeasible(self, formation_id: str, detail: Mapping[str, float | None]) -> None:
+        """A merge extension found that ``formation_id`` cannot couple on the run after its merge (the numbers
+        why): the summary's ``formations_asked`` entry carries them as ``on_run``."""
+        self.join_book.on_run_infeasible[formation_id] = dict(detail)
 
     def schedule_commands(self, formations: Any) -> None:
         """Timed couple/decouple triggers of the scenario's formations (``at_s``)."""

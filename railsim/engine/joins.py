@@ -97,6 +97,8 @@ class Joins:
         self.requested: set[str] = set()  # joins whose couple request went out at the station
         self.failed: dict[str, str] = {}  # formation -> why it did not couple where it asked
         self.coupled_where: dict[str, str] = {}  # formation -> where it coupled
+        # formation -> why it cannot couple on the run after its merge (railsim.engine.merge_reach), if it cannot
+        self.on_run_infeasible: dict[str, dict[str, float | None]] = {}
         self.held_since_s: dict[str, float] = {}  # formation -> when its leader's dwell at the station ended
         self._join: dict[str, tuple[int, int] | None] = {}  # formation -> (leader, follower) join stop indices
 
@@ -349,7 +351,8 @@ class Joins:
 
     def where_asked(self, t: float) -> dict[str, Any]:
         """The summary's ``formations_asked`` block — one entry per formation that asked to couple at a station or
-        after a switch: ``{id, asked, coupled, where, reason}`` (``coupled``: there, as asked) — or nothing when
+        after a switch: ``{id, asked, coupled, where, reason}`` (``coupled``: there, as asked; plus ``on_run`` with
+        the numbers when it cannot couple on the run after its merge and couples standing) — or nothing when
         none asked. A formation that neither coupled nor failed by the end of the run gets a ``coupling_failed``
         event with the reason ``not_reached`` (its units never met there), or ``timeout`` when its state machine
         gave up an attempt."""
@@ -367,15 +370,16 @@ class Joins:
                     self.fail(t, f, "aborted")
                 else:
                     self.fail(t, f, "not_reached")
-            rows.append(
-                {
-                    "id": f.id,
-                    "asked": asked(f),
-                    "coupled": coupled,
-                    "where": where,
-                    "reason": None if coupled else self.failed.get(f.id),
-                }
-            )
+            row: dict[str, Any] = {
+                "id": f.id,
+                "asked": asked(f),
+                "coupled": coupled,
+                "where": where,
+                "reason": None if coupled else self.failed.get(f.id),
+            }
+            if f.id in self.on_run_infeasible:  # it couples standing at the platform: the numbers why
+                row["on_run"] = {"feasible": False, **self.on_run_infeasible[f.id]}
+            rows.append(row)
         return {"formations_asked": rows} if rows else {}
 
 

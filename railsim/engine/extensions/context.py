@@ -40,6 +40,9 @@ class FormationView(Protocol):
     def add(self, f: FormationSpec, where: str = "formations") -> None:
         """Register a formation formed at run time (``where`` names it in error messages)."""
 
+    def note_on_run_infeasible(self, formation_id: str, detail: Mapping[str, float | None]) -> None:
+        """Note that a formation cannot couple on the run where it asked, and the numbers why (the summary's)."""
+
 
 class KnownStates(Protocol):
     """What one train knows of another from delivered reports (the engine's knowledge port)."""

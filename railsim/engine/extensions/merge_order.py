@@ -34,7 +34,12 @@ What happens in time, per such formation (a :class:`MergePair`):
    comes to ``X`` on the follower's leg ahead of the follower and has not asked yet would pass between the two
    if the leader asked before it; the leader's request waits for it (``merge_leader_yields``, naming it; at
    most the wait limit), so it passes before the leader.
-4. **Past the merge** the engine takes over: the follower asks to couple once past ``X`` with its leader
+4. **On the run or standing.** When the pairs are found (the first step), each ``after_switch`` pair whose leader
+   stops at a platform just past ``X`` is checked with :func:`railsim.engine.merge_reach.on_run_reach`: if the
+   switch interval on the leader's own profile, the follower's run to its slot and the coupled state's hold do
+   not fit before the leader stands, the run says so (``coupling_on_run_infeasible`` event with the numbers, and
+   ``on_run`` in the summary's ``formations_asked`` entry) and the pair couples standing, as below.
+5. **Past the merge** the engine takes over: the follower asks to couple once past ``X`` with its leader
    directly ahead and close enough (:meth:`railsim.engine.joins.Joins.close_enough`), and the leader waits at the first station past ``X`` both serve until they are coupled
    (:meth:`railsim.engine.joins.Joins.join_station`). Two legs cannot both be set at once: the follower passes
    ``X`` at least the leader's clearing time plus one switch throw after it, so the pair closes up on the run to
@@ -52,6 +57,7 @@ from typing import TYPE_CHECKING
 from railsim.engine.extensions.base import Extension
 from railsim.engine.extensions.context import ExtensionContext
 from railsim.engine.joins import shared_platform
+from railsim.engine.merge_reach import OnRunReach, on_run_reach
 from railsim.engine.settings import INF
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -84,6 +90,14 @@ def _merge_before(leader: TrainRuntime, follower: TrainRuntime, f: object) -> st
         if rs.point_m < lead_mark_m and rs.switch_id in legs and legs[rs.switch_id] != rs.leg
     ]
     return max(before, key=lambda rs: rs.point_m).switch_id if before else None
+
+
+def _limit_at(tr: TrainRuntime, route_m: float) -> float:
+    """The speed limit on ``tr``'s route just before chainage ``route_m`` (the line speed outside restrictions)."""
+    for a, b, v in tr.trip.route.speed_limits:
+        if a < route_m <= b + 0.5:
+            return float(v)
+    return float(tr.view.line_speed_mps)
 
 
 @dataclass
@@ -161,12 +175,55 @@ class MergeOrder(Extension):
             )
         return pairs
 
+    def _on_run_verdict(self, t: float, p: MergePair) -> None:
+        """Record, for an ``after_switch`` pair, that it cannot couple on the run before its leader stands at its
+        next stop past the merge (module docstring, item 4); nothing when it can or the leader does not stop."""
+        f = self.ctx.formations.of_follower[p.follower_id]
+        if f.couple.kind != "after_switch":
+            return
+        reach = self.on_run(p, float(f.target_gap_m))
+        if reach is None or reach.feasible:
+            return
+        detail = reach.detail()
+        self.ctx.formations.note_on_run_infeasible(p.formation_id, detail)
+        self.ctx.events.record(
+            t, "coupling_on_run_infeasible", p.formation_id, switch=p.switch_id, leader=p.leader_id, **detail
+        )
+
+    def on_run(self, p: MergePair, target_gap_m: float) -> OnRunReach | None:
+        """:func:`~railsim.engine.merge_reach.on_run_reach` with the engine's numbers for pair ``p`` (None when the
+        leader has no stop past the merge)."""
+        leader, follower = self.ctx.trains[p.leader_id], self.ctx.trains[p.follower_id]
+        halt = next((s.mark_m for s in leader.trip.stops if s.mark_m > p.point_leader_m), None)
+        if halt is None:
+            return None
+        ato = getattr(leader.controllers.get("ato"), "params", None)
+        margin = float(getattr(ato, "speed_margin_mps", 0.0))
+        share = float(getattr(ato, "planning_decel_fraction", 1.0))
+        lveh, fveh = leader.trip.vehicle, follower.trip.vehicle
+        return on_run_reach(
+            leader_limit_mps=min(_limit_at(leader, p.point_leader_m), lveh.max_speed_mps),
+            speed_margin_mps=margin,
+            brake_mps2=share * lveh.service_decel_mps2,
+            halt_m=halt - p.point_leader_m,
+            leader_length_m=lveh.length_m,
+            clearance_m=self.ctx.settings.clearance_m,
+            throw_s=float(self.ctx.switch_throw_s.get(p.switch_id, 0.0)),
+            follower_turnout_mps=min(_limit_at(follower, p.point_follower_m), fveh.max_speed_mps),
+            follower_line_mps=min(_limit_at(follower, p.point_follower_m + 1.0), fveh.max_speed_mps),
+            follower_length_m=fveh.length_m,
+            target_gap_m=target_gap_m,
+            hold_s=self.ctx.formations.manager.formation(p.formation_id).hold_s,
+        )
+
     # ------------------------------------------------------------------ every step
     def before_bookkeeping(self, t: float) -> None:
         """Follow each pair: who asked for the merge, who waits, and when a wait or a priority lapses."""
         self.now_s = t
         if self.pairs is None:
             self.pairs = self._find_pairs()
+            for p in self.pairs:
+                self._on_run_verdict(t, p)
         for p in self.pairs:
             if not p.done:
                 self._update(t, p)
