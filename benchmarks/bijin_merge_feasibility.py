@@ -237,7 +237,11 @@ def planner_model(g: Geometry, throw_s: float) -> tuple[JunctionParams, QpOrderP
     )
     v_lsn, v_lsr = g.line_speed_mps, g.turnout_speed_mps
     # the coordinator's t_ls (readings.switch_interval_s) with these speeds and the ATO's planning braking
-    t_ls = (g.turnout_m + g.length_m + g.clearance_m) / v_lsr + throw_s + (v_lsn**2 / (2 * g.b_plan_mps2) + g.protection_m) / v_lsn
+    t_ls = (
+        (g.turnout_m + g.length_m + g.clearance_m) / v_lsr
+        + throw_s
+        + (v_lsn**2 / (2 * g.b_plan_mps2) + g.protection_m) / v_lsn
+    )
     p = JunctionParams(
         accel_min_mps2=-g.b_plan_mps2,
         accel_max_mps2=g.a_max_mps2,

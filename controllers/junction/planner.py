@@ -493,11 +493,21 @@ def plan(
     pso: PSOParams | None = None,
     rng: np.random.Generator | None = None,
     qp: QpOrderParams | None = None,
+    order: Sequence[str] | None = None,
 ) -> JunctionPlan:
-    """Initial plan at the coupling opportunity (spec §7 step 1)."""
-    problem = build_problem(trains, switches, layout, params)
+    """Initial plan at the coupling opportunity (spec §7 step 1). ``order``: a passing order at the merge switch
+    fixed by the caller (a formation's leader first), the plan then frozen to it; None lets the planner choose."""
+    problem = build_problem(trains, switches, layout, params, order)
     res = solve(problem, method, pso, rng, qp=qp)
-    return decode(problem, res.x, method, res.iterations, res.wall_time_s, converged=getattr(res, "converged", True))
+    return decode(
+        problem,
+        res.x,
+        method,
+        res.iterations,
+        res.wall_time_s,
+        frozen=order is not None,
+        converged=getattr(res, "converged", True),
+    )
 
 
 def past_point_of_no_return(trains: Sequence[TrainState], params: JunctionParams | None = None) -> list[str]:

@@ -273,7 +273,9 @@ class JunctionSpec:
     ``trains`` are trip ids; ``method`` is the planner (improved/plain PSO, ``qp_order``) or a naive baseline; the ground
     re-plans every ``replan_s`` seconds; ``target_gap_m`` is the coupled gap handed to the formations after
     the junction (``None``: the planner's standstill gap ``S_0``); ``params``/``pso``/``replan_pso`` override
-    :class:`controllers.junction.model.JunctionParams` and :class:`controllers.junction.pso.PSOParams` fields.
+    :class:`controllers.junction.model.JunctionParams` and :class:`controllers.junction.pso.PSOParams` fields;
+    ``fixed_order``: the trains pass the merge switch in the order listed (a formation's leader first), not in the
+    order the planner would choose.
     """
 
     trains: tuple[str, ...]
@@ -283,6 +285,7 @@ class JunctionSpec:
     params: dict[str, Any] = field(default_factory=dict)
     pso: dict[str, Any] = field(default_factory=dict)
     replan_pso: dict[str, Any] = field(default_factory=dict)
+    fixed_order: bool = False
 
 
 @dataclass(frozen=True)

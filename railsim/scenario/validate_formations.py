@@ -194,7 +194,10 @@ def junction(
 ) -> tuple[JunctionSpec, dict[str, Any]]:
     """``junction:`` → a :class:`JunctionSpec`; its trains may not already be in a formation."""
     m = ck.mapping(
-        value, "junction", ("trains",), ("method", "replan_s", "target_gap_m", "params", "pso", "replan_pso")
+        value,
+        "junction",
+        ("trains",),
+        ("method", "replan_s", "target_gap_m", "params", "pso", "replan_pso", "fixed_order"),
     )
     if not isinstance(m["trains"], list) or not 2 <= len(m["trains"]) <= 8:
         raise ck.expect("junction.trains", "a list of 2 to 8 trains (trip ids or one-trip service ids)", m["trains"])
@@ -220,7 +223,10 @@ def junction(
     ck.dataclass_fields(params, "junction.params", "controllers.junction.model", "JunctionParams")
     ck.dataclass_fields(pso, "junction.pso", "controllers.junction.pso", "PSOParams")
     ck.dataclass_fields(replan_pso, "junction.replan_pso", "controllers.junction.pso", "PSOParams")
-    spec = JunctionSpec(tuple(trains), method, replan, gap, params, pso, replan_pso)
+    fixed = ck.boolean(m.get("fixed_order", False), "junction.fixed_order")
+    if fixed and method in ("naive1", "naive2"):
+        raise ck.fail("junction.fixed_order", f"the naive baselines choose their order by rule; method is {method!r}")
+    spec = JunctionSpec(tuple(trains), method, replan, gap, params, pso, replan_pso, fixed)
     raw = {
         "trains": trains,
         "method": method,
@@ -231,4 +237,6 @@ def junction(
     }
     if gap is not None:
         raw["target_gap_m"] = gap
+    if fixed:
+        raw["fixed_order"] = True
     return spec, raw

@@ -132,6 +132,8 @@ def test_naive_baselines_pass_in_their_priority_order(tmp_path: Path, method: st
         ({"params": {"segment_lenght_m": 10}}, "junction.params.segment_lenght_m", "unknown field"),
         ({"params": {"accel_max_mps2": -1}}, "junction.params.accel_max_mps2", "expected a number > 0"),
         ({"replan_s": 0}, "junction.replan_s", "expected a number > 0"),
+        ({"fixed_order": "yes"}, "junction.fixed_order", "expected true or false"),
+        ({"method": "naive1", "fixed_order": True}, "junction.fixed_order", "choose their order by rule"),
     ],
 )
 def test_bad_junction_input_names_file_and_field(tmp_path: Path, junction: dict, field: str, message: str) -> None:

@@ -101,9 +101,7 @@ def test_the_run_says_why_the_pair_cannot_couple_on_the_run(pair: Path) -> None:
     # the recorded run agrees: the lock was released (the leader's rear clear) release_s after the leader passed
     # the point, and the leader stood at Bijin leader_to_halt_s after it; the pair coupled standing there
     released = next(e["t_s"] for e in ev if e["kind"] == "lock_released" and e["subject"] == "bijin_down")
-    stood = next(
-        e["t_s"] for e in ev if e["kind"] == "stop_registered" and e["subject"] == "airport_down_vc.000"
-    )
+    stood = next(e["t_s"] for e in ev if e["kind"] == "stop_registered" and e["subject"] == "airport_down_vc.000")
     assert stood - released == pytest.approx(d["leader_to_halt_s"] - d["release_s"], abs=2.0)
     (coupled,) = [e for e in ev if e["kind"] == "coupled"]
     assert coupled["t_s"] > stood

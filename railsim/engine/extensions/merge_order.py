@@ -179,7 +179,7 @@ class MergeOrder(Extension):
         """Record, for an ``after_switch`` pair, that it cannot couple on the run before its leader stands at its
         next stop past the merge (module docstring, item 4); nothing when it can or the leader does not stop."""
         f = self.ctx.formations.of_follower[p.follower_id]
-        if f.couple.kind != "after_switch":
+        if f.couple is None or f.couple.kind != "after_switch":
             return
         reach = self.on_run(p, float(f.target_gap_m))
         if reach is None or reach.feasible:

@@ -19,6 +19,9 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    ``a_ref + k_v (v_ref − v) + k_s (s_ref − s)`` (``k_v`` = 1 /s, ``k_s`` = 0.25 /s², a critically damped
    tracking loop), clipped to the planner's ``[a_min, a_max]``. It is arbitrated (minimum) with the train's ATO,
    which keeps line/turnout speed limits, the platform stop and the movement authority of the interlocking.
+   The command is the net acceleration made applied (:meth:`railsim.physics.vehicle.VehicleParams.net_to_applied`:
+   running resistance and gradient added back), so a unit with Davis resistance flies the plan's accelerations
+   and the platoon leader past F holds its speed instead of coasting down.
    Against the train ahead, planned trains use the coupled controller's **relative-braking-distance safety cap**
    only (``vc_tracking = False``), not moving-block separation: the plan itself brings them to metres apart.
 4. **Switches.** The locks of ``sw1``/``sw2`` for planned trains are requested by this coordinator, not by the
@@ -30,7 +33,9 @@ module is the *ground side* that runs it inside the engine (spec 004 §7, the re
    5 m or 0.5 m/s (spec §7.3), warm-started from the previous plan. The passing order is **frozen** once any
    train is within its service braking distance of a switch ahead (the planner's point of no return); then the
    formations are formed in that order (each train follows the one before it at the planner's standstill gap
-   ``S_0``, or ``junction.target_gap_m``) and asked to couple. *Reading:* our planner cannot keep a train that
+   ``S_0``, or ``junction.target_gap_m``) and asked to couple. With ``junction.fixed_order`` the order is the
+   listed one from the first plan on (a formation's leader first: the planner does not choose it), so it is
+   frozen and the formations are formed at once. *Reading:* our planner cannot keep a train that
    is past the merge switch in the game, so re-planning stops when the first train passes ``sw2``; the rest is
    closed-loop tracking of the last plan.
 6. **Hand-over.** A train whose front reaches F leaves the plan: the leader continues on its ATO, followers on
@@ -243,7 +248,19 @@ class JunctionCoordinator(Extension):
             return False
         if not m.handed_over:
             return True
+        if self.fixed_order_coupled():
+            return False  # the platoon is coupled: nothing left to hold the speed for (its ATO stops it at its halt)
         return bool(self.order) and train_id == self.order[0] and not all(x.handed_over for x in self.members.values())
+
+    def fixed_order_coupled(self) -> bool:
+        """With ``junction.fixed_order`` (a formation coupling before its leader's stop): every formation the
+        coordinator formed is coupled. The PSO methods and the paper's runs keep the leader's hold until the last
+        train has reached F."""
+        if not (self.spec.fixed_order and self.formed):
+            return False
+        man = self.ctx.formations.manager
+        ids = [f for f in man.ids() if f.startswith("junction_")]
+        return bool(ids) and all(man.state(f) == "coupled" for f in ids)
 
     def command(self, t: float, tr: TrainRuntime, own_pos_m: float, own_v_mps: float) -> float | None:
         """The junction role's acceleration for a planned train (None before the first plan)."""
@@ -287,7 +304,9 @@ class JunctionCoordinator(Extension):
         the train ahead (the coupled controller without gap tracking) — see the module docstring, step 3."""
         u = self.command(t, tr, own_pos_m, own_v_mps)
         if u is not None:
-            commands["junction"] = Command(u)
+            # the plan's accelerations are net ones (the planner's double integrator): the applied command adds the
+            # running resistance and gradient back (zero for the paper's point masses), as the ATO's does
+            commands["junction"] = Command(tr.trip.vehicle.net_to_applied(u, own_v_mps, base["own"].gradient_permille))
         if a is None:
             return
         other = self.ctx.trains[a.train_id]
@@ -386,6 +405,7 @@ class JunctionCoordinator(Extension):
                 self.pso,
                 self.rng,
                 qp=self.qp,
+                order=tuple(self.members) if self.spec.fixed_order else None,
             )
         except PlannerError as exc:
             raise ConfigError(
@@ -444,7 +464,7 @@ class JunctionCoordinator(Extension):
                 self.method,  # type: ignore[arg-type]
                 self.replan_pso,
                 self.rng,
-                keep_order=self.frozen,
+                keep_order=self.frozen or self.spec.fixed_order,
                 qp=self.qp,
             )
         except PlannerError as exc:
