@@ -13,7 +13,10 @@ the recorded files, each case failing on the engine that granted the merge first
 * **a third train between them**: an unrelated train from E, behind the leader, would take the merge before the
   follower (first come, first served: the formation was ``blocked``); it is held back until the follower asked
   and passes the merge after the pair;
-* **two formations and unrelated trains sharing the merge**: both formations couple in their own order.
+* **two formations and unrelated trains sharing the merge**: both formations couple in their own order;
+* **two formations crossed at the merge** (each leader ahead of the other's follower on its leg): at most one can
+  couple; the one whose leader waited first keeps its order, the other gives way at once (``merge_crossed``) and
+  fails as ``blocked`` — on the engine before, each leader waited for the other until the wait limit (270 s).
 
 Every case: 0 collisions, 0 switch violations, every train arrived, ``formations_asked`` says coupled where asked.
 """
@@ -104,3 +107,33 @@ def test_two_formations_and_unrelated_trains_share_the_merge(tmp_path: Path) -> 
     for lead, fol in (("lead.000", "fol.000"), ("lead.001", "fol.001")):
         assert grants.index(fol) == grants.index(lead) + 1  # nobody between a leader and its follower
     assert {"main_x.000", "br_x.000"} <= set(grants)
+
+
+def test_two_crossed_formations_one_gives_way_at_once_and_the_other_couples(tmp_path: Path) -> None:
+    # m0: leader from E, follower from G; x1 the other way round: leader from G, follower from E. x1's leader is
+    # ahead of m0's follower on G and m0's leader ahead of x1's follower on E, so one pair must be split
+    data = merge_world([(0.0, 40.0)], duration_s=2400.0)
+    data["services"] += [
+        {"id": "lead_g", "from": "g", "to": "a", "vehicle": "cq6", "departures": {"times": [20.0]}, "dwell_s": 20},
+        {"id": "fol_e", "from": "e", "to": "a", "vehicle": "cq6", "departures": {"times": [30.0]}, "dwell_s": 20},
+    ]
+    data["formations"].append(
+        {
+            "id": "x1",
+            "leader": {"service": "lead_g", "trip": 0},
+            "follower": {"service": "fol_e", "trip": 0},
+            "target_gap_m": GAP_M,
+            "couple": {"after_switch": SWITCH},
+        }
+    )
+    out, events = _run(tmp_path, "crossed", data)
+    (yields,) = _kinds(events, "merge_leader_yields")
+    (crossed,) = _kinds(events, "merge_crossed")
+    assert yields["detail"]["formation"] == "x1"  # x1's leader waited first: x1 keeps its order
+    assert crossed["detail"] == {"formation": "m0", "gives_way_to": "x1", "switch": SWITCH}
+    assert crossed["t_s"] - yields["t_s"] < 30.0  # decided as soon as both leaders are near, not after a wait limit
+    assert _grants(events) == ["lead.000", "lead_g.000", "fol_e.000", "fol.000"]
+    assert _coupled_where_asked(out) == {"m0": False, "x1": True}
+    (failed,) = _kinds(events, "coupling_failed")
+    assert failed["subject"] == "m0" and failed["detail"]["reason"] == "blocked"
+    assert not _kinds(events, "merge_wait_for_leader") and not _kinds(events, "merge_priority_lapsed")

@@ -46,7 +46,13 @@ What happens in time, per such formation (a :class:`MergePair`):
    that station or standing there.
 
 More than one formation may share a merge: each pair holds back only trains of its leader's leg, so the
-formations are served in the order their leaders ask, each leader's follower right after it.
+formations are served in the order their leaders ask, each leader's follower right after it. Two formations may
+come *crossed*: each leader on the other's follower's leg, ahead of that follower. Then whichever leader passes
+first, the other passes between the first one's two units, so at most one of the two can couple there. The
+formation whose leader began to wait first (for the other leader, under rule 3) keeps its order; the other gives
+way at once (``merge_crossed``, naming the formation it gives way to): its leader goes first, nothing is held for
+it, and it fails as ``blocked`` when the other leader passes between its units. Without this, each leader would
+wait for the other until the wait limit.
 """
 
 from __future__ import annotations
@@ -314,12 +320,39 @@ class MergeOrder(Extension):
                 continue
             if 0.0 < to_go_m < own_m and to_go_m < first_m:
                 first, first_m = tr.train_id, to_go_m
+        rival = self._crossed(first, p)
+        if rival is not None:
+            # crossed formations: the other leader already waits for this one (this one is ahead of its follower),
+            # and this one would wait for it; whichever goes first, a unit passes between the other pair's two.
+            # The formation whose leader waited first keeps its order; this one gives way at once (no hold, no
+            # priority that would only delay the other pair) and says so
+            p.done = True
+            self.ctx.events.record(
+                t,
+                "merge_crossed",
+                p.leader_id,
+                formation=p.formation_id,
+                switch=p.switch_id,
+                gives_way_to=rival.formation_id,
+            )
+            return
         p.yield_to = first
         if first is not None and p.yield_since_s is None:
             p.yield_since_s = t
             self.ctx.events.record(
                 t, "merge_leader_yields", p.leader_id, formation=p.formation_id, switch=p.switch_id, to=first
             )
+
+    def _crossed(self, train_id: str | None, p: MergePair) -> MergePair | None:
+        """The pair at ``p``'s merge that ``train_id`` leads and whose leader already waits for ``p``'s leader (two
+        formations crossed at one merge: each leader ahead of the other's follower), or None."""
+        if train_id is None:
+            return None
+        for q in self.pairs or ():
+            if q is not p and not q.done and q.switch_id == p.switch_id and q.leader_id == train_id:
+                if q.yield_to == p.leader_id:
+                    return q
+        return None
 
     @staticmethod
     def _leader_past(leader: TrainRuntime, p: MergePair) -> bool:
