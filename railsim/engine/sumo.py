@@ -30,7 +30,7 @@ import logging
 import os
 import tempfile
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -131,10 +131,12 @@ class EdgeMemory:
 
     The readings are arrays aligned with the last step's ids; a step with other ids (a train came or left) carries
     over those it had. :meth:`forget` drops one train's reading (the bridge calls it whenever it adds, removes or
-    reroutes a train: a new vehicle with an old id starts a new odometer).
+    reroutes a train: a new vehicle with an old id starts a new odometer). ``lane_length_m`` gives a lane's length
+    by its id (asked once per lane).
     """
 
-    def __init__(self) -> None:
+    def __init__(self, lane_length_m: Callable[[str], float]) -> None:
+        self._lane_length_of = lane_length_m
         self.ids: list[str] = []
         self.odometer_m = np.empty(0)
         self.lane_pos_m = np.empty(0)
@@ -173,7 +175,7 @@ class EdgeMemory:
     def _lane_length_m(self, lane_id: str) -> float:
         length_m = self._lane_lengths_m.get(lane_id)
         if length_m is None:
-            length_m = self._lane_lengths_m[lane_id] = float(_api.lane.getLength(lane_id))
+            length_m = self._lane_lengths_m[lane_id] = float(self._lane_length_of(lane_id))
         return length_m
 
 
@@ -257,7 +259,7 @@ class SumoBridge:
         self._controlled: set[str] = set()
         self._vtype_file: Path | None = None
         self.inserted: list[sumo_files.InsertedTrain] = []  # every train as SUMO got it (for the run folder)
-        self._edges = EdgeMemory()
+        self._edges = EdgeMemory(lambda lane_id: float(_api.lane.getLength(lane_id)))
         self.started = False
 
     # ---------------------------------------------------------------- lifecycle
