@@ -14,9 +14,12 @@ What this module does, and why (numbers in ``shared/notes/sumo_rail_findings.md`
 * **Insert.** Trains are added at run time with ``depart="now"``, ``departSpeed="0"`` and their station stops;
   controlled trains get ``speedMode 32`` immediately (SUMO then applies ``setSpeed`` exactly and enforces
   nothing — :mod:`railsim.physics.dynamics` does). A train added at step k appears after that step.
-* **Read.** Direct getters (≈3 µs each; subscriptions are slower under libsumo) into numpy arrays. Positions
-  come as the odometer ``getDistance`` (route chainage = depart chainage + odometer), never x/y, and never
-  ``getDrivingDistance`` (it returns −2^30 for points behind).
+* **Read.** Direct getters (subscriptions are slower under libsumo) into numpy arrays. Positions come as the
+  odometer ``getDistance`` (route chainage = depart chainage + odometer), never x/y, and never
+  ``getDrivingDistance`` (it returns −2^30 for points behind). The edge is asked only where the odometer and the
+  lane position cannot vouch for the last one (:class:`EdgeMemory`).
+* **Speeds.** Every controlled train's speed is sent at every step: SUMO holds a ``setSpeed`` for later steps
+  only while the vehicle has no stop pending, and ours always have one (docs/performance.md, "SUMO's side").
 * **Guard.** ``--end`` is ignored when we drive the loop; the engine guards on simulated time.
 * **Run folder.** With ``SumoConfig.run_dir`` the vTypes file is written there (not in a temp dir) and, on
   close, the trains SUMO got and ``.sumocfg`` files that open them (:mod:`railsim.engine.sumo_files`).
@@ -65,8 +68,9 @@ class _RawVehicleCalls:
     """libsumo's per-vehicle getters and ``setSpeed`` as the compiled functions themselves.
 
     ``libsumo.vehicle.getSpeed(id)`` is a Python function that calls ``_libsumo.vehicle_getSpeed(id)``; the loop
-    calls these five getters and ``setSpeed`` for every train at every step, so the bridge calls the compiled
-    ones directly (``map`` over the ids: no Python frame per call). Same functions, same values.
+    calls four getters and ``setSpeed`` for every train at every step (``getRoadID`` and ``getLaneID`` where the
+    edge may have changed), so the bridge calls the compiled ones directly (``map`` over the ids: no Python frame
+    per call). Same functions, same values.
     """
 
     def __init__(self, raw: Any) -> None:
