@@ -4,8 +4,9 @@
 Each run below reads, besides the bridge, every train's edge from SUMO at every step and fails on the first
 difference: the mini line (a Y line with a junction, station stops, coupling and decoupling, trains coming and
 going) and a unit that SUMO reverses on a bidi turnback track beyond the platform and that runs its next trip
-(the flip onto the partner edge happens at standstill). The bridge must also have asked for far fewer edges than
-there were train-steps. The outputs themselves are pinned by the golden test.
+(the flip onto the partner edge happens at standstill). The bridge uses the memory here for any number of trains
+(by default only from ``EDGE_MEMORY_MIN_TRAINS``) and must have asked for far fewer edges than there were
+train-steps. The outputs themselves are pinned by the golden test.
 """
 
 from __future__ import annotations
@@ -58,6 +59,7 @@ def checked(self, ids=None):
 
 
 sumo.EdgeMemory.edges_now = counted
+sumo.SumoBridge.edge_memory_min_trains = 0  # the memory for any number of trains (the bridge's default: 100)
 sumo.SumoBridge.read = checked
 with tempfile.TemporaryDirectory() as out:
     sim = Simulation(load(sys.argv[1]), Path(out), progress=False)
