@@ -99,7 +99,8 @@ _ACTIVE = {"started": False}
 EDGE_KEPT_TOL_M = 1e-6  # a lane position that moved on by the odometer's advance (SUMO adds one step to both)
 LANE_END_MARGIN_M = 1e-3  # ... and stays this far short of its lane's end: the train is still on that lane
 # Below this many trains the bridge asks every train's edge: the memory's array work (some tens of µs a step in
-# the loop) costs more than the getters it saves (0.2-0.5 µs a train); measured 0.84x at 100 trains, 1.12x at 300.
+# the loop) costs more than the getters it saves (0.2-0.5 µs a train): SumoBridge.read with the memory ran at
+# 0.83x the speed of asking every edge with 100 trains, 1.10x with 300, 1.33x with 1,000 (docs/performance.md).
 EDGE_MEMORY_MIN_TRAINS = 200
 
 
@@ -119,8 +120,7 @@ def edge_kept(
     by the odometer's advance (within ``EDGE_KEPT_TOL_M``) to a point short of the lane's end, never changed lane.
     Everything else reads its edge again: standing trains (a reversing unit is flipped onto its ``bidi`` edge at
     standstill), a train at or past its lane's end, and every jump (``moveTo``, a flip while starting off: the
-    lane position leaves the odometer's advance). A reading that is not known (NaN: a train added, removed or
-    rerouted since) is never kept.
+    lane position leaves the odometer's advance). A train without a last reading (NaN) is never kept.
     """
     advance_m = odometer_now_m - odometer_m
     expected_m = lane_pos_m + advance_m
