@@ -2,8 +2,9 @@
 
 :func:`add_engine_io` patches :meth:`railsim.engine.sumo.SumoBridge.step` (in this process only: every benchmark
 side runs in its own) so that before each SUMO step the bridge does what the engine's loop does with SUMO — the ids
-of the trains present, the five getters per train (:meth:`SumoBridge.read`) and one ``setSpeed`` per train
-(:meth:`SumoBridge.set_speeds`, with -1: SUMO's car-following keeps the train) — and nothing else. Run the bare
+of the trains present, the reading of every train (:meth:`SumoBridge.read`: four getters, and the edge where it
+may have changed) and one ``setSpeed`` per train (:meth:`SumoBridge.set_speeds`, with -1: SUMO's car-following
+keeps the train) — and nothing else. Run the bare
 twin (:func:`railsim.studies.baseline.run_sumo_only`) after it: what any controller that drives SUMO train by train
 through libsumo costs before it decides anything. ``busy_objects``: that many small dicts summed between two
 steps, unrelated work that leaves SUMO's data out of the CPU caches (as a real engine's step does).

@@ -15,7 +15,7 @@ For each N the script runs, in separate processes (libsumo hosts one simulation 
 * **sumo**: the bare-SUMO twin — the same trips on the same net inserted at the same places and speeds, driven
   by SUMO's own car-following model (:func:`railsim.studies.baseline.run_sumo_only`);
 * **io_floor**: the twin again, with the engine's per-train libsumo traffic added to every step
-  (``benchmarks/io_floor.py``: the ids, five getters and one ``setSpeed`` per train; SUMO keeps driving). No
+  (``benchmarks/io_floor.py``: the ids, the bridge's reading and one ``setSpeed`` per train; SUMO keeps driving). No
   railsim logic at all: what any controller driving SUMO train by train through libsumo costs at the least (the
   floor under the railsim column);
 * **io_floor_busy**: the io floor with unrelated Python work between two steps (summing a field over

@@ -14,9 +14,12 @@ What this module does, and why (numbers in ``shared/notes/sumo_rail_findings.md`
 * **Insert.** Trains are added at run time with ``depart="now"``, ``departSpeed="0"`` and their station stops;
   controlled trains get ``speedMode 32`` immediately (SUMO then applies ``setSpeed`` exactly and enforces
   nothing — :mod:`railsim.physics.dynamics` does). A train added at step k appears after that step.
-* **Read.** Direct getters (≈3 µs each; subscriptions are slower under libsumo) into numpy arrays. Positions
-  come as the odometer ``getDistance`` (route chainage = depart chainage + odometer), never x/y, and never
-  ``getDrivingDistance`` (it returns −2^30 for points behind).
+* **Read.** Direct getters (subscriptions are slower under libsumo) into numpy arrays. Positions come as the
+  odometer ``getDistance`` (route chainage = depart chainage + odometer), never x/y, and never
+  ``getDrivingDistance`` (it returns −2^30 for points behind). The edge is asked only where the odometer and the
+  lane position cannot vouch for the last one (:class:`EdgeMemory`).
+* **Speeds.** Every controlled train's speed is sent at every step: SUMO holds a ``setSpeed`` for later steps
+  only while the vehicle has no stop pending, and ours always have one (docs/performance.md, "SUMO's side").
 * **Guard.** ``--end`` is ignored when we drive the loop; the engine guards on simulated time.
 * **Run folder.** With ``SumoConfig.run_dir`` the vTypes file is written there (not in a temp dir) and, on
   close, the trains SUMO got and ``.sumocfg`` files that open them (:mod:`railsim.engine.sumo_files`).
@@ -30,7 +33,7 @@ import logging
 import os
 import tempfile
 from collections import deque
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -65,8 +68,9 @@ class _RawVehicleCalls:
     """libsumo's per-vehicle getters and ``setSpeed`` as the compiled functions themselves.
 
     ``libsumo.vehicle.getSpeed(id)`` is a Python function that calls ``_libsumo.vehicle_getSpeed(id)``; the loop
-    calls these five getters and ``setSpeed`` for every train at every step, so the bridge calls the compiled
-    ones directly (``map`` over the ids: no Python frame per call). Same functions, same values.
+    calls four getters and ``setSpeed`` for every train at every step (``getRoadID`` and ``getLaneID`` where the
+    edge may have changed), so the bridge calls the compiled ones directly (``map`` over the ids: no Python frame
+    per call). Same functions, same values.
     """
 
     def __init__(self, raw: Any) -> None:
@@ -74,6 +78,7 @@ class _RawVehicleCalls:
         self.getSpeed = raw.vehicle_getSpeed
         self.getLanePosition = raw.vehicle_getLanePosition
         self.getRoadID = raw.vehicle_getRoadID
+        self.getLaneID = raw.vehicle_getLaneID
         self.getStopState = raw.vehicle_getStopState
         self.setSpeed = raw.vehicle_setSpeed
 
@@ -90,6 +95,105 @@ def _vehicle_calls() -> Any:
 
 
 _ACTIVE = {"started": False}
+
+EDGE_KEPT_TOL_M = 1e-6  # a lane position that moved on by the odometer's advance (SUMO adds one step to both)
+LANE_END_MARGIN_M = 1e-3  # ... and stays this far short of its lane's end: the train is still on that lane
+# Below this many trains the bridge asks every train's edge: the memory's array work (some tens of µs a step in
+# the loop) costs more than the getters it saves (0.2-0.5 µs a train): SumoBridge.read with the memory ran at
+# 0.83x the speed of asking every edge with 100 trains, 1.10x with 300, 1.33x with 1,000 (docs/performance.md).
+EDGE_MEMORY_MIN_TRAINS = 200
+
+
+def edge_kept(
+    odometer_m: np.ndarray,
+    lane_pos_m: np.ndarray,
+    lane_length_m: np.ndarray,
+    odometer_now_m: np.ndarray,
+    lane_pos_now_m: np.ndarray,
+) -> np.ndarray:
+    """Which trains are surely on the lane they were on at the last reading (so on the same edge), from numbers
+    read anyway: the odometer and the lane position then and now, and the length of that lane.
+
+    SUMO moves a train along its lane by adding one step's advance to both its lane position and its odometer,
+    and puts it on the next lane only once that position passes the lane's end (the position then restarts near
+    0, less by the left lane's length). So a train that moved forward (advance > 0), whose lane position moved on
+    by the odometer's advance (within ``EDGE_KEPT_TOL_M``) to a point short of the lane's end, never changed lane.
+    Everything else reads its edge again: standing trains (a reversing unit is flipped onto its ``bidi`` edge at
+    standstill), a train at or past its lane's end, and every jump (``moveTo``, a flip while starting off: the
+    lane position leaves the odometer's advance). A train without a last reading (NaN) is never kept.
+    """
+    advance_m = odometer_now_m - odometer_m
+    expected_m = lane_pos_m + advance_m
+    return (
+        (advance_m > 0.0)
+        & (expected_m < lane_length_m - LANE_END_MARGIN_M)
+        & (np.abs(lane_pos_now_m - expected_m) <= EDGE_KEPT_TOL_M)
+    )
+
+
+class EdgeMemory:
+    """Each train's edge id (and its lane's length) from the last reading, so that :meth:`SumoBridge.read` asks
+    SUMO for an edge only where :func:`edge_kept` cannot vouch for the old one (a few trains a step: a train at
+    line speed changes edge every few hundred steps, a standing one is asked every step).
+
+    The readings are arrays aligned with the last step's ids; a step with other ids (a train came or left) carries
+    over those it had. :meth:`forget` drops one train's reading (the bridge calls it whenever it adds, removes or
+    reroutes a train: a new vehicle with an old id starts a new odometer). ``lane_length_m`` gives a lane's length
+    by its id (asked once per lane).
+    """
+
+    def __init__(self, lane_length_m: Callable[[str], float]) -> None:
+        self._lane_length_of = lane_length_m
+        self.ids: list[str] = []
+        self.odometer_m = np.empty(0)  # the last reading's arrays themselves (only read, never written)
+        self.lane_pos_m = np.empty(0)
+        self.lane_length_m = np.empty(0)  # this memory's own
+        self.edges: list[str] = []
+        self._forgotten: set[str] = set()
+        self._lane_lengths_m: dict[str, float] = {}
+
+    def clear(self) -> None:
+        """Forget every reading (the next :meth:`edges_now` asks for every edge)."""
+        self.ids = []
+
+    def forget(self, train_id: str) -> None:
+        self._forgotten.add(train_id)
+
+    def edges_now(self, ids: list[str], odometer_m: np.ndarray, lane_pos_m: np.ndarray, calls: Any) -> list[str]:
+        """The edge id of every train of ``ids`` (read or vouched for), given this step's odometers and lane
+        positions; remembers this step's readings."""
+        n = len(ids)
+        if ids == self.ids:
+            odo0, pos0, length_m, edges = self.odometer_m, self.lane_pos_m, self.lane_length_m, self.edges
+        else:  # trains came or left: carry over the readings of those that were there
+            where = {vid: i for i, vid in enumerate(self.ids)}
+            old = np.array([where.get(vid, -1) for vid in ids], dtype=np.intp)
+            had = old >= 0
+            odo0 = np.full(n, np.nan)
+            odo0[had] = self.odometer_m[old[had]]
+            pos0, length_m = np.zeros(n), np.zeros(n)
+            pos0[had], length_m[had] = self.lane_pos_m[old[had]], self.lane_length_m[old[had]]
+            edges = [self.edges[i] if i >= 0 else "" for i in old.tolist()]
+        kept = edge_kept(odo0, pos0, length_m, odometer_m, lane_pos_m)
+        if self._forgotten:  # added, removed or rerouted since: a new odometer, maybe a new vehicle
+            index = {vid: i for i, vid in enumerate(ids)}
+            for vid in self._forgotten:
+                if vid in index:
+                    kept[index[vid]] = False
+            self._forgotten.clear()
+        for i in np.flatnonzero(~kept).tolist():
+            vid = ids[i]
+            edges[i] = calls.getRoadID(vid)
+            length_m[i] = self._lane_length_m(calls.getLaneID(vid))
+        self.ids, self.edges, self.lane_length_m = ids, edges, length_m
+        self.odometer_m, self.lane_pos_m = odometer_m, lane_pos_m
+        return list(edges)
+
+    def _lane_length_m(self, lane_id: str) -> float:
+        length_m = self._lane_lengths_m.get(lane_id)
+        if length_m is None:
+            length_m = self._lane_lengths_m[lane_id] = float(self._lane_length_of(lane_id))
+        return length_m
 
 
 @dataclass(frozen=True)
@@ -165,6 +269,8 @@ def rail_signal_classes(vtypes: Sequence[VTypeSpec]) -> str:
 class SumoBridge:
     """Owns one libsumo simulation. Use as a context manager so SUMO is always closed."""
 
+    edge_memory_min_trains = EDGE_MEMORY_MIN_TRAINS  # fewer trains present: every edge asked (:class:`EdgeMemory`)
+
     def __init__(self, config: SumoConfig) -> None:
         self.config = config
         self._tmp: tempfile.TemporaryDirectory[str] | None = None
@@ -172,6 +278,7 @@ class SumoBridge:
         self._controlled: set[str] = set()
         self._vtype_file: Path | None = None
         self.inserted: list[sumo_files.InsertedTrain] = []  # every train as SUMO got it (for the run folder)
+        self._edges = EdgeMemory(lambda lane_id: float(_api.lane.getLength(lane_id)))
         self.started = False
 
     # ---------------------------------------------------------------- lifecycle
@@ -321,6 +428,7 @@ class SumoBridge:
         depart_speed_mps: float = 0.0,
     ) -> None:
         """Insert a train now (it appears after the next step) with its stops; controlled → speedMode 32."""
+        self._edges.forget(train_id)
         try:
             _api.vehicle.add(
                 train_id,
@@ -350,6 +458,7 @@ class SumoBridge:
 
     def reroute(self, train_id: str, edges: Sequence[str], stops: Sequence[StopSpec]) -> None:
         """Give a standing train a new route from the edge it is on (a unit's next trip) and its stops."""
+        self._edges.forget(train_id)
         try:
             _api.vehicle.setRoute(train_id, list(edges))
             _set_stops(train_id, stops)
@@ -357,6 +466,7 @@ class SumoBridge:
             raise SimulationError(f"SUMO rejected the next route of {train_id!r}: {exc}") from None
 
     def remove(self, train_id: str) -> None:
+        self._edges.forget(train_id)
         try:
             _api.vehicle.remove(train_id)
         except _api.TraCIException:
@@ -399,23 +509,21 @@ class SumoBridge:
         return list(_api.simulation.getPendingVehicles())
 
     def read(self, ids: Sequence[str] | None = None) -> TrainStates:
-        """Ground truth for ``ids`` (default: every train present) via direct getters."""
+        """Ground truth for ``ids`` (default: every train present) via direct getters: the odometer, speed, lane
+        position and stop state of every train; with ``edge_memory_min_trains`` or more, its edge only where
+        :class:`EdgeMemory` cannot vouch for the last one read."""
         ids = list(_api.vehicle.getIDList()) if ids is None else list(ids)
         v = _vehicle_calls()
-        odo = list(map(v.getDistance, ids))  # one getter over all trains at a time: lists, then arrays
-        spd = list(map(v.getSpeed, ids))
-        lpos = list(map(v.getLanePosition, ids))
-        edges = list(map(v.getRoadID, ids))
-        stopped = [state & 1 == 1 for state in map(v.getStopState, ids)]  # traci's isStopped: bit 0
-        return TrainStates(
-            self.time_s,
-            ids,
-            np.array(odo, dtype=float),
-            np.array(spd, dtype=float),
-            np.array(lpos, dtype=float),
-            edges,
-            np.array(stopped, dtype=bool),
-        )
+        odo = np.array(list(map(v.getDistance, ids)), dtype=float)  # one getter over all trains at a time
+        spd = np.array(list(map(v.getSpeed, ids)), dtype=float)
+        lpos = np.array(list(map(v.getLanePosition, ids)), dtype=float)
+        stopped = np.array([state & 1 == 1 for state in map(v.getStopState, ids)], dtype=bool)  # isStopped: bit 0
+        if len(ids) >= self.edge_memory_min_trains:
+            edges = self._edges.edges_now(ids, odo, lpos, v)
+        else:  # few trains: asking is cheaper than the memory's array work
+            self._edges.clear()
+            edges = list(map(v.getRoadID, ids))
+        return TrainStates(self.time_s, ids, odo, spd, lpos, edges, stopped)
 
     def set_speeds(self, ids: Sequence[str], speeds_mps: Sequence[float] | np.ndarray) -> None:
         """Hand SUMO each train's speed for the coming step (libsumo's compiled setter mapped over the ids: no
