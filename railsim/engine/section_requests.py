@@ -24,6 +24,22 @@ section and waited at the short piece between for the other's (Jena-Ost: three t
 two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
 is entered only when it is reserved to the next passing place.
 
+**Room between sections.** The trains that take that room (:meth:`SectionRequests._waiting_between`) are every
+train bound through the next section the same way and not granted it that stands between the two sections now
+(a tram dwelling at a platform there, its first section released and the next not yet asked for; a tram come
+in from a branch joining there), or holds or waits for the first section on its way there — in any direction:
+a unit reversing inside the first section leaves it towards the next. Counting only the trains of the same
+direction holding or waiting for the first section, the room looked empty twice: at Jena-Ost a tram was granted
+the first section alone behind the unit that had turned inside it and took the one place between, and at
+Potsdam's Platz der Einheit a tram was granted the short section there alone while two trams waited for the
+long one beyond its platform. Both times the trams holding the two sections each waited for the other's. The
+room can fill while a request waits, too: a request for the first section alone, not yet granted, widens to
+the whole run as soon as the room no longer holds its train (:meth:`SectionRequests._widen`,
+:meth:`TrackSections.extend`; the Jena-Ost tram had asked 400 s before it was granted). And where a train in
+front (come in from a branch) waits for a section the train behind it holds the same way, it is let through
+at once (:meth:`SectionRequests._let_ahead_through`): the train behind cannot pass it, and the opposing train
+served first would wait for the one behind.
+
 **Order on single track.** Trains of one direction leave a place in an order the queue cannot see, so the requests
 keep to it: a train does not ask for a section beyond the train in front of it before that train has
 (:meth:`SectionRequests._behind_first`), asks for no less than the trains of its direction already waiting for the
@@ -42,7 +58,9 @@ authority, if that comes first), as a road vehicle keeps out of a box junction i
 
 **A crossing right before a section** with no room for the train between the two is asked for only once that
 section is the train's (:meth:`SectionRequests._crossing_waits_for_next`): a tram at a platform ending at the crossing
-held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).
+held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam). **A
+crossing inside a section** is asked for only once the section is the train's
+(:meth:`SectionRequests._crossing_inside_pending`), as points there are.
 """
 
 from __future__ import annotations

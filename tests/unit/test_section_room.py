@@ -85,7 +85,7 @@ def test_a_request_for_the_first_section_alone_widens_when_the_room_fills() -> N
     locks.bookkeeping(1.0, first)
     assert set(locks.section_requests["first"]) == {S1}  # the room is empty: S1 alone
     later.on_line, later.front_m = True, 2080.0  # a tram comes in between the sections (a branch joins there)
-    oncoming = locks.tracks.request(2.0, ("oncoming",), S2, 1)  # and S2 is held the other way
+    assert locks.tracks.request(2.0, ("oncoming",), S2, 1).granted  # and S2 is held the other way
     locks.bookkeeping(3.0, first)
     assert set(locks.section_requests["first"]) == {S1, S2}, "the request for S1 alone did not widen"
     s1 = locks.section_requests["first"][S1]

@@ -21,8 +21,12 @@ every :meth:`TrackSections.release` re-examines the queue. :meth:`TrackSections.
 sections as one **group**: all are granted in the same instant or none is (a train entering single track that
 runs on through further sections before the next passing place; :mod:`railsim.engine.locking`). Each member keeps
 its place in its own section's queue, so a group blocks later requests of the other direction in every section it
-waits for, and no train of the other direction can take one section of the group while the group waits for another. Events (subject = section id): ``section_requested``,
-``section_reserved``, ``section_released``.
+waits for, and no train of the other direction can take one section of the group while the group waits for another.
+A waiting request for one section **widens** into such a group (:meth:`TrackSections.extend`, keeping its turn)
+when the room its train would wait in beyond the section has filled since it asked. And a waiting request is **let
+through** (:meth:`TrackSections.let_through`) ahead of the other direction's when the train side finds a train
+holding the section the same way standing behind it: that train cannot pass it, so the request is part of that
+grant. Events (subject = section id): ``section_requested``, ``section_reserved``, ``section_released``.
 """
 
 from __future__ import annotations
