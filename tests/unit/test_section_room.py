@@ -11,7 +11,9 @@ way. Each case below is one a simpler count missed, from Jena's and Potsdam's tr
   both sections before it is granted);
 * a train in front waiting for a section the train behind it holds the same way is let through (it came in from a
   branch between the two sections: Potsdam, Platz der Einheit);
-* no flat crossing inside a section is asked for before the section is granted (Potsdam, crossing ``4073068946``).
+* no flat crossing inside a section is asked for before the section is granted (Potsdam, crossing ``4073068946``);
+* a train whose front has stopped a few centimetres inside a crossing asks for it at once, though the section
+  beyond it is not its own yet (Potsdam, Platz der Einheit/West, 0.12 m into crossing ``1137879547``).
 """
 
 from __future__ import annotations
@@ -129,3 +131,20 @@ def test_no_crossing_inside_a_section_is_asked_for_before_the_section() -> None:
     locks.tracks.release(2.0, "oncoming", oncoming)
     locks.bookkeeping(3.0, tr)
     assert locks.section_requests["t"][CROSSING].granted
+
+
+def test_a_train_stopped_with_its_front_in_a_crossing_asks_for_it_at_once() -> None:
+    tr = _tram("t", 1500.12)  # halted 0.12 m past a platform that ends where the crossing begins
+    _, locks = _locks(tr)
+    locks.tracks = TrackSections(EventLog(), [S1, CROSSING])
+    locks.sections["t"] = [
+        RouteSection(CROSSING, 0, 1500.0, 1510.0, 1500.0),
+        RouteSection(S1, 0, 1510.0, 2500.0, 1510.0),  # no room between: the crossing waits for S1 otherwise
+    ]
+    locks.section_requests["t"] = {}
+    locks.tracks.request(0.0, ("oncoming",), S1, 1)
+    locks.bookkeeping(1.0, tr)
+    assert CROSSING in locks.section_requests["t"], "a train standing in a crossing did not ask for it"
+    assert locks.section_requests["t"][CROSSING].granted
+    other = locks.tracks.request(2.0, ("across",), CROSSING, 1)  # a tram of the other movement waits for it
+    assert not other.granted
