@@ -40,6 +40,11 @@ front (come in from a branch) waits for a section the train behind it holds the 
 at once (:meth:`SectionRequests._let_ahead_through`): the train behind cannot pass it, and the opposing train
 served first would wait for the one behind.
 
+**A section twice on one route** (a turnback path out through single track to a reversal and back) is asked
+for each time through (:meth:`SectionRequests.pass_m`): the request of the way out, released behind the train,
+gives way to a new one for the way back. With one request per trip, the unit came back into a section another
+tram held the other way (Jena, Winzerla).
+
 **Order on single track.** Trains of one direction leave a place in an order the queue cannot see, so the requests
 keep to it: a train does not ask for a section beyond the train in front of it before that train has
 (:meth:`SectionRequests._behind_first`), asks for no less than the trains of its direction already waiting for the
@@ -194,6 +199,10 @@ class SectionRequests:
         rear = tr.front_m - tr.trip.vehicle.length_m
         for sec in self.sections[tr.train_id]:
             req = reqs.get(sec.section_id)
+            if req is not None and self._stale(tr, req, sec):
+                req = None  # left behind on an earlier time through the section: this time asks anew
+            elif req is not None and self.pass_m(tr, req) != sec.start_m:
+                continue  # the request is for another time through: this one is done, or waits for it to end
             if req is None:
                 if self._nose_in_crossing(tr, sec):
                     self._request_run(t, tr, [sec])
@@ -213,6 +222,18 @@ class SectionRequests:
             else:
                 self._widen(t, tr, sec, req)
         self._let_ahead_through(t, tr, ahead)
+
+    def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
+        """Where on ``tr``'s route the time through ``req``'s section begins that ``req`` is for: a route that runs
+        through a section twice (a turnback path out to a reversal and back) asks for it each time; a request made
+        without one (a section handed over at a turnback) is for the first time through."""
+        if req.pass_m is not None:
+            return req.pass_m
+        return next(s.start_m for s in self.sections[tr.train_id] if s.section_id == req.section_id)
+
+    def _stale(self, tr: TrainRuntime, req: SectionRequest, sec: RouteSection) -> bool:
+        """True if ``req`` is ``tr``'s request for an earlier time through ``sec``'s section, released since."""
+        return tr.train_id in req.released_by and self.pass_m(tr, req) < sec.start_m
 
     def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any) -> None:
         """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
@@ -266,7 +287,8 @@ class SectionRequests:
             return False
         room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
         req = self.section_requests[tr.train_id].get(nxt.section_id)
-        return room_m < tr.trip.vehicle.length_m and (req is None or not req.granted)
+        pending = req is None or not req.granted or self._stale(tr, req, nxt)
+        return room_m < tr.trip.vehicle.length_m and pending
 
     def _nose_in_crossing(self, tr: TrainRuntime, sec: RouteSection) -> bool:
         """True for a flat crossing the train's front has entered without asking for it (a halt a few centimetres
@@ -342,6 +364,7 @@ class SectionRequests:
         last = run[-1]
         ends = self._ends_at_terminus(tr, last)
         for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=ends)):
+            req.pass_m = sec.start_m
             reqs[sec.section_id] = req
         self._bring_forward(t, tr, run)
 
@@ -360,6 +383,7 @@ class SectionRequests:
         wanted = [(s.section_id, s.direction) for s in run[1:]]
         reqs = self.section_requests[tr.train_id]
         for s, new in zip(run[1:], self.tracks.extend(t, req, wanted, yields=self._ends_at_terminus(tr, run[-1]))):
+            new.pass_m = s.start_m
             reqs[s.section_id] = new
         self._bring_forward(t, tr, run)
 
@@ -415,6 +439,7 @@ class SectionRequests:
                     if sec.section_id in theirs or not mine or mine[0].direction != sec.direction:
                         break
                     theirs[sec.section_id] = self.tracks.request(t, (oid,), sec.section_id, sec.direction)
+                    theirs[sec.section_id].pass_m = mine[0].start_m
 
     def _run_from(self, tr: TrainRuntime, first: RouteSection) -> list[RouteSection]:
         """``first`` and the single-track sections that follow it on the route with no passing place between:
@@ -429,7 +454,8 @@ class SectionRequests:
             s for s in self.sections[tr.train_id] if s.start_m > first.start_m and s.section_id.startswith("track:")
         ]
         for nxt in later:
-            if nxt.section_id in reqs or any(s.section_id == nxt.section_id for s in run):
+            done = nxt.section_id in reqs and not self._stale(tr, reqs[nxt.section_id], nxt)
+            if done or any(s.section_id == nxt.section_id for s in run):
                 break
             if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
                 run[-1], nxt
@@ -579,6 +605,6 @@ class SectionRequests:
         for sec in self.sections.get(tr.train_id, ()):
             if sec.guard_m <= point_m + 1e-6 and sec.end_m > tr.front_m:
                 req = reqs.get(sec.section_id)
-                if req is None or not req.granted:
+                if req is None or not req.granted or self._stale(tr, req, sec):
                     return True
         return False

@@ -49,6 +49,9 @@ class SectionRequest:
     released_by: set[str] = field(default_factory=set)
     group: list[SectionRequest] = field(default_factory=list)  # requests granted only together (request_all)
     yields: bool = False  # its train's trip ends beyond the section (a terminus): the other direction goes first
+    # where the section begins on its train's route, set by the train side for a route that runs through the same
+    # section more than once (None: its first time through)
+    pass_m: float | None = None
 
     @property
     def granted(self) -> bool:
