@@ -157,7 +157,9 @@ class RouteLocks(SectionRequests):
         could be granted the next points while a train coming from the other leg of the first takes that switch
         and passes in front of it: it then holds the points the train in front needs (Jena, points
         ``1854212868``: a deadlock at 1,163 s of the peak; points ``1684176122`` beyond the busy merge
-        ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben)."""
+        ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben). Points asked for while the track in
+        front was clear are given up when a train comes onto the track in front (at a junction) and waits for them
+        (:meth:`_gives_way`)."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr, ahead)
@@ -177,6 +179,9 @@ class RouteLocks(SectionRequests):
                 self._lock_pass.setdefault(tr.train_id, {})[sid] = rs.point_m
             elif pass_m != rs.point_m or sid in tr.released:
                 continue  # the lock is for another time over these points, or this one is done
+            if behind is not None and sid in tr.locks and self._gives_way(tr, behind, ahead, rs):
+                self.interlocking.cancel(tr.locks.pop(sid))
+                self.events.record(t, "lock_given_up", tr.train_id, switch=sid, to=behind.train_id)
             if rs.point_m < start_m - length:
                 continue
             if (
@@ -217,6 +222,22 @@ class RouteLocks(SectionRequests):
             if sid in tr.locks and tr.front_m - length > rs.point_m + self.settings.clearance_m:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    def _gives_way(self, tr: TrainRuntime, front: TrainRuntime, ahead: Any, rs: Any) -> bool:
+        """True if ``tr`` holds (or waits for) the points ``rs`` alone, the train in front of it (``front``,
+        ``ahead`` in ``tr``'s frame) stands between it and them and waits for them: ``tr`` gives them up and asks
+        again once that train has gone (it asks for no points beyond a train in front). Asked for while the track
+        in front was clear, they were held by a unit whose turnback path ran on along the line, and a tram that
+        came onto the track in front of it at a junction waited for them (Jena, points ``1272033567``)."""
+        req = tr.locks[rs.switch_id]
+        if getattr(req, "holder_ids", ()) != (tr.train_id,) or rs.point_m <= ahead.rear_m:
+            return False
+        theirs = front.locks.get(rs.switch_id)
+        if theirs is None or rs.switch_id in front.released:
+            return False
+        if theirs.state not in (RequestState.WAITING, RequestState.SCHEDULED):
+            return False
+        return not self._rides_with(tr, front, rs)
 
     def _lock_pass_m(self, tr: TrainRuntime, switch_id: str) -> float:
         """Where on ``tr``'s route lie the points its lock of ``switch_id`` is for: a route over the same points

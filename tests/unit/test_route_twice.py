@@ -6,7 +6,9 @@ single-track sections and three sets of points twice. With one request per secti
 the whole trip, the unit, having released them on the way out, came back through them under no reservation: it
 ran into a section held the other way (and stood there), and with the section asked for again it passed points
 ``1272033516`` a second time without their lock, into a tram that held them the other way (17 SUMO collision
-reports). Constructed without SUMO.
+reports). And points asked for while the track in front was clear are given up when a train comes onto the track
+in front (at a junction) and waits for them: the next unit on that path held points ``1272033567`` far ahead of
+a tram that joined in front of it and waited for them (deadlock at 2,431 s). Constructed without SUMO.
 """
 
 from __future__ import annotations
@@ -83,3 +85,25 @@ def test_a_section_passed_twice_is_asked_for_each_time() -> None:
     tr.front_m = 4800.0
     locks.bookkeeping(6.0, tr)
     assert "unit" in again.released_by
+
+
+def test_points_held_beyond_a_train_that_came_in_front_are_given_up() -> None:
+    # the unit asked for points 1,000 m ahead while its track was clear; a tram then came onto the track between
+    # it and the points (at a junction) and waits for them: the unit gives them up and asks again behind it
+    points = (SimpleNamespace(switch_id="p", leg="reverse", point_m=1500.0),)
+    tr = _unit(500.0, points)
+    front = _train("front", 1200.0, [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)])
+    front.trip.route.switches = [SimpleNamespace(switch_id="p", leg="normal", point_m=1500.0)]
+    layer, locks = _locks(tr, front, switches=("p",))
+    locks.bookkeeping(1.0, tr)
+    layer.advance_to(1.5)
+    assert locks.interlocking.is_locked_for("unit", "p", "reverse")
+    locks.bookkeeping(2.0, front)  # front asks for the points the unit holds: it waits
+    layer.advance_to(2.5)
+    assert not locks.interlocking.is_locked_for("front", "p", "normal")
+    ahead = SimpleNamespace(train_id="front", front_m=1000.0, rear_m=880.0)  # front, in the unit's frame
+    locks.bookkeeping(3.0, tr, ahead)
+    layer.advance_to(3.5)
+    assert not locks.interlocking.is_locked_for("unit", "p", "reverse"), "held the points the train in front needs"
+    assert locks.interlocking.is_locked_for("front", "p", "normal")
+    assert "p" not in tr.locks  # asked for again once the train in front has gone
