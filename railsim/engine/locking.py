@@ -14,7 +14,11 @@ the platform (its length plus its separation margin) stays at the platform after
 (:meth:`RouteLocks.clears_platform`, the stop book's ``route_set``): a Jurenba unit that left Bijin and stood
 short of the crossing with its rear on the platform held the next up train 113 m short of its stopping point,
 and SUMO registered that train's stop there. Passing a switch without its lock is a ``switch_violation``
-event. An extension may take over the requests for some trains and switches (its ``manages_lock`` hook: the
+event. A route over the same points twice (a turnback path out along the line to a reversal and back) locks
+them each time (:meth:`RouteLocks._lock_pass_m`): released behind the train on the way out, they are asked for
+again on the way back, and the authority ends before them until they are. With one lock per trip, a unit turning
+3.9 km beyond Jena's Winzerla came back over points ``1272033516`` under no lock, into a tram that held them.
+An extension may take over the requests for some trains and switches (its ``manages_lock`` hook: the
 junction planner requests in its planned order), or hold a train's request back for a while (``defers_lock``: a
 merge is kept for a formation's follower, :mod:`railsim.engine.extensions.merge_order`).
 
@@ -101,6 +105,8 @@ class RouteLocks(SectionRequests):
         self.continues: Callable[[str], bool] = unwired("RouteLocks", "continues")
         self.successor: Callable[[str], str | None] = lambda _train_id: None  # no rotations until set up
         self._parked: dict[str, list[SectionRequest]] = {}  # arrived trip -> sections kept for its unit's next trip
+        # train id -> switch id -> where on its route the points its lock is for lie (a route over them twice)
+        self._lock_pass: dict[str, dict[str, float]] = {}
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
         # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
@@ -151,7 +157,9 @@ class RouteLocks(SectionRequests):
         could be granted the next points while a train coming from the other leg of the first takes that switch
         and passes in front of it: it then holds the points the train in front needs (Jena, points
         ``1854212868``: a deadlock at 1,163 s of the peak; points ``1684176122`` beyond the busy merge
-        ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben)."""
+        ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben). Points asked for while the track in
+        front was clear are given up when a train comes onto the track in front (at a junction) and waits for them
+        (:meth:`_gives_way`)."""
         length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr, ahead)
@@ -164,8 +172,16 @@ class RouteLocks(SectionRequests):
         waiting_m = INF  # the first switch on its route it waits for: no switch beyond it is requested yet
         for rs in tr.trip.route.switches:
             sid = rs.switch_id
-            if sid in tr.released:
-                continue
+            pass_m = self._lock_pass_m(tr, sid)
+            if pass_m < rs.point_m and sid in tr.released:  # done with on an earlier time over it: ask anew
+                tr.released.discard(sid)
+                tr.locks.pop(sid, None)
+                self._lock_pass.setdefault(tr.train_id, {})[sid] = rs.point_m
+            elif pass_m != rs.point_m or sid in tr.released:
+                continue  # the lock is for another time over these points, or this one is done
+            if behind is not None and sid in tr.locks and self._gives_way(tr, behind, ahead, rs):
+                self.interlocking.cancel(tr.locks.pop(sid))
+                self.events.record(t, "lock_given_up", tr.train_id, switch=sid, to=behind.train_id)
             if rs.point_m < start_m - length:
                 continue
             if (
@@ -185,6 +201,7 @@ class RouteLocks(SectionRequests):
                     req = self.interlocking.request(holders, sid, rs.leg)
                     for h in holders:
                         self.fleet.trains[h].locks[sid] = req
+                    self._lock_pass.setdefault(tr.train_id, {})[sid] = rs.point_m
             held = tr.locks.get(sid)
             if (
                 held is not None
@@ -205,6 +222,30 @@ class RouteLocks(SectionRequests):
             if sid in tr.locks and tr.front_m - length > rs.point_m + self.settings.clearance_m:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+
+    def _gives_way(self, tr: TrainRuntime, front: TrainRuntime, ahead: Any, rs: Any) -> bool:
+        """True if ``tr`` holds (or waits for) the points ``rs`` alone, the train in front of it (``front``,
+        ``ahead`` in ``tr``'s frame) stands between it and them and waits for them: ``tr`` gives them up and asks
+        again once that train has gone (it asks for no points beyond a train in front). Asked for while the track
+        in front was clear, they were held by a unit whose turnback path ran on along the line, and a tram that
+        came onto the track in front of it at a junction waited for them (Jena, points ``1272033567``)."""
+        req = tr.locks[rs.switch_id]
+        if getattr(req, "holder_ids", ()) != (tr.train_id,) or rs.point_m <= ahead.rear_m:
+            return False
+        theirs = front.locks.get(rs.switch_id)
+        if theirs is None or rs.switch_id in front.released:
+            return False
+        if theirs.state not in (RequestState.WAITING, RequestState.SCHEDULED):
+            return False
+        return not self._rides_with(tr, front, rs)
+
+    def _lock_pass_m(self, tr: TrainRuntime, switch_id: str) -> float:
+        """Where on ``tr``'s route lie the points its lock of ``switch_id`` is for: a route over the same points
+        twice (a turnback path out to a reversal and back) locks them each time; without a record, the first."""
+        known = self._lock_pass.get(tr.train_id, {}).get(switch_id)
+        if known is not None:
+            return known
+        return next((rs.point_m for rs in tr.trip.route.switches if rs.switch_id == switch_id), INF)
 
     def _switch_busy(self, switch_id: str, req: Any) -> bool:
         """True if another group holds ``switch_id`` or is queued for it ahead of ``req`` (a request made this
@@ -257,11 +298,12 @@ class RouteLocks(SectionRequests):
         collision)."""
         if self.tracks is not None:
             rear_m = tr.front_m - tr.trip.vehicle.length_m
-            ends = {sec.section_id: sec.end_m for sec in self.sections.get(tr.train_id, ())}
+            ends = {(sec.section_id, sec.start_m): sec.end_m for sec in self.sections.get(tr.train_id, ())}
             for sid, req in self.section_requests.get(tr.train_id, {}).items():
                 if tr.train_id in req.released_by:
                     continue
-                if tr.status == "arrived" and self.continues(tr.train_id) and rear_m <= ends.get(sid, -INF):
+                end_m = ends.get((sid, self.pass_m(tr, req)), -INF)
+                if tr.status == "arrived" and self.continues(tr.train_id) and rear_m <= end_m:
                     self._parked.setdefault(tr.train_id, []).append(req)
                     continue
                 self.tracks.release(self.clock.now_s, tr.train_id, req)
@@ -277,13 +319,15 @@ class RouteLocks(SectionRequests):
         parked = self._parked.pop(pred.train_id, [])
         if self.tracks is None:
             return
-        mine = {sec.section_id: sec for sec in self.sections.get(succ.train_id, ())} if succ is not None else {}
+        mine: dict[str, RouteSection] = {}  # the sections of succ's route, each its first time through
+        for first in self.sections.get(succ.train_id, ()) if succ is not None else ():
+            mine.setdefault(first.section_id, first)
         for req in parked:
-            sec = mine.get(req.section_id)
-            reqs = self.section_requests[succ.train_id] if succ is not None and sec is not None else {}
+            there = mine.get(req.section_id)
+            reqs = self.section_requests[succ.train_id] if succ is not None and there is not None else {}
             new = None
-            if succ is not None and sec is not None and sec.section_id not in reqs:
-                new = self.tracks.hand_over(t, req, succ.train_id, sec.direction)
+            if succ is not None and there is not None and there.section_id not in reqs:
+                new = self.tracks.hand_over(t, req, succ.train_id, there.direction)
             if new is None:
                 self.tracks.release(t, pred.train_id, req)
             else:
@@ -411,7 +455,9 @@ class RouteLocks(SectionRequests):
         first = self._first_switch(tr, switches, behind_m)
         for i in range(first, len(switches)):
             rs = switches[i]
-            if rs.point_m <= behind_m or rs.switch_id in tr.released:
+            if rs.point_m <= behind_m:
+                continue
+            if rs.switch_id in tr.released and self._lock_pass_m(tr, rs.switch_id) >= rs.point_m:
                 continue
             if not self.interlocking.is_locked_for(tr.train_id, rs.switch_id, rs.leg):
                 return min(

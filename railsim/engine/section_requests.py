@@ -24,6 +24,27 @@ section and waited at the short piece between for the other's (Jena-Ost: three t
 two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
 is entered only when it is reserved to the next passing place.
 
+**Room between sections.** The trains that take that room (:meth:`SectionRequests._waiting_between`) are every
+train bound through the next section the same way and not granted it that stands between the two sections now
+(a tram dwelling at a platform there, its first section released and the next not yet asked for; a tram come
+in from a branch joining there), or holds or waits for the first section on its way there — in any direction:
+a unit reversing inside the first section leaves it towards the next. Counting only the trains of the same
+direction holding or waiting for the first section, the room looked empty twice: at Jena-Ost a tram was granted
+the first section alone behind the unit that had turned inside it and took the one place between, and at
+Potsdam's Platz der Einheit a tram was granted the short section there alone while two trams waited for the
+long one beyond its platform. Both times the trams holding the two sections each waited for the other's. The
+room can fill while a request waits, too: a request for the first section alone, not yet granted, widens to
+the whole run as soon as the room no longer holds its train (:meth:`SectionRequests._widen`,
+:meth:`TrackSections.extend`; the Jena-Ost tram had asked 400 s before it was granted). And where a train in
+front (come in from a branch) waits for a section the train behind it holds the same way, it is let through
+at once (:meth:`SectionRequests._let_ahead_through`): the train behind cannot pass it, and the opposing train
+served first would wait for the one behind.
+
+**A section twice on one route** (a turnback path out through single track to a reversal and back) is asked
+for each time through (:meth:`SectionRequests.pass_m`): the request of the way out, released behind the train,
+gives way to a new one for the way back. With one request per trip, the unit came back into a section another
+tram held the other way (Jena, Winzerla).
+
 **Order on single track.** Trains of one direction leave a place in an order the queue cannot see, so the requests
 keep to it: a train does not ask for a section beyond the train in front of it before that train has
 (:meth:`SectionRequests._behind_first`), asks for no less than the trains of its direction already waiting for the
@@ -42,7 +63,11 @@ authority, if that comes first), as a road vehicle keeps out of a box junction i
 
 **A crossing right before a section** with no room for the train between the two is asked for only once that
 section is the train's (:meth:`SectionRequests._crossing_waits_for_next`): a tram at a platform ending at the crossing
-held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam).
+held it while waiting for the single track behind it, whose opposing tram waited for the crossing (Potsdam). **A
+crossing inside a section** is asked for only once the section is the train's
+(:meth:`SectionRequests._crossing_inside_pending`), as points there are. And a train whose front has stopped
+inside a crossing it has not asked for (a few centimetres past a platform ending there) asks for it at once
+(:meth:`SectionRequests._nose_in_crossing`): it occupies it, whatever it waits for beyond.
 """
 
 from __future__ import annotations
@@ -174,19 +199,69 @@ class SectionRequests:
         rear = tr.front_m - tr.trip.vehicle.length_m
         for sec in self.sections[tr.train_id]:
             req = reqs.get(sec.section_id)
+            if req is not None and self._stale(tr, req, sec):
+                req = None  # left behind on an earlier time through the section: this time asks anew
+            elif req is not None and self.pass_m(tr, req) != sec.start_m:
+                continue  # the request is for another time through: this one is done, or waits for it to end
             if req is None:
-                if (
+                if self._nose_in_crossing(tr, sec):
+                    self._request_run(t, tr, [sec])
+                elif (
                     sec.end_m > tr.front_m
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
                     and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
                     and not self._crossing_waits_for_next(tr, sec)
                     and not self._crossing_exit_blocked(tr, sec, ahead)
+                    and not self._crossing_inside_pending(tr, sec)
                 ):
                     run = self._run_from(tr, sec)
                     if not any(self._behind_first(tr, s, ahead) for s in run):
                         self._request_run(t, tr, run)
             elif tr.train_id not in req.released_by and rear > sec.end_m + self.settings.clearance_m:
                 self.tracks.release(t, tr.train_id, req)
+            else:
+                self._widen(t, tr, sec, req)
+        self._let_ahead_through(t, tr, ahead)
+
+    def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
+        """Where on ``tr``'s route the time through ``req``'s section begins that ``req`` is for: a route that runs
+        through a section twice (a turnback path out to a reversal and back) asks for it each time; a request made
+        without one (a section handed over at a turnback) is for the first time through."""
+        if req.pass_m is not None:
+            return req.pass_m
+        return next(s.start_m for s in self.sections[tr.train_id] if s.section_id == req.section_id)
+
+    def _stale(self, tr: TrainRuntime, req: SectionRequest, sec: RouteSection) -> bool:
+        """True if ``req`` is ``tr``'s request for an earlier time through ``sec``'s section, released since."""
+        return tr.train_id in req.released_by and self.pass_m(tr, req) < sec.start_m
+
+    def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any) -> None:
+        """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
+        not passed yet: it is granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot
+        pass through before it. A tram coming in from a branch between two sections stood in front of the tram
+        granted both and waited for the second behind an opposing request, which waited for the tram behind
+        (Potsdam, Platz der Einheit)."""
+        assert self.tracks is not None
+        if ahead is None:
+            return
+        theirs = self.section_requests.get(ahead.train_id, {})
+        for sec in self.sections[tr.train_id]:
+            mine = self.section_requests[tr.train_id].get(sec.section_id)
+            other = theirs.get(sec.section_id)
+            if (
+                mine is None
+                or other is None
+                or not mine.granted
+                or other.granted
+                or tr.train_id in mine.released_by
+                or ahead.train_id in other.released_by
+                or other.direction != mine.direction
+                or not sec.section_id.startswith("track:")
+                or sec.end_m <= tr.front_m
+                or ahead.front_m > sec.end_m
+            ):
+                continue
+            self.tracks.let_through(t, other)
 
     def _behind_first(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
         """True if the train in front (``ahead``, in this train's frame) stands between this train and the
@@ -212,7 +287,32 @@ class SectionRequests:
             return False
         room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
         req = self.section_requests[tr.train_id].get(nxt.section_id)
-        return room_m < tr.trip.vehicle.length_m and (req is None or not req.granted)
+        pending = req is None or not req.granted or self._stale(tr, req, nxt)
+        return room_m < tr.trip.vehicle.length_m and pending
+
+    def _nose_in_crossing(self, tr: TrainRuntime, sec: RouteSection) -> bool:
+        """True for a flat crossing the train's front has entered without asking for it (a halt a few centimetres
+        past a platform that ends at the crossing: the ATO stops within its tolerance of the mark): the train
+        occupies the crossing, so it asks for it at once, whatever waits beyond. A tram 0.12 m past Potsdam's Platz
+        der Einheit/West stood in crossing ``1137879547`` for minutes while trams of the other movement went
+        through it (railsim's crossing check: three collisions)."""
+        return sec.section_id.startswith("crossing:") and sec.start_m < tr.front_m < sec.end_m
+
+    def _crossing_inside_pending(self, tr: TrainRuntime, sec: RouteSection) -> bool:
+        """True for a flat crossing beyond the protection point of a single-track section the train has not been
+        granted (a crossing inside the section): as with points there (:meth:`_section_guard_pending`), it is
+        the train's only once the section is. A tram waiting for the section held a crossing inside it, and a
+        tram coming from the branch over that crossing waited in front of the tram holding the section (Potsdam,
+        crossing ``4073068946``)."""
+        if not sec.section_id.startswith("crossing:"):
+            return False
+        reqs = self.section_requests[tr.train_id]
+        for s in self.sections[tr.train_id]:
+            if s.section_id.startswith("track:") and s.guard_m <= sec.guard_m and s.end_m > sec.guard_m:
+                req = reqs.get(s.section_id)
+                if req is None or not req.granted or tr.train_id in req.released_by:
+                    return True
+        return False
 
     def _crossing_exit_blocked(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
         """True for a flat crossing whose exit is not clear: the train in front (``ahead``, in this train's frame)
@@ -248,6 +348,7 @@ class SectionRequests:
             if sec.start_m - self.settings.protection_margin_m <= depart_m < sec.end_m:
                 if sec.section_id not in reqs:
                     self._request_run(t, tr, self._run_from(tr, sec))
+                self._widen(t, tr, sec, reqs[sec.section_id])
                 req = reqs[sec.section_id]
                 if not req.granted:
                     others = ", ".join(self.tracks.waiting_ahead(req)) or "another train"
@@ -263,7 +364,27 @@ class SectionRequests:
         last = run[-1]
         ends = self._ends_at_terminus(tr, last)
         for sec, req in zip(run, self.tracks.request_all(t, (tr.train_id,), wanted, yields=ends)):
+            req.pass_m = sec.start_m
             reqs[sec.section_id] = req
+        self._bring_forward(t, tr, run)
+
+    def _widen(self, t: float, tr: TrainRuntime, sec: RouteSection, req: SectionRequest) -> None:
+        """A request for ``sec`` alone, not yet granted, becomes a request for the run through the next sections
+        once the room between them no longer holds the train (:meth:`_run_from`; module docstring, "Room between
+        sections"): the room counted when it asked may have filled since. Granted ``sec`` alone later, a tram
+        went into the Jena-Ost single track behind the unit that had turned there and took the one place between
+        the two sections (``3_jena-ost_lobeda-ost_2.001``, asked at 900 s, granted at 1,301 s: deadlock)."""
+        assert self.tracks is not None
+        if req.granted or req.group or tr.train_id in req.released_by or not sec.section_id.startswith("track:"):
+            return
+        run = self._run_from(tr, sec)
+        if len(run) == 1:
+            return
+        wanted = [(s.section_id, s.direction) for s in run[1:]]
+        reqs = self.section_requests[tr.train_id]
+        for s, new in zip(run[1:], self.tracks.extend(t, req, wanted, yields=self._ends_at_terminus(tr, run[-1]))):
+            new.pass_m = s.start_m
+            reqs[s.section_id] = new
         self._bring_forward(t, tr, run)
 
     def _ends_at_terminus(self, tr: TrainRuntime, last: RouteSection) -> bool:
@@ -318,6 +439,7 @@ class SectionRequests:
                     if sec.section_id in theirs or not mine or mine[0].direction != sec.direction:
                         break
                     theirs[sec.section_id] = self.tracks.request(t, (oid,), sec.section_id, sec.direction)
+                    theirs[sec.section_id].pass_m = mine[0].start_m
 
     def _run_from(self, tr: TrainRuntime, first: RouteSection) -> list[RouteSection]:
         """``first`` and the single-track sections that follow it on the route with no passing place between:
@@ -332,7 +454,8 @@ class SectionRequests:
             s for s in self.sections[tr.train_id] if s.start_m > first.start_m and s.section_id.startswith("track:")
         ]
         for nxt in later:
-            if nxt.section_id in reqs or any(s.section_id == nxt.section_id for s in run):
+            done = nxt.section_id in reqs and not self._stale(tr, reqs[nxt.section_id], nxt)
+            if done or any(s.section_id == nxt.section_id for s in run):
                 break
             if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
                 run[-1], nxt
@@ -354,28 +477,50 @@ class SectionRequests:
     def _passing_room_m(self, tr: TrainRuntime, sec: RouteSection, nxt: RouteSection) -> float:
         """Room left for ``tr`` to wait between ``sec`` and ``nxt`` with its rear clear of ``sec``: from
         ``clearance_m`` past the end of ``sec`` to where its authority ends before ``nxt`` (the overlap before its
-        protection point), less the room of the trains of the same direction that hold or wait for ``sec`` and
-        will stand there too (those not granted ``nxt`` together with ``sec``), each its length and its
+        protection point), less the room of every other train that stands there or will stand there before it,
+        waiting for ``nxt`` the way ``tr`` runs through it (:meth:`_waiting_between`), each its length and its
         separation margin."""
-        assert self.tracks is not None
         room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
-        for other_id in self.tracks.holders(sec.section_id) + self.tracks.queued(sec.section_id):
-            if other_id == tr.train_id:
-                continue
-            theirs = self.section_requests.get(other_id, {})
-            mine = theirs.get(sec.section_id)
-            if mine is None or mine.direction != sec.direction or other_id in mine.released_by:
-                continue
-            if not any(
-                s.section_id == nxt.section_id and s.direction == nxt.direction for s in self.sections[other_id]
-            ):
-                continue
-            on = theirs.get(nxt.section_id)
-            if on is not None and (on.granted or on in mine.group):
-                continue  # it runs on through nxt: it never waits between the two
-            other = self.fleet.trains[other_id]
+        gap_m = nxt.guard_m - sec.end_m
+        for other in self._waiting_between(tr, sec, nxt, gap_m):
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
         return room_m
+
+    def _waiting_between(
+        self, tr: TrainRuntime, sec: RouteSection, nxt: RouteSection, gap_m: float
+    ) -> list[TrainRuntime]:
+        """The trains other than ``tr`` that stand, or will stand, between ``sec`` and ``nxt`` waiting for ``nxt``
+        in ``tr``'s direction through it (module docstring, "Room between sections"): not granted ``nxt`` and
+        bound through it that way, and either standing within ``gap_m`` before its protection point now, or
+        holding or waiting for ``sec`` (in any direction: a unit reversing inside ``sec`` leaves it towards
+        ``nxt``) on the way there."""
+        assert self.tracks is not None
+        through_sec = set(self.tracks.holders(sec.section_id)) | set(self.tracks.queued(sec.section_id))
+        out = []
+        for other_id, theirs in self.sections.items():
+            other = self.fleet.trains[other_id]
+            if other_id == tr.train_id or not (other.on_line or other_id in through_sec):
+                continue
+            there = next((s for s in theirs if s.section_id == nxt.section_id and s.direction == nxt.direction), None)
+            if there is None or other.front_m > there.guard_m:
+                continue
+            reqs = self.section_requests.get(other_id, {})
+            on = reqs.get(nxt.section_id)
+            if on is not None and (on.granted or other_id in on.released_by):
+                continue  # it runs on through nxt: it never waits between the two
+            if other.on_line and there.guard_m - other.front_m <= gap_m:
+                out.append(other)  # standing between the sections (or coming in from a branch joining there)
+                continue
+            if other_id not in through_sec:
+                continue
+            before = next((s for s in theirs if s.section_id == sec.section_id), None)
+            mine = reqs.get(sec.section_id)
+            if before is None or before.start_m >= there.start_m or mine is None or other_id in mine.released_by:
+                continue
+            if on is not None and on in mine.group:
+                continue  # it asked for sec and nxt together: it runs on through both
+            out.append(other)
+        return out
 
     def _room_beyond(self, req: SectionRequest) -> bool:
         """True if the terminus beyond ``req``'s section (its train's trip ends there: ``yields``) has room for it
@@ -460,6 +605,6 @@ class SectionRequests:
         for sec in self.sections.get(tr.train_id, ()):
             if sec.guard_m <= point_m + 1e-6 and sec.end_m > tr.front_m:
                 req = reqs.get(sec.section_id)
-                if req is None or not req.granted:
+                if req is None or not req.granted or self._stale(tr, req, sec):
                     return True
         return False

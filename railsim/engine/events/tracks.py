@@ -21,8 +21,12 @@ every :meth:`TrackSections.release` re-examines the queue. :meth:`TrackSections.
 sections as one **group**: all are granted in the same instant or none is (a train entering single track that
 runs on through further sections before the next passing place; :mod:`railsim.engine.locking`). Each member keeps
 its place in its own section's queue, so a group blocks later requests of the other direction in every section it
-waits for, and no train of the other direction can take one section of the group while the group waits for another. Events (subject = section id): ``section_requested``,
-``section_reserved``, ``section_released``.
+waits for, and no train of the other direction can take one section of the group while the group waits for another.
+A waiting request for one section **widens** into such a group (:meth:`TrackSections.extend`, keeping its turn)
+when the room its train would wait in beyond the section has filled since it asked. And a waiting request is **let
+through** (:meth:`TrackSections.let_through`) ahead of the other direction's when the train side finds a train
+holding the section the same way standing behind it: that train cannot pass it, so the request is part of that
+grant. Events (subject = section id): ``section_requested``, ``section_reserved``, ``section_released``.
 """
 
 from __future__ import annotations
@@ -45,6 +49,9 @@ class SectionRequest:
     released_by: set[str] = field(default_factory=set)
     group: list[SectionRequest] = field(default_factory=list)  # requests granted only together (request_all)
     yields: bool = False  # its train's trip ends beyond the section (a terminus): the other direction goes first
+    # where the section begins on its train's route, set by the train side for a route that runs through the same
+    # section more than once (None: its first time through)
+    pass_m: float | None = None
 
     @property
     def granted(self) -> bool:
@@ -90,6 +97,51 @@ class TrackSections:
             )
         self._serve(t_s, reqs[0].section_id)
         return reqs
+
+    def extend(
+        self, t_s: float, req: SectionRequest, wanted: list[tuple[str, int]], yields: bool = False
+    ) -> list[SectionRequest]:
+        """Widen the waiting request ``req`` into a group with the sections ``wanted`` ((section id, direction) in
+        route order, after ``req``'s): all granted in the same instant, or none. The new requests count as made
+        when ``req`` was (it keeps its turn against the other direction); ``yields`` as in :meth:`request_all`, for
+        the whole group. Returns the new requests."""
+        assert not req.granted and not req.group and req in self._sections[req.section_id].queue
+        new = [SectionRequest(req.holder_ids, sid, d, req.requested_s, yields=yields) for sid, d in wanted]
+        req.group = [req, *new]
+        req.yields = yields
+        for r in new:
+            r.group = req.group
+            self._sections[r.section_id].queue.append(r)
+            self.events.record(
+                t_s,
+                "section_requested",
+                r.section_id,
+                trains=list(r.holder_ids),
+                direction=r.direction,
+                **{"with": [x.section_id for x in req.group if x is not r]},
+            )
+        for r in req.group:  # the other direction may go first now (_waits_for)
+            self._serve(t_s, r.section_id)
+        return new
+
+    def let_through(self, t_s: float, req: SectionRequest) -> bool:
+        """Grant the waiting ``req`` at once, before the requests of the other direction it would wait for, as
+        the caller found that a train holding the section ``req``'s way stands behind ``req``'s train and cannot
+        pass through before it (module docstring); the other sections of its group only if they are grantable.
+        True if granted."""
+        sec = self._sections[req.section_id]
+        if req not in sec.queue or not any(h.direction == req.direction for h in sec.holders):
+            return False
+        if any(h.direction != req.direction for h in sec.holders):
+            return False
+        if any(not self._grantable(r) for r in req.group if r is not req):
+            return False
+        for r in req.group or [req]:
+            self._sections[r.section_id].queue.remove(r)
+            self._sections[r.section_id].holders.append(r)
+            r.granted_s = t_s
+            self.events.record(t_s, "section_reserved", r.section_id, trains=list(r.holder_ids), direction=r.direction)
+        return True
 
     def release(self, t_s: float, train_id: str, req: SectionRequest) -> None:
         """``train_id`` has left the section (its rear is past the end); the request ends when all its holders did."""

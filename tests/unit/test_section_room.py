@@ -1,0 +1,150 @@
+"""The room between two single-track sections, and who may stand in it, constructed without SUMO.
+
+A train asks for a single-track section alone only while the track between it and the next section holds the
+train beside every other train that stands there or will stand there waiting for that next section the same
+way. Each case below is one a simpler count missed, from Jena's and Potsdam's tram peaks:
+
+* a train already standing between the sections (its first section released, the next not yet granted: a tram
+  dwelling at a platform there, or one that came in from a branch);
+* a unit reversing inside the first section, which leaves it towards the next one (Jena-Ost);
+* the room filling while the request waits (asked for alone at 900 s, granted at 1,301 s: the request widens to
+  both sections before it is granted);
+* a train in front waiting for a section the train behind it holds the same way is let through (it came in from a
+  branch between the two sections: Potsdam, Platz der Einheit);
+* no flat crossing inside a section is asked for before the section is granted (Potsdam, crossing ``4073068946``);
+* a train whose front has stopped a few centimetres inside a crossing asks for it at once, though the section
+  beyond it is not its own yet (Potsdam, Platz der Einheit/West, 0.12 m into crossing ``1137879547``).
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+from typing import Any
+
+from railsim.engine.events.log import EventLog
+from railsim.engine.events.tracks import TrackSections
+from railsim.engine.locking import RouteLocks
+from railsim.engine.single_track import RouteSection
+from tests.unit.test_single_track_order import _locks, _runner
+
+S1, S2, CROSSING = "track:s1", "track:s2", "crossing:c"
+GAP_M = 100.0  # S1 ends at 2,000 m, S2 starts at 2,100 m: 70 m of room, one 27 m tram (27 m + 50 m margin each)
+
+
+def _with_margin(tr: Any) -> Any:
+    """A tram keeping the separation controller's 50 m behind the train in front."""
+    tr.controllers = {"separation": SimpleNamespace(params=SimpleNamespace(margin_m=50.0))}
+    return tr
+
+
+def _sections(locks: RouteLocks, *trains: Any, reversing: tuple[str, ...] = ()) -> None:
+    """S1 at 1,000-2,000 m and S2 at 2,100-3,100 m, the same way for every train; a train in ``reversing`` turns
+    inside S1 (its own direction there) and then runs through S2 like the others."""
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    for k, t in enumerate(trains):
+        d1 = 7 + k if t.train_id in reversing else 0
+        locks.sections[t.train_id] = [
+            RouteSection(S1, d1, 1000.0, 2000.0, 1000.0),
+            RouteSection(S2, 0, 2000.0 + GAP_M, 3000.0 + GAP_M, 2000.0 + GAP_M),
+        ]
+        locks.section_requests[t.train_id] = {}
+
+
+def _tram(tid: str, front_m: float) -> Any:
+    return _with_margin(_runner(tid, front_m))
+
+
+def test_a_train_standing_between_the_sections_takes_the_room() -> None:
+    standing, second = _tram("standing", 2080.0), _tram("second", 500.0)  # standing: rear 43 m past S1's end
+    _, locks = _locks(standing, second)
+    _sections(locks, standing, second)
+    assert locks.tracks is not None
+    req = locks.tracks.request(0.0, ("standing",), S1, 0)
+    locks.tracks.release(1.0, "standing", req)  # it has left S1 and waits at a platform before S2
+    locks.section_requests["standing"][S1] = req
+    locks.bookkeeping(2.0, second)
+    assert set(locks.section_requests["second"]) == {S1, S2}, "granted S1 alone behind a tram standing between"
+
+
+def test_a_unit_reversing_in_the_first_section_takes_the_room() -> None:
+    unit, second = _tram("unit", 1500.0), _tram("second", 500.0)
+    _, locks = _locks(unit, second)
+    _sections(locks, unit, second, reversing=("unit",))
+    assert locks.tracks is not None
+    held = locks.tracks.request(0.0, ("unit",), S1, 7)  # the unit turning in S1 holds it with a direction of its own
+    locks.section_requests["unit"][S1] = held
+    locks.bookkeeping(1.0, second)
+    assert set(locks.section_requests["second"]) == {S1, S2}, "a unit leaving S1 for S2 was not counted"
+
+
+def test_a_request_for_the_first_section_alone_widens_when_the_room_fills() -> None:
+    first, later = _tram("first", 500.0), _tram("later", 300.0)
+    later.on_line = False  # not on the line yet
+    _, locks = _locks(first, later)
+    _sections(locks, first, later)
+    assert locks.tracks is not None
+    blocker = locks.tracks.request(0.0, ("blocker",), S1, 1)  # S1 is held the other way
+    locks.bookkeeping(1.0, first)
+    assert set(locks.section_requests["first"]) == {S1}  # the room is empty: S1 alone
+    later.on_line, later.front_m = True, 2080.0  # a tram comes in between the sections (a branch joins there)
+    assert locks.tracks.request(2.0, ("oncoming",), S2, 1).granted  # and S2 is held the other way
+    locks.bookkeeping(3.0, first)
+    assert set(locks.section_requests["first"]) == {S1, S2}, "the request for S1 alone did not widen"
+    s1 = locks.section_requests["first"][S1]
+    assert s1.group and s1.requested_s == 1.0  # one group, keeping its turn
+    locks.tracks.release(4.0, "blocker", blocker)
+    assert not s1.granted, "granted S1 alone with no room left before S2, which the oncoming tram holds"
+    back = locks.tracks.request(5.0, ("oncoming",), S1, 1)  # the oncoming tram, past S2, asks for S1
+    assert back.granted  # the group waits for S2, which the oncoming tram holds: it does not go first
+
+
+def test_a_train_in_front_waiting_for_a_section_the_train_behind_holds_is_let_through() -> None:
+    front, behind = _tram("front", 2080.0), _tram("behind", 1900.0)
+    _, locks = _locks(front, behind)
+    _sections(locks, front, behind)
+    assert locks.tracks is not None
+    mine = locks.tracks.request(0.0, ("behind",), S2, 0)  # behind was granted S2 (with S1)
+    locks.section_requests["behind"][S2] = mine
+    oncoming = locks.tracks.request(1.0, ("oncoming",), S2, 1)  # an opposing request, before the one in front
+    theirs = locks.tracks.request(2.0, ("front",), S2, 0)  # front came in from a branch and asks after it
+    locks.section_requests["front"][S2] = theirs
+    assert mine.granted and not theirs.granted and not oncoming.granted
+    ahead = SimpleNamespace(train_id="front", front_m=2080.0, rear_m=2053.0)
+    locks.bookkeeping(3.0, behind, ahead)
+    assert theirs.granted, "the train in front waited for a section the train behind it holds"
+    assert not oncoming.granted
+
+
+def test_no_crossing_inside_a_section_is_asked_for_before_the_section() -> None:
+    tr = _tram("t", 600.0)
+    _, locks = _locks(tr)
+    locks.tracks = TrackSections(EventLog(), [S1, CROSSING])
+    locks.sections["t"] = [
+        RouteSection(S1, 0, 1000.0, 2000.0, 1000.0),
+        RouteSection(CROSSING, 0, 1500.0, 1510.0, 1500.0),
+    ]
+    locks.section_requests["t"] = {}
+    oncoming = locks.tracks.request(0.0, ("oncoming",), S1, 1)
+    locks.bookkeeping(1.0, tr)
+    assert S1 in locks.section_requests["t"] and not locks.section_requests["t"][S1].granted
+    assert CROSSING not in locks.section_requests["t"], "asked for a crossing inside a section it waits for"
+    locks.tracks.release(2.0, "oncoming", oncoming)
+    locks.bookkeeping(3.0, tr)
+    assert locks.section_requests["t"][CROSSING].granted
+
+
+def test_a_train_stopped_with_its_front_in_a_crossing_asks_for_it_at_once() -> None:
+    tr = _tram("t", 1500.12)  # halted 0.12 m past a platform that ends where the crossing begins
+    _, locks = _locks(tr)
+    locks.tracks = TrackSections(EventLog(), [S1, CROSSING])
+    locks.sections["t"] = [
+        RouteSection(CROSSING, 0, 1500.0, 1510.0, 1500.0),
+        RouteSection(S1, 0, 1510.0, 2500.0, 1510.0),  # no room between: the crossing waits for S1 otherwise
+    ]
+    locks.section_requests["t"] = {}
+    locks.tracks.request(0.0, ("oncoming",), S1, 1)
+    locks.bookkeeping(1.0, tr)
+    assert CROSSING in locks.section_requests["t"], "a train standing in a crossing did not ask for it"
+    assert locks.section_requests["t"][CROSSING].granted
+    other = locks.tracks.request(2.0, ("across",), CROSSING, 1)  # a tram of the other movement waits for it
+    assert not other.granted
