@@ -143,7 +143,8 @@ class Occupancy:
         r_off[1:] = np.cumsum(sizes)
         r_edges = np.concatenate(segs) if segs else np.zeros(0, np.int64)
         r_starts = np.array([x for v in views for x in v.edge_start_m], float)
-        keys, vals = [], []
+        keys: list[int] = []
+        vals: list[int] = []
         for seg in segs:
             last = {int(e): i for i, e in enumerate(seg)}  # the last occurrence, as RouteView.edge_index
             order = sorted(int(e) for e in seg)  # every occurrence: the segment is the route's (r_off)
