@@ -85,7 +85,8 @@ class Occupancy:
         self._edge_id: dict[str, int] = {}  # SUMO edge -> global edge number
         self._route_of: dict[int, int] = {}  # id(view) -> route number (the view is kept in _views)
         self._views: list[RouteView] = []
-        self._seg_edges: list[np.ndarray] = []  # per route: its global edge numbers in route order
+        # per route: its global edge numbers in route order, edge starts, sorted look-up keys and values
+        self._segs: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
         self._dirty = True  # tables to rebuild (a route or an edge was added)
         self._tables: tuple[np.ndarray, ...] = ()  # r_off, r_edges, r_starts, r_keys, r_vals, r_simple, r_len
         self._partner = np.full(0, -1, np.int64)
@@ -116,6 +117,12 @@ class Occupancy:
         for e, (p, _) in self._bidi.items():
             self._number(e)
             self._number(p)
+        n = len(self._edge_id)
+        self._partner = np.full(n, -1, np.int64)
+        self._partner_len = np.zeros(n)
+        for e, (p, length_m) in self._bidi.items():
+            self._partner[self._edge_id[e]] = self._edge_id[p]
+            self._partner_len[self._edge_id[e]] = length_m
         self._dirty = True
 
     def _number(self, edge: str) -> int:
@@ -131,34 +138,36 @@ class Occupancy:
             return r
         r = self._route_of[id(view)] = len(self._views)
         self._views.append(view)
-        self._seg_edges.append(np.array([self._number(e) for e in view.edges], np.int64))
+        edges = [self._number(e) for e in view.edges]
+        last = {e: i for i, e in enumerate(edges)}  # the last occurrence, as RouteView.edge_index
+        keys = sorted(edges)  # every occurrence: the look-up segment is the route's (r_off)
+        self._segs.append(
+            (
+                np.array(edges, np.int64),
+                np.array(view.edge_start_m, float),
+                np.array(keys, np.int64),
+                np.array([last[e] for e in keys], np.int64),
+            )
+        )
         self._dirty = True
         return r
 
     def _rebuild(self) -> None:
-        """The flat route tables and the partner table (:mod:`.occupancy_kernel`, "Tables")."""
-        views, segs = self._views, self._seg_edges
-        sizes = [len(s) for s in segs]
+        """The flat route tables and the partner table (:mod:`.occupancy_kernel`, "Tables"): the routes' own
+        arrays, made when each was registered, put end to end."""
+        views, segs = self._views, self._segs
         r_off = np.zeros(len(segs) + 1, np.int64)
-        r_off[1:] = np.cumsum(sizes)
-        r_edges = np.concatenate(segs) if segs else np.zeros(0, np.int64)
-        r_starts = np.array([x for v in views for x in v.edge_start_m], float)
-        keys: list[int] = []
-        vals: list[int] = []
-        for seg in segs:
-            last = {int(e): i for i, e in enumerate(seg)}  # the last occurrence, as RouteView.edge_index
-            order = sorted(int(e) for e in seg)  # every occurrence: the segment is the route's (r_off)
-            keys.extend(order)
-            vals.extend(last[e] for e in order)
+        r_off[1:] = np.cumsum([len(seg[0]) for seg in segs])
+
+        def flat(k: int, dtype: Any) -> np.ndarray:
+            return np.concatenate([seg[k] for seg in segs]) if segs else np.zeros(0, dtype)
+
         r_simple = np.array([v._simple for v in views], np.bool_)
         r_len = np.array([v.length_m for v in views], float)
-        self._tables = (r_off, r_edges, r_starts, np.array(keys, np.int64), np.array(vals, np.int64), r_simple, r_len)
-        n = len(self._edge_id)
-        self._partner = np.full(n, -1, np.int64)
-        self._partner_len = np.zeros(n)
-        for e, (p, length_m) in self._bidi.items():
-            self._partner[self._edge_id[e]] = self._edge_id[p]
-            self._partner_len[self._edge_id[e]] = length_m
+        self._tables = (r_off, flat(0, np.int64), flat(1, float), flat(2, np.int64), flat(3, np.int64), r_simple, r_len)
+        grown = len(self._edge_id) - len(self._partner)  # edges numbered since: none of them has a partner
+        self._partner = np.concatenate([self._partner, np.full(grown, -1, np.int64)])
+        self._partner_len = np.concatenate([self._partner_len, np.zeros(grown)])
         self._dirty = False
 
     def update(self, bodies: list[Body]) -> None:
