@@ -83,7 +83,7 @@ class Occupancy:
     def __init__(self) -> None:
         self._bidi: dict[str, tuple[str, float]] = {}  # bidi edge -> (its partner, the partner's length [m])
         self._edge_id: dict[str, int] = {}  # SUMO edge -> global edge number
-        self._route_of: dict[int, int] = {}  # id(view) -> route number (the view is kept in _views)
+        self._route_of: dict[int, int] = {}  # id(view) -> route number (the view is kept in _views: ids stay unique)
         self._views: list[RouteView] = []
         # per route: its global edge numbers in route order, edge starts, sorted look-up keys and values
         self._segs: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
@@ -134,7 +134,7 @@ class Occupancy:
 
     def _route_no(self, view: RouteView) -> int:
         r = self._route_of.get(id(view))
-        if r is not None and self._views[r] is view:
+        if r is not None:  # (the view is kept in _views: no other object can have its id)
             return r
         r = self._route_of[id(view)] = len(self._views)
         self._views.append(view)
@@ -187,12 +187,15 @@ class Occupancy:
     ) -> None:
         """This step's trains as columns (slot ``k`` = ``ids[k]``): their route views, front chainages in their own
         frame, lengths, and a hint for the edge under each front (last step's, :meth:`RouteView.edge_near`)."""
-        route_no = self._route_no
-        routes = [route_no(v) for v in views]
+        route_of = self._route_of
+        try:  # every route known (the views are kept, so an id stays theirs)
+            routes = [route_of[id(v)] for v in views]
+        except KeyError:
+            routes = [self._route_no(v) for v in views]
         if self._dirty:
             self._rebuild()
         self.ids = ids
-        self._slot = {tid: k for k, tid in enumerate(ids)}
+        self._slot = dict(zip(ids, range(len(ids))))
         self._route = np.array(routes, np.int64)
         self._front = np.array(front_m, float)
         self._len = np.array(length_m, float)

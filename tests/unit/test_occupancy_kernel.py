@@ -4,8 +4,8 @@ The occupancy index, the train-ahead search and the facing-train search run as c
 arrays; their interpreted form (the module loaded with the JIT off, ``tests.helpers.interpreted``) is the
 reference. On random track — edges of random length, routes that are random walks over them (so they merge,
 diverge, and some pass an edge twice), bidi partners on some edges — with random bodies (fronts anywhere on their
-route, lengths spanning several edges, hints right, off by one or far off), :class:`Occupancy` run on the compiled
-kernels must answer every ``ahead`` and ``facing`` question exactly as on the interpreted ones, and place every
+route, lengths spanning several edges, hints right, off by one or far off; more routes appearing in a later step),
+:class:`Occupancy` run on the compiled kernels must answer every ``ahead`` and ``facing`` question exactly as on the interpreted ones, and place every
 body on the same edges. The search itself is held to the geometry by ``tests/sumo/test_occupancy.py`` and
 ``tests/unit/test_facing_trains.py``.
 """
@@ -69,6 +69,7 @@ def _bodies(rng: np.random.Generator, views: list[RouteView], n: int) -> list[Bo
 
 
 def _answers(occ: Occupancy, bodies: list[Body], rng: np.random.Generator) -> list[str]:
+    occ.update(bodies[: len(bodies) // 2])  # a step with some of the routes, then one where more appear
     occ.update(bodies)
     queries = [
         (b.train_id, b.front_m - float(rng.uniform(0.0, 300.0)), float(rng.uniform(0.0, 3000.0))) for b in bodies
