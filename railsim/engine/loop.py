@@ -41,7 +41,7 @@ from railsim.engine.insertion import Dispatcher
 from railsim.engine.interrupt import StopRequest
 from railsim.engine.knowledge import Knowledge, comm_channels
 from railsim.engine.locking import RouteLocks
-from railsim.engine.occupancy import Ahead, Body, Occupancy
+from railsim.engine.occupancy import Ahead, Occupancy
 from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
@@ -278,17 +278,20 @@ class Simulation:
         truth = self._read_truth(t, active, ids)
         self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
 
-        self.occupancy.update(
-            [Body(tr.train_id, tr.view, tr.front_m, tr.trip.vehicle.length_m, tr.edge_i) for tr in active]
+        tids = [tr.train_id for tr in active]
+        self.occupancy.update_columns(
+            tids,
+            [tr.view for tr in active],
+            [tr.front_m for tr in active],
+            [tr.trip.vehicle.length_m for tr in active],
+            [tr.edge_i for tr in active],
         )
-        ahead: dict[str, Ahead | None] = {}
+        ahead: dict[str, Ahead | None] = dict(zip(tids, self.occupancy.ahead_all(self.settings.lookahead_m)))
         for tr in active:
-            a = self.occupancy.ahead(tr.train_id, self.settings.lookahead_m)
-            ahead[tr.train_id] = a
-            self.safety.truth_checks(t, tr, a)
+            self.safety.truth_checks(t, tr, ahead[tr.train_id])
         self.safety.crossing_checks(t, active)
         if self.occupancy.has_bidi:  # trains facing each other on one track (partner edges): contacts, authorities
-            self.safety.head_on_checks(t, active, self.occupancy.facing)
+            self.safety.head_on_checks(t, active, self.occupancy.facing_all)
             fronts = [(tr.train_id, tr.front_m, tr.plant.speed_mps) for tr in active]
             self.locks.facing_m = self.occupancy.facing_within_braking(fronts, self.settings.sensor_range_m)
         self.safety.sumo_reported(t, bridge.collisions())

@@ -29,6 +29,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 from typing import Any, NamedTuple
 
+import numpy as np
+
+from railsim.engine import occupancy_kernel
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import FACING_DECEL_MPS2
 
@@ -70,12 +73,33 @@ class Facing(NamedTuple):
 
 
 class Occupancy:
-    """Per-step index of which train covers which edge."""
+    """Per-step index of which train covers which edge, on per-train arrays (:mod:`.occupancy_kernel`).
+
+    Each step :meth:`update_columns` (or :meth:`update`) puts the trains on the line in *slots* (their order in
+    the step's list) and places them in one compiled pass; :meth:`ahead_all` and :meth:`facing_all` answer for
+    every train in one call each, :meth:`ahead` and :meth:`facing` for one. Routes are registered the first time a
+    train on them is seen (their edges numbered, their tables appended); nothing about a train outlives the step."""
 
     def __init__(self) -> None:
-        self._by_edge: dict[str, list[Body]] = {}
-        self.bodies: dict[str, Body] = {}
         self._bidi: dict[str, tuple[str, float]] = {}  # bidi edge -> (its partner, the partner's length [m])
+        self._edge_id: dict[str, int] = {}  # SUMO edge -> global edge number
+        self._route_of: dict[int, int] = {}  # id(view) -> route number (the view is kept in _views: ids stay unique)
+        self._views: list[RouteView] = []
+        # per route: its global edge numbers in route order, edge starts, sorted look-up keys and values
+        self._segs: list[tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]] = []
+        self._dirty = True  # tables to rebuild (a route or an edge was added)
+        self._tables: tuple[np.ndarray, ...] = ()  # r_off, r_edges, r_starts, r_keys, r_vals, r_simple, r_len
+        self._partner = np.full(0, -1, np.int64)
+        self._partner_len = np.zeros(0)
+        self.ids: list[str] = []  # slot -> train id, this step
+        self._slot: dict[str, int] = {}
+        self._route: np.ndarray = np.zeros(0, np.int64)
+        self._front: np.ndarray = np.zeros(0)
+        self._len: np.ndarray = np.zeros(0)
+        self.edge_i: np.ndarray = np.zeros(0, np.int64)  # slot -> route edge under its front
+        self.rear_i: np.ndarray = np.zeros(0, np.int64)  # slot -> route edge under its rear
+        self._by_off: np.ndarray = np.zeros(1, np.int64)
+        self._by_slot: np.ndarray = np.zeros(0, np.int64)
 
     @property
     def has_bidi(self) -> bool:
@@ -90,103 +114,190 @@ class Occupancy:
             for e, a in nodes(data=True)
             if a.get("bidi") is not None and a["bidi"] in nodes
         }
+        for e, (p, _) in self._bidi.items():
+            self._number(e)
+            self._number(p)
+        n = len(self._edge_id)
+        self._partner = np.full(n, -1, np.int64)
+        self._partner_len = np.zeros(n)
+        for e, (p, length_m) in self._bidi.items():
+            self._partner[self._edge_id[e]] = self._edge_id[p]
+            self._partner_len[self._edge_id[e]] = length_m
+        self._dirty = True
+
+    def _number(self, edge: str) -> int:
+        k = self._edge_id.get(edge)
+        if k is None:
+            k = self._edge_id[edge] = len(self._edge_id)
+            self._dirty = True
+        return k
+
+    def _route_no(self, view: RouteView) -> int:
+        r = self._route_of.get(id(view))
+        if r is not None:  # (the view is kept in _views: no other object can have its id)
+            return r
+        r = self._route_of[id(view)] = len(self._views)
+        self._views.append(view)
+        edges = [self._number(e) for e in view.edges]
+        last = {e: i for i, e in enumerate(edges)}  # the last occurrence, as RouteView.edge_index
+        keys = sorted(edges)  # every occurrence: the look-up segment is the route's (r_off)
+        self._segs.append(
+            (
+                np.array(edges, np.int64),
+                np.array(view.edge_start_m, float),
+                np.array(keys, np.int64),
+                np.array([last[e] for e in keys], np.int64),
+            )
+        )
+        self._dirty = True
+        return r
+
+    def _rebuild(self) -> None:
+        """The flat route tables and the partner table (:mod:`.occupancy_kernel`, "Tables"): the routes' own
+        arrays, made when each was registered, put end to end."""
+        views, segs = self._views, self._segs
+        r_off = np.zeros(len(segs) + 1, np.int64)
+        r_off[1:] = np.cumsum([len(seg[0]) for seg in segs])
+
+        def flat(k: int, dtype: Any) -> np.ndarray:
+            return np.concatenate([seg[k] for seg in segs]) if segs else np.zeros(0, dtype)
+
+        r_simple = np.array([v._simple for v in views], np.bool_)
+        r_len = np.array([v.length_m for v in views], float)
+        self._tables = (r_off, flat(0, np.int64), flat(1, float), flat(2, np.int64), flat(3, np.int64), r_simple, r_len)
+        grown = len(self._edge_id) - len(self._partner)  # edges numbered since: none of them has a partner
+        self._partner = np.concatenate([self._partner, np.full(grown, -1, np.int64)])
+        self._partner_len = np.concatenate([self._partner_len, np.zeros(grown)])
+        self._dirty = False
 
     def update(self, bodies: list[Body]) -> None:
-        by_edge: dict[str, list[Body]] = {}
-        for b in bodies:
-            view = b.view
-            i1 = b.edge_i = view.edge_near(b.front_m, b.edge_i)
-            i0 = b.rear_i = view.edge_near(b.front_m - b.length_m, i1)
-            edges = view.edges
-            for i in range(i0, i1 + 1):
-                on_edge = by_edge.get(edges[i])
-                if on_edge is None:
-                    by_edge[edges[i]] = [b]
-                else:
-                    on_edge.append(b)
-        self._by_edge = by_edge
-        self.bodies = {b.train_id: b for b in bodies}
+        """Index ``bodies`` (:meth:`update_columns`); each body's ``edge_i`` and ``rear_i`` are set."""
+        self.update_columns(
+            [b.train_id for b in bodies],
+            [b.view for b in bodies],
+            [b.front_m for b in bodies],
+            [b.length_m for b in bodies],
+            [b.edge_i for b in bodies],
+        )
+        for b, i1, i0 in zip(bodies, self.edge_i.tolist(), self.rear_i.tolist(), strict=True):
+            b.edge_i, b.rear_i = i1, i0
+
+    def update_columns(
+        self, ids: list[str], views: list[RouteView], front_m: list[float], length_m: list[float], hints: list[int]
+    ) -> None:
+        """This step's trains as columns (slot ``k`` = ``ids[k]``): their route views, front chainages in their own
+        frame, lengths, and a hint for the edge under each front (last step's, :meth:`RouteView.edge_near`)."""
+        route_of = self._route_of
+        try:  # every route known (the views are kept, so an id stays theirs)
+            routes = [route_of[id(v)] for v in views]
+        except KeyError:
+            routes = [self._route_no(v) for v in views]
+        if self._dirty:
+            self._rebuild()
+        self.ids = ids
+        self._slot = dict(zip(ids, range(len(ids))))
+        self._route = np.array(routes, np.int64)
+        self._front = np.array(front_m, float)
+        self._len = np.array(length_m, float)
+        self.edge_i = np.array(hints, np.int64)
+        self.rear_i = np.empty(len(ids), np.int64)
+        r_off, r_edges, r_starts = self._tables[:3]
+        self._by_off, self._by_slot = occupancy_kernel.place(
+            r_off, r_edges, r_starts, len(self._edge_id), self._route, self._front, self._len, self.edge_i, self.rear_i
+        )
+
+    def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
+        """:meth:`ahead` for every train of the step, in slot order (one compiled pass)."""
+        r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
+        slots, fronts, rears = occupancy_kernel.ahead_all(
+            lookahead_m,
+            r_off,
+            r_edges,
+            r_starts,
+            r_keys,
+            r_vals,
+            r_simple,
+            self._route,
+            self._front,
+            self._len,
+            self.edge_i,
+            self.rear_i,
+            self._by_off,
+            self._by_slot,
+        )
+        ids, mine = self.ids, self._front.tolist()
+        out: list[Ahead | None] = []
+        for me, (o, front, rear) in enumerate(zip(slots.tolist(), fronts.tolist(), rears.tolist(), strict=True)):
+            out.append(None if o < 0 else Ahead(ids[o], front, rear, rear - mine[me], front - mine[o]))
+        return out
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""
-        me = self.bodies[train_id]
-        view = me.view
-        j = me.edge_i
-        limit = me.front_m + lookahead_m
-        n = len(view.edges)
-        while j < n and view.edge_start_m[j] <= limit:
-            edge = view.edges[j]
-            best: Ahead | None = None
-            for other in self._by_edge.get(edge, ()):
-                if other.train_id == train_id:
-                    continue
-                mapped = view.map_body(other.view, other.front_m, other.length_m, other.edge_i)
-                if mapped is None:
-                    continue
-                front, rear = mapped
-                if front <= me.front_m:
-                    continue  # behind us (or level: the one behind is its follower's problem)
-                if best is None or front < best.front_m:
-                    best = Ahead(other.train_id, front, rear, rear - me.front_m, front - other.front_m)
-            if best is not None:
-                return best
-            j += 1
-        return None
+        me = self._slot[train_id]
+        r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
+        o, front, rear = occupancy_kernel.ahead_one(
+            me,
+            lookahead_m,
+            r_off,
+            r_edges,
+            r_starts,
+            r_keys,
+            r_vals,
+            r_simple,
+            self._route,
+            self._front,
+            self._len,
+            self.edge_i,
+            self.rear_i,
+            self._by_off,
+            self._by_slot,
+        )
+        if o < 0:
+            return None
+        front, rear = float(front), float(rear)  # (numpy's floats when interpreted)
+        return Ahead(self.ids[o], front, rear, rear - float(self._front[me]), front - float(self._front[o]))
 
     def facing_within_braking(self, fronts: list[tuple[str, float, float]], floor_m: float) -> dict[str, float]:
         """For each ``(train, front_m, speed_mps)``, where the nearest train facing it begins (its frame), looked
         for as far as the train brakes from its speed at a mild :data:`FACING_DECEL_MPS2`, at least ``floor_m``
         (the sensor range); trains with none are left out. The route locks end authorities before it."""
-        near: dict[str, float] = {}
-        for train_id, front_m, speed_mps in fronts:
-            hit = self.facing(train_id, front_m, floor_m + speed_mps**2 / (2.0 * FACING_DECEL_MPS2))
-            if hit is not None:
-                near[train_id] = hit.near_m
-        return near
+        hits = self.facing_all(
+            [(tid, front_m, floor_m + speed_mps**2 / (2.0 * FACING_DECEL_MPS2)) for tid, front_m, speed_mps in fronts]
+        )
+        return {tid: hit.near_m for (tid, _, _), hit in zip(fronts, hits, strict=True) if hit is not None}
 
     def facing(self, train_id: str, from_m: float, lookahead_m: float) -> Facing | None:
         """The nearest train on the partner edges of this train's route from ``from_m`` on (within
         ``lookahead_m``) whose body lies there at or beyond ``from_m`` (module docstring): it runs or stands
         the other way on the same track. None on track without partners."""
+        return self.facing_all([(train_id, from_m, lookahead_m)])[0]
+
+    def facing_all(self, queries: list[tuple[str, float, float]]) -> list[Facing | None]:
+        """:meth:`facing` for every ``(train, from_m, lookahead_m)`` (one compiled pass)."""
         if not self._bidi:
-            return None
-        me = self.bodies[train_id]
-        view = me.view
-        j = view.edge_near(from_m, me.rear_i)
-        limit = from_m + lookahead_m
-        n = len(view.edges)
-        best: Facing | None = None
-        while j < n and view.edge_start_m[j] <= limit:
-            partner = self._bidi.get(view.edges[j])
-            if partner is not None:
-                edge, length_m = partner
-                for other in self._by_edge.get(edge, ()):
-                    if other.train_id == train_id:
-                        continue
-                    span = _on_edge(other, edge)
-                    if span is None:
-                        continue
-                    # x into the partner is length - x here (the part on the junction lane after it: at its end)
-                    near = view.edge_start_m[j] + length_m - min(span[1], length_m)
-                    far = view.edge_start_m[j] + length_m - min(span[0], length_m)
-                    if far >= from_m and near <= limit and (best is None or near < best.near_m):
-                        best = Facing(other.train_id, near, far)
-            if best is not None:
-                return best
-            j += 1
-        return None
-
-
-def _on_edge(body: Body, edge: str) -> tuple[float, float] | None:
-    """The part of ``body`` on ``edge`` as metres into that edge ``(from, to)``, or None (its route frame:
-    ``Occupancy.update`` set the edges under its rear and front)."""
-    view = body.view
-    for i in range(body.rear_i, body.edge_i + 1):
-        if view.edges[i] != edge:
-            continue
-        start = view.edge_start_m[i]
-        end = view.edge_start_m[i + 1] if i + 1 < len(view.edge_start_m) else view.length_m
-        lo = max(body.rear_m, start) - start
-        hi = min(body.front_m, end) - start
-        return lo, hi
-    return None
+            return [None] * len(queries)
+        slot = self._slot
+        r_off, r_edges, r_starts, _, _, _, r_len = self._tables
+        slots, nears, fars = occupancy_kernel.facing_all(
+            np.array([slot[q[0]] for q in queries], np.int64),
+            np.array([q[1] for q in queries], float),
+            np.array([q[2] for q in queries], float),
+            r_off,
+            r_edges,
+            r_starts,
+            r_len,
+            self._partner,
+            self._partner_len,
+            self._route,
+            self._front,
+            self._len,
+            self.edge_i,
+            self.rear_i,
+            self._by_off,
+            self._by_slot,
+        )
+        ids = self.ids
+        return [
+            None if o < 0 else Facing(ids[o], near, far)
+            for o, near, far in zip(slots.tolist(), nears.tolist(), fars.tolist(), strict=True)
+        ]

@@ -21,6 +21,9 @@ from dataclasses import dataclass, field
 from typing import Any
 
 from controllers.base import SpeedLimit
+from railsim.engine.occupancy_kernel import near_hint
+
+_near_hint = near_hint.py_func  # interpreted: on a tuple, as fast as a method of its own
 
 
 @dataclass
@@ -69,24 +72,11 @@ class RouteView:
 
     def edge_near(self, chainage_m: float, hint: int) -> int:
         """:meth:`edge_at` for a chainage on or next to edge ``hint`` (a train's front one step later, its rear):
-        the hint and its neighbours are checked against the edge bounds before any search. The result is
-        :meth:`edge_at`'s, whatever the hint (a wrong one only costs the search)."""
-        starts = self.edge_start_m
-        last = len(starts) - 1
-        if 0 <= hint <= last:  # the same answers as the loop below, unrolled (edge starts never decrease)
-            if hint == 0 or starts[hint] <= chainage_m:
-                if hint == last or chainage_m < starts[hint + 1]:
-                    return hint
-                nxt = hint + 1  # at or past its start
-                if nxt == last or chainage_m < starts[nxt + 1]:
-                    return nxt
-            elif hint - 1 == 0 or starts[hint - 1] <= chainage_m:  # before the hint's start: the previous edge?
-                return hint - 1
-            return self.edge_at(chainage_m)
-        for i in (hint, hint + 1, hint - 1):
-            if 0 <= i <= last and (i == 0 or starts[i] <= chainage_m) and (i == last or chainage_m < starts[i + 1]):
-                return i
-        return self.edge_at(chainage_m)
+        the hint and its neighbours are checked against the edge bounds before any search
+        (:func:`railsim.engine.occupancy_kernel.near_hint`, interpreted: the law the compiled occupancy pass uses).
+        The result is :meth:`edge_at`'s, whatever the hint (a wrong one only costs the search)."""
+        i = _near_hint(self.edge_start_m, chainage_m, hint)
+        return i if i >= 0 else self.edge_at(chainage_m)
 
     def gradient_at(self, chainage_m: float) -> float:
         """Gradient [‰] under ``chainage_m`` (0 where the route has no gradient data)."""

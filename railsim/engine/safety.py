@@ -55,7 +55,8 @@ from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
 
-FacingLookup = Callable[[str, float, float], Facing | None]  # (train, from chainage, lookahead) -> facing train
+# [(train, from chainage, lookahead), ...] -> the train facing each, or None
+FacingLookup = Callable[[list[tuple[str, float, float]]], list[Facing | None]]
 
 
 class SafetyMonitor:
@@ -199,12 +200,12 @@ class SafetyMonitor:
                     self.events.record(t, "collision", tr.train_id, leader=other.train_id, crossing=node)
                     log.error("collision at t=%.1f s: %s and %s on crossing %s", t, tr.train_id, other.train_id, node)
 
-    def head_on_checks(self, t: float, active: list[TrainRuntime], facing: FacingLookup) -> None:
+    def head_on_checks(self, t: float, active: list[TrainRuntime], facing_all: FacingLookup) -> None:
         """Two trains on one track facing each other whose bodies overlap collide head-on (module docstring);
-        ``facing(train, from_m, lookahead_m)``: :meth:`railsim.engine.occupancy.Occupancy.facing`."""
-        for tr in active:
-            length_m = tr.trip.vehicle.length_m
-            hit = facing(tr.train_id, tr.front_m - length_m, length_m)
+        ``facing_all([(train, from_m, lookahead_m), ...])``:
+        :meth:`railsim.engine.occupancy.Occupancy.facing_all` (every train's own body, from its rear, in one call)."""
+        queries = [(tr.train_id, tr.front_m - tr.trip.vehicle.length_m, tr.trip.vehicle.length_m) for tr in active]
+        for tr, hit in zip(active, facing_all(queries), strict=True):
             if hit is None or hit.near_m > tr.front_m:
                 continue
             pair = (min(tr.train_id, hit.train_id), max(tr.train_id, hit.train_id))
