@@ -252,11 +252,13 @@ def departure_times(
     headway = ck.number(m["headway_s"], f"{path}.headway_s", gt=0.0)
     if last < first:
         raise ck.fail(f"{path}.last", f"expected a time at or after first ({m['first']!r}), got {m['last']!r}")
-    n = int(math.floor((last - first) / headway + _GRID_TOL_S / headway)) + 1
-    if n > MAX_TRIPS_PER_SERVICE:
+    spans = (last - first) / headway + _GRID_TOL_S / headway  # huge or inf for a tiny (subnormal) headway
+    if not spans < MAX_TRIPS_PER_SERVICE:
+        got = f"{int(spans) + 1}" if spans < 1e12 else "more"
         raise ck.fail(
-            path, f"expected at most {MAX_TRIPS_PER_SERVICE} departures, got {n} (from first to last every headway_s)"
+            path, f"expected at most {MAX_TRIPS_PER_SERVICE} departures, got {got} (from first to last every headway_s)"
         )
+    n = int(math.floor(spans)) + 1
     times = tuple(first + k * headway for k in range(n))  # type: ignore[assignment]
     return times, {"first": m["first"], "last": m["last"], "headway_s": headway}  # type: ignore[return-value]
 

@@ -190,6 +190,10 @@ def test_more_than_a_thousand_trips_keep_ids_sortable() -> None:
             {"first": 0, "last": 1e6, "headway_s": 10},
             "services[1].departures: expected at most 10000 departures, got 100001 (from first to last every headway_s)",
         ),
+        (  # a subnormal headway: the count overflows a float (an OverflowError traceback before)
+            {"first": 0, "last": 0, "headway_s": 2.225073858507e-311},
+            "services[1].departures: expected at most 10000 departures, got more (from first to last every headway_s)",
+        ),
         ({"times": [-5]}, "services[1].departures.times[0]: expected a number >= 0, got -5"),
         (
             {"times": ["25:61"]},
