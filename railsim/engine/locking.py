@@ -62,7 +62,13 @@ from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
-from railsim.engine.section_requests import SectionRequests, separation_margin_m, stop_before
+from railsim.engine.section_requests import (
+    STOP_OVERRUN_ALLOWANCE_M,
+    SectionRequests,
+    separation_margin_m,
+    stop_aim_m,
+    stop_before,
+)
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.engine.wiring import unwired
@@ -114,6 +120,8 @@ class RouteLocks(SectionRequests):
         self._route_end: dict[str, tuple[Any, float]] = {}  # train id -> (its trip's stops, authority at the end)
         # train id -> where the nearest train facing it on its track ahead begins (the loop sets it every step)
         self.facing_m: dict[str, float] = {}
+        # (train id, station id, point) of each stop reported as served only with the resource beyond (_reach_stop)
+        self._short_of_resource: set[tuple[str, str, float]] = set()
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on
@@ -189,7 +197,7 @@ class RouteLocks(SectionRequests):
                 and rs.point_m <= waiting_m
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
-                and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
+                and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid), rs.point_m)
                 and not self.formations.join_book.route_waits(tr, rs.point_m)
                 and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
                 and not self.extensions.manages_lock(tr.train_id, sid)
@@ -482,8 +490,23 @@ class RouteLocks(SectionRequests):
         if stop.kind != "station" or stop.mark_m >= point_m or tr.front_m > stop.window_end_m:
             return end_m
         params = getattr(tr.controllers.get("ato"), "params", None)
-        reach_m = stop.mark_m + float(getattr(params, "authority_margin_m", 0.0))
-        return max(end_m, reach_m)
+        margin_m = float(getattr(params, "authority_margin_m", 0.0))
+        aim_m = stop_aim_m(tr, stop, point_m)
+        if aim_m is None:  # served only with the resource: the train halts short of it and waits for it
+            aim_m = point_m - STOP_OVERRUN_ALLOWANCE_M
+            key = (tr.train_id, stop.station_id, point_m)
+            if key not in self._short_of_resource:
+                self._short_of_resource.add(key)
+                self.events.record(
+                    self.clock.now_s, "stop_needs_resource", tr.train_id, station=stop.station_id, point_m=point_m
+                )
+                log.info(
+                    "%s cannot serve %s short of an unreserved resource %.1f m ahead of its window: it waits for it",
+                    tr.train_id,
+                    stop.station_id,
+                    point_m - stop.window_start_m,
+                )
+        return max(end_m, aim_m + margin_m)
 
     def _first_switch(self, tr: TrainRuntime, switches: Any, behind_m: float) -> int:
         """How many of the route's first switches lie behind ``behind_m`` (the loop above skips them anyway).
