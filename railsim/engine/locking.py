@@ -28,7 +28,15 @@ granted then reaches the train's stopping mark (plus the margin its ATO keeps be
 less (:meth:`RouteLocks._reach_stop`): the train halts at its mark, SUMO registers the stop, and the resource is
 requested from there. Ending the authority the overlap short, a train with a platform 22 m before the points
 halted 2 m short of its mark, outside a short platform's window: SUMO never registered the stop and the run
-stalled. The overlap left beyond such a stop is the distance from the mark to the point.
+stalled. The overlap left beyond such a stop is the distance from the mark to the point. The carried authority
+never lets the ATO aim closer than :data:`~railsim.engine.section_requests.STOP_OVERRUN_ALLOWANCE_M` to the point
+(the ATO's worst measured overrun of its stop point, rounded up): a tram handed to its ATO at speed close before
+Potsdam's Platz der Einheit/West ran 1.12 m past its mark, 1 m before the platform end, into flat crossing
+``1137879547`` while another tram held it. The aim then lies before the mark, inside the stop's window
+(:func:`~railsim.engine.section_requests.stop_aim_m`). A stop whose window has no such aim is served only with the
+resource: the train asks for it on its way in (the stop's window ends within the overlap, and
+:func:`~railsim.engine.section_requests.stop_before` does not hold the request back), halts the allowance short of
+the point while it waits, and the run records ``stop_needs_resource``.
 
 **Merges.** At a merge (two tracks joining, SUMO's trailing points) a train on the other leg appears on our
 track the moment it passes the point: its rear is at the point. So before a merge not locked for it a train's
@@ -479,7 +487,9 @@ class RouteLocks(SectionRequests):
         before its authority end): the train stops at its mark, not short of it (module docstring, "Stops
         within the overlap"). A train standing at its next stop runs to the stop after it: that one's mark is
         carried to, so the train can leave a platform for a next one within the overlap (two platforms of a
-        station one behind the other before a merge: the resource is asked for only at the second)."""
+        station one behind the other before a merge: the resource is asked for only at the second). The ATO's aim
+        stays :data:`STOP_OVERRUN_ALLOWANCE_M` before the point (:func:`stop_aim_m`); a stop with no such aim in its
+        window waits for the resource there (``stop_needs_resource``, once per train, stop and point)."""
         k = tr.next_stop
         stops = tr.trip.stops
         if tr.sumo_stopped and k + 1 < len(stops) and stops[k + 1].kind == "station":
@@ -501,7 +511,7 @@ class RouteLocks(SectionRequests):
                     self.clock.now_s, "stop_needs_resource", tr.train_id, station=stop.station_id, point_m=point_m
                 )
                 log.info(
-                    "%s cannot serve %s short of an unreserved resource %.1f m ahead of its window: it waits for it",
+                    "%s serves %s only with the resource %.1f m past the window's start: it halts short and waits",
                     tr.train_id,
                     stop.station_id,
                     point_m - stop.window_start_m,
