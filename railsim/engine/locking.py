@@ -28,7 +28,15 @@ granted then reaches the train's stopping mark (plus the margin its ATO keeps be
 less (:meth:`RouteLocks._reach_stop`): the train halts at its mark, SUMO registers the stop, and the resource is
 requested from there. Ending the authority the overlap short, a train with a platform 22 m before the points
 halted 2 m short of its mark, outside a short platform's window: SUMO never registered the stop and the run
-stalled. The overlap left beyond such a stop is the distance from the mark to the point.
+stalled. The overlap left beyond such a stop is the distance from the mark to the point. The carried authority
+never lets the ATO aim closer than :data:`~railsim.engine.section_requests.STOP_OVERRUN_ALLOWANCE_M` to the point
+(the ATO's worst measured overrun of its stop point, rounded up): a tram handed to its ATO at speed close before
+Potsdam's Platz der Einheit/West ran 1.12 m past its mark, 1 m before the platform end, into flat crossing
+``1137879547`` while another tram held it. The aim then lies before the mark, inside the stop's window
+(:func:`~railsim.engine.section_requests.stop_aim_m`). A stop whose window has no such aim is served only with the
+resource: the train asks for it on its way in (the stop's window ends within the overlap, and
+:func:`~railsim.engine.section_requests.stop_before` does not hold the request back), halts the allowance short of
+the point while it waits, and the run records ``stop_needs_resource``.
 
 **Merges.** At a merge (two tracks joining, SUMO's trailing points) a train on the other leg appears on our
 track the moment it passes the point: its rear is at the point. So before a merge not locked for it a train's
@@ -62,7 +70,13 @@ from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
-from railsim.engine.section_requests import SectionRequests, separation_margin_m, stop_before
+from railsim.engine.section_requests import (
+    STOP_OVERRUN_ALLOWANCE_M,
+    SectionRequests,
+    separation_margin_m,
+    stop_aim_m,
+    stop_before,
+)
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.engine.wiring import unwired
@@ -114,6 +128,8 @@ class RouteLocks(SectionRequests):
         self._route_end: dict[str, tuple[Any, float]] = {}  # train id -> (its trip's stops, authority at the end)
         # train id -> where the nearest train facing it on its track ahead begins (the loop sets it every step)
         self.facing_m: dict[str, float] = {}
+        # (train id, station id, point) of each stop reported as served only with the resource beyond (_reach_stop)
+        self._short_of_resource: set[tuple[str, str, float]] = set()
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on
@@ -189,7 +205,7 @@ class RouteLocks(SectionRequests):
                 and rs.point_m <= waiting_m
                 and rs.point_m - tr.front_m <= self.settings.lock_request_distance_m
                 and rs.point_m <= request_until_m
-                and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid))
+                and not stop_before(t, tr, rs.point_m - self._margin_m(tr.train_id, sid), rs.point_m)
                 and not self.formations.join_book.route_waits(tr, rs.point_m)
                 and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
                 and not self.extensions.manages_lock(tr.train_id, sid)
@@ -471,7 +487,9 @@ class RouteLocks(SectionRequests):
         before its authority end): the train stops at its mark, not short of it (module docstring, "Stops
         within the overlap"). A train standing at its next stop runs to the stop after it: that one's mark is
         carried to, so the train can leave a platform for a next one within the overlap (two platforms of a
-        station one behind the other before a merge: the resource is asked for only at the second)."""
+        station one behind the other before a merge: the resource is asked for only at the second). The ATO's aim
+        stays :data:`STOP_OVERRUN_ALLOWANCE_M` before the point (:func:`stop_aim_m`); a stop with no such aim in its
+        window waits for the resource there (``stop_needs_resource``, once per train, stop and point)."""
         k = tr.next_stop
         stops = tr.trip.stops
         if tr.sumo_stopped and k + 1 < len(stops) and stops[k + 1].kind == "station":
@@ -482,8 +500,23 @@ class RouteLocks(SectionRequests):
         if stop.kind != "station" or stop.mark_m >= point_m or tr.front_m > stop.window_end_m:
             return end_m
         params = getattr(tr.controllers.get("ato"), "params", None)
-        reach_m = stop.mark_m + float(getattr(params, "authority_margin_m", 0.0))
-        return max(end_m, reach_m)
+        margin_m = float(getattr(params, "authority_margin_m", 0.0))
+        aim_m = stop_aim_m(tr, stop, point_m)
+        if aim_m is None:  # served only with the resource: the train halts short of it and waits for it
+            aim_m = point_m - STOP_OVERRUN_ALLOWANCE_M
+            key = (tr.train_id, stop.station_id, point_m)
+            if key not in self._short_of_resource:
+                self._short_of_resource.add(key)
+                self.events.record(
+                    self.clock.now_s, "stop_needs_resource", tr.train_id, station=stop.station_id, point_m=point_m
+                )
+                log.info(
+                    "%s serves %s only with the resource %.1f m past the window's start: it halts short and waits",
+                    tr.train_id,
+                    stop.station_id,
+                    point_m - stop.window_start_m,
+                )
+        return max(end_m, aim_m + margin_m)
 
     def _first_switch(self, tr: TrainRuntime, switches: Any, behind_m: float) -> int:
         """How many of the route's first switches lie behind ``behind_m`` (the loop above skips them anyway).

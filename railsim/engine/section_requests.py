@@ -95,6 +95,12 @@ from railsim.engine.wiring import set_once
 
 TERMINUS_DEPARTURE_HORIZON_S = 300.0  # a departure from a terminus due this soon takes room there (_room_beyond)
 SECTION_REQUEST_LEAD_S = 20.0  # a train standing at its last stop before a section asks this long before it may go
+# The ATO's halt may lie this far past the point it stops on: the worst overrun of a stop point measured with the
+# ATO as it is (a tram handed from its separation controller to the ATO 39 m before Potsdam's Platz der Einheit/West
+# at 6 m/s, still accelerating) is 1.12 m; Dresden's standing starts 1.09 m, Helsinki's 0.89 m. Rounded up to the
+# next half metre. An authority carried to a stop (RouteLocks._reach_stop) keeps the ATO's aim this far before an
+# unreserved resource's point, so the front never stops inside it.
+STOP_OVERRUN_ALLOWANCE_M = 1.5
 
 
 def departure_due_s(tr: TrainRuntime, stop: TripStop) -> float | None:
@@ -108,16 +114,36 @@ def departure_due_s(tr: TrainRuntime, stop: TripStop) -> float | None:
     return due_s
 
 
-def stop_before(t: float, tr: TrainRuntime, point_m: float) -> bool:
+def stop_aim_m(tr: TrainRuntime, stop: TripStop, point_m: float) -> float | None:
+    """Where the train may aim to halt at ``stop`` (its mark, or less) with an unreserved resource at ``point_m``
+    beyond: at least :data:`STOP_OVERRUN_ALLOWANCE_M` before the point, so that the ATO's overrun of its aim never
+    puts the front into the resource. None if that aim would lie short of the stop's window (less than the ATO's
+    stopping tolerance inside it): the stop cannot be served without the resource, which the train must then hold
+    before it arrives."""
+    aim_m = point_m - STOP_OVERRUN_ALLOWANCE_M
+    if stop.mark_m <= aim_m:
+        return stop.mark_m
+    params = getattr(tr.controllers.get("ato"), "params", None)
+    tolerance_m = float(getattr(params, "stop_tolerance_m", 0.0))
+    if aim_m < stop.window_start_m + tolerance_m - 1e-9:
+        return None
+    return aim_m
+
+
+def stop_before(t: float, tr: TrainRuntime, point_m: float, resource_m: float | None = None) -> bool:
     """True while the train still has a station stop to make before ``point_m`` and is not about to leave it
     (within :data:`SECTION_REQUEST_LEAD_S` of its due departure). A single-track section or flat crossing beyond
     that stop is requested only then — as a route is set from a station's starting signal when the train is
     ready — not while the train dwells (a unit waiting out its turnback at a terminal held the Bijin crossing
-    for minutes, and the Jurenba trains crossing there stalled)."""
+    for minutes, and the Jurenba trains crossing there stalled). A stop the train cannot serve without the
+    resource at ``resource_m`` itself (:func:`stop_aim_m`) does not hold the request back: the train asks for
+    the resource on its way in."""
     stops = tr.trip.stops
     for k in range(tr.next_stop, len(stops)):
         stop = stops[k]
         if stop.window_end_m >= point_m:
+            return False
+        if resource_m is not None and stop.kind == "station" and stop_aim_m(tr, stop, resource_m) is None:
             return False
         if stop.kind != "station":
             continue
@@ -209,7 +235,7 @@ class SectionRequests:
                 elif (
                     sec.end_m > tr.front_m
                     and sec.guard_m - tr.front_m <= self.settings.lock_request_distance_m
-                    and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m)
+                    and not stop_before(t, tr, sec.guard_m - self.settings.protection_margin_m, sec.guard_m)
                     and not self._crossing_waits_for_next(tr, sec)
                     and not self._crossing_exit_blocked(tr, sec, ahead)
                     and not self._crossing_inside_pending(tr, sec)
