@@ -266,10 +266,11 @@ class Dispatcher:
             else:  # the formation book tries again while the leader stands there
                 self._log_held(tr, reason)
             return False
-        stops = sumo_stops(trip.stops[1:])  # it is inserted at its origin: SUMO holds it at the others
         # SUMO inserts a vehicle on its route's first edge: a train starting further along (a start offset in
         # motion) gets the route trimmed to begin at the edge that holds its start chainage
         k = tr.view.edge_at(depart_m)
+        # it is inserted at its origin: SUMO holds it at the others
+        stops = sumo_stops(trip.stops[1:], route=trip.route, first_edge=k)
         route_id = trip.route.id if k == 0 else f"{trip.route.id}@{k}"
         self.bridge.add_route(route_id, trip.route.edges[k:])
         self.bridge.add_train(

@@ -20,6 +20,9 @@ What this module does, and why (numbers in ``shared/notes/sumo_rail_findings.md`
   lane position cannot vouch for the last one (:class:`EdgeMemory`).
 * **Speeds.** Every controlled train's speed is sent at every step: SUMO holds a ``setSpeed`` for later steps
   only while the vehicle has no stop pending, and ours always have one (docs/performance.md, "SUMO's side").
+* **Stops on an edge passed twice.** SUMO makes a stop on the first pass of its edge; a stop meant for a later
+  pass (``StopSpec.route_index``) waits, with the stops after it, until the train is past the earlier pass
+  (:mod:`railsim.engine.stop_passes`), and is then handed over at the step that finds it so.
 * **Guard.** ``--end`` is ignored when we drive the loop; the engine guards on simulated time.
 * **Run folder.** With ``SumoConfig.run_dir`` the vTypes file is written there (not in a temp dir) and, on
   close, the trains SUMO got and ``.sumocfg`` files that open them (:mod:`railsim.engine.sumo_files`).
@@ -51,7 +54,7 @@ if not os.environ["SUMO_HOME"]:
 
 import libsumo  # noqa: E402  (after SUMO_HOME)
 
-from railsim.engine import sumo_files  # noqa: E402
+from railsim.engine import stop_passes, sumo_files  # noqa: E402
 from railsim.record.output import write_bytes  # noqa: E402
 from railsim.errors import SimulationError  # noqa: E402
 
@@ -220,6 +223,9 @@ class StopSpec:
     # (start, end) lane positions [m]: stop on the trainStop's lane in this window instead of at the trainStop
     # (a platform shorter than the train: SUMO registers a trainStop only with the whole train on it)
     lane_stop_m: tuple[float, float] | None = None
+    # the pass of the stop's edge it is made on: its index in the route as handed to SUMO (None: the first pass
+    # SUMO finds); counted from the edge the train stands on for a new route (``reroute``)
+    route_index: int | None = None
 
 
 @dataclass
@@ -279,6 +285,9 @@ class SumoBridge:
         self._vtype_file: Path | None = None
         self.inserted: list[sumo_files.InsertedTrain] = []  # every train as SUMO got it (for the run folder)
         self._edges = EdgeMemory(lambda lane_id: float(_api.lane.getLength(lane_id)))
+        # stops SUMO would make on an earlier pass of their edge: train -> (route index the train must be past,
+        # route index of the route's start, the stops in order) (:mod:`railsim.engine.stop_passes`)
+        self._later: dict[str, tuple[int, int, list[StopSpec]]] = {}
         self.started = False
 
     # ---------------------------------------------------------------- lifecycle
@@ -407,6 +416,8 @@ class SumoBridge:
 
     def step(self) -> None:
         _api.simulationStep()
+        if self._later:
+            self._hand_later()
 
     def add_route(self, route_id: str, edges: Sequence[str]) -> None:
         if route_id in self._routes:
@@ -438,7 +449,7 @@ class SumoBridge:
                 departPos=f"{depart_pos_m:.3f}",
                 departSpeed=f"{depart_speed_mps:.6f}",
             )
-            _set_stops(train_id, stops)
+            self._hand_stops(train_id, stops, 0)
             if controlled:
                 _api.vehicle.setSpeedMode(train_id, 32)
                 self._controlled.add(train_id)
@@ -461,12 +472,40 @@ class SumoBridge:
         self._edges.forget(train_id)
         try:
             _api.vehicle.setRoute(train_id, list(edges))
-            _set_stops(train_id, stops)
+            # SUMO keeps the edges already passed in front of the new route: it starts at the train's route index
+            self._hand_stops(train_id, stops, max(0, int(_api.vehicle.getRouteIndex(train_id))))
         except _api.TraCIException as exc:
             raise SimulationError(f"SUMO rejected the next route of {train_id!r}: {exc}") from None
 
+    def _hand_stops(self, train_id: str, stops: Sequence[StopSpec], base: int) -> None:
+        """Hand SUMO the stops it makes on the pass they are meant for now; keep the rest for later (module
+        docstring). ``base``: the route index where the route the stops' ``route_index`` count in begins."""
+        self._later.pop(train_id, None)
+        if not stops:
+            return
+        route = _api.vehicle.getRoute(train_id)
+        edges = [_api.lane.getEdgeID(_api.busstop.getLaneID(s.stop_id)) for s in stops]
+        want = [None if s.route_index is None else base + s.route_index for s in stops]
+        now, past = stop_passes.stops_now(route, edges, want, int(_api.vehicle.getRouteIndex(train_id)))
+        _set_stops(train_id, stops[:now])
+        if past is not None:
+            self._later[train_id] = (past, base, list(stops[now:]))
+
+    def _hand_later(self) -> None:
+        """Hand over the waiting stops of every train that has left the earlier pass of their edge behind."""
+        for train_id, (past, base, stops) in list(self._later.items()):
+            try:
+                if int(_api.vehicle.getRouteIndex(train_id)) > past:
+                    self._hand_stops(train_id, stops, base)
+            except _api.TraCIException as exc:
+                if train_id not in _api.vehicle.getIDList():  # it left the simulation: nothing to stop
+                    self._later.pop(train_id, None)
+                    continue
+                raise SimulationError(f"SUMO rejected the stops of {train_id!r}: {exc}") from None
+
     def remove(self, train_id: str) -> None:
         self._edges.forget(train_id)
+        self._later.pop(train_id, None)
         try:
             _api.vehicle.remove(train_id)
         except _api.TraCIException:
@@ -483,6 +522,7 @@ class SumoBridge:
         try:
             pending = _api.vehicle.getStops(train_id, 1)
             if not pending:
+                self._drop_later(train_id, stop_id)
                 return
             nxt = pending[0]
             if lane_stop_m is None:
@@ -543,9 +583,27 @@ class SumoBridge:
             out.append({"collider": c.collider, "victim": c.victim, "type": c.type, "lane": c.lane, "pos_m": c.pos})
         return out
 
+    def _drop_later(self, train_id: str, stop_id: str) -> None:
+        """Drop ``stop_id`` if it is the first of the stops still waiting to be handed to SUMO."""
+        waiting = self._later.get(train_id)
+        if waiting is not None and waiting[2][0].stop_id == stop_id:
+            rest = waiting[2][1:]
+            if rest:
+                self._later[train_id] = (waiting[0], waiting[1], rest)
+            else:
+                del self._later[train_id]
+
     def stop_states(self, train_id: str) -> list[tuple[str, float, float]]:
-        """Remaining stops of a train as ``(stop_id, duration_s, until_s)`` (for checks and debugging)."""
-        return [(s.stoppingPlaceID, s.duration, s.until) for s in _api.vehicle.getStops(train_id)]
+        """Remaining stops of a train as ``(stop_id, duration_s, until_s)`` (for checks and debugging): SUMO's,
+        then those still waiting for the train to pass an earlier pass of their edge (``until``/``duration``
+        -1073741824.0 where none)."""
+        held = [(s.stoppingPlaceID, s.duration, s.until) for s in _api.vehicle.getStops(train_id)]
+        unset = -1073741824.0
+        later = self._later.get(train_id, (0, 0, []))[2]
+        return held + [
+            (s.stop_id, unset if s.duration_s is None else s.duration_s, unset if s.until_s is None else s.until_s)
+            for s in later
+        ]
 
 
 def _start_gui(args: list[str]) -> Any:

@@ -69,13 +69,22 @@ class TripStop:
 
 
 def sumo_stops(
-    stops: Sequence[TripStop], origin_until_s: float | None = None, origin_duration_s: float | None = None
+    stops: Sequence[TripStop],
+    origin_until_s: float | None = None,
+    origin_duration_s: float | None = None,
+    route: Any = None,
+    first_edge: int = 0,
 ) -> list[Any]:
     """The stops SUMO holds a train at (:class:`railsim.engine.sumo.StopSpec`): the origin and the destination
     for :data:`~railsim.engine.settings.DWELL_REGISTRATION_S` (the engine registers the halt; the departure is
     the engine's) or the origin for ``origin_duration_s`` if given, every other platform for its dwell; the origin
     held ``until`` ``origin_until_s`` if given. A reversal is no SUMO stop: SUMO turns the unit round by itself
-    (``railsim.engine.turnback``)."""
+    (``railsim.engine.turnback``).
+
+    With the trip's ``route`` each stop names the pass of its platform's edge it is made on (``route_index``,
+    counted from the route's edge ``first_edge``, where SUMO's copy of the route begins): a route can pass a
+    platform's edge twice (a turnback path out along the line and back, a loop), and SUMO on its own matches a
+    stop to the first pass (:meth:`railsim.engine.sumo.SumoBridge.reroute`)."""
     from railsim.engine.settings import DWELL_REGISTRATION_S
     from railsim.engine.sumo import StopSpec  # the bridge imports libsumo: only when a run needs it
 
@@ -86,10 +95,18 @@ def sumo_stops(
             duration_s=origin_s if s.is_origin else (DWELL_REGISTRATION_S if s.is_destination else s.dwell_s),
             until_s=origin_until_s if s.is_origin else None,
             lane_stop_m=s.lane_stop_m,
+            route_index=None if route is None else stop_edge_index(route, s) - first_edge,
         )
         for s in stops
         if s.kind != REVERSAL
     ]
+
+
+def stop_edge_index(route: Any, stop: TripStop) -> int:
+    """Index in ``route.edges`` of the edge the front halts on at ``stop``: the edge whose chainage holds the mark
+    (a mark exactly on an edge's start belongs to the edge before it: a platform ends on its own edge)."""
+    k = int(np.searchsorted(np.asarray(route.edge_start_m, dtype=float), stop.mark_m, side="left")) - 1
+    return min(max(k, 0), len(route.edges) - 1)
 
 
 @dataclass

@@ -380,7 +380,7 @@ class Turnbacks:
         # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration;
         # a unit that runs to its departure platform first is held there by ``until``
         origin_s = DWELL_REGISTRATION_S if reverses or loops else max(DWELL_REGISTRATION_S, until_s - t)
-        stops = sumo_stops(trip.stops, origin_until_s=until_s, origin_duration_s=origin_s)
+        stops = sumo_stops(trip.stops, origin_until_s=until_s, origin_duration_s=origin_s, route=trip.route)
         self.bridge.reroute(succ.sumo_id, trip.route.edges, stops)
         odometer_m = pred.front_m - pred.depart_chainage_m
         succ.depart_chainage_m = front_m - odometer_m
