@@ -168,7 +168,7 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
-        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i)
+        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i, observer.edge_i)
         if mapped is None:
             if not ahead:
                 return None

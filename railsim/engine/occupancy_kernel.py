@@ -136,7 +136,18 @@ def place(
 
 
 @njit(cache=True)
+def _index_from(r_edges: np.ndarray, a: int, b: int, from_j: int, edge: int) -> int:
+    """Route index (within ``a:b``) of the first occurrence of global ``edge`` at or after index ``from_j`` (-1:
+    none): on a route that passes an edge twice, the pass nearest ahead of an observer at ``from_j``."""
+    for j in range(max(from_j, 0), b - a):
+        if r_edges[a + j] == edge:
+            return j
+    return -1
+
+
+@njit(cache=True)
 def map_body(
+    from_j: int,
     r: int,
     o: int,
     r_off: np.ndarray,
@@ -153,7 +164,9 @@ def map_body(
 ) -> tuple[bool, float, float]:
     """Slot ``o``'s body as ``(found, front, rear)`` in route ``r``'s frame: only the part on track route ``r``
     uses counts. The frontmost edge under the body that ``r`` uses gives the frame change; if the body's tail
-    leaves ``r``'s track behind it (a merge), its rear is raised to where the shared track begins."""
+    leaves ``r``'s track behind it (a merge), its rear is raised to where the shared track begins. On a route
+    that passes an edge twice (a loop, a turnback path out along the line and back) the body is on the pass
+    nearest ahead of route index ``from_j`` (the observer's front edge); ``from_j`` < 0: the last pass."""
     front_m = s_front[o]
     rear_m = front_m - s_len[o]
     ro = s_route[o]
@@ -163,7 +176,10 @@ def map_body(
     ao = r_off[ro]
     i_rear = s_rear[o]
     for i in range(s_edge[o], i_rear - 1, -1):  # the frontmost shared edge under the body
-        j = _index_of(r_keys, r_vals, a, b, r_edges[ao + i])
+        if from_j >= 0 and not r_simple[r]:
+            j = _index_from(r_edges, a, b, from_j, r_edges[ao + i])
+        else:
+            j = _index_of(r_keys, r_vals, a, b, r_edges[ao + i])
         if j < 0:
             continue
         off = r_starts[a + j] - r_starts[ao + i]
@@ -215,7 +231,20 @@ def ahead_one(
             if o == me:
                 continue
             found, front, rear = map_body(
-                r, o, r_off, r_edges, r_starts, r_keys, r_vals, r_simple, s_route, s_front, s_len, s_edge, s_rear
+                s_edge[me],
+                r,
+                o,
+                r_off,
+                r_edges,
+                r_starts,
+                r_keys,
+                r_vals,
+                r_simple,
+                s_route,
+                s_front,
+                s_len,
+                s_edge,
+                s_rear,
             )
             if not found or front <= my_front:
                 continue  # not on our track, or behind us (or level: the one behind is its follower's problem)

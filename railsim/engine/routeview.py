@@ -42,8 +42,10 @@ class RouteView:
     _offsets: dict[tuple[str, int], float | None] = field(default_factory=dict)
     _joins: dict[tuple[str, int], float | None] = field(default_factory=dict)
     _windows: dict[tuple[int, int, bool], tuple[SpeedLimit, ...]] = field(default_factory=dict)
-    # (id of the other view, its front edge, its rear edge) -> (that view, map_body's frame change for the pair)
-    _frames: dict[tuple[int, int, int], tuple[Any, tuple[float, float | None] | None]] = field(default_factory=dict)
+    # (id of the other view, its front edge, its rear edge, the observer's pass) -> (that view, map_body's frame change)
+    _frames: dict[tuple[int, int, int, int], tuple[Any, tuple[float, float | None] | None]] = field(
+        default_factory=dict
+    )
     _well_formed: bool = True  # every restriction ends at or after its start
     _simple: bool = True  # no edge twice on the route (a body on it maps into its own frame unchanged)
 
@@ -123,7 +125,9 @@ class RouteView:
             return None
         return other.edge_start_m[j] - self.edge_start_m[i]
 
-    def map_body(self, other: RouteView, front_m: float, length_m: float, hint: int = 0) -> tuple[float, float] | None:
+    def map_body(
+        self, other: RouteView, front_m: float, length_m: float, hint: int = 0, from_i: int = -1
+    ) -> tuple[float, float] | None:
         """A train on ``other``'s route (front at ``front_m`` in its frame) as ``(front, rear)`` in *this* frame.
 
         Only the part of its body on track this route shares counts. At a merge the other train's front may be on
@@ -131,17 +135,20 @@ class RouteView:
         begins (the switch), so the tail on the other leg is not "ahead of us". At a diverge the front may already
         be on the other leg while the tail is on our track: the frame change uses the shared edge under the tail,
         and the rear is exact. Returns None if no part of the body is on our route. ``hint``: an edge index of
-        ``other`` at or next to the front (:meth:`edge_near`).
+        ``other`` at or next to the front (:meth:`edge_near`). ``from_i``: this route's edge index under the
+        observer's front — on a route that passes an edge twice the body is on the pass nearest ahead of it (as
+        :func:`railsim.engine.occupancy_kernel.map_body`); -1: the last pass.
         """
         rear_m = front_m - length_m
         if other is self and self._simple:  # one route, no edge twice: the frame is the same (what _frame gives)
             return front_m, rear_m
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
-        key = (id(other), i_front, i_rear)
+        from_i = from_i if not self._simple else -1
+        key = (id(other), i_front, i_rear, from_i)
         frame = self._frames.get(key)
         if frame is None or frame[0] is not other:
-            frame = self._frames[key] = (other, self._frame(other, i_front, i_rear))
+            frame = self._frames[key] = (other, self._frame(other, i_front, i_rear, from_i))
         shape = frame[1]
         if shape is None:
             return None
@@ -151,13 +158,15 @@ class RouteView:
             rear_here = max(rear_here, clamp_m)
         return front_m + off, rear_here
 
-    def _frame(self, other: RouteView, i_front: int, i_rear: int) -> tuple[float, float | None] | None:
+    def _frame(
+        self, other: RouteView, i_front: int, i_rear: int, from_i: int = -1
+    ) -> tuple[float, float | None] | None:
         """How a body on ``other``'s edges ``i_rear..i_front`` maps into this frame: ``(offset, clamp)`` — add the
         offset to its front and rear, and raise the rear to the clamp if given (part of its tail is on track we do
         not use) — or None (no part of it on our route). It depends on the edges only, so :meth:`map_body`
         remembers it per (other route, front edge, rear edge)."""
         for i in range(i_front, i_rear - 1, -1):  # the frontmost shared edge under the body
-            j = self.edge_index.get(other.edges[i])
+            j = self.edge_index.get(other.edges[i]) if from_i < 0 else self._index_from(other.edges[i], from_i)
             if j is None:
                 continue
             off = self.edge_start_m[j] - other.edge_start_m[i]
@@ -167,6 +176,13 @@ class RouteView:
                 jj -= 1
             # part of the tail is on track we do not use: it starts where our track is shared
             return off, (self.edge_start_m[jj] if k > i_rear else None)
+        return None
+
+    def _index_from(self, edge: str, from_i: int) -> int | None:
+        """Index of the first pass of ``edge`` at or after index ``from_i`` on this route (None: none)."""
+        for j in range(max(from_i, 0), len(self.edges)):
+            if self.edges[j] == edge:
+                return j
         return None
 
     def offset_to(self, other: RouteView, from_chainage_m: float) -> float | None:
