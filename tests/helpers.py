@@ -137,11 +137,16 @@ def run_clean(folder: Path, data: dict[str, Any], name: str) -> tuple[Path, list
     summary = read_summary(out)
     assert summary["collisions"] == 0 and summary["sumo_collisions"] == 0 and summary["switch_violations"] == 0
     assert summary["n_arrived"] == summary["n_trains"]
+    return out, read_events(out)
+
+
+def read_events(out: Path) -> list[dict[str, Any]]:
+    """``events.csv`` of run folder ``out``, each row with ``detail`` parsed and ``t_s`` a float."""
     events: list[dict[str, Any]] = list(read_csv(out / "events.csv"))
     for e in events:
         e["detail"] = json.loads(e["detail"]) if e["detail"] else {}
         e["t_s"] = float(e["t_s"])
-    return out, events
+    return events
 
 
 def interpreted(module: Any) -> Any:

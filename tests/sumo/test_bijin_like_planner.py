@@ -13,25 +13,16 @@ both units stop at the platform.
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 import yaml
 
-from tests.helpers import ROOT, read_csv, read_summary, run_railsim
+from tests.helpers import ROOT, read_csv, read_events, read_summary, run_railsim
 
 SCENARIO = ROOT / "scenarios" / "line3_bijin_like_planner.yaml"
 FOLLOWER_M = (1000, 1200, 1400, 1600, 1800)
 LEAD_TO_SW1_M, SW1_TO_SW2_M = 700.0, 200.0
-
-
-def _events(out: Path) -> list[dict]:
-    rows = read_csv(out / "events.csv")
-    for r in rows:
-        r["t_s"] = float(r["t_s"])
-        r["detail"] = json.loads(r["detail"]) if r["detail"] else {}
-    return rows
 
 
 @pytest.fixture(scope="module", params=FOLLOWER_M, ids=[f"follower_{d}m" for d in FOLLOWER_M])
@@ -54,7 +45,7 @@ def test_the_pair_couples_on_the_run_before_the_platform(run: tuple[Path, dict])
     assert s["collisions"] == 0 and s["sumo_collisions"] == 0 and s["switch_violations"] == 0
     assert s["n_arrived"] == 2 and s["n_stops_missed"] == 0
     assert s["junction"]["initial_plan_feasible"] is True and s["junction"]["order"] == ["lead.000", "fol.000"]
-    ev = _events(out)
+    ev = read_events(out)
     (coupled,) = [e for e in ev if e["kind"] == "coupled"]
     inserted = next(e for e in ev if e["kind"] == "train_inserted" and e["subject"] == "lead.000")
     params = data["world"]["params"]
@@ -70,7 +61,7 @@ def test_the_pair_couples_on_the_run_before_the_platform(run: tuple[Path, dict])
 
 def test_the_leader_takes_the_merge_first_and_the_follower_after_the_throw(run: tuple[Path, dict]) -> None:
     out, _ = run
-    ev = _events(out)
+    ev = read_events(out)
     grants = [e for e in ev if e["kind"] == "lock_granted" and e["subject"] == "sw2"]
     assert [g["detail"]["holders"] for g in grants] == [["lead.000"], ["fol.000"]]
     thrown = [e for e in ev if e["kind"] == "throw_end" and e["subject"] == "sw2"]

@@ -12,13 +12,12 @@ trigger is refused (exit 2).
 
 from __future__ import annotations
 
-import json
 from pathlib import Path
 
 import pytest
 import yaml
 
-from tests.helpers import ROOT, read_csv, read_summary, run_railsim
+from tests.helpers import ROOT, read_csv, read_events, read_summary, run_railsim
 
 SCENARIO = ROOT / "scenarios" / "chongqing_line3_peak_merge.yaml"
 
@@ -39,14 +38,6 @@ def _one_pair(tmp: Path, couple: dict[str, str] | None = None) -> Path:
     path = tmp / "pair.yaml"
     path.write_text(yaml.safe_dump(data, sort_keys=False))
     return path
-
-
-def _events(out: Path) -> list[dict]:
-    rows = read_csv(out / "events.csv")
-    for r in rows:
-        r["t_s"] = float(r["t_s"])
-        r["detail"] = json.loads(r["detail"]) if r["detail"] else {}
-    return rows
 
 
 @pytest.fixture(scope="module")
@@ -70,7 +61,7 @@ def test_the_pair_couples_at_bijin_without_collision_or_switch_violation(pair: P
 
 
 def test_locks_in_the_planned_order_and_coupling_after_the_switch(pair: Path) -> None:
-    ev = _events(pair)
+    ev = read_events(pair)
     grants = [e for e in ev if e["kind"] == "lock_granted" and e["subject"] == "bijin_down"]
     assert [e["detail"]["holders"] for e in grants] == [["airport_down_vc.000"], ["jurenba_down.000"]]
     thrown = [e for e in ev if e["kind"] == "throw_end" and e["subject"] == "bijin_down"]
@@ -89,7 +80,7 @@ def test_the_pair_leaves_bijin_together_and_arrives_together(pair: Path) -> None
 
 
 def test_the_run_says_why_the_pair_cannot_couple_on_the_run(pair: Path) -> None:
-    ev = _events(pair)
+    ev = read_events(pair)
     (why,) = [e for e in ev if e["kind"] == "coupling_on_run_infeasible"]
     d = why["detail"]
     assert why["subject"] == "merge0" and d["switch"] == "bijin_down" and d["leader"] == "airport_down_vc.000"
