@@ -206,11 +206,11 @@ class Occupancy:
             r_off, r_edges, r_starts, len(self._edge_id), self._route, self._front, self._len, self.edge_i, self.rear_i
         )
 
-    def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
-        """:meth:`ahead` for every train of the step, in slot order (one compiled pass)."""
+    def _ahead_tables(self) -> tuple[np.ndarray, ...]:
+        """The route tables and this step's columns, in the order the ahead kernels take them after their own
+        arguments (:func:`.occupancy_kernel.ahead_one`, :func:`.occupancy_kernel.ahead_all`)."""
         r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
-        slots, fronts, rears = occupancy_kernel.ahead_all(
-            lookahead_m,
+        return (
             r_off,
             r_edges,
             r_starts,
@@ -225,6 +225,10 @@ class Occupancy:
             self._by_off,
             self._by_slot,
         )
+
+    def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
+        """:meth:`ahead` for every train of the step, in slot order (one compiled pass)."""
+        slots, fronts, rears = occupancy_kernel.ahead_all(lookahead_m, *self._ahead_tables())
         ids, mine = self.ids, self._front.tolist()
         out: list[Ahead | None] = []
         for me, (o, front, rear) in enumerate(zip(slots.tolist(), fronts.tolist(), rears.tolist(), strict=True)):
@@ -234,24 +238,7 @@ class Occupancy:
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""
         me = self._slot[train_id]
-        r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
-        o, front, rear = occupancy_kernel.ahead_one(
-            me,
-            lookahead_m,
-            r_off,
-            r_edges,
-            r_starts,
-            r_keys,
-            r_vals,
-            r_simple,
-            self._route,
-            self._front,
-            self._len,
-            self.edge_i,
-            self.rear_i,
-            self._by_off,
-            self._by_slot,
-        )
+        o, front, rear = occupancy_kernel.ahead_one(me, lookahead_m, *self._ahead_tables())
         if o < 0:
             return None
         front, rear = float(front), float(rear)  # (numpy's floats when interpreted)
