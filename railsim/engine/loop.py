@@ -3,7 +3,8 @@
 Per step ``k`` at time ``t_k``::
 
     layer.advance_to(t_k)        departures due, message deliveries, switch throws, formation commands
-    truth   = sumo.read()        odometer → route chainage of every train (ground truth); desync check
+    truth   = sumo.read()        odometer → route chainage and edge of every train (ground truth), desync and
+                                 imposed-speed checks, in one compiled pass (railsim.engine.truth)
     safety                       occupancy → train ahead; collisions on truth; SUMO's own; stall watchdog
     extensions.before_bookkeeping   e.g. the junction planner plans, re-plans and hands over
     bookkeeping per train        stops (halt, registration, dwell, arrival), formations, route locks
@@ -48,6 +49,7 @@ from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import PERMISSIVE_DECEL_MPS2, PERMISSIVE_SPEED_FACTOR, PERMISSIVE_TAU_S, EngineSettings
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
+from railsim.engine.truth import TruthPass
 from railsim.engine.turnback import Turnbacks
 from railsim.engine.watchdog import StallWatch
 from railsim.record.recorder import Recorder
@@ -165,6 +167,7 @@ class Simulation:
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
         self.occupancy.set_bidi(self.bundle.graph)
+        self.truth = TruthPass(self.occupancy, self.safety, self.settings.desync_tolerance_m, self.dt)
         self.dispatcher.schedule_departures()
         ports = timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety)
         timed.schedule(ports, scenario)
@@ -275,17 +278,9 @@ class Simulation:
         if not active:
             return
         ids = [tr.sumo_id for tr in active]
-        truth = self._read_truth(t, active, ids)
-        self.safety.desync_check(t, active, truth.edge_ids, truth.lane_pos_m, truth.speed_mps)
-
-        tids = [tr.train_id for tr in active]
-        self.occupancy.update_columns(
-            tids,
-            [tr.view for tr in active],
-            [tr.front_m for tr in active],
-            [tr.trip.vehicle.length_m for tr in active],
-            [tr.edge_i for tr in active],
-        )
+        # SUMO's truth: chainages, pointers, the desync and imposed-speed checks, the occupancy index placed
+        self.truth.read(t, active, bridge.read(ids))
+        tids = self.occupancy.ids
         ahead: dict[str, Ahead | None] = dict(zip(tids, self.occupancy.ahead_all(self.settings.lookahead_m)))
         for tr in active:
             self.safety.truth_checks(t, tr, ahead[tr.train_id])
@@ -318,22 +313,6 @@ class Simulation:
                 if succ is None:  # no next trip for its unit
                     bridge.remove(tr.sumo_id)
                 self.formations.on_off_line(t, tr)
-
-    def _read_truth(self, t: float, active: list[TrainRuntime], ids: list[str]) -> Any:
-        """Route chainage from SUMO's odometer; adopt SUMO's speed where it held a train (a stop)."""
-        truth = self.bridge.read(ids)
-        odometer, speed, stopped = truth.odometer_m.tolist(), truth.speed_mps.tolist(), truth.stopped.tolist()
-        for i, tr in enumerate(active):
-            tr.front_m = tr.depart_chainage_m + odometer[i]
-            tr.edge_i = tr.view.edge_near(tr.front_m, tr.edge_i)  # forward-only pointer: the hint is last step's
-            sumo_v = speed[i]
-            tr.sumo_stopped_now, tr.sumo_edge = stopped[i], truth.edge_ids[i]
-            # SUMO applies exactly the speed we sent (speedMode 32) unless it holds the train at a stop
-            expected_v = tr.sent_speed_mps if tr.sent_speed_mps is not None else tr.plant.speed_mps
-            if abs(sumo_v - expected_v) > 1e-6 and tr.sent_speed_mps is not None:
-                self.safety.speed_imposed(t, tr, sumo_v, expected_v, self.dt)
-                tr.adopt_sumo_speed(t, sumo_v)
-        return truth
 
     # ------------------------------------------------------------------ results
     def snapshot(self) -> RunSnapshot:

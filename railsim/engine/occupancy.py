@@ -34,6 +34,7 @@ import numpy as np
 from railsim.engine import occupancy_kernel
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import FACING_DECEL_MPS2
+from railsim.engine.truth_kernel import INTERNAL, UNKNOWN
 
 
 @dataclass(slots=True)
@@ -182,24 +183,50 @@ class Occupancy:
         for b, i1, i0 in zip(bodies, self.edge_i.tolist(), self.rear_i.tolist(), strict=True):
             b.edge_i, b.rear_i = i1, i0
 
-    def update_columns(
-        self, ids: list[str], views: list[RouteView], front_m: list[float], length_m: list[float], hints: list[int]
-    ) -> None:
-        """This step's trains as columns (slot ``k`` = ``ids[k]``): their route views, front chainages in their own
-        frame, lengths, and a hint for the edge under each front (last step's, :meth:`RouteView.edge_near`)."""
+    def route_numbers(self, views: list[RouteView]) -> np.ndarray:
+        """The route number of each view (a route seen for the first time is registered)."""
         route_of = self._route_of
         try:  # every route known (the views are kept, so an id stays theirs)
             routes = [route_of[id(v)] for v in views]
         except KeyError:
             routes = [self._route_no(v) for v in views]
+        return np.array(routes, np.int64)
+
+    def route_tables(self) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """The flat route tables ``(r_off, r_edges, r_starts, r_keys, r_vals)`` of every route registered so far
+        (:mod:`.occupancy_kernel`, "Tables")."""
+        if self._dirty:
+            self._rebuild()
+        r_off, r_edges, r_starts, r_keys, r_vals = self._tables[:5]
+        return r_off, r_edges, r_starts, r_keys, r_vals
+
+    def edge_codes(self, edges: list[str]) -> np.ndarray:
+        """SUMO edge ids as global edge numbers: :data:`.truth_kernel.INTERNAL` for an internal junction lane (an id
+        starting with ``:``), :data:`.truth_kernel.UNKNOWN` for an edge no registered route or bidi pair uses."""
+        get = self._edge_id.get
+        return np.array([INTERNAL if e[:1] == ":" else get(e, UNKNOWN) for e in edges], np.int64)
+
+    def update_columns(
+        self, ids: list[str], views: list[RouteView], front_m: list[float], length_m: list[float], hints: list[int]
+    ) -> None:
+        """This step's trains as columns (slot ``k`` = ``ids[k]``): their route views, front chainages in their own
+        frame, lengths, and a hint for the edge under each front (last step's, :meth:`RouteView.edge_near`)."""
+        routes = self.route_numbers(views)
+        self.update_arrays(ids, routes, np.array(front_m, float), np.array(length_m, float), np.array(hints, np.int64))
+
+    def update_arrays(
+        self, ids: list[str], routes: np.ndarray, front_m: np.ndarray, length_m: np.ndarray, hints: np.ndarray
+    ) -> None:
+        """:meth:`update_columns` on arrays already made: route numbers (:meth:`route_numbers`), fronts, lengths
+        and edge hints (int64; the array is updated in place to the edge under each front)."""
         if self._dirty:
             self._rebuild()
         self.ids = ids
         self._slot = dict(zip(ids, range(len(ids))))
-        self._route = np.array(routes, np.int64)
-        self._front = np.array(front_m, float)
-        self._len = np.array(length_m, float)
-        self.edge_i = np.array(hints, np.int64)
+        self._route = routes
+        self._front = front_m
+        self._len = length_m
+        self.edge_i = hints
         self.rear_i = np.empty(len(ids), np.int64)
         r_off, r_edges, r_starts = self._tables[:3]
         self._by_off, self._by_slot = occupancy_kernel.place(

@@ -16,12 +16,12 @@ Obstacles
 the nearest train or obstacle ahead within ``sensor_range_m``.
 
 **Desync check.** Every chainage railsim uses (gaps, stopping errors, ``min_gap_m``) is SUMO's odometer plus the
-insertion chainage. Each step :meth:`SafetyMonitor.desync_check` compares it with where SUMO says the train is
+insertion chainage. Each step the truth pass (:mod:`railsim.engine.truth`) compares it with where SUMO says the train is
 (its edge and lane position, mapped to route chainage), and the step's advance with SUMO's speed (a train
 moves at most ``max(v before, v now)·dt`` and never back; SUMO's ``moveTo`` shifts the odometer with the train,
 so only this catches a jump). A difference above ``desync_tolerance_m`` means railsim believes something SUMO
 does not (a train inserted elsewhere, moved behind our back). It is a ``desync`` event
-and a run failure (:attr:`SafetyMonitor.failure`; the run stops, writes its outputs and exits 3). Trains on an
+(:meth:`SafetyMonitor.desync_found`) and a run failure (:attr:`SafetyMonitor.failure`; the run stops, writes its outputs and exits 3). Trains on an
 internal junction lane are skipped for that step (their lane position is not on a route edge).
 
 **Speed desync.** SUMO moves a controlled train at exactly the speed it is handed (speedMode 32) except at a
@@ -42,13 +42,13 @@ failure is the backstop.
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
 from typing import Any
 
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
 from railsim.engine.occupancy import Ahead, Facing
-from railsim.engine.routeview import RouteView
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
@@ -74,8 +74,6 @@ class SafetyMonitor:
         self.sumo_collisions: list[dict[str, Any]] = []
         self._colliding_pairs: set[tuple[str, str]] = set()
         self.failure: str | None = None  # why the run must stop (a desync), one line
-        self._last: dict[str, tuple[float, float]] = {}  # train -> (chainage, SUMO speed) at the last check
-        self._last_t_s = 0.0
         # train -> [(crossing node, its movement, route chainage where the front enters / the rear has left)]
         self._crossings: dict[str, list[tuple[str, tuple[str, str], float, float]]] = {}
         self._foes: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = {}
@@ -237,49 +235,36 @@ class SafetyMonitor:
             self.sumo_collisions.append(c)
             self.events.record(t, "sumo_collision", str(c["collider"]), victim=str(c["victim"]), type=str(c["type"]))
 
-    def desync_check(
-        self, t: float, active: list[TrainRuntime], edge_ids: list[str], lane_pos_m: Any, speed_mps: Any
+    def desync_found(
+        self,
+        t: float,
+        active: list[TrainRuntime],
+        out_of_step: list[int],
+        railsim_m: Any,
+        sumo_m: Any,
+        edges: list[str],
     ) -> None:
-        """Compare each train's chainage with SUMO's edge + lane position, and its advance with its speed
-        (module docstring)."""
+        """The trains the truth pass found out of step with SUMO (indices into ``active``; module docstring): a
+        ``desync`` event each, with the chainage railsim expected and SUMO's (NaN: its edge is not on the route),
+        and the run's failure."""
         tol = self.settings.desync_tolerance_m
-        dt_s = t - self._last_t_s
         bad = []
-        last = self._last
-        self._last = {}
-        speeds, lane_pos = speed_mps.tolist(), lane_pos_m.tolist()  # Python floats, the same values
-        for i, tr in enumerate(active):
-            v_now = speeds[i]
-            self._last[tr.train_id] = (tr.front_m, v_now)
-            prev = last.get(tr.train_id)
-            sumo_m: float | None = tr.front_m
-            railsim_m = tr.front_m
-            if (
-                prev is not None and not tr.reversing
-            ):  # SUMO moved it by its speed: at most max(v before, v now)·dt, never back
-                max_advance_m = max(prev[1], v_now) * dt_s
-                advance_m = tr.front_m - prev[0]
-                if not -tol <= advance_m <= max_advance_m + tol:
-                    railsim_m = prev[0] + min(max(advance_m, 0.0), max_advance_m)
-            edge = edge_ids[i]
-            if railsim_m == tr.front_m and not edge.startswith(":"):  # skip internal junction lanes
-                j = _edge_near(tr.view, edge, tr.edge_i)
-                sumo_m = None if j is None else tr.view.edge_start_m[j] + lane_pos[i]
-                if sumo_m is not None and abs(sumo_m - tr.front_m) <= tol:
-                    continue
-            elif railsim_m == tr.front_m:
-                continue
+        for k in out_of_step:
+            tr = active[k]
+            expected_m, sumo_here = float(railsim_m[k]), float(sumo_m[k])
+            sumo_at = None if math.isnan(sumo_here) else sumo_here
             bad.append(tr.train_id)
             self.events.record(
                 t,
                 "desync",
                 tr.train_id,
-                railsim_m=round(railsim_m, 3),
-                sumo_m=None if sumo_m is None else round(sumo_m, 3),
-                edge=edge,
+                railsim_m=round(expected_m, 3),
+                sumo_m=None if sumo_at is None else round(sumo_at, 3),
+                edge=edges[k],
             )
-            log.error("desync at t=%.1f s: %s railsim %.3f m, SUMO %s m (%s)", t, tr.train_id, railsim_m, sumo_m, edge)
-        self._last_t_s = t
+            log.error(
+                "desync at t=%.1f s: %s railsim %.3f m, SUMO %s m (%s)", t, tr.train_id, expected_m, sumo_at, edges[k]
+            )
         if bad and self.failure is None:
             self.failure = (
                 f"railsim and SUMO disagree on where {', '.join(bad)} stand(s) at t={t:.1f} s "
@@ -311,12 +296,3 @@ class SafetyMonitor:
                 f"({railsim_v_mps:.2f} -> {sumo_v_mps:.2f} m/s in one step, next stop {station}: an overrun SUMO hid; "
                 "see the desync events)"
             )
-
-
-def _edge_near(view: RouteView, edge: str, i: int) -> int | None:
-    """Index of ``edge`` in the route nearest edge ``i`` (the train's front edge: a route may pass an edge
-    twice, e.g. a loop)."""
-    for j in (i, i + 1, i - 1):
-        if 0 <= j < len(view.edges) and view.edges[j] == edge:
-            return j
-    return view.edge_index.get(edge)

@@ -82,6 +82,7 @@ class TrainRuntime:
     hold_until_s: float | None = None  # a reversing unit stands at least until then (early for its departure)
     start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
     edge_i: int = 0  # the route edge under the front this step (RouteView.edge_near from last step's)
+    slot: int = -1  # its row in the engine's per-train arrays (railsim.engine.truth), given when first read
 
     def __post_init__(self) -> None:
         self.train_id = self.trip.trip_id
