@@ -8,6 +8,7 @@ line, which train a scenario ``TripRef`` names, and whether every trip has finis
 
 from __future__ import annotations
 
+import bisect
 from collections.abc import Callable
 from typing import Any
 
@@ -18,6 +19,8 @@ from railsim.engine.trips import Trip, make_stops, plan_free_run
 from railsim.errors import ConfigError
 
 ROLES = ("ato", "separation", "coupled", "ca")
+ON_LINE = ("inserting", "running")  # a train's statuses while it is on the line
+FINISHED = ("arrived", "removed")  # once off it; a trip never comes back on the line
 
 
 class Fleet:
@@ -26,6 +29,10 @@ class Fleet:
     def __init__(self, source: Any) -> None:
         self.source = source  # the scenario file, for error messages
         self.trains: dict[str, TrainRuntime] = {}
+        self._on_line: list[tuple[int, str]] = []  # (scenario rank, trip id) of the trains on the line, in order
+        self._on_line_ids: dict[str, bool] = {}
+        self._ranks: dict[str, int] = {}
+        self._finished = 0  # trips that arrived or left the line
         self.trips_by_service: dict[str, list[Trip]] = {}
 
     # ------------------------------------------------------------------ queries
@@ -36,13 +43,48 @@ class Fleet:
             raise ConfigError(self.source, where, f"no trip {ref.trip} in service {ref.service!r}")
         return self.trains[trips[ref.trip].trip_id]
 
+    def start(self, tr: TrainRuntime, status: str) -> None:
+        """``tr`` comes on the line with ``status`` (``inserting``: handed to SUMO; ``running``: a unit's next trip,
+        already there). The only way a trip goes on the line: the fleet keeps the trains on it in a list of their
+        own, so the loop's questions cost the trains on the line, not the day's trips."""
+        if status not in ON_LINE:
+            raise ValueError(f"a train starts inserting or running, not {status!r}")
+        tr.status = status
+        if not self._on_line_ids.get(tr.train_id, False):
+            rank = self._rank(tr)
+            self._on_line_ids[tr.train_id] = True
+            bisect.insort(self._on_line, (rank, tr.train_id), key=lambda e: e[0])
+
+    def _rank(self, tr: TrainRuntime) -> int:
+        """``tr``'s place in scenario order (trips added after set-up come after, in the order added)."""
+        if len(self._ranks) != len(self.trains):
+            self._ranks = {tid: k for k, tid in enumerate(self.trains)}
+        return self._ranks[tr.train_id]
+
+    def _prune(self) -> list[TrainRuntime]:
+        """The trains on the line now; those that arrived or left since are dropped and counted finished."""
+        trains = self.trains
+        live = [trains[tid] for _, tid in self._on_line]
+        if any(tr.status not in ON_LINE for tr in live):
+            kept = []
+            for entry, tr in zip(self._on_line, live, strict=True):
+                if tr.status in ON_LINE:
+                    kept.append(entry)
+                else:
+                    del self._on_line_ids[tr.train_id]
+                    self._finished += tr.status in FINISHED
+            self._on_line = kept
+            live = [tr for tr in live if tr.status in ON_LINE]
+        return live
+
     def active(self) -> list[TrainRuntime]:
         """Trains on the line (inserted, not yet arrived or removed), in scenario order."""
-        return [tr for tr in self.trains.values() if tr.status in ("inserting", "running")]
+        return self._prune()
 
     def n_finished(self) -> int:
         """Trips that arrived or left the line."""
-        return sum(1 for tr in self.trains.values() if tr.status in ("arrived", "removed"))
+        self._prune()
+        return self._finished
 
     def all_done(self) -> bool:
         return self.n_finished() == len(self.trains)

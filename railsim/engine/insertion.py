@@ -282,7 +282,7 @@ class Dispatcher:
             controlled=True,
             depart_speed_mps=start_mps,
         )
-        tr.status = "inserting"
+        self.fleet.start(tr, "inserting")
         tr.front_m = depart_m
         tr.plant = dynamics.PlantState(speed_mps=start_mps)
         self.extensions.on_inserted(self.layer.now_s, tr, depart_m)

@@ -386,7 +386,7 @@ class Turnbacks:
         succ.depart_chainage_m = front_m - odometer_m
         succ.front_m = succ.start_front_m = front_m
         succ.plant = pred.plant
-        succ.status = "running"
+        self.fleet.start(succ, "running")
         succ.inserted_s = t
         succ.next_stop = 0
         succ.reversing = reverses
