@@ -286,9 +286,9 @@ class Simulation:
             self.safety.truth_checks(t, tr, ahead[tr.train_id])
         self.safety.crossing_checks(t, active)
         if self.occupancy.has_bidi:  # trains facing each other on one track (partner edges): contacts, authorities
-            self.safety.head_on_checks(t, active, self.occupancy.facing_all)
-            fronts = [(tr.train_id, tr.front_m, tr.plant.speed_mps) for tr in active]
-            self.locks.facing_m = self.occupancy.facing_within_braking(fronts, self.settings.sensor_range_m)
+            self.safety.head_on_checks(t, active, self.occupancy.facing_own_bodies)
+            speeds = [tr.plant.speed_mps for tr in active]
+            self.locks.facing_m = self.occupancy.facing_within_braking(speeds, self.settings.sensor_range_m)
         self.safety.sumo_reported(t, bridge.collisions())
         self.watchdog.check(t, active, ahead)
 

@@ -271,31 +271,38 @@ class Occupancy:
         front, rear = float(front), float(rear)  # (numpy's floats when interpreted)
         return Ahead(self.ids[o], front, rear, rear - float(self._front[me]), front - float(self._front[o]))
 
-    def facing_within_braking(self, fronts: list[tuple[str, float, float]], floor_m: float) -> dict[str, float]:
-        """For each ``(train, front_m, speed_mps)``, where the nearest train facing it begins (its frame), looked
-        for as far as the train brakes from its speed at a mild :data:`FACING_DECEL_MPS2`, at least ``floor_m``
-        (the sensor range); trains with none are left out. The route locks end authorities before it."""
-        hits = self.facing_all(
-            [(tid, front_m, floor_m + speed_mps**2 / (2.0 * FACING_DECEL_MPS2)) for tid, front_m, speed_mps in fronts]
-        )
-        return {tid: hit.near_m for (tid, _, _), hit in zip(fronts, hits, strict=True) if hit is not None}
+    def facing_within_braking(self, speed_mps: list[float], floor_m: float) -> dict[str, float]:
+        """For every train of the step (``speed_mps`` in slot order), where the nearest train facing it begins (its
+        frame), looked for from its front as far as it brakes from its speed at a mild :data:`FACING_DECEL_MPS2`, at
+        least ``floor_m`` (the sensor range); trains with none are left out. The route locks end authorities before
+        it."""
+        lookahead_m = np.array([floor_m + v**2 / (2.0 * FACING_DECEL_MPS2) for v in speed_mps], float)
+        hit, near, _ = self._facing_rows(self._front, lookahead_m)
+        ids = self.ids
+        return {ids[k]: near_m for k, near_m in zip(np.flatnonzero(hit >= 0).tolist(), near[hit >= 0].tolist())}
 
-    def facing(self, train_id: str, from_m: float, lookahead_m: float) -> Facing | None:
-        """The nearest train on the partner edges of this train's route from ``from_m`` on (within
-        ``lookahead_m``) whose body lies there at or beyond ``from_m`` (module docstring): it runs or stands
-        the other way on the same track. None on track without partners."""
-        return self.facing_all([(train_id, from_m, lookahead_m)])[0]
+    def facing_own_bodies(self) -> tuple[np.ndarray, np.ndarray, list[str]]:
+        """For every train of the step (slot order), the nearest train facing it on the track under its own body
+        (looked for from its rear over its length): that train's slot (-1: none) and where it begins, with the
+        step's train ids (``SafetyMonitor.head_on_checks``: overlapping bodies collide)."""
+        hit, near, _ = self._facing_rows(self._front - self._len, self._len)
+        return hit, near, self.ids
 
-    def facing_all(self, queries: list[tuple[str, float, float]]) -> list[Facing | None]:
-        """:meth:`facing` for every ``(train, from_m, lookahead_m)`` (one compiled pass)."""
+    def _facing_rows(self, from_m: np.ndarray, lookahead_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`facing_all` for every slot in order, as arrays ``(slot facing it or -1, near end, far end)``."""
         if not self._bidi:
-            return [None] * len(queries)
-        slot = self._slot
+            n = len(self.ids)
+            return np.full(n, -1, np.int64), np.zeros(n), np.zeros(n)
+        return self._facing_kernel(np.arange(len(self.ids), dtype=np.int64), from_m, lookahead_m)
+
+    def _facing_kernel(
+        self, slots: np.ndarray, from_m: np.ndarray, lookahead_m: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         r_off, r_edges, r_starts, _, _, _, r_len = self._tables
-        slots, nears, fars = occupancy_kernel.facing_all(
-            np.array([slot[q[0]] for q in queries], np.int64),
-            np.array([q[1] for q in queries], float),
-            np.array([q[2] for q in queries], float),
+        hit, near, far = occupancy_kernel.facing_all(
+            slots,
+            from_m,
+            lookahead_m,
             r_off,
             r_edges,
             r_starts,
@@ -309,6 +316,24 @@ class Occupancy:
             self.rear_i,
             self._by_off,
             self._by_slot,
+        )
+        return hit, near, far
+
+    def facing(self, train_id: str, from_m: float, lookahead_m: float) -> Facing | None:
+        """The nearest train on the partner edges of this train's route from ``from_m`` on (within
+        ``lookahead_m``) whose body lies there at or beyond ``from_m`` (module docstring): it runs or stands
+        the other way on the same track. None on track without partners."""
+        return self.facing_all([(train_id, from_m, lookahead_m)])[0]
+
+    def facing_all(self, queries: list[tuple[str, float, float]]) -> list[Facing | None]:
+        """:meth:`facing` for every ``(train, from_m, lookahead_m)`` (one compiled pass)."""
+        if not self._bidi:
+            return [None] * len(queries)
+        slot = self._slot
+        slots, nears, fars = self._facing_kernel(
+            np.array([slot[q[0]] for q in queries], np.int64),
+            np.array([q[1] for q in queries], float),
+            np.array([q[2] for q in queries], float),
         )
         ids = self.ids
         return [

@@ -46,9 +46,11 @@ import math
 from collections.abc import Callable
 from typing import Any
 
+import numpy as np
+
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
-from railsim.engine.occupancy import Ahead, Facing
+from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
@@ -56,7 +58,7 @@ from railsim.physics import dynamics
 log = logging.getLogger(__name__)
 
 # [(train, from chainage, lookahead), ...] -> the train facing each, or None
-FacingLookup = Callable[[list[tuple[str, float, float]]], list[Facing | None]]
+FacingBodies = Callable[[], tuple[np.ndarray, np.ndarray, list[str]]]  # Occupancy.facing_own_bodies
 
 
 class SafetyMonitor:
@@ -198,35 +200,35 @@ class SafetyMonitor:
                     self.events.record(t, "collision", tr.train_id, leader=other.train_id, crossing=node)
                     log.error("collision at t=%.1f s: %s and %s on crossing %s", t, tr.train_id, other.train_id, node)
 
-    def head_on_checks(self, t: float, active: list[TrainRuntime], facing_all: FacingLookup) -> None:
+    def head_on_checks(self, t: float, active: list[TrainRuntime], own_bodies: FacingBodies) -> None:
         """Two trains on one track facing each other whose bodies overlap collide head-on (module docstring);
-        ``facing_all([(train, from_m, lookahead_m), ...])``:
-        :meth:`railsim.engine.occupancy.Occupancy.facing_all` (every train's own body, from its rear, in one call)."""
-        queries = [(tr.train_id, tr.front_m - tr.trip.vehicle.length_m, tr.trip.vehicle.length_m) for tr in active]
-        for tr, hit in zip(active, facing_all(queries), strict=True):
-            if hit is None or hit.near_m > tr.front_m:
+        ``own_bodies()``: :meth:`railsim.engine.occupancy.Occupancy.facing_own_bodies` (for every train of
+        ``active``, in its order, the train facing it on the track under its own body, in one call)."""
+        hit_slot, near, ids = own_bodies()
+        for k in np.flatnonzero(hit_slot >= 0).tolist():
+            tr, near_m = active[k], float(near[k])
+            if near_m > tr.front_m:
                 continue
-            pair = (min(tr.train_id, hit.train_id), max(tr.train_id, hit.train_id))
+            other_id = ids[int(hit_slot[k])]
+            pair = (min(tr.train_id, other_id), max(tr.train_id, other_id))
             if pair in self._colliding_pairs:
                 continue
             self._colliding_pairs.add(pair)
-            overlap_m = tr.front_m - hit.near_m
+            overlap_m = tr.front_m - near_m
             self.collisions.append(
                 {
                     "t_s": t,
                     "follower": tr.train_id,
-                    "leader": hit.train_id,
+                    "leader": other_id,
                     "overlap_m": overlap_m,
                     "chainage_m": tr.front_m,
                     "head_on": True,
                 }
             )
             self.events.record(
-                t, "collision", tr.train_id, leader=hit.train_id, overlap_m=round(overlap_m, 3), head_on=True
+                t, "collision", tr.train_id, leader=other_id, overlap_m=round(overlap_m, 3), head_on=True
             )
-            log.error(
-                "collision at t=%.1f s: %s and %s head-on (overlap %.2f m)", t, tr.train_id, hit.train_id, overlap_m
-            )
+            log.error("collision at t=%.1f s: %s and %s head-on (overlap %.2f m)", t, tr.train_id, other_id, overlap_m)
 
     def sumo_reported(self, t: float, reports: list[dict[str, Any]]) -> None:
         """SUMO's own collision reports of this step (kept apart from ours)."""

@@ -88,12 +88,12 @@ def test_two_trains_meeting_head_on_are_a_collision() -> None:
     east, west = active
     east.front_m, west.front_m = 2890.0, 1100.0  # 10 m apart, facing: no collision yet
     occ = _occupancy(("east", EAST, east.front_m), ("west", WEST, west.front_m))
-    monitor.head_on_checks(1.0, active, occ.facing_all)
+    monitor.head_on_checks(1.0, active, occ.facing_own_bodies)
     assert monitor.collisions == []
     east.front_m = 2905.0  # 5 m into the body of the train facing it
     occ = _occupancy(("east", EAST, east.front_m), ("west", WEST, west.front_m))
-    monitor.head_on_checks(2.0, active, occ.facing_all)
-    monitor.head_on_checks(2.5, active, occ.facing_all)  # once per pair
+    monitor.head_on_checks(2.0, active, occ.facing_own_bodies)
+    monitor.head_on_checks(2.5, active, occ.facing_own_bodies)  # once per pair
     assert len(monitor.collisions) == 1 and monitor.collisions[0]["head_on"] is True
     assert len(events.rows("collision")) == 1
 
