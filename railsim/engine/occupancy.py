@@ -93,7 +93,7 @@ class Occupancy:
         self._partner = np.full(0, -1, np.int64)
         self._partner_len = np.zeros(0)
         self.ids: list[str] = []  # slot -> train id, this step
-        self._slot: dict[str, int] = {}
+        self._slot_of: dict[str, int] | None = {}  # train id -> slot, made when first asked for (None: not yet)
         self._route: np.ndarray = np.zeros(0, np.int64)
         self._front: np.ndarray = np.zeros(0)
         self._len: np.ndarray = np.zeros(0)
@@ -183,6 +183,11 @@ class Occupancy:
         for b, i1, i0 in zip(bodies, self.edge_i.tolist(), self.rear_i.tolist(), strict=True):
             b.edge_i, b.rear_i = i1, i0
 
+    @property
+    def route_of(self) -> dict[int, int]:
+        """``id(view)`` -> route number of every route registered (read-only; :meth:`route_numbers` registers)."""
+        return self._route_of
+
     def route_numbers(self, views: list[RouteView]) -> np.ndarray:
         """The route number of each view (a route seen for the first time is registered)."""
         route_of = self._route_of
@@ -206,6 +211,12 @@ class Occupancy:
         get = self._edge_id.get
         return np.array([INTERNAL if e[:1] == ":" else get(e, UNKNOWN) for e in edges], np.int64)
 
+    def _slots(self) -> dict[str, int]:
+        """Train id -> slot this step (built on the first question by id: the per-step passes need none)."""
+        if self._slot_of is None:
+            self._slot_of = dict(zip(self.ids, range(len(self.ids))))
+        return self._slot_of
+
     def update_columns(
         self, ids: list[str], views: list[RouteView], front_m: list[float], length_m: list[float], hints: list[int]
     ) -> None:
@@ -222,7 +233,7 @@ class Occupancy:
         if self._dirty:
             self._rebuild()
         self.ids = ids
-        self._slot = dict(zip(ids, range(len(ids))))
+        self._slot_of = None
         self._route = routes
         self._front = front_m
         self._len = length_m
@@ -264,7 +275,7 @@ class Occupancy:
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""
-        me = self._slot[train_id]
+        me = self._slots()[train_id]
         o, front, rear = occupancy_kernel.ahead_one(me, lookahead_m, *self._ahead_tables())
         if o < 0:
             return None
@@ -329,7 +340,7 @@ class Occupancy:
         """:meth:`facing` for every ``(train, from_m, lookahead_m)`` (one compiled pass)."""
         if not self._bidi:
             return [None] * len(queries)
-        slot = self._slot
+        slot = self._slots()
         slots, nears, fars = self._facing_kernel(
             np.array([slot[q[0]] for q in queries], np.int64),
             np.array([q[1] for q in queries], float),

@@ -46,23 +46,39 @@ class TruthPass:
         self.tolerance_m = tolerance_m
         self.dt_s = dt_s
         self._slots = 0  # slots handed out
-        self._prev_front_m = np.zeros(64)  # slot -> chainage at its last check
-        self._prev_speed_mps = np.zeros(64)  # slot -> SUMO's speed then
-        self._seen = np.full(64, -2, np.int64)  # slot -> number of the check it was last seen in
+        self._memory = _memory(64)  # slot -> (chainage, SUMO's speed, number of the check) when last seen
         self._check_no = 0
         self._last_t_s = 0.0
 
     def _slot(self, tr: TrainRuntime) -> int:
-        """``tr``'s slot (given on first use; the per-slot arrays grow by doubling)."""
+        """``tr``'s slot (given on first use, when a train is read for the first time; the memory grows by
+        doubling)."""
         if tr.slot < 0:
             tr.slot = self._slots
             self._slots += 1
-            if self._slots > len(self._seen):
-                grow = len(self._seen)
-                self._prev_front_m = np.concatenate([self._prev_front_m, np.zeros(grow)])
-                self._prev_speed_mps = np.concatenate([self._prev_speed_mps, np.zeros(grow)])
-                self._seen = np.concatenate([self._seen, np.full(grow, -2, np.int64)])
+            if self._slots > len(self._memory):
+                self._memory = np.concatenate([self._memory, _memory(len(self._memory))])
         return tr.slot
+
+    def _rows(self, active: list[TrainRuntime]) -> np.ndarray:
+        """The trains' inputs to the pass, a float row each (columns ``truth_kernel.SLOT`` … ``SENT_MPS``)."""
+        route_of = self.occupancy.route_of
+        try:
+            rows = [
+                (
+                    tr.slot if tr.slot >= 0 else self._slot(tr),
+                    route_of[id(tr.view)],
+                    tr.depart_chainage_m,
+                    tr.edge_i,
+                    tr.reversing,
+                    _NO_SPEED if tr.sent_speed_mps is None else tr.sent_speed_mps,
+                )
+                for tr in active
+            ]
+        except KeyError:  # a route not seen before: registered first
+            self.occupancy.route_numbers([tr.view for tr in active])
+            return self._rows(active)
+        return np.array(rows, float).reshape(len(rows), truth_kernel.N_COLUMNS)
 
     def read(self, t: float, active: list[TrainRuntime], truth: TrainStates) -> None:
         """This step's truth for ``active`` (in the order of ``truth``, the bridge's reading of their ids): chainage,
@@ -70,39 +86,33 @@ class TruthPass:
         occ = self.occupancy
         edge_ids = truth.edge_ids
         speed = truth.speed_mps
-        routes = occ.route_numbers([tr.view for tr in active])
+        rows = self._rows(active)
         n = len(active)
         front = np.empty(n)
         edge_i = np.empty(n, np.int64)
-        bad = np.empty(n, np.bool_)
+        verdict = np.empty(n, np.int8)
         railsim_m = np.empty(n)
         sumo_m = np.empty(n)
         self._check_no += 1
         r_off, r_edges, r_starts, r_keys, r_vals = occ.route_tables()
-        n_bad = truth_kernel.truth_pass(
+        n_bad, n_imposed = truth_kernel.truth_pass(
             r_off,
             r_edges,
             r_starts,
             r_keys,
             r_vals,
-            routes,
-            np.array([tr.slot if tr.slot >= 0 else self._slot(tr) for tr in active], np.int64),
-            np.array([tr.depart_chainage_m for tr in active], float),
+            rows,
             truth.odometer_m,
-            np.array([tr.edge_i for tr in active], np.int64),
             occ.edge_codes(edge_ids),
             truth.lane_pos_m,
             speed,
-            np.array([tr.reversing for tr in active], np.bool_),
-            self._prev_front_m,
-            self._prev_speed_mps,
-            self._seen,
+            self._memory,
             self._check_no,
             t - self._last_t_s,
             self.tolerance_m,
             front,
             edge_i,
-            bad,
+            verdict,
             railsim_m,
             sumo_m,
         )
@@ -110,15 +120,22 @@ class TruthPass:
         stopped = truth.stopped.tolist()
         for tr, front_m, i, now, edge in zip(active, front.tolist(), edge_i.tolist(), stopped, edge_ids):
             tr.front_m, tr.edge_i, tr.sumo_stopped_now, tr.sumo_edge = front_m, i, now, edge
-        # SUMO applies exactly the speed railsim sent (speed mode 32) unless it holds the train at a stop
-        sent = np.array([_NO_SPEED if tr.sent_speed_mps is None else tr.sent_speed_mps for tr in active])
-        for k in np.flatnonzero(np.abs(speed - sent) > 1e-6).tolist():
-            tr = active[k]
-            sumo_v = float(speed[k])
-            self.safety.speed_imposed(t, tr, sumo_v, float(sent[k]), self.dt_s)
-            tr.adopt_sumo_speed(t, sumo_v)
+        if n_imposed:  # SUMO applies exactly the speed railsim sent (speed mode 32) unless it holds the train at a stop
+            for k in np.flatnonzero(verdict & truth_kernel.IMPOSED).tolist():
+                tr, sumo_v = active[k], float(speed[k])
+                self.safety.speed_imposed(t, tr, sumo_v, float(rows[k, truth_kernel.SENT_MPS]), self.dt_s)
+                tr.adopt_sumo_speed(t, sumo_v)
         if n_bad:
-            self.safety.desync_found(t, active, np.flatnonzero(bad).tolist(), railsim_m, sumo_m, edge_ids)
+            out_of_step = np.flatnonzero(verdict & truth_kernel.DESYNC).tolist()
+            self.safety.desync_found(t, active, out_of_step, railsim_m, sumo_m, edge_ids)
+        lengths = np.array([tr.trip.vehicle.length_m for tr in active])
         occ.update_arrays(
-            [tr.train_id for tr in active], routes, front, np.array([tr.trip.vehicle.length_m for tr in active]), edge_i
+            [tr.train_id for tr in active], rows[:, truth_kernel.ROUTE].astype(np.int64), front, lengths, edge_i
         )
+
+
+def _memory(n: int) -> np.ndarray:
+    """``n`` empty slot rows (never seen: the check number -2)."""
+    memory = np.zeros((n, 3))
+    memory[:, truth_kernel.SEEN] = -2.0
+    return memory

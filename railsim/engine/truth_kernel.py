@@ -70,6 +70,14 @@ def pass_near(r_edges: Any, r_keys: Any, r_vals: Any, lo: int, hi: int, code: in
     return route_index(r_edges, r_keys, r_vals, lo, hi, code)
 
 
+# Columns of the per-train input rows (one float row per train of the step, gathered in one pass over the trains)
+SLOT, ROUTE, DEPART_M, HINT, REVERSING, SENT_MPS = range(6)
+N_COLUMNS = 6
+# Columns of the slots' memory (a row per slot for the train's whole run)
+PREV_FRONT_M, PREV_SPEED_MPS, SEEN = range(3)
+DESYNC, IMPOSED = 1, 2  # bits of a train's verdict: out of step with SUMO; a speed SUMO did not take from railsim
+
+
 @njit(cache=True)
 def truth_pass(
     r_off: Any,
@@ -77,58 +85,59 @@ def truth_pass(
     r_starts: Any,
     r_keys: Any,
     r_vals: Any,
-    route: Any,
-    slot: Any,
-    depart_m: Any,
+    rows: Any,
     odometer_m: Any,
-    hint: Any,
     sumo_edge: Any,
     lane_pos_m: Any,
     speed_mps: Any,
-    reversing: Any,
-    prev_front_m: Any,
-    prev_speed_mps: Any,
-    seen: Any,
+    memory: Any,
     check_no: int,
     dt_s: float,
     tol_m: float,
     front_m: Any,
     edge_i: Any,
-    bad: Any,
+    verdict: Any,
     railsim_m: Any,
     sumo_m: Any,
-) -> int:
-    """Every train's chainage (``front_m``), edge pointer (``edge_i``) and desync verdict (``bad``, with
-    ``railsim_m`` and ``sumo_m``, NaN = none) for check number ``check_no``; the slots' memory (``prev_front_m``,
-    ``prev_speed_mps``, ``seen``) is read, then replaced by this check's. Returns the number of trains found out of
-    step (module docstring)."""
+) -> tuple[int, int]:
+    """Every train's chainage (``front_m``), edge pointer (``edge_i``) and verdict (``verdict``: :data:`DESYNC`
+    with ``railsim_m`` and ``sumo_m``, NaN = none; :data:`IMPOSED`: SUMO's speed differs from the one sent, column
+    :data:`SENT_MPS`, NaN = none sent, by more than 1e-6 m/s) for check number ``check_no``. ``rows``: the trains'
+    inputs (columns :data:`SLOT` … :data:`SENT_MPS`); the slots' ``memory`` (columns :data:`PREV_FRONT_M`,
+    :data:`PREV_SPEED_MPS`, :data:`SEEN`) is read, then replaced by this check's. Returns the numbers of trains out
+    of step and of speeds imposed (module docstring)."""
     n_bad = 0
-    for k in range(len(route)):
-        r = route[k]
+    n_imposed = 0
+    for k in range(len(rows)):
+        r = int(rows[k, ROUTE])
         lo, hi = r_off[r], r_off[r + 1]
         starts = r_starts[lo:hi]
-        front = depart_m[k] + odometer_m[k]
-        i = near_hint(starts, front, hint[k])
+        front = rows[k, DEPART_M] + odometer_m[k]
+        i = near_hint(starts, front, int(rows[k, HINT]))
         if i < 0:
             i = edge_at(starts, front)
         front_m[k] = front
         edge_i[k] = i
-        s = slot[k]
+        s = int(rows[k, SLOT])
         v_now = speed_mps[k]
+        flags = 0
+        if abs(v_now - rows[k, SENT_MPS]) > 1e-6:  # (False for NaN: nothing sent yet)
+            flags = IMPOSED
+            n_imposed += 1
         expected = front
-        if seen[s] == check_no - 1 and not reversing[k]:  # SUMO moved it by its speed: never back, at most v·dt
-            prev = prev_front_m[s]
-            max_advance_m = max(prev_speed_mps[s], v_now) * dt_s
+        if memory[s, SEEN] == check_no - 1 and rows[k, REVERSING] == 0.0:  # moved by its speed: never back, ≤ v·dt
+            prev = memory[s, PREV_FRONT_M]
+            max_advance_m = max(memory[s, PREV_SPEED_MPS], v_now) * dt_s
             advance_m = front - prev
             if not -tol_m <= advance_m <= max_advance_m + tol_m:
                 expected = prev + min(max(advance_m, 0.0), max_advance_m)
-        prev_front_m[s] = front
-        prev_speed_mps[s] = v_now
-        seen[s] = check_no
+        memory[s, PREV_FRONT_M] = front
+        memory[s, PREV_SPEED_MPS] = v_now
+        memory[s, SEEN] = check_no
         railsim_m[k] = expected
         sumo_m[k] = front
         code = sumo_edge[k]
-        bad[k] = False
+        verdict[k] = flags
         if expected == front and code != INTERNAL:
             j = pass_near(r_edges, r_keys, r_vals, lo, hi, code, i)
             if j < 0:
@@ -139,6 +148,6 @@ def truth_pass(
                     continue
         elif expected == front:
             continue
-        bad[k] = True
+        verdict[k] = flags | DESYNC
         n_bad += 1
-    return n_bad
+    return n_bad, n_imposed

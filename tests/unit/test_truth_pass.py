@@ -182,28 +182,35 @@ def test_the_compiled_pass_gives_its_interpreted_forms_bits(seed: int) -> None:
         edges = tuple(f"e{x}" for x in rng.integers(0, 12, n_e))
         views.append(_view(f"r{r}", edges, tuple(float(x) for x in rng.uniform(20.0, 300.0, n_e))))
     n_slots = 40
-    prev_c = [rng.uniform(0, 1000, n_slots), rng.uniform(0, 20, n_slots), rng.integers(0, 4, n_slots)]
-    prev_i = [p.copy() for p in prev_c]
+    memory_c = np.column_stack(
+        [rng.uniform(0, 1000, n_slots), rng.uniform(0, 20, n_slots), rng.integers(0, 4, n_slots)]
+    )
+    memory_i = memory_c.copy()
     for check_no in range(1, 5):
         n = int(rng.integers(1, 30))
-        route = occ.route_numbers([views[int(x)] for x in rng.integers(0, len(views), n)])
-        tables = occ.route_tables()
-        codes = occ.edge_codes([str(e) for e in rng.choice(["e1", "e3", "e7", ":j_0", "zz", "e11"], n)])
+        rows = np.column_stack(
+            [
+                rng.permutation(n_slots)[:n],
+                occ.route_numbers([views[int(x)] for x in rng.integers(0, len(views), n)]),
+                rng.uniform(-50, 500, n),
+                rng.integers(-2, 10, n),
+                rng.random(n) < 0.2,
+                np.where(rng.random(n) < 0.3, np.nan, rng.uniform(0, 25, n)),
+            ]
+        ).astype(float)
+        speed = np.where(rng.random(n) < 0.5, rows[:, truth_kernel.SENT_MPS], rng.uniform(0, 25, n))
         args = (
-            route,
-            rng.permutation(n_slots)[:n].astype(np.int64),
-            rng.uniform(-50, 500, n),
+            *occ.route_tables(),
+            rows,
             rng.uniform(0, 800, n),
-            rng.integers(-2, 10, n).astype(np.int64),
-            codes,
+            occ.edge_codes([str(e) for e in rng.choice(["e1", "e3", "e7", ":j_0", "zz", "e11"], n)]),
             rng.uniform(0, 300, n),
-            rng.uniform(0, 25, n),
-            rng.random(n) < 0.2,
+            np.nan_to_num(speed),
         )
-        outs_c = [np.empty(n), np.empty(n, np.int64), np.empty(n, np.bool_), np.empty(n), np.empty(n)]
-        outs_i = [np.empty(n), np.empty(n, np.int64), np.empty(n, np.bool_), np.empty(n), np.empty(n)]
-        n_c = truth_kernel.truth_pass(*tables, *args, *prev_c, check_no, DT_S, TOL_M, *outs_c)
-        n_i = ref.truth_pass(*tables, *args, *prev_i, check_no, DT_S, TOL_M, *outs_i)
-        assert n_c == n_i
-        for c, i in zip([*outs_c, *prev_c], [*outs_i, *prev_i], strict=True):
+        outs_c = [np.empty(n), np.empty(n, np.int64), np.empty(n, np.int8), np.empty(n), np.empty(n)]
+        outs_i = [np.empty(n), np.empty(n, np.int64), np.empty(n, np.int8), np.empty(n), np.empty(n)]
+        got_c = truth_kernel.truth_pass(*args, memory_c, check_no, DT_S, TOL_M, *outs_c)
+        got_i = ref.truth_pass(*args, memory_i, check_no, DT_S, TOL_M, *outs_i)
+        assert got_c == got_i
+        for c, i in zip([*outs_c, memory_c], [*outs_i, memory_i], strict=True):
             assert c.tobytes() == i.tobytes()
