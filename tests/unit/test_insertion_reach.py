@@ -12,7 +12,6 @@ from __future__ import annotations
 import random
 from collections import Counter
 from types import SimpleNamespace
-from typing import Any
 
 from network.topology import RouteInfo, RouteSwitch
 from railsim.engine.events.log import EventLog
