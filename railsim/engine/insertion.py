@@ -21,7 +21,10 @@
   behind's least stopping distance less the one ahead's — found by fuzzing: a train put on at 60 km/h 71 m behind
   a standing one collided whatever it did); a platoon put on in motion at one speed is not held. Held
   departures log a ``departure_held`` event with the ``reason`` (again each
-  time the reason changes), retried every ``departure_retry_s``. The dispatcher, not the follower, is
+  time the reason changes), retried every ``departure_retry_s``. Each rule is asked only of the trains near the spot
+  (:class:`~railsim.engine.insertion_reach.NearTrains`, an index of the trains on the line by edge, with the bound
+  on how far each rule looks): the answer of asking every train on the line, the first in scenario order, with
+  frame changes for the trains near it only. The dispatcher, not the follower, is
   responsible for a train appearing on the track. A train never inserted by the end of the run is reported
   (:meth:`Dispatcher.report_never_inserted`: one ``never_inserted`` event each; the CLI exits 3).
 * **Inserting** hands SUMO the route (trimmed to begin at the edge holding the start chainage), the stops with
