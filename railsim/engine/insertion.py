@@ -109,6 +109,7 @@ class Dispatcher:
         self._stop_memo: dict[str, tuple[float, float, float, float]] = {}  # train -> (t, v, front, least stop)
         # the trains near a departure (the rules below compare it with those only: the same answer as all of them)
         self.near = NearTrains(fleet, settings.insertion_margin_m)
+        self._unchanged: tuple[float, set[str]] | None = None  # guard_pending's instant and trains: blocker_at_front
 
     def connect(self, bridge: SumoInsertion) -> None:
         """The SUMO bridge, once the run has started it."""
@@ -346,15 +347,29 @@ class Dispatcher:
         return ids
 
     def blocker_at_front(self, tr: TrainRuntime) -> str | None:
-        """Why ``tr``'s spot (its front where it was handed to SUMO) is not free: :meth:`blocker` there."""
-        return self.blocker(tr, tr.front_m)
+        """Why ``tr``'s spot (its front where it was handed to SUMO) is not free: :meth:`blocker` there.
+
+        The loop asks this of every train still in SUMO's queue right after :meth:`guard_pending` looked at the
+        line for the same trains at the same instant (the stall watchdog, nothing in between): each of those is
+        answered once from that look, not by comparing the whole line again (a queue of 3,000 trains at t = 0
+        would compare it 3,000 times). Any other question ends that."""
+        unchanged = self._unchanged
+        trusted = unchanged is not None and unchanged[0] == self.layer.now_s and tr.train_id in unchanged[1]
+        if trusted and unchanged is not None:
+            unchanged[1].discard(tr.train_id)
+        return self._blocker(tr, tr.front_m, trusted)
 
     def blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
         """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring):
         the first train on the line, in scenario order, that :meth:`blocker_of` names. Only the trains near the
         spot are asked (:class:`~railsim.engine.insertion_reach.NearTrains`; the others pass every rule)."""
+        return self._blocker(tr, depart_m, False)
+
+    def _blocker(self, tr: TrainRuntime, depart_m: float, trusted: bool) -> str | None:
+        if not trusted:
+            self._unchanged = None
         length = tr.trip.vehicle.length_m
-        for other in self.near.near(tr, depart_m, length, self.settings.insertion_margin_m):
+        for other in self.near.near(tr, depart_m, length, self.settings.insertion_margin_m, trusted):
             reason = self.blocker_of(tr, depart_m, other)
             if reason is not None:
                 return reason
@@ -416,11 +431,16 @@ class Dispatcher:
         follower still to couple is also put on behind its leader again by the formation book, whichever comes
         first). Else SUMO put a follower on, 330 s after it was handed over, 12 m in front of a train running at
         24 km/h (fuzz variant 275: a collision); ``tests/sumo/test_pending_insertion.py``."""
+        self._unchanged = None
+        if not pending:
+            return
+        # one look at the line for all of them: in between, trains only leave it (withdrawn here)
+        self.near.check(self.settings.insertion_margin_m)
         for tr in pending:
             if tr.plant.speed_mps > 0.0:
                 continue  # a start in motion is put on at the next step (or refused by SUMO: held, reported)
             length_m = tr.trip.vehicle.length_m
-            for other in self.near.near(tr, tr.front_m, length_m, 0.0):  # (the others are far enough)
+            for other in self.near.near(tr, tr.front_m, length_m, 0.0, trusted=True):  # (the others: far enough)
                 if other.status != "running":
                     continue
                 mapped = other.view.map_body(tr.view, tr.front_m, length_m)
@@ -433,6 +453,8 @@ class Dispatcher:
                 self.events.record(self.layer.now_s, "train_withdrawn", tr.train_id, approaching=other.train_id)
                 self._hold(tr, f"approaching train {other.train_id} could not stop")
                 break
+        # blocker_at_front, asked of those still waiting right after this, answers them from the same look
+        self._unchanged = (self.layer.now_s, {tr.train_id for tr in pending if tr.status == "inserting"})
 
     def collision_course(
         self, tr: TrainRuntime, depart_m: float, v_mps: float, approaching_only: bool = False
@@ -445,6 +467,7 @@ class Dispatcher:
         paper's platoon) are not held: their difference is 0. ``approaching_only``: only trains approaching from
         behind count (a follower put on behind its leader: a spot still occupied SUMO itself fills only once
         free)."""
+        self._unchanged = None
         veh = tr.trip.vehicle
         own_stop_m = dynamics.least_stop_distance_m(veh, v_mps, tr.view.gradient_at(depart_m))
         for other in self.near.near(tr, depart_m, veh.length_m, max(own_stop_m, 0.0)):

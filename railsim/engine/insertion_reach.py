@@ -51,8 +51,7 @@ from railsim.physics import dynamics
 
 SLACK_M = 1.0  # added to every bound: the frame changes add offsets, and a sum may round the other way
 
-_FRONT = attrgetter("front_m")
-_PLANT = attrgetter("plant")
+_SIG = attrgetter("front_m", "plant")  # what a train's zone depends on, besides whether it holds locks
 _LOCKS = attrgetter("locks")
 
 
@@ -74,12 +73,10 @@ class NearTrains:
         self._rank: dict[str, int] = {}  # train id -> its place in scenario order
         self._last_switch: dict[str, float | None] = {}  # route id -> the chainage of its last switch
         self._ahead_m = -math.inf  # the look ahead the zones were built for (a larger question rebuilds them)
-        # the instant the index describes: trains on the line (scenario order), their fronts, plants, lock flags
-        self._trains: list[TrainRuntime] = []  # (held here: their ids below stay theirs)
-        self._ids: list[int] = []
-        self._fronts: list[float] = []
-        self._plants: list[Any] = []
-        self._locked: list[bool] = []
+        # the instant the index describes: trains on the line (scenario order), (front, plant), number of locks
+        self._trains: list[TrainRuntime] = []
+        self._sig: list[tuple[float, Any]] = []
+        self._locked: list[int] = []
         self._ranks: list[int] = []
         self._by_id: dict[str, TrainRuntime] = {}
         self._zone: dict[str, list[str]] = {}  # edge -> trains whose zone holds it
@@ -90,15 +87,19 @@ class NearTrains:
         self.rebuilds = 0  # (for tests and profiles)
 
     # ------------------------------------------------------------------ the question
-    def near(self, tr: TrainRuntime, depart_m: float, length_m: float, ahead_m: float) -> list[TrainRuntime]:
+    def near(
+        self, tr: TrainRuntime, depart_m: float, length_m: float, ahead_m: float, trusted: bool = False
+    ) -> list[TrainRuntime]:
         """The trains on the line (``tr`` left out) that a rule looking ``ahead_m`` in front of ``tr``'s body
         (front at ``depart_m`` of its route, ``length_m`` long) could hold it for, in scenario order. Every other
-        train on the line would pass every rule (module docstring)."""
+        train on the line would pass every rule (module docstring). ``trusted``: the caller knows that no train
+        was put on, moved, sped up or took a lock since the last :meth:`check` (trains may have left the line)."""
         view = tr.view
         starts = view.edge_start_m
         if not ahead_m < math.inf or not starts or depart_m < starts[0] or depart_m - length_m >= view.length_m:
             return [other for other in self.fleet.active() if other is not tr]
-        self._check(ahead_m)
+        if not trusted or ahead_m > self._ahead_m:
+            self.check(ahead_m)
         found: set[str] = set(self._always)
         edges = view.edges
         zone, body = self._zone, self._body
@@ -110,55 +111,52 @@ class NearTrains:
             found.update(body.get(e, ()))
         found.discard(tr.train_id)
         rank = self._rank
-        return [self._by_id[tid] for tid in sorted(found, key=rank.__getitem__)]
+        by_id = self._by_id
+        return [t for t in (by_id[tid] for tid in sorted(found, key=rank.__getitem__)) if t.on_line]
 
     def inserted(self, tr: TrainRuntime) -> None:
         """``tr`` was put on the line just now (the next question adds it alone if nothing else changed)."""
         self._added.append(tr)
 
     # ------------------------------------------------------------------ keeping the index current
-    def _check(self, ahead_m: float) -> None:
+    def check(self, ahead_m: float = 0.0) -> None:
+        """Bring the index up to the line as it is now (module docstring), for questions looking ``ahead_m``."""
         active = self.fleet.active()
         added, self._added = self._added, []
         if ahead_m > self._ahead_m or len(self._rank) != len(self.fleet.trains):
             self._rebuild(active, ahead_m)
             return
-        fronts = list(map(_FRONT, active))
-        plants = list(map(_PLANT, active))
-        locked = list(map(bool, map(_LOCKS, active)))
-        ids = list(map(id, active))
-        if ids == self._ids and fronts == self._fronts and plants == self._plants and locked == self._locked:
+        sig = list(map(_SIG, active))
+        locked = list(map(len, map(_LOCKS, active)))
+        if active == self._trains and sig == self._sig and locked == self._locked:
             return
-        new = [tr for tr in added if tr.on_line and tr.train_id not in self._by_id]
-        if new and len(active) == len(self._trains) + len(new):
-            trains, fronts0, plants0, locked0, ranks = (
-                list(self._trains),
-                list(self._fronts),
-                list(self._plants),
-                list(self._locked),
-                list(self._ranks),
-            )
+        new = sorted(
+            (tr for tr in added if tr.on_line and tr.train_id not in self._by_id), key=lambda t: self._rank[t.train_id]
+        )
+        n_old = len(self._trains)
+        if not new or len(active) != n_old + len(new):
+            self._rebuild(active, ahead_m)
+            return
+        if not self._ranks or self._rank[new[0].train_id] > self._ranks[-1]:  # put on after all: appended
+            same = active[:n_old] == self._trains and sig[:n_old] == self._sig and locked[:n_old] == self._locked
+            same = same and active[n_old:] == new
+            ranks = self._ranks + [self._rank[t.train_id] for t in new]
+        else:  # spliced in at their places in scenario order
+            trains, sig0, locked0, ranks = list(self._trains), list(self._sig), list(self._locked), list(self._ranks)
             for tr in new:
                 r = self._rank[tr.train_id]
                 k = bisect.bisect_left(ranks, r)
                 trains.insert(k, tr)
-                fronts0.insert(k, tr.front_m)
-                plants0.insert(k, tr.plant)
-                locked0.insert(k, bool(tr.locks))
+                sig0.insert(k, _SIG(tr))
+                locked0.insert(k, len(tr.locks))
                 ranks.insert(k, r)
-            if ids == list(map(id, trains)) and fronts == fronts0 and plants == plants0 and locked == locked0:
-                for tr in new:
-                    self._file(tr)
-                self._ids = ids
-                self._trains, self._fronts, self._plants, self._locked, self._ranks = (
-                    trains,
-                    fronts0,
-                    plants0,
-                    locked0,
-                    ranks,
-                )
-                return
-        self._rebuild(active, ahead_m)
+            same = active == trains and sig == sig0 and locked == locked0
+        if not same:
+            self._rebuild(active, ahead_m)
+            return
+        for tr in new:
+            self._file(tr)
+        self._trains, self._sig, self._locked, self._ranks = active, sig, locked, ranks
 
     def _rebuild(self, active: list[TrainRuntime], ahead_m: float) -> None:
         self.rebuilds += 1
@@ -169,10 +167,8 @@ class NearTrains:
             self.length_max_m = max((t.trip.vehicle.length_m for t in self.fleet.trains.values()), default=0.0)
         self._ahead_m = max(ahead_m, self.margin_m, self._ahead_m)
         self._trains = list(active)
-        self._ids = list(map(id, active))
-        self._fronts = list(map(_FRONT, active))
-        self._plants = list(map(_PLANT, active))
-        self._locked = list(map(bool, map(_LOCKS, active)))
+        self._sig = list(map(_SIG, active))
+        self._locked = list(map(len, map(_LOCKS, active)))
         self._ranks = [self._rank[t.train_id] for t in active]
         self._by_id, self._zone, self._body, self._always = {}, {}, {}, []
         self._reach_max_m = 0.0

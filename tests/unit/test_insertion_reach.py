@@ -188,3 +188,51 @@ def test_the_index_follows_the_line_between_questions() -> None:
             for _ in range(3):
                 _ask(d, rng.choice(trains), rng, tally)
     assert tally["blocker held"] >= 20 and tally["blocker free"] >= 20, tally
+
+
+def _twin_fleets(
+    seed: int, n: int
+) -> tuple[tuple[Dispatcher, list[TrainRuntime]], tuple[Dispatcher, list[TrainRuntime]]]:
+    """Two identical fleets (the same draws), each with a dispatcher that can withdraw and hold trains."""
+    twins = []
+    for _ in range(2):
+        d, trains = _fleet(random.Random(seed), n)
+        d.layer = SimpleNamespace(now_s=0.0, at=lambda *a: None)  # type: ignore[assignment]
+        d.bridge = SimpleNamespace(remove=lambda sumo_id: None)  # type: ignore[assignment]
+        twins.append((d, trains))
+    return twins[0], twins[1]
+
+
+def test_guard_pending_and_the_watchdogs_questions_after_it_give_the_full_scans_answers() -> None:
+    """The loop's order: guard_pending withdraws trains a running train could not stop for, then the watchdog asks
+    blocker_at_front of every train still waiting (answered from guard_pending's look at the line)."""
+    checked = withdrawn = held = 0
+    for seed in range(150):
+        (d, trains), (old, old_trains) = _twin_fleets(seed, 20)
+        pending = [tr for tr in trains if tr.status == "inserting"]
+        for tr in pending:
+            tr.plant = dynamics.PlantState(speed_mps=0.0)
+        old_pending = [old.fleet.trains[tr.train_id] for tr in pending]
+        for tr in old_pending:
+            tr.plant = dynamics.PlantState(speed_mps=0.0)
+        d.guard_pending(pending)
+        for tr in old_pending:  # the old loop, withdrawing as it goes
+            for other in old.fleet.active():
+                if other is tr or other.status != "running":
+                    continue
+                mapped = other.view.map_body(tr.view, tr.front_m, tr.trip.vehicle.length_m)
+                if mapped is None or mapped[1] < other.front_m:
+                    continue
+                if old._cannot_stop_behind(other, mapped[1] - other.front_m):
+                    tr.status = "scheduled"
+                    break
+        assert [t.status for t in trains] == [t.status for t in old_trains], seed
+        withdrawn += sum(t.status == "scheduled" for t in pending)
+        for tr, old_tr in zip(pending, old_pending):
+            if tr.status != "inserting":
+                continue
+            got, want = d.blocker_at_front(tr), full_blocker(old, old_tr, old_tr.front_m)
+            assert got == want, (seed, tr.train_id, got, want)
+            checked += 1
+            held += want is not None
+    assert withdrawn >= 10 and checked >= 100 and 10 <= held < checked, (withdrawn, checked, held)
