@@ -23,14 +23,14 @@ from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics
 from railsim.physics.vehicle import preset
 
-EDGE_M = {"a0": 300.0, "a1": 250.0, "a2": 400.0, "a3": 200.0, "a4": 350.0, "a5": 300.0}
-EDGE_M |= {"b0": 280.0, "b1": 150.0, "c4": 220.0, "c5": 500.0, "loop": 600.0, "d0": 90.0}
+EDGE_M = {"a0": 300.0, "a1": 250.0, "a2": 400.0, "a3": 200.0, "a4": 350.0, "a5": 300.0, "a6": 300.0, "a7": 300.0}
+EDGE_M |= {"b0": 280.0, "b1": 150.0, "c4": 220.0, "c5": 300.0, "c6": 300.0, "loop": 350.0, "d0": 90.0}
 ROUTES = {  # merging at a2 (b), diverging after a3 (c), passing a2 and a3 twice (loop), starting mid-line (d)
-    "main": ("a0", "a1", "a2", "a3", "a4", "a5"),
+    "main": ("a0", "a1", "a2", "a3", "a4", "a5", "a6", "a7"),
     "merge": ("b0", "b1", "a2", "a3", "a4"),
-    "diverge": ("a0", "a1", "a2", "a3", "c4", "c5"),
+    "diverge": ("a0", "a1", "a2", "a3", "c4", "c5", "c6"),
     "twice": ("a1", "a2", "a3", "loop", "a2", "a3", "a4"),
-    "mid": ("a3", "a4", "a5"),
+    "mid": ("a3", "a4", "a5", "a6"),
     "short": ("d0", "a2", "a3"),
 }
 KINDS = ("ahead is less than", "track occupied by", "could not stop", "holds the route through here")
@@ -132,7 +132,7 @@ def _ask(d: Dispatcher, tr: TrainRuntime, rng: random.Random, tally: Counter[str
     depart_m = rng.choice((rng.uniform(0.0, tr.view.length_m), rng.uniform(0.0, length_m), tr.view.length_m))
     got, want = d.blocker(tr, depart_m), full_blocker(d, tr, depart_m)
     assert got == want, (tr.train_id, depart_m, got, want)
-    v_mps = rng.choice((0.0, 8.0, 16.7, 30.0))
+    v_mps = rng.choice((0.0, 8.0, 16.7, 30.0, 60.0))
     only = rng.random() < 0.3
     got_c, want_c = d.collision_course(tr, depart_m, v_mps, only), full_collision_course(d, tr, depart_m, v_mps, only)
     assert got_c == want_c, (tr.train_id, depart_m, v_mps, only, got_c, want_c)
