@@ -84,7 +84,6 @@ class NearTrains:
         self._always: list[str] = []  # trains off their own route's ends: always candidates
         self._reach_max_m = 0.0  # the largest reach of a train in the index
         self._added: list[TrainRuntime] = []  # put on by the dispatcher since the index was last checked
-        self.rebuilds = 0  # (for tests and profiles)
 
     # ------------------------------------------------------------------ the question
     def near(
@@ -159,7 +158,6 @@ class NearTrains:
         self._trains, self._sig, self._locked, self._ranks = active, sig, locked, ranks
 
     def _rebuild(self, active: list[TrainRuntime], ahead_m: float) -> None:
-        self.rebuilds += 1
         if len(self._rank) != len(self.fleet.trains):
             self._rank = {tid: k for k, tid in enumerate(self.fleet.trains)}
             views = {id(t.view): t.view for t in self.fleet.trains.values()}
