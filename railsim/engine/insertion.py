@@ -21,7 +21,10 @@
   behind's least stopping distance less the one ahead's — found by fuzzing: a train put on at 60 km/h 71 m behind
   a standing one collided whatever it did); a platoon put on in motion at one speed is not held. Held
   departures log a ``departure_held`` event with the ``reason`` (again each
-  time the reason changes), retried every ``departure_retry_s``. The dispatcher, not the follower, is
+  time the reason changes), retried every ``departure_retry_s``. Each rule is asked only of the trains near the spot
+  (:class:`~railsim.engine.insertion_reach.NearTrains`, an index of the trains on the line by edge, with the bound
+  on how far each rule looks): the answer of asking every train on the line, the first in scenario order, with
+  frame changes for the trains near it only. The dispatcher, not the follower, is
   responsible for a train appearing on the track. A train never inserted by the end of the run is reported
   (:meth:`Dispatcher.report_never_inserted`: one ``never_inserted`` event each; the CLI exits 3).
 * **Inserting** hands SUMO the route (trimmed to begin at the edge holding the start chainage), the stops with
@@ -43,7 +46,8 @@ from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
-from railsim.engine.settings import INSERTION_REACTION_S, EngineSettings
+from railsim.engine.insertion_reach import NearTrains, approach_needed_m
+from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import sumo_stops
 from railsim.engine.wiring import set_once, unwired
@@ -103,6 +107,9 @@ class Dispatcher:
         self._held: dict[str, str] = {}  # trip -> the reason its departure is held (logged when it changes)
         self._retries: dict[str, int] = {}  # trip -> retries of its held departure (only the first is logged)
         self._stop_memo: dict[str, tuple[float, float, float, float]] = {}  # train -> (t, v, front, least stop)
+        # the trains near a departure (the rules below compare it with those only: the same answer as all of them)
+        self.near = NearTrains(fleet, settings.insertion_margin_m)
+        self._unchanged: tuple[float, set[str]] | None = None  # guard_pending's instant and trains: blocker_at_front
 
     def connect(self, bridge: SumoInsertion) -> None:
         """The SUMO bridge, once the run has started it."""
@@ -285,6 +292,7 @@ class Dispatcher:
         self.fleet.start(tr, "inserting")
         tr.front_m = depart_m
         tr.plant = dynamics.PlantState(speed_mps=start_mps)
+        self.near.inserted(tr)
         self.extensions.on_inserted(self.layer.now_s, tr, depart_m)
         self.handshake(tr)
         tr.depart_chainage_m = tr.start_front_m = depart_m
@@ -339,33 +347,54 @@ class Dispatcher:
         return ids
 
     def blocker_at_front(self, tr: TrainRuntime) -> str | None:
-        """Why ``tr``'s spot (its front where it was handed to SUMO) is not free: :meth:`blocker` there."""
-        return self.blocker(tr, tr.front_m)
+        """Why ``tr``'s spot (its front where it was handed to SUMO) is not free: :meth:`blocker` there.
+
+        The loop asks this of every train still in SUMO's queue right after :meth:`guard_pending` looked at the
+        line for the same trains at the same instant (the stall watchdog, nothing in between): each of those is
+        answered once from that look, not by comparing the whole line again (a queue of 3,000 trains at t = 0
+        would compare it 3,000 times). Any other question ends that."""
+        unchanged = self._unchanged
+        trusted = unchanged is not None and unchanged[0] == self.layer.now_s and tr.train_id in unchanged[1]
+        if trusted and unchanged is not None:
+            unchanged[1].discard(tr.train_id)
+        return self._blocker(tr, tr.front_m, trusted)
 
     def blocker(self, tr: TrainRuntime, depart_m: float) -> str | None:
-        """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring)."""
+        """Why a departure at ``depart_m`` would put a train on the line in danger, or None (module docstring):
+        the first train on the line, in scenario order, that :meth:`blocker_of` names. Only the trains near the
+        spot are asked (:class:`~railsim.engine.insertion_reach.NearTrains`; the others pass every rule)."""
+        return self._blocker(tr, depart_m, False)
+
+    def _blocker(self, tr: TrainRuntime, depart_m: float, trusted: bool) -> str | None:
+        if not trusted:
+            self._unchanged = None
         length = tr.trip.vehicle.length_m
-        for other in self.fleet.active():
-            if other is tr:
-                continue
-            pair = self._in_one_frame(tr, depart_m, length, other)
-            if pair is None:
-                continue
-            front_o, rear_o, other_front_m, other_rear_m, to_other_m = pair
-            if front_o <= other_rear_m:  # it lies behind the other train's rear: the other one is ahead
-                clear_m = other_rear_m - front_o
-                if clear_m < self.settings.insertion_margin_m:  # (a follower put on at its target gap: insert_behind)
-                    return f"{other.train_id} ahead is less than {self.settings.insertion_margin_m:g} m clear"
-                continue
-            if rear_o < other_front_m:
-                return f"track occupied by {other.train_id}"
-            if self._cannot_stop_behind(other, rear_o - other_front_m):
-                return f"approaching train {other.train_id} could not stop"
-            held = self._locked_ahead_of(other, rear_o + to_other_m)
-            if held is not None and not self.formations.partners(tr.train_id, other.train_id):
-                # the train behind holds the route through this spot: a train put in between would wait for that
-                # lock in front of its holder, for ever (a deadlock by insertion)
-                return f"{other.train_id} holds the route through here (switch {held})"
+        for other in self.near.near(tr, depart_m, length, self.settings.insertion_margin_m, trusted):
+            reason = self.blocker_of(tr, depart_m, other)
+            if reason is not None:
+                return reason
+        return None
+
+    def blocker_of(self, tr: TrainRuntime, depart_m: float, other: TrainRuntime) -> str | None:
+        """Why ``other`` holds a departure of ``tr`` at ``depart_m``, or None (module docstring)."""
+        pair = self._in_one_frame(tr, depart_m, tr.trip.vehicle.length_m, other)
+        if pair is None:
+            return None
+        front_o, rear_o, other_front_m, other_rear_m, to_other_m = pair
+        if front_o <= other_rear_m:  # it lies behind the other train's rear: the other one is ahead
+            clear_m = other_rear_m - front_o
+            if clear_m < self.settings.insertion_margin_m:  # (a follower put on at its target gap: insert_behind)
+                return f"{other.train_id} ahead is less than {self.settings.insertion_margin_m:g} m clear"
+            return None
+        if rear_o < other_front_m:
+            return f"track occupied by {other.train_id}"
+        if self._cannot_stop_behind(other, rear_o - other_front_m):
+            return f"approaching train {other.train_id} could not stop"
+        held = self._locked_ahead_of(other, rear_o + to_other_m)
+        if held is not None and not self.formations.partners(tr.train_id, other.train_id):
+            # the train behind holds the route through this spot: a train put in between would wait for that
+            # lock in front of its holder, for ever (a deadlock by insertion)
+            return f"{other.train_id} holds the route through here (switch {held})"
         return None
 
     @staticmethod
@@ -392,14 +421,8 @@ class Dispatcher:
 
     def _cannot_stop_behind(self, other: TrainRuntime, gap_m: float) -> bool:
         """Could ``other`` (behind, ``gap_m`` short of a rear) not stop short of it with its service brake, after
-        :data:`INSERTION_REACTION_S` and with the insertion margin to spare?"""
-        v = other.plant.speed_mps
-        needed = (
-            v * v / (2.0 * other.trip.vehicle.service_decel_mps2)
-            + v * INSERTION_REACTION_S
-            + self.settings.insertion_margin_m
-        )
-        return gap_m < needed
+        :data:`~railsim.engine.settings.INSERTION_REACTION_S` and with the insertion margin to spare?"""
+        return gap_m < approach_needed_m(other, self.settings.insertion_margin_m)
 
     def guard_pending(self, pending: list[TrainRuntime]) -> None:
         """Every step, for the trains handed to SUMO that it has not put on yet (SUMO fills a spot only once it is
@@ -408,12 +431,17 @@ class Dispatcher:
         follower still to couple is also put on behind its leader again by the formation book, whichever comes
         first). Else SUMO put a follower on, 330 s after it was handed over, 12 m in front of a train running at
         24 km/h (fuzz variant 275: a collision); ``tests/sumo/test_pending_insertion.py``."""
+        self._unchanged = None
+        if not pending:
+            return
+        # one look at the line for all of them: in between, trains only leave it (withdrawn here)
+        self.near.check(self.settings.insertion_margin_m)
         for tr in pending:
             if tr.plant.speed_mps > 0.0:
                 continue  # a start in motion is put on at the next step (or refused by SUMO: held, reported)
             length_m = tr.trip.vehicle.length_m
-            for other in self.fleet.active():
-                if other is tr or other.status != "running":
+            for other in self.near.near(tr, tr.front_m, length_m, 0.0, trusted=True):  # (the others: far enough)
+                if other.status != "running":
                     continue
                 mapped = other.view.map_body(tr.view, tr.front_m, length_m)
                 if mapped is None or mapped[1] < other.front_m:
@@ -425,6 +453,8 @@ class Dispatcher:
                 self.events.record(self.layer.now_s, "train_withdrawn", tr.train_id, approaching=other.train_id)
                 self._hold(tr, f"approaching train {other.train_id} could not stop")
                 break
+        # blocker_at_front, asked of those still waiting right after this, answers them from the same look
+        self._unchanged = (self.layer.now_s, {tr.train_id for tr in pending if tr.status == "inserting"})
 
     def collision_course(
         self, tr: TrainRuntime, depart_m: float, v_mps: float, approaching_only: bool = False
@@ -437,26 +467,35 @@ class Dispatcher:
         paper's platoon) are not held: their difference is 0. ``approaching_only``: only trains approaching from
         behind count (a follower put on behind its leader: a spot still occupied SUMO itself fills only once
         free)."""
+        self._unchanged = None
         veh = tr.trip.vehicle
         own_stop_m = dynamics.least_stop_distance_m(veh, v_mps, tr.view.gradient_at(depart_m))
+        for other in self.near.near(tr, depart_m, veh.length_m, max(own_stop_m, 0.0)):
+            reason = self.collision_course_with(tr, depart_m, own_stop_m, other, approaching_only)
+            if reason is not None:
+                return reason
+        return None
+
+    def collision_course_with(
+        self, tr: TrainRuntime, depart_m: float, own_stop_m: float, other: TrainRuntime, approaching_only: bool
+    ) -> str | None:
+        """Why ``tr`` put on at ``depart_m`` (least stopping distance ``own_stop_m``) would be on a collision course
+        with ``other``, or None (:meth:`collision_course`)."""
         hint = tr.view.edge_at(depart_m)
-        for other in self.fleet.active():
-            if other is tr:
-                continue
-            pair = self._in_one_frame(tr, depart_m, veh.length_m, other, hint)
-            if pair is None:
-                continue
-            front_o, rear_o, other_front_m, other_rear_m, _ = pair
-            if approaching_only and (front_o <= other_rear_m or rear_o < other_front_m):
-                continue
-            if front_o <= other_rear_m:  # the other one is ahead (its stopping distance is >= 0: asked only if
-                gap_m = other_rear_m - front_o  # ours alone could not stop within the gap)
-                if gap_m < own_stop_m and gap_m < own_stop_m - self._least_stop_m(other):
-                    return f"{other.train_id} ahead is {gap_m:.0f} m clear: it could not stop behind it"
-            elif rear_o < other_front_m:
-                return f"track occupied by {other.train_id}"
-            elif rear_o - other_front_m < self._least_stop_m(other) - own_stop_m:
-                return f"approaching train {other.train_id} could not stop"
+        pair = self._in_one_frame(tr, depart_m, tr.trip.vehicle.length_m, other, hint)
+        if pair is None:
+            return None
+        front_o, rear_o, other_front_m, other_rear_m, _ = pair
+        if approaching_only and (front_o <= other_rear_m or rear_o < other_front_m):
+            return None
+        if front_o <= other_rear_m:  # the other one is ahead (its stopping distance is >= 0: asked only if
+            gap_m = other_rear_m - front_o  # ours alone could not stop within the gap)
+            if gap_m < own_stop_m and gap_m < own_stop_m - self._least_stop_m(other):
+                return f"{other.train_id} ahead is {gap_m:.0f} m clear: it could not stop behind it"
+        elif rear_o < other_front_m:
+            return f"track occupied by {other.train_id}"
+        elif rear_o - other_front_m < self._least_stop_m(other) - own_stop_m:
+            return f"approaching train {other.train_id} could not stop"
         return None
 
     def _least_stop_m(self, other: TrainRuntime) -> float:
