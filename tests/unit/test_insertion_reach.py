@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 from network.topology import RouteInfo, RouteSwitch
 from railsim.engine.events.log import EventLog
-from railsim.engine.fleet import Fleet
+from railsim.engine.fleet import ON_LINE, Fleet
 from railsim.engine.insertion import Dispatcher
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import EngineSettings
@@ -57,6 +57,8 @@ def _fleet(rng: random.Random, n: int) -> tuple[Dispatcher, list[TrainRuntime]]:
         tr = TrainRuntime(trip=trip, view=view, controllers={})  # type: ignore[arg-type]
         _place(tr, rng)
         fleet.trains[tr.train_id] = tr
+        if tr.status in ON_LINE:  # on the line: the fleet lists it (as Fleet.start does for a real run)
+            fleet.start(tr, tr.status)
         trains.append(tr)
     partners = {(a.train_id, b.train_id) for a in trains for b in trains if rng.random() < 0.05}
     dispatcher = Dispatcher(
@@ -173,7 +175,8 @@ def test_the_index_follows_the_line_between_questions() -> None:
             change = rng.random()
             tr = rng.choice(trains)
             if change < 0.4:  # put on by the dispatcher (as insert does), then asked again at once
-                tr.status, tr.front_m = "inserting", rng.uniform(0.0, tr.view.length_m)
+                d.fleet.start(tr, "inserting")
+                tr.front_m = rng.uniform(0.0, tr.view.length_m)
                 tr.plant = dynamics.PlantState(speed_mps=rng.uniform(0.0, 20.0))
                 d.near.inserted(tr)
             elif change < 0.6:  # a step: every train on the line moved on
