@@ -68,17 +68,36 @@ class Knowledge:
         """
         t2g = self.channels.get("t2g")
         t2t = self.channels.get("t2t")
-        for tr in active:
-            report = reports[tr.train_id] + (tr.last_plan,)
-            if t2g is not None:
-                t2g.send(tr.train_id, "ground", report)
-            if t2t is not None:
+        senders = [tr.train_id for tr in active]
+        payloads = [reports[sender] + (tr.last_plan,) for sender, tr in zip(senders, active)]
+        by: list[int] = []  # per t2t message: the index of its sender in ``active``
+        to: list[str] = []  # and its receiver
+        if t2t is not None:
+            for k, tr in enumerate(active):
                 for f in self.formations.of_leader.get(tr.train_id, ()):  # leaders talk to their followers
                     fol = self.formations.follower_of(f)
                     if fol.status in ("inserting", "running"):
-                        t2t.send(tr.train_id, fol.train_id, report)
+                        by.append(k)
+                        to.append(fol.train_id)
                 for other in self.extensions.t2t_receivers(tr.train_id):
-                    t2t.send(tr.train_id, other, report)
+                    by.append(k)
+                    to.append(other)
+        # each channel draws its messages at once (its own stream, in the order sent); they go in flight in the
+        # order sent: a train's ground report, then its reports to other trains, train after train
+        ground = t2g.draw(senders, "ground", payloads) if t2g is not None else None
+        if not to:
+            if ground is not None:
+                t2g.post(ground)
+            return
+        assert t2t is not None
+        radio = t2t.draw([senders[k] for k in by], to, [payloads[k] for k in by])
+        j = 0
+        for k in range(len(active)):
+            if ground is not None:
+                t2g.post(ground[k : k + 1])
+            while j < len(radio) and by[j] == k:
+                t2t.post(radio[j : j + 1])
+                j += 1
 
     def handshake(self, tr: TrainRuntime) -> None:
         """Formation partners exchange a registration snapshot when both are on the line.
@@ -168,7 +187,15 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
-        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i, observer.edge_i)
+        # the pair's last frame change while the report stays on the same edges (the same value as map_body)
+        mapped = observer.view.map_body_memo(
+            (observer.train_id, other.train_id),
+            other.view,
+            pos,
+            other.trip.vehicle.length_m,
+            other.edge_i,
+            observer.edge_i,
+        )
         if mapped is None:
             if not ahead:
                 return None
