@@ -48,8 +48,8 @@ class RouteView:
         default_factory=dict
     )
     # caller's key (one pair of trains) -> the last frame change map_body_memo used and where it holds: (other view,
-    # body length, pass, front span, rear span, frame change) — see map_body_memo
-    _last: dict[Any, tuple[Any, float, int, float, float, float, float, tuple[float, float | None] | None]] = field(
+    # pass, front span, rear span, frame change) — see map_body_memo
+    _last: dict[Any, tuple[Any, int, float, float, float, float, tuple[float, float | None] | None]] = field(
         default_factory=dict
     )
     _well_formed: bool = True  # every restriction ends at or after its start
@@ -166,8 +166,8 @@ class RouteView:
         """:meth:`map_body`, the same value, remembering for ``key`` (the caller's name for one pair of trains) the
         last frame change used and the chainages it holds for.
 
-        The answer depends on the body only through the edges under its front and rear (and on the other route, the
-        body's length and the pass ``from_i``), and the train ahead reports from the same edges step after step. So
+        The frame change depends on the body only through the edges under its front and rear (and on the other route
+        and the pass ``from_i``), and the train ahead reports from the same edges step after step. So
         while the reported front and rear stay within the spans of the edges the last call found them on
         (:meth:`edge_span`), the frame change is that call's: four float compares instead of two edge look-ups and a
         frame look-up. The key only decides which memory is consulted: every part the answer depends on is checked,
@@ -182,17 +182,16 @@ class RouteView:
         if (
             last is not None
             and last[0] is other
-            and last[1] == length_m
-            and last[2] == from_i
-            and last[3] <= front_m < last[4]
-            and last[5] <= rear_m < last[6]
+            and last[1] == from_i
+            and last[2] <= front_m < last[3]
+            and last[4] <= rear_m < last[5]
         ):
-            return _placed(last[7], front_m, rear_m)
+            return _placed(last[6], front_m, rear_m)
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
         shape = self._frame_of(other, i_front, i_rear, from_i)
         if other._sorted:
-            self._last[key] = (other, length_m, from_i, *other.edge_span(i_front), *other.edge_span(i_rear), shape)
+            self._last[key] = (other, from_i, *other.edge_span(i_front), *other.edge_span(i_rear), shape)
         return _placed(shape, front_m, rear_m)
 
     def _frame_of(
