@@ -84,16 +84,16 @@ class Knowledge:
                     to.append(other)
         # each channel draws its messages at once (its own stream, in the order sent); they go in flight in the
         # order sent: a train's ground report, then its reports to other trains, train after train
-        ground = t2g.draw(senders, "ground", payloads) if t2g is not None else None
+        ground = t2g.draw(senders, "ground", payloads) if t2g is not None else []
         if not to:
-            if ground is not None:
+            if t2g is not None:
                 t2g.post(ground)
             return
         assert t2t is not None
         radio = t2t.draw([senders[k] for k in by], to, [payloads[k] for k in by])
         j = 0
         for k in range(len(active)):
-            if ground is not None:
+            if t2g is not None:
                 t2g.post(ground[k : k + 1])
             while j < len(radio) and by[j] == k:
                 t2t.post(radio[j : j + 1])

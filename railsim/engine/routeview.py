@@ -194,9 +194,7 @@ class RouteView:
             self._last[key] = (other, from_i, *other.edge_span(i_front), *other.edge_span(i_rear), shape)
         return _placed(shape, front_m, rear_m)
 
-    def _frame_of(
-        self, other: RouteView, i_front: int, i_rear: int, from_i: int
-    ) -> tuple[float, float | None] | None:
+    def _frame_of(self, other: RouteView, i_front: int, i_rear: int, from_i: int) -> tuple[float, float | None] | None:
         """:meth:`_frame`, remembered per (other route, front edge, rear edge, pass)."""
         key = (id(other), i_front, i_rear, from_i)
         frame = self._frames.get(key)
