@@ -21,6 +21,7 @@ from railsim.engine.coupling import FormationBook
 from railsim.engine.events import Channel, DelaySpec, Outage
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.extensions.base import ExtensionSet
+from railsim.engine.routeview import BodyFrame
 from railsim.engine.train import TrainRuntime
 
 Report = tuple[Any, ...]
@@ -48,6 +49,8 @@ class Knowledge:
         # what a train knows of another before any message arrived: (receiver, sender) -> report
         self.registration: dict[tuple[str, str], Report] = {}
         self.extensions = extensions  # t2t_receivers: extra receivers of a train's report (Paper C's graph)
+        # (observer, other) -> the frame change last used to map the other's reports (RouteView.map_body_memo)
+        self._frames: dict[tuple[str, str], BodyFrame] = {}
 
     def radio_out(self, t: float, train_id: str, other_id: str) -> bool:
         """Can the two trains' position reports be cut off at ``t`` (an outage of some channel covers either)? A
@@ -189,6 +192,7 @@ class Knowledge:
             route_id, pos, v, acc, stamp, plan = msg.payload
         # the pair's last frame change while the report stays on the same edges (the same value as map_body)
         mapped = observer.view.map_body_memo(
+            self._frames,
             (observer.train_id, other.train_id),
             other.view,
             pos,

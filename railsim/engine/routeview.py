@@ -47,11 +47,6 @@ class RouteView:
     _frames: dict[tuple[int, int, int, int], tuple[Any, tuple[float, float | None] | None]] = field(
         default_factory=dict
     )
-    # caller's key (one pair of trains) -> the last frame change map_body_memo used and where it holds: (other view,
-    # pass, front span, rear span, frame change) — see map_body_memo
-    _last: dict[Any, tuple[Any, int, float, float, float, float, tuple[float, float | None] | None]] = field(
-        default_factory=dict
-    )
     _well_formed: bool = True  # every restriction ends at or after its start
     _simple: bool = True  # no edge twice on the route (a body on it maps into its own frame unchanged)
     _sorted: bool = True  # edge starts never decrease (edge i covers exactly [start i, start i+1): edge_span)
@@ -161,16 +156,23 @@ class RouteView:
         return _placed(self._frame_of(other, i_front, i_rear, from_i if not self._simple else -1), front_m, rear_m)
 
     def map_body_memo(
-        self, key: Any, other: RouteView, front_m: float, length_m: float, hint: int = 0, from_i: int = -1
+        self,
+        memory: dict[Any, BodyFrame],
+        key: Any,
+        other: RouteView,
+        front_m: float,
+        length_m: float,
+        hint: int = 0,
+        from_i: int = -1,
     ) -> tuple[float, float] | None:
-        """:meth:`map_body`, the same value, remembering for ``key`` (the caller's name for one pair of trains) the
-        last frame change used and the chainages it holds for.
+        """:meth:`map_body`, the same value, remembering in ``memory[key]`` (the caller's, ``key`` its name for one
+        pair of trains) the last frame change used and the chainages it holds for.
 
-        The frame change depends on the body only through the edges under its front and rear (and on the other route
-        and the pass ``from_i``), and the train ahead reports from the same edges step after step. So
-        while the reported front and rear stay within the spans of the edges the last call found them on
+        The frame change depends on the body only through the edges under its front and rear (and on the two
+        routes and the pass ``from_i``), and the train ahead reports from the same edges step after step. So while
+        the reported front and rear stay within the spans of the edges the last call found them on
         (:meth:`edge_span`), the frame change is that call's: four float compares instead of two edge look-ups and a
-        frame look-up. The key only decides which memory is consulted: every part the answer depends on is checked,
+        frame look-up. The key only decides which memory is consulted: everything the answer depends on is checked,
         so a key shared by two pairs, or a train that changed route, costs a recomputation, never a wrong answer.
         """
         rear_m = front_m - length_m
@@ -178,20 +180,21 @@ class RouteView:
             return front_m, rear_m
         if self._simple:
             from_i = -1
-        last = self._last.get(key)
+        last = memory.get(key)
         if (
             last is not None
-            and last[0] is other
-            and last[1] == from_i
-            and last[2] <= front_m < last[3]
-            and last[4] <= rear_m < last[5]
+            and last[0] is self
+            and last[1] is other
+            and last[2] == from_i
+            and last[3] <= front_m < last[4]
+            and last[5] <= rear_m < last[6]
         ):
-            return _placed(last[6], front_m, rear_m)
+            return _placed(last[7], front_m, rear_m)
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
         shape = self._frame_of(other, i_front, i_rear, from_i)
         if other._sorted:
-            self._last[key] = (other, from_i, *other.edge_span(i_front), *other.edge_span(i_rear), shape)
+            memory[key] = (self, other, from_i, *other.edge_span(i_front), *other.edge_span(i_rear), shape)
         return _placed(shape, front_m, rear_m)
 
     def _frame_of(self, other: RouteView, i_front: int, i_rear: int, from_i: int) -> tuple[float, float | None] | None:
@@ -270,6 +273,9 @@ def _placed(shape: tuple[float, float | None] | None, front_m: float, rear_m: fl
         rear_here = max(rear_here, clamp_m)
     return front_m + off, rear_here
 
+
+# what map_body_memo remembers of one pair: (observer's view, other's view, pass, front span, rear span, frame change)
+BodyFrame = tuple[RouteView, RouteView, int, float, float, float, float, tuple[float, float | None] | None]
 
 _VIEWS: dict[str, RouteView] = {}
 

@@ -48,7 +48,9 @@ def _long_way(observer: SimpleNamespace, other: SimpleNamespace) -> Iterator[Non
     other's edge as the hint, the observer's as the pass — and nothing remembered."""
     memo = RouteView.map_body_memo
 
-    def map_body(self: RouteView, key: Any, view: RouteView, front_m: float, length_m: float, *_: Any) -> Any:
+    def map_body(
+        self: RouteView, memory: Any, key: Any, view: RouteView, front_m: float, length_m: float, *_: Any
+    ) -> Any:
         assert self is observer.view and view is other.view and length_m == other.trip.vehicle.length_m
         return self.map_body(view, front_m, length_m, other.edge_i, observer.edge_i)
 

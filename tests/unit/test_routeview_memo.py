@@ -84,6 +84,7 @@ def test_memo_is_map_body(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
     calls = hits = placed = twice = 0
     for _ in range(6):
         views = _views(rng)
+        memory: dict = {}  # one for every observer: a key is reused by observers on other routes too
         for here in views:
             for other in views:
                 # one key for two trains reporting in turn (a wrong memory must not be used): ``other`` and a decoy
@@ -100,7 +101,7 @@ def test_memo_is_map_body(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
                     hint = int(rng.integers(-2, len(other.edges) + 2))
                     long_way = here.map_body(other, front_m, length_m, hint, from_i)
                     before = looked_up[0]
-                    memo = here.map_body_memo(key, other, front_m, length_m, hint, from_i)
+                    memo = here.map_body_memo(memory, key, other, front_m, length_m, hint, from_i)
                     assert repr(memo) == repr(long_way), (here.route.id, other.route.id, front_m, length_m, from_i)
                     calls += 1
                     hits += looked_up[0] == before
@@ -116,10 +117,11 @@ def test_memo_follows_a_body_over_a_merge_and_a_diverge() -> None:
     main = _view("main", ("m1", "m2", "m3", "m4"), (0.0, 500.0, 1000.0, 1500.0), 2000.0)
     branch = _view("branch", ("b1", "m2", "m3", "b4"), (0.0, 300.0, 800.0, 1300.0), 1800.0)
     seen = set()
+    memory: dict = {}
     for k in range(400):
         front_m = 100.0 + 4.0 * k
         long_way = main.map_body(branch, front_m, 120.0)
-        assert repr(main.map_body_memo("pair", branch, front_m, 120.0)) == repr(long_way)
+        assert repr(main.map_body_memo(memory, "pair", branch, front_m, 120.0)) == repr(long_way)
         seen.add("none" if long_way is None else "clamped" if long_way[1] == 500.0 else "on")
     assert seen == {"none", "clamped", "on"}
 
