@@ -85,14 +85,14 @@ class Knowledge:
                 for other in self.extensions.t2t_receivers(tr.train_id):
                     by.append(k)
                     to.append(other)
+        if not to:  # the ground's reports only: in one call
+            if t2g is not None:
+                t2g.send_all(senders, "ground", payloads)
+            return
         # each channel draws its messages at once (its own stream, in the order sent); they go in flight in the
         # order sent: a train's ground report, then its reports to other trains, train after train
-        ground = t2g.draw(senders, "ground", payloads) if t2g is not None else []
-        if not to:
-            if t2g is not None:
-                t2g.post(ground)
-            return
         assert t2t is not None
+        ground = t2g.draw(senders, "ground", payloads) if t2g is not None else []
         radio = t2t.draw([senders[k] for k in by], to, [payloads[k] for k in by])
         j = 0
         for k in range(len(active)):

@@ -15,6 +15,12 @@ What happens in time
    message at exactly ``t + d`` — between SUMO steps if that is when it falls — into the receiver's mailbox
    (a light delivery, :meth:`EventLayer.deliver_at`: in simpy's order, without a simpy event per message).
 
+``send_all(senders, receiver(s), payloads)`` is that many sends in one call (the engine's ground reports of every
+train, each step): the same draws, counters and deliveries. It is :meth:`Channel.draw` — each message's fate, drawn
+from the channel's stream — then :meth:`Channel.post` — the survivors in flight, in order; a sender using two
+channels draws each channel's messages at once and posts them in the order it sent them, so the light deliveries
+take their event ids (the tie-break of equal times) exactly as one send after another would.
+
 ``latest(receiver, sender)`` is the newest-**sent** message delivered so far. With random delays a message
 can overtake an older one; the older one, arriving later, is counted ``overtaken`` and does not replace the
 newer one (a receiver keeps the freshest information it has). If nothing newer has arrived, the receiver
