@@ -21,6 +21,7 @@ from railsim.engine.coupling import FormationBook
 from railsim.engine.events import Channel, DelaySpec, Outage
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.extensions.base import ExtensionSet
+from railsim.engine.routeview import BodyFrame
 from railsim.engine.train import TrainRuntime
 
 Report = tuple[Any, ...]
@@ -48,6 +49,8 @@ class Knowledge:
         # what a train knows of another before any message arrived: (receiver, sender) -> report
         self.registration: dict[tuple[str, str], Report] = {}
         self.extensions = extensions  # t2t_receivers: extra receivers of a train's report (Paper C's graph)
+        # (observer, other) -> the frame change last used to map the other's reports (RouteView.map_body_memo)
+        self._frames: dict[tuple[str, str], BodyFrame] = {}
 
     def radio_out(self, t: float, train_id: str, other_id: str) -> bool:
         """Can the two trains' position reports be cut off at ``t`` (an outage of some channel covers either)? A
@@ -68,17 +71,36 @@ class Knowledge:
         """
         t2g = self.channels.get("t2g")
         t2t = self.channels.get("t2t")
-        for tr in active:
-            report = reports[tr.train_id] + (tr.last_plan,)
-            if t2g is not None:
-                t2g.send(tr.train_id, "ground", report)
-            if t2t is not None:
+        senders = [tr.train_id for tr in active]
+        payloads = [reports[sender] + (tr.last_plan,) for sender, tr in zip(senders, active)]
+        by: list[int] = []  # per t2t message: the index of its sender in ``active``
+        to: list[str] = []  # and its receiver
+        if t2t is not None:
+            for k, tr in enumerate(active):
                 for f in self.formations.of_leader.get(tr.train_id, ()):  # leaders talk to their followers
                     fol = self.formations.follower_of(f)
                     if fol.status in ("inserting", "running"):
-                        t2t.send(tr.train_id, fol.train_id, report)
+                        by.append(k)
+                        to.append(fol.train_id)
                 for other in self.extensions.t2t_receivers(tr.train_id):
-                    t2t.send(tr.train_id, other, report)
+                    by.append(k)
+                    to.append(other)
+        if not to:  # the ground's reports only: in one call
+            if t2g is not None:
+                t2g.send_all(senders, "ground", payloads)
+            return
+        # each channel draws its messages at once (its own stream, in the order sent); they go in flight in the
+        # order sent: a train's ground report, then its reports to other trains, train after train
+        assert t2t is not None
+        ground = t2g.draw(senders, "ground", payloads) if t2g is not None else []
+        radio = t2t.draw([senders[k] for k in by], to, [payloads[k] for k in by])
+        j = 0
+        for k in range(len(active)):
+            if t2g is not None:
+                t2g.post(ground[k : k + 1])
+            while j < len(radio) and by[j] == k:
+                t2t.post(radio[j : j + 1])
+                j += 1
 
     def handshake(self, tr: TrainRuntime) -> None:
         """Formation partners exchange a registration snapshot when both are on the line.
@@ -168,7 +190,16 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
-        mapped = observer.view.map_body(other.view, pos, other.trip.vehicle.length_m, other.edge_i, observer.edge_i)
+        # the pair's last frame change while the report stays on the same edges (the same value as map_body)
+        mapped = observer.view.map_body_memo(
+            self._frames,
+            (observer.train_id, other.train_id),
+            other.view,
+            pos,
+            other.trip.vehicle.length_m,
+            other.edge_i,
+            observer.edge_i,
+        )
         if mapped is None:
             if not ahead:
                 return None

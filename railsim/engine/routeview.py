@@ -17,6 +17,7 @@ edge is counted with it (SUMO's odometer runs through internal lanes, our chaina
 from __future__ import annotations
 
 import bisect
+import math
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -48,6 +49,7 @@ class RouteView:
     )
     _well_formed: bool = True  # every restriction ends at or after its start
     _simple: bool = True  # no edge twice on the route (a body on it maps into its own frame unchanged)
+    _sorted: bool = True  # edge starts never decrease (edge i covers exactly [start i, start i+1): edge_span)
 
     def __post_init__(self) -> None:
         r = self.route
@@ -55,6 +57,7 @@ class RouteView:
         self.edge_start_m = tuple(float(x) for x in r.edge_start_m)
         self.edge_index = {e: i for i, e in enumerate(self.edges)}
         self._simple = len(self.edge_index) == len(self.edges)
+        self._sorted = all(a <= b for a, b in zip(self.edge_start_m, self.edge_start_m[1:]))
         lims = sorted((float(a), float(b), float(v)) for a, b, v in r.speed_limits)
         self.limits = tuple(SpeedLimit(a, b, v) for a, b, v in lims)
         self.limit_starts = [a for a, _, _ in lims]
@@ -79,6 +82,12 @@ class RouteView:
         The result is :meth:`edge_at`'s, whatever the hint (a wrong one only costs the search)."""
         i = _near_hint(self.edge_start_m, chainage_m, hint)
         return i if i >= 0 else self.edge_at(chainage_m)
+
+    def edge_span(self, i: int) -> tuple[float, float]:
+        """The chainages :meth:`edge_at` answers ``i`` for: ``[lo, hi)``, open-ended at the route's first and last
+        edge (it clamps). Exact for edge starts that never decrease (the route's, measured along it)."""
+        starts = self.edge_start_m
+        return (starts[i] if i > 0 else -math.inf), (starts[i + 1] if i < len(starts) - 1 else math.inf)
 
     def gradient_at(self, chainage_m: float) -> float:
         """Gradient [‰] under ``chainage_m`` (0 where the route has no gradient data)."""
@@ -144,19 +153,57 @@ class RouteView:
             return front_m, rear_m
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
-        from_i = from_i if not self._simple else -1
+        return _placed(self._frame_of(other, i_front, i_rear, from_i if not self._simple else -1), front_m, rear_m)
+
+    def map_body_memo(
+        self,
+        memory: dict[Any, BodyFrame],
+        key: Any,
+        other: RouteView,
+        front_m: float,
+        length_m: float,
+        hint: int = 0,
+        from_i: int = -1,
+    ) -> tuple[float, float] | None:
+        """:meth:`map_body`, the same value, remembering in ``memory[key]`` (the caller's, ``key`` its name for one
+        pair of trains) the last frame change used and the chainages it holds for.
+
+        The frame change depends on the body only through the edges under its front and rear (and on the two
+        routes and the pass ``from_i``), and the train ahead reports from the same edges step after step. So while
+        the reported front and rear stay within the spans of the edges the last call found them on
+        (:meth:`edge_span`), the frame change is that call's: four float compares instead of two edge look-ups and a
+        frame look-up. The key only decides which memory is consulted: everything the answer depends on is checked,
+        so a key shared by two pairs, or a train that changed route, costs a recomputation, never a wrong answer.
+        """
+        rear_m = front_m - length_m
+        if other is self and self._simple:
+            return front_m, rear_m
+        if self._simple:
+            from_i = -1
+        last = memory.get(key)
+        if (
+            last is not None
+            and last[0] is self
+            and last[1] is other
+            and last[2] == from_i
+            and last[3] <= front_m < last[4]
+            and last[5] <= rear_m < last[6]
+        ):
+            return _placed(last[7], front_m, rear_m)
+        i_front = other.edge_near(front_m, hint)
+        i_rear = other.edge_near(rear_m, i_front)
+        shape = self._frame_of(other, i_front, i_rear, from_i)
+        if other._sorted:
+            memory[key] = (self, other, from_i, *other.edge_span(i_front), *other.edge_span(i_rear), shape)
+        return _placed(shape, front_m, rear_m)
+
+    def _frame_of(self, other: RouteView, i_front: int, i_rear: int, from_i: int) -> tuple[float, float | None] | None:
+        """:meth:`_frame`, remembered per (other route, front edge, rear edge, pass)."""
         key = (id(other), i_front, i_rear, from_i)
         frame = self._frames.get(key)
         if frame is None or frame[0] is not other:
             frame = self._frames[key] = (other, self._frame(other, i_front, i_rear, from_i))
-        shape = frame[1]
-        if shape is None:
-            return None
-        off, clamp_m = shape
-        rear_here = rear_m + off
-        if clamp_m is not None:
-            rear_here = max(rear_here, clamp_m)
-        return front_m + off, rear_here
+        return frame[1]
 
     def _frame(
         self, other: RouteView, i_front: int, i_rear: int, from_i: int = -1
@@ -214,6 +261,21 @@ class RouteView:
             self._joins[key] = None if j is None else other.edge_start_m[j]
         return self._joins[key]
 
+
+def _placed(shape: tuple[float, float | None] | None, front_m: float, rear_m: float) -> tuple[float, float] | None:
+    """A body's front and rear moved by a frame change ``(offset, clamp)`` of :meth:`RouteView._frame` (None: none
+    of it on the route)."""
+    if shape is None:
+        return None
+    off, clamp_m = shape
+    rear_here = rear_m + off
+    if clamp_m is not None:
+        rear_here = max(rear_here, clamp_m)
+    return front_m + off, rear_here
+
+
+# what map_body_memo remembers of one pair: (observer's view, other's view, pass, front span, rear span, frame change)
+BodyFrame = tuple[RouteView, RouteView, int, float, float, float, float, tuple[float, float | None] | None]
 
 _VIEWS: dict[str, RouteView] = {}
 

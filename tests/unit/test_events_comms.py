@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
@@ -265,3 +266,94 @@ def test_light_deliveries_keep_simpy_order_with_other_events() -> None:
     assert layer.now_s == 0.6
     layer.advance_to(1.0)
     assert order[-1] == ("msg2", 0.75) and layer.now_s == 1.0
+
+
+# ---------------------------------------------------------------- sending many at once
+@pytest.mark.parametrize(
+    "spec",
+    [
+        DelaySpec("uniform", low_s=0.1, high_s=0.5),
+        DelaySpec("constant", value_s=0.2),
+        DelaySpec("normal", mean_s=0.2, std_s=0.1),
+        DelaySpec("exponential", mean_s=0.1),
+    ],
+)
+def test_send_all_is_send_one_by_one(spec: DelaySpec) -> None:
+    """Batches of every size (none, one, across block ends) give the messages, counters and deliveries of sending
+    the same messages one by one, and each message the draws of the channel's stream read one by one."""
+    outages = [Outage(3.0, 5.0, frozenset({"T2"})), Outage(8.0, 9.0)]
+    runs = []
+    for batched in (False, True):
+        layer = make(seed=5)
+        ch = Channel(layer, "t2g", spec, loss_prob=0.2, outages=outages)
+        seen = record_deliveries(layer, ch)
+        reference = EventLayer(0.0, rng=np.random.default_rng(5)).spawn_rng()  # the channel's stream
+        sizes = np.random.default_rng(1)
+        sent: list[Message | None] = []
+        for step in range(40):
+            t = 0.25 * step
+            layer.advance_to(t)
+            n = int(sizes.choice([0, 1, 2, 7, 300, 5000], p=[0.2, 0.2, 0.2, 0.2, 0.15, 0.05]))
+            senders = [f"T{(len(sent) + j) % 5}" for j in range(n)]
+            payloads = list(range(len(sent), len(sent) + n))
+            if batched:
+                msgs = ch.send_all(senders, "ground", payloads)
+            else:
+                msgs = [ch.send(s, "ground", p) for s, p in zip(senders, payloads)]
+            for sender, msg in zip(senders, msgs):
+                u, delay_s = reference.random(), spec.sample(reference)
+                cut_off = any(o.covers(sender, t) or o.covers("ground", t) for o in outages)
+                assert (msg is None) == (cut_off or u < 0.2)
+                assert msg is None or msg.delay_s == delay_s
+            sent += msgs
+        layer.advance_to(20.0)
+        runs.append((repr(sent), repr(seen), ch.stats()))
+    assert runs[0] == runs[1]
+    stats = runs[1][2]
+    assert stats.lost_outage > 0 and stats.lost_random > 0 and stats.sent > 4 * 4096  # batches across block ends
+
+
+def test_reports_go_in_flight_in_the_order_sent() -> None:
+    """Knowledge.communicate draws each channel's reports at once, yet puts them in flight as sending them one by
+    one did (a train's ground report, then its reports to its followers and an extension's receivers, train after
+    train): with equal delays on both channels every delivery comes in that order, with the same fates."""
+    from railsim.engine.knowledge import Knowledge  # the engine's sender, on stand-in trains
+
+    formations = {"T1": ["f1"], "T3": ["f3a", "f3b"]}
+    follows = {"f1": "T2", "f3a": "T4", "f3b": "T0"}
+    extra = {"T4": ("T1", "T2"), "T0": ("T3",)}
+    trains = [SimpleNamespace(train_id=f"T{k}", last_plan=None, status="running") for k in range(5)]
+    book = SimpleNamespace(
+        of_leader=formations, follower_of=lambda f: next(tr for tr in trains if tr.train_id == follows[f])
+    )
+    extensions = SimpleNamespace(t2t_receivers=lambda train_id: extra.get(train_id, ()))
+
+    def run(one_by_one: bool) -> tuple[list[str], int]:
+        layer = make(seed=3)
+        t2g = Channel(layer, "t2g", DelaySpec("constant", value_s=0.3), loss_prob=0.2)
+        t2t = Channel(layer, "t2t", DelaySpec("constant", value_s=0.3), loss_prob=0.2)
+        order: list[str] = []
+        for ch in (t2g, t2t):
+            ch.subscribe(lambda m: order.append(f"{m.channel} {m.sender}->{m.receiver} {m.payload} {layer.now_s}"))
+        kn = Knowledge(layer, {"t2g": t2g, "t2t": t2t}, book, extensions)  # type: ignore[arg-type]
+        for step in range(30):
+            t = 0.5 * step
+            layer.advance_to(t)
+            reports = {tr.train_id: ("r", float(step), 0.0, 0.0, t) for tr in trains}
+            if not one_by_one:
+                kn.communicate(trains, reports)  # type: ignore[arg-type]
+                continue
+            for tr in trains:  # as each report was sent one by one
+                report = reports[tr.train_id] + (tr.last_plan,)
+                t2g.send(tr.train_id, "ground", report)
+                for f in formations.get(tr.train_id, ()):
+                    t2t.send(tr.train_id, follows[f], report)
+                for other in extra.get(tr.train_id, ()):
+                    t2t.send(tr.train_id, other, report)
+        layer.advance_to(20.0)
+        return order, next(layer.env._eid)
+
+    batched, reference = run(False), run(True)
+    assert batched == reference
+    channels = [line.split()[0] for line in reference[0]]
+    assert "t2g" in channels[channels.index("t2t") :], "no ground report after a train-to-train one: test too weak"

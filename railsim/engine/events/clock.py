@@ -46,7 +46,7 @@ channel) does not reshuffle another module's draws. No ``random`` module, no glo
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator
+from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from heapq import heappop, heappush
 
@@ -151,9 +151,18 @@ class EventLayer:
 
     def deliver_at(self, t_s: float, callback: Callable[[object], object], value: object) -> None:
         """Call ``callback(value)`` at exactly ``t_s`` (≥ now), in simpy's order (see "Light deliveries")."""
-        if not t_s >= self.env.now:
-            raise ValueError(f"time {t_s!r} s is before now ({self.env.now!r} s)")
-        heappush(self._light, (t_s, NORMAL, next(self.env._eid), callback, value))
+        self.deliver_all(callback, ((t_s, value),))
+
+    def deliver_all(self, callback: Callable[[object], object], timed: Iterable[tuple[float, object]]) -> None:
+        """:meth:`deliver_at` for each ``(t_s, value)`` in turn (the event ids taken in this order)."""
+        env = self.env
+        now = env._now
+        light = self._light
+        eid = env._eid
+        for t_s, value in timed:
+            if not t_s >= now:
+                raise ValueError(f"time {t_s!r} s is before now ({now!r} s)")
+            heappush(light, (t_s, NORMAL, next(eid), callback, value))
 
     def timeout_at(self, t_s: float, value: object = None) -> TimeoutAt:
         """A simpy event that fires at exactly ``t_s`` (≥ now); ``yield`` it inside a process."""

@@ -15,6 +15,12 @@ What happens in time
    message at exactly ``t + d`` — between SUMO steps if that is when it falls — into the receiver's mailbox
    (a light delivery, :meth:`EventLayer.deliver_at`: in simpy's order, without a simpy event per message).
 
+``send_all(senders, receiver(s), payloads)`` is that many sends in one call (the engine's ground reports of every
+train, each step): the same draws, counters and deliveries. It is :meth:`Channel.draw` — each message's fate, drawn
+from the channel's stream — then :meth:`Channel.post` — the survivors in flight, in order; a sender using two
+channels draws each channel's messages at once and posts them in the order it sent them, so the light deliveries
+take their event ids (the tie-break of equal times) exactly as one send after another would.
+
 ``latest(receiver, sender)`` is the newest-**sent** message delivered so far. With random delays a message
 can overtake an older one; the older one, arriving later, is counted ``overtaken`` and does not replace the
 newer one (a receiver keeps the freshest information it has). If nothing newer has arrived, the receiver
@@ -43,8 +49,9 @@ Readings and choices
 from __future__ import annotations
 
 import math
-from collections.abc import Callable, Generator, Iterable
+from collections.abc import Callable, Generator, Iterable, Sequence
 from dataclasses import dataclass
+from itertools import repeat
 from typing import Any, Literal, NamedTuple
 
 import numpy as np
@@ -162,7 +169,7 @@ class DelaySpec:
 
 
 class _UniformBlock:
-    """A channel's stream read ahead in blocks: :meth:`next` is the stream's next ``random()`` double.
+    """A channel's stream read ahead in blocks: :meth:`take` gives the stream's next ``random()`` doubles.
 
     The read-ahead is invisible because the stream belongs to this channel alone (:meth:`EventLayer.spawn_rng`).
     """
@@ -174,13 +181,17 @@ class _UniformBlock:
         self._buf: list[float] = []
         self._i = 0
 
-    def next(self) -> float:
+    def take(self, k: int) -> list[float]:
+        """The stream's next ``k`` doubles (a new block is read when the last one is used up, as one by one)."""
         i = self._i
-        if i == len(self._buf):
+        out = self._buf[i : i + k]
+        self._i = i + len(out)
+        while len(out) < k:
             self._buf = self._rng.random(_BLOCK).tolist()
-            i = 0
-        self._i = i + 1
-        return self._buf[i]
+            more = min(k - len(out), _BLOCK)
+            out += self._buf[:more]
+            self._i = more
+        return out
 
 
 @dataclass(frozen=True)
@@ -258,6 +269,8 @@ class _DelayAccumulator:
 
 CHANNEL_NAMES = ("t2t", "t2g")
 
+_new = tuple.__new__
+
 
 class Channel:
     """One communication medium with a delay distribution, random loss and outage windows."""
@@ -300,34 +313,76 @@ class Channel:
     # ------------------------------------------------------------------ sending
     def send(self, sender: str, receiver: str, payload: Any, t_s: float | None = None) -> Message | None:
         """Send ``payload`` now (or at ``t_s ≥ now``). Returns the in-flight message, or None if lost."""
+        msg = self.draw((sender,), receiver, (payload,), t_s)[0]
+        self.post((msg,))
+        return msg
+
+    def send_all(
+        self, senders: Sequence[str], receivers: str | Sequence[str], payloads: Sequence[Any], t_s: float | None = None
+    ) -> list[Message | None]:
+        """:meth:`send` for each sender, receiver (one for all, if a string) and payload in turn: the same draws,
+        messages and deliveries as that many calls, in that order."""
+        msgs = self.draw(senders, receivers, payloads, t_s)
+        self.post(msgs)
+        return msgs
+
+    def draw(
+        self, senders: Sequence[str], receivers: str | Sequence[str], payloads: Sequence[Any], t_s: float | None = None
+    ) -> list[Message | None]:
+        """The fate of each message :meth:`send_all` would send — the in-flight message, or None if lost — with the
+        draws and counters of sending it, but not yet in flight (:meth:`post`). Two channels sending in turn draw
+        each from its own stream, so a caller may draw each channel's messages at once and post them in the order
+        they were sent."""
         now = self._env.now
         if t_s is None:
             t_s = now
         elif not t_s >= now:  # also rejects NaN
             raise ValueError(f"channel {self.name}: cannot send at {t_s!r} s, now is {now!r} s")
-        self.sent += 1
-        self._seq += 1
+        n = len(senders)
+        delay = self.delay
         block = self._block
-        if block is not None:  # the same two draws as below, read from the block
-            u = block.next()
-            delay = self.delay
+        if block is not None:  # the same draws as one by one: per message the loss uniform, then the delay's
             if delay.dist == "uniform":
-                delay_s = delay.low_s + (delay.high_s - delay.low_s) * block.next()  # type: ignore[operator]
+                draws = block.take(2 * n)
+                losses = draws[0::2]
+                low_s = delay.low_s
+                width_s = delay.high_s - low_s  # type: ignore[operator]
+                delays = [low_s + width_s * x for x in draws[1::2]]  # type: ignore[operator]
             else:
-                delay_s = float(delay.value_s)  # type: ignore[arg-type]
+                losses = block.take(n)
+                delays = [float(delay.value_s)] * n  # type: ignore[arg-type]
         else:
-            u = self._rng.random()
-            delay_s = self.delay.sample(self._rng)
-        if self.outages and self._in_outage(sender, receiver, t_s):
-            self.lost_outage += 1
-            return None
-        if u < self.loss_prob:
-            self.lost_random += 1
-            return None
-        delivered_s = t_s + delay_s
-        msg = Message(sender, receiver, payload, t_s, delivered_s, delay_s, self._seq, self.name)
-        self._layer.deliver_at(delivered_s, self._on_delivery, msg)  # type: ignore[arg-type]
-        return msg
+            rng = self._rng
+            losses, delays = [], []
+            for _ in range(n):
+                losses.append(rng.random())
+                delays.append(delay.sample(rng))
+        out: list[Message | None] = []
+        seq = self._seq
+        lost_outage = lost_random = 0
+        outages = self.outages
+        loss_prob = self.loss_prob
+        name = self.name
+        to = repeat(receivers) if isinstance(receivers, str) else receivers
+        for sender, receiver, payload, u, delay_s in zip(senders, to, payloads, losses, delays):
+            seq += 1
+            if outages and self._in_outage(sender, receiver, t_s):
+                lost_outage += 1
+                out.append(None)
+            elif u < loss_prob:
+                lost_random += 1
+                out.append(None)
+            else:  # Message(...) without the named tuple's Python-level __new__
+                out.append(_new(Message, (sender, receiver, payload, t_s, t_s + delay_s, delay_s, seq, name)))
+        self._seq = seq
+        self.sent += n
+        self.lost_outage += lost_outage
+        self.lost_random += lost_random
+        return out
+
+    def post(self, msgs: Iterable[Message | None]) -> None:
+        """Put messages from :meth:`draw` in flight, in this order (None: lost, skipped)."""
+        self._layer.deliver_all(self._on_delivery, [(m.delivered_s, m) for m in msgs if m is not None])  # type: ignore[arg-type]
 
     def out(self, train_id: str, t_s: float) -> bool:
         """Is ``train_id`` cut off this channel at ``t_s`` (an outage window covers it)?"""
@@ -346,7 +401,11 @@ class Channel:
         if box is None:
             box = self._mail[msg.receiver] = {}
         current = box.get(msg.sender)
-        if current is None or (msg.sent_s, msg.seq) > (current.sent_s, current.seq):
+        if (
+            current is None
+            or msg.sent_s > current.sent_s
+            or (msg.sent_s == current.sent_s and msg.seq > current.seq)  # (sent_s, seq) ordered as a pair
+        ):
             box[msg.sender] = msg
         else:
             self.overtaken += 1
