@@ -145,6 +145,8 @@ class ControlStage:
         self._plant_p: dict[int, tuple[Any, np.ndarray]] = {}  # plant kernel inputs per vehicle (_plant_packed)
         self._method_i = plant_kernel.method_index(step_method)
         self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        # per train: [route view, gradient, its span lo, hi, restriction window, from lo, from hi, to lo, to hi]
+        self._route_memo: dict[str, list[Any]] = {}
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
@@ -158,11 +160,21 @@ class ControlStage:
         if self.dist.speed_sd_mps > 0:
             own_v = max(0.0, own_v + float(self.dist.noise_rng.normal(0.0, self.dist.speed_sd_mps)))
         view = tr.view
-        grad = view.gradient_at(tr.front_m)
+        front_m = tr.front_m
         tail_m = self.formations.tail_m(tr)
         # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears (the
         # ends move on by tail_m: the line ATO does it in its kernel, _base for the observation others get)
-        limits = view.limits_ahead(tr.front_m - veh.length_m - tail_m, tr.front_m + self.settings.lookahead_m)
+        from_m, to_m = front_m - veh.length_m - tail_m, front_m + self.settings.lookahead_m
+        # the gradient and the restriction window, kept while the train stays where they hold (RouteView's spans)
+        kept = self._route_memo.get(tr.train_id)
+        if kept is None or kept[0] is not view:
+            kept = self._route_memo[tr.train_id] = [view, 0.0, math.nan, math.nan, (), *(math.nan,) * 4]
+        if not kept[2] <= front_m < kept[3]:
+            kept[1], kept[2], kept[3] = view.gradient_span(front_m)
+        grad = kept[1]
+        if not (kept[5] <= from_m < kept[6] and kept[7] <= to_m < kept[8]):
+            kept[4], kept[5], kept[6], kept[7], kept[8] = view.limits_window(from_m, to_m)
+        limits = kept[4]
         # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
         target = None
         if stop is not None:

@@ -91,31 +91,59 @@ class RouteView:
 
     def gradient_at(self, chainage_m: float) -> float:
         """Gradient [‰] under ``chainage_m`` (0 where the route has no gradient data)."""
-        i = bisect.bisect_right(self.grade_starts, chainage_m) - 1
+        return self.gradient_span(chainage_m)[0]
+
+    def gradient_span(self, chainage_m: float) -> tuple[float, float, float]:
+        """:meth:`gradient_at`'s answer and the chainages ``[lo, hi)`` around ``chainage_m`` it holds for (a caller
+        whose train is still inside may keep it: :class:`railsim.engine.control.ControlStage`)."""
+        starts = self.grade_starts
+        i = bisect.bisect_right(starts, chainage_m) - 1
+        next_m = starts[i + 1] if i + 1 < len(starts) else math.inf
         if i < 0:
-            return 0.0
+            return 0.0, -math.inf, next_m
         a, b, g = self.grades[i]
-        return g if a <= chainage_m < b else 0.0
+        if a <= chainage_m < b:
+            return g, a, min(b, next_m)
+        return 0.0, max(a, b), next_m
 
     def limits_ahead(self, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
-        """Restrictions overlapping ``[from_m, to_m]`` (those below line speed, in order).
+        """Restrictions overlapping ``[from_m, to_m]`` (those below line speed, in order): :meth:`limits_window`."""
+        return self.limits_window(from_m, to_m)[0]
+
+    def limits_window(self, from_m: float, to_m: float) -> tuple[tuple[SpeedLimit, ...], float, float, float, float]:
+        """:meth:`limits_ahead`'s answer and where it holds: ``(limits, from_lo, from_hi, to_lo, to_hi)`` — the same
+        tuple for every ``from_lo <= from_m < from_hi`` and ``to_lo <= to_m < to_hi`` (NaN bounds: for these
+        ``from_m``/``to_m`` only).
 
         The scan starts at ``i``, the last restriction starting at or before ``from_m``, and ends before ``j``, the
         first starting after ``to_m``; of those only the first can end before ``from_m`` (the others start after
         it), so the answer is remembered per ``(i, j, whether limits[i] reaches from_m)``: every train on this
-        route asks for one of a few such windows, step after step.
+        route asks for one of a few such windows, step after step, and the bounds are where ``i``, ``j`` and that
+        test stay the same.
         """
         starts = self.limit_starts
         i = max(bisect.bisect_right(starts, from_m) - 1, 0)
         if not self._well_formed:  # a restriction ending before it starts: no window reasoning
-            return self._scan(i, from_m, to_m)
+            return self._scan(i, from_m, to_m), math.nan, math.nan, math.nan, math.nan
         if not starts:
-            return ()
-        key = (i, bisect.bisect_right(starts, to_m), self.limits[i].end_m >= from_m)
+            return (), -math.inf, math.inf, -math.inf, math.inf
+        j = bisect.bisect_right(starts, to_m)
+        end_m = self.limits[i].end_m
+        reaches = end_m >= from_m
+        key = (i, j, reaches)
         out = self._windows.get(key)
         if out is None:
             out = self._windows[key] = self._scan(i, from_m, to_m)
-        return out
+        n = len(starts)
+        from_lo = starts[i] if i > 0 else -math.inf
+        from_hi = starts[i + 1] if i + 1 < n else math.inf
+        if reaches:  # from_m <= end_m
+            from_hi = min(from_hi, math.nextafter(end_m, math.inf))
+        else:
+            from_lo = max(from_lo, math.nextafter(end_m, math.inf))
+        to_lo = starts[j - 1] if j > 0 else -math.inf
+        to_hi = starts[j] if j < n else math.inf
+        return out, from_lo, from_hi, to_lo, to_hi
 
     def _scan(self, i: int, from_m: float, to_m: float) -> tuple[SpeedLimit, ...]:
         out = []
