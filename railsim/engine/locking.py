@@ -48,6 +48,26 @@ depot lead or a pocket joining the running track as well as a junction. Facing p
 can appear ahead of us from the other leg there (and the Bijin up platform ends closer than 50 m to them). Nor
 does a merge an extension manages (the junction planner orders the trains through it and plans their spacing).
 
+**The walk.** Each step :meth:`RouteLocks.bookkeeping` goes over the switches of a train's route in route
+order (:meth:`RouteLocks._visit_switch`: ask anew, give up, request, note the first switch waited for, detect a
+pass without the lock, release). Most of them can do nothing in a given step: a switch far ahead is not asked
+for yet, and a switch behind is done with. So the walk visits only those that can, and decides exactly as the
+walk over all of them (``walk_every_switch``, the reference its test holds it to). Per train it keeps a
+**cursor** (:class:`_SwitchWalk`), forward only: every switch behind it is *dormant*
+(:meth:`RouteLocks._dormant`: its lock is for a later time over these points, or this time is done; or for an
+earlier time not yet released; or, never asked for, the point lies behind where the train came on the line)
+or **tracked**. Tracked are the switches whose points the train holds or waits for, wherever they lie (a
+follower's lock, asked for by its leader, may lie beyond its own request distance), and those behind the
+cursor that still can do something (points passed without being asked for are asked for again every step, as
+the full walk does). A step visits the tracked switches and those from the cursor to the request distance
+ahead; when a release frees points the route passes again, the next time over them joins the same walk (it
+asks anew at once). Dormancy lasts: the record of which time over a switch its lock is for only moves on, and
+the train's ``released`` loses a switch only when a later time asks anew. What can end it from outside the walk
+is looked for at the start of each step: locks added by a leader or an extension (the train's lock ids against
+those after its last walk), a release made elsewhere, a new route or a new place the train came on the line (the
+walk begins afresh and visits every switch once). A step with nothing tracked, nothing within the request
+distance and no lock added returns at once: most steps of most trains.
+
 **Single track and flat crossings** are requested and released by :class:`~railsim.engine.section_requests.SectionRequests`
 (its module docstring: consecutive sections, order on single track, a crossing right before a section).
 """
@@ -174,8 +194,6 @@ class RouteLocks(SectionRequests):
         self._lock_pass: dict[str, dict[str, float]] = {}
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
-        # train id -> (its route's switches, how many lie behind, the point they lie behind): authority_end_m
-        self._switch_pointer: dict[str, tuple[Any, int, float]] = {}
         self._indexes: dict[int, _RouteSwitches] = {}  # id(route's switches) -> their look-ups (the walk)
         self._walks: dict[str, _SwitchWalk] = {}  # train id -> where its walk over its route's switches stands
         self.walk_every_switch = False  # True: bookkeeping visits every switch of the route every step (the reference)
@@ -654,7 +672,8 @@ class RouteLocks(SectionRequests):
             end = min(end, self._reach_stop(tr, facing_m - self.settings.protection_margin_m, facing_m))
         switches = tr.trip.route.switches
         behind_m = tr.front_m - 1e-6
-        first = self._first_switch(tr, switches, behind_m)
+        index = self._route_index(switches)
+        first = bisect_right(index.points_m, behind_m) if index.walkable else 0  # those before lie behind
         for i in range(first, len(switches)):
             rs = switches[i]
             if rs.point_m <= behind_m:
@@ -703,19 +722,3 @@ class RouteLocks(SectionRequests):
                     point_m - stop.window_start_m,
                 )
         return max(end_m, aim_m + margin_m)
-
-    def _first_switch(self, tr: TrainRuntime, switches: Any, behind_m: float) -> int:
-        """How many of the route's first switches lie behind ``behind_m`` (the loop above skips them anyway).
-
-        A forward-only pointer per train: the front only moves on, so a switch once behind stays behind; the
-        pointer restarts from 0 if the front ever moved back or the route changed. The answer is the scan's."""
-        key = tr.train_id
-        entry = self._switch_pointer.get(key)
-        i = 0
-        if entry is not None and entry[0] is switches and entry[2] <= behind_m:
-            i = entry[1]
-        n = len(switches)
-        while i < n and switches[i].point_m <= behind_m:
-            i += 1
-        self._switch_pointer[key] = (switches, i, behind_m)
-        return i
