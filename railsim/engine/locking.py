@@ -254,9 +254,6 @@ class RouteLocks(SectionRequests):
         # switches behind where the train came on the line are not its business (a unit's next trip comes on
         # the line before its origin platform: it starts with its turnback)
         start_m = tr.trip.depart_chainage_m if tr.trip.stops[0].kind == "station" else tr.start_front_m
-        # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
-        request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
-        behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
         start_limit_m = start_m - length
         switches = tr.trip.route.switches
         walk = self._walks.get(tr.train_id)
@@ -277,6 +274,9 @@ class RouteLocks(SectionRequests):
             return  # no switch can matter this step (module docstring, "The walk")
         else:
             order = self._walk_candidates(tr, walk)
+        # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
+        request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
+        behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
         waiting_m = INF  # the first switch on its route it waits for: no switch beyond it is requested yet
         k = 0
         while k < len(order):
