@@ -245,7 +245,9 @@ class RouteLocks(SwitchWalker, SectionRequests):
         pass_m = self._lock_pass_m(tr, sid)
         if pass_m < rs.point_m and sid in tr.released:  # done with on an earlier time over it: ask anew
             tr.released.discard(sid)
-            tr.locks.pop(sid, None)
+            old = tr.locks.pop(sid, None)
+            if old is not None and old.state in (RequestState.SCHEDULED, RequestState.WAITING):
+                self.interlocking.cancel(old)  # passed while still waiting (a violation): one request per switch
             self._lock_pass.setdefault(tr.train_id, {})[sid] = rs.point_m
         elif pass_m != rs.point_m or sid in tr.released:
             return waiting_m  # the lock is for another time over these points, or this one is done

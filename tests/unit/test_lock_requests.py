@@ -284,3 +284,35 @@ def test_a_train_stays_at_the_platform_until_its_route_lets_it_draw_clear() -> N
     _, far_locks = _one_switch_locks(far)
     # 900 − overlap 20 ≥ 600 + 120 (length) + 20 (no separation role: the overlap): the route lets it clear
     assert far_locks.clears_platform(far, stops[1])
+
+
+# ---------------------------------------------------------------- a route over the same points twice
+def test_points_passed_while_still_waiting_are_asked_for_anew_on_the_next_time_over_them() -> None:
+    """A train that passed points while its request still waited (a ``switch_violation``: another train held
+    them) and comes over the same points again later on its route asks anew there: its waiting request is
+    withdrawn first (the interlocking allows one request per train and switch; asking again on top of it raised)."""
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    out = SimpleNamespace(switch_id="sw", leg="normal", point_m=1000.0)
+    back = SimpleNamespace(switch_id="sw", leg="reverse", point_m=3000.0)
+    tr = _train("t1", 500.0, stops, switches=[out, back])
+    holder = _train("holder", 0.0, stops)
+    layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))
+    il = Interlocking(layer)
+    il.add_switch(Switch("sw", throw_time_s=0.0))
+    formations = SimpleNamespace(of_follower={}, of_leader={}, join_book=SimpleNamespace(route_waits=_no_join))
+    fleet = SimpleNamespace(trains={tr.train_id: tr, holder.train_id: holder})
+    log = EventLog()
+    locks = RouteLocks(fleet, il, formations, log, EngineSettings(), ExtensionSet(), layer)  # type: ignore[arg-type]
+    held = il.request(("holder",), "sw", "reverse")
+    layer.advance_to(1.0)
+    assert held.state.name == "GRANTED"
+    locks.bookkeeping(1.0, tr)  # within the request distance of the first time over the points: it waits
+    first = tr.locks["sw"]
+    assert first.state.name == "WAITING"
+    for t, front_m in ((2.0, 1010.0), (3.0, 1200.0), (4.0, 2800.0)):  # over them unlocked, clear, towards the next
+        tr.front_m = front_m
+        layer.advance_to(t)
+        locks.bookkeeping(t, tr)
+    assert "sw" in tr.violations
+    assert first.state.name == "CANCELLED" and tr.locks["sw"] is not first  # withdrawn, and asked anew
+    assert tr.locks["sw"].state.name == "WAITING" and tr.locks["sw"].leg == "reverse"
