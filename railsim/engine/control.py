@@ -20,8 +20,9 @@ Per train and step (docs/architecture.md, "The step loop"):
    mean speed SUMO is handed. The return value is the speed SUMO applies during the coming step.
 
 One decision, two implementations
-    :meth:`ControlStage.control` is the one place where a train's commands are decided: it reads the train's
-    situation, works out which roles command it now, and hands the decision to one of two implementations of
+    :meth:`ControlStage.control_all` is the one place where trains' commands are decided: it reads every train's
+    situation (the state at the step's time ``t``, for every train before any is stepped), then, train by train,
+    works out which roles command it now and hands the decision to one of two implementations of
     steps 2–4. Most trains on a line, most of the time, are *line trains*: the line ATO
     (:class:`controllers.ato.Ato`) and, with a train ahead, the line moving-block separation
     (:class:`controllers.separation.Separation`) are their only roles, their plant is the standard one and no
@@ -32,13 +33,14 @@ One decision, two implementations
     :meth:`ControlStage._role_commands` (each role's :class:`~controllers.base.Command`; the line laws are asked
     on plain values, any other controller gets its :class:`~controllers.base.Observation`) and
     :meth:`ControlStage._finish` (arbitration, fallbacks, noise, the plant). Neither implementation chooses
-    roles: the choice is made once, in :meth:`~ControlStage.control`.
+    roles: the choice is made once, in :meth:`~ControlStage.control_all`.
 """
 
 from __future__ import annotations
 
 import logging
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
@@ -220,13 +222,21 @@ class ControlStage:
         )
 
     # ------------------------------------------------------------------ the decision
-    def control(self, t: float, tr: TrainRuntime, a: Ahead | None) -> float:
-        """Decide this train's command and step its plant; return the speed handed to SUMO for the coming step.
+    def control_all(self, t: float, active: list[TrainRuntime], ahead: Mapping[str, Ahead | None]) -> list[float]:
+        """Decide every active train's command and step its plant; return the speeds handed to SUMO for the coming
+        step, in the order of ``active``.
 
-        The one place where a train's commands are decided (module docstring, "One decision, two
-        implementations"): the situation, the roles that command the train now, then the compiled line step for a
-        line train or the roles one by one for any other, each ending in arbitration and the plant step."""
-        sit = self._situation(t, tr, a)
+        The one place where trains' commands are decided (module docstring, "One decision, two
+        implementations"): first every train's situation at ``t`` — what it knows of itself (sensor noise drawn
+        train by train) and of the line ahead, the berth rule reading the trains ahead as they are at ``t``, so no
+        train's situation depends on whether the train ahead was stepped before it — then, train by train in
+        order, the roles that command it now and the compiled line step for a line train or the roles one by one
+        for any other, each ending in arbitration and the plant step."""
+        sits = [self._situation(t, tr, ahead[tr.train_id]) for tr in active]
+        return [self._decide(t, tr, ahead[tr.train_id], sit) for tr, sit in zip(active, sits)]
+
+    def _decide(self, t: float, tr: TrainRuntime, a: Ahead | None, sit: Situation) -> float:
+        """One train's roles now, then its command and plant step; the speed for SUMO."""
         f = self.formations.of_follower.get(tr.train_id)
         fstate = self.formations.manager.state(f.id) if f is not None else "free"
         leader = self.formations.leader_of(f) if f is not None else None

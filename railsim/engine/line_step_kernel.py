@@ -2,7 +2,7 @@
 
 Most trains on a line, most of the time, are *line trains*: the line ATO (:class:`controllers.ato.Ato`) and the
 moving-block separation (:class:`controllers.separation.Separation`) against the train ahead, no formation role,
-junction plan, collision avoidance, exact plant, actuator noise or bias. ``ControlStage.control``
+junction plan, collision avoidance, exact plant, actuator noise or bias. ``ControlStage.control_all``
 (:mod:`railsim.engine.control`), the one place where a train's commands are decided, hands them here: both laws,
 the smaller acceleration wins (the ATO on a tie, as :func:`controllers.base.arbitrate`), then the plant step — one
 call instead of three Python-level calls and a few hundred interpreted float operations per train and step.

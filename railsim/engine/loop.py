@@ -10,7 +10,8 @@ Per step ``k`` at time ``t_k``::
     bookkeeping per train        stops (halt, registration, dwell, arrival), formations, route locks
     extensions.before_comms      e.g. Paper C's cooperative graph
     comms                        every train reports to the ground (t2g); leaders to followers (t2t)
-    control per train            observation → roles → arbitration → plant → speed for SUMO
+    control                      every train's situation at t; roles; line trains in one compiled call, the
+                                 others' roles one by one → arbitration → plant → speed for SUMO
     sumo.set_speeds; record; trains that arrived leave SUMO; sumo.step()
 
 The loop only orders phases; each concern is a port with a narrow interface, built in :meth:`Simulation.__init__`:
@@ -303,7 +304,7 @@ class Simulation:
         # channel gives the neighbours' state at t in the same step (the papers' "perfect communication")
         self.knowledge.communicate(active, reports)
         self.layer.advance_to(t)
-        speeds = [self.control.control(t, tr, ahead[tr.train_id]) for tr in active]
+        speeds = self.control.control_all(t, active, ahead)
         bridge.set_speeds(ids, speeds)
         self.recording.step(t, active, ahead, reports)
         for tr in active:  # trains that finished this step leave SUMO now, or their unit runs its next trip

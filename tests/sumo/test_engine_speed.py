@@ -151,3 +151,56 @@ def test_compiled_line_step_decides_what_the_roles_one_by_one_decide(sensor_nois
     assert runs["as_run"]["compiled"] > 1000 and runs["roles"]["compiled"] == 0
     assert {"trips.csv", "trace.csv", "events.csv"} <= set(runs["as_run"]["hashes"])
     assert runs["as_run"]["hashes"] == runs["roles"]["hashes"]
+
+
+AT_T_CHILD = r"""
+import json
+from pathlib import Path
+from railsim.engine.control import ControlStage
+from railsim.engine.loop import run
+from railsim.scenario.loading import load
+
+calls = []  # (t, "situation" | "stepped", train)
+situation, commit = ControlStage._situation, ControlStage._commit
+
+def read(self, t, tr, a):
+    calls.append((t, "situation", tr.train_id))
+    return situation(self, t, tr, a)
+
+def stepped(self, tr, *args):
+    calls.append((self.knowledge.layer.now_s, "stepped", tr.train_id))
+    return commit(self, tr, *args)
+
+ControlStage._situation, ControlStage._commit = read, stepped
+run(load(Path(SCENARIO)), Path(WORKDIR), progress=False)
+print(json.dumps(calls))
+"""
+
+
+def test_every_situation_is_read_at_t_before_any_train_is_stepped(tmp_path) -> None:
+    """``ControlStage.control_all`` reads every train's situation (its stop, limits, authority and the berth rule on
+    the train ahead) before it steps any train, so what a train sees of the train ahead is that train's state at
+    ``t`` whatever their order in the step. On the mini line (several trains at once, a platform shared in turn)
+    no situation of a step is read after a train of that step was stepped, and every stepped train had its
+    situation read in the same step."""
+    import yaml
+
+    from tests.helpers import mini_line
+
+    scenario = tmp_path / "mini.yaml"
+    scenario.write_text(yaml.safe_dump(mini_line(), sort_keys=False), encoding="utf-8")
+    code = AT_T_CHILD.replace("SCENARIO", repr(str(scenario))).replace("WORKDIR", repr(str(tmp_path / "out")))
+    res = run_python(code, cache_dir=tmp_path / "cache")
+    assert res.returncode == 0, res.stderr[-3000:]
+    calls = json.loads(res.stdout.strip().splitlines()[-1])
+    by_step: dict[float, list[tuple[str, str]]] = {}
+    for t, what, train in calls:
+        by_step.setdefault(t, []).append((what, train))
+    crowded = 0
+    for t, seq in by_step.items():
+        read = [train for what, train in seq if what == "situation"]
+        first_step = next((i for i, (what, _) in enumerate(seq) if what == "stepped"), len(seq))
+        assert all(what == "stepped" for what, _ in seq[first_step:]), f"a situation read after a step at t={t}"
+        assert {train for what, train in seq if what == "stepped"} <= set(read)
+        crowded += len(read) > 1
+    assert crowded > 100  # steps with several trains on the line: the order could matter there
