@@ -41,6 +41,8 @@ failure is the backstop.
 
 from __future__ import annotations
 
+from bisect import bisect_right
+
 import logging
 import math
 from collections.abc import Callable
@@ -78,6 +80,7 @@ class SafetyMonitor:
         self.failure: str | None = None  # why the run must stop (a desync), one line
         # train -> [(crossing node, its movement, route chainage where the front enters / the rear has left)]
         self._crossings: dict[str, list[tuple[str, tuple[str, str], float, float]]] = {}
+        self._crossing_ends: dict[str, list[float]] = {}  # per train: its spans' ends, ascending along its route
         self._foes: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = {}
 
     def set_up_crossings(self, graph: Any) -> None:
@@ -97,6 +100,9 @@ class SafetyMonitor:
                     spans.append((node, move, start_m, float(route.edge_start_m[k + 1])))
             if spans:
                 self._crossings[tid] = spans
+                starts, ends = [span[2] for span in spans], [span[3] for span in spans]
+                if starts == sorted(starts) and ends == sorted(ends):  # (else every span is looked at)
+                    self._crossing_ends[tid] = ends
 
     # ------------------------------------------------------------------ obstacles
     def place_obstacle(self, oid: str, ev: Any) -> None:
@@ -174,8 +180,16 @@ class SafetyMonitor:
             return
         inside: dict[str, list[tuple[TrainRuntime, tuple[str, str]]]] = {}
         for tr in active:
+            spans = self._crossings.get(tr.train_id)
+            if spans is None:
+                continue
             rear_m = tr.front_m - tr.trip.vehicle.length_m
-            for node, move, start_m, end_m in self._crossings.get(tr.train_id, ()):
+            ends = self._crossing_ends.get(tr.train_id)
+            # spans one after the other along the route: from the first that ends beyond the rear, up to the front
+            for k in range(0 if ends is None else bisect_right(ends, rear_m), len(spans)):
+                node, move, start_m, end_m = spans[k]
+                if start_m >= tr.front_m and ends is not None:
+                    break
                 if tr.front_m > start_m and rear_m < end_m:
                     inside.setdefault(node, []).append((tr, move))
         for node, here in inside.items():
