@@ -94,6 +94,14 @@ class Knowledge:
         assert t2t is not None
         ground = t2g.draw(senders, "ground", payloads) if t2g is not None else []
         radio = t2t.draw([senders[k] for k in by], to, [payloads[k] for k in by])
+        if not t2t.watched and (t2g is None or not t2g.watched):
+            # no one sees the deliveries of one channel between those of the other: each channel's messages go in
+            # flight at once, still in the order sent on that channel, and every read of a mailbox (between
+            # steps, or in an event before or after all of them) finds what the interleaved order gives
+            if t2g is not None:
+                t2g.post(ground)
+            t2t.post(radio)
+            return
         j = 0
         for k in range(len(active)):
             if t2g is not None:

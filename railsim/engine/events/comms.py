@@ -193,6 +193,15 @@ class _UniformBlock:
             self._i = more
         return out
 
+    def skip(self, k: int) -> None:
+        """Move past the stream's next ``k`` doubles without reading them: :meth:`take` then goes on as after
+        ``take(k)``."""
+        i = self._i + k
+        while i > len(self._buf):  # as take: a new block once the last one is used up
+            i -= len(self._buf)
+            self._buf = self._rng.random(_BLOCK).tolist()
+        self._i = i
+
 
 @dataclass(frozen=True)
 class Outage:
@@ -265,6 +274,19 @@ class _DelayAccumulator:
             self.lo = d
         if d > self.hi:
             self.hi = d
+
+    def add_same(self, d: float, k: int) -> None:
+        """``add(d)`` ``k`` times. Once every delay so far equals ``d`` (the mean is ``d``, nothing spread), each
+        ``add(d)`` only counts: ``delta`` is 0, so the mean and ``m2`` stay as they are."""
+        while k > 0 and not (self.n and self.mean == d and self.m2 == 0.0):
+            self.add(d)
+            k -= 1
+        if k > 0:
+            self.n += k
+            if d < self.lo:
+                self.lo = d
+            if d > self.hi:
+                self.hi = d
 
 
 CHANNEL_NAMES = ("t2t", "t2g")
@@ -341,6 +363,22 @@ class Channel:
         n = len(senders)
         delay = self.delay
         block = self._block
+        to = repeat(receivers) if isinstance(receivers, str) else receivers
+        if block is not None and not self.outages and self.loss_prob <= 0.0 and delay.dist == "constant":
+            # nothing is ever lost (a loss uniform u in [0, 1) is never < 0) and every delay is the constant: the
+            # stream moves past the loss uniforms unread, and every message is in flight
+            block.skip(n)
+            delay_s = float(delay.value_s)  # type: ignore[arg-type]
+            when_s = t_s + delay_s
+            seq = self._seq
+            name = self.name
+            msgs: list[Message | None] = [
+                _new(Message, (sender, receiver, payload, t_s, when_s, delay_s, k, name))
+                for sender, receiver, payload, k in zip(senders, to, payloads, range(seq + 1, seq + n + 1))
+            ]
+            self._seq = seq + len(msgs)
+            self.sent += n
+            return msgs
         if block is not None:  # the same draws as one by one: per message the loss uniform, then the delay's
             if delay.dist == "uniform":
                 draws = block.take(2 * n)
@@ -363,7 +401,6 @@ class Channel:
         outages = self.outages
         loss_prob = self.loss_prob
         name = self.name
-        to = repeat(receivers) if isinstance(receivers, str) else receivers
         for sender, receiver, payload, u, delay_s in zip(senders, to, payloads, losses, delays):
             seq += 1
             if outages and self._in_outage(sender, receiver, t_s):
@@ -381,8 +418,19 @@ class Channel:
         return out
 
     def post(self, msgs: Iterable[Message | None]) -> None:
-        """Put messages from :meth:`draw` in flight, in this order (None: lost, skipped)."""
-        self._layer.deliver_all(self._on_delivery, [(m.delivered_s, m) for m in msgs if m is not None])  # type: ignore[arg-type]
+        """Put messages from :meth:`draw` in flight, in this order (None: lost, skipped).
+
+        Messages due at one and the same time (every message of a constant delay sent at once) go in flight as one
+        light delivery of the batch (:meth:`_on_batch`): they take consecutive places in the event order, so
+        delivering them one after another in one call is what their own deliveries would do."""
+        live = [m for m in msgs if m is not None]
+        if not live:
+            return
+        when_s = live[0].delivered_s
+        if len(live) > 1 and all(m.delivered_s == when_s for m in live):
+            self._layer.deliver_at(when_s, self._on_batch, live)  # type: ignore[arg-type]
+        else:
+            self._layer.deliver_all(self._on_delivery, [(m.delivered_s, m) for m in live])  # type: ignore[arg-type]
 
     def out(self, train_id: str, t_s: float) -> bool:
         """Is ``train_id`` cut off this channel at ``t_s`` (an outage window covers it)?"""
@@ -412,6 +460,43 @@ class Channel:
         for callback in self._subscribers:
             callback(msg)
 
+    def _on_batch(self, msgs: list[Message]) -> None:
+        """:meth:`_on_delivery` of each message in turn (a batch from :meth:`post`), the loop written out when no
+        subscriber can look in between."""
+        if self._subscribers:
+            for msg in msgs:
+                self._on_delivery(msg)
+            return
+        mail = self._mail
+        box: dict[str, Message] = {}
+        box_of = None
+        overtaken = 0
+        delay_s = msgs[0].delay_s
+        same_delay = True
+        for msg in msgs:
+            sender, receiver, _, sent_s, _, d_s, seq, _ = msg
+            if receiver is not box_of:
+                box_of = receiver
+                got = mail.get(receiver)
+                if got is None:
+                    got = mail[receiver] = {}
+                box = got
+            current = box.get(sender)
+            if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
+                box[sender] = msg
+            else:
+                overtaken += 1
+            if d_s != delay_s:
+                same_delay = False
+        self.delivered += len(msgs)
+        self.overtaken += overtaken
+        acc = self._delays
+        if same_delay:
+            acc.add_same(delay_s, len(msgs))
+        else:
+            for msg in msgs:
+                acc.add(msg.delay_s)
+
     # ------------------------------------------------------------------ outages
     def _outage_window(self, outage: Outage) -> Generator[simpy.Event, None, None]:
         layer = self._layer
@@ -437,6 +522,11 @@ class Channel:
     def inbox(self, receiver: str) -> dict[str, Message]:
         """``latest`` for every sender that has reached ``receiver`` (a copy)."""
         return dict(self._mail.get(receiver, {}))
+
+    @property
+    def watched(self) -> bool:
+        """Does anyone :meth:`subscribe` to the deliveries (and so see their order across channels)?"""
+        return bool(self._subscribers)
 
     def subscribe(self, callback: Callable[[Message], object]) -> None:
         """Call ``callback(message)`` at every delivery (overtaken messages included), in delivery order."""
