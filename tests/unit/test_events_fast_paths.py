@@ -64,10 +64,6 @@ class _ReferenceChannel(Channel):
     """A channel sending one message after another: per message its loss uniform and its delay from the stream,
     its fate, and a light delivery of its own."""
 
-    @property
-    def watched(self) -> bool:  # the engine's sender then puts every report in flight in the order sent
-        return True
-
     def draw(
         self, senders: Sequence[str], receivers: str | Sequence[str], payloads: Sequence[Any], t_s: float | None = None
     ) -> list[Message | None]:
@@ -170,7 +166,8 @@ def _radio_program(
     watch: bool, seed: int,
 ) -> list[Any]:  # fmt: skip
     """The engine's pattern of use, with random formations and receivers: advance, timed reads, reports sent by
-    :meth:`Knowledge.communicate`, advance to the same time, reads."""
+    :meth:`Knowledge.communicate` (the reference channel: one by one, in the order the engine sends them), advance
+    to the same time, reads."""
     rng = np.random.default_rng(seed)
     channels = {
         "t2g": channel_type(layer, "t2g", spec, loss_prob, outages),
@@ -211,7 +208,17 @@ def _radio_program(
             layer.at(t + offset, lambda ts: seen.append(("event", ts, _snapshot(channels))), None)
         active = [tr for tr in trains if rng.random() < 0.9]
         reports = {tr.train_id: ("r", float(step), 0.0, 0.0, t) for tr in active}
-        knowledge.communicate(active, reports)  # type: ignore[arg-type]
+        if channel_type is Channel:
+            knowledge.communicate(active, reports)  # type: ignore[arg-type]
+        else:  # the reports sent one by one, in the order the engine sends them
+            for tr in active:
+                report = reports[tr.train_id] + (tr.last_plan,)
+                channels["t2g"].send(tr.train_id, "ground", report)
+                for f in of_leader.get(tr.train_id, ()):
+                    if follows[f].status in ("inserting", "running"):
+                        channels["t2t"].send(tr.train_id, follows[f].train_id, report)
+                for other in extra.get(tr.train_id, ()):
+                    channels["t2t"].send(tr.train_id, other, report)
         layer.at(t, lambda ts: seen.append(("after", ts, _snapshot(channels))), None)  # after the deliveries
         layer.advance_to(t)
         seen.append(("sent", layer.now_s, _snapshot(channels), [ch.stats() for ch in channels.values()]))
