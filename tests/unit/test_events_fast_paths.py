@@ -269,15 +269,26 @@ def test_zero_delay_reports_reach_the_mailbox_in_the_same_step_and_not_before() 
 
 
 def test_constant_delay_statistics_are_welfords_one_by_one() -> None:
-    """The batch's counting shortcut gives the running mean/variance of adding each delay in turn, bit for bit."""
+    """The batch's counting shortcut and the folding of delays in blocks give the running mean/variance of adding
+    each delay in turn, bit for bit."""
     from railsim.engine.events.comms import _DelayAccumulator
 
     rng = np.random.default_rng(7)
     for _ in range(200):
         runs = [(float(rng.choice([0.0, 0.1, 0.3, 1e-300])), int(rng.integers(1, 6))) for _ in range(5)]
-        batched, one_by_one = _DelayAccumulator(), _DelayAccumulator()
+        batched, folded, one_by_one = _DelayAccumulator(), _DelayAccumulator(), _DelayAccumulator()
         for d, k in runs:
             batched.add_same(d, k)
+            folded.add_all([d] * k + [float(x) for x in rng.uniform(0.0, 0.5, size=int(rng.integers(0, 3)))])
             for _ in range(k):
                 one_by_one.add(d)
         assert vars(batched) == vars(one_by_one)
+    for _ in range(50):  # random delays folded in blocks: add() in turn, bit for bit
+        delays = [float(x) for x in rng.lognormal(-1.6, 0.5, size=int(rng.integers(0, 50)))]
+        folded, one_by_one = _DelayAccumulator(), _DelayAccumulator()
+        cut = int(rng.integers(0, len(delays) + 1))
+        folded.add_all(delays[:cut])
+        folded.add_all(delays[cut:])
+        for d in delays:
+            one_by_one.add(d)
+        assert vars(folded) == vars(one_by_one)

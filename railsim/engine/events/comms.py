@@ -275,6 +275,21 @@ class _DelayAccumulator:
         if d > self.hi:
             self.hi = d
 
+    def add_all(self, delays: list[float]) -> None:
+        """``add(d)`` for each delay in turn: the same operations in the same order (so the same doubles), in
+        local variables."""
+        n, mean, m2, lo, hi = self.n, self.mean, self.m2, self.lo, self.hi
+        for d in delays:
+            n += 1
+            delta = d - mean
+            mean += delta / n
+            m2 += delta * (d - mean)
+            if d < lo:
+                lo = d
+            if d > hi:
+                hi = d
+        self.n, self.mean, self.m2, self.lo, self.hi = n, mean, m2, lo, hi
+
     def add_same(self, d: float, k: int) -> None:
         """``add(d)`` ``k`` times. Once every delay so far equals ``d`` (the mean is ``d``, nothing spread), each
         ``add(d)`` only counts: ``delta`` is 0, so the mean and ``m2`` stay as they are."""
@@ -322,11 +337,11 @@ class Channel:
         self._subscribers: list[Callable[[Message], object]] = []
         self._active_outages: list[Outage] = []
         self._delays = _DelayAccumulator()
+        self._unfolded: list[float] = []  # delays delivered, not yet in _delays (folded in order: _fold_delays)
         self._seq = 0
         self.sent = 0
         self.lost_random = 0
         self.lost_outage = 0
-        self.delivered = 0
         self.overtaken = 0
         for outage in self.outages:
             if outage.end_s > layer.now_s:
@@ -395,12 +410,12 @@ class Channel:
             for _ in range(n):
                 losses.append(rng.random())
                 delays.append(delay.sample(rng))
-        out: list[Message | None] = []
         seq = self._seq
         lost_outage = lost_random = 0
         outages = self.outages
         loss_prob = self.loss_prob
         name = self.name
+        out: list[Message | None] = []
         for sender, receiver, payload, u, delay_s in zip(senders, to, payloads, losses, delays):
             seq += 1
             if outages and self._in_outage(sender, receiver, t_s):
@@ -442,23 +457,34 @@ class Channel:
                 return True
         return False
 
+    @property
+    def delivered(self) -> int:
+        """Messages delivered so far (overtaken ones included)."""
+        return self._delays.n + len(self._unfolded)
+
+    def _fold_delays(self) -> None:
+        """Bring the delay statistics up to date: the delays delivered since, in delivery order."""
+        self._delays.add_all(self._unfolded)
+        self._unfolded.clear()
+
     def _on_delivery(self, msg: Message) -> None:
-        self.delivered += 1
-        self._delays.add(msg.delay_s)
-        box = self._mail.get(msg.receiver)
+        sender, receiver, _, sent_s, _, delay_s, seq, _ = msg
+        unfolded = self._unfolded
+        unfolded.append(delay_s)  # the statistics are folded in blocks, in this order
+        if len(unfolded) >= _BLOCK:
+            self._fold_delays()
+        box = self._mail.get(receiver)
         if box is None:
-            box = self._mail[msg.receiver] = {}
-        current = box.get(msg.sender)
-        if (
-            current is None
-            or msg.sent_s > current.sent_s
-            or (msg.sent_s == current.sent_s and msg.seq > current.seq)  # (sent_s, seq) ordered as a pair
-        ):
-            box[msg.sender] = msg
+            box = self._mail[receiver] = {}
+        current = box.get(sender)
+        # (sent_s, seq) ordered as a pair
+        if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
+            box[sender] = msg
         else:
             self.overtaken += 1
-        for callback in self._subscribers:
-            callback(msg)
+        if self._subscribers:
+            for callback in self._subscribers:
+                callback(msg)
 
     def _on_batch(self, msgs: list[Message]) -> None:
         """:meth:`_on_delivery` of each message in turn (a batch from :meth:`post`), the loop written out when no
@@ -488,14 +514,14 @@ class Channel:
                 overtaken += 1
             if d_s != delay_s:
                 same_delay = False
-        self.delivered += len(msgs)
         self.overtaken += overtaken
-        acc = self._delays
         if same_delay:
-            acc.add_same(delay_s, len(msgs))
+            self._fold_delays()
+            self._delays.add_same(delay_s, len(msgs))
         else:
-            for msg in msgs:
-                acc.add(msg.delay_s)
+            self._unfolded += [msg.delay_s for msg in msgs]
+            if len(self._unfolded) >= _BLOCK:
+                self._fold_delays()
 
     # ------------------------------------------------------------------ outages
     def _outage_window(self, outage: Outage) -> Generator[simpy.Event, None, None]:
@@ -534,6 +560,7 @@ class Channel:
 
     def stats(self) -> ChannelStats:
         """Counters and delay statistics so far."""
+        self._fold_delays()
         acc = self._delays
         lost = self.lost_random + self.lost_outage
         if acc.n:
