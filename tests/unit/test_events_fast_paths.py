@@ -62,7 +62,7 @@ class _ReferenceLayer(EventLayer):
 
 class _ReferenceChannel(Channel):
     """A channel sending one message after another: per message its loss uniform and its delay from the stream,
-    its fate, and a light delivery of its own."""
+    its fate, and a light delivery of its own that adds the delay to the statistics at once."""
 
     def draw(
         self, senders: Sequence[str], receivers: str | Sequence[str], payloads: Sequence[Any], t_s: float | None = None
@@ -93,7 +93,19 @@ class _ReferenceChannel(Channel):
     def post(self, msgs: Iterable[Message | None]) -> None:
         for m in msgs:
             if m is not None:
-                self._layer.deliver_at(m.delivered_s, self._on_delivery, m)  # type: ignore[arg-type]
+                self._layer.deliver_at(m.delivered_s, self._reference_delivery, m)  # type: ignore[arg-type]
+
+    def _reference_delivery(self, msg: Message) -> None:
+        """A delivery: its delay added to the statistics at once, the mailbox kept, the subscribers told."""
+        self._delays.add(msg.delay_s)
+        box = self._mail.setdefault(msg.receiver, {})
+        current = box.get(msg.sender)
+        if current is None or (msg.sent_s, msg.seq) > (current.sent_s, current.seq):
+            box[msg.sender] = msg
+        else:
+            self.overtaken += 1
+        for callback in self._subscribers:
+            callback(msg)
 
 
 # ---------------------------------------------------------------- the clock
