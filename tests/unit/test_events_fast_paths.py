@@ -215,7 +215,7 @@ def _radio_program(
         extra.clear()
         if rng.random() < 0.3:
             extra[str(rng.choice(_TRAINS))] = tuple(str(x) for x in rng.choice(_TRAINS, size=2))
-        for k in range(int(rng.integers(0, 3))):  # reads inside timed events: at the send time, at the delivery
+        for _ in range(int(rng.integers(0, 3))):  # reads inside timed events: at the send time, at the delivery
             offset = float(rng.choice([0.0, spec.mean_delay_s, 0.5 * spec.mean_delay_s, 0.05]))
             layer.at(t + offset, lambda ts: seen.append(("event", ts, _snapshot(channels))), None)
         active = [tr for tr in trains if rng.random() < 0.9]

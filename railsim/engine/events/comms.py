@@ -21,6 +21,14 @@ from the channel's stream — then :meth:`Channel.post` — the survivors in fli
 channels draws each channel's messages at once and posts them in the order it sent them, so the light deliveries
 take their event ids (the tie-break of equal times) exactly as one send after another would.
 
+The radio every step costs little per message. Messages due at one time — every message of a constant delay
+sent at once, the zero-delay "perfect communication" included — take consecutive event ids, so they travel as one
+light delivery that delivers them in turn; a constant-delay channel that loses nothing (no ``loss_prob``, no
+outage) moves its stream past the loss uniforms without reading them (they could not lose a message); the delay
+statistics are folded in delivery order, a block at a time and when read (:meth:`Channel.stats`). The mailboxes, the
+counters, the statistics and the streams are those of one message after another
+(``tests/unit/test_events_fast_paths.py`` runs both).
+
 ``latest(receiver, sender)`` is the newest-**sent** message delivered so far. With random delays a message
 can overtake an older one; the older one, arriving later, is counted ``overtaken`` and does not replace the
 newer one (a receiver keeps the freshest information it has). If nothing newer has arrived, the receiver
