@@ -76,13 +76,18 @@ class Knowledge:
         by: list[int] = []  # per t2t message: the index of its sender in ``active``
         to: list[str] = []  # and its receiver
         if t2t is not None:
-            for k, tr in enumerate(active):
-                for f in self.formations.of_leader.get(tr.train_id, ()):  # leaders talk to their followers
-                    fol = self.formations.follower_of(f)
-                    if fol.status in ("inserting", "running"):
-                        by.append(k)
-                        to.append(fol.train_id)
-                for other in self.extensions.t2t_receivers(tr.train_id):
+            of_leader = self.formations.of_leader
+            follower_of = self.formations.follower_of
+            receivers = self.extensions.t2t_receivers
+            for k, sender in enumerate(senders):
+                formations = of_leader.get(sender)
+                if formations:  # leaders talk to their followers
+                    for f in formations:
+                        fol = follower_of(f)
+                        if fol.status in ("inserting", "running"):
+                            by.append(k)
+                            to.append(fol.train_id)
+                for other in receivers(sender):
                     by.append(k)
                     to.append(other)
         if not to:  # the ground's reports only: in one call
