@@ -76,13 +76,18 @@ class Knowledge:
         by: list[int] = []  # per t2t message: the index of its sender in ``active``
         to: list[str] = []  # and its receiver
         if t2t is not None:
-            for k, tr in enumerate(active):
-                for f in self.formations.of_leader.get(tr.train_id, ()):  # leaders talk to their followers
-                    fol = self.formations.follower_of(f)
-                    if fol.status in ("inserting", "running"):
-                        by.append(k)
-                        to.append(fol.train_id)
-                for other in self.extensions.t2t_receivers(tr.train_id):
+            of_leader = self.formations.of_leader
+            follower_of = self.formations.follower_of
+            receivers = self.extensions.t2t_receivers
+            for k, sender in enumerate(senders):
+                formations = of_leader.get(sender)
+                if formations:  # leaders talk to their followers
+                    for f in formations:
+                        fol = follower_of(f)
+                        if fol.status in ("inserting", "running"):
+                            by.append(k)
+                            to.append(fol.train_id)
+                for other in receivers(sender):
                     by.append(k)
                     to.append(other)
         if not to:  # the ground's reports only: in one call
@@ -94,6 +99,14 @@ class Knowledge:
         assert t2t is not None
         ground = t2g.draw(senders, "ground", payloads) if t2g is not None else []
         radio = t2t.draw([senders[k] for k in by], to, [payloads[k] for k in by])
+        if not t2t.watched and (t2g is None or not t2g.watched):
+            # no one sees the deliveries of one channel between those of the other: each channel's messages go in
+            # flight at once, still in the order sent on that channel, and every read of a mailbox (between
+            # steps, or in an event before or after all of them) finds what the interleaved order gives
+            if t2g is not None:
+                t2g.post(ground)
+            t2t.post(radio)
+            return
         j = 0
         for k in range(len(active)):
             if t2g is not None:

@@ -15,13 +15,25 @@ registered by SUMO (a trainStop registers only a front inside it, and the front 
 after the platform): the engine registers the halt itself, keeps the dwell, and the stop is served with the
 overrun recorded (``stop_overrun_served``; a tram 0.11 m past a 30 m platform in Potsdam stood there until the
 stall watchdog ended the run).
+
+Far from the stop
+-----------------
+Almost every train, almost every step, runs between two platforms, where none of the above can happen: SUMO has
+not registered a stop, the front is short of the window (no halt in it, no overrun of it) and the train can still
+stop before the window's end plus the tolerance even with nothing but its emergency brake (the cheap screen of
+:func:`surely_overruns_m`). :meth:`StopBook.bookkeeping` tests exactly these conditions first, against bounds
+worked out once per train and stop (:class:`_FarBounds`; worked out anew when the train's stop index, its trip's
+stops or its vehicle change: a stop served, missed or skipped, a turnback or a primary delay replacing the stops),
+and returns at once when they hold — what the full pass would have done, for a few attribute reads.
+``StopBook.screen_far = False`` runs the full pass every step (the reference of ``tests/unit/test_stops_far.py``).
 """
 
 from __future__ import annotations
 
 import logging
+import math
 from collections.abc import Callable
-from typing import Protocol
+from typing import Any, NamedTuple, Protocol
 
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events.log import EventLog
@@ -58,6 +70,17 @@ class PassengerDemand(Protocol):
         """A train left ``stop``'s platform at ``t`` (the next train's interval starts)."""
 
 
+class _FarBounds(NamedTuple):
+    """What :meth:`StopBook.bookkeeping` needs to know a train is far from its next stop, for one stop of one trip."""
+
+    stops: tuple[TripStop, ...]  # the trip's stops it was worked out for (compared by identity)
+    stop_i: int  # the stop's index in them (the train's ``next_stop``)
+    vehicle: Any  # the trip's vehicle (by identity)
+    front_below_m: float  # the front short of this: no halt in the window, no overrun of it (-inf: never far)
+    end_m: float  # the window's served end plus the missed-stop tolerance (surely_overruns_m's end + tolerance)
+    decel_mps2: float  # the vehicle's emergency deceleration
+
+
 class StopBook:
     """Per-train stop progress (``next_stop``, halt, dwell) and the stop records."""
 
@@ -86,6 +109,8 @@ class StopBook:
         self.route_set = routes.clears_platform
         self.passengers = passengers  # passenger demand that lengthens dwells (None: the timetable's dwells)
         self._held: set[tuple[str, int]] = set()  # (train, stop index) whose hold was logged
+        self.screen_far = True  # False: the full pass every step (the reference of the far screen)
+        self._far: dict[str, _FarBounds] = {}  # train -> the bounds of its next stop (see "Far from the stop")
 
     def connect(self, drop_stop: Callable[[str, str, tuple[float, float] | None], None]) -> None:
         """The SUMO bridge's ``drop_stop``, once the run has started it."""
@@ -93,12 +118,51 @@ class StopBook:
 
     def current(self, tr: TrainRuntime) -> tuple[TripStop | None, float]:
         """The stop the train is heading for or standing at, and how far behind its mark it halts."""
-        if tr.next_stop >= len(tr.trip.stops):
+        i = tr.next_stop
+        stops = tr.trip.stops
+        if i >= len(stops):
             return None, 0.0
-        stop = tr.trip.stops[tr.next_stop]
+        stop = stops[i]
+        if tr.train_id not in self.formations.of_follower:  # mark_offset_m's own first test: no follower, no offset
+            return stop, 0.0
         return stop, self.formations.mark_offset_m(tr, stop)
 
+    def _far_bounds(self, tr: TrainRuntime) -> _FarBounds:
+        """The bounds of "far from the stop" for the train's next stop (see the module's notes)."""
+        trip = tr.trip
+        stops, i, veh = trip.stops, tr.next_stop, trip.vehicle
+        if i >= len(stops):  # no stop left: the full pass returns at once anyway
+            return _FarBounds(stops, i, veh, -math.inf, -math.inf, 0.0)
+        stop = stops[i]
+        if stop.kind == "reversal":
+            return _FarBounds(stops, i, veh, -math.inf, -math.inf, 0.0)
+        tolerance_m = self.settings.missed_stop_tolerance_m
+        served_end_m = stop.served_end_m
+        # each the exact expression of the test it rules out: front < this makes that test false
+        front_below_m = min(stop.window_start_m - 1e-6, stop.window_end_m + 1e-6, served_end_m + tolerance_m)
+        return _FarBounds(stops, i, veh, front_below_m, served_end_m + tolerance_m, veh.emergency_decel_mps2)
+
     def bookkeeping(self, t: float, tr: TrainRuntime) -> None:
+        """A train's stop progress at ``t``: halt, registration, dwell end and departure, missed stop, reversal."""
+        if self.screen_far and not tr.sumo_stopped_now and not tr.sumo_stopped:
+            far = self._far.get(tr.train_id)
+            trip = tr.trip
+            if (
+                far is None
+                or far.stops is not trip.stops
+                or far.stop_i != tr.next_stop
+                or far.vehicle is not trip.vehicle
+            ):
+                far = self._far[tr.train_id] = self._far_bounds(tr)
+            front_m = tr.front_m
+            if front_m < far.front_below_m:
+                v = tr.plant.speed_mps
+                # surely_overruns_m's cheap screen, the same expression: it can still stop in time
+                if (far.end_m - front_m) * 2.0 * far.decel_mps2 >= v * v:
+                    return
+        self._full_pass(t, tr)
+
+    def _full_pass(self, t: float, tr: TrainRuntime) -> None:
         stop, offset = self.current(tr)
         if stop is None:
             return

@@ -21,6 +21,14 @@ from the channel's stream — then :meth:`Channel.post` — the survivors in fli
 channels draws each channel's messages at once and posts them in the order it sent them, so the light deliveries
 take their event ids (the tie-break of equal times) exactly as one send after another would.
 
+The radio every step costs little per message. Messages due at one time — every message of a constant delay
+sent at once, the zero-delay "perfect communication" included — take consecutive event ids, so they travel as one
+light delivery that delivers them in turn; a constant-delay channel that loses nothing (no ``loss_prob``, no
+outage) moves its stream past the loss uniforms without reading them (they could not lose a message); the delay
+statistics are folded in delivery order, a block at a time and when read (:meth:`Channel.stats`). The mailboxes, the
+counters, the statistics and the streams are those of one message after another
+(``tests/unit/test_events_fast_paths.py`` runs both).
+
 ``latest(receiver, sender)`` is the newest-**sent** message delivered so far. With random delays a message
 can overtake an older one; the older one, arriving later, is counted ``overtaken`` and does not replace the
 newer one (a receiver keeps the freshest information it has). If nothing newer has arrived, the receiver
@@ -193,6 +201,15 @@ class _UniformBlock:
             self._i = more
         return out
 
+    def skip(self, k: int) -> None:
+        """Move past the stream's next ``k`` doubles without reading them: :meth:`take` then goes on as after
+        ``take(k)``."""
+        i = self._i + k
+        while i > len(self._buf):  # as take: a new block once the last one is used up
+            i -= len(self._buf)
+            self._buf = self._rng.random(_BLOCK).tolist()
+        self._i = i
+
 
 @dataclass(frozen=True)
 class Outage:
@@ -266,6 +283,34 @@ class _DelayAccumulator:
         if d > self.hi:
             self.hi = d
 
+    def add_all(self, delays: list[float]) -> None:
+        """``add(d)`` for each delay in turn: the same operations in the same order (so the same doubles), in
+        local variables."""
+        n, mean, m2, lo, hi = self.n, self.mean, self.m2, self.lo, self.hi
+        for d in delays:
+            n += 1
+            delta = d - mean
+            mean += delta / n
+            m2 += delta * (d - mean)
+            if d < lo:
+                lo = d
+            if d > hi:
+                hi = d
+        self.n, self.mean, self.m2, self.lo, self.hi = n, mean, m2, lo, hi
+
+    def add_same(self, d: float, k: int) -> None:
+        """``add(d)`` ``k`` times. Once every delay so far equals ``d`` (the mean is ``d``, nothing spread), each
+        ``add(d)`` only counts: ``delta`` is 0, so the mean and ``m2`` stay as they are."""
+        while k > 0 and not (self.n and self.mean == d and self.m2 == 0.0):
+            self.add(d)
+            k -= 1
+        if k > 0:
+            self.n += k
+            if d < self.lo:
+                self.lo = d
+            if d > self.hi:
+                self.hi = d
+
 
 CHANNEL_NAMES = ("t2t", "t2g")
 
@@ -300,11 +345,11 @@ class Channel:
         self._subscribers: list[Callable[[Message], object]] = []
         self._active_outages: list[Outage] = []
         self._delays = _DelayAccumulator()
+        self._unfolded: list[float] = []  # delays delivered, not yet in _delays (folded in order: _fold_delays)
         self._seq = 0
         self.sent = 0
         self.lost_random = 0
         self.lost_outage = 0
-        self.delivered = 0
         self.overtaken = 0
         for outage in self.outages:
             if outage.end_s > layer.now_s:
@@ -341,6 +386,22 @@ class Channel:
         n = len(senders)
         delay = self.delay
         block = self._block
+        to = repeat(receivers) if isinstance(receivers, str) else receivers
+        if block is not None and not self.outages and self.loss_prob <= 0.0 and delay.dist == "constant":
+            # nothing is ever lost (a loss uniform u in [0, 1) is never < 0) and every delay is the constant: the
+            # stream moves past the loss uniforms unread, and every message is in flight
+            block.skip(n)
+            delay_s = float(delay.value_s)  # type: ignore[arg-type]
+            when_s = t_s + delay_s
+            seq = self._seq
+            name = self.name
+            msgs: list[Message | None] = [
+                _new(Message, (sender, receiver, payload, t_s, when_s, delay_s, k, name))
+                for sender, receiver, payload, k in zip(senders, to, payloads, range(seq + 1, seq + n + 1))
+            ]
+            self._seq = seq + len(msgs)
+            self.sent += n
+            return msgs
         if block is not None:  # the same draws as one by one: per message the loss uniform, then the delay's
             if delay.dist == "uniform":
                 draws = block.take(2 * n)
@@ -357,13 +418,12 @@ class Channel:
             for _ in range(n):
                 losses.append(rng.random())
                 delays.append(delay.sample(rng))
-        out: list[Message | None] = []
         seq = self._seq
         lost_outage = lost_random = 0
         outages = self.outages
         loss_prob = self.loss_prob
         name = self.name
-        to = repeat(receivers) if isinstance(receivers, str) else receivers
+        out: list[Message | None] = []
         for sender, receiver, payload, u, delay_s in zip(senders, to, payloads, losses, delays):
             seq += 1
             if outages and self._in_outage(sender, receiver, t_s):
@@ -381,8 +441,19 @@ class Channel:
         return out
 
     def post(self, msgs: Iterable[Message | None]) -> None:
-        """Put messages from :meth:`draw` in flight, in this order (None: lost, skipped)."""
-        self._layer.deliver_all(self._on_delivery, [(m.delivered_s, m) for m in msgs if m is not None])  # type: ignore[arg-type]
+        """Put messages from :meth:`draw` in flight, in this order (None: lost, skipped).
+
+        Messages due at one and the same time (every message of a constant delay sent at once) go in flight as one
+        light delivery of the batch (:meth:`_on_batch`): they take consecutive places in the event order, so
+        delivering them one after another in one call is what their own deliveries would do."""
+        live = [m for m in msgs if m is not None]
+        if not live:
+            return
+        when_s = live[0].delivered_s
+        if len(live) > 1 and all(m.delivered_s == when_s for m in live):
+            self._layer.deliver_at(when_s, self._on_batch, live)  # type: ignore[arg-type]
+        else:
+            self._layer.deliver_all(self._on_delivery, [(m.delivered_s, m) for m in live])  # type: ignore[arg-type]
 
     def out(self, train_id: str, t_s: float) -> bool:
         """Is ``train_id`` cut off this channel at ``t_s`` (an outage window covers it)?"""
@@ -394,23 +465,71 @@ class Channel:
                 return True
         return False
 
+    @property
+    def delivered(self) -> int:
+        """Messages delivered so far (overtaken ones included)."""
+        return self._delays.n + len(self._unfolded)
+
+    def _fold_delays(self) -> None:
+        """Bring the delay statistics up to date: the delays delivered since, in delivery order."""
+        self._delays.add_all(self._unfolded)
+        self._unfolded.clear()
+
     def _on_delivery(self, msg: Message) -> None:
-        self.delivered += 1
-        self._delays.add(msg.delay_s)
-        box = self._mail.get(msg.receiver)
+        sender, receiver, _, sent_s, _, delay_s, seq, _ = msg
+        unfolded = self._unfolded
+        unfolded.append(delay_s)  # the statistics are folded in blocks, in this order
+        if len(unfolded) >= _BLOCK:
+            self._fold_delays()
+        box = self._mail.get(receiver)
         if box is None:
-            box = self._mail[msg.receiver] = {}
-        current = box.get(msg.sender)
-        if (
-            current is None
-            or msg.sent_s > current.sent_s
-            or (msg.sent_s == current.sent_s and msg.seq > current.seq)  # (sent_s, seq) ordered as a pair
-        ):
-            box[msg.sender] = msg
+            box = self._mail[receiver] = {}
+        current = box.get(sender)
+        # (sent_s, seq) ordered as a pair
+        if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
+            box[sender] = msg
         else:
             self.overtaken += 1
-        for callback in self._subscribers:
-            callback(msg)
+        if self._subscribers:
+            for callback in self._subscribers:
+                callback(msg)
+
+    def _on_batch(self, msgs: list[Message]) -> None:
+        """:meth:`_on_delivery` of each message in turn (a batch from :meth:`post`), the loop written out when no
+        subscriber can look in between."""
+        if self._subscribers:
+            for msg in msgs:
+                self._on_delivery(msg)
+            return
+        mail = self._mail
+        box: dict[str, Message] = {}
+        box_of = None
+        overtaken = 0
+        delay_s = msgs[0].delay_s
+        same_delay = True
+        for msg in msgs:
+            sender, receiver, _, sent_s, _, d_s, seq, _ = msg
+            if receiver is not box_of:
+                box_of = receiver
+                got = mail.get(receiver)
+                if got is None:
+                    got = mail[receiver] = {}
+                box = got
+            current = box.get(sender)
+            if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
+                box[sender] = msg
+            else:
+                overtaken += 1
+            if d_s != delay_s:
+                same_delay = False
+        self.overtaken += overtaken
+        if same_delay:
+            self._fold_delays()
+            self._delays.add_same(delay_s, len(msgs))
+        else:
+            self._unfolded += [msg.delay_s for msg in msgs]
+            if len(self._unfolded) >= _BLOCK:
+                self._fold_delays()
 
     # ------------------------------------------------------------------ outages
     def _outage_window(self, outage: Outage) -> Generator[simpy.Event, None, None]:
@@ -438,12 +557,18 @@ class Channel:
         """``latest`` for every sender that has reached ``receiver`` (a copy)."""
         return dict(self._mail.get(receiver, {}))
 
+    @property
+    def watched(self) -> bool:
+        """Does anyone :meth:`subscribe` to the deliveries (and so see their order across channels)?"""
+        return bool(self._subscribers)
+
     def subscribe(self, callback: Callable[[Message], object]) -> None:
         """Call ``callback(message)`` at every delivery (overtaken messages included), in delivery order."""
         self._subscribers.append(callback)
 
     def stats(self) -> ChannelStats:
         """Counters and delay statistics so far."""
+        self._fold_delays()
         acc = self._delays
         lost = self.lost_random + self.lost_outage
         if acc.n:
