@@ -24,8 +24,8 @@ together with everything it was worked out from, and given again while all of th
   authority at its front: that answer holds only while the front stays exactly where it is.
 
 One input is asked anew each time: whether an extension manages the switch the authority ends before, when that
-switch is a merge for the train (the margin before it depends on it, and the junction planner changes it). Asking
-it is what the full working-out does as well.
+switch is a merge for the train (the margin before it depends on it, and the junction planner changes it), as the
+full working-out asks it; a changed answer moves the end before that same switch.
 
 The answer is exactly the one worked out afresh, every step (``tests/unit/test_authority_memo.py`` holds it to the
 former working-out over random worlds, step by step); ``remember_authority = False`` works it out every time.
@@ -55,11 +55,12 @@ BEHIND_TOLERANCE_M = 1e-6  # a point this close ahead of the front counts as beh
 class AuthorityMemo:
     """One train's remembered authority end and what it was worked out from (module docstring): the objects and
     values it read, the versions of its lock and section states, the front interval ``[lo_m, hi_m)`` and the
-    interval ``[lo_behind_m, hi_behind_m)`` of ``front_m - 1e-6`` over which it holds, and the merge switch (with
-    the margin used before it) the authority ends before, if any."""
+    interval ``[lo_behind_m, hi_behind_m)`` of ``front_m - 1e-6`` over which it holds, and the merge switch the
+    authority ends before, if any (its point, the margin used before it, and the end the rest of the route gave)."""
 
     __slots__ = (
         "ato",
+        "before_merge_m",
         "end_m",
         "facing_m",
         "hi_behind_m",
@@ -70,6 +71,7 @@ class AuthorityMemo:
         "locks_version",
         "merge_id",
         "merge_margin_m",
+        "merge_point_m",
         "next_stop",
         "sections",
         "sections_version",
@@ -85,6 +87,8 @@ class AuthorityMemo:
         self.hi_behind_m = inf
         self.merge_id: str | None = None
         self.merge_margin_m = 0.0
+        self.merge_point_m = inf
+        self.before_merge_m = inf  # the end before the merge switch is counted
         self.end_m = inf
         self.stops: Any = None
         self.switches: Any = None
@@ -160,8 +164,13 @@ class AuthorityEnds:
             and memo.sections is self.sections.get(tid)
             and (self.tracks is None or memo.sections_version == self.tracks.version(tid))
             and memo.ato is tr.controllers.get("ato")
-            and (memo.merge_id is None or self._margin_m(tid, memo.merge_id) == memo.merge_margin_m)
         ):
+            if memo.merge_id is not None:  # asked anew, as the full working-out does (module docstring)
+                margin_m = self._margin_m(tid, memo.merge_id)
+                if margin_m != memo.merge_margin_m:  # the same switch, another margin before it
+                    memo.merge_margin_m = margin_m
+                    point_m = memo.merge_point_m
+                    memo.end_m = min(memo.before_merge_m, self._reach_stop(tr, point_m - margin_m, point_m, memo))
             return memo.end_m
         memo = AuthorityMemo()
         memo.stops = tr.trip.stops
@@ -230,7 +239,8 @@ class AuthorityEnds:
                 memo.hi_behind_m = min(memo.hi_behind_m, rs.point_m)
                 margin_m = self._margin_m(tr.train_id, rs.switch_id)
                 if rs.switch_id in self.merges_of.get(tr.train_id, ()):
-                    memo.merge_id, memo.merge_margin_m = rs.switch_id, margin_m
+                    memo.merge_id, memo.merge_margin_m, memo.merge_point_m = rs.switch_id, margin_m, rs.point_m
+                    memo.before_merge_m = end
                 return min(end, self._reach_stop(tr, rs.point_m - margin_m, rs.point_m, memo))
         return end
 
