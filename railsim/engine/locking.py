@@ -76,6 +76,7 @@ from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
+from railsim.engine.section_walk import SectionWalk
 from railsim.engine.section_requests import (
     SectionRequests,
     separation_margin_m,
@@ -138,6 +139,8 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         self._memos: dict[str, AuthorityMemo] = {}  # train id -> its remembered authority end (authority.py)
         self._lock_state: dict[str, int] = {}  # train id -> version of its released switches and lock records
         self.remember_authority = True  # False: the authority end is worked out afresh at every call
+        self._section_walks: dict[str, SectionWalk] = {}  # train id -> its walk over its sections (section_walk.py)
+        self.walk_every_section = False  # True: the section bookkeeping visits every section every step
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on

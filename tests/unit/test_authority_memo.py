@@ -12,9 +12,14 @@ section it does not hold; a protection point just beyond a stop's mark), a train
 copies must agree on every train's authority end (the movement follows it, so a wrong answer also moves the train),
 on the event log (``stop_needs_resource`` among it) and on every question asked of the extensions.
 
-Breaking what makes the memo work out the answer again is caught
-(:func:`test_a_memo_that_misses_a_change_is_caught`): lock grants and releases unseen, the route locks' own
-changes unseen, section grants unseen, the front intervals ignored, a stop's window end not bounding them.
+The same two copies hold the section walk (:mod:`railsim.engine.section_walk`) to the walk over every section
+(``walk_every_section``, in the reference copy): every train's section requests (holders, direction, times,
+releases, which time through) must agree after every step, besides the event log.
+
+Breaking what makes the memo work out the answer again, or what brings a section into the walk, is caught
+(:func:`test_a_memo_that_misses_a_change_is_caught`): lock grants and releases unseen, section requests and
+grants unseen, the front intervals ignored, a stop's window end not bounding them; the sections ahead out of
+reach too early, the sections held never looked at for a train in front, the sections just behind left out.
 """
 
 from __future__ import annotations
@@ -160,6 +165,7 @@ class SectionWorld(World):
         hooks.manages_lock = manages_lock  # type: ignore[method-assign]
         if reference:
             locks.authority_end_m = types.MethodType(authority_end_reference_m, locks)  # type: ignore[method-assign]
+            locks.walk_every_section = True
         if patch is not None:
             patch(locks)
 
@@ -172,6 +178,16 @@ class SectionWorld(World):
                 else:
                     self.locks.facing_m[tid] = tr.front_m + float(self.draws.uniform(25.0, 1500.0))
         super().step(t)
+
+    def state(self) -> dict[str, Any]:
+        """The walk's world's state and every train's section requests."""
+        out = super().state()
+        for tid, reqs in sorted(self.locks.section_requests.items()):
+            out["sections:" + tid] = sorted(
+                (sid, r.holder_ids, r.direction, r.requested_s, r.granted_s, sorted(r.released_by), r.pass_m)
+                for sid, r in reqs.items()
+            )
+        return out
 
 
 def _differ(seed: int, patch: Callable[[RouteLocks], None] | None = None) -> tuple[str | None, SectionWorld]:
@@ -191,15 +207,16 @@ def _differ(seed: int, patch: Callable[[RouteLocks], None] | None = None) -> tup
 
 @pytest.mark.parametrize("seed", range(SEEDS))
 def test_the_remembered_authority_is_the_one_worked_out_afresh(seed: int) -> None:
-    calls = {"worked": 0, "asked": 0}
+    calls = {"worked": 0, "asked": 0, "visited": 0, "entries": 0}
     difference, fast = _differ(seed, patch=lambda locks: _count(locks, calls))
     assert difference is None, difference
     assert fast.log.count("section_reserved") > 3 and fast.log.count("lock_granted") > 10  # the world does things
     assert calls["worked"] < calls["asked"] / 3, calls  # most calls are answered from the memo
+    assert calls["visited"] < calls["entries"] / 2, calls  # the section walk leaves most entries out
 
 
 def _count(locks: RouteLocks, calls: dict[str, int]) -> None:
-    """Count the calls and the workings-out."""
+    """Count the calls and the workings-out, and the section entries visited of all there are."""
     ask, work = locks.authority_end_m, locks._work_out
 
     def asked(tr: Any) -> float:
@@ -212,6 +229,15 @@ def _count(locks: RouteLocks, calls: dict[str, int]) -> None:
 
     locks.authority_end_m = asked  # type: ignore[method-assign]
     locks._work_out = worked  # type: ignore[method-assign]
+    visit = locks._sections_to_visit
+
+    def visited(tr: Any) -> Any:
+        out = visit(tr)
+        calls["visited"] += len(out)
+        calls["entries"] += len(locks.sections[tr.train_id])
+        return out
+
+    locks._sections_to_visit = visited  # type: ignore[method-assign]
 
 
 def test_the_worlds_hold_the_hard_cases() -> None:
@@ -276,6 +302,38 @@ def _stop_window_ignored(locks: RouteLocks) -> None:
     locks._reach_stop = lambda tr, end_m, point_m, memo=None: reach(tr, end_m, point_m)  # type: ignore[method-assign]
 
 
-@pytest.mark.parametrize("patch", [_versions_frozen, _sections_frozen, _front_ignored, _stop_window_ignored])
+def _short_reach(locks: RouteLocks) -> None:
+    """Broken on purpose: the free sections ahead count as out of reach 200 m early."""
+
+    def broken(walk: Any, k: int, front_m: float) -> bool:
+        return walk.min_guard_m[k] - front_m > locks.settings.lock_request_distance_m - 200.0
+
+    locks._out_of_reach = broken  # type: ignore[method-assign]
+
+
+def _held_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: a train in front is never let through a section this train holds."""
+    held = locks._sections_held
+    locks._sections_held = lambda tr: () if locks._current_walk(tr) is not None else held(tr)  # type: ignore[method-assign]
+
+
+def _rear_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: a section whose end the front has just passed is not visited (its release waits)."""
+    visit = locks._sections_to_visit
+    locks._sections_to_visit = lambda tr: [s for s in visit(tr) if s.end_m > tr.front_m - 100.0]  # type: ignore[method-assign]
+
+
+@pytest.mark.parametrize(
+    "patch",
+    [
+        _versions_frozen,
+        _sections_frozen,
+        _front_ignored,
+        _stop_window_ignored,
+        _short_reach,
+        _held_unseen,
+        _rear_unseen,
+    ],
+)
 def test_a_memo_that_misses_a_change_is_caught(patch: Callable[[RouteLocks], None]) -> None:
     assert any(_differ(seed, patch)[0] is not None for seed in range(SEEDS)), f"{patch.__name__} went unnoticed"
