@@ -80,7 +80,7 @@ from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
-from railsim.engine.section_walk import SectionWalker
+from railsim.engine.section_walk import SectionWalk, SectionWalker
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import (
     REVERSING,
@@ -224,7 +224,8 @@ class SectionRequests(SectionWalker):
         assert self.tracks is not None
         reqs = self.section_requests[tr.train_id]
         rear = tr.front_m - tr.trip.vehicle.length_m
-        for sec in self._sections_to_visit(tr):  # those that can act (railsim.engine.section_walk)
+        walk = self._current_walk(tr)
+        for sec in self._sections_to_visit(tr, walk):  # those that can act (railsim.engine.section_walk)
             req = reqs.get(sec.section_id)
             if req is not None and self._stale(tr, req, sec):
                 req = None  # left behind on an earlier time through the section: this time asks anew
@@ -248,8 +249,8 @@ class SectionRequests(SectionWalker):
                 self.tracks.release(t, tr.train_id, req)
             else:
                 self._widen(t, tr, sec, req)
-        self._let_ahead_through(t, tr, ahead)
-        self._settle_sections(tr)
+        self._let_ahead_through(t, tr, ahead, walk)
+        self._settle_sections(tr, walk)
 
     def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
         """Where on ``tr``'s route the time through ``req``'s section begins that ``req`` is for: a route that runs
@@ -263,7 +264,7 @@ class SectionRequests(SectionWalker):
         """True if ``req`` is ``tr``'s request for an earlier time through ``sec``'s section, released since."""
         return tr.train_id in req.released_by and self.pass_m(tr, req) < sec.start_m
 
-    def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any) -> None:
+    def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any, walk: SectionWalk | None = None) -> None:
         """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
         not passed yet: it is granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot
         pass through before it. A tram coming in from a branch between two sections stood in front of the tram
@@ -273,7 +274,7 @@ class SectionRequests(SectionWalker):
         if ahead is None:
             return
         theirs = self.section_requests.get(ahead.train_id, {})
-        for sec in self._sections_held(tr):
+        for sec in self._sections_held(tr, walk):
             mine = self.section_requests[tr.train_id].get(sec.section_id)
             other = theirs.get(sec.section_id)
             if (

@@ -44,7 +44,7 @@ class SectionWalk:
     not done, in route order; among them, the first ``free_prefix`` are free, and so is every one from
     ``free_from``; the running maximum of their ends (``max_end_m``), and the running minima from the end of their
     protection points and starts; ``held`` the entries whose sections the train holds; ``lo`` and ``hi`` the
-    window visited in the last step."""
+    window visited in the last step; ``reach_m`` the request distance."""
 
     __slots__ = (
         "free_from",
@@ -55,14 +55,16 @@ class SectionWalk:
         "max_end_m",
         "min_guard_m",
         "min_start_m",
+        "reach_m",
         "sections",
         "version",
         "visit",
     )
 
-    def __init__(self, sections: list[RouteSection], version: int) -> None:
+    def __init__(self, sections: list[RouteSection], version: int, reach_m: float) -> None:
         self.sections = sections
         self.version = version
+        self.reach_m = reach_m  # the request distance
         self.visit: tuple[RouteSection, ...] = ()
         self.held: tuple[RouteSection, ...] = ()
         self.free_prefix = 0
@@ -96,17 +98,17 @@ class SectionWalker:
         walk = self._section_walks.get(tr.train_id)
         if (
             walk is None
-            or self.walk_every_section
             or self.tracks is None
-            or walk.version != self.tracks.version(tr.train_id)
+            or walk.version != self.tracks.versions.get(tr.train_id, 0)
             or walk.sections is not self.sections[tr.train_id]
+            or self.walk_every_section
         ):
             return None
         return walk
 
-    def _sections_to_visit(self, tr: TrainRuntime) -> Sequence[RouteSection]:
-        """The entries the bookkeeping visits this step, in route order (module docstring)."""
-        walk = self._current_walk(tr)
+    def _sections_to_visit(self, tr: TrainRuntime, walk: SectionWalk | None) -> Sequence[RouteSection]:
+        """The entries the bookkeeping visits this step, in route order (module docstring); ``walk``: the train's
+        :meth:`_current_walk`."""
         if walk is None:
             return self.sections[tr.train_id]
         front_m = tr.front_m
@@ -116,34 +118,35 @@ class SectionWalker:
             lo += 1
         while lo > 0 and not max_end_m[lo - 1] <= front_m:
             lo -= 1
-        n = len(walk.visit)
-        hi = max(walk.hi, walk.free_from)  # the free suffix out of reach ahead
-        while hi < n and not self._out_of_reach(walk, hi, front_m):
+        # the free suffix out of reach ahead: every protection point beyond the request distance, no start behind
+        min_guard_m, min_start_m, reach_m = walk.min_guard_m, walk.min_start_m, walk.reach_m
+        n = len(min_guard_m)
+        hi = walk.hi
+        while hi < n and not (min_guard_m[hi] - front_m > reach_m and min_start_m[hi] >= front_m):
             hi += 1
-        while hi > walk.free_from and self._out_of_reach(walk, hi - 1, front_m):
+        while hi > walk.free_from and min_guard_m[hi - 1] - front_m > reach_m and min_start_m[hi - 1] >= front_m:
             hi -= 1
         walk.lo, walk.hi = lo, hi
         return walk.visit[lo:hi] if lo < hi else ()
 
-    def _out_of_reach(self, walk: SectionWalk, k: int, front_m: float) -> bool:
-        """True if every free entry from the ``k``-th visited one on has its protection point beyond the request
-        distance and its start not behind the front (nothing to ask for, no nose inside a crossing)."""
-        return walk.min_guard_m[k] - front_m > self.settings.lock_request_distance_m and walk.min_start_m[k] >= front_m
+    def _sections_held(self, tr: TrainRuntime, walk: SectionWalk | None) -> Sequence[RouteSection]:
+        """The entries ``_let_ahead_through`` looks at: those whose sections the train holds, while its walk
+        (``walk``, as the step began) still holds; else every entry."""
+        if walk is None or self.tracks is None or walk.version != self.tracks.versions.get(tr.train_id, 0):
+            return self.sections[tr.train_id]
+        return walk.held
 
-    def _sections_held(self, tr: TrainRuntime) -> Sequence[RouteSection]:
-        """The entries ``_let_ahead_through`` looks at: those whose sections the train holds, while its walk still
-        holds; else every entry."""
-        walk = self._current_walk(tr)
-        return self.sections[tr.train_id] if walk is None else walk.held
-
-    def _settle_sections(self, tr: TrainRuntime) -> None:
-        """After the step: sort the entries afresh if the train's requests changed (module docstring)."""
-        if self.tracks is None or self.walk_every_section or self._current_walk(tr) is not None:
+    def _settle_sections(self, tr: TrainRuntime, walk: SectionWalk | None) -> None:
+        """After the step: sort the entries afresh if the train's requests changed since ``walk`` (the train's
+        :meth:`_current_walk` as the step began) was sorted (module docstring)."""
+        if self.tracks is None or self.walk_every_section:
+            return
+        if walk is not None and walk.version == self.tracks.versions.get(tr.train_id, 0):
             return
         tid = tr.train_id
         sections = self.sections[tid]
         reqs = self.section_requests[tid]
-        walk = SectionWalk(sections, self.tracks.version(tid))
+        walk = SectionWalk(sections, self.tracks.version(tid), self.settings.lock_request_distance_m)
         visit: list[RouteSection] = []
         free: list[bool] = []
         held: list[RouteSection] = []
@@ -171,5 +174,5 @@ class SectionWalker:
             guard_m, start_m = min(guard_m, visit[k].guard_m), min(start_m, visit[k].start_m)
             min_guard_m[k], min_start_m[k] = guard_m, start_m
         walk.min_guard_m, walk.min_start_m = min_guard_m, min_start_m
-        walk.lo, walk.hi = 0, n
+        walk.lo, walk.hi = 0, max(n, walk.free_from)
         self._section_walks[tid] = walk

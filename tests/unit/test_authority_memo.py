@@ -231,8 +231,8 @@ def _count(locks: RouteLocks, calls: dict[str, int]) -> None:
     locks._work_out = worked  # type: ignore[method-assign]
     visit = locks._sections_to_visit
 
-    def visited(tr: Any) -> Any:
-        out = visit(tr)
+    def visited(tr: Any, walk: Any) -> Any:
+        out = visit(tr, walk)
         calls["visited"] += len(out)
         calls["entries"] += len(locks.sections[tr.train_id])
         return out
@@ -304,23 +304,27 @@ def _stop_window_ignored(locks: RouteLocks) -> None:
 
 def _short_reach(locks: RouteLocks) -> None:
     """Broken on purpose: the free sections ahead count as out of reach 200 m early."""
+    settle = locks._settle_sections
 
-    def broken(walk: Any, k: int, front_m: float) -> bool:
-        return walk.min_guard_m[k] - front_m > locks.settings.lock_request_distance_m - 200.0
+    def broken(tr: Any, walk: Any) -> None:
+        settle(tr, walk)
+        mine = locks._section_walks.get(tr.train_id)
+        if mine is not None:
+            mine.reach_m = locks.settings.lock_request_distance_m - 200.0
 
-    locks._out_of_reach = broken  # type: ignore[method-assign]
+    locks._settle_sections = broken  # type: ignore[method-assign]
 
 
 def _held_unseen(locks: RouteLocks) -> None:
     """Broken on purpose: a train in front is never let through a section this train holds."""
     held = locks._sections_held
-    locks._sections_held = lambda tr: () if locks._current_walk(tr) is not None else held(tr)  # type: ignore[method-assign]
+    locks._sections_held = lambda tr, walk: () if walk is not None else held(tr, walk)  # type: ignore[method-assign]
 
 
 def _rear_unseen(locks: RouteLocks) -> None:
     """Broken on purpose: a section whose end the front has just passed is not visited (its release waits)."""
     visit = locks._sections_to_visit
-    locks._sections_to_visit = lambda tr: [s for s in visit(tr) if s.end_m > tr.front_m - 100.0]  # type: ignore[method-assign]
+    locks._sections_to_visit = lambda tr, walk: [s for s in visit(tr, walk) if s.end_m > tr.front_m - 100.0]  # type: ignore[method-assign]
 
 
 @pytest.mark.parametrize(

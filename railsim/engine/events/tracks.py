@@ -72,7 +72,7 @@ class TrackSections:
     ) -> None:
         self.events = events
         self._sections = {sid: _Section() for sid in section_ids}
-        self._versions: dict[str, int] = {}  # train id -> changes to its section requests (version)
+        self.versions: dict[str, int] = {}  # train id -> changes to its section requests (:meth:`version`)
         # for a request that yields: is there room for its train at the terminus beyond? (module docstring)
         self.room_beyond = room_beyond
 
@@ -182,7 +182,7 @@ class TrackSections:
 
     def _changed(self, trains: tuple[str, ...]) -> None:
         """A section request of ``trains`` was made, granted, widened, handed over or released (:meth:`version`)."""
-        versions = self._versions
+        versions = self.versions
         for h in trains:
             versions[h] = versions.get(h, 0) + 1
 
@@ -190,7 +190,7 @@ class TrackSections:
         """A count that moves on whenever a section request ``train_id`` is one of the holders of is made,
         granted, widened, handed over or released: while it stays the same, so do the train's requests and which
         of them are granted (the train side keeps each request it makes in its own book in the same step)."""
-        return self._versions.get(train_id, 0)
+        return self.versions.get(train_id, 0)
 
     def _grantable(self, req: SectionRequest) -> bool:
         """``req`` waits in its section's queue, nobody holds the section the other way, and no request for the
