@@ -159,10 +159,10 @@ class AuthorityEnds:
             and memo.next_stop == tr.next_stop
             and memo.stopped == tr.sumo_stopped
             and memo.facing_m == self.facing_m.get(tid)
-            and (not memo.switches or memo.locks_version == self.interlocking.version(tid))
+            and (not memo.switches or memo.locks_version == self.interlocking.versions.get(tid, 0))
             and memo.lock_state == self._lock_state.get(tid, 0)
             and memo.sections is self.sections.get(tid)
-            and (self.tracks is None or memo.sections_version == self.tracks.version(tid))
+            and (self.tracks is None or memo.sections_version == self.tracks.versions.get(tid, 0))
             and memo.ato is tr.controllers.get("ato")
         ):
             if memo.merge_id is not None:  # asked anew, as the full working-out does (module docstring)

@@ -76,7 +76,7 @@ from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
-from railsim.engine.section_walk import SectionWalk
+from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk
 from railsim.engine.section_requests import (
     SectionRequests,
     separation_margin_m,
@@ -141,6 +141,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         self.remember_authority = True  # False: the authority end is worked out afresh at every call
         self._section_walks: dict[str, SectionWalk] = {}  # train id -> its walk over its sections (section_walk.py)
         self.walk_every_section = False  # True: the section bookkeeping visits every section every step
+        self.section_walk_min = SECTION_WALK_MIN  # fewer sections on a route: it is gone over whole every step
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on

@@ -24,7 +24,9 @@ running maxima and minima, from where they were the step before. A request the b
 through the sections ahead, a widening) does nothing more for the entries it covers in that step — they are part
 of a group, for a later stretch — so the walk can leave them out: it settles afresh after the step. When the version
 moved on since the last settling, the step visits every entry. Likewise ``_let_ahead_through`` looks only at the
-sections the train holds (granted, not released), a set that changes only with the version.
+sections the train holds (granted, not released), a set that changes only with the version. A train with fewer
+than ``section_walk_min`` entries (:data:`SECTION_WALK_MIN`) has no walk: going over a short list whole costs less
+than keeping the walk (a train with one section, as on most lines, visits it every step).
 
 The walk decides exactly as the walk over every entry (``walk_every_section``, the reference
 ``tests/unit/test_authority_memo.py`` holds it to).
@@ -37,6 +39,9 @@ from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import RouteSection
 from railsim.engine.train import TrainRuntime
+
+
+SECTION_WALK_MIN = 4  # entries on a route from which a walk pays (fewer: every entry is visited every step)
 
 
 class SectionWalk:
@@ -86,6 +91,7 @@ class SectionWalker:
     section_requests: dict[str, dict[str, SectionRequest]]
     _section_walks: dict[str, SectionWalk]
     walk_every_section: bool  # True: every entry is visited every step (the reference)
+    section_walk_min: int  # a train with fewer entries visits every one every step (cheaper than the walk)
 
     def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
         raise NotImplementedError  # SectionRequests'
@@ -96,9 +102,10 @@ class SectionWalker:
     def _current_walk(self, tr: TrainRuntime) -> SectionWalk | None:
         """The train's walk if it still holds for its requests, else None (every entry is visited)."""
         walk = self._section_walks.get(tr.train_id)
+        if walk is None:
+            return None
         if (
-            walk is None
-            or self.tracks is None
+            self.tracks is None
             or walk.version != self.tracks.versions.get(tr.train_id, 0)
             or walk.sections is not self.sections[tr.train_id]
             or self.walk_every_section
@@ -143,6 +150,8 @@ class SectionWalker:
             return
         if walk is not None and walk.version == self.tracks.versions.get(tr.train_id, 0):
             return
+        if len(self.sections[tr.train_id]) < self.section_walk_min:
+            return  # a short list is cheaper to go over whole
         tid = tr.train_id
         sections = self.sections[tid]
         reqs = self.section_requests[tid]

@@ -166,6 +166,8 @@ class SectionWorld(World):
         if reference:
             locks.authority_end_m = types.MethodType(authority_end_reference_m, locks)  # type: ignore[method-assign]
             locks.walk_every_section = True
+        else:
+            locks.section_walk_min = 0  # the worlds' routes have one to three sections: walk them all the same
         if patch is not None:
             patch(locks)
 
@@ -268,20 +270,22 @@ def test_the_worlds_hold_the_hard_cases() -> None:
     assert all(n > 0 for n in seen.values()), seen
 
 
+class _Frozen(dict[str, int]):
+    """A version book that never moves on."""
+
+    def __setitem__(self, key: str, value: int) -> None:
+        pass
+
+
 def _versions_frozen(locks: RouteLocks) -> None:
     """Broken on purpose: grants and releases of locks are not seen."""
-    locks.interlocking.version = lambda _tid: 0  # type: ignore[method-assign]
-
-
-def _own_changes_unseen(locks: RouteLocks) -> None:
-    """Broken on purpose: the route locks' changes to ``released`` and the lock records are not seen."""
-    locks._lock_state_changed = lambda _tid: None  # type: ignore[method-assign]
+    locks.interlocking.versions = _Frozen()
 
 
 def _sections_frozen(locks: RouteLocks) -> None:
     """Broken on purpose: section requests and grants are not seen."""
     assert locks.tracks is not None
-    locks.tracks.version = lambda _tid: 0  # type: ignore[method-assign]
+    locks.tracks.versions = _Frozen()
 
 
 def _front_ignored(locks: RouteLocks) -> None:

@@ -133,7 +133,7 @@ class Interlocking:
         self._layer = layer
         self._switches: dict[str, _SwitchRuntime] = {}
         self._seq = 0
-        self._versions: dict[str, int] = {}  # train id -> changes to the locks it is one of the holders of
+        self.versions: dict[str, int] = {}  # train id -> changes to the locks it is one of the holders of (version)
 
     def add_switch(self, switch: Switch) -> None:
         """Register a switch (unlocked, in ``switch.position``) and start its process."""
@@ -246,7 +246,7 @@ class Interlocking:
 
     def _changed(self, req: LockRequest) -> None:
         """A lock or request of ``req``'s holders changed (:meth:`version`)."""
-        versions = self._versions
+        versions = self.versions
         for h in req.holder_ids:
             versions[h] = versions.get(h, 0) + 1
 
@@ -370,7 +370,7 @@ class Interlocking:
         """A count that moves on whenever :meth:`is_locked_for` may have changed for ``train_id`` on some switch
         (a lock it is one of the holders of granted, released by a member, or freed; a request of it cancelled):
         while it stays the same, so does every answer of :meth:`is_locked_for` for the train."""
-        return self._versions.get(train_id, 0)
+        return self.versions.get(train_id, 0)
 
     def throw_count(self, switch_id: str) -> int:
         """Completed throws of ``switch_id``."""
