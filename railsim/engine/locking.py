@@ -49,7 +49,9 @@ can appear ahead of us from the other leg there (and the Bijin up platform ends 
 does a merge an extension manages (the junction planner orders the trains through it and plans their spacing).
 
 **The walk.** Each step :meth:`RouteLocks.bookkeeping` visits only the switches of a train's route that can do
-something now, and decides exactly as a walk over all of them (:mod:`railsim.engine.lock_walk`).
+something now, and decides exactly as a walk over all of them (:mod:`railsim.engine.lock_walk`); likewise the
+single-track sections (:mod:`railsim.engine.section_walk`). The authority end is worked out again only when
+something it depends on has changed (:mod:`railsim.engine.authority`).
 
 **Single track and flat crossings** are requested and released by :class:`~railsim.engine.section_requests.SectionRequests`
 (its module docstring: consecutive sections, order on single track, a crossing right before a section).
