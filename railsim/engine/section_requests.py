@@ -224,8 +224,10 @@ class SectionRequests(SectionWalker):
         assert self.tracks is not None
         reqs = self.section_requests[tr.train_id]
         rear = tr.front_m - tr.trip.vehicle.length_m
-        walk = self._current_walk(tr)
-        for sec in self._sections_to_visit(tr, walk):  # those that can act (railsim.engine.section_walk)
+        sections = self.sections[tr.train_id]
+        walked = len(sections) >= self.section_walk_min  # those that can act (railsim.engine.section_walk)
+        walk = self._current_walk(tr) if walked else None
+        for sec in sections if walk is None else self._sections_to_visit(tr, walk):
             req = reqs.get(sec.section_id)
             if req is not None and self._stale(tr, req, sec):
                 req = None  # left behind on an earlier time through the section: this time asks anew
@@ -250,7 +252,8 @@ class SectionRequests(SectionWalker):
             else:
                 self._widen(t, tr, sec, req)
         self._let_ahead_through(t, tr, ahead, walk)
-        self._settle_sections(tr, walk)
+        if walked:
+            self._settle_sections(tr, walk)
 
     def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
         """Where on ``tr``'s route the time through ``req``'s section begins that ``req`` is for: a route that runs
