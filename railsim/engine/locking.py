@@ -49,7 +49,9 @@ can appear ahead of us from the other leg there (and the Bijin up platform ends 
 does a merge an extension manages (the junction planner orders the trains through it and plans their spacing).
 
 **The walk.** Each step :meth:`RouteLocks.bookkeeping` visits only the switches of a train's route that can do
-something now, and decides exactly as a walk over all of them (:mod:`railsim.engine.lock_walk`).
+something now, and decides exactly as a walk over all of them (:mod:`railsim.engine.lock_walk`); likewise the
+single-track sections (:mod:`railsim.engine.section_walk`). The authority end is worked out again only when
+something it depends on has changed (:mod:`railsim.engine.authority`).
 
 **Single track and flat crossings** are requested and released by :class:`~railsim.engine.section_requests.SectionRequests`
 (its module docstring: consecutive sections, order on single track, a crossing right before a section).
@@ -58,12 +60,13 @@ something now, and decides exactly as a walk over all of them (:mod:`railsim.eng
 from __future__ import annotations
 
 import logging
-from bisect import bisect_right, insort
+from bisect import insort
 from collections.abc import Callable
 from typing import Any, Protocol
 
 import networkx as nx
 
+from railsim.engine.authority import AuthorityEnds, AuthorityMemo
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.interlocking import Interlocking, RequestState
 from railsim.engine.events.log import EventLog
@@ -75,11 +78,10 @@ from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
+from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk
 from railsim.engine.section_requests import (
-    STOP_OVERRUN_ALLOWANCE_M,
     SectionRequests,
     separation_margin_m,
-    stop_aim_m,
     stop_before,
 )
 from railsim.engine.train import TrainRuntime
@@ -97,7 +99,7 @@ class Clock(Protocol):
         """Now [s]."""
 
 
-class RouteLocks(SwitchWalker, SectionRequests):
+class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
     """Requests, authority and releases of switch locks for every train."""
 
     def __init__(
@@ -136,6 +138,12 @@ class RouteLocks(SwitchWalker, SectionRequests):
         self.facing_m: dict[str, float] = {}
         # (train id, station id, point) of each stop reported as served only with the resource beyond (_reach_stop)
         self._short_of_resource: set[tuple[str, str, float]] = set()
+        self._memos: dict[str, AuthorityMemo] = {}  # train id -> its remembered authority end (authority.py)
+        self._lock_state: dict[str, int] = {}  # train id -> version of its released switches and lock records
+        self.remember_authority = True  # False: the authority end is worked out afresh at every call
+        self._section_walks: dict[str, SectionWalk] = {}  # train id -> its walk over its sections (section_walk.py)
+        self.walk_every_section = False  # True: the section bookkeeping visits every section every step
+        self.section_walk_min = SECTION_WALK_MIN  # fewer sections on a route: it is gone over whole every step
 
     def protect_merges(self, graph: nx.DiGraph) -> None:
         """Find, on every train's route, the switches where another track joins the one the route continues on
@@ -249,6 +257,7 @@ class RouteLocks(SwitchWalker, SectionRequests):
             if old is not None and old.state in (RequestState.SCHEDULED, RequestState.WAITING):
                 self.interlocking.cancel(old)  # passed while still waiting (a violation): one request per switch
             self._lock_pass.setdefault(tr.train_id, {})[sid] = rs.point_m
+            self._lock_state_changed(tr.train_id)
         elif pass_m != rs.point_m or sid in tr.released:
             return waiting_m  # the lock is for another time over these points, or this one is done
         if behind is not None and sid in tr.locks and self._gives_way(tr, behind, ahead, rs):
@@ -274,6 +283,7 @@ class RouteLocks(SwitchWalker, SectionRequests):
                 for h in holders:
                     self.fleet.trains[h].locks[sid] = req
                 self._lock_pass.setdefault(tr.train_id, {})[sid] = rs.point_m
+                self._lock_state_changed(tr.train_id)
         held = tr.locks.get(sid)
         if (
             held is not None
@@ -294,6 +304,7 @@ class RouteLocks(SwitchWalker, SectionRequests):
         if sid in tr.locks and tr.front_m - tr.trip.vehicle.length_m > rs.point_m + self.settings.clearance_m:
             self.interlocking.release(tr.train_id, sid)
             tr.released.add(sid)
+            self._lock_state_changed(tr.train_id)
         return waiting_m
 
     def _gives_way(self, tr: TrainRuntime, front: TrainRuntime, ahead: Any, rs: Any) -> bool:
@@ -388,6 +399,7 @@ class RouteLocks(SwitchWalker, SectionRequests):
             if sid not in tr.released:
                 self.interlocking.release(tr.train_id, sid)
                 tr.released.add(sid)
+                self._lock_state_changed(tr.train_id)
 
     def hand_over(self, t: float, pred: TrainRuntime, succ: TrainRuntime | None) -> None:
         """``pred`` arrived and its unit starts ``succ`` where it stands (None: the unit leaves the line): the
@@ -495,87 +507,3 @@ class RouteLocks(SwitchWalker, SectionRequests):
         if tr.next_stop + 1 < len(tr.trip.stops):
             need_m = min(need_m, tr.trip.stops[tr.next_stop + 1].window_start_m)
         return self.authority_end_m(tr) >= need_m - 1e-6
-
-    def authority_end_m(self, tr: TrainRuntime) -> float:
-        """Route chainage where the train's movement authority ends: before the first switch not locked for it,
-        or the protection point of the first single-track section not reserved for it; a train standing inside a
-        section it does not hold (a unit turning back in it, whose arrival direction another train still holds) may
-        not move at all (its authority ends at its front), and no authority reaches closer than the overlap to a
-        train on its track facing it (``facing_m``: ground truth, as a track circuit shows the track occupied; a
-        unit turned back in a terminus stub is on the partner edges, never "ahead" of a train coming in). At the
-        end of its trip the
-        authority reaches the route's end, and at least the overlap beyond the destination platform (a platform
-        ending within the overlap of the route's end would otherwise cut the train's stopping window short)."""
-        stops = tr.trip.stops  # (a turnback may replace them: the end is remembered per stops tuple)
-        known = self._route_end.get(tr.train_id)
-        if known is not None and known[0] is stops:
-            end = known[1]
-        else:
-            end = max(tr.view.length_m - 1.0, stops[-1].window_end_m + self.settings.protection_margin_m)
-            self._route_end[tr.train_id] = (stops, end)
-        if tr.train_id in self.sections:
-            reqs = self.section_requests[tr.train_id]
-            for sec in self.sections[tr.train_id]:
-                req = reqs.get(sec.section_id)
-                if sec.end_m <= tr.front_m or (req is not None and req.granted):
-                    continue
-                if sec.guard_m > tr.front_m - 1e-6:
-                    end = min(end, self._reach_stop(tr, sec.guard_m - self.settings.protection_margin_m, sec.guard_m))
-                else:  # inside a section it does not hold (a unit turning back in it): it may not move
-                    end = min(end, tr.front_m)
-                break
-        facing_m = self.facing_m.get(tr.train_id)
-        if facing_m is not None:  # never into track a train facing it stands or runs on
-            end = min(end, self._reach_stop(tr, facing_m - self.settings.protection_margin_m, facing_m))
-        switches = tr.trip.route.switches
-        behind_m = tr.front_m - 1e-6
-        index = self._route_index(switches)
-        first = bisect_right(index.points_m, behind_m) if index.walkable else 0  # those before lie behind
-        for i in range(first, len(switches)):
-            rs = switches[i]
-            if rs.point_m <= behind_m:
-                continue
-            if rs.switch_id in tr.released and self._lock_pass_m(tr, rs.switch_id) >= rs.point_m:
-                continue
-            if not self.interlocking.is_locked_for(tr.train_id, rs.switch_id, rs.leg):
-                return min(
-                    end, self._reach_stop(tr, rs.point_m - self._margin_m(tr.train_id, rs.switch_id), rs.point_m)
-                )
-        return end
-
-    def _reach_stop(self, tr: TrainRuntime, end_m: float, point_m: float) -> float:
-        """The authority end ``end_m`` before a resource at ``point_m``, carried on to the train's next station
-        stop when that stop's mark lies before the point but within the overlap (plus the margin the ATO keeps
-        before its authority end): the train stops at its mark, not short of it (module docstring, "Stops
-        within the overlap"). A train standing at its next stop runs to the stop after it: that one's mark is
-        carried to, so the train can leave a platform for a next one within the overlap (two platforms of a
-        station one behind the other before a merge: the resource is asked for only at the second). The ATO's aim
-        stays :data:`STOP_OVERRUN_ALLOWANCE_M` before the point (:func:`stop_aim_m`); a stop with no such aim in its
-        window waits for the resource there (``stop_needs_resource``, once per train, stop and point)."""
-        k = tr.next_stop
-        stops = tr.trip.stops
-        if tr.sumo_stopped and k + 1 < len(stops) and stops[k + 1].kind == "station":
-            k += 1
-        if k >= len(stops):
-            return end_m
-        stop = stops[k]
-        if stop.kind != "station" or stop.mark_m >= point_m or tr.front_m > stop.window_end_m:
-            return end_m
-        params = getattr(tr.controllers.get("ato"), "params", None)
-        margin_m = float(getattr(params, "authority_margin_m", 0.0))
-        aim_m = stop_aim_m(tr, stop, point_m)
-        if aim_m is None:  # served only with the resource: the train halts short of it and waits for it
-            aim_m = point_m - STOP_OVERRUN_ALLOWANCE_M
-            key = (tr.train_id, stop.station_id, point_m)
-            if key not in self._short_of_resource:
-                self._short_of_resource.add(key)
-                self.events.record(
-                    self.clock.now_s, "stop_needs_resource", tr.train_id, station=stop.station_id, point_m=point_m
-                )
-                log.info(
-                    "%s serves %s only with the resource %.1f m past the window's start: it halts short and waits",
-                    tr.train_id,
-                    stop.station_id,
-                    point_m - stop.window_start_m,
-                )
-        return max(end_m, aim_m + margin_m)

@@ -80,6 +80,7 @@ from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
+from railsim.engine.section_walk import SectionWalk, SectionWalker
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import (
     REVERSING,
@@ -159,7 +160,7 @@ def separation_margin_m(tr: TrainRuntime) -> float:
     return float(getattr(params, "margin_m", 0.0))
 
 
-class SectionRequests:
+class SectionRequests(SectionWalker):
     """The single-track part of :class:`~railsim.engine.locking.RouteLocks` (its base class): the sections and
     crossings each train contests, its requests for them and their release. It reads the fleet, the formations and
     the settings its subclass holds."""
@@ -223,7 +224,10 @@ class SectionRequests:
         assert self.tracks is not None
         reqs = self.section_requests[tr.train_id]
         rear = tr.front_m - tr.trip.vehicle.length_m
-        for sec in self.sections[tr.train_id]:
+        sections = self.sections[tr.train_id]
+        walked = len(sections) >= self.section_walk_min  # those that can act (railsim.engine.section_walk)
+        walk = self._current_walk(tr) if walked else None
+        for sec in sections if walk is None else self._sections_to_visit(tr, walk):
             req = reqs.get(sec.section_id)
             if req is not None and self._stale(tr, req, sec):
                 req = None  # left behind on an earlier time through the section: this time asks anew
@@ -247,7 +251,9 @@ class SectionRequests:
                 self.tracks.release(t, tr.train_id, req)
             else:
                 self._widen(t, tr, sec, req)
-        self._let_ahead_through(t, tr, ahead)
+        self._let_ahead_through(t, tr, ahead, walk)
+        if walked:
+            self._settle_sections(tr, walk)
 
     def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
         """Where on ``tr``'s route the time through ``req``'s section begins that ``req`` is for: a route that runs
@@ -261,7 +267,7 @@ class SectionRequests:
         """True if ``req`` is ``tr``'s request for an earlier time through ``sec``'s section, released since."""
         return tr.train_id in req.released_by and self.pass_m(tr, req) < sec.start_m
 
-    def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any) -> None:
+    def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any, walk: SectionWalk | None = None) -> None:
         """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
         not passed yet: it is granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot
         pass through before it. A tram coming in from a branch between two sections stood in front of the tram
@@ -271,7 +277,7 @@ class SectionRequests:
         if ahead is None:
             return
         theirs = self.section_requests.get(ahead.train_id, {})
-        for sec in self.sections[tr.train_id]:
+        for sec in self._sections_held(tr, walk):
             mine = self.section_requests[tr.train_id].get(sec.section_id)
             other = theirs.get(sec.section_id)
             if (

@@ -199,6 +199,7 @@ class World:
         self.locks.walk_every_switch = every
         if patch is not None:
             patch(self.locks)
+        self.stop_lag: np.random.Generator | None = None  # None: a stop is seen passed at once
         self.visits = 0
         self.logged = 0  # log entries compared so far
         visit = self.locks._visit_switch
@@ -232,6 +233,8 @@ class World:
             tr.front_m += step_m
             stops = tr.trip.stops
             while tr.next_stop < len(stops) - 1 and tr.front_m > stops[tr.next_stop].window_end_m:
+                if self.stop_lag is not None and self.stop_lag.random() < 0.5:
+                    break  # the stop is seen passed a step or more later
                 tr.next_stop += 1
             tr.sumo_stopped = bool(rng.random() < 0.2)
             tr.dwell_started_s = t - float(rng.uniform(0.0, 40.0)) if tr.sumo_stopped else None

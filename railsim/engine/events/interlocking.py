@@ -133,6 +133,7 @@ class Interlocking:
         self._layer = layer
         self._switches: dict[str, _SwitchRuntime] = {}
         self._seq = 0
+        self.versions: dict[str, int] = {}  # train id -> changes to the locks it is one of the holders of (version)
 
     def add_switch(self, switch: Switch) -> None:
         """Register a switch (unlocked, in ``switch.position``) and start its process."""
@@ -202,6 +203,7 @@ class Interlocking:
             self._layer.log.record(t, "release_ignored", switch_id, train=holder_id)
             return False
         req.released_by.add(holder_id)
+        self._changed(req)
         if len(req.released_by) < len(req.holder_ids):
             self._layer.log.record(t, "member_released", switch_id, request=req.seq, train=holder_id)
             return False
@@ -216,6 +218,7 @@ class Interlocking:
             if request.state is RequestState.WAITING:
                 sw.queue.remove(request)
             request.state = RequestState.CANCELLED
+            self._changed(request)
             self._layer.log.record(t, "request_cancelled", sw.spec.id, request=request.seq)
             # The head may have changed: let the process look again (it is idle or mid-throw).
             self._wake(sw)
@@ -227,6 +230,7 @@ class Interlocking:
         if sw.holder is not req:
             raise RuntimeError(f"switch {sw.spec.id}: freeing request #{req.seq} that does not hold the lock")
         sw.holder = None
+        self._changed(req)
         req.state = RequestState.RELEASED if reason == "released" else RequestState.CANCELLED
         req.released_s = t_s
         self._layer.log.record(
@@ -239,6 +243,12 @@ class Interlocking:
         )
         assert req._done is not None
         req._done.succeed()
+
+    def _changed(self, req: LockRequest) -> None:
+        """A lock or request of ``req``'s holders changed (:meth:`version`)."""
+        versions = self.versions
+        for h in req.holder_ids:
+            versions[h] = versions.get(h, 0) + 1
 
     def _wake(self, sw: _SwitchRuntime) -> None:
         if sw.wakeup is not None and not sw.wakeup.triggered:
@@ -289,6 +299,7 @@ class Interlocking:
                 f"{'throwing' if sw.throwing else sw.position}"
             )
         sw.holder = req
+        self._changed(req)
         req.state = RequestState.GRANTED
         req.granted_s = self._layer.now_s
         self._layer.log.record(
@@ -354,6 +365,12 @@ class Interlocking:
             and train_id in req.holder_ids
             and train_id not in req.released_by
         )
+
+    def version(self, train_id: str) -> int:
+        """A count that moves on whenever :meth:`is_locked_for` may have changed for ``train_id`` on some switch
+        (a lock it is one of the holders of granted, released by a member, or freed; a request of it cancelled):
+        while it stays the same, so does every answer of :meth:`is_locked_for` for the train."""
+        return self.versions.get(train_id, 0)
 
     def throw_count(self, switch_id: str) -> int:
         """Completed throws of ``switch_id``."""

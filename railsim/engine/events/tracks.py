@@ -72,6 +72,7 @@ class TrackSections:
     ) -> None:
         self.events = events
         self._sections = {sid: _Section() for sid in section_ids}
+        self.versions: dict[str, int] = {}  # train id -> changes to its section requests (:meth:`version`)
         # for a request that yields: is there room for its train at the terminus beyond? (module docstring)
         self.room_beyond = room_beyond
 
@@ -87,6 +88,7 @@ class TrackSections:
         """Request the sections ``wanted`` ((section id, direction) in route order) as one group: granted all in
         the same instant, or none; ``yields``: the train turns beyond them (module docstring)."""
         reqs = [SectionRequest(holder_ids, sid, direction, t_s, yields=yields) for sid, direction in wanted]
+        self._changed(holder_ids)
         for req in reqs:
             if len(reqs) > 1:
                 req.group = reqs
@@ -107,6 +109,7 @@ class TrackSections:
         the whole group. Returns the new requests."""
         assert not req.granted and not req.group and req in self._sections[req.section_id].queue
         new = [SectionRequest(req.holder_ids, sid, d, req.requested_s, yields=yields) for sid, d in wanted]
+        self._changed(req.holder_ids)
         req.group = [req, *new]
         req.yields = yields
         for r in new:
@@ -140,6 +143,7 @@ class TrackSections:
             self._sections[r.section_id].queue.remove(r)
             self._sections[r.section_id].holders.append(r)
             r.granted_s = t_s
+            self._changed(r.holder_ids)
             self.events.record(t_s, "section_reserved", r.section_id, trains=list(r.holder_ids), direction=r.direction)
         return True
 
@@ -147,6 +151,7 @@ class TrackSections:
         """``train_id`` has left the section (its rear is past the end); the request ends when all its holders did."""
         sec = self._sections[req.section_id]
         req.released_by.add(train_id)
+        self._changed(req.holder_ids)
         if req.granted and set(req.holder_ids) <= req.released_by and req in sec.holders:
             sec.holders.remove(req)
             self.events.record(t_s, "section_released", req.section_id, trains=list(req.holder_ids))
@@ -163,6 +168,7 @@ class TrackSections:
         if req not in sec.holders or any(h.direction != direction for h in sec.holders if h is not req):
             return None
         new = SectionRequest((train_id,), req.section_id, direction, t_s, granted_s=t_s)
+        self._changed((train_id, *req.holder_ids))
         sec.holders[sec.holders.index(req)] = new
         self.events.record(
             t_s,
@@ -173,6 +179,18 @@ class TrackSections:
             direction=direction,
         )
         return new
+
+    def _changed(self, trains: tuple[str, ...]) -> None:
+        """A section request of ``trains`` was made, granted, widened, handed over or released (:meth:`version`)."""
+        versions = self.versions
+        for h in trains:
+            versions[h] = versions.get(h, 0) + 1
+
+    def version(self, train_id: str) -> int:
+        """A count that moves on whenever a section request ``train_id`` is one of the holders of is made,
+        granted, widened, handed over or released: while it stays the same, so do the train's requests and which
+        of them are granted (the train side keeps each request it makes in its own book in the same step)."""
+        return self.versions.get(train_id, 0)
 
     def _grantable(self, req: SectionRequest) -> bool:
         """``req`` waits in its section's queue, nobody holds the section the other way, and no request for the
@@ -214,6 +232,7 @@ class TrackSections:
                 self._sections[r.section_id].queue.remove(r)
                 self._sections[r.section_id].holders.append(r)
                 r.granted_s = t_s
+                self._changed(r.holder_ids)
                 self.events.record(
                     t_s, "section_reserved", r.section_id, trains=list(r.holder_ids), direction=r.direction
                 )
