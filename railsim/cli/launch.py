@@ -9,7 +9,9 @@ a run installs its own clean stop (:mod:`railsim.engine.interrupt`).
 
 An interrupted command leaves with :func:`os._exit` after flushing its output: the interpreter may still carry a
 KeyboardInterrupt that surfaced where nothing could catch it, and would then end itself *by the signal* (status
--2) instead of with 130. Everything a run writes is written and closed before this point. This module imports
+-2) instead of with 130. Everything a run writes is written and closed before this point. Once the command has
+returned, SIGINT is ignored until the process is gone: a Ctrl-C that came while the interpreter was shutting down
+would otherwise end it by the signal (status -2, no line) although the command had finished. This module imports
 nothing of railsim at its top.
 """
 
@@ -36,6 +38,7 @@ def main() -> int:
         signal.signal(signal.SIGINT, previous)
     try:
         code = interrupted() if came else run_command()
+        signal.signal(signal.SIGINT, signal.SIG_IGN)  # the command is over: a Ctrl-C now has nothing to stop
     except KeyboardInterrupt:
         code = interrupted()
     if code == EXIT_INTERRUPTED:
