@@ -163,6 +163,17 @@ def test_far_screen_keeps_every_event_and_record(seed: int) -> None:
     assert screened > 0.1, "the screen hardly ever acted: test too weak"
 
 
+def _counted() -> tuple[Any, Any, StopBook, list[float]]:
+    """A screened stop book, a train and its stops, and the times at which the book ran its full pass."""
+    stops = _stops(np.random.default_rng(3), 0.0)
+    tr = _train(stops, _VEHICLES[0])
+    book, _, _ = _book(True, np.random.default_rng(0))
+    calls: list[float] = []
+    full = book._full_pass
+    book._full_pass = lambda t, tr: (calls.append(t), full(t, tr))  # type: ignore[method-assign]
+    return stops, tr, book, calls
+
+
 @pytest.mark.parametrize(
     ("to_window_m", "speed_mps", "full_pass"),
     [(200.0, 10.0, False), (-1.0, 10.0, True), (20.0, 15.0, True), (20.0, 0.0, False)],
@@ -170,12 +181,7 @@ def test_far_screen_keeps_every_event_and_record(seed: int) -> None:
 def test_the_screen_returns_early_only_far_from_the_stop(to_window_m: float, speed_mps: float, full_pass: bool) -> None:
     """The screen acts: short of the window and able to stop, the full pass is not run; in the window, or unable
     to stop in time even on the emergency brake (15 m/s needs 90 m), it is."""
-    stops = _stops(np.random.default_rng(3), 0.0)
-    tr = _train(stops, _VEHICLES[0])
-    book, _, _ = _book(True, np.random.default_rng(0))
-    calls: list[float] = []
-    full = book._full_pass
-    book._full_pass = lambda t, tr: (calls.append(t), full(t, tr))  # type: ignore[method-assign]
+    stops, tr, book, calls = _counted()
     tr.plant.speed_mps, tr.front_m = speed_mps, stops[1].window_start_m - to_window_m
     book.bookkeeping(1.0, tr)
     assert calls == ([1.0] if full_pass else [])
@@ -184,12 +190,7 @@ def test_the_screen_returns_early_only_far_from_the_stop(to_window_m: float, spe
 def test_the_screen_follows_the_next_stop_and_the_vehicle() -> None:
     """Bounds are worked out anew for the next stop (far from it, the screen acts again) and for a new vehicle (a
     weaker brake that cannot stop in time: the full pass runs)."""
-    stops = _stops(np.random.default_rng(3), 0.0)
-    tr = _train(stops, _VEHICLES[0])
-    book, _, _ = _book(True, np.random.default_rng(0))
-    calls: list[float] = []
-    full = book._full_pass
-    book._full_pass = lambda t, tr: (calls.append(t), full(t, tr))  # type: ignore[method-assign]
+    stops, tr, book, calls = _counted()
     tr.plant.speed_mps, tr.front_m = 5.0, stops[1].window_start_m - 100.0
     book.bookkeeping(1.0, tr)
     tr.next_stop, tr.front_m = 2, stops[2].window_start_m - 100.0  # stop 1 left behind
