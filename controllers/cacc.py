@@ -89,14 +89,11 @@ from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
+from controllers import cacc_kernel
 from controllers.base import Command, Observation, PredecessorState, register
-from controllers.braking import (
-    net_braking_mps2,
-    params_from_mapping,
-    relative_braking_distance_m,
-    require,
-    traction_limit_mps2,
-)
+from controllers.braking import params_from_mapping, require, traction_limit_mps2
 from railsim.physics.vehicle import VehicleParams
 
 
@@ -137,6 +134,7 @@ class Cacc:
         self.vehicle = vehicle
         self._last: tuple[str, float, float] | None = None  # (train_id, stamp_s, accel_mps2) of the last message
         self._command_estimate_mps2 = 0.0
+        self._packed: tuple[VehicleParams, float, np.ndarray] | None = None  # the law's inputs (cacc_kernel.pack)
 
     def reset(self) -> None:
         """Forget the predecessor's message history."""
@@ -159,83 +157,71 @@ class Cacc:
         return self._command_estimate_mps2
 
     def command(self, obs: Observation) -> Command:
-        veh = obs.vehicle
         own = obs.own
-        v = max(own.speed_mps, 0.0)
-        traction = traction_limit_mps2(veh, v)
-        pred = obs.predecessor
-        if pred is None or obs.target_gap_m is None:
-            return Command(traction, info={"phase": "free"})
-        p = self.params
-        grade = own.gradient_permille
-        m_eff = veh.effective_mass_kg
-        tau = veh.actuator_time_constant_s
-        age_s = max(pred.age_s, 0.0)
-        v_p = max(pred.speed_mps, 0.0)
-        rho_p = veh.resistance_n(v_p, grade) / m_eff  # predecessor's resistance, own Davis as proxy
+        return self.decide(
+            obs.vehicle,
+            obs.dt_s,
+            own.position_m,
+            own.speed_mps,
+            own.accel_mps2,
+            own.gradient_permille,
+            obs.predecessor,
+            obs.target_gap_m,
+            obs.extras.get("vc_tracking") is not False,
+        )
 
-        # ---- tracking law
+    def decide(
+        self,
+        veh: VehicleParams,
+        dt_s: float,
+        position_m: float,
+        speed_mps: float,
+        accel_mps2: float,
+        gradient_permille: float,
+        pred: PredecessorState | None,
+        target_gap_m: float | None,
+        tracking: bool = True,
+    ) -> Command:
+        """:meth:`command` on plain values (what the engine hands a coupled follower's CACC without building an
+        :class:`Observation`): the feed-forward chosen here (plan entry, reconstructed command or the reported
+        acceleration), the law itself in one compiled call (:func:`controllers.cacc_kernel.cacc`)."""
+        if pred is None or target_gap_m is None:
+            return Command(traction_limit_mps2(veh, max(speed_mps, 0.0)), info={"phase": "free"})
+        age_s = max(pred.age_s, 0.0)
         if pred.planned_accel_mps2 and pred.plan_dt_s > 0.0:
             # The predecessor broadcast its plan: the entry for "now" is the command it is applying.
             index = min(int(age_s / pred.plan_dt_s + 1e-9), len(pred.planned_accel_mps2) - 1)
             a_p_applied = pred.planned_accel_mps2[index]
-        elif p.ff_lag_compensation:
-            a_p_applied = self._predecessor_command(pred, tau)
+        elif self.params.ff_lag_compensation:
+            a_p_applied = self._predecessor_command(pred, veh.actuator_time_constant_s)
         else:
             a_p_applied = pred.accel_mps2
-        # ---- relative-braking-distance quantities (shared by the gap policy and the safety cap)
-        b_f = max(net_braking_mps2(veh, veh.emergency_decel_mps2, grade, davis_speed_mps=0.0), 0.05)
-        b_p = max(pred.emergency_decel_mps2 + rho_p, 0.05)
-        v_pw = max(v_p - b_p * age_s, 0.0)
-        rear_w = pred.rear_position_m + (v_p * v_p - v_pw * v_pw) / (2.0 * b_p)
-        a0 = own.accel_mps2
-        delay_s = tau + p.reaction_time_s + obs.dt_s  # a command holds for a whole step (zero-order hold)
-
-        target_m = float(obs.target_gap_m)
-        if p.gap_policy == "safe":
-            # steady cruise at v: the applied acceleration is the resistance feed-forward, which keeps acting
-            # through the braking delay (the barrier below uses the same a0)
-            a_cruise = veh.resistance_n(v, grade) / m_eff
-            steady_m = relative_braking_distance_m(v, v, b_f, b_p, delay_s, a_cruise, p.safety_margin_m) + v * age_s
-            target_m = max(target_m, steady_m + p.gap_buffer_m)
-        gap_m = pred.rear_position_m + v_p * age_s - own.position_m
-        error_m = gap_m - target_m
-        v_close = p.k_gap_per_s2 / p.k_speed_per_s * error_m
-        if error_m > 0.0:
-            v_close = min(v_close, p.approach_speed_mps, math.sqrt(2.0 * p.approach_decel_mps2 * error_m))
-        track_net = p.k_speed_per_s * (v_p + v_close - v) + p.k_ff * (a_p_applied - rho_p)
-        if obs.extras.get("vc_tracking") is False:
-            track_net = math.inf  # stopping behind a standing leader: the ATO stops us, we only guard safety
-        rbd_m = relative_braking_distance_m(v, v_pw, b_f, b_p, delay_s, a0, p.safety_margin_m)
-        h = rear_w - own.position_m - rbd_m
-        a_p_net = max(pred.accel_mps2 - rho_p, -b_p) if v_pw > 0.0 else 0.0
-        slope_s = delay_s + max(v + a0 * delay_s, 0.0) / b_f
-        # Rate of change of h: the gap changes with the *reported* speeds; the worst-case extrapolation only sets
-        # the level of h (it is refreshed with every message, it is not a trend).
-        # γ·dt ≤ 0.5: a sampled barrier with γ·dt near 1 rings (limit cycle) against the lagged plant.
-        gamma = min(p.barrier_rate_per_s, 0.5 / obs.dt_s)
-        numer = (v_p - v) + v_pw / b_p * a_p_net + gamma * h
-        cap_net = numer / slope_s if slope_s > 0.0 else (math.inf if numer >= 0.0 else -math.inf)
-
+        packed = self._packed
+        if packed is None or packed[0] is not veh or packed[1] != dt_s:
+            packed = self._packed = (veh, dt_s, cacc_kernel.pack(veh, self.params, dt_s))
+        accel, emergency, phase, gap_m, error_m, h, target_m = cacc_kernel.cacc(
+            packed[2],
+            position_m,
+            speed_mps,
+            accel_mps2,
+            gradient_permille,
+            pred.rear_position_m,
+            pred.speed_mps,
+            pred.accel_mps2,
+            pred.emergency_decel_mps2,
+            pred.age_s,
+            a_p_applied,
+            float(target_gap_m),
+            tracking,
+        )
         info: dict[str, Any] = {
-            "phase": "track",
+            "phase": cacc_kernel.PHASES[phase],
             "gap_m": gap_m,
             "gap_error_m": error_m,
             "rbd_margin_m": h,
             "target_gap_m": target_m,
         }
-        service_net = net_braking_mps2(veh, veh.service_decel_mps2, grade, davis_speed_mps=v)
-        if cap_net < -service_net and v > 0.0:
-            info["phase"] = "emergency"
-            return Command(-veh.emergency_decel_mps2, emergency=True, info=info)
-        net = track_net
-        if cap_net < track_net:
-            net = cap_net
-            info["phase"] = "safety"
-        if math.isinf(net):
-            return Command(traction, info=info)
-        applied = veh.net_to_applied(net, v, grade)
-        return Command(min(max(applied, -veh.service_decel_mps2), traction), info=info)
+        return Command(accel, emergency=emergency, info=info)
 
 
 @register("cacc")

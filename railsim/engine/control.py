@@ -48,6 +48,7 @@ import numpy as np
 
 from controllers.ato import NO_STOP, Ato, limits_array_cached
 from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate, fallback_reason
+from controllers.cacc import Cacc
 from controllers.separation import Separation
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
@@ -316,8 +317,7 @@ class ControlStage:
         used_vc = False
         if vc_role:
             assert f is not None and leader is not None
-            base = base or self._base(t, tr, sit)
-            used_vc = self._coupled(t, tr, f, fstate, leader, base, commands)
+            used_vc = self._coupled(t, tr, f, fstate, leader, sit, base, commands)
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
             sep = tr.controllers["separation"]
             if type(sep) is Separation:
@@ -350,10 +350,13 @@ class ControlStage:
         f: Any,
         fstate: str,
         leader: TrainRuntime,
-        base: dict[str, Any],
+        sit: Situation,
+        base: dict[str, Any] | None,
         commands: dict[str, Command],
     ) -> bool:
-        """The coupled controller on t2t data if fresh enough; degrade/restore events. True if it commanded."""
+        """The coupled controller on t2t data if fresh enough; degrade/restore events. True if it commanded.
+        The CACC is asked on plain values (:meth:`controllers.cacc.Cacc.decide`); any other coupled controller gets
+        its :class:`Observation` (built from ``base``, made here if the caller has none yet)."""
         pred = self.knowledge.known_state(tr, leader, "t2t", tr.train_id)
         # hysteresis: degrade when the leader's data is older than max_message_age_s, restore only once it is at
         # least one step fresher (a delay equal to the limit would otherwise flip the mode every step)
@@ -365,10 +368,30 @@ class ControlStage:
                 # both units stop at this platform: the ATO stops us exactly behind the leader's mark, the coupled
                 # controller keeps only its safety cap (its slow gap loop would halt us short)
                 extras["vc_tracking"] = False
-            obs = Observation(
-                **base, predecessor=pred, formation_state=fstate, target_gap_m=float(f.target_gap_m), extras=extras
-            )
-            vc_cmd = tr.controllers["coupled"].command(obs)
+            ctl = tr.controllers["coupled"]
+            if type(ctl) is Cacc:
+                own_pos, own_v, grad = sit[0], sit[1], sit[2]
+                applied_now = tr.plant.applied_accel_mps2
+                vc_cmd = ctl.decide(
+                    tr.trip.vehicle,
+                    self.dt,
+                    own_pos,
+                    own_v,
+                    applied_now,
+                    grad,
+                    pred,
+                    float(f.target_gap_m),
+                    extras.get("vc_tracking") is not False,
+                )
+            else:
+                obs = Observation(
+                    **(base or self._base(t, tr, sit)),
+                    predecessor=pred,
+                    formation_state=fstate,
+                    target_gap_m=float(f.target_gap_m),
+                    extras=extras,
+                )
+                vc_cmd = ctl.command(obs)
             commands["coupled"] = vc_cmd
             info = vc_cmd.info or {}
             tr.vc_solve_s = float(info["solve_time_s"]) if info.get("solve_time_s") is not None else None
