@@ -187,20 +187,9 @@ class Cacc:
         acceleration), the law itself in one compiled call (:func:`controllers.cacc_kernel.cacc`)."""
         if pred is None or target_gap_m is None:
             return Command(traction_limit_mps2(veh, max(speed_mps, 0.0)), info={"phase": "free"})
-        age_s = max(pred.age_s, 0.0)
-        if pred.planned_accel_mps2 and pred.plan_dt_s > 0.0:
-            # The predecessor broadcast its plan: the entry for "now" is the command it is applying.
-            index = min(int(age_s / pred.plan_dt_s + 1e-9), len(pred.planned_accel_mps2) - 1)
-            a_p_applied = pred.planned_accel_mps2[index]
-        elif self.params.ff_lag_compensation:
-            a_p_applied = self._predecessor_command(pred, veh.actuator_time_constant_s)
-        else:
-            a_p_applied = pred.accel_mps2
-        packed = self._packed
-        if packed is None or packed[0] is not veh or packed[1] != dt_s:
-            packed = self._packed = (veh, dt_s, cacc_kernel.pack(veh, self.params, dt_s))
+        a_p_applied = self.feed_forward_mps2(pred, veh)
         accel, emergency, phase, gap_m, error_m, h, target_m = cacc_kernel.cacc(
-            packed[2],
+            self.packed(veh, dt_s),
             position_m,
             speed_mps,
             accel_mps2,
@@ -222,6 +211,26 @@ class Cacc:
             "target_gap_m": target_m,
         }
         return Command(accel, emergency=emergency, info=info)
+
+    def feed_forward_mps2(self, pred: PredecessorState, veh: VehicleParams) -> float:
+        """The predecessor's acceleration the law feeds forward (module docstring): the entry for "now" of its
+        broadcast plan, else its command reconstructed from consecutive messages (this updates the controller's
+        memory of them: call it once per decision), else the acceleration it reported."""
+        if pred.planned_accel_mps2 and pred.plan_dt_s > 0.0:
+            # The predecessor broadcast its plan: the entry for "now" is the command it is applying.
+            index = min(int(max(pred.age_s, 0.0) / pred.plan_dt_s + 1e-9), len(pred.planned_accel_mps2) - 1)
+            return pred.planned_accel_mps2[index]
+        if self.params.ff_lag_compensation:
+            return self._predecessor_command(pred, veh.actuator_time_constant_s)
+        return pred.accel_mps2
+
+    def packed(self, veh: VehicleParams, dt_s: float) -> np.ndarray:
+        """The law's inputs for ``veh`` and step ``dt_s`` (:func:`controllers.cacc_kernel.pack`, once per vehicle
+        and step length; also for the engine's compiled coupled step)."""
+        packed = self._packed
+        if packed is None or packed[0] is not veh or packed[1] != dt_s:
+            packed = self._packed = (veh, dt_s, cacc_kernel.pack(veh, self.params, dt_s))
+        return packed[2]
 
 
 @register("cacc")

@@ -29,11 +29,14 @@ One decision, two implementations
     actuator fault acts on them. For them the two laws, the minimum and the plant step are one compiled call
     (:meth:`ControlStage._line_step`, :func:`railsim.engine.line_step_kernel.line_step`) — the same law functions
     (:mod:`controllers.line_kernels`) and the same plant (:mod:`railsim.physics.plant_kernel`) on the same
-    values, so it gives the bits the general implementation would. Every other train goes through
-    :meth:`ControlStage._role_commands` (each role's :class:`~controllers.base.Command`; the line laws are asked
-    on plain values, any other controller gets its :class:`~controllers.base.Observation`) and
+    values, so it gives the bits the general implementation would. A coupled follower that is otherwise a line
+    train and whose coupled role is the CACC (:class:`controllers.cacc.Cacc`) is one compiled call as well
+    (:meth:`ControlStage._coupled_step`: the ATO, the CACC law of :mod:`controllers.cacc_kernel`, the separation
+    against a train between it and its leader). Every other train goes through
+    :meth:`ControlStage._role_commands` (each role's :class:`~controllers.base.Command`; the line laws and the
+    CACC are asked on plain values, any other controller gets its :class:`~controllers.base.Observation`) and
     :meth:`ControlStage._finish` (arbitration, fallbacks, noise, the plant). Neither implementation chooses
-    roles: the choice is made once, in :meth:`~ControlStage.control_all`.
+    roles: the choice is made once, in :meth:`~ControlStage._decide`.
 """
 
 from __future__ import annotations
@@ -41,16 +44,25 @@ from __future__ import annotations
 import logging
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
 
 from controllers.ato import NO_STOP, Ato, limits_array_cached
-from controllers.base import Command, Observation, OwnState, SpeedLimit, StopTarget, arbitrate, fallback_reason
+from controllers.base import (
+    Command,
+    Observation,
+    OwnState,
+    PredecessorState,
+    SpeedLimit,
+    StopTarget,
+    arbitrate,
+    fallback_reason,
+)
 from controllers.cacc import Cacc
 from controllers.separation import Separation
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
+from railsim.engine.disturbances import Disturbances
 from railsim.engine.events.log import EventLog
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fallbacks import FallbackReporter
@@ -75,42 +87,6 @@ PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controll
 Situation = tuple[
     float, float, float, tuple[SpeedLimit, ...], Any, tuple[float, float, float, bool] | None, float | None, float
 ]
-
-
-@dataclass
-class Disturbances:
-    """Sensor and actuator faults of the scenario, with their own random streams."""
-
-    position_sd_m: float
-    speed_sd_mps: float
-    noise_rng: np.random.Generator
-    actuator_sd_mps2: float
-    actuator_rng: np.random.Generator
-    actuator_trains: Any  # None = every train
-    biases: tuple[Any, ...]  # scenario faults.actuator_bias
-
-    @classmethod
-    def from_faults(cls, faults: Any, rng: np.random.Generator) -> Disturbances:
-        """The scenario's ``faults`` (sensor noise, actuator noise and bias); the sensor then the actuator stream
-        are seeded from ``rng``."""
-        noise_rng = np.random.default_rng(rng.integers(2**63))
-        actuator_rng = np.random.default_rng(rng.integers(2**63))
-        return cls(
-            float(faults.sensor_noise.position_sd_m),
-            float(faults.sensor_noise.speed_sd_mps),
-            noise_rng,
-            float(faults.actuator_noise.accel_sd_mps2),
-            actuator_rng,
-            faults.actuator_noise.trains,
-            tuple(faults.actuator_bias),
-        )
-
-    def biased(self, t: float, train_id: str, u_mps2: float) -> float:
-        """``u`` plus every injected actuator bias active for this train at ``t``."""
-        for bias in self.biases:
-            if bias.train == train_id and bias.from_s <= t < bias.until_s:
-                u_mps2 += bias.accel_mps2
-        return u_mps2
 
 
 class ControlStage:
@@ -252,8 +228,12 @@ class ControlStage:
             and (leader.on_line or leader.status == "arrived")  # arrived this step: it stands there, still ahead
             and tr.controllers.get("coupled") is not None
         )
-        if driver is None and not vc_role and self._is_line_train(tr, a, ato):
-            return self._line_step(t, tr, a, ato, sit)
+        if driver is None and self._is_line_train(tr, a, ato):
+            if not vc_role:
+                return self._line_step(t, tr, a, ato, sit)
+            if type(tr.controllers["coupled"]) is Cacc:
+                assert f is not None and leader is not None
+                return self._coupled_step(t, tr, a, ato, sit, f, leader)
         commands = self._role_commands(t, tr, a, sit, ato, driver, vc_role, fstate, f, leader)
         return self._finish(t, tr, commands, sit[2])
 
@@ -357,58 +337,66 @@ class ControlStage:
         """The coupled controller on t2t data if fresh enough; degrade/restore events. True if it commanded.
         The CACC is asked on plain values (:meth:`controllers.cacc.Cacc.decide`); any other coupled controller gets
         its :class:`Observation` (built from ``base``, made here if the caller has none yet)."""
+        pred = self._leader_state(t, tr, leader)
+        if pred is None:
+            return False
+        tracking = self._vc_tracking(tr)
+        ctl = tr.controllers["coupled"]
+        if type(ctl) is Cacc:
+            own_pos, own_v, grad = sit[0], sit[1], sit[2]
+            applied_now = tr.plant.applied_accel_mps2
+            vc_cmd = ctl.decide(
+                tr.trip.vehicle, self.dt, own_pos, own_v, applied_now, grad, pred, float(f.target_gap_m), tracking
+            )
+        else:
+            obs = Observation(
+                **(base or self._base(t, tr, sit)),
+                predecessor=pred,
+                formation_state=fstate,
+                target_gap_m=float(f.target_gap_m),
+                extras={} if tracking else {"vc_tracking": False},
+            )
+            vc_cmd = ctl.command(obs)
+        commands["coupled"] = vc_cmd
+        self._vc_commanded(t, tr, leader, pred, vc_cmd.info or {})
+        return True
+
+    def _leader_state(self, t: float, tr: TrainRuntime, leader: TrainRuntime) -> PredecessorState | None:
+        """The leader's state from t2t data if fresh enough for the coupled role, else None (and ``vc_degraded``
+        when the follower was not degraded yet)."""
         pred = self.knowledge.known_state(tr, leader, "t2t", tr.train_id)
         # hysteresis: degrade when the leader's data is older than max_message_age_s, restore only once it is at
         # least one step fresher (a delay equal to the limit would otherwise flip the mode every step)
         age_limit = self.settings.max_message_age_s - (self.dt if tr.degraded else 0.0)
         if pred is not None and pred.age_s <= age_limit:
-            extras = {}
-            stop, offset = self.stops.current(tr)
-            if stop is not None and offset > 0.0 and self.formations.in_final_approach(tr, stop.mark_m - offset):
-                # both units stop at this platform: the ATO stops us exactly behind the leader's mark, the coupled
-                # controller keeps only its safety cap (its slow gap loop would halt us short)
-                extras["vc_tracking"] = False
-            ctl = tr.controllers["coupled"]
-            if type(ctl) is Cacc:
-                own_pos, own_v, grad = sit[0], sit[1], sit[2]
-                applied_now = tr.plant.applied_accel_mps2
-                vc_cmd = ctl.decide(
-                    tr.trip.vehicle,
-                    self.dt,
-                    own_pos,
-                    own_v,
-                    applied_now,
-                    grad,
-                    pred,
-                    float(f.target_gap_m),
-                    extras.get("vc_tracking") is not False,
-                )
-            else:
-                obs = Observation(
-                    **(base or self._base(t, tr, sit)),
-                    predecessor=pred,
-                    formation_state=fstate,
-                    target_gap_m=float(f.target_gap_m),
-                    extras=extras,
-                )
-                vc_cmd = ctl.command(obs)
-            commands["coupled"] = vc_cmd
-            info = vc_cmd.info or {}
-            tr.vc_solve_s = float(info["solve_time_s"]) if info.get("solve_time_s") is not None else None
-            tr.vc_objective = float(info["J"]) if info.get("J") is not None else None
-            tgt = vc_cmd.info.get("target_gap_m") if vc_cmd.info else None
-            tr.vc_target_gap_m = float(tgt) if tgt is not None else None
-            tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
-            if info.get("event") in PLAN_EVENTS:  # the follower stopped/restarted using its leader's t2t plan
-                self.events.record(t, info["event"], tr.train_id, leader=leader.train_id, age_s=info.get("plan_age_s"))
-            if tr.degraded:
-                tr.degraded = False
-                self.events.record(t, "vc_restored", tr.train_id)
-            return True
+            return pred
         if not tr.degraded:
             tr.degraded = True
             self.events.record(t, "vc_degraded", tr.train_id, age_s=None if pred is None else round(pred.age_s, 3))
-        return False
+        return None
+
+    def _vc_tracking(self, tr: TrainRuntime) -> bool:
+        """Does the coupled controller track its gap now? Not when both units stop at this platform: the ATO stops
+        the follower exactly behind the leader's mark and the coupled controller keeps only its safety cap (its
+        slow gap loop would halt the follower short)."""
+        stop, offset = self.stops.current(tr)
+        return not (stop is not None and offset > 0.0 and self.formations.in_final_approach(tr, stop.mark_m - offset))
+
+    def _vc_commanded(
+        self, t: float, tr: TrainRuntime, leader: TrainRuntime, pred: PredecessorState, info: Mapping[str, Any]
+    ) -> None:
+        """What the coupled controller's command leaves on the train (solve time, objective, effective target gap,
+        staleness) and its events (a leader's plan used/lost; ``vc_restored``)."""
+        tr.vc_solve_s = float(info["solve_time_s"]) if info.get("solve_time_s") is not None else None
+        tr.vc_objective = float(info["J"]) if info.get("J") is not None else None
+        tgt = info.get("target_gap_m")
+        tr.vc_target_gap_m = float(tgt) if tgt is not None else None
+        tr.stale_max_s = max(tr.stale_max_s, pred.age_s)
+        if info.get("event") in PLAN_EVENTS:  # the follower stopped/restarted using its leader's t2t plan
+            self.events.record(t, info["event"], tr.train_id, leader=leader.train_id, age_s=info.get("plan_age_s"))
+        if tr.degraded:
+            tr.degraded = False
+            self.events.record(t, "vc_restored", tr.train_id)
 
     def _collision_avoidance(
         self,
@@ -445,17 +433,56 @@ class ControlStage:
         :meth:`_finish` would do for these two roles — neither law falls back, adds, or carries a plan — on the
         same values. A non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records
         it and brakes."""
+        known = self._known_rear(tr, a) if a is not None else None
+        out = line_step_kernel.line_step(*self._line_args(tr, ato, sit, known))
+        return self._stepped(t, tr, out, sit[2])
+
+    def _coupled_step(
+        self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation, f: Any, leader: TrainRuntime
+    ) -> float:
+        """A coupled follower whose coupled role is the CACC, otherwise a line train (:meth:`_is_line_train`), in
+        one compiled call (:func:`railsim.engine.line_step_kernel.coupled_step`): the ATO, the CACC on the leader's
+        t2t state, the separation against a train between them, the minimum in that order, the plant — what
+        :meth:`_role_commands` (with :meth:`_coupled`) and :meth:`_finish` would do on the same values. With its
+        leader's data too old the follower is degraded and steps as a line train."""
+        pred = self._leader_state(t, tr, leader)
+        if pred is None:
+            return self._line_step(t, tr, a, ato, sit)
+        tracking = self._vc_tracking(tr)
+        ctl: Cacc = tr.controllers["coupled"]
+        veh = tr.trip.vehicle
+        lead_command_mps2 = ctl.feed_forward_mps2(pred, veh)
+        known = self._known_rear(tr, a) if a is not None and a.train_id != leader.train_id else None
+        args = (
+            *self._line_args(tr, ato, sit, known),
+            ctl.packed(veh, self.dt),
+            pred.rear_position_m,
+            pred.speed_mps,
+            pred.accel_mps2,
+            pred.emergency_decel_mps2,
+            pred.age_s,
+            lead_command_mps2,
+            float(f.target_gap_m),
+            tracking,
+        )
+        out = line_step_kernel.coupled_step(*args)
+        self._vc_commanded(t, tr, leader, pred, {"target_gap_m": out[9]})
+        return self._stepped(t, tr, out, sit[2])
+
+    def _line_args(
+        self, tr: TrainRuntime, ato: Ato, sit: Situation, known: tuple[float, float] | None
+    ) -> tuple[Any, ...]:
+        """The inputs of :func:`~railsim.engine.line_step_kernel.line_step` (the first ones of ``coupled_step``):
+        the packed laws and plant, the situation, the plant state, and the known rear of the train ahead."""
         x, v, grad, limits, _, target, authority, tail_m = sit
         veh = tr.trip.vehicle
-        known = self._known_rear(tr, a) if a is not None else None
         plant = tr.plant
         ato_p, sep_p, plant_p = self._line_inputs(tr, ato, veh)
-        has_stop, has_authority, has_rear = target is not None, authority is not None, known is not None
         mark_m, window_start_m, window_end_m, dwelling = target if target is not None else NO_STOP
         rear_m, age_s = known if known is not None else (0.0, 0.0)
-        accel, emergency, role_i, ok, v_next, a_k, u_k, energy_j, mask = line_step_kernel.line_step(
+        return (
             ato_p,
-            sep_p if has_rear else _NO_PACK,
+            sep_p if known is not None else _NO_PACK,
             plant_p,
             self._method_i,
             self.dt,
@@ -468,19 +495,24 @@ class ControlStage:
             grad,
             tr.view.line_speed_mps,
             limits_array_cached(limits),
-            has_stop,
+            target is not None,
             mark_m,
             window_start_m,
             window_end_m,
             dwelling,
-            has_authority,
+            authority is not None,
             authority if authority is not None else 0.0,
             tail_m,
-            has_rear,
+            known is not None,
             rear_m,
             age_s,
         )
-        role = "separation" if role_i == line_step_kernel.ROLE_SEPARATION else "ato"
+
+    def _stepped(self, t: float, tr: TrainRuntime, out: tuple[Any, ...], grad: float) -> float:
+        """A compiled step's result kept: the winning role's emergency events and the plant's step (:meth:`_commit`);
+        a non-finite command goes to :meth:`_apply` (recorded, braked)."""
+        accel, emergency, role_i, ok, v_next, a_k, u_k, energy_j, mask = out[:9]
+        role = line_step_kernel.ROLES[role_i]
         if not ok:
             return self._apply(t, tr, role, accel, emergency, None, grad)  # non-finite: recorded, braked
         self._emergency_events(t, tr, role, emergency)

@@ -31,7 +31,8 @@ from typing import Any
 import numpy as np
 
 from railsim.engine import primary_delays, timed
-from railsim.engine.control import ControlStage, Disturbances
+from railsim.engine.control import ControlStage
+from railsim.engine.disturbances import Disturbances
 from railsim.engine.coupling import FormationBook
 from railsim.engine.events import EventLayer, FormationManager, Interlocking, Switch
 from railsim.engine.extensions import ExtensionContext, ExtensionSet
