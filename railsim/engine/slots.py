@@ -54,9 +54,11 @@ class SlotStore:
         self.table = _rows(capacity)
         self.n_slots = 0
         self._active: list[Any] = []  # the trains of the last index, in order
-        self._views: list[Any] = []  # and their views then
+        self._views: list[Any] | None = None  # and their views then (None: to be numbered)
         self.slots = np.zeros(0, np.int64)  # their slots
         self.ids: list[str] = []  # and their train ids
+        self.routes = np.zeros(0, np.int64)  # and their route numbers
+        self.lengths_m = np.zeros(0)  # and lengths (these four arrays are replaced, never changed in place)
 
     def give(self, tr: TrainRuntime) -> int:
         """``tr``'s slot: a new row, filled from the train (its route is numbered by :meth:`index`)."""
@@ -76,8 +78,8 @@ class SlotStore:
         return s
 
     def index(self, active: list[TrainRuntime]) -> None:
-        """Make ``active`` the step's trains: :attr:`slots` and :attr:`ids` in its order (slots given to trains
-        read for the first time), and the route column of each (numbered afresh only when a view or the set of
+        """Make ``active`` the step's trains: :attr:`slots`, :attr:`ids`, :attr:`routes` and :attr:`lengths_m` in
+        its order (slots given to trains read for the first time), and the route column of each (numbered afresh only when a view or the set of
         trains changed: the routes not seen before are registered in the order of ``active``, as the occupancy
         index always has)."""
         if active != self._active:  # (element by element, identity first: a C loop)
@@ -87,10 +89,12 @@ class SlotStore:
             self._active = list(active)
             self.slots = np.array(list(map(_SLOT, active)), np.int64)
             self.ids = list(map(_TRAIN_ID, active))
-            self._views = []
+            self.lengths_m = self.table[self.slots, LENGTH_M]
+            self._views = None
         views = list(map(_VIEW, active))
         if views != self._views:
-            self.table[self.slots, ROUTE] = self.occupancy.route_numbers(views)
+            self.routes = self.occupancy.route_numbers(views)
+            self.table[self.slots, ROUTE] = self.routes
             self._views = views
 
     def sent(self, speeds_mps: list[float] | np.ndarray) -> None:
@@ -101,18 +105,14 @@ class SlotStore:
         """One field of one slot (the train's property setters)."""
         self.table[slot, column] = value
 
-    def column(self, column: int) -> np.ndarray:
-        """A column for the trains of the last :meth:`index`, in its order (a copy)."""
-        return self.table[self.slots, column]
-
     def gathered(self, active: list[TrainRuntime]) -> np.ndarray:
         """The inputs as read from the trains themselves (columns :data:`ROUTE` … :data:`LENGTH_M`): what the table
-        must hold (the tests' oracle)."""
+        must hold (the tests' oracle; route -1: a view not numbered yet)."""
         route_of = self.occupancy.route_of
         return np.array(
             [
                 (
-                    route_of[id(tr.view)],
+                    route_of.get(id(tr.view), -1),
                     tr.depart_chainage_m,
                     tr.edge_i,
                     tr.reversing,

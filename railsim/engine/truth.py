@@ -108,6 +108,4 @@ class TruthPass:
         if n_bad:
             out_of_step = np.flatnonzero(verdict[:n] & truth_kernel.DESYNC).tolist()
             self.safety.desync_found(t, active, out_of_step, railsim_m, sumo_m, edge_ids)
-        occ.update_arrays(
-            store.ids, store.column(slots.ROUTE).astype(np.int64), front, store.column(slots.LENGTH_M), edge_i
-        )
+        occ.update_arrays(store.ids, store.routes, front, store.lengths_m, edge_i)

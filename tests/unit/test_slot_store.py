@@ -75,12 +75,14 @@ class _Run:
     def step(self) -> None:
         """A step: some trains join or leave, in a new order; the pass reads them (pointers written)."""
         rng = self.rng
-        keep = [tr for tr in self.active if rng.random() < 0.85]
+        keep = [tr for tr in self.active if rng.random() < (0.85 if rng.random() < 0.9 else 0.0)]
         new = [tr for tr in self.trains if tr not in keep and rng.random() < 0.15]
         self.active = [*keep, *new]
         if rng.random() < 0.3:
             rng.shuffle(self.active)  # type: ignore[arg-type]
         if not self.active:
+            self.store.index([])
+            assert (len(self.store.slots), len(self.store.routes), len(self.store.lengths_m)) == (0, 0, 0)
             return
         n = len(self.active)
         reading = SimpleNamespace(
@@ -95,6 +97,8 @@ class _Run:
         self.check_rows(self.active, INPUTS)
         self.truth.read(self.t, self.active, reading)  # type: ignore[arg-type]
         self.check_rows(self.active, INPUTS)  # the pointer written back and in the row alike
+        assert self.store.routes.tolist() == self.store.gathered(self.active)[:, slots.ROUTE].tolist()
+        assert self.store.lengths_m.tolist() == [tr.trip.vehicle.length_m for tr in self.active]
 
     def send(self) -> None:
         """Control sets each train's speed and the engine hands the list to SUMO."""
