@@ -73,13 +73,16 @@ class _Run:
         self.t = 0.0
 
     def step(self) -> None:
-        """A step: some trains join or leave, in a new order; the pass reads them (pointers written)."""
+        """A step: the same trains, or some join or leave, in a new order; the pass reads them (pointers written)."""
         rng = self.rng
-        keep = [tr for tr in self.active if rng.random() < (0.85 if rng.random() < 0.9 else 0.0)]
-        new = [tr for tr in self.trains if tr not in keep and rng.random() < 0.15]
-        self.active = [*keep, *new]
-        if rng.random() < 0.3:
-            rng.shuffle(self.active)  # type: ignore[arg-type]
+        if rng.random() < 0.5:  # the same trains (most steps)
+            self.active = list(self.active)
+        else:
+            keep = [tr for tr in self.active if rng.random() < (0.85 if rng.random() < 0.9 else 0.0)]
+            new = [tr for tr in self.trains if tr not in keep and rng.random() < 0.15]
+            self.active = [*keep, *new]
+            if rng.random() < 0.3:
+                rng.shuffle(self.active)  # type: ignore[arg-type]
         if not self.active:
             self.store.index([])
             assert (len(self.store.slots), len(self.store.routes), len(self.store.lengths_m)) == (0, 0, 0)
