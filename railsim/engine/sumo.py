@@ -554,11 +554,10 @@ class SumoBridge:
         :class:`EdgeMemory` cannot vouch for the last one read."""
         ids = list(_api.vehicle.getIDList()) if ids is None else list(ids)
         v = _vehicle_calls()
-        n = len(ids)
-        odo = np.fromiter(map(v.getDistance, ids), float, n)  # one getter over all trains at a time, straight in
-        spd = np.fromiter(map(v.getSpeed, ids), float, n)
-        lpos = np.fromiter(map(v.getLanePosition, ids), float, n)
-        stopped = (np.fromiter(map(v.getStopState, ids), np.int64, n) & 1) == 1  # isStopped: bit 0
+        odo = np.array(list(map(v.getDistance, ids)), dtype=float)  # one getter over all trains at a time
+        spd = np.array(list(map(v.getSpeed, ids)), dtype=float)
+        lpos = np.array(list(map(v.getLanePosition, ids)), dtype=float)
+        stopped = np.array([state & 1 == 1 for state in map(v.getStopState, ids)], dtype=bool)  # isStopped: bit 0
         if len(ids) >= self.edge_memory_min_trains:
             edges = self._edges.edges_now(ids, odo, lpos, v)
         else:  # few trains: asking is cheaper than the memory's array work
