@@ -31,15 +31,42 @@ from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
+from railsim.engine.slot_columns import (
+    DEPART_M,
+    FRONT_M,
+    HINT,
+    LENGTH_M,
+    N_COLUMNS,
+    NEVER_SEEN,
+    NO_SPEED,
+    PREV_FRONT_M,
+    PREV_SPEED_MPS,
+    REVERSING,
+    ROUTE,
+    SEEN,
+    SENT_MPS,
+)
+
 if TYPE_CHECKING:
     from railsim.engine.occupancy import Occupancy
     from railsim.engine.train import TrainRuntime
 
-# Columns of the slot table (float; route numbers and pointers are small integers, exact in a double)
-ROUTE, DEPART_M, HINT, REVERSING, SENT_MPS, LENGTH_M, PREV_FRONT_M, PREV_SPEED_MPS, SEEN, FRONT_M = range(10)
-N_COLUMNS = 10
-NO_SPEED = np.nan  # no speed handed to SUMO yet: SUMO's is not compared
-NEVER_SEEN = -2.0  # SEEN of a slot never checked
+__all__ = [  # the table's columns (railsim.engine.slot_columns) and the store
+    "DEPART_M",
+    "FRONT_M",
+    "HINT",
+    "LENGTH_M",
+    "N_COLUMNS",
+    "NEVER_SEEN",
+    "NO_SPEED",
+    "PREV_FRONT_M",
+    "PREV_SPEED_MPS",
+    "REVERSING",
+    "ROUTE",
+    "SEEN",
+    "SENT_MPS",
+    "SlotStore",
+]
 
 _VIEW = attrgetter("view")
 _SLOT = attrgetter("slot")

@@ -9,16 +9,20 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from operator import attrgetter
-from typing import TYPE_CHECKING, Any, Protocol
+from typing import Any, Protocol
 
-from railsim.engine import slots as _slots
+from railsim.engine import slot_columns
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import INF
 from railsim.engine.trips import Trip
 from railsim.physics import dynamics
 
-if TYPE_CHECKING:
-    from railsim.engine.slots import SlotStore
+
+class SlotWriter(Protocol):
+    """Where a train's resident fields go as well (:class:`railsim.engine.slots.SlotStore`)."""
+
+    def write(self, column: int, slot: int, value: float) -> None:
+        """Set one column of one slot."""
 
 
 class ExactPlant(Protocol):
@@ -88,7 +92,7 @@ class TrainRuntime:
     start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
     edge_i: int = 0  # the route edge under the front this step (RouteView.edge_near from last step's)
     slot: int = -1  # its row in the engine's per-train arrays (railsim.engine.slots), given when first read
-    store: SlotStore | None = field(default=None, repr=False, compare=False)  # the arrays its slot is a row of
+    store: SlotWriter | None = field(default=None, repr=False, compare=False)  # the arrays its slot is a row of
 
     def __post_init__(self) -> None:
         self.train_id = self.trip.trip_id
@@ -128,5 +132,5 @@ def resident(name: str, column: int) -> None:
     setattr(TrainRuntime, name, property(attrgetter(private), write, doc=f"(resident in the slot store) {name}"))
 
 
-resident("depart_chainage_m", _slots.DEPART_M)
-resident("reversing", _slots.REVERSING)
+resident("depart_chainage_m", slot_columns.DEPART_M)
+resident("reversing", slot_columns.REVERSING)

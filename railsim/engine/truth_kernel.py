@@ -38,7 +38,17 @@ import numpy as np
 from numba import njit
 
 from railsim.engine.occupancy_kernel import edge_at, near_hint
-from railsim.engine.slots import DEPART_M, FRONT_M, HINT, PREV_FRONT_M, PREV_SPEED_MPS, REVERSING, ROUTE, SEEN, SENT_MPS
+from railsim.engine.slot_columns import (
+    DEPART_M,
+    FRONT_M,
+    HINT,
+    PREV_FRONT_M,
+    PREV_SPEED_MPS,
+    REVERSING,
+    ROUTE,
+    SEEN,
+    SENT_MPS,
+)
 
 INTERNAL = -2  # SUMO edge code of an internal junction lane (id starting with ":"): no position check there
 UNKNOWN = -1  # SUMO edge code of an edge no registered route uses
