@@ -15,8 +15,8 @@ change, not when they are read:
 * **the truth pass's own outputs**: the compiled pass writes each train's edge pointer, chainage and memory of the
   check into its row (:func:`railsim.engine.truth_kernel.truth_pass`).
 
-A train's route view is read by the later phases several times per train-step, where a property would cost more
-than a gather: so the view stays a plain attribute, and :meth:`SlotStore.index` compares the step's views with the
+A train's route view is read by the later phases ~4.6 times per train-step (the demo), where a property would cost
+~30 ns a read, more than a gather: so the view stays a plain attribute, and :meth:`SlotStore.index` compares the step's views with the
 last step's (one pointer comparison per train, in C) and numbers the routes again only when one changed or the set
 of trains did. The train's length is taken when its slot is given (a trip's vehicle is fixed once it runs).
 
@@ -106,9 +106,9 @@ class SlotStore:
 
     def index(self, active: list[TrainRuntime]) -> None:
         """Make ``active`` the step's trains: :attr:`slots`, :attr:`ids`, :attr:`routes` and :attr:`lengths_m` in
-        its order (slots given to trains read for the first time), and the route column of each (numbered afresh only when a view or the set of
-        trains changed: the routes not seen before are registered in the order of ``active``, as the occupancy
-        index always has)."""
+        its order (slots given to trains read for the first time), and the route column of each (numbered afresh
+        only when a view or the set of trains changed: the routes not seen before are registered in the order of
+        ``active``, as the occupancy index always has)."""
         if active != self._active:  # (element by element, identity first: a C loop)
             for tr in active:
                 if tr.slot < 0 or tr.store is not self:
