@@ -18,7 +18,8 @@ change, not when they are read:
 A train's route view is read by the later phases ~4.6 times per train-step (the demo), where a property would cost
 ~30 ns a read, more than a gather: so the view stays a plain attribute, and :meth:`SlotStore.index` compares the
 step's views with the last step's (one pointer comparison per train, in C) and numbers the routes again only when
-one changed or the set of trains did. The train's length is taken when its slot is given (a trip's vehicle is fixed once it runs).
+one changed or the set of trains did. The train's length is taken when its slot is given (a trip's vehicle is
+fixed once it runs).
 
 ``tests/unit/test_slot_store.py`` holds the table to what reading every field from the trains gives, after every
 kind of event that changes one.
