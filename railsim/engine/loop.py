@@ -49,6 +49,7 @@ from railsim.engine.progress import RunProgress
 from railsim.engine.recording import RecordingPort
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import PERMISSIVE_DECEL_MPS2, PERMISSIVE_SPEED_FACTOR, PERMISSIVE_TAU_S, EngineSettings
+from railsim.engine.slots import SlotStore
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
 from railsim.engine.truth import TruthPass
@@ -169,7 +170,8 @@ class Simulation:
         self.recording = RecordingPort(self.recorder, self.formations)
         self.occupancy = Occupancy()
         self.occupancy.set_bidi(self.bundle.graph)
-        self.truth = TruthPass(self.occupancy, self.safety, self.settings.desync_tolerance_m, self.dt)
+        self.slots = SlotStore(self.occupancy)  # per-train state resident in arrays (railsim.engine.slots)
+        self.truth = TruthPass(self.occupancy, self.safety, self.settings.desync_tolerance_m, self.dt, self.slots)
         self.dispatcher.schedule_departures()
         ports = timed.TimedPorts(self.layer, self.events, self.fleet, self.formations, self.dispatcher, self.safety)
         timed.schedule(ports, scenario)
@@ -307,6 +309,7 @@ class Simulation:
         self.layer.advance_to(t)
         speeds = self.control.control_all(t, active, ahead)
         bridge.set_speeds(ids, speeds)
+        self.slots.sent(speeds)  # what SUMO was handed, for the next check of the speeds it applied
         self.recording.step(t, active, ahead, reports)
         for tr in active:  # trains that finished this step leave SUMO now, or their unit runs its next trip
             if tr.status == "arrived":

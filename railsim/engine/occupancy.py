@@ -73,6 +73,16 @@ class Facing(NamedTuple):
     far_m: float  # the other end
 
 
+class _EdgeCodes(dict[str, int]):
+    """SUMO edge id -> the truth pass's code for it (:meth:`Occupancy.edge_codes`), looked up in C: an id not asked
+    for before is coded on the miss — :data:`INTERNAL` for an internal junction lane, :data:`UNKNOWN` for an edge
+    not numbered yet — and kept; numbering an edge (:meth:`Occupancy._number`) overwrites its entry."""
+
+    def __missing__(self, edge: str) -> int:
+        code = self[edge] = INTERNAL if edge[:1] == ":" else UNKNOWN
+        return code
+
+
 class Occupancy:
     """Per-step index of which train covers which edge, on per-train arrays (:mod:`.occupancy_kernel`).
 
@@ -84,6 +94,7 @@ class Occupancy:
     def __init__(self) -> None:
         self._bidi: dict[str, tuple[str, float]] = {}  # bidi edge -> (its partner, the partner's length [m])
         self._edge_id: dict[str, int] = {}  # SUMO edge -> global edge number
+        self._codes = _EdgeCodes()  # SUMO edge id -> its code for the truth pass (edge_codes), filled as asked
         self._route_of: dict[int, int] = {}  # id(view) -> route number (the view is kept in _views: ids stay unique)
         self._views: list[RouteView] = []
         # per route: its global edge numbers in route order, edge starts, sorted look-up keys and values
@@ -130,6 +141,8 @@ class Occupancy:
         k = self._edge_id.get(edge)
         if k is None:
             k = self._edge_id[edge] = len(self._edge_id)
+            if edge[:1] != ":":  # (an internal junction lane keeps its code INTERNAL)
+                self._codes[edge] = k
             self._dirty = True
         return k
 
@@ -208,8 +221,7 @@ class Occupancy:
     def edge_codes(self, edges: list[str]) -> np.ndarray:
         """SUMO edge ids as global edge numbers: :data:`.truth_kernel.INTERNAL` for an internal junction lane (an id
         starting with ``:``), :data:`.truth_kernel.UNKNOWN` for an edge no registered route or bidi pair uses."""
-        get = self._edge_id.get
-        return np.array([INTERNAL if e[:1] == ":" else get(e, UNKNOWN) for e in edges], np.int64)
+        return np.fromiter(map(self._codes.__getitem__, edges), np.int64, len(edges))
 
     def _slots(self) -> dict[str, int]:
         """Train id -> slot this step (built on the first question by id: the per-step passes need none)."""

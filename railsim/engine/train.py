@@ -8,12 +8,21 @@ where the loop itself must call it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from operator import attrgetter
 from typing import Any, Protocol
 
+from railsim.engine import slot_columns
 from railsim.engine.routeview import RouteView
 from railsim.engine.settings import INF
 from railsim.engine.trips import Trip
 from railsim.physics import dynamics
+
+
+class SlotWriter(Protocol):
+    """Where a train's resident fields go as well (:class:`railsim.engine.slots.SlotStore`)."""
+
+    def write(self, column: int, slot: int, value: float) -> None:
+        """Set one column of one slot."""
 
 
 class ExactPlant(Protocol):
@@ -82,7 +91,8 @@ class TrainRuntime:
     hold_until_s: float | None = None  # a reversing unit stands at least until then (early for its departure)
     start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
     edge_i: int = 0  # the route edge under the front this step (RouteView.edge_near from last step's)
-    slot: int = -1  # its row in the engine's per-train arrays (railsim.engine.truth), given when first read
+    slot: int = -1  # its row in the engine's per-train arrays (railsim.engine.slots), given when first read
+    store: SlotWriter | None = field(default=None, repr=False, compare=False)  # the arrays its slot is a row of
 
     def __post_init__(self) -> None:
         self.train_id = self.trip.trip_id
@@ -104,3 +114,23 @@ class TrainRuntime:
     def on_line(self) -> bool:
         """Inserted and not yet arrived or removed."""
         return self.status in ("inserting", "running")
+
+
+def resident(name: str, column: int) -> None:
+    """Make the field ``name`` of :class:`TrainRuntime` *resident*: a write sets the train's value and, once the train
+    has a slot, column ``column`` of its row in the slot store (:mod:`railsim.engine.slots`), so the truth pass reads
+    the store and never a stale copy. For fields written rarely and read little elsewhere: reading one costs a C
+    getter (~30 ns more than a plain attribute)."""
+    private = "_" + name
+
+    def write(tr: TrainRuntime, value: Any) -> None:
+        setattr(tr, private, value)
+        store = tr.store
+        if store is not None:
+            store.write(column, tr.slot, value)
+
+    setattr(TrainRuntime, name, property(attrgetter(private), write, doc=f"(resident in the slot store) {name}"))
+
+
+resident("depart_chainage_m", slot_columns.DEPART_M)
+resident("reversing", slot_columns.REVERSING)

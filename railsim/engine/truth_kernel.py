@@ -20,9 +20,11 @@ from them, train by train, and all three are plain arithmetic over the route tab
      nearest the pointer (the pointer's edge, the next, the previous, else the route's last pass of it) plus the
      lane position lies within ``tol`` of the chainage (``sumo_m``; NaN when the edge is not on the route).
 
-Per-train memory lives in *slots* — a row per train for its whole run (:class:`railsim.engine.truth.TruthPass`
-hands them out): the chainage and speed of the train's last check and the number of the check it was seen in, so a
-train absent from a check (not yet in SUMO, or gone for a step) has no "last" state at the next.
+Per-train inputs and memory live in *slots* — a row per train for its whole run in the slot table
+(:class:`railsim.engine.slots.SlotStore`), read in place by the train's slot: its route, depart chainage, pointer,
+reversing flag and the speed last sent, and the chainage and speed of the train's last check and the number of the
+check it was seen in, so a train absent from a check (not yet in SUMO, or gone for a step) has no "last" state at
+the next.
 
 This is the only definition of the rules; its interpreted form (``truth_pass.py_func``) is the reference, and
 ``tests/unit/test_truth_kernel.py`` holds the compiled form to it bit for bit and each rule to a case built by hand.
@@ -36,6 +38,17 @@ import numpy as np
 from numba import njit
 
 from railsim.engine.occupancy_kernel import edge_at, near_hint
+from railsim.engine.slot_columns import (
+    DEPART_M,
+    FRONT_M,
+    HINT,
+    PREV_FRONT_M,
+    PREV_SPEED_MPS,
+    REVERSING,
+    ROUTE,
+    SEEN,
+    SENT_MPS,
+)
 
 INTERNAL = -2  # SUMO edge code of an internal junction lane (id starting with ":"): no position check there
 UNKNOWN = -1  # SUMO edge code of an edge no registered route uses
@@ -70,11 +83,6 @@ def pass_near(r_edges: Any, r_keys: Any, r_vals: Any, lo: int, hi: int, code: in
     return route_index(r_edges, r_keys, r_vals, lo, hi, code)
 
 
-# Columns of the per-train input rows (one float row per train of the step, gathered in one pass over the trains)
-SLOT, ROUTE, DEPART_M, HINT, REVERSING, SENT_MPS = range(6)
-N_COLUMNS = 6
-# Columns of the slots' memory (a row per slot for the train's whole run)
-PREV_FRONT_M, PREV_SPEED_MPS, SEEN = range(3)
 DESYNC, IMPOSED = 1, 2  # bits of a train's verdict: out of step with SUMO; a speed SUMO did not take from railsim
 
 
@@ -85,12 +93,12 @@ def truth_pass(
     r_starts: Any,
     r_keys: Any,
     r_vals: Any,
-    rows: Any,
+    table: Any,
+    slots: Any,
     odometer_m: Any,
     sumo_edge: Any,
     lane_pos_m: Any,
     speed_mps: Any,
-    memory: Any,
     check_no: int,
     dt_s: float,
     tol_m: float,
@@ -102,38 +110,43 @@ def truth_pass(
 ) -> tuple[int, int]:
     """Every train's chainage (``front_m``), edge pointer (``edge_i``) and verdict (``verdict``: :data:`DESYNC`
     with ``railsim_m`` and ``sumo_m``, NaN = none; :data:`IMPOSED`: SUMO's speed differs from the one sent, column
-    :data:`SENT_MPS`, NaN = none sent, by more than 1e-6 m/s) for check number ``check_no``. ``rows``: the trains'
-    inputs (columns :data:`SLOT` … :data:`SENT_MPS`); the slots' ``memory`` (columns :data:`PREV_FRONT_M`,
-    :data:`PREV_SPEED_MPS`, :data:`SEEN`) is read, then replaced by this check's. Returns the numbers of trains out
-    of step and of speeds imposed (module docstring)."""
+    :data:`~railsim.engine.slots.SENT_MPS`, NaN = none sent, by more than 1e-6 m/s) for check number ``check_no``.
+    Train ``k`` of the step is row ``slots[k]`` of the slot ``table`` (:mod:`railsim.engine.slots`: its inputs
+    :data:`~railsim.engine.slots.ROUTE` … :data:`~railsim.engine.slots.SENT_MPS`, and the memory of its last check,
+    :data:`~railsim.engine.slots.PREV_FRONT_M`, :data:`~railsim.engine.slots.PREV_SPEED_MPS`,
+    :data:`~railsim.engine.slots.SEEN`, read and then replaced by this check's); its pointer and chainage are written
+    into the row too (:data:`~railsim.engine.slots.HINT`, :data:`~railsim.engine.slots.FRONT_M`). Returns the
+    numbers of trains out of step and of speeds imposed (module docstring)."""
     n_bad = 0
     n_imposed = 0
-    for k in range(len(rows)):
-        r = int(rows[k, ROUTE])
+    for k in range(len(slots)):
+        s = slots[k]
+        r = int(table[s, ROUTE])
         lo, hi = r_off[r], r_off[r + 1]
         starts = r_starts[lo:hi]
-        front = rows[k, DEPART_M] + odometer_m[k]
-        i = near_hint(starts, front, int(rows[k, HINT]))
+        front = table[s, DEPART_M] + odometer_m[k]
+        i = near_hint(starts, front, int(table[s, HINT]))
         if i < 0:
             i = edge_at(starts, front)
         front_m[k] = front
         edge_i[k] = i
-        s = int(rows[k, SLOT])
+        table[s, HINT] = i
+        table[s, FRONT_M] = front
         v_now = speed_mps[k]
         flags = 0
-        if abs(v_now - rows[k, SENT_MPS]) > 1e-6:  # (False for NaN: nothing sent yet)
+        if abs(v_now - table[s, SENT_MPS]) > 1e-6:  # (False for NaN: nothing sent yet)
             flags = IMPOSED
             n_imposed += 1
         expected = front
-        if memory[s, SEEN] == check_no - 1 and rows[k, REVERSING] == 0.0:  # moved by its speed: never back, ≤ v·dt
-            prev = memory[s, PREV_FRONT_M]
-            max_advance_m = max(memory[s, PREV_SPEED_MPS], v_now) * dt_s
+        if table[s, SEEN] == check_no - 1 and table[s, REVERSING] == 0.0:  # moved by its speed: never back, ≤ v·dt
+            prev = table[s, PREV_FRONT_M]
+            max_advance_m = max(table[s, PREV_SPEED_MPS], v_now) * dt_s
             advance_m = front - prev
             if not -tol_m <= advance_m <= max_advance_m + tol_m:
                 expected = prev + min(max(advance_m, 0.0), max_advance_m)
-        memory[s, PREV_FRONT_M] = front
-        memory[s, PREV_SPEED_MPS] = v_now
-        memory[s, SEEN] = check_no
+        table[s, PREV_FRONT_M] = front
+        table[s, PREV_SPEED_MPS] = v_now
+        table[s, SEEN] = check_no
         railsim_m[k] = expected
         sumo_m[k] = front
         code = sumo_edge[k]

@@ -14,12 +14,13 @@ from typing import Any
 import numpy as np
 import pytest
 
-from railsim.engine import truth_kernel
+from railsim.engine import slots, truth_kernel
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.occupancy import Occupancy
 from railsim.engine.routeview import RouteView
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import EngineSettings
+from railsim.engine.train import TrainRuntime
 from railsim.engine.truth import TruthPass
 from tests.helpers import interpreted
 
@@ -41,28 +42,18 @@ def _view(route_id: str, edges: tuple[str, ...], lengths: tuple[float, ...]) -> 
     )
 
 
-class _Train(SimpleNamespace):
-    """What the truth pass reads from and writes to a train (the fields of ``TrainRuntime`` it uses)."""
+class _Train(TrainRuntime):
+    """A train whose adoption of SUMO's speed is recorded (its resident fields write the slot store as any)."""
+
+    adopted: tuple[float, float] | None = None
 
     def adopt_sumo_speed(self, t: float, speed_mps: float) -> None:
         self.adopted = (t, speed_mps)
 
 
 def _train(train_id: str, view: RouteView, depart_m: float = 0.0, length_m: float = 50.0) -> _Train:
-    return _Train(
-        train_id=train_id,
-        view=view,
-        slot=-1,
-        depart_chainage_m=depart_m,
-        edge_i=0,
-        reversing=False,
-        sent_speed_mps=None,
-        trip=SimpleNamespace(vehicle=SimpleNamespace(length_m=length_m)),
-        front_m=0.0,
-        sumo_stopped_now=False,
-        sumo_edge="",
-        adopted=None,
-    )
+    trip = SimpleNamespace(trip_id=train_id, vehicle=SimpleNamespace(length_m=length_m))
+    return _Train(trip=trip, view=view, controllers={}, depart_chainage_m=depart_m)  # type: ignore[arg-type]
 
 
 class _Reading(SimpleNamespace):
@@ -166,7 +157,7 @@ def test_a_speed_sumo_imposed_is_checked_and_adopted_and_an_unsent_one_is_not() 
     a.sent_speed_mps = 10.0
     w.truth.read(0.0, [a, b], _reading([120.0, 300.0], [9.5, 3.0], [20.0, 50.0], ["b", "c"]))
     assert w.speed_calls == [("A", 9.5, 10.0)] and a.adopted == (0.0, 9.5) and b.adopted is None
-    a.sent_speed_mps = 9.5
+    w.truth.slots.sent([9.5, 3.0])  # the speeds handed to SUMO for the step
     w.truth.read(0.5, [a, b], _reading([124.75, 300.0], [9.5 + 1e-7, 3.0], [24.75, 50.0], ["b", "c"]))
     assert len(w.speed_calls) == 1  # within 1e-6 m/s of what was sent
 
@@ -182,26 +173,24 @@ def test_the_compiled_pass_gives_its_interpreted_forms_bits(seed: int) -> None:
         edges = tuple(f"e{x}" for x in rng.integers(0, 12, n_e))
         views.append(_view(f"r{r}", edges, tuple(float(x) for x in rng.uniform(20.0, 300.0, n_e))))
     n_slots = 40
-    memory_c = np.column_stack(
-        [rng.uniform(0, 1000, n_slots), rng.uniform(0, 20, n_slots), rng.integers(0, 4, n_slots)]
-    )
-    memory_i = memory_c.copy()
+    table_c = np.zeros((n_slots, slots.N_COLUMNS))
+    table_c[:, slots.LENGTH_M] = 50.0
     for check_no in range(1, 5):
         n = int(rng.integers(1, 30))
-        rows = np.column_stack(
-            [
-                rng.permutation(n_slots)[:n],
-                occ.route_numbers([views[int(x)] for x in rng.integers(0, len(views), n)]),
-                rng.uniform(-50, 500, n),
-                rng.integers(-2, 10, n),
-                rng.random(n) < 0.2,
-                np.where(rng.random(n) < 0.3, np.nan, rng.uniform(0, 25, n)),
-            ]
-        ).astype(float)
-        speed = np.where(rng.random(n) < 0.5, rows[:, truth_kernel.SENT_MPS], rng.uniform(0, 25, n))
+        rows = rng.permutation(n_slots)[:n]
+        table_c[rows, slots.ROUTE] = occ.route_numbers([views[int(x)] for x in rng.integers(0, len(views), n)])
+        table_c[rows, slots.DEPART_M] = rng.uniform(-50, 500, n)
+        table_c[rows, slots.HINT] = rng.integers(-2, 10, n)
+        table_c[rows, slots.REVERSING] = rng.random(n) < 0.2
+        table_c[rows, slots.SENT_MPS] = np.where(rng.random(n) < 0.3, np.nan, rng.uniform(0, 25, n))
+        if check_no == 1:  # memory of a last check (some of it this check's last)
+            table_c[:, slots.PREV_FRONT_M] = rng.uniform(0, 1000, n_slots)
+            table_c[:, slots.PREV_SPEED_MPS] = rng.uniform(0, 20, n_slots)
+            table_c[:, slots.SEEN] = rng.integers(-2, 2, n_slots)
+        table_i = table_c.copy()
+        speed = np.where(rng.random(n) < 0.5, table_c[rows, slots.SENT_MPS], rng.uniform(0, 25, n))
         args = (
-            *occ.route_tables(),
-            rows,
+            rows.astype(np.int64),
             rng.uniform(0, 800, n),
             occ.edge_codes([str(e) for e in rng.choice(["e1", "e3", "e7", ":j_0", "zz", "e11"], n)]),
             rng.uniform(0, 300, n),
@@ -209,8 +198,9 @@ def test_the_compiled_pass_gives_its_interpreted_forms_bits(seed: int) -> None:
         )
         outs_c = [np.empty(n), np.empty(n, np.int64), np.empty(n, np.int8), np.empty(n), np.empty(n)]
         outs_i = [np.empty(n), np.empty(n, np.int64), np.empty(n, np.int8), np.empty(n), np.empty(n)]
-        got_c = truth_kernel.truth_pass(*args, memory_c, check_no, DT_S, TOL_M, *outs_c)
-        got_i = ref.truth_pass(*args, memory_i, check_no, DT_S, TOL_M, *outs_i)
+        tables = occ.route_tables()
+        got_c = truth_kernel.truth_pass(*tables, table_c, *args, check_no, DT_S, TOL_M, *outs_c)
+        got_i = ref.truth_pass(*tables, table_i, *args, check_no, DT_S, TOL_M, *outs_i)
         assert got_c == got_i
-        for c, i in zip([*outs_c, memory_c], [*outs_i, memory_i], strict=True):
+        for c, i in zip([*outs_c, table_c], [*outs_i, table_i], strict=True):
             assert c.tobytes() == i.tobytes()
