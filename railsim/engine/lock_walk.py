@@ -71,16 +71,59 @@ class SwitchWalk:
     before ``cursor`` not in ``tracked`` is dormant (:meth:`SwitchWalker._dormant`), and ``tracked`` holds every
     switch whose points the train holds or waits for."""
 
-    __slots__ = ("cursor", "index", "lock_ids", "n_released", "next_m", "start_limit_m", "tracked")
+    __slots__ = (
+        "cursor",
+        "index",
+        "lock_ids",
+        "n_released",
+        "next_m",
+        "start_front_m",
+        "start_limit_m",
+        "start_offset_m",
+        "stops",
+        "tracked",
+        "vehicle",
+    )
 
     def __init__(self, index: RouteSwitches, start_limit_m: float) -> None:
         self.index = index
         self.start_limit_m = start_limit_m  # switches before it (not asked for) are not the train's business
+        # what start_limit_m was worked out from (remember_start_inputs): the trip's stops and vehicle (by
+        # identity: both immutable), its start offset and the train's start front; None: nothing remembered
+        self.stops: Any = None
+        self.vehicle: Any = None
+        self.start_offset_m = 0.0
+        self.start_front_m = 0.0
         self.cursor = 0
         self.next_m = -INF  # the point of the switch at the cursor
         self.tracked: list[int] = []
         self.lock_ids: set[str] = set()  # the train's locks after the last walk
         self.n_released = -1  # len(tr.released) after the last walk: a release made elsewhere begins it afresh
+
+    def remember_start_inputs(self, trip: Any, start_front_m: float) -> None:
+        """Note what :attr:`start_limit_m` was worked out from (:func:`start_limit_of` of ``trip`` and
+        ``start_front_m``)."""
+        self.stops, self.vehicle = trip.stops, trip.vehicle
+        self.start_offset_m, self.start_front_m = trip.start_offset_m, start_front_m
+
+    def start_inputs_of(self, trip: Any, start_front_m: float) -> bool:
+        """True if :func:`start_limit_of` of ``trip`` and ``start_front_m`` is :attr:`start_limit_m` for certain:
+        it reads nothing but the stops (a tuple of frozen stops), the vehicle's length (a frozen vehicle), the
+        start offset and the start front, and all four are those it was worked out from."""
+        return (
+            self.stops is trip.stops
+            and self.vehicle is trip.vehicle
+            and self.start_offset_m == trip.start_offset_m
+            and self.start_front_m == start_front_m
+        )
+
+
+def start_limit_of(trip: Any, start_front_m: float) -> float:
+    """Where the switches that are ``trip``'s business begin: the rear of the train where it came on the line
+    (its origin's departure point; a unit whose next trip comes on the line before its origin platform, starting
+    with its turnback: where its front was then). Points before it, never asked for, are not its business."""
+    start_m = trip.depart_chainage_m if trip.stops[0].kind == "station" else start_front_m
+    return start_m - trip.vehicle.length_m
 
 
 class SwitchWalker:

@@ -72,7 +72,7 @@ from railsim.engine.events.interlocking import Interlocking, RequestState
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.extensions.base import ExtensionSet
-from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker
+from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker, start_limit_of
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
@@ -190,15 +190,15 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben). Points asked for while the track in
         front was clear are given up when a train comes onto the track in front (at a junction) and waits for them
         (:meth:`_gives_way`)."""
-        length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr, ahead)
-        # switches behind where the train came on the line are not its business (a unit's next trip comes on
-        # the line before its origin platform: it starts with its turnback)
-        start_m = tr.trip.depart_chainage_m if tr.trip.stops[0].kind == "station" else tr.start_front_m
-        start_limit_m = start_m - length
-        switches = tr.trip.route.switches
+        trip = tr.trip
         walk = self._walks.get(tr.train_id)
+        if walk is not None and walk.start_inputs_of(trip, tr.start_front_m):
+            start_limit_m = walk.start_limit_m  # worked out from the same inputs (SwitchWalk.start_inputs_of)
+        else:
+            start_limit_m = start_limit_of(trip, tr.start_front_m)
+        switches = trip.route.switches
         order: Any
         if (
             walk is None
@@ -207,6 +207,8 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             or walk.n_released != len(tr.released)
         ):
             walk = self._begin_walk(tr, switches, start_limit_m)
+            if walk is not None:
+                walk.remember_start_inputs(trip, tr.start_front_m)
             order = range(len(switches))  # begun afresh (or no walk): every switch
         elif (
             not walk.tracked

@@ -20,6 +20,7 @@ breaks the walk five ways and expects a difference each time.
 
 from __future__ import annotations
 
+import dataclasses
 import zlib
 from collections.abc import Callable
 from types import SimpleNamespace
@@ -31,6 +32,7 @@ import pytest
 from railsim.engine.coupling import COUPLED_STATES
 from railsim.engine.events import EventLayer, Interlocking, Switch
 from railsim.engine.events.log import EventLog
+from railsim.engine.lock_walk import SwitchWalk
 from railsim.engine.locking import RouteLocks
 from railsim.engine.settings import EngineSettings
 from railsim.engine.trips import TripStop
@@ -87,7 +89,8 @@ def _train(tid: str, switches: list[SimpleNamespace], stops: tuple[TripStop, ...
         departure_delay_s=0.0,
         vehicle=SimpleNamespace(length_m=LENGTH_M),
         route=SimpleNamespace(switches=tuple(switches)),
-        depart_chainage_m=stops[0].mark_m,
+        start_offset_m=0.0,
+        depart_chainage_m=stops[0].mark_m,  # as Trip's: the origin's mark plus the start offset
     )
     return SimpleNamespace(
         train_id=tid,
@@ -155,8 +158,12 @@ class _Formations:
 class World:
     """One copy of the randomly built world (``every``: walk every switch, the reference)."""
 
-    def __init__(self, seed: int, every: bool, patch: Callable[[RouteLocks], None] | None = None) -> None:
+    def __init__(
+        self, seed: int, every: bool, patch: Callable[[RouteLocks], None] | None = None, move_start: bool = False
+    ) -> None:
         rng = np.random.default_rng(seed)
+        # move_start: now and then a train's start moves (a new start front, start offset, origin or vehicle)
+        self.move_start = np.random.default_rng(seed + 2) if move_start else None
         self.rng = np.random.default_rng(seed + 1)  # the world's run; the same draws in both copies
         self.log = EventLog()
         self.layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1), log=self.log)
@@ -216,6 +223,8 @@ class World:
         self.layer.advance_to(t)
         self.hooks.t = t
         self.formations.state = COUPLED if (t // 150) % 3 else "uncoupled"
+        if self.move_start is not None and self.move_start.random() < 0.03:
+            self._move_start(trains[str(self.move_start.choice(sorted(trains)))])
         order = sorted(trains)
         rng.shuffle(order)
         for tid in order:
@@ -270,6 +279,25 @@ class World:
                 tr.status = "arrived"
                 self.locks.release_all(tr)
 
+    def _move_start(self, tr: Any) -> None:
+        """Move where the train's switches begin to be its business (``lock_walk.start_limit_of``'s inputs): its
+        start front (a unit handed over elsewhere), its trip's start offset, its origin's mark (new stops) or its
+        vehicle (a new length), a few hundred metres either way."""
+        rng, trip = self.move_start, tr.trip
+        assert rng is not None
+        shift_m = float(rng.choice([-900.0, -300.0, 0.0, 300.0]))
+        what = int(rng.integers(0, 4))
+        if what == 0:
+            tr.start_front_m += shift_m
+        elif what == 1:
+            trip.start_offset_m += shift_m
+        elif what == 2:
+            first = trip.stops[0]
+            trip.stops = (dataclasses.replace(first, mark_m=first.mark_m + shift_m), *trip.stops[1:])
+        else:
+            trip.vehicle = SimpleNamespace(length_m=LENGTH_M + shift_m / 10.0)
+        trip.depart_chainage_m = trip.stops[0].mark_m + trip.start_offset_m
+
     def state(self) -> dict[str, Any]:
         """Everything the walk decides since the last call (events, questions), and every train's locks and
         authority end."""
@@ -289,9 +317,12 @@ class World:
         return out
 
 
-def _differ(seed: int, patch: Callable[[RouteLocks], None] | None = None) -> tuple[str | None, World]:
+def _differ(
+    seed: int, patch: Callable[[RouteLocks], None] | None = None, move_start: bool = False
+) -> tuple[str | None, World]:
     """Run the two copies side by side: the first difference (step and what) or None, and the reference."""
-    every, fast = World(seed, every=True), World(seed, every=False, patch=patch)
+    every = World(seed, every=True, move_start=move_start)
+    fast = World(seed, every=False, patch=patch, move_start=move_start)
     for k in range(STEPS):
         t = float(k)
         every.step(t)
@@ -383,3 +414,24 @@ def _behind_start_asleep(locks: RouteLocks) -> None:
 @pytest.mark.parametrize("patch", [_skip_tracked, _short_window, _no_next_time, _outside_unseen, _behind_start_asleep])
 def test_a_walk_that_leaves_out_a_switch_is_caught(patch: Callable[[RouteLocks], None]) -> None:
     assert any(_differ(seed, patch)[0] is not None for seed in range(SEEDS)), f"{patch.__name__} went unnoticed"
+
+
+@pytest.mark.parametrize("seed", range(SEEDS))
+def test_the_walk_follows_a_moved_start(seed: int) -> None:
+    """The start limit the walk remembers (``SwitchWalk.start_inputs_of``) is worked out again whenever what it
+    comes from moves: the walk still decides as the walk over every switch, which works it out every step."""
+    difference, _ = _differ(seed, move_start=True)
+    assert difference is None, difference
+
+
+def test_a_start_limit_kept_when_its_inputs_moved_is_caught() -> None:
+    """Broken on purpose: the remembered start limit is kept whatever moved."""
+
+    def patch(_locks: RouteLocks) -> None:
+        SwitchWalk.start_inputs_of = lambda self, trip, start_front_m: True  # type: ignore[method-assign]
+
+    kept = SwitchWalk.start_inputs_of
+    try:
+        assert any(_differ(seed, patch, move_start=True)[0] is not None for seed in range(SEEDS))
+    finally:
+        SwitchWalk.start_inputs_of = kept  # type: ignore[method-assign]
