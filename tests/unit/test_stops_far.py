@@ -207,7 +207,9 @@ def test_the_screen_follows_the_next_stop_and_the_vehicle() -> None:
 @pytest.mark.parametrize(("kind", "registered_now", "full_pass"), [
     ("station", True, False), ("station", False, True), ("reversal", True, True),
 ])  # fmt: skip
-def test_a_dwelling_train_skips_the_full_pass_except_at_a_reversal(kind: str, registered_now: bool, full_pass: bool) -> None:
+def test_a_dwelling_train_skips_the_full_pass_except_at_a_reversal(
+    kind: str, registered_now: bool, full_pass: bool
+) -> None:
     """A train SUMO holds at its stop has nothing to do till its dwell ends: no full pass — unless its stop is a
     reversal (SUMO flips it there), or SUMO has just let it go (the departure is decided in the full pass)."""
     stops, tr, book, calls = _counted()
