@@ -18,7 +18,15 @@ the train's ``released`` loses a switch only when a later time asks anew. What c
 is looked for at the start of each step: locks added by a leader or an extension (the train's lock ids against
 those after its last walk), a release made elsewhere, a new route or a new place the train came on the line (the
 walk begins afresh and visits every switch once). A step with nothing tracked, nothing within the request
-distance and no lock added returns at once: most steps of most trains.
+distance and no lock added returns at once: most steps of most trains. Where the train came on the line (the
+start limit, :func:`start_limit_of`) is remembered with what it is worked out from (the trip's stops and vehicle,
+both immutable, by identity; its start offset; the train's start front: :meth:`SwitchWalk.remember_start_inputs`).
+
+**Approaching points held.** The other common step: the train holds (or waits for) the points at the cursor, its
+front short of them, and nothing else lies within the request distance. The walk would visit those points alone
+and do nothing — the request is made, the front has not passed the point (no pass without the lock, no release),
+and the cursor stays — unless the train gives them up to the train in front. So
+:meth:`SwitchWalker._approaching_held` checks exactly that and the step returns.
 
 :class:`SwitchWalker` is the part of :class:`railsim.engine.locking.RouteLocks` that keeps the walks (a base
 class of it, as :class:`~railsim.engine.section_requests.SectionRequests` is): the route locks visit the switches
@@ -102,20 +110,11 @@ class SwitchWalk:
 
     def remember_start_inputs(self, trip: Any, start_front_m: float) -> None:
         """Note what :attr:`start_limit_m` was worked out from (:func:`start_limit_of` of ``trip`` and
-        ``start_front_m``)."""
+        ``start_front_m``). It reads nothing but the stops (a tuple of frozen stops), the vehicle's length (a
+        frozen vehicle), the start offset and the start front: while all four are these (the stops and the vehicle
+        the same objects), it is :attr:`start_limit_m` for certain (``RouteLocks.bookkeeping`` compares them)."""
         self.stops, self.vehicle = trip.stops, trip.vehicle
         self.start_offset_m, self.start_front_m = trip.start_offset_m, start_front_m
-
-    def start_inputs_of(self, trip: Any, start_front_m: float) -> bool:
-        """True if :func:`start_limit_of` of ``trip`` and ``start_front_m`` is :attr:`start_limit_m` for certain:
-        it reads nothing but the stops (a tuple of frozen stops), the vehicle's length (a frozen vehicle), the
-        start offset and the start front, and all four are those it was worked out from."""
-        return (
-            self.stops is trip.stops
-            and self.vehicle is trip.vehicle
-            and self.start_offset_m == trip.start_offset_m
-            and self.start_front_m == start_front_m
-        )
 
 
 def start_limit_of(trip: Any, start_front_m: float) -> float:
@@ -131,12 +130,16 @@ class SwitchWalker:
     settings, the record of which time over a switch each lock is for, and its reading (``_lock_pass_m``)."""
 
     settings: EngineSettings
+    fleet: Any  # the fleet (its trains by id)
     _lock_pass: dict[str, dict[str, float]]  # train id -> switch id -> the point its lock is for
     _indexes: dict[int, RouteSwitches]  # id(route's switches) -> their look-ups
     _walks: dict[str, SwitchWalk]  # train id -> where its walk over its route's switches stands
     walk_every_switch: bool  # True: bookkeeping visits every switch of the route every step (the reference)
 
     def _lock_pass_m(self, tr: TrainRuntime, switch_id: str) -> float:
+        raise NotImplementedError  # RouteLocks'
+
+    def _gives_way(self, tr: TrainRuntime, front: TrainRuntime, ahead: Any, rs: Any) -> bool:
         raise NotImplementedError  # RouteLocks'
 
     def _route_index(self, switches: Any) -> RouteSwitches:
@@ -202,6 +205,33 @@ class SwitchWalker:
         walk.n_released = len(released)
         if locks.keys() != walk.lock_ids:
             walk.lock_ids = set(locks)
+
+    def _approaching_held(self, tr: TrainRuntime, walk: SwitchWalk, ahead: Any) -> bool:
+        """True if the walk of this step would visit only the switch at the cursor and do nothing there, nor move
+        the walk on (module docstring, "Approaching points held"): the train's locks are those of its last walk,
+        the only switch tracked is the one at the cursor and no other lies within the request distance; the train
+        holds or waits for those points on this time over them, has not released them, its front is short of the
+        point (no pass without the lock, no release, the cursor stays) and it does not give them up to the train
+        in front (``ahead``)."""
+        i = walk.cursor
+        tracked = walk.tracked
+        if len(tracked) != 1 or tracked[0] != i or tr.locks.keys() != walk.lock_ids:
+            return False
+        index = walk.index
+        points_m = index.points_m
+        point_m = points_m[i]
+        if not tr.front_m < point_m:
+            return False
+        reach_m = tr.front_m + self.settings.lock_request_distance_m + WINDOW_SLACK_M  # as _walk_candidates'
+        if i + 1 < len(points_m) and points_m[i + 1] <= reach_m:
+            return False
+        sid = index.ids[i]
+        if sid not in tr.locks or sid in tr.released or self._lock_pass_m(tr, sid) != point_m:
+            return False
+        if ahead is None:
+            return True
+        behind = self.fleet.trains.get(ahead.train_id)
+        return behind is None or not self._gives_way(tr, behind, ahead, index.switches[i])
 
     def _dormant(self, tr: TrainRuntime, walk: SwitchWalk, i: int) -> bool:
         """True if :meth:`_visit_switch` does nothing for switch ``i`` until the walk itself changes that, or its

@@ -194,8 +194,14 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             self._sections_bookkeeping(t, tr, ahead)
         trip = tr.trip
         walk = self._walks.get(tr.train_id)
-        if walk is not None and walk.start_inputs_of(trip, tr.start_front_m):
-            start_limit_m = walk.start_limit_m  # worked out from the same inputs (SwitchWalk.start_inputs_of)
+        if (  # the inputs SwitchWalk.remember_start_inputs noted (compared here: a call costs as much as it saves)
+            walk is not None
+            and walk.stops is trip.stops
+            and walk.vehicle is trip.vehicle
+            and walk.start_offset_m == trip.start_offset_m
+            and walk.start_front_m == tr.start_front_m
+        ):
+            start_limit_m = walk.start_limit_m  # worked out from the same inputs
         else:
             start_limit_m = start_limit_of(trip, tr.start_front_m)
         switches = trip.route.switches
@@ -216,6 +222,8 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             and tr.locks.keys() == walk.lock_ids
         ):
             return  # no switch can matter this step (module docstring, "The walk")
+        elif self._approaching_held(tr, walk, ahead):
+            return  # only the points at the cursor, held or asked for, ahead of the front (lock_walk's docstring)
         else:
             order = self._walk_candidates(tr, walk)
         # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)

@@ -32,7 +32,6 @@ import pytest
 from railsim.engine.coupling import COUPLED_STATES
 from railsim.engine.events import EventLayer, Interlocking, Switch
 from railsim.engine.events.log import EventLog
-from railsim.engine.lock_walk import SwitchWalk
 from railsim.engine.locking import RouteLocks
 from railsim.engine.settings import EngineSettings
 from railsim.engine.trips import TripStop
@@ -411,27 +410,87 @@ def _behind_start_asleep(locks: RouteLocks) -> None:
     locks._dormant = broken  # type: ignore[method-assign]
 
 
-@pytest.mark.parametrize("patch", [_skip_tracked, _short_window, _no_next_time, _outside_unseen, _behind_start_asleep])
+def _held_given_up_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: approaching points held, the train in front waiting for them is not looked at."""
+    approaching = locks._approaching_held
+    locks._approaching_held = lambda tr, walk, ahead: approaching(tr, walk, None)  # type: ignore[method-assign]
+
+
+def _held_front_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: approaching points held, where the front is is not looked at (it may have passed the
+    point, or come within the request distance of the next points)."""
+    approaching = locks._approaching_held
+
+    def broken(tr: Any, walk: Any, ahead: Any) -> bool:
+        return approaching(SimpleNamespace(**{**vars(tr), "front_m": -1e9}), walk, ahead)
+
+    locks._approaching_held = broken  # type: ignore[method-assign]
+
+
+@pytest.mark.parametrize(
+    "patch",
+    [
+        _skip_tracked,
+        _short_window,
+        _no_next_time,
+        _outside_unseen,
+        _behind_start_asleep,
+        _held_given_up_unseen,
+        _held_front_unseen,
+    ],
+)
 def test_a_walk_that_leaves_out_a_switch_is_caught(patch: Callable[[RouteLocks], None]) -> None:
     assert any(_differ(seed, patch)[0] is not None for seed in range(SEEDS)), f"{patch.__name__} went unnoticed"
 
 
 @pytest.mark.parametrize("seed", range(SEEDS))
 def test_the_walk_follows_a_moved_start(seed: int) -> None:
-    """The start limit the walk remembers (``SwitchWalk.start_inputs_of``) is worked out again whenever what it
+    """The start limit the walk remembers (``SwitchWalk.remember_start_inputs``) is worked out again whenever what it
     comes from moves: the walk still decides as the walk over every switch, which works it out every step."""
     difference, _ = _differ(seed, move_start=True)
     assert difference is None, difference
 
 
+class _Same:
+    """Equal to anything (a memo broken on purpose: it sees no change)."""
+
+    def __eq__(self, _other: object) -> bool:
+        return True
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def _start_kept(locks: RouteLocks) -> None:
+    """Broken on purpose: the remembered start limit is kept whatever start offset or start front it is asked for."""
+    bookkeeping = locks.bookkeeping
+
+    def broken(t: float, tr: Any, ahead: Any = None) -> None:
+        bookkeeping(t, tr, ahead)
+        walk = locks._walks.get(tr.train_id)
+        if walk is not None:
+            walk.start_offset_m = walk.start_front_m = _Same()  # type: ignore[assignment]
+
+    locks.bookkeeping = broken  # type: ignore[method-assign]
+
+
 def test_a_start_limit_kept_when_its_inputs_moved_is_caught() -> None:
-    """Broken on purpose: the remembered start limit is kept whatever moved."""
+    assert any(_differ(seed, _start_kept, move_start=True)[0] is not None for seed in range(SEEDS))
 
-    def patch(_locks: RouteLocks) -> None:
-        SwitchWalk.start_inputs_of = lambda self, trip, start_front_m: True  # type: ignore[method-assign]
 
-    kept = SwitchWalk.start_inputs_of
-    try:
-        assert any(_differ(seed, patch, move_start=True)[0] is not None for seed in range(SEEDS))
-    finally:
-        SwitchWalk.start_inputs_of = kept  # type: ignore[method-assign]
+def test_the_worlds_approach_held_points() -> None:
+    """The step that returns approaching points held (``_approaching_held``) is taken, and often."""
+    quiet = 0
+    for seed in range(3):
+        world = World(seed, every=False)
+        approaching = world.locks._approaching_held
+
+        def counted(tr: Any, walk: Any, ahead: Any, approaching: Any = approaching) -> bool:
+            nonlocal quiet
+            out = bool(approaching(tr, walk, ahead))
+            quiet += out
+            return out
+
+        world.locks._approaching_held = counted  # type: ignore[method-assign]
+        for k in range(STEPS):
+            world.step(float(k))
+    assert quiet > 300, quiet
