@@ -22,6 +22,14 @@ distance and no lock added returns at once: most steps of most trains. Where the
 start limit, :func:`start_limit_of`) is remembered with what it is worked out from (the trip's stops and vehicle,
 both immutable, by identity; its start offset; the train's start front: :meth:`SwitchWalk.remember_start_inputs`).
 
+**One switch in reach.** Most other steps visit one switch: the one at the cursor, ahead of the front, the only
+one within the request distance, and tracked if the train holds or waits for it (a train coming in to the
+platform before the points, which it asks for only when about to leave: :func:`~railsim.engine.section_requests.
+stop_before`). :meth:`SwitchWalker._single_switch` finds it without :meth:`SwitchWalker._walk_candidates`; and if
+the visit changed none of the train's locks and released nothing, settling would leave the walk as it stands (the
+cursor stays — the point lies beyond the front and the switch is not dormant: what that depends on did not change
+— and the switch stays tracked or not as it was), so :meth:`SwitchWalker._still_settled` skips it.
+
 **Approaching points held.** The other common step: the train holds (or waits for) the points at the cursor, its
 front short of them, and nothing else lies within the request distance. The walk would visit those points alone
 and do nothing — the request is made, the front has not passed the point (no pass without the lock, no release),
@@ -232,6 +240,39 @@ class SwitchWalker:
             return True
         behind = self.fleet.trains.get(ahead.train_id)
         return behind is None or not self._gives_way(tr, behind, ahead, index.switches[i])
+
+    def _single_switch(self, tr: TrainRuntime, walk: SwitchWalk) -> int:
+        """The switch at the cursor if it is the only one :meth:`_walk_candidates` would give and its visit may
+        leave the walk as it stands (module docstring, "One switch in reach"), else -1: the train's locks are those
+        of its last walk, nothing is tracked but that switch, no other lies within the request distance, the
+        front is short of its point, the train has not released it and any lock it holds on it is for this time
+        over the points."""
+        i = walk.cursor
+        tracked = walk.tracked
+        if len(tracked) > 1 or (tracked and tracked[0] != i) or tr.locks.keys() != walk.lock_ids:
+            return -1
+        points_m = walk.index.points_m
+        if i >= len(points_m) or not tr.front_m < points_m[i]:
+            return -1
+        reach_m = tr.front_m + self.settings.lock_request_distance_m + WINDOW_SLACK_M  # as _walk_candidates'
+        if (i + 1 < len(points_m) and points_m[i + 1] <= reach_m) or (not tracked and points_m[i] > reach_m):
+            return -1
+        sid = walk.index.ids[i]
+        if sid in tr.released or self._lock_pass_m(tr, sid) != points_m[i]:
+            return -1
+        return i
+
+    def _still_settled(self, tr: TrainRuntime, walk: SwitchWalk, i: int) -> bool:
+        """True if, after a step that visited switch ``i`` alone (:meth:`_single_switch`), :meth:`_settle_walk`
+        would leave the walk as it is: the visit changed none of the train's locks and released nothing (module
+        docstring, "One switch in reach")."""
+        return (
+            i == walk.cursor
+            and tr.locks.keys() == walk.lock_ids
+            and len(tr.released) == walk.n_released
+            and walk.index.ids[i] not in tr.released
+            and tr.front_m < walk.next_m
+        )
 
     def _dormant(self, tr: TrainRuntime, walk: SwitchWalk, i: int) -> bool:
         """True if :meth:`_visit_switch` does nothing for switch ``i`` until the walk itself changes that, or its

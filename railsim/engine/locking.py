@@ -225,7 +225,8 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         elif self._approaching_held(tr, walk, ahead):
             return  # only the points at the cursor, held or asked for, ahead of the front (lock_walk's docstring)
         else:
-            order = self._walk_candidates(tr, walk)
+            single = self._single_switch(tr, walk)  # lock_walk's docstring, "One switch in reach"
+            order = [single] if single >= 0 else self._walk_candidates(tr, walk)
         # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
         request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
         behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
@@ -240,7 +241,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
                 nxt = walk.index.next_same[i]
                 if nxt >= 0 and self._lock_done(tr, rs) and nxt not in order[k:]:
                     insort(order, nxt, lo=k)  # released: the next time over the same points asks anew now
-        if walk is not None:
+        if walk is not None and not (len(order) == 1 and self._still_settled(tr, walk, order[0])):
             self._settle_walk(tr, walk, order)
 
     def _visit_switch(

@@ -20,6 +20,7 @@ breaks the walk five ways and expects a difference each time.
 
 from __future__ import annotations
 
+import copy
 import dataclasses
 import zlib
 from collections.abc import Callable
@@ -427,6 +428,20 @@ def _held_front_unseen(locks: RouteLocks) -> None:
     locks._approaching_held = broken  # type: ignore[method-assign]
 
 
+def _single_too_eager(locks: RouteLocks) -> None:
+    """Broken on purpose: the switch at the cursor is taken as the only one in reach whenever nothing else is
+    tracked (the next points within the request distance, and where the front is, not looked at)."""
+    single = locks._single_switch
+
+    def broken(tr: Any, walk: Any) -> int:
+        i = walk.cursor
+        if i < len(walk.index.ids) and set(walk.tracked) <= {i} and tr.locks.keys() == walk.lock_ids:
+            return i
+        return single(tr, walk)
+
+    locks._single_switch = broken  # type: ignore[method-assign]
+
+
 @pytest.mark.parametrize(
     "patch",
     [
@@ -437,6 +452,7 @@ def _held_front_unseen(locks: RouteLocks) -> None:
         _behind_start_asleep,
         _held_given_up_unseen,
         _held_front_unseen,
+        _single_too_eager,
     ],
 )
 def test_a_walk_that_leaves_out_a_switch_is_caught(patch: Callable[[RouteLocks], None]) -> None:
@@ -477,20 +493,67 @@ def test_a_start_limit_kept_when_its_inputs_moved_is_caught() -> None:
     assert any(_differ(seed, _start_kept, move_start=True)[0] is not None for seed in range(SEEDS))
 
 
-def test_the_worlds_approach_held_points() -> None:
-    """The step that returns approaching points held (``_approaching_held``) is taken, and often."""
-    quiet = 0
-    for seed in range(3):
-        world = World(seed, every=False)
-        approaching = world.locks._approaching_held
+def test_the_worlds_take_the_short_steps() -> None:
+    """The steps that return approaching points held (``_approaching_held``), that visit the one switch in reach
+    without looking for candidates (``_single_switch``) and that leave the walk settled (``_still_settled``) are
+    all taken, and often."""
+    taken = {"approaching": 0, "single": 0, "settled": 0}
 
-        def counted(tr: Any, walk: Any, ahead: Any, approaching: Any = approaching) -> bool:
-            nonlocal quiet
-            out = bool(approaching(tr, walk, ahead))
-            quiet += out
+    def counted(what: str, answer: Callable[..., Any], taken_if: Callable[[Any], bool]) -> Callable[..., Any]:
+        def ask(*args: Any) -> Any:
+            out = answer(*args)
+            taken[what] += taken_if(out)
             return out
 
-        world.locks._approaching_held = counted  # type: ignore[method-assign]
+        return ask
+
+    for seed in range(3):
+        world = World(seed, every=False)
+        locks = world.locks
+        locks._approaching_held = counted("approaching", locks._approaching_held, bool)  # type: ignore[method-assign]
+        locks._single_switch = counted("single", locks._single_switch, lambda i: i >= 0)  # type: ignore[method-assign]
+        locks._still_settled = counted("settled", locks._still_settled, bool)  # type: ignore[method-assign]
         for k in range(STEPS):
             world.step(float(k))
-    assert quiet > 300, quiet
+    assert min(taken.values()) > 100, taken
+
+
+_WALK_FIELDS = ("cursor", "tracked", "next_m", "n_released", "lock_ids")
+
+
+def _settling_skipped_wrongly(seed: int, still_settled: Callable[..., bool] | None = None) -> tuple[int, int]:
+    """Run one world; wherever the walk is left unsettled (``_still_settled``, or ``still_settled`` in its place)
+    settle a copy of it the long way (``_settle_walk``, the former code) and compare: (steps where the two walks
+    differ, steps left unsettled)."""
+    world = World(seed, every=False)
+    locks = world.locks
+    settled = still_settled or locks._still_settled
+    wrong = skipped = 0
+
+    def checked(tr: Any, walk: Any, i: int) -> bool:
+        nonlocal wrong, skipped
+        out = settled(tr, walk, i)
+        if out:
+            skipped += 1
+            long_way = copy.copy(walk)
+            locks._settle_walk(tr, long_way, [i])
+            wrong += any(getattr(walk, k) != getattr(long_way, k) for k in _WALK_FIELDS)
+        return bool(out)
+
+    locks._still_settled = checked  # type: ignore[method-assign]
+    for k in range(STEPS):
+        world.step(float(k))
+    return wrong, skipped
+
+
+def test_a_walk_left_unsettled_is_what_settling_gives() -> None:
+    """A step that visited one switch and leaves the walk unsettled leaves it exactly as settling it would."""
+    results = [_settling_skipped_wrongly(seed) for seed in range(SEEDS)]
+    assert sum(w for w, _ in results) == 0
+    assert sum(n for _, n in results) > 300, "hardly any walk left unsettled: test too weak"
+
+
+def test_a_walk_left_unsettled_after_a_change_is_caught() -> None:
+    """Broken on purpose: the walk is left unsettled whatever the visit changed (a lock requested or given up)."""
+    results = [_settling_skipped_wrongly(seed, lambda tr, walk, i: i == walk.cursor) for seed in range(SEEDS)]
+    assert sum(w for w, _ in results) > 0
