@@ -78,7 +78,7 @@ from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
-from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk
+from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk, ShortEntries
 from railsim.engine.section_requests import (
     SectionRequests,
     separation_margin_m,
@@ -142,6 +142,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         self._lock_state: dict[str, int] = {}  # train id -> version of its released switches and lock records
         self.remember_authority = True  # False: the authority end is worked out afresh at every call
         self._section_walks: dict[str, SectionWalk] = {}  # train id -> its walk over its sections (section_walk.py)
+        self._short_entries: dict[str, ShortEntries] = {}  # train id -> its short list sorted (section_walk.py)
         self.walk_every_section = False  # True: the section bookkeeping visits every section every step
         self.section_walk_min = SECTION_WALK_MIN  # fewer sections on a route: it is gone over whole every step
 
