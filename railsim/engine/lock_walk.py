@@ -18,7 +18,23 @@ the train's ``released`` loses a switch only when a later time asks anew. What c
 is looked for at the start of each step: locks added by a leader or an extension (the train's lock ids against
 those after its last walk), a release made elsewhere, a new route or a new place the train came on the line (the
 walk begins afresh and visits every switch once). A step with nothing tracked, nothing within the request
-distance and no lock added returns at once: most steps of most trains.
+distance and no lock added returns at once: most steps of most trains. Where the train came on the line (the
+start limit, :func:`start_limit_of`) is remembered with what it is worked out from (the trip's stops and vehicle,
+both immutable, by identity; its start offset; the train's start front: :meth:`SwitchWalk.remember_start_inputs`).
+
+**One switch in reach.** Most other steps visit one switch: the one at the cursor, ahead of the front, the only
+one within the request distance, and tracked if the train holds or waits for it (a train coming in to the
+platform before the points, which it asks for only when about to leave: :func:`~railsim.engine.section_requests.
+stop_before`). :meth:`SwitchWalker._single_switch` finds it without :meth:`SwitchWalker._walk_candidates`; and if
+the visit changed none of the train's locks and released nothing, settling would leave the walk as it stands (the
+cursor stays — the point lies beyond the front and the switch is not dormant: what that depends on did not change
+— and the switch stays tracked or not as it was), so :meth:`SwitchWalker._still_settled` skips it.
+
+**Approaching points held.** The other common step: the train holds (or waits for) the points at the cursor, its
+front short of them, and nothing else lies within the request distance. The walk would visit those points alone
+and do nothing — the request is made, the front has not passed the point (no pass without the lock, no release),
+and the cursor stays — unless the train gives them up to the train in front. So
+:meth:`SwitchWalker._approaching_held` checks exactly that and the step returns.
 
 :class:`SwitchWalker` is the part of :class:`railsim.engine.locking.RouteLocks` that keeps the walks (a base
 class of it, as :class:`~railsim.engine.section_requests.SectionRequests` is): the route locks visit the switches
@@ -71,16 +87,50 @@ class SwitchWalk:
     before ``cursor`` not in ``tracked`` is dormant (:meth:`SwitchWalker._dormant`), and ``tracked`` holds every
     switch whose points the train holds or waits for."""
 
-    __slots__ = ("cursor", "index", "lock_ids", "n_released", "next_m", "start_limit_m", "tracked")
+    __slots__ = (
+        "cursor",
+        "index",
+        "lock_ids",
+        "n_released",
+        "next_m",
+        "start_front_m",
+        "start_limit_m",
+        "start_offset_m",
+        "stops",
+        "tracked",
+        "vehicle",
+    )
 
     def __init__(self, index: RouteSwitches, start_limit_m: float) -> None:
         self.index = index
         self.start_limit_m = start_limit_m  # switches before it (not asked for) are not the train's business
+        # what start_limit_m was worked out from (remember_start_inputs): the trip's stops and vehicle (by
+        # identity: both immutable), its start offset and the train's start front; None: nothing remembered
+        self.stops: Any = None
+        self.vehicle: Any = None
+        self.start_offset_m = 0.0
+        self.start_front_m = 0.0
         self.cursor = 0
         self.next_m = -INF  # the point of the switch at the cursor
         self.tracked: list[int] = []
         self.lock_ids: set[str] = set()  # the train's locks after the last walk
         self.n_released = -1  # len(tr.released) after the last walk: a release made elsewhere begins it afresh
+
+    def remember_start_inputs(self, trip: Any, start_front_m: float) -> None:
+        """Note what :attr:`start_limit_m` was worked out from (:func:`start_limit_of` of ``trip`` and
+        ``start_front_m``). It reads nothing but the stops (a tuple of frozen stops), the vehicle's length (a
+        frozen vehicle), the start offset and the start front: while all four are these (the stops and the vehicle
+        the same objects), it is :attr:`start_limit_m` for certain (``RouteLocks.bookkeeping`` compares them)."""
+        self.stops, self.vehicle = trip.stops, trip.vehicle
+        self.start_offset_m, self.start_front_m = trip.start_offset_m, start_front_m
+
+
+def start_limit_of(trip: Any, start_front_m: float) -> float:
+    """Where the switches that are ``trip``'s business begin: the rear of the train where it came on the line
+    (its origin's departure point; a unit whose next trip comes on the line before its origin platform, starting
+    with its turnback: where its front was then). Points before it, never asked for, are not its business."""
+    start_m = trip.depart_chainage_m if trip.stops[0].kind == "station" else start_front_m
+    return start_m - trip.vehicle.length_m
 
 
 class SwitchWalker:
@@ -88,12 +138,16 @@ class SwitchWalker:
     settings, the record of which time over a switch each lock is for, and its reading (``_lock_pass_m``)."""
 
     settings: EngineSettings
+    fleet: Any  # the fleet (its trains by id)
     _lock_pass: dict[str, dict[str, float]]  # train id -> switch id -> the point its lock is for
     _indexes: dict[int, RouteSwitches]  # id(route's switches) -> their look-ups
     _walks: dict[str, SwitchWalk]  # train id -> where its walk over its route's switches stands
     walk_every_switch: bool  # True: bookkeeping visits every switch of the route every step (the reference)
 
     def _lock_pass_m(self, tr: TrainRuntime, switch_id: str) -> float:
+        raise NotImplementedError  # RouteLocks'
+
+    def _gives_way(self, tr: TrainRuntime, front: TrainRuntime, ahead: Any, rs: Any) -> bool:
         raise NotImplementedError  # RouteLocks'
 
     def _route_index(self, switches: Any) -> RouteSwitches:
@@ -159,6 +213,66 @@ class SwitchWalker:
         walk.n_released = len(released)
         if locks.keys() != walk.lock_ids:
             walk.lock_ids = set(locks)
+
+    def _approaching_held(self, tr: TrainRuntime, walk: SwitchWalk, ahead: Any) -> bool:
+        """True if the walk of this step would visit only the switch at the cursor and do nothing there, nor move
+        the walk on (module docstring, "Approaching points held"): the train's locks are those of its last walk,
+        the only switch tracked is the one at the cursor and no other lies within the request distance; the train
+        holds or waits for those points on this time over them, has not released them, its front is short of the
+        point (no pass without the lock, no release, the cursor stays) and it does not give them up to the train
+        in front (``ahead``)."""
+        i = walk.cursor
+        tracked = walk.tracked
+        if len(tracked) != 1 or tracked[0] != i or tr.locks.keys() != walk.lock_ids:
+            return False
+        index = walk.index
+        points_m = index.points_m
+        point_m = points_m[i]
+        if not tr.front_m < point_m:
+            return False
+        reach_m = tr.front_m + self.settings.lock_request_distance_m + WINDOW_SLACK_M  # as _walk_candidates'
+        if i + 1 < len(points_m) and points_m[i + 1] <= reach_m:
+            return False
+        sid = index.ids[i]
+        if sid not in tr.locks or sid in tr.released or self._lock_pass_m(tr, sid) != point_m:
+            return False
+        if ahead is None:
+            return True
+        behind = self.fleet.trains.get(ahead.train_id)
+        return behind is None or not self._gives_way(tr, behind, ahead, index.switches[i])
+
+    def _single_switch(self, tr: TrainRuntime, walk: SwitchWalk) -> int:
+        """The switch at the cursor if it is the only one :meth:`_walk_candidates` would give and its visit may
+        leave the walk as it stands (module docstring, "One switch in reach"), else -1: the train's locks are those
+        of its last walk, nothing is tracked but that switch, no other lies within the request distance, the
+        front is short of its point, the train has not released it and any lock it holds on it is for this time
+        over the points."""
+        i = walk.cursor
+        tracked = walk.tracked
+        if len(tracked) > 1 or (tracked and tracked[0] != i) or tr.locks.keys() != walk.lock_ids:
+            return -1
+        points_m = walk.index.points_m
+        if i >= len(points_m) or not tr.front_m < points_m[i]:
+            return -1
+        reach_m = tr.front_m + self.settings.lock_request_distance_m + WINDOW_SLACK_M  # as _walk_candidates'
+        if (i + 1 < len(points_m) and points_m[i + 1] <= reach_m) or (not tracked and points_m[i] > reach_m):
+            return -1
+        sid = walk.index.ids[i]
+        if sid in tr.released or self._lock_pass_m(tr, sid) != points_m[i]:
+            return -1
+        return i
+
+    def _still_settled(self, tr: TrainRuntime, walk: SwitchWalk, i: int) -> bool:
+        """True if, after a step that visited switch ``i`` alone (:meth:`_single_switch`), :meth:`_settle_walk`
+        would leave the walk as it is: the visit changed none of the train's locks and released nothing (module
+        docstring, "One switch in reach")."""
+        return (
+            i == walk.cursor
+            and tr.locks.keys() == walk.lock_ids
+            and len(tr.released) == walk.n_released
+            and walk.index.ids[i] not in tr.released
+            and tr.front_m < walk.next_m
+        )
 
     def _dormant(self, tr: TrainRuntime, walk: SwitchWalk, i: int) -> bool:
         """True if :meth:`_visit_switch` does nothing for switch ``i`` until the walk itself changes that, or its

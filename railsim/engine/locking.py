@@ -72,13 +72,13 @@ from railsim.engine.events.interlocking import Interlocking, RequestState
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.extensions.base import ExtensionSet
-from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker
+from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker, start_limit_of
 from railsim.engine.fleet import Fleet
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
-from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk
+from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk, ShortEntries
 from railsim.engine.section_requests import (
     SectionRequests,
     separation_margin_m,
@@ -142,6 +142,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         self._lock_state: dict[str, int] = {}  # train id -> version of its released switches and lock records
         self.remember_authority = True  # False: the authority end is worked out afresh at every call
         self._section_walks: dict[str, SectionWalk] = {}  # train id -> its walk over its sections (section_walk.py)
+        self._short_entries: dict[str, ShortEntries] = {}  # train id -> its short list sorted (section_walk.py)
         self.walk_every_section = False  # True: the section bookkeeping visits every section every step
         self.section_walk_min = SECTION_WALK_MIN  # fewer sections on a route: it is gone over whole every step
 
@@ -190,15 +191,21 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         ``1684176151``, all asked for in one step at Stadtzentrum Löbdergraben). Points asked for while the track in
         front was clear are given up when a train comes onto the track in front (at a junction) and waits for them
         (:meth:`_gives_way`)."""
-        length = tr.trip.vehicle.length_m
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr, ahead)
-        # switches behind where the train came on the line are not its business (a unit's next trip comes on
-        # the line before its origin platform: it starts with its turnback)
-        start_m = tr.trip.depart_chainage_m if tr.trip.stops[0].kind == "station" else tr.start_front_m
-        start_limit_m = start_m - length
-        switches = tr.trip.route.switches
+        trip = tr.trip
         walk = self._walks.get(tr.train_id)
+        if (  # the inputs SwitchWalk.remember_start_inputs noted (compared here: a call costs as much as it saves)
+            walk is not None
+            and walk.stops is trip.stops
+            and walk.vehicle is trip.vehicle
+            and walk.start_offset_m == trip.start_offset_m
+            and walk.start_front_m == tr.start_front_m
+        ):
+            start_limit_m = walk.start_limit_m  # worked out from the same inputs
+        else:
+            start_limit_m = start_limit_of(trip, tr.start_front_m)
+        switches = trip.route.switches
         order: Any
         if (
             walk is None
@@ -207,6 +214,8 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             or walk.n_released != len(tr.released)
         ):
             walk = self._begin_walk(tr, switches, start_limit_m)
+            if walk is not None:
+                walk.remember_start_inputs(trip, tr.start_front_m)
             order = range(len(switches))  # begun afresh (or no walk): every switch
         elif (
             not walk.tracked
@@ -214,8 +223,11 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             and tr.locks.keys() == walk.lock_ids
         ):
             return  # no switch can matter this step (module docstring, "The walk")
+        elif self._approaching_held(tr, walk, ahead):
+            return  # only the points at the cursor, held or asked for, ahead of the front (lock_walk's docstring)
         else:
-            order = self._walk_candidates(tr, walk)
+            single = self._single_switch(tr, walk)  # lock_walk's docstring, "One switch in reach"
+            order = [single] if single >= 0 else self._walk_candidates(tr, walk)
         # a reversing unit sets no route beyond its reversal point before it leaves it (it may wait there long)
         request_until_m = tr.trip.stops[0].window_end_m if tr.reversing else INF
         behind = None if ahead is None else self.fleet.trains.get(ahead.train_id)
@@ -230,7 +242,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
                 nxt = walk.index.next_same[i]
                 if nxt >= 0 and self._lock_done(tr, rs) and nxt not in order[k:]:
                     insort(order, nxt, lo=k)  # released: the next time over the same points asks anew now
-        if walk is not None:
+        if walk is not None and not (len(order) == 1 and self._still_settled(tr, walk, order[0])):
             self._settle_walk(tr, walk, order)
 
     def _visit_switch(

@@ -73,14 +73,14 @@ inside a crossing it has not asked for (a few centimetres past a platform ending
 from __future__ import annotations
 
 import dataclasses
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from typing import Any
 
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
-from railsim.engine.section_walk import SectionWalk, SectionWalker
+from railsim.engine.section_walk import SectionWalk, SectionWalker, ShortEntries
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import (
     REVERSING,
@@ -227,7 +227,12 @@ class SectionRequests(SectionWalker):
         sections = self.sections[tr.train_id]
         walked = len(sections) >= self.section_walk_min  # those that can act (railsim.engine.section_walk)
         walk = self._current_walk(tr) if walked else None
-        for sec in sections if walk is None else self._sections_to_visit(tr, walk):
+        short = None if walked else self._short_list(tr)
+        if short is not None:
+            todo: Sequence[RouteSection] = short.visit
+        else:
+            todo = sections if walk is None else self._sections_to_visit(tr, walk)
+        for sec in todo:
             req = reqs.get(sec.section_id)
             if req is not None and self._stale(tr, req, sec):
                 req = None  # left behind on an earlier time through the section: this time asks anew
@@ -251,7 +256,7 @@ class SectionRequests(SectionWalker):
                 self.tracks.release(t, tr.train_id, req)
             else:
                 self._widen(t, tr, sec, req)
-        self._let_ahead_through(t, tr, ahead, walk)
+        self._let_ahead_through(t, tr, ahead, walk, short)
         if walked:
             self._settle_sections(tr, walk)
 
@@ -267,7 +272,9 @@ class SectionRequests(SectionWalker):
         """True if ``req`` is ``tr``'s request for an earlier time through ``sec``'s section, released since."""
         return tr.train_id in req.released_by and self.pass_m(tr, req) < sec.start_m
 
-    def _let_ahead_through(self, t: float, tr: TrainRuntime, ahead: Any, walk: SectionWalk | None = None) -> None:
+    def _let_ahead_through(
+        self, t: float, tr: TrainRuntime, ahead: Any, walk: SectionWalk | None = None, short: ShortEntries | None = None
+    ) -> None:
         """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
         not passed yet: it is granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot
         pass through before it. A tram coming in from a branch between two sections stood in front of the tram
@@ -277,7 +284,7 @@ class SectionRequests(SectionWalker):
         if ahead is None:
             return
         theirs = self.section_requests.get(ahead.train_id, {})
-        for sec in self._sections_held(tr, walk):
+        for sec in self._sections_held(tr, walk, short):
             mine = self.section_requests[tr.train_id].get(sec.section_id)
             other = theirs.get(sec.section_id)
             if (

@@ -28,6 +28,15 @@ sections the train holds (granted, not released), a set that changes only with t
 than ``section_walk_min`` entries (:data:`SECTION_WALK_MIN`) has no walk: going over a short list whole costs less
 than keeping the walk (a train with one section, as on most lines, visits it every step).
 
+**Short lists.** A train with fewer entries than ``section_walk_min`` has no walk, but its entries are sorted
+too, at the start of a step whose version differs from the last sorting's (:meth:`SectionWalker._short_list`):
+the step visits those not done *for good* — done are the entries whose request is for a later time through the
+section, or for this time and released; both stay done whatever the step does (the record of which time a
+request is for only moves on, a release is not undone). An entry whose request is for an earlier time not yet
+released is still visited: the step may release that request and ask anew for this time. ``_let_ahead_through``
+looks at the entries held as sorted while the version stays that of the sorting (else at every entry). On most
+lines a train has one section: once it has released it, its step does nothing here.
+
 The walk decides exactly as the walk over every entry (``walk_every_section``, the reference
 ``tests/unit/test_authority_memo.py`` holds it to).
 """
@@ -35,6 +44,7 @@ The walk decides exactly as the walk over every entry (``walk_every_section``, t
 from __future__ import annotations
 
 from collections.abc import Sequence
+from typing import NamedTuple
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import RouteSection
@@ -81,6 +91,17 @@ class SectionWalk:
         self.hi = 0
 
 
+class ShortEntries(NamedTuple):
+    """The entries of a train with fewer than ``section_walk_min`` sorted for its requests at ``version`` (module
+    docstring, "Short lists"): ``visit`` those that are not done for good in route order, ``held`` those whose
+    sections the train holds."""
+
+    version: int
+    sections: list[RouteSection]  # the train's entries it was sorted from (by identity)
+    visit: tuple[RouteSection, ...]
+    held: tuple[RouteSection, ...]
+
+
 class SectionWalker:
     """The section walks of every train (module docstring): a base class of
     :class:`~railsim.engine.section_requests.SectionRequests`, which provides the requests and their reading."""
@@ -92,6 +113,7 @@ class SectionWalker:
     _section_walks: dict[str, SectionWalk]
     walk_every_section: bool  # True: every entry is visited every step (the reference)
     section_walk_min: int  # a train with fewer entries visits every one every step (cheaper than the walk)
+    _short_entries: dict[str, ShortEntries]  # train id -> its short list sorted (module docstring, "Short lists")
 
     def pass_m(self, tr: TrainRuntime, req: SectionRequest) -> float:
         raise NotImplementedError  # SectionRequests'
@@ -136,12 +158,46 @@ class SectionWalker:
         walk.lo, walk.hi = lo, hi
         return walk.visit[lo:hi] if lo < hi else ()
 
-    def _sections_held(self, tr: TrainRuntime, walk: SectionWalk | None) -> Sequence[RouteSection]:
+    def _sections_held(
+        self, tr: TrainRuntime, walk: SectionWalk | None, short: ShortEntries | None = None
+    ) -> Sequence[RouteSection]:
         """The entries ``_let_ahead_through`` looks at: those whose sections the train holds, while its walk
-        (``walk``, as the step began) still holds; else every entry."""
-        if walk is None or self.tracks is None or walk.version != self.tracks.versions.get(tr.train_id, 0):
+        (``walk``) or its short list (``short``), as the step began, still holds; else every entry."""
+        if self.tracks is None:
+            return self.sections[tr.train_id]
+        if short is not None:
+            if short.version != self.tracks.versions.get(tr.train_id, 0):
+                return self.sections[tr.train_id]
+            return short.held
+        if walk is None or walk.version != self.tracks.versions.get(tr.train_id, 0):
             return self.sections[tr.train_id]
         return walk.held
+
+    def _short_list(self, tr: TrainRuntime) -> ShortEntries | None:
+        """The train's short list (fewer entries than ``section_walk_min``) sorted for its requests as they stand
+        (module docstring, "Short lists"), or None: every entry is visited (``walk_every_section``)."""
+        if self.tracks is None or self.walk_every_section:
+            return None
+        tid = tr.train_id
+        version = self.tracks.versions.get(tid, 0)
+        sections = self.sections[tid]
+        short = self._short_entries.get(tid)
+        if short is not None and short.version == version and short.sections is sections:
+            return short
+        reqs = self.section_requests[tid]
+        visit: list[RouteSection] = []
+        held: list[RouteSection] = []
+        for sec in sections:
+            req = reqs.get(sec.section_id)
+            if req is not None and req.granted and tid not in req.released_by and sec.section_id.startswith("track:"):
+                held.append(sec)
+            if req is not None and not self._stale(tr, req, sec):
+                pass_m = self.pass_m(tr, req)
+                if pass_m > sec.start_m or (pass_m == sec.start_m and tid in req.released_by):
+                    continue  # done for good: a later time through, or this one released
+            visit.append(sec)
+        short = self._short_entries[tid] = ShortEntries(version, sections, tuple(visit), tuple(held))
+        return short
 
     def _settle_sections(self, tr: TrainRuntime, walk: SectionWalk | None) -> None:
         """After the step: sort the entries afresh if the train's requests changed since ``walk`` (the train's

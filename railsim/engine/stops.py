@@ -25,6 +25,13 @@ stop before the window's end plus the tolerance even with nothing but its emerge
 worked out once per train and stop (:class:`_FarBounds`; worked out anew when the train's stop index, its trip's
 stops or its vehicle change: a stop served, missed or skipped, a turnback or a primary delay replacing the stops),
 and returns at once when they hold — what the full pass would have done, for a few attribute reads.
+
+Dwelling
+--------
+A train SUMO holds at its stop (registered, and still registered in this step) waits for the end of its dwell:
+the full pass has nothing to do for it but at a reversal (which watches for SUMO flipping the train). So
+:meth:`StopBook.bookkeeping` returns at once for it, too.
+
 ``StopBook.screen_far = False`` runs the full pass every step (the reference of ``tests/unit/test_stops_far.py``).
 """
 
@@ -144,7 +151,15 @@ class StopBook:
 
     def bookkeeping(self, t: float, tr: TrainRuntime) -> None:
         """A train's stop progress at ``t``: halt, registration, dwell end and departure, missed stop, reversal."""
-        if self.screen_far and not tr.sumo_stopped_now and not tr.sumo_stopped:
+        if not self.screen_far:
+            self._full_pass(t, tr)
+            return
+        if tr.sumo_stopped:
+            if tr.sumo_stopped_now:  # dwelling (see "Dwelling"): the full pass acts only at a reversal
+                i, stops = tr.next_stop, tr.trip.stops
+                if i >= len(stops) or stops[i].kind != "reversal":
+                    return
+        elif not tr.sumo_stopped_now:
             far = self._far.get(tr.train_id)
             trip = tr.trip
             if (

@@ -115,7 +115,11 @@ class SectionWorld(World):
     """A world of the walk's test with sections, a crossing, facing trains, merges and ATO margins
     (``reference``: its route locks work the authority end out afresh at every call)."""
 
-    def __init__(self, seed: int, reference: bool, patch: Callable[[RouteLocks], None] | None = None) -> None:
+    def __init__(
+        self, seed: int, reference: bool, patch: Callable[[RouteLocks], None] | None = None, short: bool = False
+    ) -> None:
+        """``short``: the remembering copy keeps the engine's ``section_walk_min``, so every train's one to three
+        sections are a short list (``SectionWalker._short_list``) rather than a walk."""
         super().__init__(seed, every=False)
         rng = np.random.default_rng(seed + 1000)
         self.draws = np.random.default_rng(seed + 2000)  # the facing trains; the same draws in both copies
@@ -166,7 +170,7 @@ class SectionWorld(World):
         if reference:
             locks.authority_end_m = types.MethodType(authority_end_reference_m, locks)  # type: ignore[method-assign]
             locks.walk_every_section = True
-        else:
+        elif not short:
             locks.section_walk_min = 0  # the worlds' routes have one to three sections: walk them all the same
         if patch is not None:
             patch(locks)
@@ -192,9 +196,12 @@ class SectionWorld(World):
         return out
 
 
-def _differ(seed: int, patch: Callable[[RouteLocks], None] | None = None) -> tuple[str | None, SectionWorld]:
+def _differ(
+    seed: int, patch: Callable[[RouteLocks], None] | None = None, short: bool = False
+) -> tuple[str | None, SectionWorld]:
     """Run the two copies side by side: the first difference (step and what) or None, and the remembering one."""
-    ref, fast = SectionWorld(seed, reference=True), SectionWorld(seed, reference=False, patch=patch)
+    ref = SectionWorld(seed, reference=True)
+    fast = SectionWorld(seed, reference=False, patch=patch, short=short)
     for k in range(STEPS):
         t = float(k)
         ref.step(t)
@@ -322,7 +329,7 @@ def _short_reach(locks: RouteLocks) -> None:
 def _held_unseen(locks: RouteLocks) -> None:
     """Broken on purpose: a train in front is never let through a section this train holds."""
     held = locks._sections_held
-    locks._sections_held = lambda tr, walk: () if walk is not None else held(tr, walk)  # type: ignore[method-assign]
+    locks._sections_held = lambda tr, walk, short=None: () if walk is not None else held(tr, walk, short)  # type: ignore[method-assign]
 
 
 def _rear_unseen(locks: RouteLocks) -> None:
@@ -345,3 +352,72 @@ def _rear_unseen(locks: RouteLocks) -> None:
 )
 def test_a_memo_that_misses_a_change_is_caught(patch: Callable[[RouteLocks], None]) -> None:
     assert any(_differ(seed, patch)[0] is not None for seed in range(SEEDS)), f"{patch.__name__} went unnoticed"
+
+
+def _left_out_wrongly(locks: RouteLocks, calls: dict[str, int]) -> None:
+    """Count the entries of the short lists visited and left out, and the entries left out that the former code
+    (the loop over every entry) would have acted on in that step: at the step's end, one whose request is gone
+    stale or is for this time through and not released (``calls["wrong"]``)."""
+    short_list, bookkeeping = locks._short_list, locks._sections_bookkeeping
+    left_out: dict[str, list[Any]] = {}
+
+    def counted(tr: Any) -> Any:
+        out = short_list(tr)
+        calls["visited"] += len(out.visit)
+        calls["entries"] += len(locks.sections[tr.train_id])
+        left_out[tr.train_id] = [sec for sec in locks.sections[tr.train_id] if sec not in out.visit]
+        return out
+
+    def checked(t: float, tr: Any, ahead: Any = None) -> None:
+        left_out[tr.train_id] = []
+        bookkeeping(t, tr, ahead)
+        reqs = locks.section_requests[tr.train_id]
+        for sec in left_out[tr.train_id]:
+            req = reqs.get(sec.section_id)
+            acts = req is None or locks._stale(tr, req, sec)
+            acts = acts or (locks.pass_m(tr, req) == sec.start_m and tr.train_id not in req.released_by)
+            calls["wrong"] += acts
+
+    locks._short_list = counted  # type: ignore[method-assign]
+    locks._sections_bookkeeping = checked  # type: ignore[method-assign]
+
+
+@pytest.mark.parametrize("seed", range(SEEDS))
+def test_short_lists_decide_as_every_entry(seed: int) -> None:
+    """Trains with fewer sections than ``section_walk_min`` go over their short lists sorted
+    (``SectionWalker._short_list``): every decision as the copy that visits every entry, no entry left out that
+    the step acts on, and entries left out."""
+    calls = {"visited": 0, "entries": 0, "wrong": 0}
+    difference, fast = _differ(seed, patch=lambda locks: _left_out_wrongly(locks, calls), short=True)
+    assert difference is None, difference
+    assert fast.log.count("section_reserved") > 3
+    assert calls["wrong"] == 0, calls
+    assert calls["entries"] - calls["visited"] > 300, calls
+
+
+def _short_open_done(locks: RouteLocks) -> None:
+    """Broken on purpose: an entry the train holds (granted, not released) is taken as done."""
+    short_list = locks._short_list
+
+    def broken(tr: Any) -> Any:
+        out = short_list(tr)
+        reqs = locks.section_requests[tr.train_id]
+
+        def open_(sec: Any) -> bool:
+            req = reqs.get(sec.section_id)
+            return req is not None and req.granted and tr.train_id not in req.released_by
+
+        return out._replace(visit=tuple(sec for sec in out.visit if not open_(sec)))
+
+    locks._short_list = broken  # type: ignore[method-assign]
+
+
+def _short_held_none(locks: RouteLocks) -> None:
+    """Broken on purpose: a short list holds no entry (a train in front is never let through)."""
+    short_list = locks._short_list
+    locks._short_list = lambda tr: short_list(tr)._replace(held=())  # type: ignore[method-assign]
+
+
+@pytest.mark.parametrize("patch", [_short_open_done, _short_held_none])
+def test_a_short_list_that_leaves_out_an_entry_is_caught(patch: Callable[[RouteLocks], None]) -> None:
+    assert any(_differ(seed, patch, short=True)[0] is not None for seed in range(SEEDS)), patch.__name__

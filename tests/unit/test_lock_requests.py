@@ -48,7 +48,8 @@ def _train(tid: str, front_m: float, stops: list[TripStop], depart_s: float = 0.
         departure_delay_s=0.0,
         vehicle=SimpleNamespace(length_m=120.0),
         route=SimpleNamespace(switches=list(switches)),
-        depart_chainage_m=stops[0].mark_m,
+        start_offset_m=0.0,
+        depart_chainage_m=stops[0].mark_m,  # as Trip's: the origin's mark plus the start offset
         destination=stops[-1],
     )
     return SimpleNamespace(

@@ -20,6 +20,8 @@ breaks the walk five ways and expects a difference each time.
 
 from __future__ import annotations
 
+import copy
+import dataclasses
 import zlib
 from collections.abc import Callable
 from types import SimpleNamespace
@@ -87,7 +89,8 @@ def _train(tid: str, switches: list[SimpleNamespace], stops: tuple[TripStop, ...
         departure_delay_s=0.0,
         vehicle=SimpleNamespace(length_m=LENGTH_M),
         route=SimpleNamespace(switches=tuple(switches)),
-        depart_chainage_m=stops[0].mark_m,
+        start_offset_m=0.0,
+        depart_chainage_m=stops[0].mark_m,  # as Trip's: the origin's mark plus the start offset
     )
     return SimpleNamespace(
         train_id=tid,
@@ -155,8 +158,12 @@ class _Formations:
 class World:
     """One copy of the randomly built world (``every``: walk every switch, the reference)."""
 
-    def __init__(self, seed: int, every: bool, patch: Callable[[RouteLocks], None] | None = None) -> None:
+    def __init__(
+        self, seed: int, every: bool, patch: Callable[[RouteLocks], None] | None = None, move_start: bool = False
+    ) -> None:
         rng = np.random.default_rng(seed)
+        # move_start: now and then a train's start moves (a new start front, start offset, origin or vehicle)
+        self.move_start = np.random.default_rng(seed + 2) if move_start else None
         self.rng = np.random.default_rng(seed + 1)  # the world's run; the same draws in both copies
         self.log = EventLog()
         self.layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1), log=self.log)
@@ -216,6 +223,8 @@ class World:
         self.layer.advance_to(t)
         self.hooks.t = t
         self.formations.state = COUPLED if (t // 150) % 3 else "uncoupled"
+        if self.move_start is not None and self.move_start.random() < 0.03:
+            self._move_start(trains[str(self.move_start.choice(sorted(trains)))])
         order = sorted(trains)
         rng.shuffle(order)
         for tid in order:
@@ -270,6 +279,25 @@ class World:
                 tr.status = "arrived"
                 self.locks.release_all(tr)
 
+    def _move_start(self, tr: Any) -> None:
+        """Move where the train's switches begin to be its business (``lock_walk.start_limit_of``'s inputs): its
+        start front (a unit handed over elsewhere), its trip's start offset, its origin's mark (new stops) or its
+        vehicle (a new length), a few hundred metres either way."""
+        rng, trip = self.move_start, tr.trip
+        assert rng is not None
+        shift_m = float(rng.choice([-900.0, -300.0, 0.0, 300.0]))
+        what = int(rng.integers(0, 4))
+        if what == 0:
+            tr.start_front_m += shift_m
+        elif what == 1:
+            trip.start_offset_m += shift_m
+        elif what == 2:
+            first = trip.stops[0]
+            trip.stops = (dataclasses.replace(first, mark_m=first.mark_m + shift_m), *trip.stops[1:])
+        else:
+            trip.vehicle = SimpleNamespace(length_m=LENGTH_M + shift_m / 10.0)
+        trip.depart_chainage_m = trip.stops[0].mark_m + trip.start_offset_m
+
     def state(self) -> dict[str, Any]:
         """Everything the walk decides since the last call (events, questions), and every train's locks and
         authority end."""
@@ -289,9 +317,12 @@ class World:
         return out
 
 
-def _differ(seed: int, patch: Callable[[RouteLocks], None] | None = None) -> tuple[str | None, World]:
+def _differ(
+    seed: int, patch: Callable[[RouteLocks], None] | None = None, move_start: bool = False
+) -> tuple[str | None, World]:
     """Run the two copies side by side: the first difference (step and what) or None, and the reference."""
-    every, fast = World(seed, every=True), World(seed, every=False, patch=patch)
+    every = World(seed, every=True, move_start=move_start)
+    fast = World(seed, every=False, patch=patch, move_start=move_start)
     for k in range(STEPS):
         t = float(k)
         every.step(t)
@@ -380,6 +411,149 @@ def _behind_start_asleep(locks: RouteLocks) -> None:
     locks._dormant = broken  # type: ignore[method-assign]
 
 
-@pytest.mark.parametrize("patch", [_skip_tracked, _short_window, _no_next_time, _outside_unseen, _behind_start_asleep])
+def _held_given_up_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: approaching points held, the train in front waiting for them is not looked at."""
+    approaching = locks._approaching_held
+    locks._approaching_held = lambda tr, walk, ahead: approaching(tr, walk, None)  # type: ignore[method-assign]
+
+
+def _held_front_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: approaching points held, where the front is is not looked at (it may have passed the
+    point, or come within the request distance of the next points)."""
+    approaching = locks._approaching_held
+
+    def broken(tr: Any, walk: Any, ahead: Any) -> bool:
+        return approaching(SimpleNamespace(**{**vars(tr), "front_m": -1e9}), walk, ahead)
+
+    locks._approaching_held = broken  # type: ignore[method-assign]
+
+
+def _single_too_eager(locks: RouteLocks) -> None:
+    """Broken on purpose: the switch at the cursor is taken as the only one in reach whenever nothing else is
+    tracked (the next points within the request distance, and where the front is, not looked at)."""
+    single = locks._single_switch
+
+    def broken(tr: Any, walk: Any) -> int:
+        i = walk.cursor
+        if i < len(walk.index.ids) and set(walk.tracked) <= {i} and tr.locks.keys() == walk.lock_ids:
+            return i
+        return single(tr, walk)
+
+    locks._single_switch = broken  # type: ignore[method-assign]
+
+
+@pytest.mark.parametrize(
+    "patch",
+    [
+        _skip_tracked,
+        _short_window,
+        _no_next_time,
+        _outside_unseen,
+        _behind_start_asleep,
+        _held_given_up_unseen,
+        _held_front_unseen,
+        _single_too_eager,
+    ],
+)
 def test_a_walk_that_leaves_out_a_switch_is_caught(patch: Callable[[RouteLocks], None]) -> None:
     assert any(_differ(seed, patch)[0] is not None for seed in range(SEEDS)), f"{patch.__name__} went unnoticed"
+
+
+@pytest.mark.parametrize("seed", range(SEEDS))
+def test_the_walk_follows_a_moved_start(seed: int) -> None:
+    """The start limit the walk remembers (``SwitchWalk.remember_start_inputs``) is worked out again whenever what it
+    comes from moves: the walk still decides as the walk over every switch, which works it out every step."""
+    difference, _ = _differ(seed, move_start=True)
+    assert difference is None, difference
+
+
+class _Same:
+    """Equal to anything (a memo broken on purpose: it sees no change)."""
+
+    def __eq__(self, _other: object) -> bool:
+        return True
+
+    __hash__ = None  # type: ignore[assignment]
+
+
+def _start_kept(locks: RouteLocks) -> None:
+    """Broken on purpose: the remembered start limit is kept whatever start offset or start front it is asked for."""
+    bookkeeping = locks.bookkeeping
+
+    def broken(t: float, tr: Any, ahead: Any = None) -> None:
+        bookkeeping(t, tr, ahead)
+        walk = locks._walks.get(tr.train_id)
+        if walk is not None:
+            walk.start_offset_m = walk.start_front_m = _Same()  # type: ignore[assignment]
+
+    locks.bookkeeping = broken  # type: ignore[method-assign]
+
+
+def test_a_start_limit_kept_when_its_inputs_moved_is_caught() -> None:
+    assert any(_differ(seed, _start_kept, move_start=True)[0] is not None for seed in range(SEEDS))
+
+
+def test_the_worlds_take_the_short_steps() -> None:
+    """The steps that return approaching points held (``_approaching_held``), that visit the one switch in reach
+    without looking for candidates (``_single_switch``) and that leave the walk settled (``_still_settled``) are
+    all taken, and often."""
+    taken = {"approaching": 0, "single": 0, "settled": 0}
+
+    def counted(what: str, answer: Callable[..., Any], taken_if: Callable[[Any], bool]) -> Callable[..., Any]:
+        def ask(*args: Any) -> Any:
+            out = answer(*args)
+            taken[what] += taken_if(out)
+            return out
+
+        return ask
+
+    for seed in range(3):
+        world = World(seed, every=False)
+        locks = world.locks
+        locks._approaching_held = counted("approaching", locks._approaching_held, bool)  # type: ignore[method-assign]
+        locks._single_switch = counted("single", locks._single_switch, lambda i: i >= 0)  # type: ignore[method-assign]
+        locks._still_settled = counted("settled", locks._still_settled, bool)  # type: ignore[method-assign]
+        for k in range(STEPS):
+            world.step(float(k))
+    assert min(taken.values()) > 100, taken
+
+
+_WALK_FIELDS = ("cursor", "tracked", "next_m", "n_released", "lock_ids")
+
+
+def _settling_skipped_wrongly(seed: int, still_settled: Callable[..., bool] | None = None) -> tuple[int, int]:
+    """Run one world; wherever the walk is left unsettled (``_still_settled``, or ``still_settled`` in its place)
+    settle a copy of it the long way (``_settle_walk``, the former code) and compare: (steps where the two walks
+    differ, steps left unsettled)."""
+    world = World(seed, every=False)
+    locks = world.locks
+    settled = still_settled or locks._still_settled
+    wrong = skipped = 0
+
+    def checked(tr: Any, walk: Any, i: int) -> bool:
+        nonlocal wrong, skipped
+        out = settled(tr, walk, i)
+        if out:
+            skipped += 1
+            long_way = copy.copy(walk)
+            locks._settle_walk(tr, long_way, [i])
+            wrong += any(getattr(walk, k) != getattr(long_way, k) for k in _WALK_FIELDS)
+        return bool(out)
+
+    locks._still_settled = checked  # type: ignore[method-assign]
+    for k in range(STEPS):
+        world.step(float(k))
+    return wrong, skipped
+
+
+def test_a_walk_left_unsettled_is_what_settling_gives() -> None:
+    """A step that visited one switch and leaves the walk unsettled leaves it exactly as settling it would."""
+    results = [_settling_skipped_wrongly(seed) for seed in range(SEEDS)]
+    assert sum(w for w, _ in results) == 0
+    assert sum(n for _, n in results) > 300, "hardly any walk left unsettled: test too weak"
+
+
+def test_a_walk_left_unsettled_after_a_change_is_caught() -> None:
+    """Broken on purpose: the walk is left unsettled whatever the visit changed (a lock requested or given up)."""
+    results = [_settling_skipped_wrongly(seed, lambda tr, walk, i: i == walk.cursor) for seed in range(SEEDS)]
+    assert sum(w for w, _ in results) > 0

@@ -202,3 +202,18 @@ def test_the_screen_follows_the_next_stop_and_the_vehicle() -> None:
     tr.trip.vehicle = _VEHICLES[1]
     book.bookkeeping(4.0, tr)
     assert calls == [4.0]
+
+
+@pytest.mark.parametrize(("kind", "registered_now", "full_pass"), [
+    ("station", True, False), ("station", False, True), ("reversal", True, True),
+])  # fmt: skip
+def test_a_dwelling_train_skips_the_full_pass_except_at_a_reversal(
+    kind: str, registered_now: bool, full_pass: bool
+) -> None:
+    """A train SUMO holds at its stop has nothing to do till its dwell ends: no full pass — unless its stop is a
+    reversal (SUMO flips it there), or SUMO has just let it go (the departure is decided in the full pass)."""
+    stops, tr, book, calls = _counted()
+    tr.trip.stops = stops[:1] + (dataclasses.replace(stops[1], kind=kind),) + stops[2:]
+    tr.front_m, tr.sumo_stopped, tr.sumo_stopped_now = stops[1].mark_m, True, registered_now
+    book.bookkeeping(1.0, tr)
+    assert calls == ([1.0] if full_pass else [])
