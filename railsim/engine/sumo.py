@@ -37,7 +37,7 @@ import os
 import tempfile
 from collections import deque
 from collections.abc import Callable, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -257,10 +257,6 @@ class TrainStates:
     lane_pos_m: np.ndarray
     edge_ids: list[str]
     stopped: np.ndarray  # SUMO has registered a stop (dwelling)
-    index: dict[str, int] = field(default_factory=dict)
-
-    def __post_init__(self) -> None:
-        self.index = {vid: i for i, vid in enumerate(self.ids)}
 
 
 def rail_signal_classes(vtypes: Sequence[VTypeSpec]) -> str:
@@ -557,7 +553,7 @@ class SumoBridge:
         odo = np.array(list(map(v.getDistance, ids)), dtype=float)  # one getter over all trains at a time
         spd = np.array(list(map(v.getSpeed, ids)), dtype=float)
         lpos = np.array(list(map(v.getLanePosition, ids)), dtype=float)
-        stopped = np.array([state & 1 == 1 for state in map(v.getStopState, ids)], dtype=bool)  # isStopped: bit 0
+        stopped = (np.array(list(map(v.getStopState, ids)), dtype=np.int64) & 1).astype(bool)  # isStopped: bit 0
         if len(ids) >= self.edge_memory_min_trains:
             edges = self._edges.edges_now(ids, odo, lpos, v)
         else:  # few trains: asking is cheaper than the memory's array work
