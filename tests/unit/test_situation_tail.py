@@ -112,8 +112,7 @@ def test_a_broken_skip_is_caught(monkeypatch: pytest.MonkeyPatch, broken: str) -
         stage, book, trains, rng = original(seed)
         # the skip reads ``of_leader``; the book's tail_m reads it too: swap it only for the skip's question
         keys = set(book.of_follower) if broken == "followers" else set()
-        stage.formations = SimpleNamespace(
-            of_leader=keys, tail_m=lambda tr: FormationBook.tail_m(book, tr))
+        stage.formations = SimpleNamespace(of_leader=keys, tail_m=lambda tr: FormationBook.tail_m(book, tr))
         return stage, book, trains, rng
 
     monkeypatch.setattr(sys.modules[__name__], "_world", world)
