@@ -99,9 +99,9 @@ class StallWatch:
                 waiting.append(tr)
         busy |= self._waiting_for_busy(waiting, busy, ahead)
         standing_since = self.standing_since
-        if standing_since:  # a busy train's clock stops (only standing trains have one)
-            for train_id in busy:
-                standing_since.pop(train_id, None)
+        if standing_since:  # a busy train's clock stops (few clocks run: look among them)
+            for train_id in [k for k in standing_since if k in busy]:
+                del standing_since[train_id]
         for tr in waiting:  # the standing trains that wait for no busy train: their clocks run
             if tr.train_id not in busy and tr.train_id not in standing_since:
                 standing_since[tr.train_id] = (t, tr)
