@@ -140,7 +140,7 @@ class ControlStage:
             own_v = max(0.0, own_v + float(self.dist.noise_rng.normal(0.0, self.dist.speed_sd_mps)))
         view = tr.view
         front_m = tr.front_m
-        tail_m = self.formations.tail_m(tr)
+        tail_m = self.formations.tail_m(tr) if tr.train_id in self.formations.of_leader else 0.0  # a leader's only
         # a coupled formation runs like one long train: a restriction holds until its last unit's rear clears (the
         # ends move on by tail_m: the line ATO does it in its kernel, _base for the observation others get)
         from_m, to_m = front_m - veh.length_m - tail_m, front_m + self.settings.lookahead_m

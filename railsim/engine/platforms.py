@@ -69,34 +69,33 @@ class Berths:
         self, t: float, tr: TrainRuntime, stop: TripStop | None, a: Ahead | None, authority_m: float
     ) -> float:
         """``authority_m`` (the route locks' end of authority), cut short of the platform ``tr`` is heading for
-        while the train ahead stands on it."""
-        self.waiting.pop(tr.train_id, None)
+        while the train ahead stands on it. Most calls end at the geometry of :func:`berth_limit_m` (no train
+        ahead on the platform, or the train already past its limit): nothing is built for them."""
+        tid = tr.train_id
+        if self.waiting:
+            self.waiting.pop(tid, None)
         if a is None or stop is None or not self.settings.platform_berths:
             if self._imposed:  # no limit now: one given before is no longer held
-                self._imposed.pop(tr.train_id, None)
+                self._imposed.pop(tid, None)
             return authority_m
-        occupant = self.trains[a.train_id]
-
-        def standing() -> bool:
-            return occupant.plant.speed_mps == 0.0 or _stops_at(occupant, stop.station_id)
-
         margin_m = self.settings.protection_margin_m
-        berth_m = berth_limit_m(tr.front_m, tr.train_id, stop, a, standing, margin_m, self.coupled_behind)
+        berth_m = berth_limit_m(tr.front_m, tid, stop, a, self.trains, margin_m, self.coupled_behind)
         if berth_m is None:
-            self._imposed.pop(tr.train_id, None)
+            if self._imposed:
+                self._imposed.pop(tid, None)
             return authority_m
-        if self._imposed.get(tr.train_id) != stop.station_id:
+        if self._imposed.get(tid) != stop.station_id:
             if berth_m - tr.front_m < service_braking_m(tr, self.dt_s):
                 return authority_m  # too late to stop for it: let in (approach locking), separation keeps it back
-            self._imposed[tr.train_id] = stop.station_id
+            self._imposed[tid] = stop.station_id
         if berth_m >= authority_m:
             return authority_m
         if tr.plant.speed_mps == 0.0 and berth_m - tr.front_m < BERTH_WAIT_M:  # standing at the limit: it waits
-            self.waiting[tr.train_id] = (stop.station_id, a.train_id)
-            key = (tr.train_id, stop.station_id)
+            self.waiting[tid] = (stop.station_id, a.train_id)
+            key = (tid, stop.station_id)
             if key not in self._logged:
                 self._logged.add(key)
-                self.events.record(t, "platform_occupied", tr.train_id, station=stop.station_id, by=a.train_id)
+                self.events.record(t, "platform_occupied", tid, station=stop.station_id, by=a.train_id)
         return berth_m
 
 
@@ -105,24 +104,27 @@ def berth_limit_m(
     train_id: str,
     stop: TripStop | None,
     ahead: Ahead | None,
-    ahead_standing: Callable[[], bool],
+    trains: Mapping[str, TrainRuntime],
     overlap_m: float,
     coupled_behind: Callable[[str, str], bool],
 ) -> float | None:
     """The chainage (own route frame) where the train must stop short of an occupied platform, or None.
 
     ``stop`` is the stop the train is heading for, ``ahead`` the train directly ahead (its front and rear in the
-    same frame); ``ahead_standing()`` tells whether it stands there (asked only once the geometry says it could
-    matter: the cheap checks first, every train, every step)."""
+    same frame), ``trains`` every train by id (the one ahead is looked up only once the geometry says it could
+    matter: the cheap checks first, every train, every step — whether it stands there, then whether the train is
+    coupled behind it)."""
     if ahead is None or stop is None or stop.kind != "station":
         return None
-    platform_start_m = stop.window_end_m - stop.platform_m
+    window_end_m = stop.window_end_m
+    platform_start_m = window_end_m - stop.platform_m
     limit_m = platform_start_m - overlap_m
     if front_m > limit_m + 1e-6:  # already let in (or standing at the platform)
         return None
-    if ahead.rear_m >= stop.window_end_m or ahead.front_m <= platform_start_m:
+    if ahead.rear_m >= window_end_m or ahead.front_m <= platform_start_m:
         return None  # the train ahead is clear of the platform (beyond it, or not on it yet)
-    if not ahead_standing():
+    occupant = trains[ahead.train_id]
+    if occupant.plant.speed_mps != 0.0 and not _stops_at(occupant, stop.station_id):
         return None  # a train ahead that is moving draws clear: the follower may run in behind it (separation)
     if coupled_behind(train_id, ahead.train_id):
         return None

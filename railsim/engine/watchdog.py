@@ -88,18 +88,23 @@ class StallWatch:
         busy: set[str] = set()  # moving, or standing for a reason of its own
         waiting: list[TrainRuntime] = []
         for tr in active:
+            if tr.plant.speed_mps > STANDSTILL_MPS:  # moving: the commonest answer, asked first
+                busy.add(tr.train_id)
+                continue
             held = tr.hold_until_s is not None and t < tr.hold_until_s  # a unit early for its next departure
             dwelling = (tr.sumo_stopped or tr.sumo_stopped_now) and not tr.held_for_route
-            if tr.plant.speed_mps > STANDSTILL_MPS or dwelling or held or self._radio_wait(t, tr, ahead):
+            if dwelling or held or self._radio_wait(t, tr, ahead):
                 busy.add(tr.train_id)
             else:
                 waiting.append(tr)
         busy |= self._waiting_for_busy(waiting, busy, ahead)
-        for tr in active:
-            if tr.train_id in busy:
-                self.standing_since.pop(tr.train_id, None)
-            elif tr.train_id not in self.standing_since:
-                self.standing_since[tr.train_id] = (t, tr)
+        standing_since = self.standing_since
+        if standing_since:  # a busy train's clock stops (few clocks run: look among them)
+            for train_id in [k for k in standing_since if k in busy]:
+                del standing_since[train_id]
+        for tr in waiting:  # the standing trains that wait for no busy train: their clocks run
+            if tr.train_id not in busy and tr.train_id not in standing_since:
+                standing_since[tr.train_id] = (t, tr)
         self._deadlock(t, ahead)
         self._report(t, self.settings.stall_timeout_s, "")
 
