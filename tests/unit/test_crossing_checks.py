@@ -136,4 +136,4 @@ def test_a_route_whose_spans_are_out_of_order_is_scanned_whole() -> None:
     disordered = [
         tid for tid, spans in monitor._crossings.items() if [s[2] for s in spans] != sorted(s[2] for s in spans)
     ]
-    assert disordered and all(tid not in monitor._crossing_ends for tid in disordered)
+    assert disordered and all(monitor._crossing_of[tid][1] is None for tid in disordered)
