@@ -27,6 +27,7 @@ track a facing train stands on.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import repeat
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -63,6 +64,9 @@ class Ahead(NamedTuple):
     rear_m: float
     gap_m: float  # front-to-rear: rear of the train ahead minus front of the follower (negative = overlap)
     offset_m: float  # add to the leader's own chainage to get the follower's frame
+
+
+_new_tuple = tuple.__new__  # tuple.__new__(Ahead, fields): an Ahead, as Ahead(*fields) makes it
 
 
 class Facing(NamedTuple):
@@ -279,13 +283,15 @@ class Occupancy:
     def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
         """:meth:`ahead` for every train of the step, in slot order (one compiled pass, gaps and offsets in it)."""
         slots, fronts, rears, gaps, offsets = occupancy_kernel.ahead_all(lookahead_m, *self._ahead_tables())
-        ids = self.ids
-        return [
-            None if o < 0 else Ahead(ids[o], front, rear, gap, offset)
-            for o, front, rear, gap, offset in zip(
-                slots.tolist(), fronts.tolist(), rears.tolist(), gaps.tolist(), offsets.tolist(), strict=True
-            )
-        ]
+        other = slots.tolist()
+        # each Ahead made in C (what Ahead(...) does, without its Python-level __new__); slot -1 is None, after
+        rows = zip(map(self.ids.__getitem__, other), fronts.tolist(), rears.tolist(), gaps.tolist(), offsets.tolist())
+        out: list[Ahead | None] = list(map(_new_tuple, repeat(Ahead, len(other)), rows))
+        if -1 in other:
+            for k, o in enumerate(other):
+                if o < 0:
+                    out[k] = None
+        return out
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""

@@ -192,13 +192,13 @@ class SafetyMonitor:
                     if front_m > start_m and rear_m < end_m:
                         inside.setdefault(node, []).append((tr, move))
                 continue
-            # one after the other along the route: from the first that ends beyond the rear, up to the front
+            # one after the other along the route: from the first that ends beyond the rear (ends ascend: so do all
+            # after it), up to the front
             for k in range(bisect_right(ends, rear_m), len(spans)):
-                node, move, start_m, end_m = spans[k]
+                node, move, start_m, _ = spans[k]
                 if start_m >= front_m:
                     break
-                if rear_m < end_m:
-                    inside.setdefault(node, []).append((tr, move))
+                inside.setdefault(node, []).append((tr, move))
         for node, here in inside.items():
             for i, (tr, move) in enumerate(here):
                 for other, move2 in here[i + 1 :]:
