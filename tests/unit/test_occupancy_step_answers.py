@@ -6,7 +6,7 @@ Each step the engine asks the occupancy index (railsim/engine/occupancy.py) for 
 and the facing train under each body (:meth:`Occupancy.facing_own_bodies`, read by
 :meth:`SafetyMonitor.head_on_checks`). The gaps, offsets and the filtering to trains that face one are done in the
 compiled pass (:func:`railsim.engine.occupancy_kernel.ahead_all`, :func:`~railsim.engine.occupancy_kernel.facing_hits`).
-The references below are the former Python forms, kept verbatim in spirit: one search per train
+The references below are the former Python forms, kept as they were: one search per train
 (:func:`~railsim.engine.occupancy_kernel.ahead_one`, :func:`~railsim.engine.occupancy_kernel.facing_all` over
 every slot) with the gap and offset taken in Python and every row filtered in Python. On random track and bodies
 (those of ``tests/unit/test_occupancy_kernel.py``: merges, loops, bidi partners) the answers must be equal to the
