@@ -27,6 +27,7 @@ track a facing train stands on.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from itertools import repeat
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -63,6 +64,9 @@ class Ahead(NamedTuple):
     rear_m: float
     gap_m: float  # front-to-rear: rear of the train ahead minus front of the follower (negative = overlap)
     offset_m: float  # add to the leader's own chainage to get the follower's frame
+
+
+_new_tuple = tuple.__new__  # tuple.__new__(Ahead, fields): an Ahead, as Ahead(*fields) makes it
 
 
 class Facing(NamedTuple):
@@ -277,12 +281,16 @@ class Occupancy:
         )
 
     def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
-        """:meth:`ahead` for every train of the step, in slot order (one compiled pass)."""
-        slots, fronts, rears = occupancy_kernel.ahead_all(lookahead_m, *self._ahead_tables())
-        ids, mine = self.ids, self._front.tolist()
-        out: list[Ahead | None] = []
-        for me, (o, front, rear) in enumerate(zip(slots.tolist(), fronts.tolist(), rears.tolist(), strict=True)):
-            out.append(None if o < 0 else Ahead(ids[o], front, rear, rear - mine[me], front - mine[o]))
+        """:meth:`ahead` for every train of the step, in slot order (one compiled pass, gaps and offsets in it)."""
+        slots, fronts, rears, gaps, offsets = occupancy_kernel.ahead_all(lookahead_m, *self._ahead_tables())
+        other = slots.tolist()
+        # each Ahead made in C (what Ahead(...) does, without its Python-level __new__); slot -1 is None, after
+        rows = zip(map(self.ids.__getitem__, other), fronts.tolist(), rears.tolist(), gaps.tolist(), offsets.tolist())
+        out: list[Ahead | None] = list(map(_new_tuple, repeat(Ahead, len(other)), rows))
+        if -1 in other:
+            for k, o in enumerate(other):
+                if o < 0:
+                    out[k] = None
         return out
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
@@ -299,24 +307,41 @@ class Occupancy:
         frame), looked for from its front as far as it brakes from its speed at a mild :data:`FACING_DECEL_MPS2`, at
         least ``floor_m`` (the sensor range); trains with none are left out. The route locks end authorities before
         it."""
-        lookahead_m = np.array([floor_m + v**2 / (2.0 * FACING_DECEL_MPS2) for v in speed_mps], float)
-        hit, near, _ = self._facing_rows(self._front, lookahead_m)
-        ids = self.ids
-        return {ids[k]: near_m for k, near_m in zip(np.flatnonzero(hit >= 0).tolist(), near[hit >= 0].tolist())}
-
-    def facing_own_bodies(self) -> tuple[np.ndarray, np.ndarray, list[str]]:
-        """For every train of the step (slot order), the nearest train facing it on the track under its own body
-        (looked for from its rear over its length): that train's slot (-1: none) and where it begins, with the
-        step's train ids (``SafetyMonitor.head_on_checks``: overlapping bodies collide)."""
-        hit, near, _ = self._facing_rows(self._front - self._len, self._len)
-        return hit, near, self.ids
-
-    def _facing_rows(self, from_m: np.ndarray, lookahead_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """:meth:`facing_all` for every slot in order, as arrays ``(slot facing it or -1, near end, far end)``."""
         if not self._bidi:
-            n = len(self.ids)
-            return np.full(n, -1, np.int64), np.zeros(n), np.zeros(n)
-        return self._facing_kernel(np.arange(len(self.ids), dtype=np.int64), from_m, lookahead_m)
+            return {}
+        lookahead_m = np.array([floor_m + v**2 / (2.0 * FACING_DECEL_MPS2) for v in speed_mps], float)
+        mine, _, near = self._facing_hits(self._front, lookahead_m)
+        return dict(zip(map(self.ids.__getitem__, mine.tolist()), near.tolist()))
+
+    def facing_own_bodies(self) -> tuple[list[int], list[int], list[float], list[str]]:
+        """The trains of the step that a train faces on the track under their own body (looked for from the rear
+        over the length): their slots, the slot of the train facing each and where that train begins, ascending
+        by slot, with the step's train ids (``SafetyMonitor.head_on_checks``: overlapping bodies collide)."""
+        if not self._bidi:
+            return [], [], [], self.ids
+        mine, other, near = self._facing_hits(self._front - self._len, self._len)
+        return mine.tolist(), other.tolist(), near.tolist(), self.ids
+
+    def _facing_hits(self, from_m: np.ndarray, lookahead_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:func:`.occupancy_kernel.facing_hits` for every slot (query ``from_m[k]``, ``lookahead_m[k]``)."""
+        r_off, r_edges, r_starts, _, _, _, r_len = self._tables
+        return occupancy_kernel.facing_hits(
+            from_m,
+            lookahead_m,
+            r_off,
+            r_edges,
+            r_starts,
+            r_len,
+            self._partner,
+            self._partner_len,
+            self._route,
+            self._front,
+            self._len,
+            self.edge_i,
+            self.rear_i,
+            self._by_off,
+            self._by_slot,
+        )
 
     def _facing_kernel(
         self, slots: np.ndarray, from_m: np.ndarray, lookahead_m: np.ndarray

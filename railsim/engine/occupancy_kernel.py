@@ -272,12 +272,16 @@ def ahead_all(
     s_rear: np.ndarray,
     by_off: np.ndarray,
     by_slot: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """:func:`ahead_one` for every slot: ``(slot ahead or -1, its front, its rear)`` per slot."""
+) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`ahead_one` for every slot: ``(slot ahead or -1, its front, its rear, the gap, the frame offset)`` per
+    slot — the gap is its rear less our front, the offset its front (ours) less its own chainage (both 0.0 where
+    there is none): :class:`railsim.engine.occupancy.Ahead`'s fields, one subtraction each."""
     n = len(s_route)
     slot = np.empty(n, np.int64)
     front = np.zeros(n)
     rear = np.zeros(n)
+    gap = np.zeros(n)
+    offset = np.zeros(n)
     for me in range(n):
         slot[me], front[me], rear[me] = ahead_one(
             me,
@@ -296,7 +300,11 @@ def ahead_all(
             by_off,
             by_slot,
         )
-    return slot, front, rear
+        o = slot[me]
+        if o >= 0:
+            gap[me] = rear[me] - s_front[me]
+            offset[me] = front[me] - s_front[o]
+    return slot, front, rear, gap, offset
 
 
 @njit(cache=True)
@@ -426,3 +434,54 @@ def facing_all(
             by_slot,
         )
     return slot, near, far
+
+
+@njit(cache=True)
+def facing_hits(
+    q_from: np.ndarray,
+    q_look: np.ndarray,
+    r_off: np.ndarray,
+    r_edges: np.ndarray,
+    r_starts: np.ndarray,
+    r_len: np.ndarray,
+    partner: np.ndarray,
+    partner_len: np.ndarray,
+    s_route: np.ndarray,
+    s_front: np.ndarray,
+    s_len: np.ndarray,
+    s_edge: np.ndarray,
+    s_rear: np.ndarray,
+    by_off: np.ndarray,
+    by_slot: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`facing_one` for every slot in order (query ``(slot, q_from[slot], q_look[slot])``), only the slots
+    that face a train: ``(slot, the slot facing it, near end)``, ascending by slot (usually empty: no per-train
+    row is left for the caller to filter)."""
+    n = len(s_route)
+    mine = np.empty(n, np.int64)
+    other = np.empty(n, np.int64)
+    near = np.empty(n)
+    m = 0
+    for me in range(n):
+        o, near_m, _ = facing_one(
+            me,
+            q_from[me],
+            q_look[me],
+            r_off,
+            r_edges,
+            r_starts,
+            r_len,
+            partner,
+            partner_len,
+            s_route,
+            s_front,
+            s_len,
+            s_edge,
+            s_rear,
+            by_off,
+            by_slot,
+        )
+        if o >= 0:
+            mine[m], other[m], near[m] = me, o, near_m
+            m += 1
+    return mine[:m], other[:m], near[:m]

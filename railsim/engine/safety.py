@@ -48,7 +48,6 @@ import math
 from collections.abc import Callable
 from typing import Any
 
-import numpy as np
 
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog
@@ -59,8 +58,8 @@ from railsim.physics import dynamics
 
 log = logging.getLogger(__name__)
 
-# [(train, from chainage, lookahead), ...] -> the train facing each, or None
-FacingBodies = Callable[[], tuple[np.ndarray, np.ndarray, list[str]]]  # Occupancy.facing_own_bodies
+# -> (slots facing a train, the slot facing each, where it begins, the step's ids): Occupancy.facing_own_bodies
+FacingBodies = Callable[[], tuple[list[int], list[int], list[float], list[str]]]
 
 
 class SafetyMonitor:
@@ -80,7 +79,8 @@ class SafetyMonitor:
         self.failure: str | None = None  # why the run must stop (a desync), one line
         # train -> [(crossing node, its movement, route chainage where the front enters / the rear has left)]
         self._crossings: dict[str, list[tuple[str, tuple[str, str], float, float]]] = {}
-        self._crossing_ends: dict[str, list[float]] = {}  # per train: its spans' ends, ascending along its route
+        # per train: its spans, and their ends if both starts and ends ascend along its route (else None)
+        self._crossing_of: dict[str, tuple[list[tuple[str, tuple[str, str], float, float]], list[float] | None]] = {}
         self._foes: dict[str, dict[tuple[str, str], list[tuple[str, str]]]] = {}
 
     def set_up_crossings(self, graph: Any) -> None:
@@ -101,8 +101,8 @@ class SafetyMonitor:
             if spans:
                 self._crossings[tid] = spans
                 starts, ends = [span[2] for span in spans], [span[3] for span in spans]
-                if starts == sorted(starts) and ends == sorted(ends):  # (else every span is looked at)
-                    self._crossing_ends[tid] = ends
+                ordered = starts == sorted(starts) and ends == sorted(ends)  # (else every span is looked at)
+                self._crossing_of[tid] = (spans, ends if ordered else None)
 
     # ------------------------------------------------------------------ obstacles
     def place_obstacle(self, oid: str, ev: Any) -> None:
@@ -179,19 +179,26 @@ class SafetyMonitor:
         if not self._crossings:
             return
         inside: dict[str, list[tuple[TrainRuntime, tuple[str, str]]]] = {}
+        crossing_of = self._crossing_of
         for tr in active:
-            spans = self._crossings.get(tr.train_id)
-            if spans is None:
+            mine = crossing_of.get(tr.train_id)
+            if mine is None:
                 continue
-            rear_m = tr.front_m - tr.trip.vehicle.length_m
-            ends = self._crossing_ends.get(tr.train_id)
-            # spans one after the other along the route: from the first that ends beyond the rear, up to the front
-            for k in range(0 if ends is None else bisect_right(ends, rear_m), len(spans)):
-                node, move, start_m, end_m = spans[k]
-                if start_m >= tr.front_m and ends is not None:
+            spans, ends = mine
+            front_m = tr.front_m
+            rear_m = front_m - tr.trip.vehicle.length_m
+            if ends is None:  # spans out of order along the route: every one is looked at
+                for node, move, start_m, end_m in spans:
+                    if front_m > start_m and rear_m < end_m:
+                        inside.setdefault(node, []).append((tr, move))
+                continue
+            # one after the other along the route: from the first that ends beyond the rear (ends ascend: so do all
+            # after it), up to the front
+            for k in range(bisect_right(ends, rear_m), len(spans)):
+                node, move, start_m, _ = spans[k]
+                if start_m >= front_m:
                     break
-                if tr.front_m > start_m and rear_m < end_m:
-                    inside.setdefault(node, []).append((tr, move))
+                inside.setdefault(node, []).append((tr, move))
         for node, here in inside.items():
             for i, (tr, move) in enumerate(here):
                 for other, move2 in here[i + 1 :]:
@@ -218,12 +225,12 @@ class SafetyMonitor:
         """Two trains on one track facing each other whose bodies overlap collide head-on (module docstring);
         ``own_bodies()``: :meth:`railsim.engine.occupancy.Occupancy.facing_own_bodies` (for every train of
         ``active``, in its order, the train facing it on the track under its own body, in one call)."""
-        hit_slot, near, ids = own_bodies()
-        for k in np.flatnonzero(hit_slot >= 0).tolist():
-            tr, near_m = active[k], float(near[k])
+        mine, other, near, ids = own_bodies()
+        for k, o, near_m in zip(mine, other, near, strict=True):  # (only the trains something faces)
+            tr = active[k]
             if near_m > tr.front_m:
                 continue
-            other_id = ids[int(hit_slot[k])]
+            other_id = ids[o]
             pair = (min(tr.train_id, other_id), max(tr.train_id, other_id))
             if pair in self._colliding_pairs:
                 continue

@@ -79,6 +79,8 @@ def _answers(occ: Occupancy, bodies: list[Body], rng: np.random.Generator) -> li
     out.append(repr([occ.ahead(b.train_id, 800.0) for b in bodies]))
     out.append(repr(occ.facing_all(queries)))
     out.append(repr([occ.facing(*q) for q in queries[:5]]))
+    out.append(repr(occ.facing_within_braking([float(v) for v in rng.uniform(0.0, 30.0, len(bodies))], 150.0)))
+    out.append(repr(occ.facing_own_bodies()))
     return out  # repr: the exact floats (round trip, the sign of a zero)
 
 
