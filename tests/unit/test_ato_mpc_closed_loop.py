@@ -1,4 +1,5 @@
-"""Paper B closed loop on the multi-point plant (scenarios A/B/C) and the registered ``ato``-role controllers."""
+"""Paper B closed loop on the multi-point plant (scenarios A/B/C) and the registered ``ato``-role controllers
+(SEMPC over scenario B's three sections: ``tests/long/test_paper001_scenario_b.py``)."""
 
 from __future__ import annotations
 
@@ -6,8 +7,7 @@ import numpy as np
 import pytest
 
 import controllers.ato_mpc  # noqa: F401  (registers sempc, mpc, afsmc, pid_ato)
-from controllers.ato_mpc.reference import Limit
-from controllers.ato_mpc.sim import run, scenario_a, scenario_b, scenario_c
+from controllers.ato_mpc.sim import run, scenario_a, scenario_c
 from controllers.base import Observation, OwnState, StopTarget, create
 from railsim.physics import dynamics
 from railsim.physics.multipoint import MultipointParams
@@ -40,23 +40,6 @@ def test_sempc_respects_limits_and_stops_on_the_mark(make):
     assert len(r.stop_errors_m) == 1 and r.stop_errors_m[0] <= 0.3
     assert r.metrics["fallbacks"] == 0 and r.metrics["speed_limit_violations"] == 0
     assert r.metrics["max_coupler_deviation_m"] < P.coupler_slack_m
-
-
-def test_sempc_multi_section_limits_and_stops():
-    """Scenario B's structure (three sections, restrictions, dwell) on a compressed line to keep the test short."""
-    sc = scenario_b(dwell_s=3.0, line_speed_mps=25.0)
-    sc = type(sc)(
-        **{
-            **sc.__dict__,
-            "stops_m": (800.0, 1500.0, 2100.0),
-            "limits": (Limit(300.0, 500.0, 12.0), Limit(1700.0, 1850.0, 10.0)),
-        }
-    )
-    r = run(sc, "sempc")
-    _limits_hold(r)
-    assert len(r.stop_errors_m) == 3 and max(r.stop_errors_m) <= 0.3
-    assert r.metrics["speed_limit_violations"] == 0
-    assert [s["section"] for s in r.metrics["sections"]] == [1, 2, 3]
 
 
 def test_mpc_b_baseline_breaks_the_rate_limit_that_sempc_keeps():

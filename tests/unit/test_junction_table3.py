@@ -1,16 +1,16 @@
 """Paper E Table 3: naive orders, naive strategies fail to couple at F, improved PSO couples more reliably.
 
 The seeds and budget are fixed, so this is deterministic; the thresholds state the paper's qualitative claim
-(spec §4, §5) rather than pinning our numbers. The full 30-seed table is in ``benchmarks/junction_planner.py``.
+(spec §4, §5) rather than pinning our numbers. The full 30-seed table is in ``benchmarks/junction_planner.py``;
+the 8-seed PSO comparison (10 s of CPU) is in ``tests/long/test_junction_table3_pso.py``.
 """
 
 from __future__ import annotations
 
-import numpy as np
 
 from controllers.junction.baselines import priority_order, run_naive
 from controllers.junction.planner import build_problem
-from controllers.junction.simulate import compare_table3, measure, table3_scenario
+from controllers.junction.simulate import measure, table3_scenario
 
 
 def _problem(n: int):
@@ -34,14 +34,3 @@ def test_naive_runs_respect_switch_rules_but_do_not_couple():
             assert out.headway_shortfall_s <= 1e-6
             assert out.min_separation_m > 0.0
             assert not out.coupled_at_F, (n, rule, out)
-
-
-def test_improved_pso_couples_more_reliably_than_plain_pso():
-    rows = compare_table3(seeds=range(8), methods=("improved_pso", "plain_pso"))
-    rate = {(r["scenario"], r["method"]): r["coupled_rate"] for r in rows}
-    print("coupled rate (8 seeds):", rate)
-    for n in (1, 2, 3):
-        assert rate[(n, "improved_pso")] >= 0.6
-    assert sum(rate[(n, "improved_pso")] for n in (1, 2, 3)) > sum(rate[(n, "plain_pso")] for n in (1, 2, 3))
-    for r in rows:  # coupled runs keep the trains apart
-        assert np.isnan(r["min_separation_m_mean"]) or r["min_separation_m_mean"] > 0.0
