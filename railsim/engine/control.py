@@ -83,10 +83,10 @@ PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controll
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
 # the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
 # None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
-# formation's rear clears it: the limits' ends move on by it, see ``_with_tail``).
-Situation = tuple[
-    float, float, float, tuple[SpeedLimit, ...], Any, tuple[float, float, float, bool] | None, float | None, float
-]
+# formation's rear clears it: the limits' ends move on by it, see ``_with_tail``), and the limits as the compiled
+# line step's array (made once per restriction window, with it).
+_Target = tuple[float, float, float, bool] | None
+Situation = tuple[float, float, float, tuple[SpeedLimit, ...], Any, _Target, float | None, float, np.ndarray]
 
 
 class ControlStage:
@@ -123,8 +123,10 @@ class ControlStage:
         self.berths = Berths(trains, events, settings, self._coupled_behind, dt_s)  # railsim.engine.platforms
         self._plant_p: dict[int, tuple[Any, np.ndarray]] = {}  # plant kernel inputs per vehicle (_plant_packed)
         self._method_i = plant_kernel.method_index(step_method)
+        self._forward = step_method == "forward"
         self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
-        # per train: [route view, gradient, its span lo, hi, restriction window, from lo, from hi, to lo, to hi]
+        # per train: [route view, gradient, its span lo, hi, restriction window, from lo, from hi, to lo, to hi,
+        # the window as the kernels' array]
         self._route_memo: dict[str, list[Any]] = {}
 
     # ------------------------------------------------------------------ observation
@@ -147,12 +149,13 @@ class ControlStage:
         # the gradient and the restriction window, kept while the train stays where they hold (RouteView's spans)
         kept = self._route_memo.get(tr.train_id)
         if kept is None or kept[0] is not view:
-            kept = self._route_memo[tr.train_id] = [view, 0.0, math.nan, math.nan, (), *(math.nan,) * 4]
+            kept = self._route_memo[tr.train_id] = [view, 0.0, math.nan, math.nan, (), *(math.nan,) * 4, None]
         if not kept[2] <= front_m < kept[3]:
             kept[1], kept[2], kept[3] = view.gradient_span(front_m)
         grad = kept[1]
         if not (kept[5] <= from_m < kept[6] and kept[7] <= to_m < kept[8]):
             kept[4], kept[5], kept[6], kept[7], kept[8] = view.limits_window(from_m, to_m)
+            kept[9] = limits_array_cached(kept[4])
         limits = kept[4]
         # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
         target = None
@@ -165,7 +168,7 @@ class ControlStage:
             )
         authority = self.locks.authority_end_m(tr)
         authority = self.berths.authority_end_m(t, tr, stop, a, authority)
-        return own_pos, own_v, grad, limits, stop, target, authority, tail_m
+        return own_pos, own_v, grad, limits, stop, target, authority, tail_m, kept[9]
 
     @staticmethod
     def _with_tail(limits: tuple[SpeedLimit, ...], tail_m: float) -> tuple[SpeedLimit, ...]:
@@ -182,7 +185,7 @@ class ControlStage:
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""
-        own_pos, own_v, grad, limits, stop, target, authority, tail_m = sit
+        own_pos, own_v, grad, limits, stop, target, authority, tail_m, _ = sit
         veh = tr.trip.vehicle
         if tail_m > 0.0:
             limits = self._with_tail(limits, tail_m)
@@ -245,7 +248,8 @@ class ControlStage:
             and (a is None or type(tr.controllers["separation"]) is Separation)
             and tr.exact_plant is None
             and tr.controllers.get("ca") is None
-            and not self._disturbed_actuator(tr)
+            and not self.dist.biases  # no injected actuator bias and no actuator noise (drawn in _apply) on it
+            and not (self.dist.actuator_sd_mps2 > 0.0 and self._actuator_noise_on(tr))
         )
 
     def _role_commands(
@@ -265,7 +269,7 @@ class ControlStage:
         (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are asked on plain values
         (their ``decide``); every other controller gets its :class:`Observation`, built from the same values
         (``base``, only when one is needed)."""
-        own_pos, own_v, grad, limits, _, target, authority, tail_m = sit
+        own_pos, own_v, grad, limits, _, target, authority, tail_m, _ = sit
         veh = tr.trip.vehicle
         applied_now = tr.plant.applied_accel_mps2
         base: dict[str, Any] | None = None
@@ -474,7 +478,7 @@ class ControlStage:
     ) -> tuple[Any, ...]:
         """The inputs of :func:`~railsim.engine.line_step_kernel.line_step` (the first ones of ``coupled_step``):
         the packed laws and plant, the situation, the plant state, and the known rear of the train ahead."""
-        x, v, grad, limits, _, target, authority, tail_m = sit
+        x, v, grad, _, _, target, authority, tail_m, limits_arr = sit
         veh = tr.trip.vehicle
         plant = tr.plant
         ato_p, sep_p, plant_p = self._line_inputs(tr, ato, veh)
@@ -494,7 +498,7 @@ class ControlStage:
             veh.length_m,
             grad,
             tr.view.line_speed_mps,
-            limits_array_cached(limits),
+            limits_arr,
             target is not None,
             mark_m,
             window_start_m,
@@ -515,7 +519,8 @@ class ControlStage:
         role = line_step_kernel.ROLES[role_i]
         if not ok:
             return self._apply(t, tr, role, accel, emergency, None, grad)  # non-finite: recorded, braked
-        self._emergency_events(t, tr, role, emergency)
+        if emergency or tr.emergency_since_s is not None:
+            self._emergency_events(t, tr, role, emergency)
         tr.last_plan = None
         return self._commit(tr, role, accel, v_next, a_k, u_k, energy_j, mask)
 
@@ -539,10 +544,6 @@ class ControlStage:
         return packed[1]
 
     # ------------------------------------------------------------------ actuator faults
-    def _disturbed_actuator(self, tr: TrainRuntime) -> bool:
-        """Does actuator noise or an injected bias act on this train's command (drawn in :meth:`_apply`)?"""
-        return self._actuator_noise_on(tr) or bool(self.dist.biases)
-
     def _actuator_noise_on(self, tr: TrainRuntime) -> bool:
         """Is actuator noise drawn for this train's command (scenario ``faults.actuator_noise``)?"""
         noise_trains = self.dist.actuator_trains
@@ -603,9 +604,11 @@ class ControlStage:
         self, tr: TrainRuntime, role: str, accel: float, v_next: float, a: float, u_k: float, energy_j: float, mask: int
     ) -> float:
         """Keep the plant step's result (jerk, state, energy, saturations, role); return the speed for SUMO."""
-        v_now = tr.plant.speed_mps
-        jerk = abs(a - tr.plant.applied_accel_mps2) / self.dt
-        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
+        plant = tr.plant
+        v_now = plant.speed_mps
+        jerk = abs(a - plant.applied_accel_mps2) / self.dt
+        if jerk > tr.max_jerk_mps3:  # (max(): the same, without the call)
+            tr.max_jerk_mps3 = jerk
         tr.plant = dynamics.PlantState(v_next, a, u_k)
         tr.energy_j += energy_j
         if mask:
@@ -615,7 +618,7 @@ class ControlStage:
         tr.last_cmd_mps2 = accel
         # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
         # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
-        tr.sent_speed_mps = v_now if self.step_method == "forward" else v_next
+        tr.sent_speed_mps = v_now if self._forward else v_next
         return tr.sent_speed_mps
 
     def _exact_finish(self, t: float, tr: TrainRuntime, role: str, cmd: Command, grad: float) -> float:

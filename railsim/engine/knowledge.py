@@ -203,8 +203,11 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
+        view = observer.view
+        if other.view is view and view.simple:  # one route, no edge twice: the report is in our frame (map_body's)
+            return pos, pos - other.trip.vehicle.length_m, pos, v, acc, stamp, plan
         # the pair's last frame change while the report stays on the same edges (the same value as map_body)
-        mapped = observer.view.map_body_memo(
+        mapped = view.map_body_memo(
             self._frames,
             (observer.train_id, other.train_id),
             other.view,

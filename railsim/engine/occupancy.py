@@ -180,7 +180,7 @@ class Occupancy:
         def flat(k: int, dtype: Any) -> np.ndarray:
             return np.concatenate([seg[k] for seg in segs]) if segs else np.zeros(0, dtype)
 
-        r_simple = np.array([v._simple for v in views], np.bool_)
+        r_simple = np.array([v.simple for v in views], np.bool_)
         r_len = np.array([v.length_m for v in views], float)
         self._tables = (r_off, flat(0, np.int64), flat(1, float), flat(2, np.int64), flat(3, np.int64), r_simple, r_len)
         grown = len(self._edge_id) - len(self._partner)  # edges numbered since: none of them has a partner

@@ -48,7 +48,7 @@ class RouteView:
         default_factory=dict
     )
     _well_formed: bool = True  # every restriction ends at or after its start
-    _simple: bool = True  # no edge twice on the route (a body on it maps into its own frame unchanged)
+    simple: bool = True  # no edge twice on the route (a body on it maps into its own frame unchanged)
     _sorted: bool = True  # edge starts never decrease (edge i covers exactly [start i, start i+1): edge_span)
 
     def __post_init__(self) -> None:
@@ -56,7 +56,7 @@ class RouteView:
         self.edges = tuple(r.edges)
         self.edge_start_m = tuple(float(x) for x in r.edge_start_m)
         self.edge_index = {e: i for i, e in enumerate(self.edges)}
-        self._simple = len(self.edge_index) == len(self.edges)
+        self.simple = len(self.edge_index) == len(self.edges)
         self._sorted = all(a <= b for a, b in zip(self.edge_start_m, self.edge_start_m[1:]))
         lims = sorted((float(a), float(b), float(v)) for a, b, v in r.speed_limits)
         self.limits = tuple(SpeedLimit(a, b, v) for a, b, v in lims)
@@ -177,11 +177,11 @@ class RouteView:
         :func:`railsim.engine.occupancy_kernel.map_body`); -1: the last pass.
         """
         rear_m = front_m - length_m
-        if other is self and self._simple:  # one route, no edge twice: the frame is the same (what _frame gives)
+        if other is self and self.simple:  # one route, no edge twice: the frame is the same (what _frame gives)
             return front_m, rear_m
         i_front = other.edge_near(front_m, hint)
         i_rear = other.edge_near(rear_m, i_front)
-        return _placed(self._frame_of(other, i_front, i_rear, from_i if not self._simple else -1), front_m, rear_m)
+        return _placed(self._frame_of(other, i_front, i_rear, from_i if not self.simple else -1), front_m, rear_m)
 
     def map_body_memo(
         self,
@@ -204,9 +204,9 @@ class RouteView:
         so a key shared by two pairs, or a train that changed route, costs a recomputation, never a wrong answer.
         """
         rear_m = front_m - length_m
-        if other is self and self._simple:
+        if other is self and self.simple:
             return front_m, rear_m
-        if self._simple:
+        if self.simple:
             from_i = -1
         last = memory.get(key)
         if (

@@ -106,7 +106,7 @@ def test_memo_is_map_body(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
                     calls += 1
                     hits += looked_up[0] == before
                     placed += memo is not None
-                    twice += not here._simple and memo is not None
+                    twice += not here.simple and memo is not None
     assert hits > calls // 2, "the memory is hardly ever used"
     assert placed > calls // 5 and twice > 50, "too few bodies on the observer's route to test anything"
 
