@@ -15,6 +15,7 @@ them as the engine does.
 from __future__ import annotations
 
 import math
+from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import Any
 
@@ -29,6 +30,9 @@ from railsim.engine import line_step_kernel
 from railsim.physics import dynamics, plant_kernel
 from railsim.physics.vehicle import VehicleParams
 from tests.unit.test_line_kernels import PARAMS, VEHICLES, _random_state, line_ahead_args
+
+# every test at three step lengths and the three step methods
+pytestmark = [pytest.mark.parametrize("dt", [0.1, 0.5, 1.0]), pytest.mark.parametrize("method", dynamics.STEP_METHODS)]
 
 
 @dataclass(frozen=True)
@@ -59,11 +63,9 @@ class _Case:
         role, cmd = arbitrate(commands, veh.emergency_decel_mps2)
         return role, cmd, dynamics.step_values(veh, self.plant, cmd.accel_mps2, dt, grade, cmd.emergency, method)
 
-    def step(
-        self, dt: float, method: str, known: tuple[float, float] | None, coupled: np.ndarray
-    ) -> tuple[Any, ...]:
+    def step(self, dt: float, method: str, known: tuple[float, float] | None, coupled: np.ndarray) -> tuple[Any, ...]:
         """The compiled step on the same values, as ``ControlStage._line_args`` hands them."""
-        veh, (x, v, applied, grade, line, limits, stop, authority) = self.veh, self.state
+        veh, (x, v, _, grade, line, limits, stop, authority) = self.veh, self.state
         return line_step_kernel.step(
             self.ato.packed(veh, dt),
             self.sep.packed(veh, dt),
@@ -85,14 +87,17 @@ class _Case:
         )
 
 
-def _case(rng: np.random.Generator, k: int) -> _Case:
-    veh = VEHICLES[k % len(VEHICLES)]
-    ato = Ato(PARAMS[(k // 3) % len(PARAMS)], veh)
-    sep = Separation(SeparationParams(margin_m=float(rng.choice([20.0, 50.0]))), veh)
-    state = _random_state(rng, veh)
-    tail_m = float(rng.choice([0.0, 0.0, rng.uniform(0.0, 150.0)]))
-    plant = dynamics.PlantState(state[1], state[2], float(rng.uniform(-1.2, 1.2)))
-    return _Case(veh, ato, sep, state, tail_m, plant)
+def _cases(seed: int) -> Iterator[tuple[np.random.Generator, _Case]]:
+    """1500 random trains, each with the generator that drew it (a test draws the rest of its case from it)."""
+    rng = np.random.default_rng(seed)
+    for k in range(1500):
+        veh = VEHICLES[k % len(VEHICLES)]
+        ato = Ato(PARAMS[(k // 3) % len(PARAMS)], veh)
+        sep = Separation(SeparationParams(margin_m=float(rng.choice([20.0, 50.0]))), veh)
+        state = _random_state(rng, veh)
+        tail_m = float(rng.choice([0.0, 0.0, rng.uniform(0.0, 150.0)]))
+        plant = dynamics.PlantState(state[1], state[2], float(rng.uniform(-1.2, 1.2)))
+        yield rng, _Case(veh, ato, sep, state, tail_m, plant)
 
 
 def _known_rear(rng: np.random.Generator, x: float, farthest_m: float) -> tuple[float, float]:
@@ -108,14 +113,10 @@ def _assert_same(got: tuple[Any, ...], role: str, cmd: Command, ref: tuple[Any, 
     assert (v_next, a_k, u_k, energy, mask) == (ref[0], ref[1], ref[2], ref[5], ref[6])
 
 
-@pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
-@pytest.mark.parametrize("method", dynamics.STEP_METHODS)
 def test_line_train_step_is_the_separate_calls(dt: float, method: str) -> None:
-    rng = np.random.default_rng(31)
     roles: set[str] = set()
     emergencies = 0
-    for k in range(1500):
-        case = _case(rng, k)
+    for rng, case in _cases(31):
         known = _known_rear(rng, case.state[0], 900.0) if rng.random() < 0.7 else None
         role, cmd, ref = case.roles_one_by_one(dt, method, known)
         got = case.step(dt, method, known, line_step_kernel.NO_COUPLED)
@@ -126,14 +127,10 @@ def test_line_train_step_is_the_separate_calls(dt: float, method: str) -> None:
     assert roles == {"ato", "separation"} and emergencies > 0  # both winners and emergencies were compared
 
 
-@pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
-@pytest.mark.parametrize("method", dynamics.STEP_METHODS)
 def test_coupled_follower_step_is_the_separate_calls(dt: float, method: str) -> None:
-    rng = np.random.default_rng(47)
     roles: set[str] = set()
     emergencies = 0
-    for k in range(1500):
-        case = _case(rng, k)
+    for rng, case in _cases(47):
         veh, x = case.veh, case.state[0]
         params = {"gap_policy": str(rng.choice(["safe", "constant"])), "ff_lag_compensation": bool(rng.random() < 0.8)}
         ctl, shadow = make_cacc(params, veh), make_cacc(params, veh)  # the engine's and the reference's controller
