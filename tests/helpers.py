@@ -16,9 +16,15 @@ import subprocess
 import sys
 from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from types import SimpleNamespace
+from typing import TYPE_CHECKING, Any, TypeVar
 
 import pytest
+
+if TYPE_CHECKING:
+    from railsim.engine.train import TrainRuntime
+
+T = TypeVar("T", bound="TrainRuntime")
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"
@@ -195,3 +201,48 @@ def shared_run(factory: pytest.TempPathFactory, name: str, make: Callable[[Path]
             make(folder)
             done.touch()
     return folder
+
+
+def route_view(route_id: str, edges: tuple[str, ...], lengths_m: tuple[float, ...]) -> Any:
+    """A :class:`~railsim.engine.routeview.RouteView` of a made-up route: ``edges`` end to end with these lengths, no
+    restrictions, no gradients (an edge may come twice: a loop)."""
+    import numpy as np
+
+    from railsim.engine.routeview import RouteView
+
+    starts = np.concatenate([[0.0], np.cumsum(lengths_m)[:-1]])
+    return RouteView(
+        SimpleNamespace(
+            id=route_id,
+            edges=edges,
+            edge_start_m=tuple(float(x) for x in starts),
+            speed_limits=(),
+            gradients=(),
+            length_m=float(sum(lengths_m)),
+        )
+    )
+
+
+def runtime_train(cls: type[T], train_id: str, view: Any, length_m: float, **fields: Any) -> T:
+    """A train of class ``cls`` (:class:`~railsim.engine.train.TrainRuntime` or a subclass) on ``view``, its trip and
+    vehicle plain objects with the id and length only, no controllers; ``fields`` go to the constructor."""
+    trip = SimpleNamespace(trip_id=train_id, vehicle=SimpleNamespace(length_m=length_m))
+    return cls(trip=trip, view=view, controllers={}, **fields)  # type: ignore[arg-type]
+
+
+def standing_train(train_id: str, front_m: float = 0.0, **fields: Any) -> SimpleNamespace:
+    """A train standing on the line for no reason of its own, with the fields the stall watchdog reads (not dwelling,
+    not held, on the line, one edge); ``fields`` add to them (the route-lock port's ``locks``, ``released``)."""
+    return SimpleNamespace(
+        train_id=train_id,
+        plant=SimpleNamespace(speed_mps=0.0),
+        hold_until_s=None,
+        sumo_stopped=False,
+        sumo_stopped_now=False,
+        held_for_route=False,
+        on_line=True,
+        arrived_s=None,
+        front_m=front_m,
+        view=SimpleNamespace(edges=["track"], edge_at=lambda _m: 0),
+        **fields,
+    )

@@ -19,24 +19,22 @@ Per train and step (docs/architecture.md, "The step loop"):
    actuator noise and injected biases, or an exact plant extension (carriages, monorail drive) whose step's
    mean speed SUMO is handed. The return value is the speed SUMO applies during the coming step.
 
-One decision, two implementations
+One decision, one compiled step for the common case
     :meth:`ControlStage.control_all` is the one place where trains' commands are decided: it reads every train's
     situation (the state at the step's time ``t``, for every train before any is stepped), then, train by train,
-    works out which roles command it now and hands the decision to one of two implementations of
-    steps 2–4. Most trains on a line, most of the time, are *line trains*: the line ATO
+    works out which roles command it now (:meth:`~ControlStage._decide`, the only place that chooses) and hands
+    steps 2–4 to one of two paths. Most trains on a line, most of the time, are *line trains*: the line ATO
     (:class:`controllers.ato.Ato`) and, with a train ahead, the line moving-block separation
     (:class:`controllers.separation.Separation`) are their only roles, their plant is the standard one and no
-    actuator fault acts on them. For them the two laws, the minimum and the plant step are one compiled call
-    (:meth:`ControlStage._line_step`, :func:`railsim.engine.line_step_kernel.line_step`) — the same law functions
-    (:mod:`controllers.line_kernels`) and the same plant (:mod:`railsim.physics.plant_kernel`) on the same
-    values, so it gives the bits the general implementation would. A coupled follower that is otherwise a line
-    train and whose coupled role is the CACC (:class:`controllers.cacc.Cacc`) is one compiled call as well
-    (:meth:`ControlStage._coupled_step`: the ATO, the CACC law of :mod:`controllers.cacc_kernel`, the separation
-    against a train between it and its leader). Every other train goes through
-    :meth:`ControlStage._role_commands` (each role's :class:`~controllers.base.Command`; the line laws and the
-    CACC are asked on plain values, any other controller gets its :class:`~controllers.base.Observation`) and
-    :meth:`ControlStage._finish` (arbitration, fallbacks, noise, the plant). Neither implementation chooses
-    roles: the choice is made once, in :meth:`~ControlStage._decide`.
+    actuator fault acts on them; a coupled follower that is otherwise a line train and whose coupled role is the
+    CACC (:class:`controllers.cacc.Cacc`) adds that one role. Both go through one compiled call,
+    :func:`railsim.engine.line_step_kernel.step` (:meth:`ControlStage._line_step`, :meth:`ControlStage._coupled_step`):
+    the ATO, the CACC (followers only), the separation, the minimum, the plant — the same law functions
+    (:mod:`controllers.line_kernels`, :mod:`controllers.cacc_kernel`) and plant (:mod:`railsim.physics.plant_kernel`)
+    on the same values, so it gives the bits the general path would. Every other train goes through
+    :meth:`ControlStage._role_commands` (each role's :class:`~controllers.base.Command`; the line laws and the CACC
+    are asked on plain values, any other controller gets its :class:`~controllers.base.Observation`) and
+    :meth:`ControlStage._finish` (arbitration, fallbacks, noise, the plant).
 """
 
 from __future__ import annotations
@@ -125,6 +123,7 @@ class ControlStage:
         self._method_i = plant_kernel.method_index(step_method)
         self._forward = step_method == "forward"
         self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
+        self._coupled_in: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # per follower: (CACC packed, its array)
         # per train: [route view, gradient, its span lo, hi, restriction window, from lo, from hi, to lo, to hi,
         # the window as the kernels' array]
         self._route_memo: dict[str, list[Any]] = {}
@@ -206,8 +205,8 @@ class ControlStage:
         """Decide every active train's command and step its plant; return the speeds handed to SUMO for the coming
         step, in the order of ``active``.
 
-        The one place where trains' commands are decided (module docstring, "One decision, two
-        implementations"): first every train's situation at ``t`` — what it knows of itself (sensor noise drawn
+        The one place where trains' commands are decided (module docstring, "One decision, one compiled step for
+        the common case"): first every train's situation at ``t`` — what it knows of itself (sensor noise drawn
         train by train) and of the line ahead, the berth rule reading the trains ahead as they are at ``t``, so no
         train's situation depends on whether the train ahead was stepped before it — then, train by train in
         order, the roles that command it now and the compiled line step for a line train or the roles one by one
@@ -431,21 +430,20 @@ class ControlStage:
     # ------------------------------------------------------------------ the compiled line step
     def _line_step(self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation) -> float:
         """A line train's decision, arbitration and plant step in one compiled call
-        (:func:`railsim.engine.line_step_kernel.line_step`): the line ATO, then the line separation against the
-        known rear of the train ahead, the smaller acceleration winning (the ATO on a tie, as
-        :func:`controllers.base.arbitrate`), then the plant. It is what :meth:`_role_commands` and
-        :meth:`_finish` would do for these two roles — neither law falls back, adds, or carries a plan — on the
-        same values. A non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records
-        it and brakes."""
+        (:func:`railsim.engine.line_step_kernel.step`, no coupled role): the line ATO, then the line separation
+        against the known rear of the train ahead, the smaller acceleration winning (the ATO on a tie, as
+        :func:`controllers.base.arbitrate`), then the plant. It is what :meth:`_role_commands` and :meth:`_finish`
+        would do for these two roles — neither law falls back, adds, or carries a plan — on the same values. A
+        non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records it and brakes."""
         known = self._known_rear(tr, a) if a is not None else None
-        out = line_step_kernel.line_step(*self._line_args(tr, ato, sit, known))
+        out = line_step_kernel.step(*self._line_args(tr, ato, sit, known, line_step_kernel.NO_COUPLED))
         return self._stepped(t, tr, out, sit[2])
 
     def _coupled_step(
         self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation, f: Any, leader: TrainRuntime
     ) -> float:
         """A coupled follower whose coupled role is the CACC, otherwise a line train (:meth:`_is_line_train`), in
-        one compiled call (:func:`railsim.engine.line_step_kernel.coupled_step`): the ATO, the CACC on the leader's
+        the same compiled call as a line train, with its coupled role's inputs: the ATO, the CACC on the leader's
         t2t state, the separation against a train between them, the minimum in that order, the plant — what
         :meth:`_role_commands` (with :meth:`_coupled`) and :meth:`_finish` would do on the same values. With its
         leader's data too old the follower is degraded and steps as a line train."""
@@ -455,29 +453,26 @@ class ControlStage:
         tracking = self._vc_tracking(tr)
         ctl: Cacc = tr.controllers["coupled"]
         veh = tr.trip.vehicle
-        lead_command_mps2 = ctl.feed_forward_mps2(pred, veh)
+        coupled = self._coupled_inputs(tr, ctl.packed(veh, self.dt))
+        line_step_kernel.set_lead(coupled, pred, ctl.feed_forward_mps2(pred, veh), float(f.target_gap_m), tracking)
         known = self._known_rear(tr, a) if a is not None and a.train_id != leader.train_id else None
-        args = (
-            *self._line_args(tr, ato, sit, known),
-            ctl.packed(veh, self.dt),
-            pred.rear_position_m,
-            pred.speed_mps,
-            pred.accel_mps2,
-            pred.emergency_decel_mps2,
-            pred.age_s,
-            lead_command_mps2,
-            float(f.target_gap_m),
-            tracking,
-        )
-        out = line_step_kernel.coupled_step(*args)
+        out = line_step_kernel.step(*self._line_args(tr, ato, sit, known, coupled))
         self._vc_commanded(t, tr, leader, pred, {"target_gap_m": out[9]})
         return self._stepped(t, tr, out, sit[2])
 
+    def _coupled_inputs(self, tr: TrainRuntime, cacc_p: np.ndarray) -> np.ndarray:
+        """The follower's coupled-role array for the compiled step (:func:`line_step_kernel.coupled_inputs`), kept
+        per train and made anew when its CACC packs its law anew (another vehicle or step length)."""
+        entry = self._coupled_in.get(tr.train_id)
+        if entry is None or entry[0] is not cacc_p:
+            entry = self._coupled_in[tr.train_id] = (cacc_p, line_step_kernel.coupled_inputs(cacc_p))
+        return entry[1]
+
     def _line_args(
-        self, tr: TrainRuntime, ato: Ato, sit: Situation, known: tuple[float, float] | None
+        self, tr: TrainRuntime, ato: Ato, sit: Situation, known: tuple[float, float] | None, coupled: np.ndarray
     ) -> tuple[Any, ...]:
-        """The inputs of :func:`~railsim.engine.line_step_kernel.line_step` (the first ones of ``coupled_step``):
-        the packed laws and plant, the situation, the plant state, and the known rear of the train ahead."""
+        """The inputs of :func:`~railsim.engine.line_step_kernel.step`: the packed laws and plant, the situation,
+        the plant state, the known rear of the train ahead, and the coupled role's inputs (``NO_COUPLED``: none)."""
         x, v, grad, _, _, target, authority, tail_m, limits_arr = sit
         veh = tr.trip.vehicle
         plant = tr.plant
@@ -510,6 +505,7 @@ class ControlStage:
             known is not None,
             rear_m,
             age_s,
+            coupled,
         )
 
     def _stepped(self, t: float, tr: TrainRuntime, out: tuple[Any, ...], grad: float) -> float:

@@ -61,6 +61,21 @@ def _random_state(rng: np.random.Generator, veh: VehicleParams) -> tuple:
     return x, v, applied, grade, line, tuple(limits), stop, authority
 
 
+def line_ahead_args(
+    limits: tuple[SpeedLimit, ...], stop: tuple[float, float, float, bool] | None, authority: float | None, tail: float
+) -> tuple:
+    """The ATO kernel's last inputs, what the train knows of the line ahead, as the engine hands them: the
+    restrictions, the next stop (``has_stop`` and its four values), the end of authority, the formation's tail."""
+    return (
+        limits_array_cached(limits),
+        stop is not None,
+        *(stop if stop is not None else NO_STOP),
+        authority is not None,
+        authority if authority is not None else 0.0,
+        tail,
+    )
+
+
 @pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
 def test_compiled_ato_is_its_interpreted_form_on_random_states(dt: float) -> None:
     rng = np.random.default_rng(20)
@@ -79,12 +94,7 @@ def test_compiled_ato_is_its_interpreted_form_on_random_states(dt: float) -> Non
             veh.length_m,
             grade,
             line,
-            limits_array_cached(limits),
-            stop is not None,
-            *(stop if stop is not None else NO_STOP),
-            authority is not None,
-            authority if authority is not None else 0.0,
-            tail,
+            *line_ahead_args(limits, stop, authority, tail),
         )
         compiled, reference = line_kernels.ato(*args), INTERPRETED.ato(*args)
         assert _bits(compiled) == _bits(reference), args

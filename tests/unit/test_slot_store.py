@@ -19,33 +19,14 @@ import pytest
 from railsim.engine import slots
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.occupancy import Occupancy
-from railsim.engine.routeview import RouteView
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import EngineSettings
 from railsim.engine.slots import SlotStore
 from railsim.engine.train import TrainRuntime
 from railsim.engine.truth import TruthPass
+from tests.helpers import route_view, runtime_train
 
 INPUTS = slice(slots.ROUTE, slots.LENGTH_M + 1)  # the columns gathered() gives
-
-
-def _view(route_id: str, edges: tuple[str, ...], lengths: tuple[float, ...]) -> RouteView:
-    starts = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
-    return RouteView(
-        SimpleNamespace(
-            id=route_id,
-            edges=edges,
-            edge_start_m=tuple(float(x) for x in starts),
-            speed_limits=(),
-            gradients=(),
-            length_m=float(sum(lengths)),
-        )
-    )
-
-
-def _train(train_id: str, view: RouteView, length_m: float) -> TrainRuntime:
-    trip = SimpleNamespace(trip_id=train_id, vehicle=SimpleNamespace(length_m=length_m))
-    return TrainRuntime(trip=trip, view=view, controllers={})  # type: ignore[arg-type]
 
 
 class _Run:
@@ -58,9 +39,10 @@ class _Run:
         for r in range(8):
             n_e = int(rng.integers(2, 7))
             edges = tuple(f"e{x}" for x in rng.integers(0, 15, n_e))
-            self.views.append(_view(f"r{r}", edges, tuple(float(x) for x in rng.uniform(50.0, 400.0, n_e))))
+            self.views.append(route_view(f"r{r}", edges, tuple(float(x) for x in rng.uniform(50.0, 400.0, n_e))))
         self.trains = [
-            _train(f"T{k}", self.views[int(rng.integers(0, 4))], float(rng.uniform(20, 200))) for k in range(25)
+            runtime_train(TrainRuntime, f"T{k}", self.views[int(rng.integers(0, 4))], float(rng.uniform(20, 200)))
+            for k in range(25)
         ]
         self.occupancy = Occupancy()
         layer = EventLayer(t0_s=0.0, rng=np.random.default_rng(1))

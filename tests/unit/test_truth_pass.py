@@ -22,24 +22,10 @@ from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.truth import TruthPass
-from tests.helpers import interpreted
+from tests.helpers import interpreted, route_view, runtime_train
 
 DT_S = 0.5
 TOL_M = EngineSettings().desync_tolerance_m
-
-
-def _view(route_id: str, edges: tuple[str, ...], lengths: tuple[float, ...]) -> RouteView:
-    starts = np.concatenate([[0.0], np.cumsum(lengths)[:-1]])
-    return RouteView(
-        SimpleNamespace(
-            id=route_id,
-            edges=edges,
-            edge_start_m=tuple(float(x) for x in starts),
-            speed_limits=(),
-            gradients=(),
-            length_m=float(sum(lengths)),
-        )
-    )
 
 
 class _Train(TrainRuntime):
@@ -52,8 +38,7 @@ class _Train(TrainRuntime):
 
 
 def _train(train_id: str, view: RouteView, depart_m: float = 0.0, length_m: float = 50.0) -> _Train:
-    trip = SimpleNamespace(trip_id=train_id, vehicle=SimpleNamespace(length_m=length_m))
-    return _Train(trip=trip, view=view, controllers={}, depart_chainage_m=depart_m)  # type: ignore[arg-type]
+    return runtime_train(_Train, train_id, view, length_m, depart_chainage_m=depart_m)
 
 
 class _Reading(SimpleNamespace):
@@ -88,7 +73,7 @@ class _World:
         return [{"t_s": e.t_s, "train": e.subject, **e.detail} for e in self.layer.log.entries("desync")]
 
 
-LINE = _view("line", ("a", "b", "c"), (100.0, 150.0, 200.0))  # a: 0-100, b: 100-250, c: 250-450
+LINE = route_view("line", ("a", "b", "c"), (100.0, 150.0, 200.0))  # a: 0-100, b: 100-250, c: 250-450
 
 
 def test_a_train_in_step_gets_its_chainage_and_pointer_and_no_event() -> None:
@@ -139,7 +124,7 @@ def test_internal_lane_is_not_checked_and_an_edge_off_the_route_is_a_desync() ->
 
 
 def test_on_a_route_passing_an_edge_twice_the_pass_next_to_the_pointer_counts() -> None:
-    loop = _view("loop", ("a", "b", "c", "b", "d"), (100.0, 150.0, 200.0, 150.0, 100.0))  # b at 100 and at 450
+    loop = route_view("loop", ("a", "b", "c", "b", "d"), (100.0, 150.0, 200.0, 150.0, 100.0))  # b at 100 and at 450
     w = _World()
     first, second = _train("F", loop), _train("S", loop)
     w.truth.read(0.0, [first, second], _reading([95.0, 445.0], [10.0, 10.0], [95.0, 195.0], ["a", "c"]))
@@ -171,7 +156,7 @@ def test_the_compiled_pass_gives_its_interpreted_forms_bits(seed: int) -> None:
     for r in range(6):
         n_e = int(rng.integers(2, 9))
         edges = tuple(f"e{x}" for x in rng.integers(0, 12, n_e))
-        views.append(_view(f"r{r}", edges, tuple(float(x) for x in rng.uniform(20.0, 300.0, n_e))))
+        views.append(route_view(f"r{r}", edges, tuple(float(x) for x in rng.uniform(20.0, 300.0, n_e))))
     n_slots = 40
     table_c = np.zeros((n_slots, slots.N_COLUMNS))
     table_c[:, slots.LENGTH_M] = 50.0

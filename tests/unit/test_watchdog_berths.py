@@ -25,6 +25,7 @@ from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.watchdog import DEADLOCK_CONFIRM_S, OCCUPANCY_WAIT_M, StallWatch
+from tests.helpers import standing_train
 
 TIMEOUT_S = 300.0
 STEP_S = 1.0
@@ -32,20 +33,7 @@ STEP_S = 1.0
 
 def _train(tid: str, front_m: float) -> SimpleNamespace:
     """A standing train on the line, with the fields the watchdog and the route-lock port read."""
-    return SimpleNamespace(
-        train_id=tid,
-        plant=SimpleNamespace(speed_mps=0.0),
-        hold_until_s=None,
-        sumo_stopped=False,
-        sumo_stopped_now=False,
-        held_for_route=False,
-        on_line=True,
-        arrived_s=None,
-        front_m=front_m,
-        view=SimpleNamespace(edges=["track"], edge_at=lambda _m: 0),
-        locks={},
-        released=set(),
-    )
+    return standing_train(tid, front_m, locks={}, released=set())
 
 
 def _watch(locks: object = None) -> tuple[StallWatch, EventLog, SimpleNamespace]:

@@ -25,6 +25,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.occupancy import Ahead
 from railsim.engine.settings import EngineSettings
 from railsim.engine.watchdog import OCCUPANCY_WAIT_M, STANDSTILL_MPS, StallWatch
+from tests.helpers import standing_train
 
 SEEDS, STEPS = 6, 6000
 TIMEOUT_S = 60.0
@@ -55,27 +56,12 @@ class ReferenceWatch(StallWatch):
         self._report(t, self.settings.stall_timeout_s, "")
 
 
-def _train(tid: str) -> SimpleNamespace:
-    return SimpleNamespace(
-        train_id=tid,
-        plant=SimpleNamespace(speed_mps=0.0),
-        hold_until_s=None,
-        sumo_stopped=False,
-        sumo_stopped_now=False,
-        held_for_route=False,
-        on_line=True,
-        arrived_s=None,
-        front_m=0.0,
-        view=SimpleNamespace(edges=["track"], edge_at=lambda _m: 0),
-    )
-
-
 class World:
     """Seven trains whose states change now and then (so clocks run out), and the ports the watchdog asks."""
 
     def __init__(self, seed: int) -> None:
         self.rng = np.random.default_rng(seed)
-        self.trains = {tid: _train(tid) for tid in IDS}
+        self.trains = {tid: standing_train(tid) for tid in IDS}
         self.blocked: dict[str, dict[str, tuple[str, ...]]] = {}
         self.radio_cut: set[tuple[str, str]] = set()
         self.ahead: dict[str, Ahead | None] = {}
