@@ -43,25 +43,7 @@ def _ahead_before(occ: Occupancy, lookahead_m: float) -> list[Ahead | None]:
 
 def _facing_rows_before(occ: Occupancy, from_m: np.ndarray, lookahead_m: np.ndarray) -> tuple[Any, Any, Any]:
     """The former ``Occupancy._facing_rows``: :func:`occupancy_kernel.facing_all` for every slot, every row."""
-    r_off, r_edges, r_starts, _, _, _, r_len = occ._tables
-    return occupancy_kernel.facing_all(
-        np.arange(len(occ.ids), dtype=np.int64),
-        from_m,
-        lookahead_m,
-        r_off,
-        r_edges,
-        r_starts,
-        r_len,
-        occ._partner,
-        occ._partner_len,
-        occ._route,
-        occ._front,
-        occ._len,
-        occ.edge_i,
-        occ.rear_i,
-        occ._by_off,
-        occ._by_slot,
-    )
+    return occ._facing_kernel(np.arange(len(occ.ids), dtype=np.int64), from_m, lookahead_m)
 
 
 def _facing_within_braking_before(occ: Occupancy, speed_mps: list[float], floor_m: float) -> dict[str, float]:
