@@ -72,7 +72,7 @@ from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
-from railsim.engine import line_step_kernel
+from railsim.engine import kernel_entry, line_step_kernel
 from railsim.physics import dynamics, plant_kernel
 
 log = logging.getLogger(__name__)
@@ -81,7 +81,7 @@ PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controll
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
 # the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
 # None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
-# formation's rear clears it: the limits' ends move on by it, see ``_with_tail``), and the limits as the compiled
+# formation's rear clears it: the limits' ends move on by it, see ``_base``), and the limits as the compiled
 # line step's array (made once per restriction window, with it).
 _Target = tuple[float, float, float, bool] | None
 Situation = tuple[float, float, float, tuple[SpeedLimit, ...], Any, _Target, float | None, float, np.ndarray]
@@ -124,6 +124,7 @@ class ControlStage:
         self._forward = step_method == "forward"
         self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._coupled_in: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # per follower: (CACC packed, its array)
+        self._step: Any = self._first_step  # the compiled step, then its entry point (railsim.engine.kernel_entry)
         # per train: [route view, gradient, its span lo, hi, restriction window, from lo, from hi, to lo, to hi,
         # the window as the kernels' array]
         self._route_memo: dict[str, list[Any]] = {}
@@ -154,7 +155,7 @@ class ControlStage:
         grad = kept[1]
         if not (kept[5] <= from_m < kept[6] and kept[7] <= to_m < kept[8]):
             kept[4], kept[5], kept[6], kept[7], kept[8] = view.limits_window(from_m, to_m)
-            kept[9] = limits_array_cached(kept[4])
+            kept[9] = kernel_entry.checked_array(limits_array_cached(kept[4]), 2)
         limits = kept[4]
         # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
         target = None
@@ -169,11 +170,6 @@ class ControlStage:
         authority = self.berths.authority_end_m(t, tr, stop, a, authority)
         return own_pos, own_v, grad, limits, stop, target, authority, tail_m, kept[9]
 
-    @staticmethod
-    def _with_tail(limits: tuple[SpeedLimit, ...], tail_m: float) -> tuple[SpeedLimit, ...]:
-        """``limits`` with every end moved on by ``tail_m`` (for the observation of a formation's controllers)."""
-        return tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
-
     def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
         """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state), or on
         its way to couple behind it on departure (``FormationBook.joins``)?"""
@@ -186,8 +182,8 @@ class ControlStage:
         """The fields every observation of this train shares this step."""
         own_pos, own_v, grad, limits, stop, target, authority, tail_m, _ = sit
         veh = tr.trip.vehicle
-        if tail_m > 0.0:
-            limits = self._with_tail(limits, tail_m)
+        if tail_m > 0.0:  # every end moved on by the formation's length behind the front unit
+            limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
         return dict(
             t_s=t,
             dt_s=self.dt,
@@ -321,9 +317,9 @@ class ControlStage:
     def _known_rear(self, tr: TrainRuntime, a: Ahead) -> tuple[float, float] | None:
         """The rear of the train ahead and the age of that knowledge, as the ground reports it (all that moving-block
         separation reads); the train's staleness record follows it."""
-        known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
-        if known is not None:
-            tr.stale_max_s = max(tr.stale_max_s, known[1])
+        known = self.knowledge.ground_rear_age(tr, self.trains[a.train_id])
+        if known is not None and known[1] > tr.stale_max_s:
+            tr.stale_max_s = known[1]
         return known
 
     def _coupled(
@@ -436,7 +432,7 @@ class ControlStage:
         would do for these two roles — neither law falls back, adds, or carries a plan — on the same values. A
         non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records it and brakes."""
         known = self._known_rear(tr, a) if a is not None else None
-        out = line_step_kernel.step(*self._line_args(tr, ato, sit, known, line_step_kernel.NO_COUPLED))
+        out = self._step(*self._line_args(tr, ato, sit, known, line_step_kernel.NO_COUPLED))
         return self._stepped(t, tr, out, sit[2])
 
     def _coupled_step(
@@ -456,7 +452,7 @@ class ControlStage:
         coupled = self._coupled_inputs(tr, ctl.packed(veh, self.dt))
         line_step_kernel.set_lead(coupled, pred, ctl.feed_forward_mps2(pred, veh), float(f.target_gap_m), tracking)
         known = self._known_rear(tr, a) if a is not None and a.train_id != leader.train_id else None
-        out = line_step_kernel.step(*self._line_args(tr, ato, sit, known, coupled))
+        out = self._step(*self._line_args(tr, ato, sit, known, coupled))
         self._vc_commanded(t, tr, leader, pred, {"target_gap_m": out[9]})
         return self._stepped(t, tr, out, sit[2])
 
@@ -465,8 +461,15 @@ class ControlStage:
         per train and made anew when its CACC packs its law anew (another vehicle or step length)."""
         entry = self._coupled_in.get(tr.train_id)
         if entry is None or entry[0] is not cacc_p:
-            entry = self._coupled_in[tr.train_id] = (cacc_p, line_step_kernel.coupled_inputs(cacc_p))
+            arr = kernel_entry.checked_array(line_step_kernel.coupled_inputs(cacc_p), 1)
+            entry = self._coupled_in[tr.train_id] = (cacc_p, arr)
         return entry[1]
+
+    def _first_step(self, *args: Any) -> tuple[Any, ...]:
+        """The run's first compiled step, through the dispatcher; later ones call its entry point if they can."""
+        out = line_step_kernel.step(*args)
+        self._step = kernel_entry.direct(line_step_kernel.step, args, line_step_kernel.SIGNATURE)
+        return out
 
     def _line_args(
         self, tr: TrainRuntime, ato: Ato, sit: Situation, known: tuple[float, float] | None, coupled: np.ndarray
@@ -528,7 +531,8 @@ class ControlStage:
         entry = self._line_in.get(tr.train_id)
         if entry is None or entry[0] is not ato or entry[1] is not sep or entry[2] is not veh:
             sep_p = sep.packed(veh, self.dt) if type(sep) is Separation else _NO_PACK
-            packed = (ato.packed(veh, self.dt), sep_p, self._plant_packed(veh))
+            arr = kernel_entry.checked_array
+            packed = (arr(ato.packed(veh, self.dt), 1), arr(sep_p, 1), arr(self._plant_packed(veh), 1))
             entry = self._line_in[tr.train_id] = (ato, sep, veh, packed)
         return entry[3]
 

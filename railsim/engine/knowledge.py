@@ -51,6 +51,8 @@ class Knowledge:
         self.extensions = extensions  # t2t_receivers: extra receivers of a train's report (Paper C's graph)
         # (observer, other) -> the frame change last used to map the other's reports (RouteView.map_body_memo)
         self._frames: dict[tuple[str, str], BodyFrame] = {}
+        t2g = channels.get("t2g")
+        self._ground: dict[str, Any] | None = t2g.mailbox("ground") if t2g is not None else None  # live, read-only
 
     def radio_out(self, t: float, train_id: str, other_id: str) -> bool:
         """Can the two trains' position reports be cut off at ``t`` (an outage of some channel covers either)? A
@@ -176,6 +178,33 @@ class Knowledge:
         front, rear = known[0], known[1]
         return front - (front - rear), max(0.0, self.layer.now_s - known[5])
 
+    def ground_rear_age(self, observer: TrainRuntime, other: TrainRuntime) -> tuple[float, float] | None:
+        """``known_rear_age(observer, other, "t2g", "ground", ahead=True)``, the same value: what moving-block
+        separation reads of the train directly ahead, every step for every train. A delivered ground report that
+        places the train on our track is read here from the ground's mailbox without the general path's look-ups;
+        anything else (no report yet, a report off our track) goes the general way."""
+        box = self._ground
+        msg = box.get(other.train_id) if box is not None else None
+        if msg is not None:
+            payload = msg.payload
+            placed = self._body_in_frame(observer, other, payload[1])
+            if placed is not None:
+                front, rear = placed
+                return front - (front - rear), max(0.0, self.layer.now_s - payload[4])
+        return self.known_rear_age(observer, other, "t2g", "ground", ahead=True)
+
+    def _body_in_frame(self, observer: TrainRuntime, other: TrainRuntime, pos: float) -> tuple[float, float] | None:
+        """``(front, rear)`` in the observer's frame of ``other``'s body reported with its front at ``pos`` (its own
+        route's chainage): only the part on the observer's track; None if none of it is."""
+        view = observer.view
+        length_m = other.trip.vehicle.length_m
+        if other.view is view and view.simple:  # one route, no edge twice: the report is in our frame (map_body's)
+            return pos, pos - length_m
+        # the pair's last frame change while the report stays on the same edges (the same value as map_body)
+        return view.map_body_memo(
+            self._frames, (observer.train_id, other.train_id), other.view, pos, length_m, other.edge_i, observer.edge_i
+        )
+
     def _known(
         self, observer: TrainRuntime, other: TrainRuntime, channel: str, receiver: str, ahead: bool = False
     ) -> tuple[float, float, float, float, float, float, Any] | None:
@@ -203,19 +232,7 @@ class Knowledge:
             plan = None
         else:
             route_id, pos, v, acc, stamp, plan = msg.payload
-        view = observer.view
-        if other.view is view and view.simple:  # one route, no edge twice: the report is in our frame (map_body's)
-            return pos, pos - other.trip.vehicle.length_m, pos, v, acc, stamp, plan
-        # the pair's last frame change while the report stays on the same edges (the same value as map_body)
-        mapped = view.map_body_memo(
-            self._frames,
-            (observer.train_id, other.train_id),
-            other.view,
-            pos,
-            other.trip.vehicle.length_m,
-            other.edge_i,
-            observer.edge_i,
-        )
+        mapped = self._body_in_frame(observer, other, pos)
         if mapped is None:
             if not ahead:
                 return None

@@ -30,7 +30,7 @@ Compiled code is cached on disk per version of the kernel sources (:mod:`railsim
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
+from numba import njit, types
 
 from controllers import cacc_kernel, line_kernels
 from controllers.base import PredecessorState
@@ -52,6 +52,11 @@ LEAD_FIELDS = (
 )
 _N_LEAD = len(LEAD_FIELDS)
 NO_COUPLED = np.zeros(0)  # a line train: no coupled role (the CACC is not asked)
+# The types callers pass to :func:`step`, in its order (railsim.engine.kernel_entry: a caller that passes exactly
+# these may call the compiled version directly; every array made float64, C-contiguous, aligned)
+_A1, _A2 = types.Array(types.float64, 1, "C"), types.Array(types.float64, 2, "C")
+_F, _B = types.float64, types.boolean
+SIGNATURE = (_A1, _A1, _A1, types.int64, *(_F,) * 9, _A2, _B, _F, _F, _F, _B, _B, _F, _F, _B, _F, _F, _A1)
 
 
 def coupled_inputs(cacc_p: np.ndarray) -> np.ndarray:

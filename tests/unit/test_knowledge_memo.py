@@ -5,7 +5,9 @@ Trains drive along random routes (merging, diverging, some passing an edge twice
 ``tests/unit/test_routeview_memo.py``) and report over a lossy, delayed ground channel; some never report (what is
 known of them is their registration, or where they came on the line). Every step every train asks about every
 other: :meth:`Knowledge.known_rear_age` and :meth:`Knowledge.known_state` must answer exactly as they do with the
-memory switched off (``RouteView.map_body_memo`` replaced by ``map_body`` called as the long way calls it).
+memory switched off (``RouteView.map_body_memo`` replaced by ``map_body`` called as the long way calls it), and
+:meth:`Knowledge.ground_rear_age` (what moving-block separation reads of the train ahead) must give
+``known_rear_age``'s answer for a train ahead, with the ground channel and without one.
 """
 
 from __future__ import annotations
@@ -62,12 +64,14 @@ def _long_way(observer: SimpleNamespace, other: SimpleNamespace) -> Iterator[Non
 
 
 @pytest.mark.parametrize("seed", range(4))
-def test_known_with_memory_is_the_long_way(seed: int) -> None:
+@pytest.mark.parametrize("with_ground", [True, False])
+def test_known_with_memory_is_the_long_way(seed: int, with_ground: bool) -> None:
     rng = np.random.default_rng(seed)
     layer = EventLayer(0.0, rng=np.random.default_rng(seed))
     ground = Channel(layer, "t2g", DelaySpec("uniform", low_s=0.1, high_s=0.9), loss_prob=0.2)
     book = SimpleNamespace(of_leader={}, follower_of=None)
-    kn = Knowledge(layer, {"t2g": ground}, book, SimpleNamespace(t2t_receivers=lambda _id: ()))  # type: ignore[arg-type]
+    channels = {"t2g": ground} if with_ground else {}
+    kn = Knowledge(layer, channels, book, SimpleNamespace(t2t_receivers=lambda _id: ()))  # type: ignore[arg-type]
     views = _views(rng)
     trains = [_train(k, views[int(rng.integers(len(views)))], rng) for k in range(14)]
     silent = trains[-3:]  # never report: their registration, or where they came on the line
@@ -91,6 +95,8 @@ def test_known_with_memory_is_the_long_way(seed: int) -> None:
                 ahead = bool(rng.random() < 0.5)
                 args = (observer, other, "t2g", "ground", ahead)
                 answers = (kn.known_rear_age(*args), kn.known_state(*args))  # type: ignore[arg-type]
+                if ahead:  # the separation's own read of the train ahead: the same answer
+                    assert repr(kn.ground_rear_age(observer, other)) == repr(answers[0])  # type: ignore[arg-type]
                 with _long_way(observer, other):
                     assert repr(answers) == repr((kn.known_rear_age(*args), kn.known_state(*args)))  # type: ignore[arg-type]
                 known += answers[0] is not None

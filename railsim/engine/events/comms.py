@@ -501,7 +501,6 @@ class Channel:
             for msg in msgs:
                 self._on_delivery(msg)
             return
-        mail = self._mail
         box: dict[str, Message] = {}
         box_of = None
         overtaken = 0
@@ -511,10 +510,7 @@ class Channel:
             sender, receiver, _, sent_s, _, d_s, seq, _ = msg
             if receiver is not box_of:
                 box_of = receiver
-                got = mail.get(receiver)
-                if got is None:
-                    got = mail[receiver] = {}
-                box = got
+                box = self.mailbox(receiver)
             current = box.get(sender)
             if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
                 box[sender] = msg
@@ -552,6 +548,14 @@ class Channel:
         """Newest-sent message from ``sender`` delivered to ``receiver`` so far, or None."""
         box = self._mail.get(receiver)
         return None if box is None else box.get(sender)
+
+    def mailbox(self, receiver: str) -> dict[str, Message]:
+        """The live mapping behind :meth:`latest` for ``receiver`` (made empty if nothing reached it yet): read it,
+        never write it. For a reader that asks one receiver's mailbox every step without the two look-ups."""
+        box = self._mail.get(receiver)
+        if box is None:
+            box = self._mail[receiver] = {}
+        return box
 
     def inbox(self, receiver: str) -> dict[str, Message]:
         """``latest`` for every sender that has reached ``receiver`` (a copy)."""
