@@ -300,7 +300,7 @@ class ControlStage:
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
             sep = tr.controllers["separation"]
             if type(sep) is Separation:
-                known = self._known_rear(tr, a)
+                known = self._known_rear(t, tr, a)
                 if known is not None:
                     commands["separation"] = sep.decide(veh, self.dt, own_pos, own_v, applied_now, grad, *known)
             else:
@@ -314,10 +314,11 @@ class ControlStage:
             self._collision_avoidance(t, tr, a, ca_ctl, base or self._base(t, tr, sit), fstate, commands)
         return commands
 
-    def _known_rear(self, tr: TrainRuntime, a: Ahead) -> tuple[float, float] | None:
-        """The rear of the train ahead and the age of that knowledge, as the ground reports it (all that moving-block
-        separation reads); the train's staleness record follows it."""
-        known = self.knowledge.ground_rear_age(tr, self.trains[a.train_id])
+    def _known_rear(self, t: float, tr: TrainRuntime, a: Ahead) -> tuple[float, float] | None:
+        """The rear of the train ahead and the age of that knowledge at ``t`` (the event layer's time: it has run
+        up to the step), as the ground reports it (all that moving-block separation reads); the train's staleness
+        record follows it."""
+        known = self.knowledge.ground_rear_age(tr, self.trains[a.train_id], t)
         if known is not None and known[1] > tr.stale_max_s:
             tr.stale_max_s = known[1]
         return known
@@ -431,7 +432,7 @@ class ControlStage:
         :func:`controllers.base.arbitrate`), then the plant. It is what :meth:`_role_commands` and :meth:`_finish`
         would do for these two roles — neither law falls back, adds, or carries a plan — on the same values. A
         non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records it and brakes."""
-        known = self._known_rear(tr, a) if a is not None else None
+        known = self._known_rear(t, tr, a) if a is not None else None
         out = self._step(*self._line_args(tr, ato, sit, known, line_step_kernel.NO_COUPLED))
         return self._stepped(t, tr, out, sit[2])
 
@@ -451,7 +452,7 @@ class ControlStage:
         veh = tr.trip.vehicle
         coupled = self._coupled_inputs(tr, ctl.packed(veh, self.dt))
         line_step_kernel.set_lead(coupled, pred, ctl.feed_forward_mps2(pred, veh), float(f.target_gap_m), tracking)
-        known = self._known_rear(tr, a) if a is not None and a.train_id != leader.train_id else None
+        known = self._known_rear(t, tr, a) if a is not None and a.train_id != leader.train_id else None
         out = self._step(*self._line_args(tr, ato, sit, known, coupled))
         self._vc_commanded(t, tr, leader, pred, {"target_gap_m": out[9]})
         return self._stepped(t, tr, out, sit[2])

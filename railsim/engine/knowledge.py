@@ -178,11 +178,12 @@ class Knowledge:
         front, rear = known[0], known[1]
         return front - (front - rear), max(0.0, self.layer.now_s - known[5])
 
-    def ground_rear_age(self, observer: TrainRuntime, other: TrainRuntime) -> tuple[float, float] | None:
+    def ground_rear_age(self, observer: TrainRuntime, other: TrainRuntime, now_s: float) -> tuple[float, float] | None:
         """``known_rear_age(observer, other, "t2g", "ground", ahead=True)``, the same value: what moving-block
-        separation reads of the train directly ahead, every step for every train. A delivered ground report that
-        places the train on our track is read here from the ground's mailbox without the general path's look-ups;
-        anything else (no report yet, a report off our track) goes the general way."""
+        separation reads of the train directly ahead, every step for every train (``now_s``: the layer's time,
+        which the caller has at hand). A delivered ground report that places the train on our track is read here
+        from the ground's mailbox without the general path's look-ups; anything else (no report yet, a report off
+        our track) goes the general way."""
         box = self._ground
         msg = box.get(other.train_id) if box is not None else None
         if msg is not None:
@@ -190,7 +191,7 @@ class Knowledge:
             placed = self._body_in_frame(observer, other, payload[1])
             if placed is not None:
                 front, rear = placed
-                return front - (front - rear), max(0.0, self.layer.now_s - payload[4])
+                return front - (front - rear), max(0.0, now_s - payload[4])
         return self.known_rear_age(observer, other, "t2g", "ground", ahead=True)
 
     def _body_in_frame(self, observer: TrainRuntime, other: TrainRuntime, pos: float) -> tuple[float, float] | None:

@@ -96,7 +96,7 @@ def test_known_with_memory_is_the_long_way(seed: int, with_ground: bool) -> None
                 args = (observer, other, "t2g", "ground", ahead)
                 answers = (kn.known_rear_age(*args), kn.known_state(*args))  # type: ignore[arg-type]
                 if ahead:  # the separation's own read of the train ahead: the same answer
-                    assert repr(kn.ground_rear_age(observer, other)) == repr(answers[0])  # type: ignore[arg-type]
+                    assert repr(kn.ground_rear_age(observer, other, layer.now_s)) == repr(answers[0])  # type: ignore[arg-type]
                 with _long_way(observer, other):
                     assert repr(answers) == repr((kn.known_rear_age(*args), kn.known_state(*args)))  # type: ignore[arg-type]
                 known += answers[0] is not None
