@@ -324,10 +324,11 @@ class Occupancy:
 
     def _facing_hits(self, from_m: np.ndarray, lookahead_m: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:func:`.occupancy_kernel.facing_hits` for every slot (query ``from_m[k]``, ``lookahead_m[k]``)."""
-        return occupancy_kernel.facing_hits(from_m, lookahead_m, *self._facing_world())
+        return occupancy_kernel.facing_hits(from_m, lookahead_m, self._facing_world())
 
-    def _facing_world(self) -> tuple[np.ndarray, ...]:
-        """The facing kernels' arguments after the queries: the route tables, partner edges and slot columns."""
+    def _facing_world(self) -> occupancy_kernel.FacingWorld:
+        """What the facing kernels search (:data:`.occupancy_kernel.FacingWorld`): the route tables, partner edges
+        and slot columns."""
         r_off, r_edges, r_starts, _, _, _, r_len = self._tables
         return (
             r_off,
@@ -348,7 +349,7 @@ class Occupancy:
     def _facing_kernel(
         self, slots: np.ndarray, from_m: np.ndarray, lookahead_m: np.ndarray
     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        return occupancy_kernel.facing_all(slots, from_m, lookahead_m, *self._facing_world())
+        return occupancy_kernel.facing_all(slots, from_m, lookahead_m, self._facing_world())
 
     def facing(self, train_id: str, from_m: float, lookahead_m: float) -> Facing | None:
         """The nearest train on the partner edges of this train's route from ``from_m`` on (within

@@ -37,6 +37,11 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+# What the facing kernels search, in this order (Occupancy._facing_world): the route tables (offsets, edges,
+# edge starts, lengths), each edge's partner edge and its length, the slot columns (route, front, length, front
+# edge, rear edge) and the slots by edge (offsets, slots)
+FacingWorld = tuple[np.ndarray, ...]
+
 
 @njit(cache=True)
 def _pymax(a: float, b: float) -> float:
@@ -337,27 +342,13 @@ def _on_edge(
 
 
 @njit(cache=True)
-def facing_one(
-    me: int,
-    from_m: float,
-    lookahead_m: float,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_len: np.ndarray,
-    partner: np.ndarray,
-    partner_len: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
-    by_off: np.ndarray,
-    by_slot: np.ndarray,
-) -> tuple[int, float, float]:
+def facing_one(me: int, from_m: float, lookahead_m: float, world: FacingWorld) -> tuple[int, float, float]:
     """The nearest train on the partner edges of slot ``me``'s route from ``from_m`` on (within ``lookahead_m``)
     whose body lies there at or beyond ``from_m``: ``(slot, near, far)`` in ``me``'s frame (the end of its body
     nearest ``me``'s front, and the other end), slot -1 if none."""
+    r_off, r_edges, r_starts, r_len, partner, partner_len, s_route, s_front, s_len, s_edge, s_rear, by_off, by_slot = (
+        world
+    )
     r = s_route[me]
     a, b = r_off[r], r_off[r + 1]
     j = edge_near(r_starts[a:b], from_m, s_rear[me])
@@ -392,22 +383,7 @@ def facing_one(
 
 @njit(cache=True)
 def facing_all(
-    q_slot: np.ndarray,
-    q_from: np.ndarray,
-    q_look: np.ndarray,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_len: np.ndarray,
-    partner: np.ndarray,
-    partner_len: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
-    by_off: np.ndarray,
-    by_slot: np.ndarray,
+    q_slot: np.ndarray, q_from: np.ndarray, q_look: np.ndarray, world: FacingWorld
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`facing_one` for every query ``(slot, from, lookahead)``: ``(slot facing or -1, near, far)``."""
     n = len(q_slot)
@@ -415,72 +391,24 @@ def facing_all(
     near = np.zeros(n)
     far = np.zeros(n)
     for q in range(n):
-        slot[q], near[q], far[q] = facing_one(
-            q_slot[q],
-            q_from[q],
-            q_look[q],
-            r_off,
-            r_edges,
-            r_starts,
-            r_len,
-            partner,
-            partner_len,
-            s_route,
-            s_front,
-            s_len,
-            s_edge,
-            s_rear,
-            by_off,
-            by_slot,
-        )
+        slot[q], near[q], far[q] = facing_one(q_slot[q], q_from[q], q_look[q], world)
     return slot, near, far
 
 
 @njit(cache=True)
 def facing_hits(
-    q_from: np.ndarray,
-    q_look: np.ndarray,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_len: np.ndarray,
-    partner: np.ndarray,
-    partner_len: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
-    by_off: np.ndarray,
-    by_slot: np.ndarray,
+    q_from: np.ndarray, q_look: np.ndarray, world: FacingWorld
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`facing_one` for every slot in order (query ``(slot, q_from[slot], q_look[slot])``), only the slots
     that face a train: ``(slot, the slot facing it, near end)``, ascending by slot (usually empty: no per-train
     row is left for the caller to filter)."""
-    n = len(s_route)
+    n = len(q_from)  # one query per slot
     mine = np.empty(n, np.int64)
     other = np.empty(n, np.int64)
     near = np.empty(n)
     m = 0
     for me in range(n):
-        o, near_m, _ = facing_one(
-            me,
-            q_from[me],
-            q_look[me],
-            r_off,
-            r_edges,
-            r_starts,
-            r_len,
-            partner,
-            partner_len,
-            s_route,
-            s_front,
-            s_len,
-            s_edge,
-            s_rear,
-            by_off,
-            by_slot,
-        )
+        o, near_m, _ = facing_one(me, q_from[me], q_look[me], world)
         if o >= 0:
             mine[m], other[m], near[m] = me, o, near_m
             m += 1
