@@ -2,11 +2,13 @@
 
 :func:`kernel_entry.direct` hands back a kernel's compiled entry point only when a call's arguments have exactly
 the declared types, else the dispatcher; :func:`kernel_entry.checked_array` refuses any array an entry point would
-misread. On the random line trains and coupled followers of ``tests/unit/test_line_step_kernel.py``, the line step's
+misread. On 600 of the random line trains and coupled followers of ``tests/unit/test_line_step_kernel.py``, the line step's
 entry point for :data:`line_step_kernel.SIGNATURE` must be found and give the dispatcher's result, bit for bit.
 """
 
 from __future__ import annotations
+
+from itertools import islice
 
 import numpy as np
 import pytest
@@ -67,7 +69,7 @@ def test_line_step_entry_point_is_the_dispatcher() -> None:
     SIGNATURE exists, and a line train's and a CACC follower's step through it are the dispatcher's."""
     calls = []
     seen_coupled = 0
-    for rng, case in _cases(53):
+    for rng, case in islice(_cases(53), 600):
         dt, method = float(rng.choice([0.1, 0.5, 1.0])), "euler"
         known = _known_rear(rng, case.state[0], 600.0) if rng.random() < 0.6 else None
         coupled = line_step_kernel.NO_COUPLED
@@ -95,4 +97,4 @@ def test_line_step_entry_point_is_the_dispatcher() -> None:
     assert entry is not step, "the line step's arguments are not of line_step_kernel.SIGNATURE"
     for args in captured:
         assert repr(entry(*args)) == repr(step(*args))
-    assert seen_coupled > 100
+    assert seen_coupled > 120
