@@ -1,6 +1,8 @@
 # Two commands on a fresh machine: `make demo` and `make test`. Both bootstrap .venv from this repo's files.
 # `make check` is the developer's loop: lint and the unit tier (tests/unit/, no process started, about a minute).
-PY      ?= python3
+# The interpreter .venv is made with, chosen only when .venv is made: the fastest build of python3's version on
+# this machine (railsim/interpreter.py; `make PY=/path/to/python` chooses yourself, `make clean` drops .venv).
+PY      ?= $$(python3 railsim/interpreter.py)
 VENV    := .venv
 BIN     := $(VENV)/bin
 STAMP   := $(VENV)/.installed

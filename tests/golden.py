@@ -40,6 +40,12 @@ from typing import Any
 from tests.helpers import ROOT, run_railsim
 
 GOLDEN_FILE = ROOT / "tests" / "data" / "golden.json"
+# Cases whose outputs depend on the machine's BLAS (OpenBLAS picks its kernels by CPU type and splits a product over
+# the cores): the model-predictive controllers multiply and factor matrices of a few hundred entries, and another
+# kernel or split rounds the last bits differently. This file holds, per case, the other outcomes recorded on real
+# machines (each with the machine it was seen on); ``accepted`` takes any of them. A code change that alters outputs
+# changes every one of them, so it still fails.
+BLAS_VARIANTS_FILE = ROOT / "tests" / "data" / "golden_blas_variants.json"
 WALL_CLOCK = re.compile(r"wall|solve_time")
 
 
@@ -141,6 +147,12 @@ def load_golden() -> dict[str, dict[str, str]]:
     return json.loads(GOLDEN_FILE.read_text(encoding="utf-8"))
 
 
+def accepted(name: str) -> list[dict[str, str]]:
+    """The hashes a case may give: ``golden.json``'s, then the BLAS variants recorded for it (``BLAS_VARIANTS_FILE``)."""
+    variants = json.loads(BLAS_VARIANTS_FILE.read_text(encoding="utf-8")) if BLAS_VARIANTS_FILE.exists() else {}
+    return [load_golden()[name], *(v["hashes"] for v in variants.get(name, []))]
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="run the golden cases; compare with or update tests/data/golden.json")
     parser.add_argument("--update", action="store_true", help="rewrite tests/data/golden.json")
@@ -157,6 +169,9 @@ def main(argv: list[str] | None = None) -> int:
             bad = sorted(
                 k for k in set(got) | set(golden.get(case.name, {})) if got.get(k) != golden.get(case.name, {}).get(k)
             )
+            if bad and case.name in golden and got in accepted(case.name)[1:]:
+                print(f"{case.name}: same as a recorded BLAS variant ({BLAS_VARIANTS_FILE.name})")
+                continue
             print(f"{case.name}: {'same' if not bad else 'DIFFERS in ' + ', '.join(bad)}")
             differ += bool(bad)
             golden[case.name] = got

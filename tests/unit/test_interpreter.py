@@ -1,0 +1,68 @@
+"""The bootstrap's choice of interpreter (``railsim/interpreter.py``): the fastest build of the default
+``python3``'s version, only when it is clearly faster, never another version, never one that cannot make a venv.
+
+The probes (each a child process) are replaced by their results: the rule is what is tested here; the probe itself
+runs in every ``make`` that creates ``.venv`` (CI's included)."""
+
+from __future__ import annotations
+
+import pytest
+
+from railsim import interpreter
+
+REAL = {
+    "python3": "/opt/pyenv/3.11.7/bin/python3.11",
+    "/usr/bin/python3.11": "/usr/bin/python3.11",
+    "/usr/bin/python3": "/usr/bin/python3.11",  # the same build under another name: counted once
+    "/usr/local/bin/python3.11": "/usr/local/bin/python3.11",
+}
+
+
+def _world(monkeypatch: pytest.MonkeyPatch, probes: dict[str, tuple[str, float] | None]) -> None:
+    """Candidates by name -> (version, best seconds) or None (cannot make a venv / fails)."""
+    monkeypatch.setattr(interpreter.shutil, "which", lambda name: "/opt/pyenv/shims/" + name)
+
+    def fake_probe(python: str) -> tuple[str, str, float] | None:
+        got = probes.get(python)
+        return None if got is None else (REAL[python], got[0], got[1])
+
+    monkeypatch.setattr(interpreter, "probe", fake_probe)
+    monkeypatch.setattr(interpreter, "candidates", lambda version: [p for p in probes if p != "python3"])
+
+
+def test_a_clearly_faster_build_of_the_same_version_is_chosen(monkeypatch: pytest.MonkeyPatch) -> None:
+    _world(monkeypatch, {"python3": ("3.11", 0.187), "/usr/bin/python3.11": ("3.11", 0.084)})
+    assert interpreter.choose() == "/usr/bin/python3.11"
+
+
+def test_a_build_within_the_noise_keeps_the_default(monkeypatch: pytest.MonkeyPatch) -> None:
+    _world(monkeypatch, {"python3": ("3.11", 0.100), "/usr/bin/python3.11": ("3.11", 0.095)})
+    assert interpreter.choose() == "python3"
+
+
+def test_another_version_is_never_chosen(monkeypatch: pytest.MonkeyPatch) -> None:
+    _world(monkeypatch, {"python3": ("3.11", 0.187), "/usr/local/bin/python3.11": ("3.12", 0.050)})
+    assert interpreter.choose() == "python3"
+
+
+def test_a_candidate_that_cannot_make_a_venv_is_dropped(monkeypatch: pytest.MonkeyPatch) -> None:
+    _world(monkeypatch, {"python3": ("3.11", 0.187), "/usr/bin/python3.11": None, "/usr/bin/python3": None})
+    assert interpreter.choose() == "python3"
+
+
+def test_the_fastest_of_several_wins_and_aliases_count_once(monkeypatch: pytest.MonkeyPatch) -> None:
+    _world(
+        monkeypatch,
+        {
+            "python3": ("3.11", 0.187),
+            "/usr/bin/python3": ("3.11", 0.090),
+            "/usr/bin/python3.11": ("3.11", 0.080),  # the same executable as /usr/bin/python3: its first timing holds
+            "/usr/local/bin/python3.11": ("3.11", 0.085),
+        },
+    )
+    assert interpreter.choose() == "/usr/local/bin/python3.11"
+
+
+def test_a_default_that_cannot_be_probed_is_used_as_it_is(monkeypatch: pytest.MonkeyPatch) -> None:
+    _world(monkeypatch, {"python3": None, "/usr/bin/python3.11": ("3.11", 0.05)})
+    assert interpreter.choose() == "python3"
