@@ -5,7 +5,8 @@ continue (a desync, a stall: one line from :class:`railsim.errors.SimulationErro
 inserted (the summary names it), or its outputs could not be written (a full disk, a file-size limit: the
 folder is left as it was) or the folder is in use by another run; 130/143 Ctrl-C (SIGINT)/SIGTERM stopped it —
 the outputs up to the simulated time reached are written and ``summary.json`` says ``status: interrupted``
-(:mod:`railsim.engine.interrupt`). The folder holds this run's files only (docs/guide/run-folders.md).
+(:mod:`railsim.engine.interrupt`); one that comes after the last step stops nothing, and the run exits with its
+own code. The folder holds this run's files only (docs/guide/run-folders.md).
 """
 
 from __future__ import annotations
@@ -109,7 +110,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             print(f"railsim: interrupted ({stop.reason}) before the first step; no outputs", file=sys.stderr)
             return stop.exit_code
     print(format_summary(summary, out))
-    if stop.signum is not None:
+    if summary["status"] == "interrupted":  # a signal noted once the steps were over stopped nothing: exit as run
         print(f"railsim: interrupted ({stop.reason}) at t = {summary['sim_s']:g} s; outputs so far in {out}/")
         return stop.exit_code
     return exit_code(summary)

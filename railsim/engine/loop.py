@@ -89,6 +89,7 @@ class Simulation:
         self.settings = (settings or EngineSettings()).with_interlocking(scenario.interlocking)
         self.progress = sys.stderr.isatty() if progress is None else progress
         self.stop, self.gui = stop or StopRequest(), gui  # a signal noted ends the run between steps; sumo-gui
+        self.interrupted_by: str | None = None  # the signal that ended the step loop ("SIGINT"), once it has
         self.rng = np.random.default_rng(self.seed)
 
         self.bundle = load_world(scenario.world, scenario.source)  # a shipped/line world is built, a net is read
@@ -219,8 +220,10 @@ class Simulation:
                 if n_finished == len(self.fleet.trains) or self.failure() is not None:  # all done, or a failure
                     break
             self.end_s = t
-            if self.stop.reason is not None:  # a signal: write what the run has (railsim.engine.interrupt)
-                log.warning("%s: stopping at t = %g s; writing what the run has", self.stop.reason, t)
+            # read once: a signal noted after this point (the run already over) stops nothing and is not recorded
+            self.interrupted_by = self.stop.reason
+            if self.interrupted_by is not None:  # a signal: write what the run has (railsim.engine.interrupt)
+                log.warning("%s: stopping at t = %g s; writing what the run has", self.interrupted_by, t)
             else:
                 self.dispatcher.report_never_inserted(t)
                 self.watchdog.at_end(t)  # a failure (desync, stall) stops the run; outputs written, then exit 3
@@ -351,7 +354,7 @@ class Simulation:
             extra_summary=extra,
             failure=self.failure(),
             extra_tables=primary_delays.tables(self.primary, self.recorder.stops, self.trains),
-            interrupted_by=self.stop.reason,
+            interrupted_by=self.interrupted_by,
         )
 
     def write(self, out_dir: Path) -> dict[str, Path]:

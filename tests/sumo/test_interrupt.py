@@ -72,3 +72,26 @@ def test_a_signal_writes_partial_outputs_and_status_interrupted(tmp_path: Path, 
     assert trace and max(float(r["t_s"]) for r in trace) <= s["sim_s"]
     for f in ("trips.csv", "stops.csv", "formations.csv", "events.csv", "trace.csv", "summary.json"):
         assert stat.S_IMODE((out / f).stat().st_mode) == 0o644, f
+
+
+def test_a_signal_after_the_last_step_stops_nothing(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The signal lands after the step loop has ended on its own (here: in the end-of-run checks, before the
+    outputs are written). The run is complete, so it must say ``completed`` and exit as it ran, not claim an
+    interruption that stopped nothing (that case once gave exit 130 without the line on stderr)."""
+    from railsim import api, scenario
+    from railsim.engine.interrupt import StopRequest
+    from railsim.engine.watchdog import StallWatch
+
+    stop = StopRequest()
+    at_end = StallWatch.at_end
+
+    def late_signal(self: StallWatch, t: float) -> None:
+        stop.request(signal.SIGINT)  # as the handler does when the Ctrl-C comes
+        at_end(self, t)
+
+    monkeypatch.setattr(StallWatch, "at_end", late_signal)
+    summary = api.run(scenario.load(DATA / "scenarios" / "mini_line.yaml"), tmp_path / "out", stop=stop)
+    assert stop.signum == signal.SIGINT  # the signal did come
+    assert summary["status"] == "completed" and summary["interrupted_by"] is None
+    assert read_summary(tmp_path / "out")["status"] == "completed"
+    assert summary["n_arrived"] == summary["n_trains"] > 0
