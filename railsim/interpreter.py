@@ -43,6 +43,7 @@ import sys
 DEFAULT = "python3"
 MIN_GAIN = 1.10  # the fastest must beat the default by 10 % to be chosen
 TIMEOUT_S = 60.0
+FOLDERS = ("/usr/bin", "/usr/local/bin")  # where a system's builds live, beside the PATH
 
 # Run inside each candidate: can it make a venv with pip, its real executable and version, then the best of five
 # CPU timings of the workload. Printed as one line: "<executable> <major.minor> <seconds>".
@@ -86,25 +87,31 @@ def probe(python: str) -> tuple[str, str, float] | None:
         return None
 
 
-def candidates(version: str) -> list[str]:
-    """The names and paths a build of ``version`` ("3.11") usually has on this machine, the default first."""
-    names = [DEFAULT, f"python{version}"]
-    paths = [shutil.which(n) for n in names]
-    for folder in ("/usr/bin", "/usr/local/bin"):
+def candidates(version: str, probed: set[str]) -> list[str]:
+    """The names and paths a build of ``version`` ("3.11") usually has on this machine, each once and none whose
+    file is in ``probed`` (real paths already timed: the default's command and executable)."""
+    paths = [shutil.which(f"python{version}")]
+    for folder in FOLDERS:
         paths += [os.path.join(folder, f"python{version}"), os.path.join(folder, "python3")]
-    return [p for p in paths if p and os.path.isfile(p) and os.access(p, os.X_OK)]
+    seen = set(probed)
+    found = []
+    for p in paths:
+        if p and os.path.isfile(p) and os.access(p, os.X_OK) and os.path.realpath(p) not in seen:
+            seen.add(os.path.realpath(p))
+            found.append(p)
+    return found
 
 
 def choose() -> str:
     """The interpreter to build ``.venv`` with (module docstring)."""
     default_path = shutil.which(DEFAULT)
     default = probe(DEFAULT) if default_path else None
-    if default is None:
+    if default_path is None or default is None:
         print(f"bootstrap: {DEFAULT} cannot make a venv with pip; using it anyway", file=sys.stderr)
         return DEFAULT
     real, version, best_s = default
     timed = {real: (DEFAULT, best_s)}
-    for path in candidates(version):
+    for path in candidates(version, {real, os.path.realpath(default_path)}):
         got = probe(path)
         if got is None or got[1] != version or got[0] in timed:
             continue

@@ -18,6 +18,8 @@ The hashes live in ``tests/data/golden.json``. A change that is *meant* to alter
 
     .venv/bin/python -m tests.golden --update          # rewrites tests/data/golden.json
     .venv/bin/python -m tests.golden --keep DIR        # also keeps the normalised outputs for a diff
+    .venv/bin/python -m tests.golden --case paper001_sempc --record-variant "CPU, cores, BLAS"
+                                                       # records this machine's BLAS outcome of a case
 
 and says why in its commit message (docs/architecture.md, "The golden test").
 """
@@ -147,10 +149,25 @@ def load_golden() -> dict[str, dict[str, str]]:
     return json.loads(GOLDEN_FILE.read_text(encoding="utf-8"))
 
 
+def blas_variants() -> dict[str, list[dict[str, Any]]]:
+    """Per case, its outcomes recorded on other machines: ``{"hashes": {...}, "machine": "..."}`` each."""
+    return json.loads(BLAS_VARIANTS_FILE.read_text(encoding="utf-8")) if BLAS_VARIANTS_FILE.exists() else {}
+
+
 def accepted(name: str) -> list[dict[str, str]]:
     """The hashes a case may give: ``golden.json``'s, then the BLAS variants recorded for it (``BLAS_VARIANTS_FILE``)."""
-    variants = json.loads(BLAS_VARIANTS_FILE.read_text(encoding="utf-8")) if BLAS_VARIANTS_FILE.exists() else {}
-    return [load_golden()[name], *(v["hashes"] for v in variants.get(name, []))]
+    return [load_golden()[name], *(v["hashes"] for v in blas_variants().get(name, []))]
+
+
+def record_variant(name: str, hashes: dict[str, str], machine: str) -> bool:
+    """Add ``hashes`` to ``name``'s recorded BLAS outcomes, seen on ``machine`` (docs/architecture.md, "The golden
+    test"); False if they are golden.json's or already recorded."""
+    if hashes in accepted(name):
+        return False
+    variants = blas_variants()
+    variants.setdefault(name, []).append({"hashes": hashes, "machine": machine})
+    BLAS_VARIANTS_FILE.write_text(json.dumps(variants, indent=2, sort_keys=True) + "\n", encoding="utf-8")
+    return True
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -158,7 +175,15 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--update", action="store_true", help="rewrite tests/data/golden.json")
     parser.add_argument("--keep", type=Path, default=None, help="keep the normalised outputs in this folder")
     parser.add_argument("--case", action="append", default=None, help="only these cases (repeatable)")
+    parser.add_argument(
+        "--record-variant",
+        metavar="MACHINE",
+        default=None,
+        help="record the named --case's outcome as a BLAS variant seen on MACHINE (only a BLAS-dependent case)",
+    )
     args = parser.parse_args(argv)
+    if args.record_variant is not None and (not args.case or args.update):
+        parser.error("--record-variant needs --case (the BLAS-dependent cases) and no --update")
     golden = load_golden() if GOLDEN_FILE.exists() else {}
     differ = 0
     with tempfile.TemporaryDirectory(prefix="railsim-golden-") as tmp:
@@ -171,6 +196,10 @@ def main(argv: list[str] | None = None) -> int:
             )
             if bad and case.name in golden and got in accepted(case.name)[1:]:
                 print(f"{case.name}: same as a recorded BLAS variant ({BLAS_VARIANTS_FILE.name})")
+                continue
+            if bad and case.name in golden and args.record_variant is not None:
+                record_variant(case.name, got, args.record_variant)
+                print(f"{case.name}: recorded in {BLAS_VARIANTS_FILE.name} as seen on {args.record_variant}")
                 continue
             print(f"{case.name}: {'same' if not bad else 'DIFFERS in ' + ', '.join(bad)}")
             differ += bool(bad)

@@ -6,7 +6,7 @@ files. An intended change regenerates the hashes (``python -m tests.golden --upd
 Each case's run is made once per test session (``golden_run``, ``tests/golden/conftest.py``) and also read by
 the checks of the same scenario (``test_demo_line3.py``). A case whose outputs depend on the machine's BLAS may
 also match one of the outcomes recorded for it on other machines (``tests/data/golden_blas_variants.json``,
-``tests.golden.accepted``); the message names the differences from ``golden.json``'s.
+``tests.golden.accepted``); the message names the differences from each.
 """
 
 from __future__ import annotations
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.golden import CASES, accepted, hash_outputs
+from tests.golden import CASES, accepted, blas_variants, hash_outputs
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
@@ -24,8 +24,17 @@ def test_outputs_are_byte_identical_to_golden(case, golden_run: Callable[[str], 
     expected, *variants = accepted(case.name)
     workdir, exit_code = golden_run(case.name)
     got = hash_outputs(case.name, workdir, exit_code)
-    differ = sorted(k for k in set(got) | set(expected) if got.get(k) != expected.get(k))
+    differ = _differ(got, expected)
     assert not differ or got in variants, (
-        f"{case.name}: outputs differ from tests/data/golden.json in {differ}; "
-        "if the change is intended, run `python -m tests.golden --update` and say why"
+        f"{case.name}: outputs differ from tests/data/golden.json in {differ}"
+        + "".join(
+            f"; from its BLAS variant seen on {v['machine'][:60]!r} in {_differ(got, v['hashes'])}"
+            for v in blas_variants().get(case.name, [])
+        )
+        + "; if the change is intended, run `python -m tests.golden --update` and say why"
     )
+
+
+def _differ(got: dict[str, str], expected: dict[str, str]) -> list[str]:
+    """The files whose hashes differ (one missing on either side counts)."""
+    return sorted(k for k in set(got) | set(expected) if got.get(k) != expected.get(k))
