@@ -16,7 +16,7 @@ the number of train-steps, and the ratio to the paper's MATLAB figures (0.439 s 
 (t_DMPC − t_OPO)/t_DMPC next to the paper's 35.8 %. Targets (not tests): DMPC ≤ 1 ms, OPO-MCF-DMPC ≤ 20 ms per
 train-step (``meets_target`` on the median wall time, ``meets_target_cpu`` on the median CPU time).
 
-Baseline in the same run (issue 19): the MCF variants are also timed on their Python optimiser path (the same
+Baseline in the same run: the MCF variants are also timed on their Python optimiser path (the same
 search, :func:`controllers.mcf_dmpc.optim.minimize_sequence` over the numba fitness — what every step cost before
 the compiled MSMFO of :mod:`controllers.mcf_dmpc.msmfo_jit`), ``baseline_python`` with ``speedup_cpu`` /
 ``speedup_wall`` = baseline median / compiled median. ``--budget-sweep K1 K2 …`` times OPO-MCF-DMPC at lower

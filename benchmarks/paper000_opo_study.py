@@ -1,4 +1,4 @@
-"""Late-phase spacing tracking of MCF-DMPC vs OPO-MCF-DMPC on the numpy runner (spec 000 S-D, S-E; issue #19).
+"""Late-phase spacing tracking of MCF-DMPC vs OPO-MCF-DMPC on the numpy runner (spec 000 S-D, S-E).
 
 For each setting and seed it runs :func:`controllers.mcf_dmpc.sim.run_platoon` with both controllers and reports
 per follower the late-phase mean |ΔS − D^(e)| and |Δv| (A7: S-D late phase [300, 500) s; S-E: the last 40 % of

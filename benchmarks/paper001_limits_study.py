@@ -1,4 +1,4 @@
-"""Paper B baselines under one actuator envelope (spec 001 §2.10, Table 1; issue #19): per controller and scenario
+"""Paper B baselines under one actuator envelope (spec 001 §2.10, Table 1): per controller and scenario
 the force / force-rate violation counts and the paper's metrics E_d (= E_x), E_p, E_v, E_u from the numpy runner
 :func:`controllers.ato_mpc.sim.run`. E_p is the controller's own stopping error: |stop − x_1| at the first
 standstill near the mark, i.e. where the law itself brought the train to rest, before the hold supervisor of

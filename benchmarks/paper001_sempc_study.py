@@ -1,4 +1,4 @@
-"""When does SEMPC's terminal cost make a measurable difference against MPC-A? (Paper B, spec 001 §2.12; issue #19)
+"""When does SEMPC's terminal cost make a measurable difference against MPC-A? (Paper B, spec 001 §2.12)
 
 SEMPC and MPC-A (:mod:`controllers.ato_mpc.mpc`) are the same condensed QP except for the last stage weight: the
 DARE tail cost ``P`` (SEMPC) against the ordinary stage weight ``Q_ξ`` (MPC-A). With the paper's single-section

@@ -1,6 +1,6 @@
 """A seeded mutator over the shipped scenarios, and the fuzz harness around ``railsim validate`` and ``railsim run``.
 
-Issue #21: no input may break validation. :func:`mutants` turns the shipped scenarios (``scenarios/*.yaml``) into
+No input may break validation. :func:`mutants` turns the shipped scenarios (``scenarios/*.yaml``) into
 hostile variants, deterministically from a seed; mutant ``k`` is the same text on every machine. Three families
 of mutation, one to three per mutant:
 

@@ -10,7 +10,7 @@ The paper only cites Guo et al. (IET ITS 17(2), 2023). This is the spec's per-ca
 * ``f̂_i = θ_iᵀψ(s_i, ṡ_i)``: a zero-order Takagi–Sugeno system with 5×5 Gaussian memberships on ``s`` and
   ``ṡ`` (normalised firing strengths ψ), adapted by ``θ̇_i = γ s_i ψ`` (Euler at the control period, with a
   projection ``|θ| ≤ θ_max`` so the estimate stays bounded) — it learns what the model misses (wind);
-* **actuator envelope and anti-windup — our design, the paper gives none** (issue #19: a fair baseline must
+* **actuator envelope and anti-windup — our design, the paper gives none** (a fair baseline must
   respect the same limits as SEMPC/MPC/PID): the demanded force passes :func:`~controllers.ato_mpc.core.limit_forces`
   — the force-rate limit ``|u − u_prev| ≤ 60 kN/s·T`` (Table 1, Eq. 15), then the force box ``[u_min, u_max]``
   (Eq. 14). The adaptive estimate f̂ is an integrator of ``s``, so while the actuator cannot deliver the demand it

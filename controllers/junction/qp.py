@@ -61,7 +61,7 @@ QPs, then, if that plan is infeasible, the runner-up (up to ``first_orders`` ord
 least violating of them continues its SCP for ``rescue_iterations`` more — at most ``first_orders ·
 first_iterations + rescue_iterations`` QPs (26 by default). An unfinished plan is returned as such
 (``converged=False``, or ``feasible=False`` with its violations): the coordinator polishes it with warm re-plans.
-(Until session 6 a first plan whose two orders failed searched all n! orders, 40 QPs each: ~1 s.) Every result
+(Searching all n! orders, 40 QPs each, after a first plan whose two orders failed would cost ~1 s.) Every result
 is **verified with** :func:`controllers.junction.model.rollout` (and, when given, the exact interlocking rule): a
 plan is feasible only if the planner's own model says so. Everything is
 deterministic (no random numbers; OSQP is deterministic for fixed data).

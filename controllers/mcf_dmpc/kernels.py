@@ -1,6 +1,6 @@
 """Compiled MCF rollout + J^(DMPC) for populations of candidates (spec 000 §2.6 pseudocode, Eq. 14–20, 29).
 
-Why this module exists (issue #19): one OPO-MCF-DMPC step scores ~9,000 model-index sequences (MSMFO with
+Why this module exists: one OPO-MCF-DMPC step scores ~9,000 model-index sequences (MSMFO with
 Table II's P = 50, K = 100, EOBL, mutation and the greedy pass of Eq. 28) plus ~100 OPO parameter polls, each a
 60-step rollout of Eq. (2) under the CF law the sequence selects. The recursion over the horizon is sequential,
 so a numpy batch pays ~40 array operations per predicted step whatever the population, and a plain-Python loop

@@ -13,7 +13,7 @@ own odometry and its own ranging sensor, never ``obs.predecessor``:
     ``service_accel_mps2`` optional: the service command another role is applying, for additive braking (A27).
 
 Trigger and release (A10): on at ``gap ≤ S_trig`` (fixed 28 m, or the ADBM/RDBM distance of
-:mod:`.braking_modes`) — debounced (issue #19, :func:`.states.ca_should_fire`): a shallow intrusion
+:mod:`.braking_modes`) — debounced (:func:`.states.ca_should_fire`): a shallow intrusion
 (``gap > S_trig − trigger_band_m``) is ignored while the own present braking already ends the closing above
 ``s_min_m`` (:func:`.states.braking_suffices`), otherwise it must last ``trigger_dwell_s`` and may not re-fire
 within ``rearm_s`` of a release; a deep one or an obstacle fires at once; set the three to 0 for the paper's bare trigger —
@@ -69,7 +69,7 @@ class CaParams:
     assumed_object_decel_mps2: float = 0.0  # 0: same as the own value (RDBM credit for the object ahead)
     release_margin_m: float = 0.0  # h of A10 (0 = paper reproduction, 0.5 robust)
     min_on_s: float = 0.1
-    # Trigger debounce (issue #19, :func:`.states.ca_should_fire`): all 0 (the default) = the paper's bare trigger.
+    # Trigger debounce (:func:`.states.ca_should_fire`): all 0 (the default) = the paper's bare trigger.
     # Opt-in (e.g. dwell 0.3 s, band 2.5 m, re-arm 1 s, release margin 0.5 m) until "unguarded" time is defined
     # against the debounced band: with it the gap may sit up to ``trigger_band_m`` below the bare trigger unbraked.
     trigger_dwell_s: float = 0.0  # a shallow intrusion must persist this long

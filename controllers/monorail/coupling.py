@@ -23,7 +23,7 @@ constant-acceleration extrapolation.
 real actuation delay, t_eq = 0.3 s, 1.5 m margin — A3: a 28 m fixed threshold cannot coexist with a 5 m coupling
 gap) gives the highest safe speed ``v_safe(g, v_p)``; the command is capped at ``k_cap·(v_safe − v)`` so the
 coupling law itself never drives into the collision-avoidance trigger. The emergency decision is left to the CA
-role (:mod:`.collision_avoidance`). ``k_cap = 2/s`` (issue #19; it was 1/s): a follower closing at ~3 m/s rides a
+role (:mod:`.collision_avoidance`). ``k_cap = 2/s`` (it was 1/s): a follower closing at ~3 m/s rides a
 safe-speed curve that falls at ~0.2 m/s², and a proportional cap lags it by ``(dv_safe/dt)/k_cap``; at 1/s (plus
 the 0.3 s drive lag) that put the follower ~0.5 m inside the CA's RDBM trigger during normal accelerated coupling
 in SUMO, and the bare trigger fired the emergency brake 5 (empty) / 21 (loaded) times. At 2/s it stays outside.

@@ -105,7 +105,7 @@ def build_scenario(
         raise ValueError(f"load: expected 'empty' or 'loaded', got {load!r}")
     coupling = name in ("in_station", "track_accel", "track_decel")
     loads = ("empty",) * 3 if load == "empty" else (("full",) * 3 if coupling else ("full", "overloaded", "full"))
-    ca_coupling = CaParams(  # the coupling scenarios' debounced trigger (as their SUMO files): A3, issue #19
+    ca_coupling = CaParams(  # the coupling scenarios' debounced trigger (as their SUMO files): A3
         threshold_mode="rdbm",
         t_eq_s=0.3,
         margin_m=1.0,
@@ -309,8 +309,8 @@ def _metrics(
             continue
         label = f"obstacle-{names[0]}" if i == 0 else f"{names[i - 1]}-{names[i]}"
         k = int(np.argmin(g))
-        # Steps where the gap is deeper below the trigger in force than the CA's debounce band (issue #19,
-        # states.ca_should_fire) and the CA is not (yet) braking: the invariant "deep below the safety distance
+        # Steps where the gap is deeper below the trigger in force than the CA's debounce band
+        # (states.ca_should_fire) and the CA is not (yet) braking: the invariant "deep below the safety distance
         # only while CA acts" (one step of detection latency allowed; band 0 = the bare trigger).
         trig = np.nan_to_num(res.trigger_m[:, i], nan=-np.inf)
         band = (cfg.lead_ca if i == 0 else cfg.ca).trigger_band_m

@@ -144,7 +144,7 @@ def ca_should_fire(
     urgent_object: bool = False,
     braking_suffices: bool = False,
 ) -> bool:
-    """Debounced CA *trigger* (issue #19, our design; the paper's §3.2 trigger is the bare ``gap ≤ S_trig``).
+    """Debounced CA *trigger* (our design; the paper's §3.2 trigger is the bare ``gap ≤ S_trig``).
 
     During normal accelerated coupling the coupling law brakes *along* the RDBM curve, so the measured gap grazes
     the trigger distance by centimetres for a step or two (the pure runner: ``track_accel`` loaded F2 touched it

@@ -33,7 +33,7 @@ stopping, restrictions and the state machine (the engine side of :mod:`railsim.e
   serve, the leader stays after its own dwell until its follower's dwell there has ended
   (:meth:`holds_departure`), so the pair leaves as one with the longer of the two dwells — as one coupled train
   would. Without it each unit keeps its own dwell: a follower that dwells longer drops behind and, planned in its
-  leader's slot, then uses each platform after it (the #22 robustness study measured what that costs).
+  leader's slot, then uses each platform after it (the robustness study measures what that costs).
 
 Paper-specific follower logic (Paper D's state machine) plugs in as an extension's ``follower_step(t, tr,
 formation, ahead)``, run before the state machine is fed (:mod:`railsim.engine.extensions.base`).

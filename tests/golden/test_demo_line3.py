@@ -1,4 +1,4 @@
-"""Issue 3 acceptance: the default scenario (what `make demo` runs) on Chongqing Line 3, in a real SUMO run.
+"""The default scenario (what `make demo` runs) on Chongqing Line 3, in a real SUMO run.
 
 The run is the golden test's demo case (``golden_run("demo_line3_peak")``, ``tests/golden/conftest.py``): the
 same scenario file, made once per test session and shared with the byte-for-byte comparison. It runs with the

@@ -1,4 +1,4 @@
-"""Issue #21: no input breaks ``railsim validate``, and what it accepts runs (the fuzz test of :mod:`tests.fuzz`).
+"""No input breaks ``railsim validate``, and what it accepts runs (the fuzz test of :mod:`tests.fuzz`).
 
 1,000 seeded mutants of the shipped scenarios are validated in this process, each with a time limit: every one
 must end in exit 0 or 2 — on 2 with exactly one ``railsim: error:`` line — with no traceback and no hang. A

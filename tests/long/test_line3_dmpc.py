@@ -1,4 +1,4 @@
-"""Issue 4 build item 7: Paper A's controllers drive coupled formations on a line, not only on the corridor.
+"""Paper A's controllers drive coupled formations on a line, not only on the corridor.
 
 A small slice of ``scenarios/chongqing_line3_dmpc.yaml`` (one Airport unit each way plus the coupled Jurenba unit)
 runs in SUMO with the coupled role run by the DMPC: no collision, every stop served, the pair couples at

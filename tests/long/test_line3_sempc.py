@@ -1,4 +1,4 @@
-"""Issue 5: SEMPC as every train's ATO on Chongqing Line 3, in a real SUMO run (child process).
+"""SEMPC as every train's ATO on Chongqing Line 3, in a real SUMO run (child process).
 
 A smaller slice than scenarios/chongqing_line3_sempc.yaml (one Airport unit each way and the coupled Jurenba
 unit) to keep the suite fast: every stop served by SEMPC within ±0.3 m, 0 collisions, no fallbacks, and

@@ -1,4 +1,4 @@
-"""Depot runs in SUMO (issue 17 item 2): a unit leaves a depot, runs its day and returns.
+"""Depot runs in SUMO: a unit leaves a depot, runs its day and returns.
 
 The world is the small ``mini_y`` line (A–E, branch to G) with depot leads added to its line description
 (``network.generator``: a bidi lead joined to both tracks by one switch each). Every run is checked by the

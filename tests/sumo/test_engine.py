@@ -1,6 +1,6 @@
 """Engine integration: real SUMO runs (each in a child process) of a small Y-shaped line.
 
-What is pinned here (issue 3): a line with up/down trains, a virtually coupled pair that decouples before the
+What is pinned here: a line with up/down trains, a virtually coupled pair that decouples before the
 switch and a merging train runs with 0 collisions, every stop served within ±0.5 m of the mark, the decoupled
 units each take the switch lock for their own leg; the same seed gives byte-identical trips.csv; late and lost
 messages make the follower act on stale data and the recorder shows it; SUMO's positions match the numpy plant.

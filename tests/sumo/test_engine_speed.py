@@ -1,4 +1,4 @@
-"""The engine's speed shortcuts give the same bits as the long way (issue 20).
+"""The engine's speed shortcuts give the same bits as the long way.
 
 Each shortcut on the hot path has a reference it must reproduce exactly: here the free-run planner's direct
 call of the line ATO's law (no observation objects), against the same law reached through ``command(obs)``.

@@ -1,4 +1,4 @@
-"""Bring your own SUMO net (issue 10): three networks railsim did not generate, built here with netconvert.
+"""Bring your own SUMO net: three networks railsim did not generate, built here with netconvert.
 
 * **ring**: a one-way loop line (four curved edges, four stations, no switches); a service wraps around the
   point where the loop closes.

@@ -1,4 +1,4 @@
-"""Issue 16: the line studies, ``network show``, ``validate`` and the refusal of a road net on a user's SUMO net.
+"""The line studies, ``network show``, ``validate`` and the refusal of a road net on a user's SUMO net.
 
 The nets are the netconvert-built ones of :mod:`tests.sumo.test_external_net` (a double-track line X1–X2–Y1 with a
 single-track branch to Zed, and a single-track line with a passing loop).

@@ -1,4 +1,4 @@
-"""Issue #21's reproducers, one regression test each: inputs that once crashed, hung, leaked or passed validation.
+"""Reproducers, one regression test each: inputs that once crashed, hung, leaked or passed validation.
 
 Here: the tests of it that run SUMO or a railsim child process; the others are in ``tests/unit/test_input_hardening.py``.
 """

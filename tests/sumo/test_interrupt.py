@@ -1,4 +1,4 @@
-"""Issue 21, "nothing lost": Ctrl-C or SIGTERM on ``railsim run`` writes what the run has, then exits 130/143.
+"""Ctrl-C or SIGTERM on ``railsim run`` writes what the run has, then exits 130/143.
 
 A real ``railsim run`` (child process, real SUMO) of a two-hour variant of the mini Y line gets the signal
 shortly after its step loop starts (the ``-v`` log line "simulating …"). It must exit with ``128 + signal``,

@@ -1,4 +1,4 @@
-"""The junction planner online in SUMO (issue 8): Table 3 scenario 1 on the ``y_junction`` world.
+"""The junction planner online in SUMO: Table 3 scenario 1 on the ``y_junction`` world.
 
 Each run is ``railsim run`` in a child process (libsumo: one simulation per process). What is checked comes from
 the recorded files, i.e. from what SUMO did: no collision and no train over a switch that is not locked for it;
@@ -156,10 +156,10 @@ def test_start_before_a_switch_not_on_the_route(tmp_path: Path) -> None:
 
 
 def test_qp_order_couples_at_F_in_sumo_without_collisions_or_switch_violations(tmp_path: Path) -> None:
-    """The deterministic planner online (issue 18): the plan it makes is one the engine lets the trains fly — the
+    """The deterministic planner online: the plan it makes is one the engine lets the trains fly — the
     interlocking grants each lock before the train's braking point, the followers' guard never caps them — so
     the platoon is coupled at F (Eqs. 2–3 measured on the SUMO trajectories when the leader reaches F). When the
-    order freezes (a train at its point of no return) the coordinator re-plans once (session 6): with seed 1 no
+    order freezes (a train at its point of no return) the coordinator re-plans once: with seed 1 no
     tracking deviation triggers a re-plan before that, so without it the order would never be frozen by a plan and
     the run would fly the budgeted first plan to its later coupling."""
     out = tmp_path / "qp"

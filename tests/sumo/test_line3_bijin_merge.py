@@ -1,4 +1,4 @@
-"""Down Jurenba units couple behind an Airport unit at the Bijin merge (issue 18, ``chongqing_line3_peak_merge``).
+"""Down Jurenba units couple behind an Airport unit at the Bijin merge (``chongqing_line3_peak_merge``).
 
 One pair of the scenario, cut short (both end at Huixing, two stations past Bijin), runs in SUMO in a child
 process. What is checked comes from the recorded files: the Airport unit takes the ``bijin_down`` lock first and

@@ -1,4 +1,4 @@
-"""Issue 21, "nothing silent": a controller that falls back leaves an event with its reason and a WARNING line.
+"""A controller that falls back leaves an event with its reason and a WARNING line.
 
 The forced case is Paper A's DMPC baseline (``scenarios/paper000_sd_comparison_dmpc.yaml``) with OSQP allowed
 one ADMM iteration (``max_iter: 1``): no solve converges, so both followers brake on their fallback at every

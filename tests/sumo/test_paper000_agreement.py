@@ -1,10 +1,10 @@
-"""The engine and the numpy runner agree on Paper A under the same settings (issue 19), and the engine carries a
+"""The engine and the numpy runner agree on Paper A under the same settings, and the engine carries a
 leader's plan on t2t and logs when a follower loses it.
 
 The numpy twin (:func:`railsim.studies.paper000_tables.numpy_twin`) is built from the same scenario file; both are
-scored by the same metric function. Before issue 19 the two disagreed in S-E (7.1 m engine vs 10.4 m numpy mean
-spacing error): the runner's follower read a one-step-old report of a leader that sends no plan. Now the leader
-broadcasts its plan (the paper's assumption) and the runner reads messages as the engine delivers them.
+scored by the same metric function. A runner whose follower reads a one-step-old report of a leader that sends no
+plan disagrees in S-E (7.1 m engine vs 10.4 m numpy mean spacing error), so the leader broadcasts its plan (the
+paper's assumption) and the runner reads messages as the engine delivers them.
 
 Without the actuator noise (whose random stream is the only thing the two do not share) the runs are the same
 trajectories: measured max |ΔS_engine − ΔS_numpy| 5e-7 m (S-E), 7e-7 m (S-D). With the noise, the 5-seed means

@@ -1,4 +1,4 @@
-"""Issue 5 in SUMO: Paper B's train integrated carriage by carriage (railsim.physics.multipoint) and driven by SEMPC.
+"""In SUMO: Paper B's train integrated carriage by carriage (railsim.physics.multipoint) and driven by SEMPC.
 
 ``scenarios/paper001_single_section.yaml`` runs in a child process: the stop at s2 is within ±0.3 m of the mark,
 and the total applied force seen in the trace never leaves the per-carriage envelope (6 × 70 kN traction,

@@ -1,4 +1,4 @@
-"""Paper B's scenarios B, C-constant and C-harmonic in SUMO (issue #19), and the measures the engine reports.
+"""Paper B's scenarios B, C-constant and C-harmonic in SUMO, and the measures the engine reports.
 
 * ``scenarios/paper001_{multi_section,wind_constant,wind_harmonic}.yaml`` load, run briefly in SUMO (a child
   process), and report the ``paper001`` measures with every controller inside the force and force-rate envelope;

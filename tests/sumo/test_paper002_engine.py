@@ -1,4 +1,4 @@
-"""Paper C through the engine (issue 6): the scenario file run in SUMO agrees with the numpy reference model.
+"""Paper C through the engine: the scenario file run in SUMO agrees with the numpy reference model.
 
 ``scenarios/paper002_topology_switch.yaml`` (six trains, T = 1 s, union topology, the spec's corrected
 parameters, train 2 leaves and train 5 joins at k = 1000) is run by ``railsim run`` in a child process; every

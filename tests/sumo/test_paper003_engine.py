@@ -1,4 +1,4 @@
-"""Issue 7 in SUMO: Paper D's obstacle collision avoidance on a Line 3 section (Jiugongli → Qilong).
+"""In SUMO: Paper D's obstacle collision avoidance on a Line 3 section (Jiugongli → Qilong).
 
 The collision-avoidance role acts on the train's own sensor (no radio). An obstacle appears 50 m ahead of a unit
 running at 25 km/h: the trigger fires at the paper's 28 m, emergency braking is latched until standstill and held

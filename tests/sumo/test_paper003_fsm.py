@@ -1,4 +1,4 @@
-"""Issue 7: Paper D's follower state machine drives in-operation decoupling in the engine (spec §3.2.4).
+"""Paper D's follower state machine drives in-operation decoupling in the engine (spec §3.2.4).
 
 From the decelerated-tracking scenario (both followers couple at 5 m behind a 10 km/h lead): at t = 30 s the lead
 accelerates to 50 km/h while the followers' cars are capped at 25 km/h, so the spacing opens. Once it exceeds

@@ -8,7 +8,7 @@ What must hold in every run (read back with railsim.analysis.paper003):
 * the gap is never below the follower's CA safety distance (recomputed per sample from the resolved scenario)
   unless the CA of that follower is triggered (one step of detection latency allowed): ``unguarded_s == 0``;
 * coupling scenarios couple (formations.csv) and end at d_c = 5 m with matched speeds;
-* the coupling scenarios never fire CA nor the emergency brake (issue #19);
+* the coupling scenarios never fire CA nor the emergency brake;
 * the departure CA scenario is designed to cross the 28 m trigger: the trigger fires at a gap ≤ 28 m, emergency
   braking starts in the same step, the CA releases later at a gap above the trigger, and the gap recovers above it;
   the arrival case adds the CA's braking to the service braking (A27) and holds it for a long, gentle interval;
@@ -72,8 +72,8 @@ def test_coupling_scenarios_couple_without_collision(tmp_path: Path, name: str, 
     for pair, p in m["pairs"].items():
         assert abs(p["final_gap_m"] - D_C_M) < 0.5 and abs(p["final_speed_diff_mps"]) < 0.1, (pair, p)
         assert p["min_gap_m"] > D_C_M - 0.5, (pair, p)  # no undershoot of d_c worth the name
-    # issue #19: normal coupling never fires collision avoidance nor the emergency brake (was 5 / 21 times in
-    # accelerated coupling, empty / loaded)
+    # normal coupling never fires collision avoidance nor the emergency brake (the bare trigger fired them 5 / 21
+    # times in accelerated coupling, empty / loaded)
     assert not [e for e in _events(out) if e[1] in ("ca_trigger", "emergency_brake_on")]
 
 

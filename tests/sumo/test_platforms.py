@@ -1,4 +1,4 @@
-"""Platforms on other people's nets (issue 16): short platforms, platforms at the very end of a route.
+"""Platforms on other people's nets: short platforms, platforms at the very end of a route.
 
 Nets made with SUMO's tools often have platforms shorter than our trains (``tools/game/rail``: ``startPos="10"
 endPos="-10"`` on short edges) and platforms that end a metre before the end of their edge (the last edge of a

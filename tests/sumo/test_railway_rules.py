@@ -1,4 +1,4 @@
-"""Railway rules on any network (issue 16): safe insertion, one collision truth, desync check, stall detection.
+"""Railway rules on any network: safe insertion, one collision truth, desync check, stall detection.
 
 Each SUMO run is a child process on a small straight line built here with netconvert (two edges, four
 platforms); a few simulated minutes each. Where a failure must be provoked (a train moved behind railsim's

@@ -1,4 +1,4 @@
-"""Single track is one direction at a time (issue 16): opposing trains on nets built here with netconvert.
+"""Single track is one direction at a time: opposing trains on nets built here with netconvert.
 
 * **no passing loop** — one bidi line A–B with a station at each end: both trains are due at the same time; the
   second is held at its platform (``departure_held`` naming the section) until the first has left the section,

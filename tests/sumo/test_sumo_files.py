@@ -1,4 +1,4 @@
-"""Issue 21, "see it in SUMO": every run folder opens in SUMO's own tools; ``railsim run --gui`` is the same run.
+"""Every run folder opens in SUMO's own tools; ``railsim run --gui`` is the same run.
 
 A real run of the mini Y line (child process) with ``outputs.sumo: [fcd]`` must leave ``sumo_vtypes.rou.xml``,
 ``sumo_routes.rou.xml`` (every inserted train), ``sumo_run.sumocfg`` and ``sumo_replay.sumocfg``; headless

@@ -1,4 +1,4 @@
-"""Turnbacks and rotations in SUMO (issue 17): a unit reverses and runs its next trip.
+"""Turnbacks and rotations in SUMO: a unit reverses and runs its next trip.
 
 Two small nets built with netconvert:
 

@@ -1,4 +1,4 @@
-"""Depot runs in SUMO (issue 17 item 2): a unit leaves a depot, runs its day and returns.
+"""Depot runs in SUMO: a unit leaves a depot, runs its day and returns.
 
 Here: the tests of it that start no process; the others are in ``tests/sumo/test_depot.py``.
 """

@@ -1,4 +1,4 @@
-"""The engine's shape (issue 15): tables that must agree, and the loop free of paper-specific branches."""
+"""The engine's shape: tables that must agree, and the loop free of paper-specific branches."""
 
 from __future__ import annotations
 

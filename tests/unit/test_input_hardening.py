@@ -1,4 +1,4 @@
-"""Issue #21's reproducers, one regression test each: inputs that once crashed, hung, leaked or passed validation.
+"""Reproducers, one regression test each: inputs that once crashed, hung, leaked or passed validation.
 
 Each case writes a shipped scenario with one change and runs ``railsim validate`` in this process (through
 :func:`tests.fuzz.validate_in_process`: a time limit, exactly one ``railsim: error:`` line, no traceback) and

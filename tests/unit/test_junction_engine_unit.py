@@ -1,4 +1,4 @@
-"""The junction planner online in SUMO (issue 8): Table 3 scenario 1 on the ``y_junction`` world.
+"""The junction planner online in SUMO: Table 3 scenario 1 on the ``y_junction`` world.
 
 Here: the tests of it that start no process; the others are in ``tests/sumo/test_junction_engine.py``.
 """

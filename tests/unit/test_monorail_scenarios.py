@@ -55,7 +55,7 @@ def _triggers(load: str, k_cap_per_s: float | None = None, bare: bool = False) -
 
 @pytest.mark.parametrize("load", ["empty", "loaded"])
 def test_accelerated_coupling_never_fires_the_emergency_brake(load: str) -> None:
-    """Issue #19: normal accelerated coupling (the scenario's defaults: APF safety cap 2/s, debounced trigger)
+    """Normal accelerated coupling (the scenario's defaults: APF safety cap 2/s, debounced trigger)
     couples without a single CA trigger or emergency brake, collision-free."""
     ca, eb, m = _triggers(load)
     assert ca == 0 and eb == 0

@@ -171,7 +171,7 @@ def test_bad_parameters_are_value_errors() -> None:
         create("monorail_apf", {"bogus": 1.0}, vehicle_params_for("empty"))
 
 
-# --- issue #19: CA trigger debounce and the additive braking of Eq. (A27) ------------------------------------------
+# --- CA trigger debounce and the additive braking of Eq. (A27) ------------------------------------------
 
 
 def test_ca_should_fire_debounce_rules() -> None:

@@ -1,4 +1,4 @@
-"""Issue 21, "nothing silent": a controller that falls back leaves an event with its reason and a WARNING line.
+"""A controller that falls back leaves an event with its reason and a WARNING line.
 
 Here: the tests of it that start no process; the others are in ``tests/sumo/test_nothing_silent.py``.
 """

@@ -1,4 +1,4 @@
-"""The compiled MCF rollout/cost of :mod:`controllers.mcf_dmpc.kernels` equals the scalar reference (issue #19).
+"""The compiled MCF rollout/cost of :mod:`controllers.mcf_dmpc.kernels` equals the scalar reference.
 
 The reference is the plain-float rollout ``rollout._rollout_scalar`` (itself pinned to the numpy laws of
 :mod:`controllers.mcf_dmpc.cf_models` in test_paper000_models) scored by ``cost.cost_terms``. Random states, plans,
@@ -94,7 +94,7 @@ def test_sequence_costs_uses_kernel_and_agrees_with_numpy_path() -> None:
 
 def test_a_rows_cost_does_not_depend_on_its_batch() -> None:
     """batch_costs scores rows in pairs; a row's cost is bit for bit the same alone, in an odd or even batch, at any
-    position, and with one shared Θ row or its own copy (the compiled searches rely on it: issue 19)."""
+    position, and with one shared Θ row or its own copy (the compiled searches rely on it)."""
     rng = np.random.default_rng(23)
     for _ in range(12):
         steps = int(rng.integers(1, 61))
@@ -114,8 +114,8 @@ def test_a_rows_cost_does_not_depend_on_its_batch() -> None:
 
 
 def test_rows_resumed_from_prefix_states_cost_the_same() -> None:
-    """The compiled MSMFO starts every row after its first ``depth`` models from :func:`kernels.prefix_states`
-    (issue 19): the cost is bit for bit the one of the full rollout, for every depth up to the horizon minus one,
+    """The compiled MSMFO starts every row after its first ``depth`` models from :func:`kernels.prefix_states`:
+    the cost is bit for bit the one of the full rollout, for every depth up to the horizon minus one,
     in pairs and alone; a table of the wrong depth would give other costs (checked, so the test can fail)."""
     rng = np.random.default_rng(29)
     for _ in range(10):

@@ -1,6 +1,6 @@
 """The compiled MSMFO (:mod:`controllers.mcf_dmpc.msmfo_jit`) is the Python MSMFO with the MCF fitness, compiled:
 from the same generator state it returns the same sequence, cost and evaluation count, and leaves the generator in
-the same state (issue 19). So the controllers' fast path changes nothing but the time.
+the same state. So the controllers' fast path changes nothing but the time.
 """
 
 from __future__ import annotations

@@ -1,5 +1,5 @@
 """The compiled OPO (:mod:`controllers.mcf_dmpc.opo_jit`) is :func:`controllers.mcf_dmpc.opo.opo_step` with the MCF
-fitness, compiled: from the same warm start it returns the same Θ, costs and counts bit for bit (issue 19), on
+fitness, compiled: from the same warm start it returns the same Θ, costs and counts bit for bit, on
 random predecessors, states and warm starts (inside, on and outside the box), with the paper's box and with fixed
 parameters (zero-width bounds).
 """

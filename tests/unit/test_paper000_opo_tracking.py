@@ -1,4 +1,4 @@
-"""OPO's online parameter correction improves late-phase spacing tracking over fixed Θ (issue #19, spec 000 §2.8).
+"""OPO's online parameter correction improves late-phase spacing tracking over fixed Θ (spec 000 §2.8).
 
 Short-horizon S-E: two trains already coupled at D^(e) (220 km/h), the leader's 220 → 180 → 220 km/h manoeuvre
 known to the follower, noise SD 0.01 m/s², a reduced MSMFO budget (P = 20, K = 10) so the test runs in seconds.

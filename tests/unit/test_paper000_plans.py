@@ -1,4 +1,4 @@
-"""Leader plans on t2t (issue 19): a ``speed_profile`` leader broadcasts its own future, a Paper A follower uses
+"""Leader plans on t2t: a ``speed_profile`` leader broadcasts its own future, a Paper A follower uses
 the plan while it is fresh and extrapolates (with an event) when it is stale or lost; the numpy runner's message
 conventions. Pure Python: no SUMO (the engine side is in ``test_paper000_agreement.py``).
 """
@@ -125,7 +125,7 @@ def test_message_conventions_of_the_numpy_runner() -> None:
 
 
 def test_previous_message_was_the_se_disagreement() -> None:
-    """Issue 19: with a leader that sends no plan, a one-step-old report (the runner's former default) costs S-E
+    """With a leader that sends no plan, a one-step-old report (the runner's former default) costs S-E
     ~3 m of mean spacing error over the engine's age-0 report — the measured 10.4 vs 7.1 m."""
     d0 = float(desired_spacing_m(220 * KMH, 220 * KMH))
     err = {}

@@ -1,4 +1,4 @@
-"""Paper B's scenarios B, C-constant and C-harmonic in SUMO (issue #19), and the measures the engine reports.
+"""Paper B's scenarios B, C-constant and C-harmonic in SUMO, and the measures the engine reports.
 
 Here: the tests of it that start no process; the others are in ``tests/sumo/test_paper001_scenarios.py``.
 """

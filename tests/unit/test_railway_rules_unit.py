@@ -1,4 +1,4 @@
-"""Railway rules on any network (issue 16): safe insertion, one collision truth, desync check, stall detection.
+"""Railway rules on any network: safe insertion, one collision truth, desync check, stall detection.
 
 Here: the tests of it that start no process; the others are in ``tests/sumo/test_railway_rules.py``.
 """

@@ -1,4 +1,4 @@
-"""Turnbacks and rotations in SUMO (issue 17): a unit reverses and runs its next trip.
+"""Turnbacks and rotations in SUMO: a unit reverses and runs its next trip.
 
 Here: the tests of it that start no process; the others are in ``tests/sumo/test_turnback.py``.
 """
