@@ -64,7 +64,7 @@ test-fast: $(STAMP)
 
 # Format the tree (`make test` checks it is formatted).
 format: $(STAMP)
-	$(BIN)/ruff check --fix --select I,UP035,UP037 .
+	$(BIN)/ruff check --fix .
 	$(BIN)/ruff format .
 
 bench: $(STAMP)

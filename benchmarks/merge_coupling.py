@@ -30,7 +30,6 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
 from tests.helpers import merge_world, read_summary, run_mapping  # noqa: E402
 
-
 START_S = 120.0  # the first leader leaves E then (a follower may leave G up to this much before it)
 UNRELATED_CLEAR_S = 60.0  # an unrelated train leaves its origin this long after / before the formations' units
 

@@ -19,11 +19,11 @@ from __future__ import annotations
 
 import argparse
 import json
+import multiprocessing as mp
 import platform
 import tempfile
 import time
 from pathlib import Path
-import multiprocessing as mp
 from typing import Any
 
 from spawn import in_process  # benchmarks/spawn.py (the scripts' folder is on sys.path)

@@ -36,7 +36,6 @@ from numba import njit
 from railsim.physics import forces
 from railsim.physics.plant_kernel import PLANT_FIELDS
 
-
 ATO_PHASES = ("hold", "cruise", "restriction", "stop", "brake", "emergency")
 _HOLD, _CRUISE, _RESTRICTION, _STOP, _BRAKE, _EMERGENCY = range(6)
 SEPARATION_PHASES = ("follow", "brake", "emergency", "halt")

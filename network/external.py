@@ -88,9 +88,9 @@ from typing import Any
 
 import networkx as nx
 
-from network.names import ascii_letters
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
+from network.names import ascii_letters
 from network.running_side import RUNNING_SIDES, WRONG_LINE_FACTOR, mark_wrong_line
 from network.topology import (
     NetworkBundle,

@@ -17,7 +17,6 @@ import re
 from pathlib import Path
 from typing import Any
 
-
 MAX_MESSAGE_CHARS = 1000
 QUOTE_CHARS = 80  # the longest quote of a user value (railsim.inputs.EXCERPT_CHARS)
 # a quoted value ('…' or "…") or an unbroken run of characters longer than a quote may be; a quote mark inside a

@@ -80,7 +80,6 @@ import scipy.sparse as sp
 
 from controllers.braking import relative_braking_distance_m, require
 from controllers.junction.model import Problem, rollout, safety_margin_m
-from controllers.junction.qp_timetable import chained_passages, fastest_runs, timetable_E
 from controllers.junction.qp_kinematics import (
     Jacobian,
     Kinematics,
@@ -92,7 +91,7 @@ from controllers.junction.qp_kinematics import (
     negated,
     time_terms,
 )
-
+from controllers.junction.qp_timetable import chained_passages, fastest_runs, timetable_E
 
 E_SCALE = 100.0  # m²/s²: E = v² enters the QP as E / E_SCALE (conditioning)
 T_SCALE = 10.0  # s: breakpoint times enter the QP as t / T_SCALE

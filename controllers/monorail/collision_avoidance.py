@@ -55,7 +55,6 @@ from controllers.monorail.mpc import GapTrackingQp, QpWeights, predict_ahead
 from controllers.monorail.states import braking_suffices, ca_hysteresis, ca_should_fire
 from railsim.physics.vehicle import VehicleParams
 
-
 POST_RELEASE = ("none", "hold_speed", "previous_command")
 
 

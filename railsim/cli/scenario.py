@@ -27,8 +27,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from railsim.cli import values
 from railsim import scenario as scenario_mod
+from railsim.cli import values
 from railsim.studies.world import run_checks
 
 

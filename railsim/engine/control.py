@@ -59,6 +59,7 @@ from controllers.base import (
 )
 from controllers.cacc import Cacc
 from controllers.separation import Separation
+from railsim.engine import kernel_entry, line_step_kernel
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.disturbances import Disturbances
 from railsim.engine.events.log import EventLog
@@ -72,7 +73,6 @@ from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
-from railsim.engine import kernel_entry, line_step_kernel
 from railsim.physics import dynamics, plant_kernel
 
 log = logging.getLogger(__name__)

@@ -30,8 +30,8 @@ import numpy as np
 from numba import njit
 
 from controllers import line_kernels
-from railsim.physics import plant_kernel
 from railsim.engine.settings import FREE_RUN_MISSED_M
+from railsim.physics import plant_kernel
 
 LOOKAHEAD_M = 4000.0  # the restrictions window ahead of the front
 

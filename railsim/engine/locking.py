@@ -72,17 +72,17 @@ from railsim.engine.events.interlocking import Interlocking, RequestState
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.extensions.base import ExtensionSet
-from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker, start_limit_of
 from railsim.engine.fleet import Fleet
-from railsim.engine.settings import INF, EngineSettings
-from railsim.engine.single_track import (
-    RouteSection,
-)
-from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk, ShortEntries
+from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker, start_limit_of
 from railsim.engine.section_requests import (
     SectionRequests,
     separation_margin_m,
     stop_before,
+)
+from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk, ShortEntries
+from railsim.engine.settings import INF, EngineSettings
+from railsim.engine.single_track import (
+    RouteSection,
 )
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop

@@ -32,12 +32,12 @@ import numpy as np
 
 from railsim.engine import primary_delays, timed
 from railsim.engine.control import ControlStage
-from railsim.engine.disturbances import Disturbances
 from railsim.engine.coupling import FormationBook
+from railsim.engine.depot import Depots
+from railsim.engine.disturbances import Disturbances
 from railsim.engine.events import EventLayer, FormationManager, Interlocking, Switch
 from railsim.engine.extensions import ExtensionContext, ExtensionSet
 from railsim.engine.extensions.registry import install_all
-from railsim.engine.depot import Depots
 from railsim.engine.fleet import Fleet
 from railsim.engine.heap import setup_frozen
 from railsim.engine.insertion import Dispatcher
@@ -55,8 +55,8 @@ from railsim.engine.train import TrainRuntime
 from railsim.engine.truth import TruthPass
 from railsim.engine.turnback import Turnbacks
 from railsim.engine.watchdog import StallWatch
-from railsim.record.recorder import Recorder
 from railsim.errors import SimulationError
+from railsim.record.recorder import Recorder
 from railsim.record.snapshot import RunSnapshot
 
 __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]

@@ -28,7 +28,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-
 STEP_S = 0.1  # time grid of the search for the closest approach
 
 

@@ -41,13 +41,11 @@ failure is the backstop.
 
 from __future__ import annotations
 
-from bisect import bisect_right
-
 import logging
 import math
+from bisect import bisect_right
 from collections.abc import Callable
 from typing import Any
-
 
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.events.log import EventLog

@@ -45,11 +45,11 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 from typing import NamedTuple
+
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import RouteSection
 from railsim.engine.train import TrainRuntime
-
 
 SECTION_WALK_MIN = 4  # entries on a route from which a walk pays (fewer: every entry is visited every step)
 

@@ -55,8 +55,8 @@ if not os.environ["SUMO_HOME"]:
 import libsumo  # noqa: E402  (after SUMO_HOME)
 
 from railsim.engine import stop_passes, sumo_files  # noqa: E402
-from railsim.record.output import write_bytes  # noqa: E402
 from railsim.errors import SimulationError  # noqa: E402
+from railsim.record.output import write_bytes  # noqa: E402
 
 log = logging.getLogger(__name__)
 

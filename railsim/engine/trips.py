@@ -31,7 +31,6 @@ from typing import Any
 
 import numpy as np
 
-
 STOP_MARK_BEFORE_END_M = 1.0  # the front halts this far before the platform end
 SHORT_PLATFORM_WINDOW_M = 2.0  # a platform shorter than the train: the front halts in the last 2 m of it
 SHORT_PLATFORM_OVERRUN_M = 1.0  # ... and a halt up to 1 m past its end still serves it (never a dropped stop)

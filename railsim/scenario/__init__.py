@@ -183,7 +183,6 @@ from railsim.scenario.events import (
     register_event_kind,
 )
 from railsim.scenario.loading import from_mapping, load, loads, parse_yaml, read_text, resolved_yaml
-from railsim.scenario.shipped import shipped, shipped_names
 from railsim.scenario.model import (
     COMM_CHANNELS,
     DEFAULT_COUPLING_TIMEOUT_S,
@@ -208,9 +207,9 @@ from railsim.scenario.model import (
     EventSpec,
     FaultSpec,
     FormationSpec,
+    InterlockingSpec,
     JunctionSpec,
     OutageSpec,
-    InterlockingSpec,
     OutputSpec,
     PlantSpec,
     Scenario,
@@ -222,6 +221,7 @@ from railsim.scenario.model import (
     WorldSpec,
 )
 from railsim.scenario.overrides import OVERRIDE_PATH_RE, with_overrides
+from railsim.scenario.shipped import shipped, shipped_names
 from railsim.scenario.validate_vehicles import VEHICLE_FIELDS
 from railsim.scenario.world import check_against_world, with_station_ids
 

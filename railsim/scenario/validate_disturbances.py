@@ -12,6 +12,7 @@ import math
 from collections.abc import Sequence
 from typing import Any
 
+from railsim.scenario.clock import format_clock
 from railsim.scenario.disturbances import (
     DWELL_DISTS,
     DelayDist,
@@ -21,7 +22,6 @@ from railsim.scenario.disturbances import (
     IncidentSpec,
     PerformanceSpec,
 )
-from railsim.scenario.clock import format_clock
 from railsim.scenario.model import MIN_RUNNING_TIME_FACTOR, ServiceSpec
 from railsim.scenario.validate import Checker, did_you_mean
 from railsim.scenario.validate_services import trip_name

@@ -29,12 +29,12 @@ from typing import Any
 
 from railsim.scenario import (
     events as event_section,
+    validate_disturbances,
     validate_faults,
     validate_formations,
-    validate_disturbances,
+    validate_rotations,
     validate_services,
     validate_setup,
-    validate_rotations,
     validate_vehicles,
 )
 from railsim.scenario.model import Scenario

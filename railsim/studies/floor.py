@@ -49,7 +49,6 @@ import math
 from dataclasses import dataclass, field
 from typing import Any
 
-
 _CLEAR_DT_S = 0.05  # integration step of the leader's departure [s]
 
 

@@ -27,7 +27,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from tests.helpers import merge_world, run_clean, ok_stdout, read_csv, read_summary, run_railsim
+from tests.helpers import merge_world, ok_stdout, read_csv, read_summary, run_clean, run_railsim
 
 OSM = Path(__file__).resolve().parents[1] / "data" / "osm"
 POTSDAM = OSM / "potsdam_tram_2025.osm.gz"

@@ -5,7 +5,6 @@ from __future__ import annotations
 
 from pathlib import Path
 
-
 from tests import fuzz, fuzz_sections
 from tests.helpers import run_railsim
 

@@ -26,7 +26,7 @@ from __future__ import annotations
 from pathlib import Path
 from typing import Any
 
-from tests.helpers import merge_world, run_clean, read_csv, read_summary
+from tests.helpers import merge_world, read_csv, read_summary, run_clean
 
 SWITCH = "c_down"
 GAP_M = 30.0

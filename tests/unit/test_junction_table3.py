@@ -7,7 +7,6 @@ the 8-seed PSO comparison (10 s of CPU) is in ``tests/long/test_junction_table3_
 
 from __future__ import annotations
 
-
 from controllers.junction.baselines import priority_order, run_naive
 from controllers.junction.planner import build_problem
 from controllers.junction.simulate import measure, table3_scenario

@@ -18,8 +18,7 @@ import networkx as nx
 import numpy as np
 import pytest
 
-from railsim.engine import occupancy as occupancy_module
-from railsim.engine import occupancy_kernel
+from railsim.engine import occupancy as occupancy_module, occupancy_kernel
 from railsim.engine.occupancy import Body, Occupancy
 from railsim.engine.routeview import RouteView
 from tests.helpers import interpreted

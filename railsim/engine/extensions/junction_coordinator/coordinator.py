@@ -85,6 +85,9 @@ from controllers.junction.planner import (
 from controllers.junction.pso import improved_pso_params, plain_pso_params
 from controllers.junction.qp import QpOrderParams
 from controllers.junction.simulate import measure
+from railsim.engine.extensions.base import Extension
+from railsim.engine.extensions.context import ExtensionContext
+from railsim.engine.extensions.junction_coordinator.ground import SWITCHES, ground_front, ground_states, switch_states
 from railsim.engine.extensions.junction_coordinator.readings import (
     engine_corrected_params,
     interlocking_model,
@@ -92,17 +95,14 @@ from railsim.engine.extensions.junction_coordinator.readings import (
     switch_interval_s,
     turnout_start,
 )
-from railsim.engine.extensions.junction_coordinator.ground import SWITCHES, ground_front, ground_states, switch_states
 from railsim.engine.extensions.junction_coordinator.tracking import PlannedTrain, leader_time_reference
-from railsim.engine.extensions.base import Extension
-from railsim.engine.extensions.context import ExtensionContext
 from railsim.errors import ConfigError
 
 if TYPE_CHECKING:  # pragma: no cover
     from railsim.engine.events.interlocking import Leg
-    from railsim.scenario import Scenario
     from railsim.engine.occupancy import Ahead
     from railsim.engine.train import TrainRuntime
+    from railsim.scenario import Scenario
 
 log = logging.getLogger(__name__)
 

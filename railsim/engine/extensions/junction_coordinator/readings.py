@@ -7,10 +7,9 @@ planner is given the engine's numbers, so that its plans are ones the engine let
 
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Iterable
 from typing import TYPE_CHECKING, Any
-
-import dataclasses
 
 from controllers.base import Observation, OwnState, PredecessorState
 from controllers.junction.model import JunctionParams
