@@ -6,7 +6,6 @@ import json
 import os
 import subprocess
 import tempfile
-import time
 from pathlib import Path
 
 import networkx as nx
@@ -291,16 +290,13 @@ def test_any_valid_line_puts_stops_at_design_chainage(gaps_m: list[float], platf
 # ------------------------------------------------------------------------------------------- cache & CLI
 def test_cache_hit_returns_identical_bundle_without_netconvert(tmp_path: Path) -> None:
     os.environ["RAILSIM_CACHE"] = str(tmp_path / "fresh")
-    t0 = time.perf_counter()
     first = network.build("chongqing_line3")
-    t_build = time.perf_counter() - t0
     assert first.net_file.parent.parent == tmp_path / "fresh" / "networks"
     mtime = first.net_file.stat().st_mtime_ns
     second = network.build("chongqing_line3")
     assert second.net_file == first.net_file and second.net_file.stat().st_mtime_ns == mtime
     assert second.routes == first.routes and second.stations == first.stations
     assert second.switches == first.switches
-    assert t_build < 5.0
     other = network.build("straight_corridor", length_km=20.0, stations=4)
     assert other.cache_key != network.build("straight_corridor").cache_key
     assert len(other.stations) == 4

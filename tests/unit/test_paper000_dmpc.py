@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-import statistics
+import math
 
 import numpy as np
 import pytest
@@ -98,17 +98,20 @@ def test_infeasible_start_falls_back_to_service_brake():
     assert len(cmd.info["plan"]["position_m"]) == 61
 
 
-def test_qp_solve_time_at_np60_below_1ms():
-    """Warm-started receding-horizon solves at Np = 60 (median of the QP wall time, this machine)."""
+def test_warm_started_receding_horizon_solves_at_np60_all_succeed():
+    """150 warm-started receding-horizon solves at Np = 60 behind a faster predecessor: every one solves, its
+    controls lie within the vehicle's limits, and its plan keeps the Table I spacing. How long a solve takes is a
+    benchmark's figure, not a test's (``benchmarks/controllers_000.py``: the DMPC's median solve time per
+    train-step against its 1 ms target)."""
     qp = DmpcQp(60, TABLE_I)
     x, v, xp, vp, up, u_nom = 0.0, 55.556, 500.0, 61.111, 0.0, None
-    times = []
     for _ in range(150):
         sol = qp.solve(x, v, up, constant_speed_horizon(xp, vp, 60, 1.0, 203.0, 1.0), u_nom)
-        assert sol.ok
-        times.append(sol.solve_time_s)
+        assert sol.ok, sol.status
+        assert sol.u.shape == (60,) and np.all(np.isfinite(sol.u)) and np.isfinite(sol.J)
+        assert np.all(sol.u >= -TABLE_I.service_decel_mps2 - 1e-9) and np.all(sol.u <= TABLE_I.max_accel_mps2 + 1e-9)
+        assert sol.safety_margin_m >= -1e-6 and 0.0 < sol.solve_time_s < math.inf
         up = float(sol.u[0])
         a = up - float(TABLE_I.resistance_mps2(v))
         x, v, xp = x + v + 0.5 * a, v + a, xp + vp
         u_nom = shift_controls(sol.u)
-    assert statistics.median(times[1:]) < 1e-3
