@@ -159,6 +159,11 @@ def accepted(name: str) -> list[dict[str, str]]:
     return [load_golden()[name], *(v["hashes"] for v in blas_variants().get(name, []))]
 
 
+def differing(got: dict[str, str], expected: dict[str, str]) -> list[str]:
+    """The files whose hashes differ between two outcomes of a case (one missing on either side counts)."""
+    return sorted(k for k in set(got) | set(expected) if got.get(k) != expected.get(k))
+
+
 def record_variant(name: str, hashes: dict[str, str], machine: str) -> bool:
     """Add ``hashes`` to ``name``'s recorded BLAS outcomes, seen on ``machine`` (docs/architecture.md, "The golden
     test"); False if they are golden.json's or already recorded."""
@@ -191,9 +196,7 @@ def main(argv: list[str] | None = None) -> int:
             if args.case and case.name not in args.case:
                 continue
             got = run_case(case, Path(tmp) / case.name, args.keep)
-            bad = sorted(
-                k for k in set(got) | set(golden.get(case.name, {})) if got.get(k) != golden.get(case.name, {}).get(k)
-            )
+            bad = differing(got, golden.get(case.name, {}))
             if bad and case.name in golden and got in accepted(case.name)[1:]:
                 print(f"{case.name}: same as a recorded BLAS variant ({BLAS_VARIANTS_FILE.name})")
                 continue

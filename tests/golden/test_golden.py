@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.golden import CASES, accepted, blas_variants, hash_outputs
+from tests.golden import CASES, accepted, blas_variants, differing, hash_outputs
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
@@ -24,17 +24,12 @@ def test_outputs_are_byte_identical_to_golden(case, golden_run: Callable[[str], 
     expected, *variants = accepted(case.name)
     workdir, exit_code = golden_run(case.name)
     got = hash_outputs(case.name, workdir, exit_code)
-    differ = _differ(got, expected)
+    differ = differing(got, expected)
     assert not differ or got in variants, (
         f"{case.name}: outputs differ from tests/data/golden.json in {differ}"
         + "".join(
-            f"; from its BLAS variant seen on {v['machine'][:60]!r} in {_differ(got, v['hashes'])}"
+            f"; from its BLAS variant seen on {v['machine'][:60]!r} in {differing(got, v['hashes'])}"
             for v in blas_variants().get(case.name, [])
         )
         + "; if the change is intended, run `python -m tests.golden --update` and say why"
     )
-
-
-def _differ(got: dict[str, str], expected: dict[str, str]) -> list[str]:
-    """The files whose hashes differ (one missing on either side counts)."""
-    return sorted(k for k in set(got) | set(expected) if got.get(k) != expected.get(k))
