@@ -41,7 +41,7 @@ from __future__ import annotations
 
 import logging
 import math
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -65,7 +65,7 @@ from railsim.engine.disturbances import Disturbances
 from railsim.engine.events.log import EventLog
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fallbacks import FallbackReporter
-from railsim.engine.knowledge import Knowledge
+from railsim.engine.knowledge import ASK, Knowledge
 from railsim.engine.locking import RouteLocks
 from railsim.engine.occupancy import Ahead
 from railsim.engine.platforms import Berths
@@ -81,10 +81,13 @@ PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controll
 # What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
 # the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
 # None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
-# formation's rear clears it: the limits' ends move on by it, see ``_base``), and the limits as the compiled
-# line step's array (made once per restriction window, with it).
+# formation's rear clears it: the limits' ends move on by it, see ``_base``), the limits as the compiled
+# line step's array (made once per restriction window, with it), and what the ground reports of the rear of the
+# train ahead, (rear, age) or knowledge.ASK (Knowledge.ground_rears).
 _Target = tuple[float, float, float, bool] | None
-Situation = tuple[float, float, float, tuple[SpeedLimit, ...], Any, _Target, float | None, float, np.ndarray]
+Situation = tuple[
+    float, float, float, tuple[SpeedLimit, ...], Any, _Target, float | None, float, np.ndarray, tuple[float, float]
+]
 
 
 class ControlStage:
@@ -130,7 +133,7 @@ class ControlStage:
         self._route_memo: dict[str, list[Any]] = {}
 
     # ------------------------------------------------------------------ observation
-    def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None) -> Situation:
+    def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None, rear: tuple[float, float]) -> Situation:
         """What the train knows of itself now (noise drawn here, position then speed), see :data:`Situation`."""
         veh = tr.trip.vehicle
         stop, offset = self.stops.current(tr)
@@ -168,7 +171,7 @@ class ControlStage:
             )
         authority = self.locks.authority_end_m(tr)
         authority = self.berths.authority_end_m(t, tr, stop, a, authority)
-        return own_pos, own_v, grad, limits, stop, target, authority, tail_m, kept[9]
+        return own_pos, own_v, grad, limits, stop, target, authority, tail_m, kept[9], rear
 
     def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
         """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state), or on
@@ -180,7 +183,7 @@ class ControlStage:
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""
-        own_pos, own_v, grad, limits, stop, target, authority, tail_m, _ = sit
+        own_pos, own_v, grad, limits, stop, target, authority, tail_m = sit[:8]
         veh = tr.trip.vehicle
         if tail_m > 0.0:  # every end moved on by the formation's length behind the front unit
             limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
@@ -197,7 +200,13 @@ class ControlStage:
         )
 
     # ------------------------------------------------------------------ the decision
-    def control_all(self, t: float, active: list[TrainRuntime], ahead: Mapping[str, Ahead | None]) -> list[float]:
+    def control_all(
+        self,
+        t: float,
+        active: list[TrainRuntime],
+        ahead: Mapping[str, Ahead | None],
+        rears: Sequence[tuple[float, float]] | None = None,
+    ) -> list[float]:
         """Decide every active train's command and step its plant; return the speeds handed to SUMO for the coming
         step, in the order of ``active``.
 
@@ -206,8 +215,11 @@ class ControlStage:
         train by train) and of the line ahead, the berth rule reading the trains ahead as they are at ``t``, so no
         train's situation depends on whether the train ahead was stepped before it — then, train by train in
         order, the roles that command it now and the compiled line step for a line train or the roles one by one
-        for any other, each ending in arbitration and the plant step."""
-        sits = [self._situation(t, tr, ahead[tr.train_id]) for tr in active]
+        for any other, each ending in arbitration and the plant step. ``rears``: what the ground reports of the
+        train ahead of each (:meth:`Knowledge.ground_rears`, in the order of ``active``); None: asked train by
+        train."""
+        rears = rears if rears is not None else [ASK] * len(active)
+        sits = [self._situation(t, tr, ahead[tr.train_id], rear) for tr, rear in zip(active, rears)]
         return [self._decide(t, tr, ahead[tr.train_id], sit) for tr, sit in zip(active, sits)]
 
     def _decide(self, t: float, tr: TrainRuntime, a: Ahead | None, sit: Situation) -> float:
@@ -264,7 +276,7 @@ class ControlStage:
         (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are asked on plain values
         (their ``decide``); every other controller gets its :class:`Observation`, built from the same values
         (``base``, only when one is needed)."""
-        own_pos, own_v, grad, limits, _, target, authority, tail_m, _ = sit
+        own_pos, own_v, grad, limits, _, target, authority, tail_m = sit[:8]
         veh = tr.trip.vehicle
         applied_now = tr.plant.applied_accel_mps2
         base: dict[str, Any] | None = None
@@ -300,7 +312,7 @@ class ControlStage:
         if a is not None and not (used_vc and leader is not None and a.train_id == leader.train_id):
             sep = tr.controllers["separation"]
             if type(sep) is Separation:
-                known = self._known_rear(t, tr, a)
+                known = self._known_rear(tr, a, sit)
                 if known is not None:
                     commands["separation"] = sep.decide(veh, self.dt, own_pos, own_v, applied_now, grad, *known)
             else:
@@ -314,11 +326,14 @@ class ControlStage:
             self._collision_avoidance(t, tr, a, ca_ctl, base or self._base(t, tr, sit), fstate, commands)
         return commands
 
-    def _known_rear(self, t: float, tr: TrainRuntime, a: Ahead) -> tuple[float, float] | None:
-        """The rear of the train ahead and the age of that knowledge at ``t`` (the event layer's time: it has run
-        up to the step), as the ground reports it (all that moving-block separation reads); the train's staleness
+    def _known_rear(self, tr: TrainRuntime, a: Ahead, sit: Situation) -> tuple[float, float] | None:
+        """The rear of the train ahead and the age of that knowledge at the step's time, as the ground reports it
+        (all that moving-block separation reads): the situation's (:meth:`Knowledge.ground_rears`), or asked of the
+        knowledge here where that pass left it (:data:`~railsim.engine.knowledge.ASK`); the train's staleness
         record follows it."""
-        known = self.knowledge.ground_rear_age(tr, self.trains[a.train_id], t)
+        known: tuple[float, float] | None = sit[9]
+        if known is ASK:
+            known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
         if known is not None and known[1] > tr.stale_max_s:
             tr.stale_max_s = known[1]
         return known
@@ -432,7 +447,7 @@ class ControlStage:
         :func:`controllers.base.arbitrate`), then the plant. It is what :meth:`_role_commands` and :meth:`_finish`
         would do for these two roles — neither law falls back, adds, or carries a plan — on the same values. A
         non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records it and brakes."""
-        known = self._known_rear(t, tr, a) if a is not None else None
+        known = self._known_rear(tr, a, sit) if a is not None else None
         out = self._step(*self._line_args(tr, ato, sit, known, line_step_kernel.NO_COUPLED))
         return self._stepped(t, tr, out, sit[2])
 
@@ -452,7 +467,7 @@ class ControlStage:
         veh = tr.trip.vehicle
         coupled = self._coupled_inputs(tr, ctl.packed(veh, self.dt))
         line_step_kernel.set_lead(coupled, pred, ctl.feed_forward_mps2(pred, veh), float(f.target_gap_m), tracking)
-        known = self._known_rear(t, tr, a) if a is not None and a.train_id != leader.train_id else None
+        known = self._known_rear(tr, a, sit) if a is not None and a.train_id != leader.train_id else None
         out = self._step(*self._line_args(tr, ato, sit, known, coupled))
         self._vc_commanded(t, tr, leader, pred, {"target_gap_m": out[9]})
         return self._stepped(t, tr, out, sit[2])
@@ -477,7 +492,7 @@ class ControlStage:
     ) -> tuple[Any, ...]:
         """The inputs of :func:`~railsim.engine.line_step_kernel.step`: the packed laws and plant, the situation,
         the plant state, the known rear of the train ahead, and the coupled role's inputs (``NO_COUPLED``: none)."""
-        x, v, grad, _, _, target, authority, tail_m, limits_arr = sit
+        x, v, grad, _, _, target, authority, tail_m, limits_arr, _ = sit
         veh = tr.trip.vehicle
         plant = tr.plant
         ato_p, sep_p, plant_p = self._line_inputs(tr, ato, veh)
@@ -577,7 +592,7 @@ class ControlStage:
             tr.fallbacks += 1
             self.fallbacks.report(t, tr.train_id, role, _controller_name(tr, role), reason)
         if tr.exact_plant is not None:
-            return self._exact_finish(t, tr, role, cmd or Command(accel, emergency=emergency), grad)
+            return tr.exact_step(t, role, cmd or Command(accel, emergency=emergency), grad, self.dt)
         u = accel
         if self._actuator_noise_on(tr):
             u += float(self.dist.actuator_rng.normal(0.0, self.dist.actuator_sd_mps2))  # the papers' disturbance
@@ -620,25 +635,6 @@ class ControlStage:
         # what SUMO moves the train by during the coming step: Euler/ballistic take the new speed; the papers'
         # explicit Euler x(k+1) = x(k) + T·v(k) ("forward") needs the speed *before* the update (spec 002 §7.3)
         tr.sent_speed_mps = v_now if self._forward else v_next
-        return tr.sent_speed_mps
-
-    def _exact_finish(self, t: float, tr: TrainRuntime, role: str, cmd: Command, grad: float) -> float:
-        """A step of an exactly integrated plant: SUMO gets the step's mean speed (``Δx/dt``).
-
-        SUMO's Euler update moves a train by the speed it is given times dt; a plant that integrates within the
-        step moves by ``Δx`` that is not ``v_new·dt``, so handing SUMO ``Δx/dt`` keeps its front on the plant's.
-        """
-        assert tr.exact_plant is not None
-        advance_m, v_new, applied_mps2 = tr.exact_plant.advance(t, tr, cmd, grad, self.dt)
-        jerk = abs(applied_mps2 - tr.plant.applied_accel_mps2) / self.dt
-        tr.max_jerk_mps3 = max(tr.max_jerk_mps3, jerk)
-        tr.plant = dynamics.PlantState(
-            speed_mps=float(v_new), applied_accel_mps2=float(applied_mps2), target_accel_mps2=float(applied_mps2)
-        )
-        tr.last_role = role
-        tr.last_cmd_mps2 = cmd.accel_mps2
-        tr.last_plan = None
-        tr.sent_speed_mps = max(advance_m / self.dt, 0.0)
         return tr.sent_speed_mps
 
 

@@ -14,17 +14,31 @@ conservative).
 
 from __future__ import annotations
 
+import math
+from collections.abc import Callable
+from itertools import repeat
+from operator import attrgetter, itemgetter
 from typing import Any
+
+import numpy as np
 
 from controllers.base import PredecessorState
 from railsim.engine.coupling import FormationBook
-from railsim.engine.events import Channel, DelaySpec, Outage
+from railsim.engine.events import Channel, DelaySpec, Message, Outage
 from railsim.engine.events.clock import EventLayer
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.routeview import BodyFrame
 from railsim.engine.train import TrainRuntime
 
 Report = tuple[Any, ...]
+# the occupancy's mapping of reported fronts (own frame) and send times into each follower's frame: (status, rear,
+# age) per slot (railsim.engine.occupancy.Occupancy.reported_rears)
+Placer = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
+ASK: tuple[float, float] = (math.nan, math.nan)  # Knowledge.ground_rears: ask known_rear_age (compared by identity)
+_NOTHING = Message("", "ground", (None, math.nan, 0.0, 0.0, math.nan, None), math.nan, math.nan, 0.0, -1, "t2g")
+_PAYLOAD = attrgetter("payload")
+_FRONT = itemgetter(1)  # a report's front chainage (Knowledge.report)
+_SENT = itemgetter(4)  # and its time
 
 
 def comm_channels(layer: EventLayer, scenario: Any) -> dict[str, Channel]:
@@ -178,21 +192,25 @@ class Knowledge:
         front, rear = known[0], known[1]
         return front - (front - rear), max(0.0, self.layer.now_s - known[5])
 
-    def ground_rear_age(self, observer: TrainRuntime, other: TrainRuntime, now_s: float) -> tuple[float, float] | None:
-        """``known_rear_age(observer, other, "t2g", "ground", ahead=True)``, the same value: what moving-block
-        separation reads of the train directly ahead, every step for every train (``now_s``: the layer's time,
-        which the caller has at hand). A delivered ground report that places the train on our track is read here
-        from the ground's mailbox without the general path's look-ups; anything else (no report yet, a report off
-        our track) goes the general way."""
+    def ground_rears(self, t_s: float, ids: list[str], place: Placer) -> list[tuple[float, float]]:
+        """What moving-block separation reads of the train directly ahead, for every train of the step (``ids``,
+        in slot order) in one compiled pass: ``(rear, age_s)`` of :meth:`known_rear_age` with ``ahead`` (the same
+        value), or :data:`ASK` where the caller asks :meth:`known_rear_age` itself (no train ahead, no report
+        delivered yet, a report that has it off our track). ``place`` is the occupancy's
+        :meth:`~railsim.engine.occupancy.Occupancy.reported_rears`: it maps the ground's latest report of each
+        train (its front in its own frame, the time sent) into the frame of the train behind it."""
         box = self._ground
-        msg = box.get(other.train_id) if box is not None else None
-        if msg is not None:
-            payload = msg.payload
-            placed = self._body_in_frame(observer, other, payload[1])
-            if placed is not None:
-                front, rear = placed
-                return front - (front - rear), max(0.0, now_s - payload[4])
-        return self.known_rear_age(observer, other, "t2g", "ground", ahead=True)
+        n = len(ids)
+        if box is None or n == 0:
+            return [ASK] * n
+        payloads = list(map(_PAYLOAD, map(box.get, ids, repeat(_NOTHING, n))))
+        sent_front_m = np.array(list(map(_FRONT, payloads)), float)
+        sent_s = np.array(list(map(_SENT, payloads)), float)
+        status, rear, age = place(t_s, sent_front_m, sent_s)
+        known = list(zip(rear.tolist(), age.tolist()))
+        for k in np.flatnonzero(status != 1).tolist():
+            known[k] = ASK
+        return known
 
     def _body_in_frame(self, observer: TrainRuntime, other: TrainRuntime, pos: float) -> tuple[float, float] | None:
         """``(front, rear)`` in the observer's frame of ``other``'s body reported with its front at ``pos`` (its own

@@ -310,7 +310,8 @@ class Simulation:
         # channel gives the neighbours' state at t in the same step (the papers' "perfect communication")
         self.knowledge.communicate(active, reports)
         self.layer.advance_to(t)
-        speeds = self.control.control_all(t, active, ahead)
+        rears = self.knowledge.ground_rears(t, tids, self.occupancy.reported_rears)  # of the trains ahead
+        speeds = self.control.control_all(t, active, ahead, rears)
         bridge.set_speeds(ids, speeds)
         self.slots.sent(speeds)  # what SUMO was handed, for the next check of the speeds it applied
         self.recording.step(t, active, ahead, reports)

@@ -113,6 +113,8 @@ class Occupancy:
         self._front: np.ndarray = np.zeros(0)
         self._len: np.ndarray = np.zeros(0)
         self.edge_i: np.ndarray = np.zeros(0, np.int64)  # slot -> route edge under its front
+        self.pointer_i: np.ndarray = np.zeros(0, np.int64)  # slot -> the train's own pointer (the truth pass's)
+        self.ahead_slots: np.ndarray = np.zeros(0, np.int64)  # slot -> slot ahead (-1: none), last ahead_all
         self.rear_i: np.ndarray = np.zeros(0, np.int64)  # slot -> route edge under its rear
         self._by_off: np.ndarray = np.zeros(1, np.int64)
         self._by_slot: np.ndarray = np.zeros(0, np.int64)
@@ -253,6 +255,7 @@ class Occupancy:
         self._route = routes
         self._front = front_m
         self._len = length_m
+        self.pointer_i = hints.copy()  # the trains' own edge pointers (the truth pass's), before place() moves them
         self.edge_i = hints
         self.rear_i = np.empty(len(ids), np.int64)
         r_off, r_edges, r_starts = self._tables[:3]
@@ -283,6 +286,7 @@ class Occupancy:
     def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
         """:meth:`ahead` for every train of the step, in slot order (one compiled pass, gaps and offsets in it)."""
         slots, fronts, rears, gaps, offsets = occupancy_kernel.ahead_all(lookahead_m, *self._ahead_tables())
+        self.ahead_slots = slots
         other = slots.tolist()
         # each Ahead made in C (what Ahead(...) does, without its Python-level __new__); slot -1 is None, after
         rows = zip(map(self.ids.__getitem__, other), fronts.tolist(), rears.tolist(), gaps.tolist(), offsets.tolist())
@@ -292,6 +296,30 @@ class Occupancy:
                 if o < 0:
                     out[k] = None
         return out
+
+    def reported_rears(
+        self, t_s: float, sent_front_m: np.ndarray, sent_s: np.ndarray
+    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """For every train of the step, the train ahead of it as the last :meth:`ahead_all` found it, placed where its
+        last report put it (``sent_front_m``, its own chainage, sent at ``sent_s``; NaN: no report), as
+        ``(status, rear, age)`` per slot (:func:`.occupancy_kernel.reported_rears`)."""
+        r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
+        return occupancy_kernel.reported_rears(
+            t_s,
+            self.ahead_slots,
+            sent_front_m,
+            sent_s,
+            self.pointer_i,
+            r_off,
+            r_edges,
+            r_starts,
+            r_keys,
+            r_vals,
+            r_simple,
+            self._route,
+            self._len,
+            self.edge_i,
+        )
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""

@@ -167,20 +167,54 @@ def map_body(
     s_edge: np.ndarray,
     s_rear: np.ndarray,
 ) -> tuple[bool, float, float]:
-    """Slot ``o``'s body as ``(found, front, rear)`` in route ``r``'s frame: only the part on track route ``r``
+    """Slot ``o``'s body as ``(found, front, rear)`` in route ``r``'s frame (:func:`map_at` of its body where it is
+    this step, on the edges :func:`place` found under it)."""
+    front_m = s_front[o]
+    return map_at(
+        from_j,
+        r,
+        s_route[o],
+        front_m,
+        front_m - s_len[o],
+        s_edge[o],
+        s_rear[o],
+        r_off,
+        r_edges,
+        r_starts,
+        r_keys,
+        r_vals,
+        r_simple,
+    )
+
+
+@njit(cache=True)
+def map_at(
+    from_j: int,
+    r: int,
+    ro: int,
+    front_m: float,
+    rear_m: float,
+    i_front: int,
+    i_rear: int,
+    r_off: np.ndarray,
+    r_edges: np.ndarray,
+    r_starts: np.ndarray,
+    r_keys: np.ndarray,
+    r_vals: np.ndarray,
+    r_simple: np.ndarray,
+) -> tuple[bool, float, float]:
+    """A body on route ``ro`` — front and rear chainages ``front_m``, ``rear_m`` in its frame, on its route edges
+    ``i_rear..i_front`` — as ``(found, front, rear)`` in route ``r``'s frame: only the part on track route ``r``
     uses counts. The frontmost edge under the body that ``r`` uses gives the frame change; if the body's tail
     leaves ``r``'s track behind it (a merge), its rear is raised to where the shared track begins. On a route
     that passes an edge twice (a loop, a turnback path out along the line and back) the body is on the pass
-    nearest ahead of route index ``from_j`` (the observer's front edge); ``from_j`` < 0: the last pass."""
-    front_m = s_front[o]
-    rear_m = front_m - s_len[o]
-    ro = s_route[o]
+    nearest ahead of route index ``from_j`` (the observer's front edge); ``from_j`` < 0: the last pass
+    (:meth:`railsim.engine.routeview.RouteView.map_body`, the same arithmetic)."""
     if ro == r and r_simple[r]:  # one route, no edge twice: the same frame
         return True, front_m, rear_m
     a, b = r_off[r], r_off[r + 1]
     ao = r_off[ro]
-    i_rear = s_rear[o]
-    for i in range(s_edge[o], i_rear - 1, -1):  # the frontmost shared edge under the body
+    for i in range(i_front, i_rear - 1, -1):  # the frontmost shared edge under the body
         if from_j >= 0 and not r_simple[r]:
             j = _index_from(r_edges, a, b, from_j, r_edges[ao + i])
         else:
@@ -197,6 +231,65 @@ def map_body(
             rear_here = _pymax(rear_here, r_starts[a + jj])
         return True, front_m + off, rear_here
     return False, 0.0, 0.0
+
+
+@njit(cache=True)
+def reported_rears(
+    t_s: float,
+    ahead: np.ndarray,
+    sent_front_m: np.ndarray,
+    sent_s: np.ndarray,
+    from_j: np.ndarray,
+    r_off: np.ndarray,
+    r_edges: np.ndarray,
+    r_starts: np.ndarray,
+    r_keys: np.ndarray,
+    r_vals: np.ndarray,
+    r_simple: np.ndarray,
+    s_route: np.ndarray,
+    s_len: np.ndarray,
+    s_edge: np.ndarray,
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What every slot's train knows from the ground of the train ahead of it (slot ``ahead[k]``, -1: none): the
+    rear of that train's body as its last delivered report placed it (front ``sent_front_m[o]`` in its own
+    route's frame, sent at ``sent_s[o]``; NaN: no report delivered), mapped into slot ``k``'s frame with
+    :func:`map_at` (``from_j[k]``: the observer's front edge pointer), and the age of that report at ``t_s``.
+
+    Returns ``(status, rear, age)`` per slot: status 1 — known, ``rear`` is ``front - (front - rear)`` of the
+    mapped body (what :attr:`controllers.base.PredecessorState.rear_position_m` gives) and ``age`` is
+    ``max(0, t_s - sent)``; 0 — no train ahead; 2 — no report delivered, or none of the reported body on the
+    observer's track: the caller asks :meth:`railsim.engine.knowledge.Knowledge.known_rear_age` (registrations,
+    where a route joins)."""
+    n = len(ahead)
+    status = np.zeros(n, np.int8)
+    rear_out = np.zeros(n)
+    age = np.zeros(n)
+    for k in range(n):
+        o = ahead[k]
+        if o < 0:
+            continue
+        front_m = sent_front_m[o]
+        if front_m != front_m:  # NaN: nothing delivered yet
+            status[k] = 2
+            continue
+        rear_m = front_m - s_len[o]
+        r = s_route[k]
+        ro = s_route[o]
+        found, front_here, rear_here = True, front_m, rear_m
+        if not (ro == r and r_simple[r]):
+            starts = r_starts[r_off[ro] : r_off[ro + 1]]
+            i_front = edge_near(starts, front_m, s_edge[o])
+            i_rear = edge_near(starts, rear_m, i_front)
+            found, front_here, rear_here = map_at(
+                from_j[k], r, ro, front_m, rear_m, i_front, i_rear, r_off, r_edges, r_starts, r_keys, r_vals, r_simple
+            )
+        if not found:
+            status[k] = 2
+            continue
+        status[k] = 1
+        rear_out[k] = front_here - (front_here - rear_here)
+        age[k] = _pymax(0.0, t_s - sent_s[o])
+    return status, rear_out, age
 
 
 @njit(cache=True)

@@ -110,6 +110,24 @@ class TrainRuntime:
             target_accel_mps2=0.0 if standing else self.plant.target_accel_mps2,
         )
 
+    def exact_step(self, t: float, role: str, cmd: Any, grad_permille: float, dt_s: float) -> float:
+        """A step of the exactly integrated plant under ``cmd`` (the winning ``role``'s); returns the speed for
+        SUMO, the step's mean speed ``Δx/dt``: SUMO's Euler update moves a train by the speed it is given times dt,
+        a plant that integrates within the step moves by ``Δx`` that is not ``v_new·dt``, so handing SUMO ``Δx/dt``
+        keeps its front on the plant's."""
+        assert self.exact_plant is not None
+        advance_m, v_new, applied_mps2 = self.exact_plant.advance(t, self, cmd, grad_permille, dt_s)
+        jerk = abs(applied_mps2 - self.plant.applied_accel_mps2) / dt_s
+        self.max_jerk_mps3 = max(self.max_jerk_mps3, jerk)
+        self.plant = dynamics.PlantState(
+            speed_mps=float(v_new), applied_accel_mps2=float(applied_mps2), target_accel_mps2=float(applied_mps2)
+        )
+        self.last_role = role
+        self.last_cmd_mps2 = cmd.accel_mps2
+        self.last_plan = None
+        self.sent_speed_mps = max(advance_m / dt_s, 0.0)
+        return self.sent_speed_mps
+
     @property
     def on_line(self) -> bool:
         """Inserted and not yet arrived or removed."""

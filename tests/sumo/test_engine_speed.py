@@ -163,9 +163,9 @@ from railsim.scenario.loading import load
 calls = []  # (t, "situation" | "stepped", train)
 situation, commit = ControlStage._situation, ControlStage._commit
 
-def read(self, t, tr, a):
+def read(self, t, tr, a, rear):
     calls.append((t, "situation", tr.train_id))
-    return situation(self, t, tr, a)
+    return situation(self, t, tr, a, rear)
 
 def stepped(self, tr, *args):
     calls.append((self.knowledge.layer.now_s, "stepped", tr.train_id))

@@ -6,8 +6,10 @@ Trains drive along random routes (merging, diverging, some passing an edge twice
 known of them is their registration, or where they came on the line). Every step every train asks about every
 other: :meth:`Knowledge.known_rear_age` and :meth:`Knowledge.known_state` must answer exactly as they do with the
 memory switched off (``RouteView.map_body_memo`` replaced by ``map_body`` called as the long way calls it), and
-:meth:`Knowledge.ground_rear_age` (what moving-block separation reads of the train ahead) must give
-``known_rear_age``'s answer for a train ahead, with the ground channel and without one.
+:meth:`Knowledge.ground_rears` (what moving-block separation reads of the train ahead, every train in one compiled
+pass over the occupancy's tables) must give ``known_rear_age``'s answer for a train ahead, or leave it to be asked
+only where the ground has no report or none of the reported body is on the observer's track, with the ground
+channel and without one.
 """
 
 from __future__ import annotations
@@ -21,7 +23,8 @@ import numpy as np
 import pytest
 
 from railsim.engine.events import Channel, DelaySpec, EventLayer
-from railsim.engine.knowledge import Knowledge
+from railsim.engine.knowledge import ASK, Knowledge
+from railsim.engine.occupancy import Occupancy
 from railsim.engine.routeview import RouteView
 from tests.unit.test_routeview_memo import _views
 
@@ -76,7 +79,9 @@ def test_known_with_memory_is_the_long_way(seed: int, with_ground: bool) -> None
     trains = [_train(k, views[int(rng.integers(len(views)))], rng) for k in range(14)]
     silent = trains[-3:]  # never report: their registration, or where they came on the line
     kn.registration[(trains[0].train_id, silent[0].train_id)] = (silent[0].view.route.id, 55.0, 3.0, 0.0, 0.0)
-    known = on_track = 0
+    known = on_track = passed = 0
+    occ = Occupancy()
+    pick = np.random.default_rng(100 + seed)  # which train is "ahead" of which, for the ground's pass
     for step in range(80):
         t = 0.5 * step
         for tr in trains:
@@ -88,6 +93,7 @@ def test_known_with_memory_is_the_long_way(seed: int, with_ground: bool) -> None
         talking = [tr for tr in trains if tr not in silent]
         kn.communicate(talking, {tr.train_id: Knowledge.report(t, tr) for tr in talking})  # type: ignore[arg-type]
         layer.advance_to(t)
+        passed += _ground_rears_are_known_rear_age(kn, occ, trains, pick, t)
         for observer in trains:
             for other in trains:
                 if other is observer:
@@ -95,10 +101,43 @@ def test_known_with_memory_is_the_long_way(seed: int, with_ground: bool) -> None
                 ahead = bool(rng.random() < 0.5)
                 args = (observer, other, "t2g", "ground", ahead)
                 answers = (kn.known_rear_age(*args), kn.known_state(*args))  # type: ignore[arg-type]
-                if ahead:  # the separation's own read of the train ahead: the same answer
-                    assert repr(kn.ground_rear_age(observer, other, layer.now_s)) == repr(answers[0])  # type: ignore[arg-type]
                 with _long_way(observer, other):
                     assert repr(answers) == repr((kn.known_rear_age(*args), kn.known_state(*args)))  # type: ignore[arg-type]
                 known += answers[0] is not None
                 on_track += answers[0] is not None and answers[1].length_m > 0.0  # type: ignore[union-attr]
     assert known > 2000 and on_track > 1000, "too few trains known on the observer's track to test anything"
+    assert passed > (100 if with_ground else -1), "the ground's pass answered too few to test anything"
+
+
+def _ground_rears_are_known_rear_age(
+    kn: Knowledge, occ: Occupancy, trains: list[SimpleNamespace], pick: np.random.Generator, t: float
+) -> int:
+    """:meth:`Knowledge.ground_rears` for a random train "ahead" of each (some none) gives ``known_rear_age``'s
+    answer with ``ahead``; where it leaves one to ask (``ASK``), the ground has no report of that train or none of
+    the reported body is on the observer's track. Returns how many the pass answered itself."""
+    ids = [tr.train_id for tr in trains]
+    occ.update_columns(
+        ids,
+        [tr.view for tr in trains],
+        [tr.front_m for tr in trains],
+        [tr.trip.vehicle.length_m for tr in trains],
+        [tr.edge_i for tr in trains],
+    )
+    slots = pick.integers(-1, len(trains), len(trains))
+    slots[slots == np.arange(len(trains))] = -1
+    occ.ahead_slots = slots
+    rears = kn.ground_rears(t, ids, occ.reported_rears)
+    answered = 0
+    for observer, o, rear in zip(trains, slots.tolist(), rears):
+        if o < 0:
+            assert rear is ASK
+            continue
+        other = trains[o]
+        if rear is ASK:
+            box = kn.channels["t2g"].mailbox("ground") if "t2g" in kn.channels else {}
+            msg = box.get(other.train_id)
+            assert msg is None or kn._body_in_frame(observer, other, msg.payload[1]) is None  # type: ignore[arg-type]
+            continue
+        assert repr(rear) == repr(kn.known_rear_age(observer, other, "t2g", "ground", ahead=True))  # type: ignore[arg-type]
+        answered += 1
+    return answered

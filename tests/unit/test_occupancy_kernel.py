@@ -5,8 +5,9 @@ arrays; their interpreted form (the module loaded with the JIT off, ``tests.help
 reference. On random track — edges of random length, routes that are random walks over them (so they merge,
 diverge, and some pass an edge twice), bidi partners on some edges — with random bodies (fronts anywhere on their
 route, lengths spanning several edges, hints right, off by one or far off; more routes appearing in a later step),
-:class:`Occupancy` run on the compiled kernels must answer every ``ahead`` and ``facing`` question exactly as on the interpreted ones, and place every
-body on the same edges. The search itself is held to the geometry by ``tests/sumo/test_occupancy.py`` and
+an :class:`Occupancy` run on the compiled kernels must answer every ``ahead`` and ``facing`` question exactly as on
+the interpreted ones, place every body on the same edges, and place the trains ahead where their reports put them
+(``reported_rears``) the same way. The search itself is held to the geometry by ``tests/sumo/test_occupancy.py`` and
 ``tests/unit/test_facing_trains.py``.
 """
 
@@ -80,6 +81,10 @@ def _answers(occ: Occupancy, bodies: list[Body], rng: np.random.Generator) -> li
     out.append(repr([occ.facing(*q) for q in queries[:5]]))
     out.append(repr(occ.facing_within_braking([float(v) for v in rng.uniform(0.0, 30.0, len(bodies))], 150.0)))
     out.append(repr(occ.facing_own_bodies()))
+    # the trains ahead placed where reports sent some time ago put them (some never reported: NaN)
+    sent = np.array([b.front_m - float(rng.uniform(0.0, 80.0)) for b in bodies])
+    sent[rng.random(len(bodies)) < 0.2] = np.nan
+    out.append(repr([a.tolist() for a in occ.reported_rears(9.0, sent, rng.uniform(0.0, 10.0, len(bodies)))]))
     return out  # repr: the exact floats (round trip, the sign of a zero)
 
 

@@ -3,7 +3,7 @@
 The carriage model (:mod:`railsim.physics.multipoint`) integrates continuously (RK4 sub-steps), so carriage 1
 moves by ``Δx`` that is not ``v_new·dt``. SUMO's Euler update moves a train by the speed it is given times dt,
 so the control stage hands it ``Δx/dt`` — the step's mean speed — and SUMO's front stays exactly on carriage 1
-(:meth:`railsim.engine.control.ControlStage._exact_finish`). Model-based ATOs get the carriages' relative state
+(:meth:`railsim.engine.train.TrainRuntime.exact_step`). Model-based ATOs get the carriages' relative state
 (couplers) as ``extras["multipoint_rel_state"]``. The plant's ``wind`` (Scenario C, spec A14) acts on the plant
 only; the controllers are not told.
 
