@@ -265,7 +265,8 @@ class Occupancy:
 
     def _ahead_tables(self) -> tuple[np.ndarray, ...]:
         """The route tables and this step's columns, in the order the ahead kernels take them after their own
-        arguments (:func:`.occupancy_kernel.ahead_one`, :func:`.occupancy_kernel.ahead_all`)."""
+        arguments (:func:`.occupancy_kernel.ahead_one`, :func:`.occupancy_kernel.ahead_all`,
+        :func:`.occupancy_kernel.reported_rears`)."""
         r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
         return (
             r_off,
@@ -303,22 +304,8 @@ class Occupancy:
         """For every train of the step, the train ahead of it as the last :meth:`ahead_all` found it, placed where its
         last report put it (``sent_front_m``, its own chainage, sent at ``sent_s``; NaN: no report), as
         ``(status, rear, age)`` per slot (:func:`.occupancy_kernel.reported_rears`)."""
-        r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
         return occupancy_kernel.reported_rears(
-            t_s,
-            self.ahead_slots,
-            sent_front_m,
-            sent_s,
-            self.pointer_i,
-            r_off,
-            r_edges,
-            r_starts,
-            r_keys,
-            r_vals,
-            r_simple,
-            self._route,
-            self._len,
-            self.edge_i,
+            t_s, self.ahead_slots, sent_front_m, sent_s, self.pointer_i, *self._ahead_tables()
         )
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:

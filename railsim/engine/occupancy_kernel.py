@@ -247,13 +247,18 @@ def reported_rears(
     r_vals: np.ndarray,
     r_simple: np.ndarray,
     s_route: np.ndarray,
+    s_front: np.ndarray,
     s_len: np.ndarray,
     s_edge: np.ndarray,
+    s_rear: np.ndarray,
+    by_off: np.ndarray,
+    by_slot: np.ndarray,
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What every slot's train knows from the ground of the train ahead of it (slot ``ahead[k]``, -1: none): the
     rear of that train's body as its last delivered report placed it (front ``sent_front_m[o]`` in its own
     route's frame, sent at ``sent_s[o]``; NaN: no report delivered), mapped into slot ``k``'s frame with
-    :func:`map_at` (``from_j[k]``: the observer's front edge pointer), and the age of that report at ``t_s``.
+    :func:`map_at` (``from_j[k]``: the observer's front edge pointer), and the age of that report at ``t_s``. The
+    tables and columns are :func:`ahead_all`'s (the truth's fronts, rear edges and index by edge are not read).
 
     Returns ``(status, rear, age)`` per slot: status 1 — known, ``rear`` is ``front - (front - rear)`` of the
     mapped body (what :attr:`controllers.base.PredecessorState.rear_position_m` gives) and ``age`` is
