@@ -83,7 +83,7 @@ PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controll
 # None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
 # formation's rear clears it: the limits' ends move on by it, see ``_base``), the limits as the compiled
 # line step's array (made once per restriction window, with it), and what the ground reports of the rear of the
-# train ahead, (rear, age) or knowledge.ASK (Knowledge.ground_rears).
+# train ahead, (rear, age), NaN: ask (Knowledge.ground_rears).
 _Target = tuple[float, float, float, bool] | None
 Situation = tuple[
     float, float, float, tuple[SpeedLimit, ...], Any, _Target, float | None, float, np.ndarray, tuple[float, float]
@@ -329,10 +329,10 @@ class ControlStage:
     def _known_rear(self, tr: TrainRuntime, a: Ahead, sit: Situation) -> tuple[float, float] | None:
         """The rear of the train ahead and the age of that knowledge at the step's time, as the ground reports it
         (all that moving-block separation reads): the situation's (:meth:`Knowledge.ground_rears`), or asked of the
-        knowledge here where that pass left it (:data:`~railsim.engine.knowledge.ASK`); the train's staleness
-        record follows it."""
+        knowledge here where that pass has none (a NaN rear, :data:`~railsim.engine.knowledge.ASK`); the train's
+        staleness record follows it."""
         known: tuple[float, float] | None = sit[9]
-        if known is ASK:
+        if sit[9][0] != sit[9][0]:  # NaN: ask
             known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
         if known is not None and known[1] > tr.stale_max_s:
             tr.stale_max_s = known[1]

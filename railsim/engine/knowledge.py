@@ -31,10 +31,10 @@ from railsim.engine.routeview import BodyFrame
 from railsim.engine.train import TrainRuntime
 
 Report = tuple[Any, ...]
-# the occupancy's mapping of reported fronts (own frame) and send times into each follower's frame: (status, rear,
-# age) per slot (railsim.engine.occupancy.Occupancy.reported_rears)
-Placer = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray, np.ndarray]]
-ASK: tuple[float, float] = (math.nan, math.nan)  # Knowledge.ground_rears: ask known_rear_age (compared by identity)
+# the occupancy's mapping of reported fronts (own frame) and send times into each follower's frame: (rear, age) per
+# slot, NaN where it has none (railsim.engine.occupancy.Occupancy.reported_rears)
+Placer = Callable[[float, np.ndarray, np.ndarray], tuple[np.ndarray, np.ndarray]]
+ASK: tuple[float, float] = (math.nan, math.nan)  # Knowledge.ground_rears: no answer, ask known_rear_age (a NaN rear)
 _NOTHING = Message("", "ground", (None, math.nan, 0.0, 0.0, math.nan, None), math.nan, math.nan, 0.0, -1, "t2g")
 _PAYLOAD = attrgetter("payload")
 _FRONT = itemgetter(1)  # a report's front chainage (Knowledge.report)
@@ -195,8 +195,8 @@ class Knowledge:
     def ground_rears(self, t_s: float, ids: list[str], place: Placer) -> list[tuple[float, float]]:
         """What moving-block separation reads of the train directly ahead, for every train of the step (``ids``,
         in slot order) in one compiled pass: ``(rear, age_s)`` of :meth:`known_rear_age` with ``ahead`` (the same
-        value), or :data:`ASK` where the caller asks :meth:`known_rear_age` itself (no train ahead, no report
-        delivered yet, a report that has it off our track). ``place`` is the occupancy's
+        value), or a NaN rear (:data:`ASK`) where the caller asks :meth:`known_rear_age` itself (no train ahead, no
+        report delivered yet, a report that has it off our track). ``place`` is the occupancy's
         :meth:`~railsim.engine.occupancy.Occupancy.reported_rears`: it maps the ground's latest report of each
         train (its front in its own frame, the time sent) into the frame of the train behind it."""
         box = self._ground
@@ -204,13 +204,10 @@ class Knowledge:
         if box is None or n == 0:
             return [ASK] * n
         payloads = list(map(_PAYLOAD, map(box.get, ids, repeat(_NOTHING, n))))
-        sent_front_m = np.array(list(map(_FRONT, payloads)), float)
-        sent_s = np.array(list(map(_SENT, payloads)), float)
-        status, rear, age = place(t_s, sent_front_m, sent_s)
-        known = list(zip(rear.tolist(), age.tolist()))
-        for k in np.flatnonzero(status != 1).tolist():
-            known[k] = ASK
-        return known
+        rear, age = place(
+            t_s, np.fromiter(map(_FRONT, payloads), float, n), np.fromiter(map(_SENT, payloads), float, n)
+        )
+        return list(zip(rear.tolist(), age.tolist()))
 
     def _body_in_frame(self, observer: TrainRuntime, other: TrainRuntime, pos: float) -> tuple[float, float] | None:
         """``(front, rear)`` in the observer's frame of ``other``'s body reported with its front at ``pos`` (its own

@@ -298,12 +298,10 @@ class Occupancy:
                     out[k] = None
         return out
 
-    def reported_rears(
-        self, t_s: float, sent_front_m: np.ndarray, sent_s: np.ndarray
-    ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def reported_rears(self, t_s: float, sent_front_m: np.ndarray, sent_s: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """For every train of the step, the train ahead of it as the last :meth:`ahead_all` found it, placed where its
         last report put it (``sent_front_m``, its own chainage, sent at ``sent_s``; NaN: no report), as
-        ``(status, rear, age)`` per slot (:func:`.occupancy_kernel.reported_rears`)."""
+        ``(rear, age)`` per slot, NaN where it has none (:func:`.occupancy_kernel.reported_rears`)."""
         return occupancy_kernel.reported_rears(
             t_s, self.ahead_slots, sent_front_m, sent_s, self.pointer_i, *self._ahead_tables()
         )

@@ -253,29 +253,27 @@ def reported_rears(
     s_rear: np.ndarray,
     by_off: np.ndarray,
     by_slot: np.ndarray,
-) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+) -> tuple[np.ndarray, np.ndarray]:
     """What every slot's train knows from the ground of the train ahead of it (slot ``ahead[k]``, -1: none): the
     rear of that train's body as its last delivered report placed it (front ``sent_front_m[o]`` in its own
     route's frame, sent at ``sent_s[o]``; NaN: no report delivered), mapped into slot ``k``'s frame with
     :func:`map_at` (``from_j[k]``: the observer's front edge pointer), and the age of that report at ``t_s``. The
     tables and columns are :func:`ahead_all`'s (the truth's fronts, rear edges and index by edge are not read).
 
-    Returns ``(status, rear, age)`` per slot: status 1 — known, ``rear`` is ``front - (front - rear)`` of the
-    mapped body (what :attr:`controllers.base.PredecessorState.rear_position_m` gives) and ``age`` is
-    ``max(0, t_s - sent)``; 0 — no train ahead; 2 — no report delivered, or none of the reported body on the
-    observer's track: the caller asks :meth:`railsim.engine.knowledge.Knowledge.known_rear_age` (registrations,
-    where a route joins)."""
+    Returns ``(rear, age)`` per slot: ``rear`` is ``front - (front - rear)`` of the mapped body (what
+    :attr:`controllers.base.PredecessorState.rear_position_m` gives) and ``age`` is ``max(0, t_s - sent)``; both
+    NaN where there is no train ahead, no report delivered, or none of the reported body on the observer's track:
+    the caller asks :meth:`railsim.engine.knowledge.Knowledge.known_rear_age` there (registrations, where a route
+    joins)."""
     n = len(ahead)
-    status = np.zeros(n, np.int8)
-    rear_out = np.zeros(n)
-    age = np.zeros(n)
+    rear_out = np.full(n, np.nan)
+    age = np.full(n, np.nan)
     for k in range(n):
         o = ahead[k]
         if o < 0:
             continue
         front_m = sent_front_m[o]
         if front_m != front_m:  # NaN: nothing delivered yet
-            status[k] = 2
             continue
         rear_m = front_m - s_len[o]
         r = s_route[k]
@@ -288,13 +286,10 @@ def reported_rears(
             found, front_here, rear_here = map_at(
                 from_j[k], r, ro, front_m, rear_m, i_front, i_rear, r_off, r_edges, r_starts, r_keys, r_vals, r_simple
             )
-        if not found:
-            status[k] = 2
-            continue
-        status[k] = 1
-        rear_out[k] = front_here - (front_here - rear_here)
-        age[k] = _pymax(0.0, t_s - sent_s[o])
-    return status, rear_out, age
+        if found:
+            rear_out[k] = front_here - (front_here - rear_here)
+            age[k] = _pymax(0.0, t_s - sent_s[o])
+    return rear_out, age
 
 
 @njit(cache=True)

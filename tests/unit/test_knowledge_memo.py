@@ -14,6 +14,7 @@ channel and without one.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Iterator
 from contextlib import contextmanager
 from types import SimpleNamespace
@@ -23,7 +24,7 @@ import numpy as np
 import pytest
 
 from railsim.engine.events import Channel, DelaySpec, EventLayer
-from railsim.engine.knowledge import ASK, Knowledge
+from railsim.engine.knowledge import Knowledge
 from railsim.engine.occupancy import Occupancy
 from railsim.engine.routeview import RouteView
 from tests.unit.test_routeview_memo import _views
@@ -113,7 +114,7 @@ def _ground_rears_are_known_rear_age(
     kn: Knowledge, occ: Occupancy, trains: list[SimpleNamespace], pick: np.random.Generator, t: float
 ) -> int:
     """:meth:`Knowledge.ground_rears` for a random train "ahead" of each (some none) gives ``known_rear_age``'s
-    answer with ``ahead``; where it leaves one to ask (``ASK``), the ground has no report of that train or none of
+    answer with ``ahead``; where it leaves one to ask (a NaN rear), the ground has no report of that train or none of
     the reported body is on the observer's track. Returns how many the pass answered itself."""
     ids = [tr.train_id for tr in trains]
     occ.update_columns(
@@ -130,10 +131,10 @@ def _ground_rears_are_known_rear_age(
     answered = 0
     for observer, o, rear in zip(trains, slots.tolist(), rears):
         if o < 0:
-            assert rear is ASK
+            assert math.isnan(rear[0])
             continue
         other = trains[o]
-        if rear is ASK:
+        if math.isnan(rear[0]):
             box = kn.channels["t2g"].mailbox("ground") if "t2g" in kn.channels else {}
             msg = box.get(other.train_id)
             assert msg is None or kn._body_in_frame(observer, other, msg.payload[1]) is None  # type: ignore[arg-type]
