@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import bisect
 from collections.abc import Callable
+from operator import attrgetter, itemgetter
 from typing import Any
 
 import controllers as ctl
@@ -20,6 +21,9 @@ from railsim.errors import ConfigError
 
 ROLES = ("ato", "separation", "coupled", "ca")
 ON_LINE = ("inserting", "running")  # a train's statuses while it is on the line
+_ON_LINE_SET = frozenset(ON_LINE)
+_TRAIN_ID = itemgetter(1)  # of an entry of Fleet._on_line
+_STATUS = attrgetter("status")
 FINISHED = ("arrived", "removed")  # once off it; a trip never comes back on the line
 
 
@@ -63,9 +67,8 @@ class Fleet:
 
     def _prune(self) -> list[TrainRuntime]:
         """The trains on the line now; those that arrived or left since are dropped and counted finished."""
-        trains = self.trains
-        live = [trains[tid] for _, tid in self._on_line]
-        if any(tr.status not in ON_LINE for tr in live):
+        live = list(map(self.trains.__getitem__, map(_TRAIN_ID, self._on_line)))
+        if not _ON_LINE_SET.issuperset(map(_STATUS, live)):  # (C-level loops: every step, twice)
             kept = []
             for entry, tr in zip(self._on_line, live, strict=True):
                 if tr.status in ON_LINE:
