@@ -263,18 +263,12 @@ class Occupancy:
             r_off, r_edges, r_starts, len(self._edge_id), self._route, self._front, self._len, self.edge_i, self.rear_i
         )
 
-    def _ahead_tables(self) -> tuple[np.ndarray, ...]:
-        """The route tables and this step's columns, in the order the ahead kernels take them after their own
-        arguments (:func:`.occupancy_kernel.ahead_one`, :func:`.occupancy_kernel.ahead_all`,
+    def _ahead_world(self) -> occupancy_kernel.AheadWorld:
+        """What the ahead kernels search (:data:`.occupancy_kernel.AheadWorld`): the route tables, this step's
+        columns and the index by edge (:func:`.occupancy_kernel.ahead_one`, :func:`.occupancy_kernel.ahead_all`,
         :func:`.occupancy_kernel.reported_rears`)."""
-        r_off, r_edges, r_starts, r_keys, r_vals, r_simple, _ = self._tables
         return (
-            r_off,
-            r_edges,
-            r_starts,
-            r_keys,
-            r_vals,
-            r_simple,
+            self._tables[:6],
             self._route,
             self._front,
             self._len,
@@ -286,7 +280,7 @@ class Occupancy:
 
     def ahead_all(self, lookahead_m: float = 5000.0) -> list[Ahead | None]:
         """:meth:`ahead` for every train of the step, in slot order (one compiled pass, gaps and offsets in it)."""
-        slots, fronts, rears, gaps, offsets = occupancy_kernel.ahead_all(lookahead_m, *self._ahead_tables())
+        slots, fronts, rears, gaps, offsets = occupancy_kernel.ahead_all(lookahead_m, self._ahead_world())
         self.ahead_slots = slots
         other = slots.tolist()
         # each Ahead made in C (what Ahead(...) does, without its Python-level __new__); slot -1 is None, after
@@ -303,13 +297,13 @@ class Occupancy:
         last report put it (``sent_front_m``, its own chainage, sent at ``sent_s``; NaN: no report), as
         ``(rear, age)`` per slot, NaN where it has none (:func:`.occupancy_kernel.reported_rears`)."""
         return occupancy_kernel.reported_rears(
-            t_s, self.ahead_slots, sent_front_m, sent_s, self.pointer_i, *self._ahead_tables()
+            t_s, self.ahead_slots, sent_front_m, sent_s, self.pointer_i, self._ahead_world()
         )
 
     def ahead(self, train_id: str, lookahead_m: float = 5000.0) -> Ahead | None:
         """The nearest train whose front is ahead of ``train_id``'s front on its route, within ``lookahead_m``."""
         me = self._slots()[train_id]
-        o, front, rear = occupancy_kernel.ahead_one(me, lookahead_m, *self._ahead_tables())
+        o, front, rear = occupancy_kernel.ahead_one(me, lookahead_m, self._ahead_world())
         if o < 0:
             return None
         front, rear = float(front), float(rear)  # (numpy's floats when interpreted)

@@ -37,6 +37,12 @@ from typing import Any
 import numpy as np
 from numba import njit
 
+# What the ahead kernels search (Occupancy._ahead_world), in this order: the route tables (RouteTables: offsets,
+# edges, edge starts, the sorted edge keys and the index of each, the simple flags), the slot columns (route, front,
+# length, front edge, rear edge) and the slots by edge (offsets, slots)
+RouteTables = tuple[np.ndarray, ...]
+AheadWorld = tuple[Any, ...]
+
 # What the facing kernels search, in this order (Occupancy._facing_world): the route tables (offsets, edges,
 # edge starts, lengths), each edge's partner edge and its length, the slot columns (route, front, length, front
 # edge, rear edge) and the slots by edge (offsets, slots)
@@ -155,36 +161,13 @@ def map_body(
     from_j: int,
     r: int,
     o: int,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_keys: np.ndarray,
-    r_vals: np.ndarray,
-    r_simple: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
+    world: AheadWorld,
 ) -> tuple[bool, float, float]:
     """Slot ``o``'s body as ``(found, front, rear)`` in route ``r``'s frame (:func:`map_at` of its body where it is
     this step, on the edges :func:`place` found under it)."""
+    routes, s_route, s_front, s_len, s_edge, s_rear, _, _ = world
     front_m = s_front[o]
-    return map_at(
-        from_j,
-        r,
-        s_route[o],
-        front_m,
-        front_m - s_len[o],
-        s_edge[o],
-        s_rear[o],
-        r_off,
-        r_edges,
-        r_starts,
-        r_keys,
-        r_vals,
-        r_simple,
-    )
+    return map_at(from_j, r, s_route[o], front_m, front_m - s_len[o], s_edge[o], s_rear[o], routes)
 
 
 @njit(cache=True)
@@ -196,12 +179,7 @@ def map_at(
     rear_m: float,
     i_front: int,
     i_rear: int,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_keys: np.ndarray,
-    r_vals: np.ndarray,
-    r_simple: np.ndarray,
+    routes: RouteTables,
 ) -> tuple[bool, float, float]:
     """A body on route ``ro`` — front and rear chainages ``front_m``, ``rear_m`` in its frame, on its route edges
     ``i_rear..i_front`` — as ``(found, front, rear)`` in route ``r``'s frame: only the part on track route ``r``
@@ -210,6 +188,7 @@ def map_at(
     that passes an edge twice (a loop, a turnback path out along the line and back) the body is on the pass
     nearest ahead of route index ``from_j`` (the observer's front edge); ``from_j`` < 0: the last pass
     (:meth:`railsim.engine.routeview.RouteView.map_body`, the same arithmetic)."""
+    r_off, r_edges, r_starts, r_keys, r_vals, r_simple = routes
     if ro == r and r_simple[r]:  # one route, no edge twice: the same frame
         return True, front_m, rear_m
     a, b = r_off[r], r_off[r + 1]
@@ -240,19 +219,7 @@ def reported_rears(
     sent_front_m: np.ndarray,
     sent_s: np.ndarray,
     from_j: np.ndarray,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_keys: np.ndarray,
-    r_vals: np.ndarray,
-    r_simple: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
-    by_off: np.ndarray,
-    by_slot: np.ndarray,
+    world: AheadWorld,
 ) -> tuple[np.ndarray, np.ndarray]:
     """What every slot's train knows from the ground of the train ahead of it (slot ``ahead[k]``, -1: none): the
     rear of that train's body as its last delivered report placed it (front ``sent_front_m[o]`` in its own
@@ -265,6 +232,8 @@ def reported_rears(
     NaN where there is no train ahead, no report delivered, or none of the reported body on the observer's track:
     the caller asks :meth:`railsim.engine.knowledge.Knowledge.known_rear_age` there (registrations, where a route
     joins)."""
+    routes, s_route, _, s_len, s_edge, _, _, _ = world
+    r_off, r_starts, r_simple = routes[0], routes[2], routes[5]
     n = len(ahead)
     rear_out = np.full(n, np.nan)
     age = np.full(n, np.nan)
@@ -283,9 +252,7 @@ def reported_rears(
             starts = r_starts[r_off[ro] : r_off[ro + 1]]
             i_front = edge_near(starts, front_m, s_edge[o])
             i_rear = edge_near(starts, rear_m, i_front)
-            found, front_here, rear_here = map_at(
-                from_j[k], r, ro, front_m, rear_m, i_front, i_rear, r_off, r_edges, r_starts, r_keys, r_vals, r_simple
-            )
+            found, front_here, rear_here = map_at(from_j[k], r, ro, front_m, rear_m, i_front, i_rear, routes)
         if found:
             rear_out[k] = front_here - (front_here - rear_here)
             age[k] = _pymax(0.0, t_s - sent_s[o])
@@ -296,24 +263,14 @@ def reported_rears(
 def ahead_one(
     me: int,
     lookahead_m: float,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_keys: np.ndarray,
-    r_vals: np.ndarray,
-    r_simple: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
-    by_off: np.ndarray,
-    by_slot: np.ndarray,
+    world: AheadWorld,
 ) -> tuple[int, float, float]:
     """The nearest train whose front is ahead of slot ``me``'s front on its route, within ``lookahead_m``:
     ``(slot, front, rear)`` in ``me``'s frame, slot -1 if none. Route edges are walked forward from the one under
     the front; the first edge holding a body ahead decides (the nearest front on it; the first in slot order on a
     tie); a body level with or behind the front is not ahead."""
+    routes, s_route, s_front, _, s_edge, _, by_off, by_slot = world
+    r_off, r_edges, r_starts = routes[0], routes[1], routes[2]
     r = s_route[me]
     a, b = r_off[r], r_off[r + 1]
     my_front = s_front[me]
@@ -328,22 +285,7 @@ def ahead_one(
             o = by_slot[p]
             if o == me:
                 continue
-            found, front, rear = map_body(
-                s_edge[me],
-                r,
-                o,
-                r_off,
-                r_edges,
-                r_starts,
-                r_keys,
-                r_vals,
-                r_simple,
-                s_route,
-                s_front,
-                s_len,
-                s_edge,
-                s_rear,
-            )
+            found, front, rear = map_body(s_edge[me], r, o, world)
             if not found or front <= my_front:
                 continue  # not on our track, or behind us (or level: the one behind is its follower's problem)
             if best < 0 or front < best_front:
@@ -356,48 +298,20 @@ def ahead_one(
 
 @njit(cache=True)
 def ahead_all(
-    lookahead_m: float,
-    r_off: np.ndarray,
-    r_edges: np.ndarray,
-    r_starts: np.ndarray,
-    r_keys: np.ndarray,
-    r_vals: np.ndarray,
-    r_simple: np.ndarray,
-    s_route: np.ndarray,
-    s_front: np.ndarray,
-    s_len: np.ndarray,
-    s_edge: np.ndarray,
-    s_rear: np.ndarray,
-    by_off: np.ndarray,
-    by_slot: np.ndarray,
+    lookahead_m: float, world: AheadWorld
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`ahead_one` for every slot: ``(slot ahead or -1, its front, its rear, the gap, the frame offset)`` per
     slot — the gap is its rear less our front, the offset its front (ours) less its own chainage (both 0.0 where
     there is none): :class:`railsim.engine.occupancy.Ahead`'s fields, one subtraction each."""
-    n = len(s_route)
+    s_front = world[2]
+    n = len(world[1])
     slot = np.empty(n, np.int64)
     front = np.zeros(n)
     rear = np.zeros(n)
     gap = np.zeros(n)
     offset = np.zeros(n)
     for me in range(n):
-        slot[me], front[me], rear[me] = ahead_one(
-            me,
-            lookahead_m,
-            r_off,
-            r_edges,
-            r_starts,
-            r_keys,
-            r_vals,
-            r_simple,
-            s_route,
-            s_front,
-            s_len,
-            s_edge,
-            s_rear,
-            by_off,
-            by_slot,
-        )
+        slot[me], front[me], rear[me] = ahead_one(me, lookahead_m, world)
         o = slot[me]
         if o >= 0:
             gap[me] = rear[me] - s_front[me]

@@ -35,7 +35,7 @@ def _ahead_before(occ: Occupancy, lookahead_m: float) -> list[Ahead | None]:
     out: list[Ahead | None] = []
     mine = occ._front.tolist()
     for me in range(len(occ.ids)):
-        o, front, rear = occupancy_kernel.ahead_one(me, lookahead_m, *occ._ahead_tables())
+        o, front, rear = occupancy_kernel.ahead_one(me, lookahead_m, occ._ahead_world())
         front, rear = float(front), float(rear)
         out.append(None if o < 0 else Ahead(occ.ids[o], front, rear, rear - mine[me], front - mine[o]))
     return out
