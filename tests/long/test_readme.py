@@ -24,8 +24,9 @@ hours, the plan runs a smaller version — what changes and why:
 * ``make demo``/``make test`` run as ``make -n`` (a dry run: the demo's two commands are in the next block; the
   test suite would run this test again).
 * ``railsim study vc-vs-mb`` (about 50 min; tested in ``tests/long/test_study.py``), ``railsim robustness`` with 200
-  runs, ``railsim reproduce`` of papers 000, 001 and 004 (minutes to hours) and three benchmarks
-  (``optimizers_000``, ``controllers_000``, ``junction_planner``: minutes each) run with ``--help``;
+  runs, ``railsim reproduce`` of papers 000, 001 and 004 (minutes to hours) and four benchmarks
+  (``optimizers_000``, ``controllers_000``, ``junction_planner``: minutes each; ``ab``: two trees under valgrind)
+  run with ``--help``;
   ``benchmarks/engine.py`` gets the small peak as its scenario (one repetition), ``benchmarks/scale.py`` 8 and 16
   trains for 20 s, ``benchmarks/controllers_001.py`` a 500 m section, ``benchmarks/service_day.py`` 3 minutes,
   ``benchmarks/city_coupling.py`` one run of one formation; the Potsdam timetables 07:00-07:10.
@@ -222,6 +223,7 @@ PLAN: dict[str, str | None] = {
     ".venv/bin/python benchmarks/controllers_000.py": f"python benchmarks/controllers_000.py {HELP}",
     ".venv/bin/python benchmarks/junction_planner.py": f"python benchmarks/junction_planner.py {HELP}",
     ".venv/bin/python benchmarks/service_day.py": "python benchmarks/service_day.py --hours 0.05",
+    ".venv/bin/python benchmarks/ab.py HEAD~1": f"python benchmarks/ab.py {HELP}",
 }
 
 # what a page's blocks must leave behind in its folder (pages not named here: only that every block succeeds)
