@@ -5,7 +5,8 @@ run it varies by ±10 % and more). Two measures are offered:
 
 * ``--measure instructions`` (the default): the instructions each side executes, counted by valgrind's
   cachegrind (``--cache-sim=no``). They do not depend on the load or the clock, so one run of each side is an
-  answer to a fraction of a per cent. Each side runs twice and the second run counts: numba keeps its compiled
+  answer to a fraction of a per cent (both sides run with ``PYTHONHASHSEED=0``; with string hashing random, two
+  runs of the same code differ by up to ~0.1 %). Each side runs twice and the second run counts: numba keeps its compiled
   kernels per CPU model, and valgrind's emulated CPU is another model, so a side's first run under valgrind
   compiles every kernel anew (tens of billions of instructions). The sides run side by side (``--jobs``): load
   does not change a count. A run is ~70× slower than without valgrind; the default cut of the demo (1,500 s)
@@ -95,7 +96,9 @@ def _run_side(tree: Path, scenario: str, duration_s: float, seed: int, cg_out: P
     cmd = [sys.executable, "-c", CHILD, scenario, repr(duration_s), str(seed)]
     if cg_out is not None:
         cmd = ["valgrind", "--tool=cachegrind", "--cache-sim=no", f"--cachegrind-out-file={cg_out}", *cmd]
-    env = {**os.environ, "PYTHONPATH": str(tree)}
+    # string hashing fixed: sets and dicts of ids then hold the same layout in every run, and two runs of the same
+    # code differ in a count only by what other threads do (OpenBLAS's)
+    env = {**os.environ, "PYTHONPATH": str(tree), "PYTHONHASHSEED": "0"}
     done = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
     lines = [ln for ln in done.stdout.splitlines() if ln.startswith("{")]
     if done.returncode != 0 or not lines:
