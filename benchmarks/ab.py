@@ -96,7 +96,10 @@ def _commit_of(rev: str) -> str:
 def _carry_changes(tree: Path) -> None:
     """This checkout's uncommitted work into ``tree`` (a worktree of HEAD): the changes to tracked files as a patch,
     and the untracked files git does not ignore, copied."""
-    diff = subprocess.run(["git", "-C", str(ROOT), "diff", "HEAD", "--binary"], capture_output=True, check=True).stdout
+    got = subprocess.run(["git", "-C", str(ROOT), "diff", "HEAD", "--binary"], capture_output=True)
+    if got.returncode != 0:
+        raise AbError(f"git diff HEAD: {(got.stderr.decode().strip().splitlines() or ['failed'])[-1]}")
+    diff = got.stdout
     if diff:
         done = subprocess.run(["git", "-C", str(tree), "apply", "--binary", "-"], input=diff, capture_output=True)
         if done.returncode != 0:
