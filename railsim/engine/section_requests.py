@@ -223,6 +223,7 @@ class SectionRequests(SectionWalker):
         unless it has asked for that section the same way or leads this train coupled) and release those behind."""
         assert self.tracks is not None
         reqs = self.section_requests[tr.train_id]
+        self.tracks.set_in_front(t, tr.train_id, None if ahead is None else ahead.train_id)
         rear = tr.front_m - tr.trip.vehicle.length_m
         sections = self.sections[tr.train_id]
         walked = len(sections) >= self.section_walk_min  # those that can act (railsim.engine.section_walk)

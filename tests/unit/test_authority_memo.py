@@ -326,10 +326,19 @@ def _short_reach(locks: RouteLocks) -> None:
     locks._settle_sections = broken  # type: ignore[method-assign]
 
 
+def _in_front_unseen(locks: RouteLocks) -> None:
+    """Broken on purpose: the sections never learn which train stands in front of which, so a train in front of a
+    holder never takes the holder's place in their order (``TrackSections.set_in_front``), the other way a train in
+    front is let through."""
+    assert locks.tracks is not None
+    locks.tracks.set_in_front = lambda t_s, train_id, front_id: None  # type: ignore[method-assign]
+
+
 def _held_unseen(locks: RouteLocks) -> None:
     """Broken on purpose: a train in front is never let through a section this train holds."""
     held = locks._sections_held
     locks._sections_held = lambda tr, walk, short=None: () if walk is not None else held(tr, walk, short)  # type: ignore[method-assign]
+    _in_front_unseen(locks)
 
 
 def _rear_unseen(locks: RouteLocks) -> None:
@@ -416,6 +425,7 @@ def _short_held_none(locks: RouteLocks) -> None:
     """Broken on purpose: a short list holds no entry (a train in front is never let through)."""
     short_list = locks._short_list
     locks._short_list = lambda tr: short_list(tr)._replace(held=())  # type: ignore[method-assign]
+    _in_front_unseen(locks)
 
 
 @pytest.mark.parametrize("patch", [_short_open_done, _short_held_none])

@@ -10,6 +10,10 @@
   both sections near Zwätzen, the one in front waited for it behind an opposing tram).
 * A train granted the first of two sections alone asks for the second as soon as a train behind it asks for
   both (granted later, it waited between the sections behind an opposing tram that waited for the one behind).
+* A train that comes to stand in front of a train of its direction (a unit turned there) takes that train's place
+  against the other direction, and a request of the other direction does not go first against it while it waits for
+  a section that train holds (the one behind leaves it only after it): a tram granted the approach behind a unit
+  turned at Lobeda-West held the section an opposing tram waited for, and the unit waited behind that tram.
 * No points beyond the protection point of a section not yet reserved are asked for (a tram waiting at the
   near end of a section held the points at its far end, which the tram in the section needed).
 * Routes are set in order within one step too: a train that has just asked for busy points asks for none beyond
@@ -50,6 +54,65 @@ def test_a_request_never_waits_for_a_group_that_waits_for_this_train() -> None:
     assert not west_on.granted  # east still holds S1
     tracks.release(40.0, "east", east)
     assert west_on.granted
+
+
+def test_a_train_that_comes_to_stand_in_front_takes_the_place_of_the_train_behind() -> None:
+    tracks = TrackSections(EventLog(), [S1, S2])
+    opposing = tracks.request(0.0, ("opposing",), S2, 0)  # holds S2 for now
+    behind = tracks.request(10.0, ("behind",), S1, 1)  # asked first; S1 is free: granted at once
+    west = tracks.request_all(20.0, ("west",), [(S2, 0), (S1, 0)])  # waits for S2 (held) and S1 (held by behind)
+    front = tracks.request_all(30.0, ("front",), [(S1, 1), (S2, 1)])  # a unit turned in front of "behind"
+    assert behind.granted and not any(r.granted for r in west) and not any(r.granted for r in front)
+    tracks.set_in_front(35.0, "behind", "front")  # the train side sees it there: "behind" cannot pass it
+    tracks.release(40.0, "opposing", opposing)
+    assert all(r.granted for r in front), "the train in front waited behind an opposing group that waited for it"
+    assert not any(r.granted for r in west)
+
+
+def test_the_train_in_front_counts_as_asking_when_the_train_behind_it_did() -> None:
+    tracks = TrackSections(EventLog(), [S1, S2])
+    tracks.request(0.0, ("blocker",), S2, 1)  # holds S2 the way "front" will go
+    tracks.request(10.0, ("behind",), S1, 1)  # granted
+    west = tracks.request(20.0, ("west",), S2, 0)  # waits for the blocker; it waits for nothing "behind" holds
+    front = tracks.request_all(30.0, ("front",), [(S1, 1), (S2, 1)])
+    assert not west.granted and not any(r.granted for r in front)  # west asked before "front"
+    tracks.set_in_front(35.0, "behind", "front")  # "front" takes the place of "behind", which asked at 10 s
+    assert all(r.granted for r in front) and not west.granted
+
+
+def test_an_opposing_request_waiting_for_the_train_behind_never_goes_before_the_train_in_front() -> None:
+    tracks = TrackSections(EventLog(), [S1, S2])
+    unit = tracks.request(0.0, ("unit",), S1, 1)
+    tracks.request(0.0, ("blocker",), S2, 1)
+    west = tracks.request_all(20.0, ("west",), [(S2, 0), (S1, 0)])  # asked before anything below
+    tracks.hand_over(50.0, unit, "behind", 1)  # the unit's next trip holds S1 from 50 s on
+    front = tracks.request_all(60.0, ("front",), [(S1, 1), (S2, 1)])
+    assert not any(r.granted for r in front)
+    tracks.set_in_front(65.0, "behind", "front")  # west waits for S1, which "behind" leaves only after "front"
+    assert all(r.granted for r in front) and not any(r.granted for r in west)
+
+
+def test_without_a_train_in_front_the_earlier_request_of_the_other_direction_goes_first() -> None:
+    tracks = TrackSections(EventLog(), [S1, S2])
+    opposing = tracks.request(0.0, ("opposing",), S2, 0)
+    tracks.request(10.0, ("behind",), S1, 1)
+    west = tracks.request_all(20.0, ("west",), [(S2, 0), (S1, 0)])
+    front = tracks.request_all(30.0, ("front",), [(S1, 1), (S2, 1)])
+    tracks.set_in_front(35.0, "behind", None)  # nobody stands in front of it: first come, first served
+    tracks.release(40.0, "opposing", opposing)
+    assert not any(r.granted for r in front)  # west asked first and does not wait for "front"
+    assert not any(r.granted for r in west)  # it waits for S1, which "behind" holds
+
+
+def test_a_train_seen_in_front_of_an_earlier_waiting_request_is_served_at_once() -> None:
+    tracks = TrackSections(EventLog(), [S1])
+    holder = tracks.request(0.0, ("holder",), S1, 1)
+    opposing = tracks.request(5.0, ("opposing",), S1, 0)  # waits for the holder
+    front = tracks.request(10.0, ("front",), S1, 1)  # same way as the holder, but after the opposing request
+    assert holder.granted and not opposing.granted and not front.granted
+    tracks.set_in_front(12.0, "holder", "front")  # the holder stands behind it: it must go through first
+    assert front.granted and not opposing.granted
+    assert tracks.in_front == {"holder": "front"}
 
 
 def test_a_train_bound_to_turn_beyond_the_section_lets_the_trains_leaving_go_first() -> None:

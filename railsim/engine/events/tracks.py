@@ -26,7 +26,12 @@ A waiting request for one section **widens** into such a group (:meth:`TrackSect
 when the room its train would wait in beyond the section has filled since it asked. And a waiting request is **let
 through** (:meth:`TrackSections.let_through`) ahead of the other direction's when the train side finds a train
 holding the section the same way standing behind it: that train cannot pass it, so the request is part of that
-grant. Events (subject = section id): ``section_requested``, ``section_reserved``, ``section_released``.
+grant. For the same reason a request of the other direction does not go first against a train whose follower
+holds the section that train waits for (:meth:`TrackSections._behind`): the follower leaves it only after that train
+has passed through, so the request would wait for the very train it kept waiting (Jena: a tram granted the approach
+behind a unit that had just turned in front of it, the unit waiting behind an opposing tram that waited for the
+follower). And a train that comes to stand in front of a train of its direction that asked earlier (a unit turned
+back there) takes its place in the order between directions (:meth:`TrackSections._since`). Events (subject = section id): ``section_requested``, ``section_reserved``, ``section_released``.
 """
 
 from __future__ import annotations
@@ -75,6 +80,8 @@ class TrackSections:
         self.versions: dict[str, int] = {}  # train id -> changes to its section requests (:meth:`version`)
         # for a request that yields: is there room for its train at the terminus beyond? (module docstring)
         self.room_beyond = room_beyond
+        # train id -> the train directly in front of it on its route, as the train side last saw it (:meth:`_behind`)
+        self.in_front: dict[str, str | None] = {}
 
     def __contains__(self, section_id: str) -> bool:
         return section_id in self._sections
@@ -147,6 +154,18 @@ class TrackSections:
             self.events.record(t_s, "section_reserved", r.section_id, trains=list(r.holder_ids), direction=r.direction)
         return True
 
+    def set_in_front(self, t_s: float, train_id: str, front_id: str | None) -> None:
+        """The train side saw ``front_id`` (None: none) right in front of ``train_id``: when that changed, the
+        sections ``front_id`` waits for are served again, as its place in their order may have moved on
+        (:meth:`_since`, :meth:`_behind`)."""
+        if self.in_front.get(train_id, "") == front_id:
+            return
+        self.in_front[train_id] = front_id
+        if front_id is not None:
+            for sid, sec in self._sections.items():
+                if any(front_id in q.holder_ids for q in sec.queue):
+                    self._serve(t_s, sid)
+
     def release(self, t_s: float, train_id: str, req: SectionRequest) -> None:
         """``train_id`` has left the section (its rear is past the end); the request ends when all its holders did."""
         sec = self._sections[req.section_id]
@@ -212,15 +231,41 @@ class TrackSections:
             return False
         if w.yields != req.yields:
             return req.yields
-        return w.requested_s < req.requested_s
+        return self._since(w) < self._since(req)
+
+    def _since(self, req: SectionRequest) -> float:
+        """When ``req`` counts as made against the other direction: when it was, or when a train standing right
+        behind one of its trains (``in_front``) asked for a section of its group the same way, if earlier — the
+        train in front takes that place, as the one behind cannot go before it (module docstring)."""
+        since = req.requested_s
+        for r in req.group or [req]:
+            sec = self._sections[r.section_id]
+            for q in (*sec.holders, *sec.queue):
+                if (
+                    q.requested_s < since
+                    and q.direction == r.direction
+                    and any(self.in_front.get(x) in req.holder_ids for x in q.holder_ids)
+                ):
+                    since = q.requested_s
+        return since
 
     def _waits_for(self, w: SectionRequest, trains: tuple[str, ...]) -> bool:
-        """True if a member of ``w``'s group waits for a section one of ``trains`` holds the other way."""
+        """True if a member of ``w``'s group waits for a section one of ``trains`` holds the other way, or that a
+        train standing behind one of them holds it (:meth:`_behind`)."""
         for r in w.group or [w]:
             for h in self._sections[r.section_id].holders:
-                if h.direction != r.direction and not set(h.holder_ids).isdisjoint(trains):
+                if h.direction != r.direction and (not set(h.holder_ids).isdisjoint(trains) or self._behind(h, trains)):
                     return True
         return False
+
+    def _behind(self, h: SectionRequest, trains: tuple[str, ...]) -> bool:
+        """True if a train holding ``h`` stands right behind one of ``trains`` (``in_front``) that waits for ``h``'s
+        section the same way: it cannot leave the section before that train has passed through it, so a request of
+        the other direction waiting for it cannot be served before that train's either (module docstring)."""
+        waiting = {
+            x for q in self._sections[h.section_id].queue if q.direction == h.direction for x in q.holder_ids
+        }.intersection(trains)
+        return bool(waiting) and any(self.in_front.get(x) in waiting for x in h.holder_ids)
 
     def _serve(self, t_s: float, section_id: str) -> None:
         sec = self._sections[section_id]
