@@ -18,11 +18,12 @@ The root element's tag is returned, so the caller can say what kind of file it e
 from __future__ import annotations
 
 import gzip
+import io
 import xml.parsers.expat
 import zlib
 from collections.abc import Callable
 from pathlib import Path
-from typing import IO, Any
+from typing import Any
 
 from railsim.errors import ConfigError
 
@@ -30,8 +31,10 @@ OnStart = Callable[[str, dict[str, str], int], None]
 _CHUNK_BYTES = 1 << 20
 
 
-def _open(path: Path) -> IO[bytes]:
-    return gzip.open(path, "rb") if path.name.endswith(".gz") else open(path, "rb")
+def _open(path: Path) -> gzip.GzipFile | io.BufferedReader:
+    if path.name.endswith(".gz"):
+        return gzip.open(path, "rb")
+    return open(path, "rb")
 
 
 def scan(path: Path, what: str, on_start: OnStart | None = None) -> str:
