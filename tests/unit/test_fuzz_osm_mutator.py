@@ -107,3 +107,17 @@ def test_the_net_check_names_the_element(old: bytes, new: bytes, field: str, tmp
     with pytest.raises(ConfigError) as err:
         check_net_structure(path)
     assert f"{path}: {field}" in str(err.value)
+
+
+def test_the_wrong_line_search_is_linear_in_track_length() -> None:
+    """Two bidi tracks 4 m apart on a 1,000 km diagonal (an extract with one node misplaced by degrees makes such
+    an edge): the spatial index took every 25 m cell of each segment's bounding box (1.6 billion here: a hang in
+    ``network show`` after the import); it takes the cells along the segment."""
+    from network.running_side import wrong_line_edges
+
+    d_m = 1_000_000.0 / 2**0.5
+    up = [(0.0, 0.0), (d_m, d_m)]
+    shapes = {"a": up, "-a": up[::-1], "b": [(x + 2.83, y - 2.83) for x, y in up]}
+    shapes["-b"] = shapes["b"][::-1]
+    bidi = {"a": "-a", "-a": "a", "b": "-b", "-b": "b"}
+    assert wrong_line_edges(shapes, bidi, "right") == {"a", "-b"}
