@@ -162,3 +162,16 @@ def test_a_broken_lane_or_connection_names_it(
     old: bytes, new: bytes, expected: str, bases: tuple[bytes, tuple[bytes, bytes]], tmp_path: Path
 ) -> None:
     assert expected in _net_refusal(bases, tmp_path, old, new)
+
+
+def test_a_node_misplaced_by_degrees_imports_and_shows(tmp_path: Path, cache: Path) -> None:
+    # was: a hang in `network show` (the wrong-line search indexed every cell of a 5,000 km edge's bounding box)
+    body = (
+        OSM_HEAD
+        + '<node id="1" lat="50.9000" lon="11.5900"/><node id="2" lat="5.9000" lon="11.5900"/>\n'
+        + '<node id="3" lat="50.9000" lon="11.59006"/><node id="4" lat="5.9000" lon="11.59006"/>\n'
+        + '<way id="10"><nd ref="1"/><nd ref="2"/><tag k="railway" v="tram"/></way>\n'
+        + '<way id="11"><nd ref="3"/><nd ref="4"/><tag k="railway" v="tram"/></way>\n</osm>\n'
+    )
+    verdict, detail = fuzz_osm.check(fuzz_osm.Mutant(0, "osm", ("misplaced",), {"city.osm": body.encode()}), tmp_path)
+    assert verdict == "ok", detail
