@@ -91,6 +91,7 @@ import networkx as nx
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
 from network.names import ascii_letters
+from network.netcheck import check_net_structure
 from network.running_side import RUNNING_SIDES, WRONG_LINE_FACTOR, mark_wrong_line
 from network.topology import (
     NetworkBundle,
@@ -776,6 +777,7 @@ def load_net(
             src, _opt(where, "running_side"), f"expected one of {', '.join(RUNNING_SIDES)}, got {running_side!r}"
         )
     check_net_header(net_file)
+    check_net_structure(net_file)
     stops = read_stops(adds)
     key_src = "|".join(
         [EXTERNAL_VERSION, sumo_version(), signals, _file_hash(net_file), *(_file_hash(p) for p in adds)]
