@@ -28,6 +28,7 @@ import math
 import re
 import zipfile
 import zlib
+from collections.abc import Iterator
 from dataclasses import dataclass
 from datetime import date as Date, datetime
 from pathlib import Path
@@ -49,6 +50,12 @@ class Table:
     columns: tuple[str, ...]
     rows: list[dict[str, str]]
     lines: list[int]
+
+    def rows_of_trips(self, trips: set[str]) -> Iterator[tuple[dict[str, str], str]]:
+        """The rows whose ``trip_id`` is in ``trips``, each with where it stands (trip and line, for messages)."""
+        for row, line in zip(self.rows, self.lines):
+            if row["trip_id"] in trips:
+                yield row, f"trip {excerpt(row['trip_id'])}, line {line}"
 
 
 class FeedZip:

@@ -169,27 +169,21 @@ def _calls(path: Path, table: Table, trips: set[str]) -> dict[str, list[StopTime
     """The calls of ``trips`` in stop_sequence order, times filled and checked (module docstring)."""
     if table.rows and not {"arrival_time", "departure_time"} & set(table.columns):
         raise ConfigError(path, "stop_times.txt.arrival_time", "expected arrival_time or departure_time columns")
-    rows: dict[str, list[tuple[int, int, StopTime]]] = {}
-    for row, line in zip(table.rows, table.lines):
-        tid = row["trip_id"]
-        if tid not in trips:
-            continue
-        where = f"trip {excerpt(tid)}, line {line}"
+    rows: dict[str, list[tuple[int, str, StopTime]]] = {}
+    for row, where in table.rows_of_trips(trips):
         seq = non_negative_int(path, "stop_times.txt.stop_sequence", row["stop_sequence"], where)
         a = gtfs_time(path, "stop_times.txt.arrival_time", row.get("arrival_time", ""), where)
         d = gtfs_time(path, "stop_times.txt.departure_time", row.get("departure_time", ""), where)
         a = d if math.isnan(a) else a
         d = a if math.isnan(d) else d
-        rows.setdefault(tid, []).append((seq, line, StopTime(row["stop_id"], a, d)))
+        rows.setdefault(row["trip_id"], []).append((seq, where, StopTime(row["stop_id"], a, d)))
     calls: dict[str, list[StopTime]] = {}
     for tid, seq_calls in rows.items():
         seq_calls.sort(key=lambda x: x[0])
-        for (s0, l0, _), (s1, l1, _) in zip(seq_calls, seq_calls[1:]):
+        for (s0, _, _), (s1, where, _) in zip(seq_calls, seq_calls[1:]):
             if s0 == s1:
                 raise ConfigError(
-                    path,
-                    "stop_times.txt.stop_sequence",
-                    f"expected each value once per trip, got {s0} in lines {l0} and {l1} (trip {excerpt(tid)})",
+                    path, "stop_times.txt.stop_sequence", f"expected each value once per trip, got {s0} again ({where})"
                 )
         out = [c for _, _, c in seq_calls]
         if len(out) < 2:
@@ -202,14 +196,14 @@ def _calls(path: Path, table: Table, trips: set[str]) -> dict[str, list[StopTime
             )
         out = _interpolate(out)
         last = -math.inf
-        for (_, line, _), c in zip(seq_calls, out):
+        for (_, where, _), c in zip(seq_calls, out):
             if not last <= c.arrival_s <= c.departure_s:
                 raise ConfigError(
                     path,
                     "stop_times.txt.arrival_time",
                     f"expected times that never run backwards along a trip, got arrival {_clock(c.arrival_s)} "
                     f"and departure {_clock(c.departure_s)} after {_clock(max(last, 0.0))} "
-                    f"(trip {excerpt(tid)}, line {line})",
+                    f"({where})",
                 )
             last = c.departure_s
         calls[tid] = out
@@ -220,11 +214,7 @@ def _frequencies(path: Path, zf: FeedZip, trips: set[str]) -> dict[str, list[tup
     """``{template trip: [(start, end, headway) s, ...]}`` for ``trips``, checked (module docstring)."""
     table = zf.table("frequencies.txt", ("trip_id", "start_time", "end_time", "headway_secs"))
     out: dict[str, list[tuple[int, int, int]]] = {}
-    for row, line in zip(table.rows, table.lines):
-        tid = row["trip_id"]
-        if tid not in trips:
-            continue
-        where = f"trip {excerpt(tid)}, line {line}"
+    for row, where in table.rows_of_trips(trips):
         start = gtfs_time(path, "frequencies.txt.start_time", row["start_time"], where)
         end = gtfs_time(path, "frequencies.txt.end_time", row["end_time"], where)
         headway = non_negative_int(path, "frequencies.txt.headway_secs", row["headway_secs"], where)
@@ -232,7 +222,7 @@ def _frequencies(path: Path, zf: FeedZip, trips: set[str]) -> dict[str, list[tup
             raise ConfigError(path, "frequencies.txt.end_time", f"expected a time after start_time ({where})")
         if headway <= 0:
             raise ConfigError(path, "frequencies.txt.headway_secs", f"expected a whole number > 0, got 0 ({where})")
-        out.setdefault(tid, []).append((int(start), int(end), headway))
+        out.setdefault(row["trip_id"], []).append((int(start), int(end), headway))
     for tid, periods in out.items():
         periods.sort()
         for (_, end0, _), (start1, _, _) in zip(periods, periods[1:]):
