@@ -1,9 +1,16 @@
 """Reading a GTFS feed into the rail trips of one day and one time window.
 
-The tables are read one at a time from the zip and every value is parsed strictly (:mod:`.feed_tables`): a
-damaged archive, a table that is not UTF-8 CSV, a missing column, a time like ``25:61:00`` or a ``stop_sequence``
-like ``x`` is a :class:`~railsim.errors.ConfigError` naming the feed and ``table.column`` (one line, exit 2),
-never a traceback and never a value carried on silently.
+The tables are read one at a time from the zip and every value used is parsed strictly (:mod:`.feed_tables`):
+a damaged archive, a table that is not UTF-8 CSV, a missing column, a time like ``25:61:00`` or a
+``stop_sequence`` like ``x`` is a :class:`~railsim.errors.ConfigError` naming the feed and ``table.column`` (one
+line, exit 2), never a traceback and never a value carried on silently.
+
+``trips.txt`` and ``stop_times.txt`` are streamed: only the rows of rail trips (``trips.txt``) and of the trips
+kept for the date (``stop_times.txt``) are held, so a city's feed with millions of bus calls reads in seconds and
+in the memory of its rail part. Every row of every table read is checked as text (UTF-8, no NUL byte, well-formed
+CSV with the header's number of fields), and every ``trip_id`` of ``trips.txt`` must be unique and name a route
+of ``routes.txt``; the other values of a row that is not kept (the times and stops of a bus trip, a trip of
+another day) are not parsed, so a bad one there is not refused: it cannot reach the trips read.
 
 What :func:`read_trips` keeps:
 
@@ -109,12 +116,14 @@ def _unique(path: Path, table: Table, col: str) -> None:
     """Refuse a key ``col`` that appears twice in ``table``."""
     seen: dict[str, int] = {}
     for row, line in zip(table.rows, table.lines):
-        key = row[col]
-        if key in seen:
-            raise ConfigError(
-                path, f"{table.name}.{col}", f"expected unique ids, got {excerpt(key)} in lines {seen[key]} and {line}"
-            )
-        seen[key] = line
+        _once(path, f"{table.name}.{col}", seen, row[col], line)
+
+
+def _once(path: Path, field: str, seen: dict[str, int], key: str, line: int) -> None:
+    """Refuse ``key`` if ``seen`` has it (the line of each key so far); else note it."""
+    if key in seen:
+        raise ConfigError(path, field, f"expected unique ids, got {excerpt(key)} in lines {seen[key]} and {line}")
+    seen[key] = line
 
 
 def _services_on(path: Path, zf: FeedZip, wanted: set[str], day: Date) -> tuple[set[str], str]:
@@ -165,10 +174,13 @@ def _rail_routes(path: Path, table: Table) -> dict[str, tuple[str, int]]:
     return rail
 
 
-def _calls(path: Path, table: Table, trips: set[str]) -> dict[str, list[StopTime]]:
-    """The calls of ``trips`` in stop_sequence order, times filled and checked (module docstring)."""
-    if table.rows and not {"arrival_time", "departure_time"} & set(table.columns):
+def _calls(path: Path, zf: FeedZip, trips: set[str]) -> dict[str, list[StopTime]]:
+    """The calls of ``trips`` in stop_sequence order, times filled and checked (module docstring). The table is
+    read row by row and only the rows of ``trips`` are kept and parsed."""
+    stop_times = zf.rows("stop_times.txt", ("trip_id", "stop_id", "stop_sequence"))
+    if not {"arrival_time", "departure_time"} & set(stop_times.columns):
         raise ConfigError(path, "stop_times.txt.arrival_time", "expected arrival_time or departure_time columns")
+    table = stop_times.collect("trip_id", trips)
     rows: dict[str, list[tuple[int, str, StopTime]]] = {}
     for row, where in table.rows_of_trips(trips):
         seq = non_negative_int(path, "stop_times.txt.stop_sequence", row["stop_sequence"], where)
@@ -208,6 +220,27 @@ def _calls(path: Path, table: Table, trips: set[str]) -> dict[str, list[StopTime
             last = c.departure_s
         calls[tid] = out
     return calls
+
+
+def _trips(path: Path, zf: FeedZip, route_ids: set[str], rail: set[str]) -> tuple[list[dict[str, str]], set[str]]:
+    """The rows of trips.txt on a route of ``rail``, and the service ids of all trips; every ``trip_id`` once and
+    every ``route_id`` one of ``route_ids``. Read row by row: only the rail trips are kept."""
+    trips = zf.rows("trips.txt", ("route_id", "service_id", "trip_id"))
+    kt, kr, ks = trips.index("trip_id"), trips.index("route_id"), trips.index("service_id")
+    seen: dict[str, int] = {}
+    services: set[str] = set()
+    out: list[dict[str, str]] = []
+    for fields, line in trips:
+        route = fields[kr].strip()
+        _once(path, "trips.txt.trip_id", seen, fields[kt].strip(), line)
+        if route not in route_ids:
+            raise ConfigError(
+                path, "trips.txt.route_id", f"expected a route of routes.txt, got {excerpt(route)} (line {line})"
+            )
+        services.add(fields[ks].strip())
+        if route in rail:
+            out.append(trips.record(fields))
+    return out, services
 
 
 def _frequencies(path: Path, zf: FeedZip, trips: set[str]) -> dict[str, list[tuple[int, int, int]]]:
@@ -294,21 +327,13 @@ def read_trips(
                 "--routes",
                 f"expected rail route ids or short names of the feed, got {sorted(wanted)}",
             )
-    trip_table = zf.table("trips.txt", ("route_id", "service_id", "trip_id"), present=True)
-    _unique(path, trip_table, "trip_id")
-    for row, line in zip(trip_table.rows, trip_table.lines):
-        if row["route_id"] not in route_ids:
-            raise ConfigError(
-                path,
-                "trips.txt.route_id",
-                f"expected a route of routes.txt, got {excerpt(row['route_id'])} (line {line})",
-            )
-    services, span = _services_on(path, zf, {r["service_id"] for r in trip_table.rows}, day)
+    rail_trips, service_ids = _trips(path, zf, route_ids, set(rail))
+    services, span = _services_on(path, zf, service_ids, day)
     if not services:
         raise ConfigError(path, "--date", f"expected a date the feed runs on ({span}), got {day.isoformat()}")
-    trip_rows = [r for r in trip_table.rows if r["service_id"] in services and r["route_id"] in rail]
+    trip_rows = [r for r in rail_trips if r["service_id"] in services]
     kept = {r["trip_id"] for r in trip_rows}
-    calls = _calls(path, zf.table("stop_times.txt", ("trip_id", "stop_id", "stop_sequence"), present=True), kept)
+    calls = _calls(path, zf, kept)
     templates = _frequencies(path, zf, kept)
     result = Feed(trips=[], stops={}, rail_routes=len(rail))
     for row in trip_rows:

@@ -6,11 +6,14 @@ outside WGS84. ``python -m tests.fuzz_gtfs --reader --mutants 1000`` is the larg
 
 The regression tests start from a minimal valid feed (:data:`MINIMAL`) and change one cell or one table: each
 case is an input the fuzz found that once gave a traceback, a hang, an error without its field, or a silently
-wrong trip.
+wrong trip. The last tests hold the streamed reading (:mod:`railsim.timetable.feed_tables`): text read in chunks
+splits into the same lines and names the same line of a bad byte, whatever the chunk size; the rows of trips not
+kept are checked as text only; a damaged member is refused as it is read.
 """
 
 from __future__ import annotations
 
+import io
 import math
 from datetime import date
 from pathlib import Path
@@ -18,6 +21,7 @@ from pathlib import Path
 import pytest
 
 from railsim.errors import ConfigError
+from railsim.timetable import feed_tables
 from railsim.timetable.gtfs import read_trips
 from tests import fuzz_gtfs
 
@@ -100,7 +104,7 @@ def test_the_minimal_feed_expands_its_frequencies(tmp_path: Path) -> None:
         # once duplicated trips, or a trip silently dropped for a route that does not exist
         ("trips.txt", "M,wk,t1\n", "M,wk,t1\nM,wk,t1\n", "trips.txt.trip_id"),
         ("trips.txt", "M,wk,t1", "N,wk,t1", "trips.txt.route_id"),
-        # once a pandas error without its table: a ragged row, a quote left open, a NUL byte, invalid UTF-8
+        # once an error without its table: a ragged row, a quote left open, a NUL byte, invalid UTF-8
         ("stops.txt", "A,Alpha,0.0,0.0", "A,Alpha,0.0,0.0,x", "stops.txt"),
         ("stops.txt", "A,Alpha", 'A,"Alpha', "stops.txt"),
         ("stops.txt", "0.0,0.01", "0.0,0.01\x00", "stops.txt"),
@@ -131,7 +135,7 @@ def test_a_table_twice_in_the_zip_is_refused_and_one_sub_folder_is_read(tmp_path
     path = tmp_path / "feed.zip"
     path.write_bytes(fuzz_gtfs.zip_bytes({**files, "gtfs/stops.txt": files["stops.txt"]}))
     with pytest.raises(ConfigError, match=r"feed.zip: stops.txt: expected one stops.txt in the feed"):
-        read_trips(path, TUESDAY, 7 * 3600, 8 * 3600)  # once partridge's ValueError without the table
+        read_trips(path, TUESDAY, 7 * 3600, 8 * 3600)  # once a ValueError without the table
     path.write_bytes(fuzz_gtfs.zip_bytes({"gtfs/": b"", **{f"gtfs/{n}": d for n, d in files.items()}}))
     assert len(read_trips(path, TUESDAY, 7 * 3600, 8 * 3600).trips) == 6
 
@@ -158,3 +162,58 @@ def test_a_calendar_over_millennia_and_a_one_second_headway_read_the_window_only
 def test_empty_coordinates_are_unknown_and_the_stop_matches_by_name(tmp_path: Path) -> None:
     feed = read_trips(_feed(tmp_path, "stops.txt", "0.0,0.01", ","), TUESDAY, 7 * 3600, 8 * 3600)
     assert math.isnan(feed.stops["Z"].lat) and math.isnan(feed.stops["Z"].lon)
+
+
+@pytest.mark.parametrize("chunk_bytes", [1, 2, 3, 5, 7, 64])
+def test_text_read_in_chunks_splits_lines_as_the_whole_text_does(chunk_bytes: int) -> None:
+    text = 'a,b\r\nc,"d\r\ne"\rf,é€\n\ng,h\r'
+    data = b"\xef\xbb\xbf" + text.encode()
+    chunks = feed_tables.text_lines(Path("f.zip"), "t.txt", io.BytesIO(data), chunk_bytes)
+    assert [ln for lines in chunks for ln in lines] == io.StringIO(text, newline="").readlines()
+
+
+@pytest.mark.parametrize("chunk_bytes", [1, 4, 1 << 20])
+@pytest.mark.parametrize(
+    ("bad", "message"),
+    [
+        (b"\xff", "expected UTF-8 text, got an invalid byte in line 3"),
+        (b"\x00", "expected text, got a NUL byte in line 3"),
+    ],
+)
+def test_text_read_in_chunks_names_the_line_of_a_bad_byte(chunk_bytes: int, bad: bytes, message: str) -> None:
+    data = b"a,b\r\n\xc3\xa9,x\nc," + bad + b"\nd,e\n"
+    with pytest.raises(ConfigError, match=f"t.txt: {message}$"):
+        list(feed_tables.text_lines(Path("f.zip"), "t.txt", io.BytesIO(data), chunk_bytes))
+
+
+def test_rows_of_trips_not_kept_are_checked_as_text_only(tmp_path: Path) -> None:
+    # a bus trip's bad time or unknown stop cannot reach the trips read: not parsed; its ragged row is refused
+    files = dict(MINIMAL)
+    files["routes.txt"] += "B,B,3\n"
+    files["trips.txt"] += "B,wk,b1\n"
+    bus = "b1,25:61:00,x,NOWHERE,y\nb1,07:10:00,07:10:00,Z,2\n"
+    files["stop_times.txt"] = files["stop_times.txt"].replace(
+        "trip_id,arrival_time,departure_time,stop_id,stop_sequence\n",
+        "trip_id,arrival_time,departure_time,stop_id,stop_sequence\n" + bus,
+    )
+    path = tmp_path / "feed.zip"
+    path.write_bytes(fuzz_gtfs.zip_bytes({n: t.encode() for n, t in files.items()}))
+    assert len(read_trips(path, TUESDAY, 7 * 3600, 8 * 3600).trips) == 6
+    files["stop_times.txt"] = files["stop_times.txt"].replace("NOWHERE,y", "NOWHERE,y,z")
+    path.write_bytes(fuzz_gtfs.zip_bytes({n: t.encode() for n, t in files.items()}))
+    with pytest.raises(ConfigError, match=r"stop_times.txt: expected 5 fields as in the header, got 6 in line 2$"):
+        read_trips(path, TUESDAY, 7 * 3600, 8 * 3600)
+    files["trips.txt"] += "B,wk,b1\n"
+    path.write_bytes(fuzz_gtfs.zip_bytes({n: t.encode() for n, t in files.items()}))
+    with pytest.raises(ConfigError, match=r"trips.txt.trip_id: expected unique ids, got 'b1' in lines 3 and 4$"):
+        read_trips(path, TUESDAY, 7 * 3600, 8 * 3600)
+
+
+def test_a_damaged_member_is_refused_naming_its_table(tmp_path: Path) -> None:
+    data = bytearray(fuzz_gtfs.zip_bytes({n: t.encode() for n, t in MINIMAL.items()}))
+    at = bytes(data).index(b"t1,07:10:00,07:10:00,Z,2")
+    data[at + 3] ^= 1  # the stored bytes change; the member's checksum no longer matches
+    path = tmp_path / "feed.zip"
+    path.write_bytes(bytes(data))
+    with pytest.raises(ConfigError, match=r"stop_times.txt: expected a readable zip member, got an error \(Bad CRC"):
+        read_trips(path, TUESDAY, 7 * 3600, 8 * 3600)
