@@ -236,8 +236,14 @@ def _on_alarm(signum: int, frame: Any) -> None:
 
 def validate_in_process(path: Path, timeout_s: float = TIMEOUT_S, world_check: bool = False) -> Outcome:
     """``railsim validate --no-world-check PATH`` (``world_check``: with the world check) in this process; the
-    outcome and whether it keeps the contract: exit 0 or 2, and on 2 exactly one line ``railsim: error: ...``
-    without a traceback."""
+    outcome and whether it keeps the contract (:func:`cli_in_process`)."""
+    return cli_in_process(["validate", *([] if world_check else ["--no-world-check"]), str(path)], timeout_s)
+
+
+def cli_in_process(argv: list[str], timeout_s: float = TIMEOUT_S) -> Outcome:
+    """``railsim ARGV`` through :func:`railsim.cli.main.main` in this process, under a time limit; the outcome and
+    whether it keeps the contract: exit 0 or 2, and on 2 exactly one line ``railsim: error: ...`` without a
+    traceback."""
     from railsim.cli.main import main
 
     err, out = io.StringIO(), io.StringIO()
@@ -248,7 +254,7 @@ def validate_in_process(path: Path, timeout_s: float = TIMEOUT_S, world_check: b
     problem: str | None = None
     try:
         with contextlib.redirect_stderr(err), contextlib.redirect_stdout(out):
-            rc = main(["validate", *([] if world_check else ["--no-world-check"]), str(path)])
+            rc = main(argv)
     except Hang:
         problem = f"hang (> {timeout_s:g} s)"
     except BaseException as exc:  # noqa: BLE001 - anything escaping main breaks the contract
