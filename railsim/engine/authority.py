@@ -42,9 +42,9 @@ from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.lock_walk import RouteSwitches
-from railsim.engine.section_requests import STOP_OVERRUN_ALLOWANCE_M, stop_aim_m
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import RouteSection
+from railsim.engine.stop_timing import STOP_OVERRUN_ALLOWANCE_M, stop_aim_m
 from railsim.engine.train import TrainRuntime
 
 log = logging.getLogger("railsim.engine.locking")  # the route locks speak under one name

@@ -24,7 +24,7 @@ both immutable, by identity; its start offset; the train's start front: :meth:`S
 
 **One switch in reach.** Most other steps visit one switch: the one at the cursor, ahead of the front, the only
 one within the request distance, and tracked if the train holds or waits for it (a train coming in to the
-platform before the points, which it asks for only when about to leave: :func:`~railsim.engine.section_requests.
+platform before the points, which it asks for only when about to leave: :func:`~railsim.engine.stop_timing.
 stop_before`). :meth:`SwitchWalker._single_switch` finds it without :meth:`SwitchWalker._walk_candidates`; and if
 the visit changed none of the train's locks and released nothing, settling would leave the walk as it stands (the
 cursor stays — the point lies beyond the front and the switch is not dormant: what that depends on did not change

@@ -29,13 +29,13 @@ less (:meth:`RouteLocks._reach_stop`): the train halts at its mark, SUMO registe
 requested from there. Ending the authority the overlap short, a train with a platform 22 m before the points
 halted 2 m short of its mark, outside a short platform's window: SUMO never registered the stop and the run
 stalled. The overlap left beyond such a stop is the distance from the mark to the point. The carried authority
-never lets the ATO aim closer than :data:`~railsim.engine.section_requests.STOP_OVERRUN_ALLOWANCE_M` to the point
+never lets the ATO aim closer than :data:`~railsim.engine.stop_timing.STOP_OVERRUN_ALLOWANCE_M` to the point
 (the ATO's worst measured overrun of its stop point, rounded up): a tram handed to its ATO at speed close before
 Potsdam's Platz der Einheit/West ran 1.12 m past its mark, 1 m before the platform end, into flat crossing
 ``1137879547`` while another tram held it. The aim then lies before the mark, inside the stop's window
-(:func:`~railsim.engine.section_requests.stop_aim_m`). A stop whose window has no such aim is served only with the
+(:func:`~railsim.engine.stop_timing.stop_aim_m`). A stop whose window has no such aim is served only with the
 resource: the train asks for it on its way in (the stop's window ends within the overlap, and
-:func:`~railsim.engine.section_requests.stop_before` does not hold the request back), halts the allowance short of
+:func:`~railsim.engine.stop_timing.stop_before` does not hold the request back), halts the allowance short of
 the point while it waits, and the run records ``stop_needs_resource``.
 
 **Merges.** At a merge (two tracks joining, SUMO's trailing points) a train on the other leg appears on our
@@ -74,16 +74,13 @@ from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
 from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker, start_limit_of
-from railsim.engine.section_requests import (
-    SectionRequests,
-    separation_margin_m,
-    stop_before,
-)
+from railsim.engine.section_requests import SectionRequests
 from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk, ShortEntries
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
     RouteSection,
 )
+from railsim.engine.stop_timing import separation_margin_m, stop_before
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import TripStop
 from railsim.engine.wiring import unwired

@@ -35,8 +35,8 @@ import pytest
 
 from railsim.engine.events.tracks import TrackSections
 from railsim.engine.locking import RouteLocks
-from railsim.engine.section_requests import STOP_OVERRUN_ALLOWANCE_M, stop_aim_m
 from railsim.engine.single_track import RouteSection
+from railsim.engine.stop_timing import STOP_OVERRUN_ALLOWANCE_M, stop_aim_m
 from tests.unit.test_lock_walk import World
 
 SEEDS, STEPS = 8, 1200

@@ -26,9 +26,9 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import TrackSections
 from railsim.engine.extensions import ExtensionSet
 from railsim.engine.locking import RouteLocks
-from railsim.engine.section_requests import SECTION_REQUEST_LEAD_S, stop_before
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import RouteSection
+from railsim.engine.stop_timing import SECTION_REQUEST_LEAD_S, stop_before
 from railsim.engine.trips import TripStop
 
 CROSSING = "crossing:n1"

@@ -7,8 +7,8 @@ from __future__ import annotations
 from typing import Any
 
 from controllers.ato import AtoParams
-from railsim.engine.section_requests import STOP_OVERRUN_ALLOWANCE_M, stop_before
 from railsim.engine.single_track import RouteSection
+from railsim.engine.stop_timing import STOP_OVERRUN_ALLOWANCE_M, stop_before
 from railsim.engine.trips import TripStop
 from tests.unit.test_lock_requests import CROSSING, _crossing_locks, _stop, _train
 
