@@ -31,7 +31,8 @@ holds the section that train waits for (:meth:`TrackSections._behind`): the foll
 has passed through, so the request would wait for the very train it kept waiting (Jena: a tram granted the approach
 behind a unit that had just turned in front of it, the unit waiting behind an opposing tram that waited for the
 follower). And a train that comes to stand in front of a train of its direction that asked earlier (a unit turned
-back there) takes its place in the order between directions (:meth:`TrackSections._since`). Events (subject = section id): ``section_requested``, ``section_reserved``, ``section_released``.
+back there) takes its place in the order between directions (:meth:`TrackSections._since`). Events (subject =
+section id): ``section_requested``, ``section_reserved``, ``section_released``.
 """
 
 from __future__ import annotations
