@@ -101,19 +101,16 @@ import yaml
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
 from network.geo import distance_m, net_to_lonlat, read_location
-from network.xmlscan import scan
+from network.osm_check import check_input, check_osm_content, input_name
 from railsim.errors import ConfigError
-from railsim.inputs import excerpt
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "9"  # bump when the options or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "10"  # bump when the options, the checks or the outputs change (invalidates the cache)
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
-_OSM_SUFFIXES = (".osm", ".osm.xml", ".xml", ".osm.gz", ".osm.xml.gz", ".xml.gz", ".osm.pbf", ".pbf", ".o5m")
 TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
 STATION_TRACK_M = 150.0  # a station's platforms on one track lie within this of each other along the track
 END_CLEARANCE_M = 3.0  # a moved stop ends this far before the end of its edge
-MAX_SPEED_KMH = 1000.0  # a way's maxspeed above this (or not above 0) is an error in the data, not a speed
 MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
 UNNAMED_RADIUS_M = 100.0  # an OSM stop without a name takes the name of a named stop or platform within this
 _STOP_TAGS = {
@@ -234,69 +231,6 @@ def parse_bbox(text: str | None) -> tuple[float, float, float, float] | None:
     return (w, s, e, n)
 
 
-def _input_name(osm_file: Path) -> str:
-    name = osm_file.name
-    for suffix in sorted(_OSM_SUFFIXES, key=len, reverse=True):
-        if name.endswith(suffix):
-            return name[: -len(suffix)] or "osm"
-    return osm_file.stem
-
-
-def _check_input(osm_file: Path) -> None:
-    if not osm_file.is_file():
-        raise ConfigError(osm_file, None, "expected an existing OpenStreetMap file (.osm, .osm.xml or .osm.gz)")
-    if osm_file.name.endswith((".pbf", ".o5m")):
-        raise ConfigError(
-            osm_file,
-            None,
-            "this SUMO's netconvert reads OSM XML (.osm, .osm.gz), not PBF/O5M: convert it first, "
-            f"e.g. `osmium cat {osm_file.name} -o {_input_name(osm_file)}.osm`",
-        )
-
-
-def check_osm_content(osm_file: Path) -> None:
-    """One pass over the extract before netconvert reads it (:func:`network.xmlscan.scan`: well-formed XML, no
-    entity declarations, an intact gzip stream), refusing what netconvert would take silently or refuse without
-    saying where: a root element other than ``<osm>``, a node whose ``lat``/``lon`` is not a number within
-    -90..90 / -180..180 degrees (netconvert keeps ``nan``), and a way whose ``maxspeed`` is a number not above 0
-    or above :data:`MAX_SPEED_KMH` (netconvert writes ``inf`` as the track's speed). A ``maxspeed`` netconvert
-    cannot read as a number (``fast``, ``none``) it ignores, with a warning: the track's type speed applies."""
-    owner = ["", ""]  # the node/way/relation whose <tag> elements follow
-
-    def on_start(tag: str, attrs: dict[str, str], line: int) -> None:
-        if tag in ("node", "way", "relation"):
-            owner[:] = [tag, attrs.get("id", "")]
-        if tag == "node":
-            for key, limit, what in (("lat", 90.0, "latitude"), ("lon", 180.0, "longitude")):
-                raw = attrs.get(key)
-                try:
-                    value = float(raw if raw is not None else "nan")
-                except ValueError:
-                    value = math.nan
-                if not -limit <= value <= limit:
-                    raise ConfigError(
-                        osm_file,
-                        f"node[id={owner[1]}].{key}",
-                        f"expected a {what} in -{limit:g}..{limit:g} degrees, got {excerpt(raw)} (line {line})",
-                    )
-        elif tag == "tag" and owner[0] == "way" and attrs.get("k") == "maxspeed":
-            raw = attrs.get("v", "")
-            try:
-                kmh = float(raw.split()[0]) if raw.split() else None
-            except ValueError:
-                kmh = None  # not a number: netconvert warns and keeps the type's speed
-            if kmh is not None and not 0.0 < kmh <= MAX_SPEED_KMH:
-                raise ConfigError(
-                    osm_file,
-                    f"way[id={owner[1]}].maxspeed",
-                    f"expected a speed above 0 and up to {MAX_SPEED_KMH:g} km/h, got {excerpt(raw)} (line {line})",
-                )
-
-    root = scan(osm_file, "an OpenStreetMap file", on_start)
-    if root != "osm":
-        raise ConfigError(osm_file, "root element", f"expected an OpenStreetMap file (an <osm> root), got <{root}>")
-
-
 def _file_hash(path: Path) -> str:
     h = hashlib.sha256()
     with open(path, "rb") as fh:
@@ -317,7 +251,7 @@ def _cache_key(
         options
         | {
             "input": _file_hash(osm_file),
-            "name": _input_name(osm_file),  # the files are named after it: a renamed copy is its own entry
+            "name": input_name(osm_file),  # the files are named after it: a renamed copy is its own entry
             "light_rail_as_tram": light_rail_as_tram,
             "bbox": list(bbox) if bbox else None,
             "lines": sorted(lines) if lines else None,
@@ -822,8 +756,8 @@ def import_osm(
     the length every stop is widened to (within its lane) when shorter; default :data:`MIN_STOP_M`."""
     t0 = time.perf_counter()
     osm_path = Path(osm_file).resolve()
-    _check_input(osm_path)
-    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", _input_name(osm_path))
+    check_input(osm_path)
+    name = re.sub(r"[^A-Za-z0-9_.-]+", "_", input_name(osm_path))
     key = _cache_key(osm_path, bbox, lines, light_rail_as_tram, platform_m)
     folder = cache_root() / f"osm-{key}"
     summary_file = folder / f"{name}.import.yaml"

@@ -349,14 +349,23 @@ def non_finite_cells(out_dir: Path) -> list[str]:
     return bad
 
 
+def campaign_parser(description: str, mutants: int, first: bool = False) -> argparse.ArgumentParser:
+    """The options every fuzzer's command line shares: how many mutants, the seed, and (``first``) the index of the
+    first mutant, so a campaign can be resumed or one mutant replayed."""
+    ap = argparse.ArgumentParser(description=description)
+    ap.add_argument("--mutants", type=int, default=mutants)
+    if first:
+        ap.add_argument("--first", type=int, default=0, help="index of the first mutant")
+    ap.add_argument("--seed", type=int, default=0)
+    return ap
+
+
 def main(argv: list[str] | None = None) -> int:
     import tempfile
 
     from tests.helpers import run_railsim
 
-    ap = argparse.ArgumentParser(description="Fuzz railsim validate (and run) with mutants of the shipped scenarios.")
-    ap.add_argument("--mutants", type=int, default=1000)
-    ap.add_argument("--seed", type=int, default=0)
+    ap = campaign_parser("Fuzz railsim validate (and run) with mutants of the shipped scenarios.", 1000)
     ap.add_argument("--runs", type=int, default=0, help="run this many accepted mutants (evenly spread; -1: all)")
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="railsim-fuzz-") as tmp:

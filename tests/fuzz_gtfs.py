@@ -36,7 +36,6 @@ alone, ``--world DIR`` to reuse an imported world).
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import json
@@ -52,7 +51,7 @@ from dataclasses import dataclass, field
 from datetime import date
 from pathlib import Path
 
-from tests.fuzz import Hang, _on_alarm, cli_in_process
+from tests.fuzz import Hang, _on_alarm, campaign_parser, cli_in_process
 
 ROOT = Path(__file__).resolve().parents[1]
 BASE_FEED = ROOT / "tests" / "data" / "gtfs" / "sao_paulo_rail_cut.zip"
@@ -487,10 +486,7 @@ def import_world(out: Path) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="Fuzz railsim timetable import with mutants of the committed GTFS feed.")
-    ap.add_argument("--mutants", type=int, default=200)
-    ap.add_argument("--first", type=int, default=0, help="index of the first mutant")
-    ap.add_argument("--seed", type=int, default=0)
+    ap = campaign_parser("Fuzz railsim timetable import with mutants of the committed GTFS feed.", 200, first=True)
     ap.add_argument("--reader", action="store_true", help="the reading layer only (read_trips; no world)")
     ap.add_argument("--world", type=Path, default=None, help="an imported world to reuse (default: import one)")
     args = ap.parse_args(argv)

@@ -36,7 +36,6 @@ names no input file, a refusal of a world the import wrote, a run that crashes a
 
 from __future__ import annotations
 
-import argparse
 import copy
 import gzip
 import json
@@ -512,10 +511,7 @@ def campaign(n: int, workdir: Path, seed: int = 0, runs: int = 0, first: int = 0
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="Fuzz network import (OSM) and user nets; the figures as JSON.")
-    ap.add_argument("--mutants", type=int, default=100)
-    ap.add_argument("--first", type=int, default=0, help="index of the first mutant")
-    ap.add_argument("--seed", type=int, default=0)
+    ap = fuzz.campaign_parser("Fuzz network import (OSM) and user nets; the figures as JSON.", 100, first=True)
     ap.add_argument("--runs", type=int, default=0, help="also run this many accepted net mutants (child processes)")
     ap.add_argument("--keep", metavar="DIR", help="work here and keep the defects' files (default: a temp folder)")
     args = ap.parse_args(argv)

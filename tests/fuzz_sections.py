@@ -22,7 +22,6 @@ exit 4. ``python -m tests.fuzz_sections --mutants 600`` prints the figures of a 
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import copy
 import io
@@ -220,9 +219,7 @@ def campaign(n: int, workdir: Path, seed: int = 0) -> Figures:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(description="Fuzz the newer sections' validation (and run a few accepted mutants).")
-    ap.add_argument("--mutants", type=int, default=600)
-    ap.add_argument("--seed", type=int, default=0)
+    ap = fuzz.campaign_parser("Fuzz the newer sections' validation (and run a few accepted mutants).", 600)
     args = ap.parse_args(argv)
     with tempfile.TemporaryDirectory(prefix="railsim-fuzz-sections-") as tmp:
         fig = campaign(args.mutants, Path(tmp), args.seed)

@@ -12,7 +12,7 @@ from pathlib import Path
 import pytest
 
 from network.netcheck import check_net_structure
-from network.osm_import import check_osm_content
+from network.osm_check import check_osm_content
 from railsim.errors import ConfigError
 from tests import fuzz_osm
 
@@ -74,6 +74,8 @@ def test_every_hostile_family_occurs() -> None:
         (b'<tag k="railway" v="tram"/>', b'<tag k="maxspeed" v="inf"/>', "way[id=10].maxspeed"),
         (b"<osm ", b"<html ", "root element"),
         (b'lat="50.91"', b'lat="50.91', "line 2, column"),
+        (b"<way ", b'<node id="1" lat="50.9" lon="11.6"/><way ', "node[id=1]"),
+        (b'<node id="2"', b'<node id="n2" lat="0" lon="0"/><node id="n2"', "node[id=n2]"),
     ],
 )
 def test_the_extract_check_names_the_element(old: bytes, new: bytes, field: str, tmp_path: Path) -> None:
@@ -121,3 +123,29 @@ def test_the_wrong_line_search_is_linear_in_track_length() -> None:
     shapes["-b"] = shapes["b"][::-1]
     bidi = {"a": "-a", "-a": "a", "b": "-b", "-b": "b"}
     assert wrong_line_edges(shapes, bidi, "right") == {"a", "-b"}
+
+
+def test_a_node_given_twice_at_one_position_is_one_node(tmp_path: Path) -> None:
+    """An extract merged with itself repeats its nodes unchanged: nothing to refuse."""
+    path = tmp_path / "twice.osm"
+    node = b'<node id="2" lat="50.91" lon="11.59"/>'
+    path.write_bytes(OSM.replace(node, node + node))
+    check_osm_content(path)
+
+
+def test_the_first_node_given_at_two_positions_is_named_with_both_lines(tmp_path: Path) -> None:
+    """Many nodes, two ids moved: the one named is where a reader going down the file first meets a conflict (the
+    earliest second mention), with both its lines."""
+    nodes = [f'<node id="{i}" lat="50.{i:04d}" lon="11.5"/>' for i in range(100, 400)]
+    nodes.insert(250, '<node id="390" lat="51.0" lon="11.5"/>')  # 390 moved, before its own line: conflict at 390's
+    nodes.insert(200, '<node id="150" lat="50.0150" lon="11.5"/>')  # 150 again, same place: fine
+    nodes.insert(280, '<node id="120" lat="50.0120" lon="11.6"/>')  # 120 moved: met before 390's second mention
+    text = '<?xml version="1.0"?>\n<osm version="0.6">\n' + "\n".join(nodes) + "\n</osm>\n"
+    path = tmp_path / "merged.osm"
+    path.write_text(text, encoding="utf-8")
+    with pytest.raises(ConfigError) as err:
+        check_osm_content(path)
+    lines = {i: [n for n, line in enumerate(text.splitlines(), 1) if f'id="{i}"' in line] for i in (120, 390)}
+    assert max(lines[120]) < max(lines[390])
+    assert f"{path}: node[id=120]: " in str(err.value)
+    assert f"lines {lines[120][0]} and {lines[120][1]}" in str(err.value)
