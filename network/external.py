@@ -41,14 +41,14 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
   platform; beyond, none, and ``graph.graph["routes_note"]`` says why).
 * **Line chainage** (what a generated world's line description gives: a ``line`` and a ``km`` per station, so
   the line studies — sections, UIC 406 capacity, the train graph, the report — work on a user's net too):
-  :func:`line_chainage` takes the listed route along the most stations as the ``main`` line, km = distance
+  :func:`network.chainage.line_chainage` takes the listed route along the most stations as the ``main`` line, km = distance
   along that route from its first station's platform centre (its direction of travel is ``up``, the opposite
   ``down``), and places the stations left on ``branch1``, ``branch2``... from the nearest station already
   placed. Nets with more stations than :data:`MAX_ROUTED_STATIONS` get none (``line`` "", ``km`` 0). There are
   no gradients (SUMO elevation is not read) and no named points; no topology JSON is written (the bundle's
   ``topology_file`` is the user's net, and reading a net again costs one sumolib parse).
 * **Flat crossings**: foe movements inside one node that share no track, from SUMO's own foe matrix
-  (``graph.graph["crossings"]``, :func:`_mark_crossings`); the engine interlocks them, and single track, as
+  (``graph.graph["crossings"]``, :func:`network.net_crossings.mark_crossings`); the engine interlocks them, and single track, as
   route resources (docs/model.md, "Interlocking").
 
 **Rail signals** (``signals``). Measured with SUMO 1.28 (``shared/notes/sumo_rail_findings.md``): fixed-block
@@ -81,7 +81,7 @@ import re
 import subprocess
 import tempfile
 import xml.etree.ElementTree as ET
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -89,17 +89,19 @@ from typing import Any
 import networkx as nx
 
 from network.build import cache_root
+from network.chainage import line_chainage
 from network.generator import netconvert_binary, sumo_version
 from network.names import ascii_letters
+from network.net_crossings import mark_crossings
+from network.net_switches import find_switches
 from network.netcheck import check_net_structure
+from network.plane import compass, heading_rad
 from network.running_side import RUNNING_SIDES, WRONG_LINE_FACTOR, mark_wrong_line
 from network.topology import (
     NetworkBundle,
     PlatformInfo,
     RouteInfo,
     StationInfo,
-    SwitchInfo,
-    flat_crossings,
     make_route,
     serves_in_order,
 )
@@ -115,7 +117,6 @@ MAX_LISTED_STATIONS = 30  # up to this many stations bundle.routes asks route_be
 MAX_ROUTED_STATIONS = 150  # ... up to this many, one search per platform; beyond, no routes (and no line km)
 _STOP_TAGS = ("trainStop", "busStop")
 INSERTION_CHECKS = "collision leaderGap followerGap junction stop arrivalSpeed speedLimit pedestrian"
-_COMPASS = ("N", "NE", "E", "SE", "S", "SW", "W", "NW")
 
 Where = tuple[Any, str]  # (source, field prefix) for errors in the options: (scenario, "world") or (cli, "--")
 
@@ -262,26 +263,6 @@ def _slug(text: str) -> str:
     return re.sub(r"[^a-z0-9]+", "-", ascii_text.lower()).strip("-")
 
 
-def _heading(shape: Sequence[tuple[float, ...]], at_end: bool) -> float:
-    """Heading [rad] of a polyline at its end (``at_end``) or its start: the last/first non-zero segment."""
-    pts = list(shape)[::-1] if at_end else list(shape)
-    for (x0, y0, *_), (x1, y1, *_) in zip(pts, pts[1:]):
-        if math.hypot(x1 - x0, y1 - y0) > 1e-6:
-            return math.atan2(y0 - y1, x0 - x1) if at_end else math.atan2(y1 - y0, x1 - x0)
-    return 0.0
-
-
-def _compass(dx: float, dy: float) -> str:
-    """8-point compass label of a travel direction (SUMO's y axis points north)."""
-    bearing = math.degrees(math.atan2(dx, dy)) % 360.0
-    return _COMPASS[int((bearing + 22.5) // 45.0) % 8]
-
-
-def _turn(a: float, b: float) -> float:
-    """Absolute heading change from a to b [rad], in [0, pi]."""
-    return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
-
-
 def _rail_lane(lane: Any, vclass: str, open_as: str | None = None) -> bool:
     """A lane railsim's trains (``vclass``) may use: it allows the class and is not a road lane.
 
@@ -391,7 +372,7 @@ def _build_graph(
         g.add_node(
             e.getID(),
             line="",
-            direction=_compass(x1 - x0, y1 - y0),
+            direction=compass(x1 - x0, y1 - y0),
             length_m=ln.getLength(),
             speed_mps=ln.getSpeed(),
             from_node=e.getFromNode().getID(),
@@ -404,8 +385,8 @@ def _build_graph(
             stop_end_pos_m=None,
             stops=[],
             bidi=bidi.getID() if bidi is not None else None,
-            heading_in=_heading(shape, True),
-            heading_out=_heading(shape, False),
+            heading_in=heading_rad(shape, True),
+            heading_out=heading_rad(shape, False),
         )
     for eid in list(g.nodes):
         e = net.getEdge(eid)
@@ -435,8 +416,8 @@ def _build_graph(
             via = _via_chain(net, usable[0])
             cost = sum(v[1] for v in via) + g.nodes[tid]["length_m"]
             g.add_edge(eid, tid, node=e.getToNode().getID(), via=via, switch=None, leg=None, cost_m=cost)
-            g.edges[eid, tid]["link"] = usable[0]  # removed again by _mark_crossings (sumolib objects stay out)
-    _mark_crossings(g, net)
+            g.edges[eid, tid]["link"] = usable[0]  # removed again by mark_crossings (sumolib objects stay out)
+    mark_crossings(g, net)
     n_wrong = mark_wrong_line(g, shapes, running_side)
     if n_wrong:
         log.info(
@@ -446,149 +427,6 @@ def _build_graph(
             running_side,
         )
     return g
-
-
-def _mark_crossings(g: nx.DiGraph, net: Any) -> None:
-    """Foe movements inside one node that share no track (a flat crossing): ``g.graph["crossings"]``.
-
-    SUMO's own foe matrix of the node says which connections intersect (netconvert computes it from the geometry);
-    movements that share an edge or its bidi partner are not crossings — a diverge/merge is a switch and head-on
-    running on one track is single track, both protected by their own resources
-    (:func:`network.topology.flat_crossings`, shared with generated worlds).
-    """
-    links = {(a, b): attrs.pop("link") for a, b, attrs in g.edges(data=True)}
-
-    def foes(_node: str, m1: tuple[str, str], m2: tuple[str, str]) -> bool:
-        c1, c2 = links[m1], links[m2]
-        node = c1.getFrom().getToNode()
-        i1, i2 = node.getLinkIndex(c1), node.getLinkIndex(c2)
-        if i1 < 0 or i2 < 0:
-            return False
-        try:
-            return bool(node.areFoes(i1, i2) or node.areFoes(i2, i1))
-        except (KeyError, IndexError):  # no foe matrix (an unregulated node): decide from the geometry
-            return _paths_cross(_movement_shape(net, c1), _movement_shape(net, c2))
-
-    g.graph["crossings"] = flat_crossings(g, foes)
-
-
-def _movement_shape(net: Any, c: Any) -> list[tuple[float, float]]:
-    """The path of a connection through its node: its internal lane's shape, else the straight line from the
-    end of the incoming lane to the start of the outgoing one."""
-    via = c.getViaLaneID()
-    if via:
-        try:
-            return [(float(x), float(y)) for x, y, *_ in net.getLane(via).getShape()]
-        except (KeyError, AttributeError):
-            pass
-    (x0, y0, *_), (x1, y1, *_) = c.getFromLane().getShape()[-1], c.getToLane().getShape()[0]
-    return [(float(x0), float(y0)), (float(x1), float(y1))]
-
-
-def _paths_cross(a: list[tuple[float, float]], b: list[tuple[float, float]]) -> bool:
-    """Do two polylines touch or intersect? Without a usable shape the movements are taken as crossing:
-    protecting a crossing that is not one costs capacity; leaving one unprotected could cost a collision."""
-    if len(a) < 2 or len(b) < 2:
-        return True
-    return any(_segments_meet(a[i], a[i + 1], b[j], b[j + 1]) for i in range(len(a) - 1) for j in range(len(b) - 1))
-
-
-def _orient(a: tuple[float, float], b: tuple[float, float], c: tuple[float, float]) -> float:
-    return (b[0] - a[0]) * (c[1] - a[1]) - (b[1] - a[1]) * (c[0] - a[0])
-
-
-def _segments_meet(
-    p1: tuple[float, float], p2: tuple[float, float], q1: tuple[float, float], q2: tuple[float, float]
-) -> bool:
-    """Segments p1p2 and q1q2 intersect or touch (orientation test, collinear overlap included)."""
-    d1, d2, d3, d4 = _orient(q1, q2, p1), _orient(q1, q2, p2), _orient(p1, p2, q1), _orient(p1, p2, q2)
-    if (d1 > 0 > d2 or d1 < 0 < d2) and (d3 > 0 > d4 or d3 < 0 < d4):
-        return True
-    for d, a, b, c in ((d1, q1, q2, p1), (d2, q1, q2, p2), (d3, p1, p2, q1), (d4, p1, p2, q2)):
-        if d == 0 and min(a[0], b[0]) <= c[0] <= max(a[0], b[0]) and min(a[1], b[1]) <= c[1] <= max(a[1], b[1]):
-            return True
-    return False
-
-
-def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str]:
-    """Legs ordered normal first: smallest heading change across the node, then higher speed, then id."""
-
-    def key(leg: str) -> tuple[float, float, str]:
-        if diverge:
-            turn = _turn(g.nodes[trunk]["heading_in"], g.nodes[leg]["heading_out"])
-            via = g.edges[trunk, leg]["via"]
-        else:
-            turn = _turn(g.nodes[leg]["heading_in"], g.nodes[trunk]["heading_out"])
-            via = g.edges[leg, trunk]["via"]
-        speed = min([g.nodes[leg]["speed_mps"]] + [v[2] for v in via])
-        return (round(math.degrees(turn), 1), -round(speed, 3), leg)
-
-    return sorted(legs, key=key)
-
-
-def _leg_speed(g: nx.DiGraph, a: str, b: str) -> float:
-    return float(min([g.nodes[a]["speed_mps"], g.nodes[b]["speed_mps"]] + [v[2] for v in g.edges[a, b]["via"]]))
-
-
-def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
-    """Switches of the track graph (module docstring); sets ``switch``/``leg`` on the graph's connections."""
-    found: list[dict[str, Any]] = []  # kind, node, trunk, legs (normal first)
-    for eid in g.nodes:
-        outs = sorted(g.successors(eid))
-        if len(outs) >= 2:
-            found.append(
-                {"kind": "diverge", "node": g.nodes[eid]["to_node"], "trunk": eid, "legs": _legs(g, eid, outs, True)}
-            )
-        ins = sorted(g.predecessors(eid))
-        if len(ins) >= 2:
-            found.append(
-                {"kind": "merge", "node": g.nodes[eid]["from_node"], "trunk": eid, "legs": _legs(g, eid, ins, False)}
-            )
-    bidi = {n: a["bidi"] for n, a in g.nodes(data=True)}
-    # the other direction of a turnout on bidi track: a merge onto the trunk's partner from the legs' partners
-    twin_of: dict[int, int] = {}
-    for i, d in enumerate(found):
-        if d["kind"] != "diverge":
-            continue
-        for j, m in enumerate(found):
-            if (
-                m["kind"] == "merge"
-                and m["trunk"] == bidi[d["trunk"]]
-                and sorted(m["legs"]) == sorted(bidi[x] or "" for x in d["legs"])
-            ):
-                twin_of[j] = i
-    primary = [i for i in range(len(found)) if i not in twin_of]
-    per_node: dict[str, int] = {}
-    for i in primary:
-        per_node[found[i]["node"]] = per_node.get(found[i]["node"], 0) + 1
-    ids: dict[int, str] = {}
-    for i in primary:
-        d = found[i]
-        ids[i] = d["node"] if per_node[d["node"]] == 1 else f"{d['node']}/{d['trunk']}"
-    switches: dict[str, SwitchInfo] = {}
-    for i in primary:
-        d = found[i]
-        trunk, legs = d["trunk"], d["legs"]
-        pairs = [(trunk, x) if d["kind"] == "diverge" else (x, trunk) for x in legs]
-        for k, (a, b) in enumerate(pairs):
-            g.edges[a, b]["switch"], g.edges[a, b]["leg"] = ids[i], "normal" if k == 0 else "reverse"
-        switches[ids[i]] = SwitchInfo(
-            id=ids[i],
-            sumo_node=d["node"],
-            kind=d["kind"],
-            normal_edge=legs[0],
-            reverse_edge=legs[1],
-            trunk_edge=trunk,
-            throw_time_s=float(throw_time_s),
-            diverging_speed_mps=min(_leg_speed(g, a, b) for a, b in pairs[1:]),
-            normal_speed_mps=_leg_speed(g, *pairs[0]),
-        )
-    for j, i in twin_of.items():
-        m, d = found[j], found[i]
-        for x in m["legs"]:
-            leg = "normal" if bidi[x] == d["legs"][0] else "reverse"
-            g.edges[x, m["trunk"]]["switch"], g.edges[x, m["trunk"]]["leg"] = ids[i], leg
-    return dict(sorted(switches.items()))
 
 
 def _stations(
@@ -636,7 +474,7 @@ def _stations(
         shape = lane.getShape()
         x0, y0 = positionAtShapeOffset(shape, start)[:2]
         x1, y1 = positionAtShapeOffset(shape, end)[:2]
-        plat = PlatformInfo(_compass(x1 - x0, y1 - y0), st.id, edge_id, start, min(end, length))
+        plat = PlatformInfo(compass(x1 - x0, y1 - y0), st.id, edge_id, start, min(end, length))
         key = st.name or st.id
         groups.setdefault(key, []).append((st, plat))
     if skipped:
@@ -883,51 +721,3 @@ def _routes_one_search_per_platform(bundle: NetworkBundle) -> dict[str, RouteInf
                     routes[route.id] = route
                     break
     return routes
-
-
-def _stations_along(route: RouteInfo) -> list[tuple[str, float]]:
-    """``(station, platform centre [route chainage m])`` of every station whose platform the route runs along,
-    in route order (first platform of a station only)."""
-    out: dict[str, float] = {}
-    for rs in route.stops:
-        out.setdefault(rs.station_id, 0.5 * (rs.start_m + rs.end_m))
-    return list(out.items())
-
-
-def line_chainage(station_order: Sequence[str], routes: Iterable[RouteInfo]) -> dict[str, tuple[str, float]]:
-    """``{station: (line id, km)}``: a chainage for a net that has none, from its routes (module docstring).
-
-    The **main line** is the route along the most stations (ties: the one starting at the station listed first,
-    then the longer one); its stations get ``km`` = platform centre minus the first station's centre, in km
-    (so its direction of travel is ``up``, the other ``down``). Then, while stations are left, the route along
-    the most of them becomes branch ``branch<k>``: each new station is placed from the nearest already placed
-    station on that route, in the direction the placed stations run on it (``+`` if fewer than two).
-    """
-    index = {sid: i for i, sid in enumerate(station_order)}
-    along = [(r, _stations_along(r)) for r in routes]
-    placed: dict[str, tuple[str, float]] = {}
-    k = 0
-    while True:
-        best = None
-        for r, seq in along:
-            new = sum(1 for sid, _ in seq if sid not in placed)
-            if new == 0 or len(seq) < 2:
-                continue
-            key = (new, -index.get(seq[0][0], len(index)), r.length_m, r.id)
-            if best is None or key > best[0]:
-                best = (key, seq)
-        if best is None:
-            return placed
-        seq = best[1]
-        line_id = "main" if k == 0 else f"branch{k}"
-        known = [(c, placed[sid][1]) for sid, c in seq if sid in placed]
-        if not known:
-            known = [(seq[0][1], 0.0)]
-        sign = 1.0
-        if len(known) >= 2 and known[-1][1] < known[0][1]:
-            sign = -1.0
-        for sid, c in seq:
-            if sid not in placed:
-                c0, km0 = min(known, key=lambda ck: abs(ck[0] - c))
-                placed[sid] = (line_id, round(km0 + sign * (c - c0) / 1000.0, 6))
-        k += 1

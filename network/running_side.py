@@ -25,6 +25,8 @@ import math
 from collections.abc import Iterable, Mapping, Sequence
 from typing import Any
 
+from network.plane import Point, turn_rad
+
 RUNNING_SIDES = ("right", "left")
 PARALLEL_MAX_M = 12.0  # [m] centre-to-centre distance below which two tracks are a pair (metro: 3.5-5 m)
 PARALLEL_MIN_M = 0.5  # [m] closer than this it is the same track (a bidi partner drawn on top)
@@ -32,8 +34,6 @@ PARALLEL_MAX_TURN_DEG = 25.0  # [deg] heading difference up to which two tracks 
 WRONG_LINE_FACTOR = 8.0  # routing cost multiplier on the wrong line (uses it only where nothing else leads)
 _CELL_M = 25.0  # [m] grid cell of the spatial index (> PARALLEL_MAX_M + _SAMPLE_M / 2)
 _SAMPLE_M = 12.5  # [m] step of the points along a segment whose cells index it
-
-Point = tuple[float, float]
 
 
 def _along(shape: Sequence[Point], frac: float) -> tuple[Point, float]:
@@ -72,10 +72,6 @@ def _cells(a: Point, b: Point) -> set[tuple[int, int]]:
     }
 
 
-def _turn(a: float, b: float) -> float:
-    return abs((b - a + math.pi) % (2.0 * math.pi) - math.pi)
-
-
 def wrong_line_edges(shapes: Mapping[str, Sequence[Point]], bidi: Mapping[str, str | None], side: str) -> set[str]:
     """Edges that are the wrong line for their direction of travel under ``side`` running (module docstring).
 
@@ -104,7 +100,7 @@ def wrong_line_edges(shapes: Mapping[str, Sequence[Point]], bidi: Mapping[str, s
                     for other, a, b in grid.get((ci + di, cj + dj), ()):
                         if other in (eid, bidi.get(eid)):
                             continue
-                        if _turn(heading, math.atan2(b[1] - a[1], b[0] - a[0])) > max_turn:
+                        if turn_rad(heading, math.atan2(b[1] - a[1], b[0] - a[0])) > max_turn:
                             continue
                         dx, dy = b[0] - a[0], b[1] - a[1]
                         ln2 = dx * dx + dy * dy

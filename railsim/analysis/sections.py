@@ -15,7 +15,7 @@ sections (``bijin → jiangbei-airport-t2`` vs ``bijin → shuangfengqiao``).
 ``running_time_s``  ``arrival_s − departure_s``
 ``length_m``        route metres between the two stopping marks (the train front at each halt)
 ``from_km/to_km``   line km of the two stations (platform centres: the world's design chainage; on a user's
-                    net the chainage :func:`network.external.line_chainage` gives it)
+                    net the chainage :func:`network.chainage.line_chainage` gives it)
 ``headway_s``       ``departure_s`` minus the departure of the train that left the same section (same two
                     stations, same direction) just before; NaN for the first train on that section
 ``formation``       the formation id when the trip ran this section inside a virtually coupled formation
@@ -199,7 +199,7 @@ class LineFrame:
                 run, None, "expected scenario.resolved.yaml in the run folder (written by railsim run), found none"
             )
         scn = scenario_mod.load(resolved)
-        if scn.world.kind == "net":  # a user's net: line chainage from its routes (network.external.line_chainage)
+        if scn.world.kind == "net":  # a user's net: line chainage from its routes (network.chainage.line_chainage)
             from network.world import load_world
 
             bundle = load_world(scn.world, resolved)

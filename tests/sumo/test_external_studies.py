@@ -3,7 +3,7 @@
 The nets are the netconvert-built ones of :mod:`tests.sumo.test_external_net` (a double-track line X1–X2–Y1 with a
 single-track branch to Zed, and a single-track line with a passing loop).
 
-* **Line chainage** (:func:`network.external.line_chainage`): stations get km along the route through the
+* **Line chainage** (:func:`network.chainage.line_chainage`): stations get km along the route through the
   most stations, the branch station km from the station it branches from.
 * **Studies on a run**: a short ``railsim run`` (child process) on the junction net, then the section table,
   UIC 406 capacity, the train graph (``railsim plot --kind time-distance``) and ``railsim report`` on its folder.
