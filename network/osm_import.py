@@ -59,10 +59,10 @@ ptstop output mixes tram, metro and train stops, and railsim runs one class per 
 GTFS import matches against); ``<name>.import.yaml`` (the summary below) and ``netconvert.log``.
 
 **Stops are completed** before they are written: a station OSM maps with a stop position on one track only
-gets a copy on the opposite track within :data:`TWIN_RADIUS_M`, unless that track has a platform of the station
-just before or after (staggered stops; :func:`_twin_stops`); a stop on an edge shorter
-than a platform moves to the end of the single edge before it (:func:`_move_off_short_edges`); a stop shorter
-than :data:`MIN_STOP_M` (netconvert writes some tram stops 0 m long) — or than ``platform_m`` when the import
+gets a copy on the opposite track within :data:`~network.osm_stops.TWIN_RADIUS_M`, unless that track has a platform of the station
+just before or after (staggered stops; :func:`network.osm_stops.twin_stops`); a stop on an edge shorter
+than a platform moves to the end of the single edge before it (:func:`network.osm_stops.move_off_short_edges`); a stop shorter
+than :data:`~network.osm_stops.MIN_STOP_M` (netconvert writes some tram stops 0 m long) — or than ``platform_m`` when the import
 asks for it (OSM maps a stop position, not the platform's length: trams coupled in pairs need longer platforms
 than one unit) — is widened around its centre within its lane; stops no line serves are dropped when the extract
 has lines. Each is counted in the summary.
@@ -82,7 +82,6 @@ from __future__ import annotations
 import hashlib
 import json
 import logging
-import math
 import os
 import re
 import shutil
@@ -100,23 +99,25 @@ import yaml
 
 from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
-from network.geo import distance_m, net_to_lonlat, read_location
+from network.geo import net_to_lonlat, read_location
 from network.osm_check import check_input, check_osm_content, input_name
+from network.osm_stops import (
+    MIN_STOP_M,
+    RAIL_CLASSES,
+    UNNAMED_RADIUS_M,
+    Stop,
+    ensure_length,
+    lane_class,
+    move_off_short_edges,
+    name_unnamed_stops,
+    osm_named_stops,
+    twin_stops,
+)
 from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
 OSM_IMPORT_VERSION = "10"  # bump when the options, the checks or the outputs change (invalidates the cache)
-RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
-TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
-STATION_TRACK_M = 150.0  # a station's platforms on one track lie within this of each other along the track
-END_CLEARANCE_M = 3.0  # a moved stop ends this far before the end of its edge
-MIN_STOP_M = {"tram": 30.0, "other": 60.0}  # shortest platform written (a zero-length stop cannot be served)
-UNNAMED_RADIUS_M = 100.0  # an OSM stop without a name takes the name of a named stop or platform within this
-_STOP_TAGS = {
-    "railway": {"stop", "tram_stop", "halt", "station", "platform"},
-    "public_transport": {"stop_position", "platform", "station"},
-}
 _WARN_SUMMARY = re.compile(r"^Warning: (\d+) total messages of type: (.*)$")
 
 
@@ -304,147 +305,6 @@ def _netconvert_once(
     return [ln for ln in text.splitlines() if ln.startswith("Warning")]
 
 
-@dataclass(frozen=True)
-class _Stop:
-    elem: ET.Element
-    vclass: str
-    name: str
-
-
-def _ensure_length(st: _Stop, lane_length_m: float, platform_m: float | None = None) -> int:
-    """Widen a stop shorter than ``platform_m`` (default :data:`MIN_STOP_M` of its class) around its centre,
-    within its lane; 1 if it was widened."""
-    want = min(platform_m or MIN_STOP_M["tram" if st.vclass == "tram" else "other"], lane_length_m)
-    start = float(st.elem.get("startPos", 0.0))
-    end = float(st.elem.get("endPos", lane_length_m))
-    if end - start >= want - 1e-6:
-        return 0
-    centre = min(max(0.5 * (start + end), 0.5 * want), lane_length_m - 0.5 * want)
-    st.elem.set("startPos", f"{centre - 0.5 * want:.2f}")
-    st.elem.set("endPos", f"{centre + 0.5 * want:.2f}")
-    return 1
-
-
-def _twin_stops(net: Any, stops: dict[str, _Stop]) -> int:
-    """Add the missing platform of a double-track station: for each stop, a rail edge of its class running the
-    opposite way within :data:`TWIN_RADIUS_M` of the stop's centre (not its own bidi partner, which already
-    carries it) and holding no stop of the same station — the nearest, one a platform fits on first — gets a copy
-    of the stop (id ``<stop>_twin``, same name and length, centred on the point nearest the original), unless
-    that track already has another platform of the station on an edge within :data:`STATION_TRACK_M` before or
-    after it along the track (:func:`_edges_along`; the stop's own edge does not count, a turning loop joins the
-    two tracks of a terminus). Tram stops are often
-    staggered, each direction's platform on the far side of a junction from the other, so the opposite
-    platform lies on the next edge of the track, not beside the stop; a copy there would make every train stop
-    twice at the station, the second time a few metres on. Returns how many were added."""
-    from sumolib.geomhelper import polygonOffsetAndDistanceToPoint, positionAtShapeOffset
-
-    def heading(shape: Sequence[Any], offset: float) -> float:
-        a = positionAtShapeOffset(shape, max(0.0, offset - 5.0))
-        b = positionAtShapeOffset(shape, offset + 5.0)
-        return math.atan2(b[1] - a[1], b[0] - a[0])
-
-    edges_by_class: dict[str, list[Any]] = defaultdict(list)
-    for e in net.getEdges(withInternal=False):
-        for vc in {_lane_class(set(ln.getPermissions())) for ln in e.getLanes()} - {None}:
-            edges_by_class[str(vc)].append(e)
-    station_edges: dict[tuple[str, str], set[str]] = defaultdict(set)
-    for st in stops.values():
-        station_edges[(st.vclass, st.name)].add(net.getLane(st.elem.get("lane", "")).getEdge().getID())
-    added: dict[str, _Stop] = {}
-    for sid, st in stops.items():
-        lane = net.getLane(st.elem.get("lane", ""))
-        start, end = float(st.elem.get("startPos", 0.0)), float(st.elem.get("endPos", lane.getLength()))
-        centre = positionAtShapeOffset(lane.getShape(), 0.5 * (start + end))
-        h = heading(lane.getShape(), 0.5 * (start + end))
-        own = lane.getEdge()
-        want = _min_stop_m(st.vclass)
-        others = station_edges[(st.vclass, st.name)] - {own.getID()}  # where the station's other platforms are
-        candidates: list[tuple[bool, float, Any, float]] = []  # (too short, distance, lane, offset)
-        for e in edges_by_class[st.vclass]:
-            if e is own or e is own.getBidi() or e.getID() in station_edges[(st.vclass, st.name)]:
-                continue
-            other = next((ln for ln in e.getLanes() if _lane_class(set(ln.getPermissions())) == st.vclass), None)
-            if other is None:
-                continue
-            offset, dist = polygonOffsetAndDistanceToPoint(centre, other.getShape())
-            if dist > TWIN_RADIUS_M:
-                continue
-            turn = abs((heading(other.getShape(), offset) - h + math.pi) % (2 * math.pi) - math.pi)
-            if turn < math.radians(135):
-                continue
-            candidates.append((other.getLength() < want, dist, other, offset))
-        if not candidates:
-            continue
-        _short, _dist, other, offset = min(candidates, key=lambda c: (c[0], c[1]))  # a lane a platform fits on first
-        if not others.isdisjoint(_edges_along(other.getEdge(), STATION_TRACK_M)):
-            continue  # that track has the station's platform already, on an edge before or after this one
-        length = min(max(end - start, want), other.getLength())
-        a = min(max(offset - 0.5 * length, 0.0), other.getLength() - length)
-        elem = ET.Element(st.elem.tag, dict(st.elem.attrib))
-        elem.set("id", f"{sid}_twin")
-        elem.set("lane", other.getID())
-        elem.set("startPos", f"{a:.2f}")
-        elem.set("endPos", f"{a + length:.2f}")
-        added[f"{sid}_twin"] = _Stop(elem, st.vclass, st.name)
-        station_edges[(st.vclass, st.name)].add(other.getEdge().getID())
-    stops.update(added)
-    return len(added)
-
-
-def _edges_along(edge: Any, reach_m: float) -> set[str]:
-    """The ids of ``edge`` and of the edges every train on it runs over within ``reach_m`` before or after it:
-    forwards while the track does not diverge (one outgoing edge), backwards while no other track joins it (one
-    incoming edge); an edge's own bidi partner, the same track the other way, is never taken."""
-    found = {edge.getID()}
-    for forward in (True, False):
-        current, dist_m = edge, 0.0
-        while dist_m < reach_m:
-            nexts = [
-                e for e in (current.getOutgoing() if forward else current.getIncoming()) if e is not current.getBidi()
-            ]
-            if len(nexts) != 1 or nexts[0].getID() in found:
-                break
-            current = nexts[0]
-            found.add(current.getID())
-            dist_m += current.getLength()
-    return found
-
-
-def _min_stop_m(vclass: str) -> float:
-    return MIN_STOP_M["tram" if vclass == "tram" else "other"]
-
-
-def _move_off_short_edges(net: Any, stops: dict[str, _Stop]) -> int:
-    """A stop on an edge shorter than a platform (:data:`MIN_STOP_M`; OSM stop positions often sit on a stub
-    between two junctions) cannot hold a train: when its edge has one incoming edge of the class (not its own
-    bidi partner) long enough, the stop moves to the end of that edge — the train halts a few metres earlier
-    than the OSM node. Returns how many moved."""
-    moved = 0
-    for st in stops.values():
-        lane = net.getLane(st.elem.get("lane", ""))
-        want = _min_stop_m(st.vclass)
-        if lane.getLength() >= want:
-            continue
-        edge = lane.getEdge()
-        before = [e for e in edge.getIncoming() if e is not edge.getBidi()]
-        if len(before) != 1:
-            continue
-        prev = next((ln for ln in before[0].getLanes() if _lane_class(set(ln.getPermissions())) == st.vclass), None)
-        if prev is None or prev.getLength() < want:
-            continue
-        end = max(want, prev.getLength() - END_CLEARANCE_M)  # the halt mark a little short of the junction
-        st.elem.set("lane", prev.getID())
-        st.elem.set("startPos", f"{end - want:.2f}")
-        st.elem.set("endPos", f"{end:.2f}")
-        moved += 1
-    return moved
-
-
-def _lane_class(permissions: set[str]) -> str | None:
-    """The rail class a stop's lane belongs to: the first of :data:`RAIL_CLASSES` it allows."""
-    return next((vc for vc in RAIL_CLASSES if vc in permissions), None)
-
-
 def _read_lines(ptlines: Path) -> list[dict[str, Any]]:
     if not ptlines.exists():
         return []
@@ -473,7 +333,7 @@ def _track_stats(net: Any) -> tuple[float, int, float]:
     rail = {
         e.getID(): e
         for e in net.getEdges(withInternal=False)
-        if any(_lane_class(set(ln.getPermissions())) for ln in e.getLanes())
+        if any(lane_class(set(ln.getPermissions())) for ln in e.getLanes())
     }
     total = bidi = 0.0
     seen: set[str] = set()
@@ -501,65 +361,6 @@ def _track_stats(net: Any) -> tuple[float, int, float]:
     return total / 1000.0, switches, (bidi / total if total else 0.0)
 
 
-def _osm_named_stops(osm_file: Path) -> list[tuple[float, float, str]]:
-    """``(lon, lat, name)`` of every named OSM node tagged as a stop, platform or station (:data:`_STOP_TAGS`)."""
-    import gzip
-
-    opener = gzip.open if osm_file.name.endswith(".gz") else open
-    out: list[tuple[float, float, str]] = []
-    with opener(osm_file, "rb") as fh:
-        for _, elem in ET.iterparse(fh, events=("end",)):
-            if elem.tag == "node":
-                tags = {t.get("k", ""): t.get("v", "") for t in elem.iter("tag")}
-                if tags.get("name") and any(tags.get(k) in v for k, v in _STOP_TAGS.items()):
-                    out.append((float(elem.get("lon", "nan")), float(elem.get("lat", "nan")), tags["name"]))
-                elem.clear()
-            elif elem.tag in ("way", "relation"):
-                elem.clear()
-    return out
-
-
-def _stop_xy(net: Any, st: _Stop) -> tuple[float, float]:
-    from sumolib.geomhelper import positionAtShapeOffset
-
-    lane = net.getLane(st.elem.get("lane", ""))
-    mid = 0.5 * (float(st.elem.get("startPos", 0.0)) + float(st.elem.get("endPos", lane.getLength())))
-    x, y = positionAtShapeOffset(lane.getShape(), mid)[:2]
-    return float(x), float(y)
-
-
-def _name_unnamed_stops(net: Any, loc: Any, stops: dict[str, _Stop], osm_named: list[tuple[float, float, str]]) -> int:
-    """Name every stop netconvert wrote without a name (module docstring); the number named from a neighbour.
-    Distances in metres on the net's plane, or between lon/lat when the net is geo-referenced (OSM's nodes)."""
-
-    def where(st: _Stop) -> tuple[float, float]:
-        x, y = _stop_xy(net, st)
-        return net_to_lonlat(loc, x, y) if loc is not None else (x, y)
-
-    def dist(a: tuple[float, float], b: tuple[float, float]) -> float:
-        return distance_m(a[0], a[1], b[0], b[1]) if loc is not None else math.hypot(a[0] - b[0], a[1] - b[1])
-
-    unnamed = [sid for sid, st in stops.items() if not st.elem.get("name")]
-    candidates: list[tuple[tuple[float, float], str, str | None]] = [
-        (where(st), st.name, st.vclass) for st in stops.values() if st.elem.get("name")
-    ]
-    if loc is not None:
-        candidates += [((lon, lat), nm, None) for lon, lat, nm in osm_named]
-    named = 0
-    for sid in unnamed:
-        st = stops[sid]
-        here = where(st)
-        near = [(dist(here, pos), nm) for pos, nm, vc in candidates if vc in (None, st.vclass)]
-        d_m, nm = min(near, default=(math.inf, ""))
-        if d_m <= UNNAMED_RADIUS_M:
-            named += 1
-        else:
-            nm = f"stop {sid}"
-        st.elem.set("name", nm)
-        stops[sid] = _Stop(st.elem, st.vclass, nm)
-    return named
-
-
 def _split(
     work: Path,
     name: str,
@@ -575,7 +376,7 @@ def _split(
     loc = read_location(work / f"{name}.net.xml")
     summary = ImportSummary(name=name, seconds=0.0, cached=False)
     stops_tree = ET.parse(work / f"{name}.ptstops.xml") if (work / f"{name}.ptstops.xml").exists() else None
-    stops: dict[str, _Stop] = {}
+    stops: dict[str, Stop] = {}
     off_rail = 0
     for elem in stops_tree.getroot() if stops_tree is not None else []:
         if elem.tag not in ("busStop", "trainStop"):
@@ -585,16 +386,16 @@ def _split(
         except KeyError:
             off_rail += 1
             continue
-        vc = _lane_class(set(lane.getPermissions()))
+        vc = lane_class(set(lane.getPermissions()))
         if vc is None:
             off_rail += 1
             continue
-        stops[elem.get("id", "")] = _Stop(elem, vc, elem.get("name") or elem.get("id") or "")
+        stops[elem.get("id", "")] = Stop(elem, vc, elem.get("name") or elem.get("id") or "")
     if off_rail:
         summary.dropped.append(f"{off_rail} stops on lanes of no rail class (bus stops on streets)")
     n_unnamed = sum(1 for st in stops.values() if not st.elem.get("name"))
     if n_unnamed:
-        named = _name_unnamed_stops(net, loc, stops, _osm_named_stops(osm_file) if osm_file is not None else [])
+        named = name_unnamed_stops(net, loc, stops, osm_named_stops(osm_file) if osm_file is not None else [])
         summary.dropped.append(
             f"{n_unnamed} stops without a name in OSM: {named} named after a named stop or platform within "
             f"{UNNAMED_RADIUS_M:g} m, {n_unnamed - named} called 'stop <id>'"
@@ -631,21 +432,21 @@ def _split(
         if unserved:
             summary.dropped.append(f"{len(unserved)} stops no imported line serves")
         stops = {sid: st for sid, st in stops.items() if sid in served}
-    twins = _twin_stops(net, stops)
+    twins = twin_stops(net, stops)
     if twins:
         summary.dropped.append(
             f"{twins} platforms added on the opposite track of stations OSM maps with a stop on one track only"
         )
-    moved = _move_off_short_edges(net, stops)
+    moved = move_off_short_edges(net, stops)
     if moved:
         summary.dropped.append(
             f"{moved} stops on edges shorter than a platform moved back to the end of the single edge before them"
         )
-    by_class: dict[str, list[_Stop]] = defaultdict(list)
+    by_class: dict[str, list[Stop]] = defaultdict(list)
     lengthened = 0
     for st in stops.values():
         by_class[st.vclass].append(st)
-        lengthened += _ensure_length(st, net.getLane(st.elem.get("lane", "")).getLength(), platform_m)
+        lengthened += ensure_length(st, net.getLane(st.elem.get("lane", "")).getLength(), platform_m)
     if lengthened:
         to = f"{platform_m:g} m" if platform_m else f"{MIN_STOP_M['tram']:g} m (tram) / {MIN_STOP_M['other']:g} m"
         summary.dropped.append(
@@ -696,7 +497,7 @@ def _split(
     return summary
 
 
-def _stations(net: Any, loc: Any, stops: dict[str, _Stop]) -> list[dict[str, Any]]:
+def _stations(net: Any, loc: Any, stops: dict[str, Stop]) -> list[dict[str, Any]]:
     """Stations (stops grouped by class and name) with the lon/lat of their platforms' centre."""
     from sumolib.geomhelper import positionAtShapeOffset
 
@@ -719,7 +520,7 @@ def _stations(net: Any, loc: Any, stops: dict[str, _Stop]) -> list[dict[str, Any
     return out
 
 
-def _lines_doc(lines: list[dict[str, Any]], stops: dict[str, _Stop]) -> list[dict[str, Any]]:
+def _lines_doc(lines: list[dict[str, Any]], stops: dict[str, Stop]) -> list[dict[str, Any]]:
     """The lines YAML: one entry per ref and class, its directions (OSM route relations) with station names."""
     by_ref: dict[tuple[str, str], list[dict[str, Any]]] = defaultdict(list)
     for ln in lines:
@@ -753,7 +554,7 @@ def import_osm(
     platform_m: float | None = None,
 ) -> ImportSummary:
     """Import an OSM file into ``out_dir`` (module docstring); cached by input hash and options. ``platform_m``:
-    the length every stop is widened to (within its lane) when shorter; default :data:`MIN_STOP_M`."""
+    the length every stop is widened to (within its lane) when shorter; default :data:`~network.osm_stops.MIN_STOP_M`."""
     t0 = time.perf_counter()
     osm_path = Path(osm_file).resolve()
     check_input(osm_path)

@@ -9,7 +9,7 @@ import gzip
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
-from network.osm_import import UNNAMED_RADIUS_M, _name_unnamed_stops, _osm_named_stops, _Stop
+from network.osm_stops import UNNAMED_RADIUS_M, Stop, name_unnamed_stops, osm_named_stops
 
 
 class _Lane:
@@ -30,11 +30,11 @@ class _Net:
         return _Lane(float(lane_id[1:]))
 
 
-def _stop(sid: str, lane: str, name: str | None, vclass: str = "tram") -> _Stop:
+def _stop(sid: str, lane: str, name: str | None, vclass: str = "tram") -> Stop:
     attrs = {"id": sid, "lane": lane, "startPos": "35", "endPos": "65"}
     if name:
         attrs["name"] = name
-    return _Stop(ET.Element("trainStop", attrs), vclass, name or sid)
+    return Stop(ET.Element("trainStop", attrs), vclass, name or sid)
 
 
 def test_an_unnamed_stop_takes_the_nearest_named_stop_of_its_class_else_stop_id() -> None:
@@ -44,7 +44,7 @@ def test_an_unnamed_stop_takes_the_nearest_named_stop_of_its_class_else_stop_id(
         "3": _stop("3", "L20", "Depot", vclass="rail"),  # nearer, but another class
         "9": _stop("9", f"L{UNNAMED_RADIUS_M + 400:g}", None),  # nothing named near
     }
-    named = _name_unnamed_stops(_Net(), None, stops, [])
+    named = name_unnamed_stops(_Net(), None, stops, [])
     assert named == 1
     assert stops["2"].name == "Felsenkeller" and stops["2"].elem.get("name") == "Felsenkeller"
     assert stops["9"].name == "stop 9" and stops["9"].name != "9"
@@ -64,4 +64,4 @@ def test_named_stop_and_platform_nodes_are_read_from_the_osm_file(tmp_path: Path
             '<way id="5"><nd ref="1"/><nd ref="4"/><tag k="railway" v="tram"/><tag k="name" v="Street"/></way>'
             "</osm>"
         )
-    assert _osm_named_stops(osm) == [(11.58, 50.92, "Felsenkeller")]
+    assert osm_named_stops(osm) == [(11.58, 50.92, "Felsenkeller")]
