@@ -101,6 +101,7 @@ from network.build import cache_root
 from network.generator import netconvert_binary, sumo_version
 from network.geo import net_to_lonlat, read_location
 from network.osm_check import check_input, check_osm_content, input_name
+from network.osm_glued_tracks import separate
 from network.osm_stops import (
     MIN_STOP_M,
     RAIL_CLASSES,
@@ -117,7 +118,7 @@ from railsim.errors import ConfigError
 
 log = logging.getLogger(__name__)
 
-OSM_IMPORT_VERSION = "10"  # bump when the options, the checks or the outputs change (invalidates the cache)
+OSM_IMPORT_VERSION = "11"  # bump when the options, the checks or the outputs change (invalidates the cache)
 _WARN_SUMMARY = re.compile(r"^Warning: (\d+) total messages of type: (.*)$")
 
 
@@ -137,6 +138,7 @@ class ImportSummary:
     bidi_share: float = 0.0
     files: dict[str, str] = field(default_factory=dict)
     dropped: list[str] = field(default_factory=list)
+    separated: list[str] = field(default_factory=list)  # glued pairs of one-way tracks (network.osm_glued_tracks)
 
     def text(self) -> str:
         """The printed summary: one line per fact."""
@@ -152,6 +154,9 @@ class ImportSummary:
         )
         for kind, path in self.files.items():
             out.append(f"  {kind}: {path}")
+        if self.separated:
+            out.append("  double track drawn on shared nodes, kept two tracks:")
+            out += [f"    {d}" for d in self.separated]
         if self.dropped:
             out.append("  dropped:")
             out += [f"    {d}" for d in self.dropped]
@@ -568,8 +573,14 @@ def import_osm(
         check_osm_content(osm_path)
         work = Path(tempfile.mkdtemp(prefix=f".osm-{key}-", dir=folder.parent))
         try:
-            warnings = _run_netconvert(osm_path, work, name, bbox, light_rail_as_tram)
+            glued = separate(osm_path, work)  # two one-way tracks drawn on shared nodes, kept two tracks
+            warnings = _run_netconvert(glued.source, work, name, bbox, light_rail_as_tram)
+            if glued.source != osm_path:
+                glued.source.unlink()
             summary = _split(work, name, lines, warnings, osm_path, platform_m)
+            summary.separated = [
+                f"ways {a} and {b}: one-way tracks drawn on shared nodes, kept two tracks" for a, b in glued.pairs
+            ]
             (work / f"{name}.import.yaml").write_text(yaml.safe_dump(asdict(summary), sort_keys=False), "utf-8")
             try:
                 os.replace(work, folder)

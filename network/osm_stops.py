@@ -28,6 +28,7 @@ from pathlib import Path
 from typing import Any
 
 from network.geo import distance_m, net_to_lonlat
+from network.xmlscan import open_xml
 
 RAIL_CLASSES = ("subway", "rail_urban", "tram", "rail", "rail_electric", "rail_fast")  # stop-class preference
 TWIN_RADIUS_M = 25.0  # the other track of a double-track station lies within this of a stop
@@ -184,11 +185,8 @@ def move_off_short_edges(net: Any, stops: dict[str, Stop]) -> int:
 
 def osm_named_stops(osm_file: Path) -> list[tuple[float, float, str]]:
     """``(lon, lat, name)`` of every named OSM node tagged as a stop, platform or station (:data:`_STOP_TAGS`)."""
-    import gzip
-
-    opener = gzip.open if osm_file.name.endswith(".gz") else open
     out: list[tuple[float, float, str]] = []
-    with opener(osm_file, "rb") as fh:
+    with open_xml(osm_file) as fh:
         for _, elem in ET.iterparse(fh, events=("end",)):
             if elem.tag == "node":
                 tags = {t.get("k", ""): t.get("v", "") for t in elem.iter("tag")}

@@ -31,7 +31,8 @@ OnStart = Callable[[str, dict[str, str], int], None]
 _CHUNK_BYTES = 1 << 20
 
 
-def _open(path: Path) -> gzip.GzipFile | io.BufferedReader:
+def open_xml(path: Path) -> gzip.GzipFile | io.BufferedReader:
+    """The file's bytes, gunzipped when its name ends in ``.gz``."""
     if path.name.endswith(".gz"):
         return gzip.open(path, "rb")
     return open(path, "rb")
@@ -61,7 +62,7 @@ def scan(path: Path, what: str, on_start: OnStart | None = None) -> str:
     parser.StartElementHandler = start
     parser.EntityDeclHandler = entity
     try:
-        with _open(path) as fh:
+        with open_xml(path) as fh:
             while chunk := fh.read(_CHUNK_BYTES):
                 parser.Parse(chunk, False)
             parser.Parse(b"", True)

@@ -160,10 +160,11 @@ def make_stops(
     from_station: str,
     to_station: str,
 ) -> tuple[TripStop, ...]:
-    """Stops served on ``route`` between ``from_station`` and ``to_station`` (inclusive), skipping ``skip``."""
+    """Stops served on ``route`` between ``from_station`` and ``to_station`` (inclusive), skipping ``skip``; one
+    platform per visit of an intermediate station (:func:`_one_platform_per_visit`)."""
     stops: list[TripStop] = []
     started = False
-    for rs in route.stops:
+    for rs in _one_platform_per_visit(route.stops, length_m, (from_station, to_station)):
         if rs.station_id == from_station:
             started = True
         if not started:
@@ -195,6 +196,32 @@ def make_stops(
         if is_dest:
             break
     return tuple(stops)
+
+
+def _one_platform_per_visit(route_stops: Sequence[Any], length_m: float, ends: tuple[str, str]) -> list[Any]:
+    """The route's platforms with each run of consecutive platforms of one intermediate station reduced to one.
+
+    A route may run along two platforms of a station one after the other — an OpenStreetMap station mapped with a
+    stop position and a platform on the same track (São Paulo's São Bento: two 200 m platforms 54 m apart), or a
+    platform split over two edges. The timetable names the station once, so the train stops once: at the last
+    platform of the run the whole train fits on, else at the longest (then the last). The trip's origin and
+    destination (``ends``) keep the platform their route was chosen by (the route begins and ends on it)."""
+    out: list[Any] = []
+    for rs in route_stops:
+        prev = out[-1] if out else None
+        if prev is None or prev.station_id != rs.station_id or rs.station_id in ends:
+            out.append(rs)
+            continue
+        if _platform_choice(rs, length_m) >= _platform_choice(prev, length_m):
+            out[-1] = rs
+    return out
+
+
+def _platform_choice(rs: Any, length_m: float) -> tuple[bool, float]:
+    """How well a platform serves a train ``length_m`` long: the whole train fits, then its length (a later
+    platform wins a tie)."""
+    platform_m = rs.end_m - rs.start_m
+    return (platform_m >= length_m, platform_m if platform_m < length_m else 0.0)
 
 
 def _edge_end_m(route: Any, rs: Any) -> float:
