@@ -26,8 +26,11 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
   leg is ``reverse``. On ``bidi`` track the diverge in one direction and the merge in the other are the *same
   physical turnout*: they become **one** switch (one lock), whose id both directions' connections carry, so
   the interlocking never lets two opposing trains use the points at once. Switch ids are the SUMO node id, or
-  ``<node>/<trunk edge>`` where a node has several switches. Throw time: ``throw_time_s`` (a net has none);
-  diverging and normal speeds come from the connections' internal lanes.
+  ``<node>/<trunk edge>`` where a node has several switches. A connection can be a leg of two switches: out of
+  an edge that diverges onto an edge that others merge into. It carries both (the second in ``also``), and a
+  route through it locks both: with the diverge alone, a train on it and one on the merge's other leg were each
+  given their own points and met in the junction (Jena, node ``1831585450``). Throw time: ``throw_time_s`` (a
+  net has none); diverging and normal speeds come from the connections' internal lanes.
 * **Stations** come from the ``trainStop`` and ``busStop`` elements of the additional files, grouped into
   stations by their ``name`` (id = the name in lower case with ``-`` for other characters; a stop without a
   name is a station of its own, id = stop id). A scenario may name a station by that id, by its name or by
@@ -530,6 +533,14 @@ def _leg_speed(g: nx.DiGraph, a: str, b: str) -> float:
     return float(min([g.nodes[a]["speed_mps"], g.nodes[b]["speed_mps"]] + [v[2] for v in g.edges[a, b]["via"]]))
 
 
+def _set_switch(conn: dict[str, Any], switch_id: str, leg: str) -> None:
+    """Make the connection ``conn`` a leg of ``switch_id``; one already a leg of another switch (a diverge's leg
+    that is a merge's too) keeps that one in ``also`` (module docstring)."""
+    if conn.get("switch") not in (None, switch_id):
+        conn.setdefault("also", []).append((conn["switch"], conn["leg"]))
+    conn["switch"], conn["leg"] = switch_id, leg
+
+
 def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
     """Switches of the track graph (module docstring); sets ``switch``/``leg`` on the graph's connections."""
     found: list[dict[str, Any]] = []  # kind, node, trunk, legs (normal first)
@@ -571,7 +582,7 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
         trunk, legs = d["trunk"], d["legs"]
         pairs = [(trunk, x) if d["kind"] == "diverge" else (x, trunk) for x in legs]
         for k, (a, b) in enumerate(pairs):
-            g.edges[a, b]["switch"], g.edges[a, b]["leg"] = ids[i], "normal" if k == 0 else "reverse"
+            _set_switch(g.edges[a, b], ids[i], "normal" if k == 0 else "reverse")
         switches[ids[i]] = SwitchInfo(
             id=ids[i],
             sumo_node=d["node"],
@@ -587,7 +598,7 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
         m, d = found[j], found[i]
         for x in m["legs"]:
             leg = "normal" if bidi[x] == d["legs"][0] else "reverse"
-            g.edges[x, m["trunk"]]["switch"], g.edges[x, m["trunk"]]["leg"] = ids[i], leg
+            _set_switch(g.edges[x, m["trunk"]], ids[i], leg)
     return dict(sorted(switches.items()))
 
 
