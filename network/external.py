@@ -26,8 +26,11 @@ inherited studies. :func:`load_net` reads one **read-only** and discovers what t
   leg is ``reverse``. On ``bidi`` track the diverge in one direction and the merge in the other are the *same
   physical turnout*: they become **one** switch (one lock), whose id both directions' connections carry, so
   the interlocking never lets two opposing trains use the points at once. Switch ids are the SUMO node id, or
-  ``<node>/<trunk edge>`` where a node has several switches. Throw time: ``throw_time_s`` (a net has none);
-  diverging and normal speeds come from the connections' internal lanes.
+  ``<node>/<trunk edge>`` where a node has several switches. A connection can be a leg of two switches: out of
+  an edge that diverges onto an edge that others merge into. It carries both (the second in ``also``), and a
+  route through it locks both: with the diverge alone, a train on it and one on the merge's other leg were each
+  given their own points and met in the junction (Jena, node ``1831585450``). Throw time: ``throw_time_s`` (a
+  net has none); diverging and normal speeds come from the connections' internal lanes.
 * **Stations** come from the ``trainStop`` and ``busStop`` elements of the additional files, grouped into
   stations by their ``name`` (id = the name in lower case with ``-`` for other characters; a stop without a
   name is a station of its own, id = stop id). A scenario may name a station by that id, by its name or by

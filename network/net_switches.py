@@ -6,7 +6,10 @@ straightest (smallest heading change across the node, then the higher speed, the
 ``reverse``. On ``bidi`` track the diverge in one direction and the merge in the other are the same physical
 turnout: they become one switch, whose id both directions' connections carry, so the interlocking never lets two
 opposing trains use the points at once. Switch ids are the SUMO node id, or ``<node>/<trunk edge>`` where a node
-has several switches. The diverging and normal speeds come from the connections' internal lanes.
+has several switches. A connection can be a leg of two switches — out of an edge that diverges, onto an edge that
+others merge into: it carries both (the second in ``also``) and a route through it locks both (with the diverge
+alone, a train on it and one on the merge's other leg were each given their own points and met in the junction:
+Jena, node ``1831585450``). The diverging and normal speeds come from the connections' internal lanes.
 """
 
 from __future__ import annotations
@@ -38,6 +41,14 @@ def _legs(g: nx.DiGraph, trunk: str, legs: list[str], diverge: bool) -> list[str
 
 def _leg_speed(g: nx.DiGraph, a: str, b: str) -> float:
     return float(min([g.nodes[a]["speed_mps"], g.nodes[b]["speed_mps"]] + [v[2] for v in g.edges[a, b]["via"]]))
+
+
+def _set_switch(conn: dict[str, Any], switch_id: str, leg: str) -> None:
+    """A connection is a leg of ``switch_id``; one already a leg of another switch (a diverge's leg that is a merge's
+    too) keeps that one in ``also``."""
+    if conn.get("switch") not in (None, switch_id):
+        conn.setdefault("also", []).append((conn["switch"], conn["leg"]))
+    conn["switch"], conn["leg"] = switch_id, leg
 
 
 def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
@@ -81,7 +92,7 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
         trunk, legs = d["trunk"], d["legs"]
         pairs = [(trunk, x) if d["kind"] == "diverge" else (x, trunk) for x in legs]
         for k, (a, b) in enumerate(pairs):
-            g.edges[a, b]["switch"], g.edges[a, b]["leg"] = ids[i], "normal" if k == 0 else "reverse"
+            _set_switch(g.edges[a, b], ids[i], "normal" if k == 0 else "reverse")
         switches[ids[i]] = SwitchInfo(
             id=ids[i],
             sumo_node=d["node"],
@@ -97,5 +108,5 @@ def find_switches(g: nx.DiGraph, throw_time_s: float) -> dict[str, SwitchInfo]:
         m, d = found[j], found[i]
         for x in m["legs"]:
             leg = "normal" if bidi[x] == d["legs"][0] else "reverse"
-            g.edges[x, m["trunk"]]["switch"], g.edges[x, m["trunk"]]["leg"] = ids[i], leg
+            _set_switch(g.edges[x, m["trunk"]], ids[i], leg)
     return dict(sorted(switches.items()))

@@ -255,6 +255,7 @@ def make_route(graph: nx.DiGraph, route_id: str, edges: Sequence[str]) -> RouteI
             c = graph.edges[prev, e]
             if c.get("switch"):
                 switches.append(RouteSwitch(c["switch"], pos, c["leg"]))
+                switches.extend(RouteSwitch(sid, pos, leg) for sid, leg in c.get("also", ()))
             for lane_id, length, speed in c["via"]:
                 internal.append((lane_id.rsplit("_", 1)[0], pos))
                 speeds.append((pos, pos + length, speed))

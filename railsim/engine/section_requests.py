@@ -43,14 +43,22 @@ served first would wait for the one behind.
 **A section twice on one route** (a turnback path out through single track to a reversal and back) is asked
 for each time through (:meth:`SectionRequests.pass_m`): the request of the way out, released behind the train,
 gives way to a new one for the way back. With one request per trip, the unit came back into a section another
-tram held the other way (Jena, Winzerla).
+tram held the other way (Jena, Winzerla). But where the train reverses in a stub right beyond the section, with no
+passing place between, the two times through are one entry in the train's own direction
+(:func:`~railsim.engine.single_track.kept_through_reversal`, at set-up), as the stub is: asked for with the stub,
+it is held alone from the way out until the rear has left it on the way back, and the sections after it on the way
+back join that run unless the track beyond it is a passing place (:meth:`SectionRequests._run_from` counts the
+room from where the train leaves it). Released behind the train, it went to a tram of the way out, which stood at
+the platform in it and passed it to its unit's next trip; that trip waited for the stub the first unit was turning
+in, and the unit for the section (Jena, Lobeda-Ost).
 
 **Order on single track.** Trains of one direction leave a place in an order the queue cannot see, so the requests
 keep to it: a train does not ask for a section beyond the train in front of it before that train has
-(:meth:`SectionRequests._behind_first`), asks for no less than the trains of its direction already waiting for the
-section (:meth:`SectionRequests._others_run_on`), and when it asks for a run through several sections, the trains of its
-direction holding the first one alone ask for the rest at that moment (:meth:`SectionRequests._bring_forward`). Each
-closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
+(:meth:`SectionRequests._behind_first`; for a section it holds alone, turning in it or behind it, only a train in
+front bound into it there, which nobody else asks for the same way), asks for no less than the trains of its
+direction already waiting for the section (:meth:`SectionRequests._others_run_on`), and when it asks for a run
+through several sections, the trains of its direction holding the first one alone ask for the rest at that moment
+(:meth:`SectionRequests._bring_forward`). Each closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
 the sections behind an opposing tram that waited for the one behind. A train whose trip ends beyond its last
 section (a terminus: its unit turns there or leaves service) lets the trains leaving that terminus go first
 (``yields``, :class:`~railsim.engine.events.tracks.TrackSections`), and is let in only while the terminus has room
@@ -78,7 +86,7 @@ from typing import Any
 
 from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
-from railsim.engine.events.tracks import SectionRequest, TrackSections
+from railsim.engine.events.tracks import OWN_DIRECTION, SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
 from railsim.engine.section_walk import SectionWalk, SectionWalker, ShortEntries
 from railsim.engine.settings import EngineSettings
@@ -86,6 +94,7 @@ from railsim.engine.single_track import (
     REVERSING,
     RouteSection,
     contested,
+    kept_through_reversal,
     route_crossings,
     route_sections,
     section_map,
@@ -95,6 +104,7 @@ from railsim.engine.train import TrainRuntime
 from railsim.engine.wiring import set_once
 
 TERMINUS_DEPARTURE_HORIZON_S = 300.0  # a departure from a terminus due this soon takes room there (_room_beyond)
+SAME_PLACE_M = 1.0  # two routes' chainages of one point, each summed over its own edges, agree to this (_ahead_through)
 
 
 class SectionRequests(SectionWalker):
@@ -133,12 +143,17 @@ class SectionRequests(SectionWalker):
         if not shared:
             return
         self.tracks = TrackSections(self.events, sorted(shared), room_beyond=self._room_beyond)
+        clear_m = self.settings.protection_margin_m + self.settings.clearance_m
         for k, (tid, sections) in enumerate(per_train.items()):
-            # a train reversing in a section gets a direction nobody else has: it holds the section alone
+            # a train reversing in a section gets a direction nobody else has: it holds the section alone, and so
+            # the section it is shut in behind while it turns in a stub (module docstring, "A section twice on one
+            # route")
+            length_m = self.fleet.trains[tid].trip.vehicle.length_m
+            kept = kept_through_reversal(
+                [x for x in sections if x.section_id in shared], OWN_DIRECTION + k, length_m, clear_m
+            )
             mine = [
-                dataclasses.replace(x, direction=2 + k) if x.direction == REVERSING else x
-                for x in sections
-                if x.section_id in shared
+                dataclasses.replace(x, direction=OWN_DIRECTION + k) if x.direction == REVERSING else x for x in kept
             ]
             if mine:
                 self.sections[tid] = mine
@@ -245,16 +260,48 @@ class SectionRequests(SectionWalker):
         protection point of ``sec`` and has not asked for ``sec`` in the same direction: it must ask first. Else
         the train behind, asking for two sections at once while the one in front had asked for the first only
         (it could wait between them), was granted the second; the one in front then waited for it behind an
-        opposing train that waited for the train behind (Jena, ``track:-47054577``)."""
+        opposing train that waited for the train behind (Jena, ``track:-47054577``). A section this train holds
+        alone (:meth:`_held_alone`: it turns in it or beyond it) nobody asks for the same way: the train in front
+        comes first there only where it runs through it too, until it has asked for its own time through it there
+        (:meth:`_ahead_through`)."""
         if ahead is None or sec.guard_m <= ahead.rear_m:
             return False
         theirs = self.section_requests.get(ahead.train_id, {}).get(sec.section_id)
-        if theirs is not None and theirs.direction == sec.direction and ahead.train_id not in theirs.released_by:
+        if self._held_alone(sec) and ahead.train_id in self.fleet.trains:
+            there = self._ahead_through(ahead, sec)
+            if there is None or (
+                theirs is not None
+                and ahead.train_id not in theirs.released_by
+                and self.pass_m(self.fleet.trains[ahead.train_id], theirs) == there.start_m
+            ):
+                return False
+        elif theirs is not None and theirs.direction == sec.direction and ahead.train_id not in theirs.released_by:
             return False
         f = self.formations.of_follower.get(tr.train_id)
         if f is not None and self.formations.manager.state(f.id) in COUPLED_STATES:
             return self.formations.leader_of(f).train_id != ahead.train_id
         return True
+
+    @staticmethod
+    def _held_alone(sec: RouteSection) -> bool:
+        """True for a single-track section in a direction of the train's own (it reverses inside it, or beyond it
+        with no passing place between: :func:`~railsim.engine.single_track.kept_through_reversal`)."""
+        return sec.direction >= OWN_DIRECTION and sec.section_id.startswith("track:")
+
+    def _ahead_through(self, ahead: Any, sec: RouteSection) -> RouteSection | None:
+        """The entry on the route of the train in front (``ahead``, in the follower's frame) for ``sec``'s section
+        where the follower's route enters it (the two routes run on together up to there), or None: it leaves the
+        follower's way before, or comes back to the section another way."""
+        other = self.fleet.trains[ahead.train_id]
+        offset_m = ahead.front_m - other.front_m  # the follower's chainage of a point on the route in front
+        return next(
+            (
+                s
+                for s in self.sections.get(ahead.train_id, ())
+                if s.section_id == sec.section_id and abs(s.start_m + offset_m - sec.start_m) < SAME_PLACE_M
+            ),
+            None,
+        )
 
     def _crossing_waits_for_next(self, tr: TrainRuntime, sec: RouteSection) -> bool:
         """True for a flat crossing with no room for the train between it and the next section on its route (up to
@@ -374,7 +421,7 @@ class SectionRequests(SectionWalker):
         the trams coming in go first."""
         mine = self.sections[tr.train_id]
         if not last.section_id.startswith("track:") or any(
-            s.start_m > last.start_m and s.section_id.startswith("track:") for s in mine
+            s.end_m > last.end_m and s.section_id.startswith("track:") for s in mine
         ):
             return False
         if self.continues(tr.train_id):
@@ -421,23 +468,27 @@ class SectionRequests(SectionWalker):
     def _run_from(self, tr: TrainRuntime, first: RouteSection) -> list[RouteSection]:
         """``first`` and the single-track sections that follow it on the route with no passing place between:
         the next one is added while the track between the two cannot hold this train clear of both
-        (:meth:`_passing_room_m`). Sections already requested end the run; flat crossings are requested alone
-        (a train never stands inside one waiting)."""
+        (:meth:`_passing_room_m`), counted from the end of the section the train leaves last (a section kept through
+        the reversal in a stub beyond it, :func:`~railsim.engine.single_track.kept_through_reversal`, ends after the
+        stub, which belongs to its run). Sections already requested end the run; flat crossings are requested alone (a
+        train never stands inside one waiting)."""
         run = [first]
         if not first.section_id.startswith("track:"):
             return run
         reqs = self.section_requests[tr.train_id]
-        later = [
-            s for s in self.sections[tr.train_id] if s.start_m > first.start_m and s.section_id.startswith("track:")
-        ]
-        for nxt in later:
+        track = [s for s in self.sections[tr.train_id] if s.section_id.startswith("track:")]
+        # the room is counted from the section the train leaves last: ``first``, or one kept round it while it turns
+        reach = max((s for s in track if s.start_m <= first.start_m and s.end_m >= first.end_m), key=lambda s: s.end_m)
+        for nxt in (s for s in track if s.start_m > first.start_m):
             done = nxt.section_id in reqs and not self._stale(tr, reqs[nxt.section_id], nxt)
             if done or any(s.section_id == nxt.section_id for s in run):
                 break
-            if self._passing_room_m(tr, run[-1], nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
-                run[-1], nxt
-            ):
-                break
+            if nxt.end_m > reach.end_m:  # (one inside a section kept through the reversal belongs to its run)
+                if self._passing_room_m(tr, reach, nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
+                    reach, nxt
+                ):
+                    break
+                reach = nxt
             run.append(nxt)
         return run
 
@@ -512,7 +563,7 @@ class SectionRequests(SectionWalker):
         tr = self.fleet.trains[req.holder_ids[0]]
         last = next((s for s in self.sections[tr.train_id] if s.section_id == req.section_id), None)
         if last is None or any(
-            s.start_m > last.start_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
+            s.end_m > last.end_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
         ):
             return True  # not the section the train turns beyond (a group's earlier member)
         room_m = tr.trip.stops[-1].served_end_m - (last.end_m + self.settings.clearance_m)

@@ -14,7 +14,10 @@ switch another train needs to leave the section), else the section's start.
 
 A route that runs both ways through a section reverses inside it (a unit on a turnback track, a bidi platform):
 its direction is :data:`REVERSING`, and each such train holds the section alone (the route locks give it a
-direction of its own), since a second train in a turnback track would meet it head-on after the flip.
+direction of its own), since a second train in a turnback track would meet it head-on after the flip. A route that
+runs out through a section into a stub right beyond it, reverses there and comes back through the section is shut in
+behind that section the same way: :func:`kept_through_reversal` makes the two times through one entry, held alone
+from the first entry until the rear has left on the way back.
 
 **Crossings** (:func:`route_crossings`): movements through one SUMO node that SUMO's foe matrix says intersect
 while sharing no track (``graph.graph["crossings"]``, from :func:`network.topology.flat_crossings`: a diamond in an
@@ -26,7 +29,7 @@ point is the node itself, the point of a switch there too: a train asks for the 
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import networkx as nx
@@ -92,6 +95,35 @@ def route_sections(route: Any, smap: dict[str, tuple[str, int]]) -> list[RouteSe
         runs.append(RouteSection(sid, direction, start, end, guard))
         i = j + 1
     return runs
+
+
+def kept_through_reversal(
+    sections: list[RouteSection], direction: int, length_m: float, clear_m: float
+) -> list[RouteSection]:
+    """``sections`` (one route's, in route order) with each single-track section the route runs out through into a
+    stub right beyond it (a section it reverses inside, :data:`REVERSING`) and back through the other way, with no
+    passing place on either side of the stub (less than the train's ``length_m`` from the end of one section to the
+    protection point of the next, less ``clear_m``: its clearance behind and overlap in front), as one entry in
+    ``direction`` (the train's own) from its first start and protection point to its second end. Another train let
+    into it between the two times through, in either direction, stands between this train and its way back (Jena,
+    Lobeda-Ost: a tram granted the approach the way the unit had gone out stood at the platform and passed it to
+    its next trip, which waited for the stub the unit was turning in)."""
+    track = [s for s in sections if s.section_id.startswith("track:")]
+    kept: dict[int, RouteSection] = {}  # id() of the first time through -> the entry for both
+    back: set[int] = set()  # id() of the time back through
+    for out, turn, again in zip(track, track[1:], track[2:]):
+        if (
+            turn.direction == REVERSING
+            and again.section_id == out.section_id
+            and REVERSING not in (out.direction, again.direction)
+            and out.direction != again.direction
+            and all(b.guard_m - a.end_m - clear_m < length_m for a, b in ((out, turn), (turn, again)))
+        ):
+            kept[id(out)] = replace(out, direction=direction, end_m=again.end_m)
+            back.add(id(again))
+    if not kept:
+        return sections
+    return [kept.get(id(s), s) for s in sections if id(s) not in back]
 
 
 def contested(per_train: dict[str, list[RouteSection]]) -> set[str]:

@@ -14,6 +14,9 @@
   against the other direction, and a request of the other direction does not go first against it while it waits for
   a section that train holds (the one behind leaves it only after it): a tram granted the approach behind a unit
   turned at Lobeda-West held the section an opposing tram waited for, and the unit waited behind that tram.
+* A section a train holds alone (it turns in it, or beyond it) waits for the train in front only where that train
+  runs through it there too, until it has asked for its own time through it: nobody asks for it the same way, so
+  a unit bound out through single track to its reversal waited forever behind a tram in front (Jena, Lobeda-West).
 * No points beyond the protection point of a section not yet reserved are asked for (a tram waiting at the
   near end of a section held the points at its far end, which the tram in the section needed).
 * Routes are set in order within one step too: a train that has just asked for busy points asks for none beyond
@@ -186,6 +189,30 @@ def test_a_train_does_not_ask_for_a_section_beyond_the_train_in_front_before_it(
     locks.bookkeeping(1.0, front)
     locks.bookkeeping(2.0, behind, ahead)
     assert set(locks.section_requests["behind"]) == {S1, S2}
+
+
+def test_a_section_held_alone_waits_for_the_train_in_front_only_where_it_runs_through_it() -> None:
+    front, unit = _runner("front", 800.0), _runner("unit", 500.0)
+    _, locks = _locks(front, unit)
+    locks.tracks = TrackSections(EventLog(), [S1])
+    locks.sections["unit"] = [RouteSection(S1, 7, 1000.0, 2000.0, 1000.0)]  # the unit's own: it turns in S1
+    locks.sections["front"], locks.section_requests["front"], locks.section_requests["unit"] = [], {}, {}
+    ahead = SimpleNamespace(train_id="front", rear_m=773.0, front_m=800.0)
+    locks.bookkeeping(1.0, unit, ahead)
+    assert S1 in locks.section_requests["unit"], "waited for a train in front that leaves its way before S1"
+    turning = _runner("turning", 800.0)  # turns in S1 too, in a direction of its own
+    _, locks = _locks(turning, unit)
+    locks.tracks = TrackSections(EventLog(), [S1])
+    locks.sections["unit"] = [RouteSection(S1, 7, 1000.0, 2000.0, 1000.0)]
+    locks.sections["turning"] = [RouteSection(S1, 8, 1000.0, 2000.0, 1000.0)]
+    locks.section_requests["turning"], locks.section_requests["unit"] = {}, {}
+    ahead = SimpleNamespace(train_id="turning", rear_m=773.0, front_m=800.0)
+    locks.bookkeeping(1.0, unit, ahead)
+    assert locks.section_requests["unit"] == {}, "asked before the train in front bound into S1 there"
+    locks.bookkeeping(1.0, turning)
+    locks.bookkeeping(2.0, unit, ahead)
+    assert S1 in locks.section_requests["unit"], "the train in front asked for its own time through S1"
+    assert locks.section_requests["turning"][S1].granted and not locks.section_requests["unit"][S1].granted
 
 
 def test_no_points_beyond_busy_points_are_asked_for_in_the_same_step() -> None:

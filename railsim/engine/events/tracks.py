@@ -42,6 +42,10 @@ from dataclasses import dataclass, field
 
 from railsim.engine.events.log import EventLog
 
+# A track section's direction from this one on is a train's own (the train side gives it to a train reversing inside
+# the section, or shut in behind it while it turns in a stub beyond): nobody else shares it.
+OWN_DIRECTION = 2
+
 
 @dataclass(eq=False)
 class SectionRequest:
