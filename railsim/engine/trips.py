@@ -161,7 +161,7 @@ def make_stops(
     to_station: str,
 ) -> tuple[TripStop, ...]:
     """Stops served on ``route`` between ``from_station`` and ``to_station`` (inclusive), skipping ``skip``; one
-    platform per visit of an intermediate station (:func:`_one_platform_per_visit`)."""
+    platform where an intermediate station's platforms overlap (:func:`_one_platform_per_visit`)."""
     stops: list[TripStop] = []
     started = False
     for rs in _one_platform_per_visit(route.stops, length_m, (from_station, to_station)):
@@ -199,17 +199,19 @@ def make_stops(
 
 
 def _one_platform_per_visit(route_stops: Sequence[Any], length_m: float, ends: tuple[str, str]) -> list[Any]:
-    """The route's platforms with each run of consecutive platforms of one intermediate station reduced to one.
+    """The route's platforms with platforms of one intermediate station that overlap along the route made one.
 
-    A route may run along two platforms of a station one after the other — an OpenStreetMap station mapped with a
-    stop position and a platform on the same track (São Paulo's São Bento: two 200 m platforms 54 m apart), or a
-    platform split over two edges. The timetable names the station once, so the train stops once: at the last
-    platform of the run the whole train fits on, else at the longest (then the last). The trip's origin and
-    destination (``ends``) keep the platform their route was chosen by (the route begins and ends on it)."""
+    OpenStreetMap maps some stations with a stop position and a platform on the same track, and the import writes
+    a stop for each: two stops over one stretch of track (São Paulo's São Bento: two 200 m platforms overlapping by
+    146 m). The timetable names the station once, and there is one platform there, so the train stops once: at
+    the one of them the whole train fits on that ends further along, else at the longer. Platforms of a station
+    that follow each other without overlapping are two stops, as before (Jena's Löbstedt: two 30 m platforms on
+    consecutive edges). The trip's origin and destination (``ends``) keep the platform their route was chosen by
+    (the route begins and ends on it)."""
     out: list[Any] = []
     for rs in route_stops:
         prev = out[-1] if out else None
-        if prev is None or prev.station_id != rs.station_id or rs.station_id in ends:
+        if prev is None or prev.station_id != rs.station_id or rs.station_id in ends or rs.start_m >= prev.end_m:
             out.append(rs)
             continue
         if _platform_choice(rs, length_m) >= _platform_choice(prev, length_m):
