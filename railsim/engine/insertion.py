@@ -410,8 +410,8 @@ class Dispatcher:
         tail is on ``tr``'s track. Then ``other``'s body is mapped onto ``tr``'s route instead (found on SUMO's
         ``tools/game/bs3d`` OSM net: a train put on at one short platform 25 m into the tail of a train that had
         just left the next one)."""
-        mapped = other.view.map_body(tr.view, depart_m, length_m, hint)
         other_length_m = other.trip.vehicle.length_m
+        mapped = _nearest_pass(tr, depart_m, length_m, other, hint)
         if mapped is not None:
             return mapped[0], mapped[1], other.front_m, other.front_m - other_length_m, 0.0
         back = tr.view.map_body(other.view, other.front_m, other_length_m, other.edge_i)
@@ -528,3 +528,28 @@ class Dispatcher:
         tr.status = "removed"
         self.formations.on_off_line(self.layer.now_s, tr)
         self.events.record(self.layer.now_s, "train_left", tr.train_id, chainage_m=round(tr.front_m, 3))
+
+
+def _nearest_pass(
+    tr: TrainRuntime, depart_m: float, length_m: float, other: TrainRuntime, hint: int
+) -> tuple[float, float] | None:
+    """``tr``'s body (front at ``depart_m``) in ``other``'s route frame, on the pass of ``other``'s route nearest
+    ``other``'s own body. A route that runs over the departure spot twice (a unit's turnback path prepended to its
+    trip, out and back through one stub) holds the spot at two chainages; the last pass, which the mapping takes by
+    default, put a departure 7,968 m away from a turned unit standing on the very spot (Jena, Lobeda-West: the
+    departure was put on 1 m inside it; SUMO refused to insert it). Each pass that can hold the body is tried —
+    the first, the one from ``other``'s rear on, the last — and the one closest to ``other``'s body is kept."""
+    view = other.view
+    if view.simple:
+        return view.map_body(tr.view, depart_m, length_m, hint)
+    other_rear_m = other.front_m - other.trip.vehicle.length_m
+    rear_i = view.edge_near(max(other_rear_m, 0.0), other.edge_i)
+    best: tuple[float, tuple[float, float]] | None = None
+    for from_i in (0, rear_i, -1):
+        mapped = view.map_body(tr.view, depart_m, length_m, hint, from_i)
+        if mapped is None:
+            continue
+        apart_m = max(0.0, mapped[1] - other.front_m, other_rear_m - mapped[0])
+        if best is None or apart_m < best[0]:
+            best = (apart_m, mapped)
+    return None if best is None else best[1]
