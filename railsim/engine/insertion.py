@@ -47,6 +47,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
 from railsim.engine.insertion_reach import NearTrains, approach_needed_m
+from railsim.engine.routeview import RouteView
 from railsim.engine.settings import EngineSettings
 from railsim.engine.train import TrainRuntime
 from railsim.engine.trips import sumo_stops
@@ -411,10 +412,14 @@ class Dispatcher:
         ``tools/game/bs3d`` OSM net: a train put on at one short platform 25 m into the tail of a train that had
         just left the next one)."""
         other_length_m = other.trip.vehicle.length_m
-        mapped = _nearest_pass(tr, depart_m, length_m, other, hint)
+        other_rear_m = other.front_m - other_length_m
+        mapped = _nearest_pass(
+            other.view, (other_rear_m, other.front_m, other.edge_i), tr.view, depart_m, length_m, hint
+        )
         if mapped is not None:
-            return mapped[0], mapped[1], other.front_m, other.front_m - other_length_m, 0.0
-        back = tr.view.map_body(other.view, other.front_m, other_length_m, other.edge_i)
+            return mapped[0], mapped[1], other.front_m, other_rear_m, 0.0
+        near = (depart_m - length_m, depart_m, tr.edge_i)
+        back = _nearest_pass(tr.view, near, other.view, other.front_m, other_length_m, other.edge_i)
         if back is None:
             return None
         return depart_m, depart_m - length_m, back[0], back[1], other.front_m - back[0]
@@ -531,25 +536,32 @@ class Dispatcher:
 
 
 def _nearest_pass(
-    tr: TrainRuntime, depart_m: float, length_m: float, other: TrainRuntime, hint: int
+    onto: RouteView,
+    near: tuple[float, float, int],
+    source: RouteView,
+    front_m: float,
+    length_m: float,
+    hint: int,
 ) -> tuple[float, float] | None:
-    """``tr``'s body (front at ``depart_m``) in ``other``'s route frame, on the pass of ``other``'s route nearest
-    ``other``'s own body. A route that runs over the departure spot twice (a unit's turnback path prepended to its
-    trip, out and back through one stub) holds the spot at two chainages; the last pass, which the mapping takes by
-    default, put a departure 7,968 m away from a turned unit standing on the very spot (Jena, Lobeda-West: the
-    departure was put on 1 m inside it; SUMO refused to insert it). Each pass that can hold the body is tried —
-    the first, the one from ``other``'s rear on, the last — and the one closest to ``other``'s body is kept."""
-    view = other.view
-    if view.simple:
-        return view.map_body(tr.view, depart_m, length_m, hint)
-    other_rear_m = other.front_m - other.trip.vehicle.length_m
-    rear_i = view.edge_near(max(other_rear_m, 0.0), other.edge_i)
+    """A body on ``source``'s route (front at ``front_m``, ``length_m`` long; ``hint`` an edge index of ``source``
+    next to its front) as ``(front, rear)`` in ``onto``'s frame, on the pass of ``onto``'s route nearest the body
+    ``near`` = (rear, front, an edge index next to its front) already in that frame. A route that runs over a spot
+    twice (a unit's turnback path prepended to its trip, out and back through one stub) holds it at two chainages;
+    the last pass, which the mapping takes by default, put a departure 7,968 m away from a turned unit standing on
+    the very spot (Jena, Lobeda-West: the departure was put on 1 m inside it; SUMO refused to insert it). Each pass
+    that can hold the body is tried — the first, the one from ``near``'s rear on, the last — and the one closest to
+    ``near`` is kept. Used both ways: a departure mapped onto another train's route, and that train's body mapped
+    onto the departure's route where they share no edge of the other's route (:meth:`Dispatcher._in_one_frame`)."""
+    if onto.simple:
+        return onto.map_body(source, front_m, length_m, hint)
+    near_rear_m, near_front_m, near_i = near
+    rear_i = onto.edge_near(max(near_rear_m, 0.0), near_i)
     best: tuple[float, tuple[float, float]] | None = None
     for from_i in (0, rear_i, -1):
-        mapped = view.map_body(tr.view, depart_m, length_m, hint, from_i)
+        mapped = onto.map_body(source, front_m, length_m, hint, from_i)
         if mapped is None:
             continue
-        apart_m = max(0.0, mapped[1] - other.front_m, other_rear_m - mapped[0])
+        apart_m = max(0.0, mapped[1] - near_front_m, near_rear_m - mapped[0])
         if best is None or apart_m < best[0]:
             best = (apart_m, mapped)
     return None if best is None else best[1]

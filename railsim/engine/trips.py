@@ -161,10 +161,10 @@ def make_stops(
     to_station: str,
 ) -> tuple[TripStop, ...]:
     """Stops served on ``route`` between ``from_station`` and ``to_station`` (inclusive), skipping ``skip``; one
-    platform where an intermediate station's platforms overlap (:func:`_one_platform_per_visit`)."""
+    platform where an intermediate station's platforms overlap (:func:`_overlapping_platforms_merged`)."""
     stops: list[TripStop] = []
     started = False
-    for rs in _one_platform_per_visit(route.stops, length_m, (from_station, to_station)):
+    for rs in _overlapping_platforms_merged(route.stops, length_m, (from_station, to_station)):
         if rs.station_id == from_station:
             started = True
         if not started:
@@ -198,7 +198,7 @@ def make_stops(
     return tuple(stops)
 
 
-def _one_platform_per_visit(route_stops: Sequence[Any], length_m: float, ends: tuple[str, str]) -> list[Any]:
+def _overlapping_platforms_merged(route_stops: Sequence[Any], length_m: float, ends: tuple[str, str]) -> list[Any]:
     """The route's platforms with platforms of one intermediate station that overlap along the route made one.
 
     OpenStreetMap maps some stations with a stop position and a platform on the same track, and the import writes

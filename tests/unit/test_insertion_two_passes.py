@@ -53,3 +53,18 @@ def test_a_unit_on_the_later_pass_is_compared_there() -> None:
     unit = _train(TURNED, 5070.0)
     frame = Dispatcher._in_one_frame(_train(DEPARTING, 0.0), 40.0, 27.0, unit)  # type: ignore[arg-type]
     assert frame is not None and frame[0] == pytest.approx(5040.0)  # right behind it on its own pass
+
+
+def test_a_train_on_no_edge_of_the_other_route_is_placed_on_the_nearest_pass_of_its_own() -> None:
+    # the departure stands on the edge "tail", which the other train's route does not use; the other train stands on
+    # "s", which the departing route passes twice (100 m and 5,000 m on): its body is placed on the pass next to the
+    # departure, 35 m ahead of it, not on the last one
+    departing_route = _view("trip", ("tail", "s", "loop", "s", "w"), (0.0, 100.0, 200.0, 5000.0, 5100.0), 5200.0)
+    other = _train(_view("other", ("s", "z"), (0.0, 100.0), 200.0), 50.0)
+    frame = Dispatcher._in_one_frame(_train(departing_route, 65.0), 65.0, 27.0, other)  # type: ignore[arg-type]
+    assert frame is not None
+    front_m, rear_m, other_front_m, other_rear_m, to_other_m = frame
+    assert (front_m, rear_m) == pytest.approx((65.0, 38.0))
+    assert (other_front_m, other_rear_m) == pytest.approx((150.0, 123.0))
+    assert to_other_m == pytest.approx(50.0 - 150.0)
+    assert departing_route.map_body(other.view, 50.0, 27.0)[0] == pytest.approx(5050.0)  # the last pass: far away
