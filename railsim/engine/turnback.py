@@ -21,7 +21,9 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   its end, reverses and runs back to the departure platform (crossover switches on the way are locked as on any
   route). Where no reversal reaches the departure track, a **turning loop** does: the unit runs on round the loop
   (at most :data:`LOOP_SEARCH_M`) to the departure platform and waits there for its departure, with no reversal
-  stop (a tram terminus such as Jena's Zwätzen Schleife).
+  stop (a tram terminus such as Jena's Zwätzen Schleife). A unit that arrives at the very platform its next
+  trip departs from, facing the way it departs (a loop terminus with one platform, such as Jena's Winzerla),
+  makes no turning move: it departs where it stands, after the station's minimum turnback.
 * **The successor's route** is that path followed by the trip's own route; its first stop is a *reversal stop*
   (:data:`REVERSAL`) on the edge before the turnaround. Because the route chainage runs through the
   turnaround's internal lane like SUMO's odometer, the successor's chainage stays equal to SUMO's position
@@ -111,6 +113,21 @@ def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | No
     return None
 
 
+def _same_platform(pred: TrainRuntime, succ: TrainRuntime) -> bool:
+    """True if ``succ`` departs from the platform ``pred`` arrives at, in the direction it arrives in (a tram
+    terminus where the track runs round a loop past one platform, such as Jena's Winzerla): the unit departs
+    where it stands. Any turning move would take it off the platform and back to it (at Winzerla a 7.9 km run out
+    along the line, through single-track sections, to a reversal and back)."""
+    dest = next((s for s in reversed(pred.trip.stops) if s.is_destination), None)
+    origin = next((s for s in succ.trip.stops if s.is_origin), None)
+    return (
+        dest is not None
+        and origin is not None
+        and dest.stop_id == origin.stop_id
+        and pred.trip.route.edges[-1] == succ.trip.route.edges[0]
+    )
+
+
 class SumoReroute(Protocol):
     """What a handover asks of SUMO: the unit's next route and stops."""
 
@@ -134,6 +151,7 @@ class Turnbacks:
         self._paths: dict[tuple[str, str], list[str] | None] = {}
         self._pinned: set[str] = set()  # trips whose unit is fixed: a formation coupling across their turnback
         self._loops: set[str] = set()  # trips whose unit turns round a loop (no reversal) before them
+        self._standing: set[str] = set()  # trips whose unit arrives at their departure platform (no move at all)
         self.swaps = 0
         self.bridge: SumoReroute = unwired("Turnbacks", "bridge")  # exists while the run is under way: connect()
         if spec is None:
@@ -148,6 +166,8 @@ class Turnbacks:
 
     # ------------------------------------------------------------------ chaining
     def _path(self, pred: TrainRuntime, succ: TrainRuntime) -> list[str] | None:
+        if _same_platform(pred, succ):
+            return [succ.trip.route.edges[0]]  # it stands at its departure platform already: no turning move
         return self._path_edges(pred.trip.route.edges[-1], succ.trip.route.edges[0])
 
     def _path_edges(self, from_edge: str, to_edge: str) -> list[str] | None:
@@ -321,6 +341,9 @@ class Turnbacks:
         path = self._path(pred, succ)
         assert path is not None  # _chain only chains trips it found a path for
         trip = succ.trip
+        if _same_platform(pred, succ):  # it departs where it stands: the trip's own route and stops
+            self._standing.add(succ.train_id)
+            return
         edges = path + list(trip.route.edges[1:])
         route = make_route(self.graph, f"{pred.trip.route.edges[-1]}~>{trip.route.id}", edges)
         k0 = len(path) - 1  # the old route's first edge in the new route
@@ -371,11 +394,13 @@ class Turnbacks:
         rev = trip.stops[0]
         reverses = rev.kind == REVERSAL  # else it runs round a loop, or departs where it stands (``link``)
         loops = succ.train_id in self._loops
+        standing = succ.train_id in self._standing  # it arrived at its departure platform: a turnback in place
         if reverses and front_m >= rev.window_start_m - 1e-6:  # on the reversal edge already: it reverses here
             trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
         # a unit that runs on where it stands (into or out of a depot run) does not turn back: no minimum
-        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses or loops else 0.0
+        turns = reverses or loops or standing
+        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if turns else 0.0
         until_s = max(trip.depart_s + trip.departure_delay_s, arrival_s + min_s)  # a primary late start too
         # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration;
         # a unit that runs to its departure platform first is held there by ``until``
@@ -413,6 +438,7 @@ class Turnbacks:
             station=pred.trip.destination.station_id,
             earliest_departure_s=round(until_s, 3),
             **({"loop": True} if loops else {}),
+            **({"in_place": True} if standing else {}),
         )
         return succ
 
