@@ -132,7 +132,10 @@ class Simulation:
         self.locks.protect_merges(self.bundle.graph)
         self.recorder = Recorder(stride_s=float(scenario.outputs.trace_stride_s), dt_s=self.dt)
         pax = primary_delays.passenger_demand(self.primary)
-        self.stops = StopBook(self.formations, self.locks, self.events, self.settings, self.recorder.stop_record, pax)
+        euler_dt_s = self.dt if self.step_method == "euler" else 0.0  # how SUMO moves trains (surely_overruns_m)
+        self.stops = StopBook(
+            self.formations, self.locks, self.events, self.settings, self.recorder.stop_record, pax, euler_dt_s
+        )
         self.knowledge = Knowledge(self.layer, self.channels, self.formations, self.extensions)
         self.dispatcher = Dispatcher(
             self.fleet,

@@ -101,3 +101,36 @@ def test_an_early_halt_inside_the_window_is_an_event_not_a_failure() -> None:
     assert safety.failure is None and events.rows("desync") == []  # type: ignore[attr-defined]
     rows = events.rows("sumo_forced_halt")  # type: ignore[attr-defined]
     assert len(rows) == 1 and '"railsim_mps":2.27' in rows[0]["detail"]
+
+
+def _euler_emergency_stop_m(v: float, decel: float, dt: float) -> float:
+    """How far SUMO's Euler positions carry a train braking at ``decel`` from ``v``: each step advances by the new
+    speed times the step."""
+    run_m = 0.0
+    while v > 0.0:
+        v = max(v - decel * dt, 0.0)
+        run_m += v * dt
+    return run_m
+
+
+@pytest.mark.parametrize("v", [0.9, 3.754, 7.0, 12.3, 20.0])
+@pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
+def test_with_euler_positions_a_stop_is_missed_only_when_the_euler_run_passes_the_tolerance(v: float, dt: float) -> None:
+    """The bound for Euler positions is never longer than the run SUMO gives (a miss declared is a miss) and
+    within half a step's advance of it."""
+    end_m, tol_m = 1000.0, 0.5
+    run_m = _euler_emergency_stop_m(v, 1.25, dt)
+    assert v * v / 2.5 - 0.5 * v * dt <= run_m + 1e-9 <= v * v / 2.5 + 1e-9
+    can_m = end_m + tol_m - run_m  # the front from which the Euler run just stops at end + tolerance
+    assert surely_overruns_m(_train(can_m - 1e-6), end_m, tol_m, v, dt) is None  # type: ignore[arg-type]
+    assert surely_overruns_m(_train(can_m + 0.5 * v * dt + 1e-6), end_m, tol_m, v, dt) is not None  # type: ignore[arg-type]
+
+
+def test_dresden_zschertnitz_a_tram_on_its_service_brake_is_not_declared_past_its_stop() -> None:
+    """The case found: 3.754 m/s, 4.745 m short of the platform's end, 0.5 s steps. The continuous bound (5.64 m)
+    called the stop missed by 0.52 m; on the service brake with its running resistance (1.2 m/s² net) SUMO's Euler
+    positions stop it 0.22 m past the end, within the tolerance."""
+    front_m, end_m, v, dt = 995.255, 1000.0, 3.754, 0.5
+    assert surely_overruns_m(_train(front_m), end_m, 0.5, v) is not None  # type: ignore[arg-type]
+    assert surely_overruns_m(_train(front_m), end_m, 0.5, v, dt) is None  # type: ignore[arg-type]
+    assert front_m + _euler_emergency_stop_m(v, 1.2, dt) == pytest.approx(end_m + 0.217, abs=1e-3)
