@@ -113,19 +113,28 @@ def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | No
     return None
 
 
-def _same_platform(pred: TrainRuntime, succ: TrainRuntime) -> bool:
-    """True if ``succ`` departs from the platform ``pred`` arrives at, in the direction it arrives in (a tram
-    terminus where the track runs round a loop past one platform, such as Jena's Winzerla): the unit departs
-    where it stands. Any turning move would take it off the platform and back to it (at Winzerla a 7.9 km run out
-    along the line, through single-track sections, to a reversal and back)."""
-    dest = next((s for s in reversed(pred.trip.stops) if s.is_destination), None)
-    origin = next((s for s in succ.trip.stops if s.is_origin), None)
-    return (
-        dest is not None
-        and origin is not None
-        and dest.stop_id == origin.stop_id
-        and pred.trip.route.edges[-1] == succ.trip.route.edges[0]
-    )
+def _arrival_platform(tr: TrainRuntime) -> tuple[str, str | None]:
+    """The edge a trip ends on and the stop it arrives at there (None if its plan has no destination stop)."""
+    dest = next((s for s in reversed(tr.trip.stops) if s.is_destination), None)
+    return tr.trip.route.edges[-1], None if dest is None else dest.stop_id
+
+
+def _departure_platform(tr: TrainRuntime) -> tuple[str, str | None]:
+    """The edge a trip begins on and the stop it departs from there (None if it has no origin stop)."""
+    origin = next((s for s in tr.trip.stops if s.is_origin), None)
+    return tr.trip.route.edges[0], None if origin is None else origin.stop_id
+
+
+def _same_platform(pred: TrainRuntime, succ: TrainRuntime, through: set[str]) -> bool:
+    """True if ``succ`` departs from the platform ``pred`` arrives at, in the direction it arrives in, and no trip
+    runs through that platform's edge (``through``: the edges trips run over between their first and last): a tram
+    terminus where the track runs round a loop past one platform, such as Jena's Winzerla. The unit departs where
+    it stands; any turning move would take it off the platform and back to it (at Winzerla a 7.9 km run out along
+    the line, through single-track sections, to a reversal and back). A platform other lines run through (a line
+    that turns round a city block, such as Helsinki's 5 at Rautatieasema) is not a place to lay over: a unit
+    standing there would hold up every tram behind it."""
+    arrival = _arrival_platform(pred)
+    return arrival[1] is not None and arrival[0] not in through and arrival == _departure_platform(succ)
 
 
 class SumoReroute(Protocol):
@@ -152,10 +161,13 @@ class Turnbacks:
         self._pinned: set[str] = set()  # trips whose unit is fixed: a formation coupling across their turnback
         self._loops: set[str] = set()  # trips whose unit turns round a loop (no reversal) before them
         self._standing: set[str] = set()  # trips whose unit arrives at their departure platform (no move at all)
+        # edges some trip runs over between its first and its last (no unit lays over on them: _same_platform)
+        self._through: set[str] = set()
         self.swaps = 0
         self.bridge: SumoReroute = unwired("Turnbacks", "bridge")  # exists while the run is under way: connect()
         if spec is None:
             return
+        self._through = {e for tr in fleet.trains.values() for e in tr.trip.route.edges[1:-1]}
         self._chain()
         for uid, trips in self.units.items():
             for tid in trips:
@@ -166,7 +178,7 @@ class Turnbacks:
 
     # ------------------------------------------------------------------ chaining
     def _path(self, pred: TrainRuntime, succ: TrainRuntime) -> list[str] | None:
-        if _same_platform(pred, succ):
+        if _same_platform(pred, succ, self._through):
             return [succ.trip.route.edges[0]]  # it stands at its departure platform already: no turning move
         return self._path_edges(pred.trip.route.edges[-1], succ.trip.route.edges[0])
 
@@ -198,15 +210,22 @@ class Turnbacks:
                 )
         arriving: dict[str, set[str]] = {}
         departing: dict[str, set[str]] = {}
+        in_place: set[str] = set()  # stations where a unit can depart from the platform it arrives at
+        platforms: dict[str, tuple[set[Any], set[Any]]] = {}
         for tr in order:
             arriving.setdefault(tr.trip.destination.station_id, set()).add(tr.trip.route.edges[-1])
             departing.setdefault(tr.trip.origin.station_id, set()).add(tr.trip.route.edges[0])
+            platforms.setdefault(tr.trip.destination.station_id, (set(), set()))[0].add(_arrival_platform(tr))
+            platforms.setdefault(tr.trip.origin.station_id, (set(), set()))[1].add(_departure_platform(tr))
+        for station, (ins_p, outs_p) in platforms.items():
+            if any(p[1] is not None and p[0] not in self._through for p in ins_p & outs_p):
+                in_place.add(station)
         reversals = {a for a, _, rev in self.graph.edges(data="reversal") if rev}
         plain = nx.subgraph_view(self.graph, filter_edge=lambda a, b: not self.graph.edges[a, b].get("reversal"))
         weight = _arc_m(self.graph)
         for station in sorted(set(arriving) & set(departing)):
             ins, outs = sorted(arriving[station]), sorted(departing[station])
-            if any(self._path_edges(a, d) is not None for a in ins for d in outs):
+            if station in in_place or any(self._path_edges(a, d) is not None for a in ins for d in outs):
                 continue
             reach: set[str] = set()
             for a in ins:
@@ -341,7 +360,7 @@ class Turnbacks:
         path = self._path(pred, succ)
         assert path is not None  # _chain only chains trips it found a path for
         trip = succ.trip
-        if _same_platform(pred, succ):  # it departs where it stands: the trip's own route and stops
+        if _same_platform(pred, succ, self._through):  # it departs where it stands: the trip's own route and stops
             self._standing.add(succ.train_id)
             return
         edges = path + list(trip.route.edges[1:])

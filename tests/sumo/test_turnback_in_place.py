@@ -16,7 +16,7 @@ import yaml
 
 from tests.helpers import read_csv, read_summary
 from tests.sumo.test_external_net import _edge, _netconvert, _stops
-from tests.sumo.test_turnback import STEP_S, _events, _run, _service
+from tests.sumo.test_turnback import STEP_S, _events, _invoke, _service
 
 
 def build_loop_terminus(folder: Path) -> tuple[Path, Path]:
@@ -57,7 +57,9 @@ def build_loop_terminus(folder: Path) -> tuple[Path, Path]:
 def test_a_unit_at_its_departure_platform_departs_where_it_stands(tmp_path: Path) -> None:
     net, stops = build_loop_terminus(tmp_path)
     services = [_service("out", "Aston", "Bury", [0]), _service("back", "Bury", "Aston", [600])]
-    out = _run(tmp_path, net, stops, services, {"units": "auto", "turnback_min_s": 120})
+    out, res = _invoke(tmp_path, net, stops, services, {"units": "auto", "turnback_min_s": 120})
+    assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
+    assert "no unit can turn" not in res.stderr + res.stdout  # type: ignore[attr-defined]
     fleet = read_summary(out)["fleet"]
     assert fleet["units_used"] == 1 and fleet["trips_per_unit"] == {"unit01": 2}
     (turn,) = _events(out, "unit_turnback")
