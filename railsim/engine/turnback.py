@@ -23,7 +23,8 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   (at most :data:`LOOP_SEARCH_M`) to the departure platform and waits there for its departure, with no reversal
   stop (a tram terminus such as Jena's Zwätzen Schleife). A unit that arrives at the very platform its next
   trip departs from, facing the way it departs (a loop terminus with one platform, such as Jena's Winzerla),
-  makes no turning move: it departs where it stands, after the station's minimum turnback.
+  makes no turning move: it departs where it stands, after the station's minimum turnback — on a platform no
+  trip runs through (a unit laying over there would hold up every tram behind it).
 * **The successor's route** is that path followed by the trip's own route; its first stop is a *reversal stop*
   (:data:`REVERSAL`) on the edge before the turnaround. Because the route chainage runs through the
   turnaround's internal lane like SUMO's odometer, the successor's chainage stays equal to SUMO's position

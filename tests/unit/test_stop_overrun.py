@@ -115,7 +115,9 @@ def _euler_emergency_stop_m(v: float, decel: float, dt: float) -> float:
 
 @pytest.mark.parametrize("v", [0.9, 3.754, 7.0, 12.3, 20.0])
 @pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
-def test_with_euler_positions_a_stop_is_missed_only_when_the_euler_run_passes_the_tolerance(v: float, dt: float) -> None:
+def test_with_euler_positions_a_stop_is_missed_only_when_the_euler_run_passes_the_tolerance(
+    v: float, dt: float
+) -> None:
     """The bound for Euler positions is never longer than the run SUMO gives (a miss declared is a miss) and
     within half a step's advance of it."""
     end_m, tol_m = 1000.0, 0.5
