@@ -93,7 +93,13 @@ def _arc_m(g: nx.DiGraph) -> Callable[[str, str, dict[str, Any]], float]:
 def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | None:
     """Shortest edge path ``from_edge`` → ``to_edge`` through exactly one reversal arc; where there is none, the
     shortest path round a **turning loop** (no reversal, at most :data:`LOOP_SEARCH_M`: a tram terminus where the
-    track runs round and back to the departure platform); None if there is neither."""
+    track runs round and back to the departure platform); None if there is neither, or if the two are one edge."""
+    if from_edge == to_edge:
+        # the unit arrives on the very track it departs from, facing the way it departs: a turning move would take
+        # it round a loop *and* through a reversal, off along the line and back (Jena's Winzerla, a platform on the
+        # trunk at a loop's entrance: 7.6 km out through single track to a stub and back). It departs where it
+        # stands (Turnbacks._path) or not at all.
+        return None
     weight = _arc_m(g)
     plain = nx.subgraph_view(g, filter_edge=lambda a, b: not g.edges[a, b].get("reversal"))
     ahead = nx.single_source_dijkstra(plain, from_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
