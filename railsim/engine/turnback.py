@@ -24,7 +24,8 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   stop (a tram terminus such as Jena's Zwätzen Schleife). A unit that arrives at the very platform its next
   trip departs from, facing the way it departs (a loop terminus with one platform, such as Jena's Winzerla),
   makes no turning move: it departs where it stands, after the station's minimum turnback — on a platform no
-  trip runs through (a unit laying over there would hold up every tram behind it).
+  trip runs through, and with ``units: auto`` only while no other trip is planned to arrive there or leave from
+  there (a unit laying over would hold them up).
 * **The successor's route** is that path followed by the trip's own route; its first stop is a *reversal stop*
   (:data:`REVERSAL`) on the edge before the turnaround. Because the route chainage runs through the
   turnaround's internal lane like SUMO's odometer, the successor's chainage stays equal to SUMO's position
@@ -53,7 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
 import networkx as nx
@@ -144,6 +145,17 @@ def _same_platform(pred: TrainRuntime, succ: TrainRuntime, through: set[str]) ->
     return arrival[1] is not None and arrival[0] not in through and arrival == _departure_platform(succ)
 
 
+def _platform_times(trains: Iterable[TrainRuntime]) -> dict[str, list[tuple[float, str]]]:
+    """Per edge, the planned times trips arrive on it at their end and leave it at their start, with the trip."""
+    times: dict[str, list[tuple[float, str]]] = {}
+    for tr in trains:
+        arrival_s = tr.trip.planned_arrival_s.get(tr.trip.destination.station_id)
+        if arrival_s is not None:
+            times.setdefault(tr.trip.route.edges[-1], []).append((arrival_s, tr.train_id))
+        times.setdefault(tr.trip.route.edges[0], []).append((tr.trip.depart_s, tr.train_id))
+    return times
+
+
 class SumoReroute(Protocol):
     """What a handover asks of SUMO: the unit's next route and stops."""
 
@@ -170,6 +182,7 @@ class Turnbacks:
         self._standing: set[str] = set()  # trips whose unit arrives at their departure platform (no move at all)
         # edges some trip runs over between its first and its last (no unit lays over on them: _same_platform)
         self._through: set[str] = set()
+        self._platform_times: dict[str, list[tuple[float, str]]] | None = None  # _platform_free, made when asked
         self.swaps = 0
         self.bridge: SumoReroute = unwired("Turnbacks", "bridge")  # exists while the run is under way: connect()
         if spec is None:
@@ -194,6 +207,23 @@ class Turnbacks:
         if key not in self._paths:
             self._paths[key] = turnback_path(self.graph, *key)
         return self._paths[key]
+
+    def _platform_free(self, pred: TrainRuntime, succ: TrainRuntime) -> bool:
+        """For ``units: auto``: may ``pred``'s unit stand at its arrival platform until ``succ`` departs from it?
+        Not where it would stand there (:func:`_same_platform`) while another trip is planned to arrive there or
+        leave from there: the platform is the plan's until the unit leaves. Four Potsdam lines ending at one loop
+        platform (Platz der Einheit), each unit laying over there for minutes with the next ones queued behind it,
+        held each other up round the loop until none could move. Units that turn any other way always may."""
+        if not _same_platform(pred, succ, self._through):
+            return True
+        if self._platform_times is None:
+            self._platform_times = _platform_times(self.fleet.trains.values())
+        t0 = pred.trip.planned_arrival_s.get(pred.trip.destination.station_id, INF)
+        t1 = succ.trip.depart_s
+        return not any(
+            t0 < t < t1 and other not in (pred.train_id, succ.train_id)
+            for t, other in self._platform_times.get(pred.trip.route.edges[-1], ())
+        )
 
     def _ready_s(self, tr: TrainRuntime) -> float:
         """When the unit of ``tr`` may leave again by the plan: planned arrival + minimum turnback (never, for a
@@ -280,7 +310,13 @@ class Turnbacks:
             for gone in [p for p in pool if tr.trip.depart_s - self._ready_s(p) > self.spec.max_layover_s]:
                 pool.remove(gone)  # nothing to run within its layover: it leaves service (to the depot)
             pick = next(
-                (p for p in pool if self._ready_s(p) <= tr.trip.depart_s + 1e-9 and self._path(p, tr) is not None),
+                (
+                    p
+                    for p in pool
+                    if self._ready_s(p) <= tr.trip.depart_s + 1e-9
+                    and self._path(p, tr) is not None
+                    and self._platform_free(p, tr)
+                ),
                 None,
             )
             if pick is None:

@@ -10,7 +10,7 @@ from __future__ import annotations
 
 from types import SimpleNamespace
 
-from railsim.engine.turnback import _same_platform
+from railsim.engine.turnback import Turnbacks, _same_platform
 
 
 def _trip(edges: tuple[str, ...], origin: str, destination: str) -> SimpleNamespace:
@@ -35,3 +35,33 @@ def test_not_from_another_stop_or_another_edge() -> None:
 
 def test_not_on_a_platform_another_trip_runs_through() -> None:
     assert not _same_platform(ARRIVES, _trip(("P", "c", "a2"), "s_p", "s_a2"), {"x", "P"})  # type: ignore[arg-type]
+
+
+def _planned(
+    tid: str, edges: tuple[str, ...], origin: str, destination: str, depart_s: float, arrive_s: float
+) -> SimpleNamespace:
+    tr = _trip(edges, origin, destination)
+    tr.train_id = tid
+    tr.trip.depart_s = depart_s
+    tr.trip.destination = SimpleNamespace(station_id=destination)
+    tr.trip.planned_arrival_s = {destination: arrive_s}
+    return tr
+
+
+def _free(*others: SimpleNamespace) -> bool:
+    """Whether ``in`` (arriving at P at 1,000 s) may lay over at P until ``out`` leaves it at 1,400 s."""
+    pred = _planned("in", ("a", "b", "P"), "s_a", "s_p", 0.0, 1000.0)
+    succ = _planned("out", ("P", "c", "a2"), "s_p", "s_a2", 1400.0, 2000.0)
+    book = Turnbacks.__new__(Turnbacks)
+    book.fleet = SimpleNamespace(trains={t.train_id: t for t in (pred, succ, *others)})  # type: ignore[assignment]
+    book._through, book._platform_times = set(), None
+    return book._platform_free(pred, succ)  # type: ignore[arg-type]
+
+
+def test_a_unit_lays_over_at_its_platform_only_while_no_other_trip_arrives_or_leaves_there() -> None:
+    """Potsdam's Platz der Einheit: four lines end at one loop platform; units laying over there deadlocked."""
+    assert _free()
+    assert not _free(_planned("other_in", ("x", "P"), "s_x", "s_p", 400.0, 1200.0))  # arrives while it stands
+    assert _free(_planned("later_in", ("x", "P"), "s_x", "s_p", 900.0, 1500.0))  # arrives once it has left
+    assert not _free(_planned("other_out", ("P", "y"), "s_p", "s_y", 1300.0, 1900.0))  # leaves from there meanwhile
+    assert _free(_planned("elsewhere", ("x", "Q"), "s_x", "s_q", 400.0, 1200.0))  # another platform
