@@ -305,6 +305,7 @@ class Turnbacks:
         waiting: dict[str, list[TrainRuntime]] = {}  # station -> units' last trips, in arrival order
         order = sorted(trains.values(), key=lambda tr: (tr.trip.depart_s, tr.train_id))
         self._warn_unturnable(order)
+        busy: dict[str, int] = {}  # station -> departures not given a unit standing at their platform (_platform_free)
         for tr in order:
             pool = waiting.setdefault(tr.trip.origin.station_id, [])
             for gone in [p for p in pool if tr.trip.depart_s - self._ready_s(p) > self.spec.max_layover_s]:
@@ -322,6 +323,8 @@ class Turnbacks:
             if pick is None:
                 uid = f"unit{len(self.units) + 1:02d}"
                 self.units[uid] = [tr.train_id]
+                if any(self._ready_s(p) <= tr.trip.depart_s + 1e-9 and not self._platform_free(p, tr) for p in pool):
+                    busy[tr.trip.origin.station_id] = busy.get(tr.trip.origin.station_id, 0) + 1
             else:
                 pool.remove(pick)
                 uid = next(u for u, c in self.units.items() if c[-1] == pick.train_id)
@@ -330,6 +333,13 @@ class Turnbacks:
             dest_pool = waiting.setdefault(tr.trip.destination.station_id, [])
             dest_pool.append(tr)
             dest_pool.sort(key=lambda p: (p.trip.planned_arrival_s.get(p.trip.destination.station_id, 0.0), p.train_id))
+        for station, n in sorted(busy.items()):
+            log.warning(
+                "rotations: at %s a unit could depart from the platform it arrives at, but other trips are planned "
+                "to arrive there or leave from there while it would stand there: %d departure(s) start a new unit",
+                station,
+                n,
+            )
 
     def link(self, pred: TrainRuntime, succ: TrainRuntime) -> None:
         """Chain ``succ`` right after ``pred`` in the unit one of them already belongs to (a depot run,
