@@ -21,7 +21,11 @@ Without rotations every trip is its own train: inserted at its origin, removed a
   its end, reverses and runs back to the departure platform (crossover switches on the way are locked as on any
   route). Where no reversal reaches the departure track, a **turning loop** does: the unit runs on round the loop
   (at most :data:`LOOP_SEARCH_M`) to the departure platform and waits there for its departure, with no reversal
-  stop (a tram terminus such as Jena's Zwätzen Schleife).
+  stop (a tram terminus such as Jena's Zwätzen Schleife). A unit that arrives at the very platform its next
+  trip departs from, facing the way it departs (a loop terminus with one platform, such as Jena's Winzerla),
+  makes no turning move: it departs where it stands, after the station's minimum turnback — on a platform no
+  trip runs through, and with ``units: auto`` only while no other trip is planned to arrive there or leave from
+  there (a unit laying over would hold them up).
 * **The successor's route** is that path followed by the trip's own route; its first stop is a *reversal stop*
   (:data:`REVERSAL`) on the edge before the turnaround. Because the route chainage runs through the
   turnaround's internal lane like SUMO's odometer, the successor's chainage stays equal to SUMO's position
@@ -50,7 +54,7 @@ from __future__ import annotations
 
 import dataclasses
 import logging
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Sequence
 from typing import Any, Protocol
 
 import networkx as nx
@@ -90,7 +94,13 @@ def _arc_m(g: nx.DiGraph) -> Callable[[str, str, dict[str, Any]], float]:
 def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | None:
     """Shortest edge path ``from_edge`` → ``to_edge`` through exactly one reversal arc; where there is none, the
     shortest path round a **turning loop** (no reversal, at most :data:`LOOP_SEARCH_M`: a tram terminus where the
-    track runs round and back to the departure platform); None if there is neither."""
+    track runs round and back to the departure platform); None if there is neither, or if the two are one edge."""
+    if from_edge == to_edge:
+        # the unit arrives on the very track it departs from, facing the way it departs: a turning move would take
+        # it round a loop *and* through a reversal, off along the line and back (Jena's Winzerla, a platform on the
+        # trunk at a loop's entrance: 7.6 km out through single track to a stub and back). It departs where it
+        # stands (Turnbacks._path) or not at all.
+        return None
     weight = _arc_m(g)
     plain = nx.subgraph_view(g, filter_edge=lambda a, b: not g.edges[a, b].get("reversal"))
     ahead = nx.single_source_dijkstra(plain, from_edge, cutoff=TURNBACK_SEARCH_M, weight=weight)
@@ -109,6 +119,41 @@ def turnback_path(g: nx.DiGraph, from_edge: str, to_edge: str) -> list[str] | No
     if to_edge != from_edge and ahead[0].get(to_edge, INF) <= LOOP_SEARCH_M:
         return list(ahead[1][to_edge])  # round the loop: the unit runs on to its departure platform
     return None
+
+
+def _arrival_platform(tr: TrainRuntime) -> tuple[str, str | None]:
+    """The edge a trip ends on and the stop it arrives at there (None if its plan has no destination stop)."""
+    dest = next((s for s in reversed(tr.trip.stops) if s.is_destination), None)
+    return tr.trip.route.edges[-1], None if dest is None else dest.stop_id
+
+
+def _departure_platform(tr: TrainRuntime) -> tuple[str, str | None]:
+    """The edge a trip begins on and the stop it departs from there (None if it has no origin stop)."""
+    origin = next((s for s in tr.trip.stops if s.is_origin), None)
+    return tr.trip.route.edges[0], None if origin is None else origin.stop_id
+
+
+def _same_platform(pred: TrainRuntime, succ: TrainRuntime, through: set[str]) -> bool:
+    """True if ``succ`` departs from the platform ``pred`` arrives at, in the direction it arrives in, and no trip
+    runs through that platform's edge (``through``: the edges trips run over between their first and last): a tram
+    terminus where the track runs round a loop past one platform, such as Jena's Winzerla. The unit departs where
+    it stands; any turning move would take it off the platform and back to it (at Winzerla a 7.9 km run out along
+    the line, through single-track sections, to a reversal and back). A platform other lines run through (a line
+    that turns round a city block, such as Helsinki's 5 at Rautatieasema) is not a place to lay over: a unit
+    standing there would hold up every tram behind it."""
+    arrival = _arrival_platform(pred)
+    return arrival[1] is not None and arrival[0] not in through and arrival == _departure_platform(succ)
+
+
+def _platform_times(trains: Iterable[TrainRuntime]) -> dict[str, list[tuple[float, str]]]:
+    """Per edge, the planned times trips arrive on it at their end and leave it at their start, with the trip."""
+    times: dict[str, list[tuple[float, str]]] = {}
+    for tr in trains:
+        arrival_s = tr.trip.planned_arrival_s.get(tr.trip.destination.station_id)
+        if arrival_s is not None:
+            times.setdefault(tr.trip.route.edges[-1], []).append((arrival_s, tr.train_id))
+        times.setdefault(tr.trip.route.edges[0], []).append((tr.trip.depart_s, tr.train_id))
+    return times
 
 
 class SumoReroute(Protocol):
@@ -134,10 +179,15 @@ class Turnbacks:
         self._paths: dict[tuple[str, str], list[str] | None] = {}
         self._pinned: set[str] = set()  # trips whose unit is fixed: a formation coupling across their turnback
         self._loops: set[str] = set()  # trips whose unit turns round a loop (no reversal) before them
+        self._standing: set[str] = set()  # trips whose unit arrives at their departure platform (no move at all)
+        # edges some trip runs over between its first and its last (no unit lays over on them: _same_platform)
+        self._through: set[str] = set()
+        self._platform_times: dict[str, list[tuple[float, str]]] | None = None  # _platform_free, made when asked
         self.swaps = 0
         self.bridge: SumoReroute = unwired("Turnbacks", "bridge")  # exists while the run is under way: connect()
         if spec is None:
             return
+        self._through = {e for tr in fleet.trains.values() for e in tr.trip.route.edges[1:-1]}
         self._chain()
         for uid, trips in self.units.items():
             for tid in trips:
@@ -148,6 +198,8 @@ class Turnbacks:
 
     # ------------------------------------------------------------------ chaining
     def _path(self, pred: TrainRuntime, succ: TrainRuntime) -> list[str] | None:
+        if _same_platform(pred, succ, self._through):
+            return [succ.trip.route.edges[0]]  # it stands at its departure platform already: no turning move
         return self._path_edges(pred.trip.route.edges[-1], succ.trip.route.edges[0])
 
     def _path_edges(self, from_edge: str, to_edge: str) -> list[str] | None:
@@ -155,6 +207,23 @@ class Turnbacks:
         if key not in self._paths:
             self._paths[key] = turnback_path(self.graph, *key)
         return self._paths[key]
+
+    def _platform_free(self, pred: TrainRuntime, succ: TrainRuntime) -> bool:
+        """For ``units: auto``: may ``pred``'s unit stand at its arrival platform until ``succ`` departs from it?
+        Not where it would stand there (:func:`_same_platform`) while another trip is planned to arrive there or
+        leave from there: the platform is the plan's until the unit leaves. Four Potsdam lines ending at one loop
+        platform (Platz der Einheit), each unit laying over there for minutes with the next ones queued behind it,
+        held each other up round the loop until none could move. Units that turn any other way always may."""
+        if not _same_platform(pred, succ, self._through):
+            return True
+        if self._platform_times is None:
+            self._platform_times = _platform_times(self.fleet.trains.values())
+        t0 = pred.trip.planned_arrival_s.get(pred.trip.destination.station_id, INF)
+        t1 = succ.trip.depart_s
+        return not any(
+            t0 < t < t1 and other not in (pred.train_id, succ.train_id)
+            for t, other in self._platform_times.get(pred.trip.route.edges[-1], ())
+        )
 
     def _ready_s(self, tr: TrainRuntime) -> float:
         """When the unit of ``tr`` may leave again by the plan: planned arrival + minimum turnback (never, for a
@@ -178,15 +247,22 @@ class Turnbacks:
                 )
         arriving: dict[str, set[str]] = {}
         departing: dict[str, set[str]] = {}
+        in_place: set[str] = set()  # stations where a unit can depart from the platform it arrives at
+        platforms: dict[str, tuple[set[Any], set[Any]]] = {}
         for tr in order:
             arriving.setdefault(tr.trip.destination.station_id, set()).add(tr.trip.route.edges[-1])
             departing.setdefault(tr.trip.origin.station_id, set()).add(tr.trip.route.edges[0])
+            platforms.setdefault(tr.trip.destination.station_id, (set(), set()))[0].add(_arrival_platform(tr))
+            platforms.setdefault(tr.trip.origin.station_id, (set(), set()))[1].add(_departure_platform(tr))
+        for station, (ins_p, outs_p) in platforms.items():
+            if any(p[1] is not None and p[0] not in self._through for p in ins_p & outs_p):
+                in_place.add(station)
         reversals = {a for a, _, rev in self.graph.edges(data="reversal") if rev}
         plain = nx.subgraph_view(self.graph, filter_edge=lambda a, b: not self.graph.edges[a, b].get("reversal"))
         weight = _arc_m(self.graph)
         for station in sorted(set(arriving) & set(departing)):
             ins, outs = sorted(arriving[station]), sorted(departing[station])
-            if any(self._path_edges(a, d) is not None for a in ins for d in outs):
+            if station in in_place or any(self._path_edges(a, d) is not None for a in ins for d in outs):
                 continue
             reach: set[str] = set()
             for a in ins:
@@ -229,17 +305,26 @@ class Turnbacks:
         waiting: dict[str, list[TrainRuntime]] = {}  # station -> units' last trips, in arrival order
         order = sorted(trains.values(), key=lambda tr: (tr.trip.depart_s, tr.train_id))
         self._warn_unturnable(order)
+        busy: dict[str, int] = {}  # station -> departures not given a unit standing at their platform (_platform_free)
         for tr in order:
             pool = waiting.setdefault(tr.trip.origin.station_id, [])
             for gone in [p for p in pool if tr.trip.depart_s - self._ready_s(p) > self.spec.max_layover_s]:
                 pool.remove(gone)  # nothing to run within its layover: it leaves service (to the depot)
             pick = next(
-                (p for p in pool if self._ready_s(p) <= tr.trip.depart_s + 1e-9 and self._path(p, tr) is not None),
+                (
+                    p
+                    for p in pool
+                    if self._ready_s(p) <= tr.trip.depart_s + 1e-9
+                    and self._path(p, tr) is not None
+                    and self._platform_free(p, tr)
+                ),
                 None,
             )
             if pick is None:
                 uid = f"unit{len(self.units) + 1:02d}"
                 self.units[uid] = [tr.train_id]
+                if any(self._ready_s(p) <= tr.trip.depart_s + 1e-9 and not self._platform_free(p, tr) for p in pool):
+                    busy[tr.trip.origin.station_id] = busy.get(tr.trip.origin.station_id, 0) + 1
             else:
                 pool.remove(pick)
                 uid = next(u for u, c in self.units.items() if c[-1] == pick.train_id)
@@ -248,6 +333,13 @@ class Turnbacks:
             dest_pool = waiting.setdefault(tr.trip.destination.station_id, [])
             dest_pool.append(tr)
             dest_pool.sort(key=lambda p: (p.trip.planned_arrival_s.get(p.trip.destination.station_id, 0.0), p.train_id))
+        for station, n in sorted(busy.items()):
+            log.warning(
+                "rotations: at %s a unit could depart from the platform it arrives at, but other trips are planned "
+                "to arrive there or leave from there while it would stand there: %d departure(s) start a new unit",
+                station,
+                n,
+            )
 
     def link(self, pred: TrainRuntime, succ: TrainRuntime) -> None:
         """Chain ``succ`` right after ``pred`` in the unit one of them already belongs to (a depot run,
@@ -321,6 +413,9 @@ class Turnbacks:
         path = self._path(pred, succ)
         assert path is not None  # _chain only chains trips it found a path for
         trip = succ.trip
+        if _same_platform(pred, succ, self._through):  # it departs where it stands: the trip's own route and stops
+            self._standing.add(succ.train_id)
+            return
         edges = path + list(trip.route.edges[1:])
         route = make_route(self.graph, f"{pred.trip.route.edges[-1]}~>{trip.route.id}", edges)
         k0 = len(path) - 1  # the old route's first edge in the new route
@@ -371,11 +466,13 @@ class Turnbacks:
         rev = trip.stops[0]
         reverses = rev.kind == REVERSAL  # else it runs round a loop, or departs where it stands (``link``)
         loops = succ.train_id in self._loops
+        standing = succ.train_id in self._standing  # it arrived at its departure platform: a turnback in place
         if reverses and front_m >= rev.window_start_m - 1e-6:  # on the reversal edge already: it reverses here
             trip.stops = (dataclasses.replace(rev, mark_m=front_m), *trip.stops[1:])
         arrival_s = pred.arrived_s if pred.arrived_s is not None else t
         # a unit that runs on where it stands (into or out of a depot run) does not turn back: no minimum
-        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if reverses or loops else 0.0
+        turns = reverses or loops or standing
+        min_s = self.spec.turnback_min_at(pred.trip.destination.station_id) if turns else 0.0
         until_s = max(trip.depart_s + trip.departure_delay_s, arrival_s + min_s)  # a primary late start too
         # standing where it arrived, SUMO runs the new origin stop as the one it is at: hold it by its duration;
         # a unit that runs to its departure platform first is held there by ``until``
@@ -413,6 +510,7 @@ class Turnbacks:
             station=pred.trip.destination.station_id,
             earliest_departure_s=round(until_s, 3),
             **({"loop": True} if loops else {}),
+            **({"in_place": True} if standing else {}),
         )
         return succ
 

@@ -2,10 +2,12 @@
 tests/data/osm/dresden_tram_2025.osm.gz, source, licence and converter in the README there) imported with
 ``railsim network import``, and three of them (3 and 9 share the trunk Walpurgisstraße - Postplatz - Neustädter
 Markt, 9 and 10 the stretch Lennéplatz - Gret-Palucca-Straße) run for an hour from ``railsim timetable import
---from-lines`` with rotations: units turn round the loops at Messe and Kaditz."""
+--from-lines`` with rotations: units turn round the loops at Messe and Kaditz, and at Coschütz and Wilder Mann
+(loop termini with one platform) depart from the platform they arrive at."""
 
 from __future__ import annotations
 
+import json
 from pathlib import Path
 
 import yaml
@@ -43,4 +45,18 @@ def test_dresden_imports_four_lines_and_three_run_clean_with_units_turning_round
     twice = {station for trip, station in set(visits) if visits.count((trip, station)) > 1}
     assert twice == {"lenneplatz"}  # once at every station (no copied platform) but where OSM's line 9 has two
     turns = {(t["station"], t["from_trip"].split("_")[0]) for t in summary["fleet"]["turnbacks"]}
-    assert turns == {("messe-gleisschleife", "10"), ("kaditz-riegelplatz", "9")}  # the two loops the routes reach
+    # the loops the routes reach: round the loop to the departure platform at Messe and Kaditz; line 3's units
+    # arrive at the very platform they leave from at Coschütz and Wilder Mann and depart where they stand
+    assert turns == {
+        ("messe-gleisschleife", "10"),
+        ("kaditz-riegelplatz", "9"),
+        ("coschutz", "3"),
+        ("wilder-mann", "3"),
+    }
+    events = read_csv(tmp_path / "run" / "events.csv")
+    in_place = {
+        json.loads(e["detail"])["station"]
+        for e in events
+        if e["kind"] == "unit_turnback" and json.loads(e["detail"]).get("in_place")
+    }
+    assert in_place == {"coschutz", "wilder-mann"}
