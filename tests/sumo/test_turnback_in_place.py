@@ -59,7 +59,7 @@ def test_a_unit_at_its_departure_platform_departs_where_it_stands(tmp_path: Path
     services = [_service("out", "Aston", "Bury", [0]), _service("back", "Bury", "Aston", [600])]
     out, res = _invoke(tmp_path, net, stops, services, {"units": "auto", "turnback_min_s": 120})
     assert res.returncode == 0, res.stderr + res.stdout  # type: ignore[attr-defined]
-    assert "no unit can turn" not in res.stderr + res.stdout  # type: ignore[attr-defined]
+    assert "no unit can turn at bury" not in res.stderr + res.stdout  # type: ignore[attr-defined]
     fleet = read_summary(out)["fleet"]
     assert fleet["units_used"] == 1 and fleet["trips_per_unit"] == {"unit01": 2}
     (turn,) = _events(out, "unit_turnback")
