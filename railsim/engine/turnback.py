@@ -267,7 +267,13 @@ class Turnbacks:
             reach: set[str] = set()
             for a in ins:
                 reach |= set(nx.single_source_dijkstra_path_length(plain, a, cutoff=TURNBACK_SEARCH_M, weight=weight))
-            if not reach & reversals:
+            shared = sorted(set(ins) & set(outs) & self._through)
+            if shared:
+                why = (
+                    f"units arrive on the track they leave by ({', '.join(shared)}), and other trips run through "
+                    "that platform: a unit does not lay over there"
+                )
+            elif not reach & reversals:
                 why = (
                     f"dead end: no turnaround within {TURNBACK_SEARCH_M:g} m of the arrival track "
                     f"({', '.join(ins)}; a unit reverses on a bidi edge with a turnaround)"

@@ -8,7 +8,11 @@ up every tram behind it (Helsinki 07:00-09:00 every 300 s: 396 of 480 arrived, 6
 
 from __future__ import annotations
 
+import logging
 from types import SimpleNamespace
+
+import networkx as nx
+import pytest
 
 from railsim.engine.turnback import Turnbacks, _same_platform
 
@@ -65,3 +69,21 @@ def test_a_unit_lays_over_at_its_platform_only_while_no_other_trip_arrives_or_le
     assert _free(_planned("later_in", ("x", "P"), "s_x", "s_p", 900.0, 1500.0))  # arrives once it has left
     assert not _free(_planned("other_out", ("P", "y"), "s_p", "s_y", 1300.0, 1900.0))  # leaves from there meanwhile
     assert _free(_planned("elsewhere", ("x", "Q"), "s_x", "s_q", 400.0, 1200.0))  # another platform
+
+
+def test_the_warning_names_through_traffic_where_a_unit_would_lay_over_on_the_trunk(
+    caplog: pytest.LogCaptureFixture,
+) -> None:
+    """Jena's Winzerla: line 2 ends and starts on the platform edge lines 1, 3 and 34 run through."""
+    arrive = _planned("in", ("a", "b", "P"), "s_a", "s_p", 0.0, 1000.0)
+    leave = _planned("out", ("P", "c", "a2"), "s_p", "s_a2", 1400.0, 2000.0)
+    for tr, origin in ((arrive, "a_st"), (leave, "p_st")):
+        tr.trip.origin = SimpleNamespace(station_id=origin)
+    arrive.trip.destination = SimpleNamespace(station_id="p_st")
+    book = Turnbacks.__new__(Turnbacks)
+    book.graph = nx.DiGraph()
+    book.graph.add_nodes_from(("a", "b", "P", "c", "a2"), length_m=100.0)
+    book._through, book._paths = {"P"}, {}
+    with caplog.at_level(logging.WARNING):
+        book._warn_unturnable([arrive, leave])  # type: ignore[list-item]
+    assert "no unit can turn at p_st: units arrive on the track they leave by (P)" in caplog.text
