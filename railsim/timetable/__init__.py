@@ -311,9 +311,12 @@ class _Routes:
 
     def can_turn(self, arriving: Sequence[str], departing: Sequence[str]) -> bool:
         """A unit that ran ``arriving`` can reverse into ``departing`` (a turnaround reachable ahead of its last
-        edge, from which the first edge of the next route is reachable)."""
+        edge, from which the first edge of the next route is reachable). Not where the next route begins on the
+        edge the last one ends on: the engine makes no turning move from an edge back onto itself
+        (:func:`railsim.engine.turnback.turnback_path`), and whether the unit may depart where it stands depends on
+        the other trips (:func:`railsim.engine.turnback._same_platform`), so such a unit is not chained here."""
         a, d = self.ends(arriving), self.ends(departing)
-        if a is None or d is None:
+        if a is None or d is None or a[1] == d[0]:
             return False
         key = (a[1], d[0])
         if key not in self._turn:
