@@ -6,7 +6,7 @@ Without rotations every trip is its own train: inserted at its origin, removed a
 * **Chaining.** ``units: auto`` chains first-in-first-out at each station from the *planned* times: each
   departure, in time order, takes the unit that arrived there first among those whose planned arrival plus the
   station's minimum turnback is no later than the departure, and that can reverse from its arrival track onto
-  the departure track; otherwise a new unit starts it. A unit that would wait longer than ``max_layover_s`` for
+  the departure track within :data:`TURNBACK_SEARCH_M` in all; otherwise a new unit starts it. A unit that would wait longer than ``max_layover_s`` for
   its next departure leaves service at its arrival instead (it goes to the depot: it does not block a turnback
   track for hours between the peaks). An explicit list is checked the same way (a
   :class:`ConfigError` when the world has no way to turn a unit round there).
@@ -202,6 +202,12 @@ class Turnbacks:
             return [succ.trip.route.edges[0]]  # it stands at its departure platform already: no turning move
         return self._path_edges(pred.trip.route.edges[-1], succ.trip.route.edges[0])
 
+    def _short_path(self, from_edge: str, to_edge: str) -> bool:
+        """For ``units: auto``: a turnback path no longer than :data:`TURNBACK_SEARCH_M` in all (the search reaches
+        that far out and as far back: Jena's Lobeda-West units ran 6.3 km out through single track and back)?"""
+        path = self._path_edges(from_edge, to_edge)
+        return path is not None and sum(float(self.graph.nodes[e]["length_m"]) for e in path[1:]) <= TURNBACK_SEARCH_M
+
     def _path_edges(self, from_edge: str, to_edge: str) -> list[str] | None:
         key = (from_edge, to_edge)
         if key not in self._paths:
@@ -262,7 +268,7 @@ class Turnbacks:
         weight = _arc_m(self.graph)
         for station in sorted(set(arriving) & set(departing)):
             ins, outs = sorted(arriving[station]), sorted(departing[station])
-            if station in in_place or any(self._path_edges(a, d) is not None for a in ins for d in outs):
+            if station in in_place or any(self._short_path(a, d) for a in ins for d in outs):
                 continue
             reach: set[str] = set()
             for a in ins:
@@ -321,7 +327,10 @@ class Turnbacks:
                     p
                     for p in pool
                     if self._ready_s(p) <= tr.trip.depart_s + 1e-9
-                    and self._path(p, tr) is not None
+                    and (
+                        _same_platform(p, tr, self._through)
+                        or self._short_path(p.trip.route.edges[-1], tr.trip.route.edges[0])
+                    )
                     and self._platform_free(p, tr)
                 ),
                 None,

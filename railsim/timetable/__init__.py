@@ -328,7 +328,9 @@ class _Routes:
             back = nx.single_source_dijkstra_path_length(
                 g.reverse(copy=False), key[1], cutoff=TURNBACK_SEARCH_M, weight=weight
             )
-            self._turn[key] = any(x in ahead and y in back for x, y in self.reversals.items())
+            self._turn[key] = any(  # out to the turnaround and back within the search's reach in all
+                x in ahead and y in back and ahead[x] + back[y] <= TURNBACK_SEARCH_M for x, y in self.reversals.items()
+            )
         return self._turn[key]
 
 
