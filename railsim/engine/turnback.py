@@ -6,10 +6,10 @@ Without rotations every trip is its own train: inserted at its origin, removed a
 * **Chaining.** ``units: auto`` chains first-in-first-out at each station from the *planned* times: each
   departure, in time order, takes the unit that arrived there first among those whose planned arrival plus the
   station's minimum turnback is no later than the departure, and that can reverse from its arrival track onto
-  the departure track within :data:`TURNBACK_SEARCH_M` in all; otherwise a new unit starts it. A unit that would wait longer than ``max_layover_s`` for
-  its next departure leaves service at its arrival instead (it goes to the depot: it does not block a turnback
-  track for hours between the peaks). An explicit list is checked the same way (a
-  :class:`ConfigError` when the world has no way to turn a unit round there).
+  the departure track within :data:`TURNBACK_SEARCH_M` in all; otherwise a new unit starts it. A unit that would
+  wait longer than ``max_layover_s`` for its next departure leaves service at its arrival instead (it goes to the
+  depot: it does not block a turnback track for hours between the peaks). An explicit list is checked the same
+  way (a :class:`ConfigError` when the world has no way to turn a unit round there).
 * **Reversal, the way SUMO does it.** SUMO reverses a rail vehicle whose route continues from an edge onto that
   edge's ``bidi`` partner through a turnaround connection: the moment it stands on the first edge, SUMO puts it
   on the partner with its front where its rear was, facing the other way (measured on SUMO 1.28: the flip is
