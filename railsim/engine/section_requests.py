@@ -38,7 +38,9 @@ the whole run as soon as the room no longer holds its train (:meth:`SectionReque
 :meth:`TrackSections.extend`; the Jena-Ost tram had asked 400 s before it was granted). And where a train in
 front (come in from a branch) waits for a section the train behind it holds the same way, it is let through
 at once (:meth:`SectionRequests._let_ahead_through`): the train behind cannot pass it, and the opposing train
-served first would wait for the one behind.
+served first would wait for the one behind. The room itself ends where the first train waiting there stands,
+a train on a branch with its points set onto it counts as in it, and a train from a branch takes those points
+only while the room holds it: :mod:`railsim.engine.section_room`.
 
 **A section twice on one route** (a turnback path out through single track to a reversal and back) is asked
 for each time through (:meth:`SectionRequests.pass_m`): the request of the way out, released behind the train,
@@ -80,7 +82,8 @@ from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
-from railsim.engine.section_walk import SectionWalk, SectionWalker, ShortEntries
+from railsim.engine.section_room import SectionRoom
+from railsim.engine.section_walk import SectionWalk, ShortEntries
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import (
     REVERSING,
@@ -97,7 +100,7 @@ from railsim.engine.wiring import set_once
 TERMINUS_DEPARTURE_HORIZON_S = 300.0  # a departure from a terminus due this soon takes room there (_room_beyond)
 
 
-class SectionRequests(SectionWalker):
+class SectionRequests(SectionRoom):
     """The single-track part of :class:`~railsim.engine.locking.RouteLocks` (its base class): the sections and
     crossings each train contests, its requests for them and their release. It reads the fleet, the formations and
     the settings its subclass holds."""
@@ -213,32 +216,35 @@ class SectionRequests(SectionWalker):
     def _let_ahead_through(
         self, t: float, tr: TrainRuntime, ahead: Any, walk: SectionWalk | None = None, short: ShortEntries | None = None
     ) -> None:
-        """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
-        not passed yet: it is granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot
-        pass through before it. A tram coming in from a branch between two sections stood in front of the tram
-        granted both and waited for the second behind an opposing request, which waited for the tram behind
-        (Potsdam, Platz der Einheit)."""
+        """A train in front of ``tr`` (``ahead``, in ``tr``'s frame, or one in front of it in turn:
+        :meth:`_trains_in_front`) waits for a section ``tr`` holds the same way and has not passed yet: it is
+        granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot pass through before it.
+        A tram coming in from a branch between two sections stood in front of the tram granted both and waited for
+        the second behind an opposing request, which waited for the tram behind (Potsdam, Platz der Einheit); the
+        second time a tram from the same branch, not yet asking (it had its platform to serve first), stood between
+        the two."""
         assert self.tracks is not None
         if ahead is None:
             return
-        theirs = self.section_requests.get(ahead.train_id, {})
         for sec in self._sections_held(tr, walk, short):
             mine = self.section_requests[tr.train_id].get(sec.section_id)
-            other = theirs.get(sec.section_id)
             if (
                 mine is None
-                or other is None
                 or not mine.granted
-                or other.granted
                 or tr.train_id in mine.released_by
-                or ahead.train_id in other.released_by
-                or other.direction != mine.direction
                 or not sec.section_id.startswith("track:")
                 or sec.end_m <= tr.front_m
-                or ahead.front_m > sec.end_m
             ):
                 continue
-            self.tracks.let_through(t, other)
+            for front_id in self._trains_in_front(ahead.train_id, sec):
+                other = self.section_requests.get(front_id, {}).get(sec.section_id)
+                if (
+                    other is not None
+                    and not other.granted
+                    and front_id not in other.released_by
+                    and other.direction == mine.direction
+                ):
+                    self.tracks.let_through(t, other, mine.holder_ids)
 
     def _behind_first(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
         """True if the train in front (``ahead``, in this train's frame) stands between this train and the
@@ -262,10 +268,9 @@ class SectionRequests(SectionWalker):
         nxt = next((x for x in self.sections[tr.train_id] if x.start_m > sec.start_m), None)
         if not sec.section_id.startswith("crossing:") or nxt is None:
             return False
-        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
         req = self.section_requests[tr.train_id].get(nxt.section_id)
         pending = req is None or not req.granted or self._stale(tr, req, nxt)
-        return room_m < tr.trip.vehicle.length_m and pending
+        return self._room_m(sec.end_m, nxt.guard_m) < tr.trip.vehicle.length_m and pending
 
     def _nose_in_crossing(self, tr: TrainRuntime, sec: RouteSection) -> bool:
         """True for a flat crossing the train's front has entered without asking for it (a halt a few centimetres
@@ -300,8 +305,14 @@ class SectionRequests(SectionWalker):
         where it will stand: at the end of its movement authority (the overlap before a section or points not yet
         its own) if that comes first — a tram went into crossing ``259782418`` behind trams still rolling up to the
         Ernst-Abbe-Platz stub they waited for, and the unit turning in the stub waited for the trams leaving
-        through that crossing."""
-        if ahead is None or not sec.section_id.startswith("crossing:"):
+        through that crossing. Nor is the exit clear while points the train would pass before it is clear of the
+        crossing (at its separation margin) are locked for or asked for by another train
+        (:meth:`_points_taken_beyond`)."""
+        if not sec.section_id.startswith("crossing:"):
+            return False
+        if self._points_taken_beyond(tr, sec):
+            return True
+        if ahead is None:
             return False
         room_m = self._ahead_rear_m(ahead) - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
         return room_m < tr.trip.vehicle.length_m
@@ -456,8 +467,9 @@ class SectionRequests(SectionWalker):
         ``clearance_m`` past the end of ``sec`` to where its authority ends before ``nxt`` (the overlap before its
         protection point), less the room of every other train that stands there or will stand there before it,
         waiting for ``nxt`` the way ``tr`` runs through it (:meth:`_waiting_between`), each its length and its
-        separation margin."""
-        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        separation margin. Its authority ends before a crossing right before ``nxt`` if it may not ask for that
+        crossing yet (:meth:`_wait_point_m`)."""
+        room_m = self._stand_room_m(tr, sec.end_m, nxt)
         gap_m = nxt.guard_m - sec.end_m
         for other in self._waiting_between(tr, sec, nxt, gap_m):
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
@@ -485,8 +497,8 @@ class SectionRequests(SectionWalker):
             on = reqs.get(nxt.section_id)
             if on is not None and (on.granted or other_id in on.released_by):
                 continue  # it runs on through nxt: it never waits between the two
-            if other.on_line and there.guard_m - other.front_m <= gap_m:
-                out.append(other)  # standing between the sections (or coming in from a branch joining there)
+            if other.on_line and (there.guard_m - other.front_m <= gap_m or self._joining(other, there.guard_m, gap_m)):
+                out.append(other)  # standing between the sections, or coming in from a branch joining there
                 continue
             if other_id not in through_sec:
                 continue
@@ -577,11 +589,12 @@ class SectionRequests(SectionWalker):
         this switch point: the train's authority ends before it, so the switch is not the train's yet. A train
         waiting at the near end of a section held the points at its far end, which the train in the section
         needed to leave it (Jena, points ``1831585450``; before, only a switch exactly at the protection point
-        was held back)."""
+        was held back). Nor are points that let the train in from a branch onto the track before a section while
+        that track has no room for it (:meth:`~railsim.engine.section_room.SectionRoom._joins_full_room`)."""
         reqs = self.section_requests.get(tr.train_id, {})
         for sec in self.sections.get(tr.train_id, ()):
             if sec.guard_m <= point_m + 1e-6 and sec.end_m > tr.front_m:
                 req = reqs.get(sec.section_id)
                 if req is None or not req.granted or self._stale(tr, req, sec):
                     return True
-        return False
+        return self.tracks is not None and self._joins_full_room(tr, point_m)
