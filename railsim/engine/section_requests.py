@@ -136,6 +136,7 @@ class SectionRequests(SectionRoom):
         if not shared:
             return
         self.tracks = TrackSections(self.events, sorted(shared), room_beyond=self._room_beyond)
+        self.note_joins(graph)
         for k, (tid, sections) in enumerate(per_train.items()):
             # a train reversing in a section gets a direction nobody else has: it holds the section alone
             mine = [

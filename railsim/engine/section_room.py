@@ -17,7 +17,8 @@ track from them to the section holds it beside the trains standing there and tho
 section they hold (:meth:`SectionRoom._joins_full_room`); else it stands on its branch until the section is its
 own. A flat crossing right before such points is asked for only when the points may be taken
 (:meth:`SectionRoom._points_taken_beyond`: nor while another train holds or has asked for them — it goes first and
-may come to stand in the crossing's exit).
+may come to stand in the crossing's exit). Only points where another track joins the train's route count here
+(:meth:`SectionRoom.note_joins`): at facing points the other train goes away from it.
 
 **Who stands in front.** A train holding a section cannot pass the trains in front of it that go through it the
 same way, however many stand between it and the section (:meth:`SectionRoom._trains_in_front`): each of them is let
@@ -46,6 +47,25 @@ class SectionRoom(SectionWalker):
 
     fleet: Any  # the fleet (trains by id)
     interlocking: Interlocking
+    joins_of: dict[str, frozenset[str]]  # train id -> points where another track joins its route (note_joins)
+
+    def note_joins(self, graph: Any) -> None:
+        """Find on every train's route the points where another track joins it (trailing points: the edge after
+        the point has more than one way in): only there do trains from a branch come in front of it."""
+        for tid, tr in self.fleet.trains.items():
+            edges = tr.trip.route.edges
+            joins = {
+                str(graph.edges[a, b]["switch"])
+                for a, b in zip(edges, edges[1:])
+                if graph.has_edge(a, b) and graph.edges[a, b].get("switch") and graph.in_degree(b) > 1
+            }
+            if joins:
+                self.joins_of[tid] = frozenset(joins)
+
+    def _joins_at(self, tr: TrainRuntime, point_m: float) -> bool:
+        """True if the points at ``point_m`` on ``tr``'s route are points where another track joins it."""
+        joins = self.joins_of.get(tr.train_id, frozenset())
+        return any(rs.switch_id in joins and abs(rs.point_m - point_m) < 1e-6 for rs in tr.trip.route.switches)
 
     def _room_m(self, end_m: float, guard_m: float) -> float:
         """Room for a train to stand between what ends at ``end_m`` and a resource protected at ``guard_m``: its
@@ -117,8 +137,9 @@ class SectionRoom(SectionWalker):
         front of it and stopped at the platform, and the tram stood in the crossing, which the tram waiting for it
         held the next section for (every 720 s and every 1,200 s)."""
         reach_m = sec.end_m + self.settings.clearance_m + tr.trip.vehicle.length_m + separation_margin_m(tr)
+        joins = self.joins_of.get(tr.train_id, frozenset())
         for rs in tr.trip.route.switches:
-            if not sec.start_m <= rs.point_m <= reach_m:
+            if rs.switch_id not in joins or not sec.start_m <= rs.point_m <= reach_m:
                 continue
             holder = self.interlocking.holder(rs.switch_id)
             if holder is not None and tr.train_id not in holder:
@@ -135,6 +156,8 @@ class SectionRoom(SectionWalker):
         to where a train waiting for the section stops, cannot hold it beside the trains bound to wait there
         (:meth:`_bound_for_room`). A tram from Dortustraße took merge ``30566579`` in front of a tram that had been
         granted the section beyond Brandenburger Straße alone, which then stood in it (every 720 s)."""
+        if not self._joins_at(tr, point_m):
+            return False
         mine = self.sections[tr.train_id]
         reqs = self.section_requests[tr.train_id]
         nxt = next((s for s in mine if s.section_id.startswith("track:") and s.guard_m > point_m), None)
@@ -204,8 +227,10 @@ class SectionRoom(SectionWalker):
         the two sections around Platz der Einheit/West, and the tram granted the first of them alone stood in it
         (every 720 s)."""
         reach_m = gap_m + self.settings.protection_margin_m  # the legs of a junction differ by a few metres
+        points = self.joins_of.get(tr.train_id, frozenset())
         joins = any(
-            tr.front_m < rs.point_m < guard_m and guard_m - rs.point_m <= reach_m for rs in tr.trip.route.switches
+            rs.switch_id in points and tr.front_m < rs.point_m < guard_m and guard_m - rs.point_m <= reach_m
+            for rs in tr.trip.route.switches
         )
         return joins and self._points_set(tr, guard_m)
 

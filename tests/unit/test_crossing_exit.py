@@ -27,6 +27,7 @@ def test_a_crossing_is_not_asked_for_while_the_points_right_beyond_it_are_anothe
     locks.tracks = TrackSections(EventLog(), ["crossing:c"])
     locks.sections["t"] = [RouteSection("crossing:c", 0, 1500.0, 1520.0, 1500.0)]
     locks.section_requests["t"] = {}
+    locks.joins_of["t"] = frozenset({"merge"})  # another track joins the route there
     locks.interlocking.request(("branch",), "merge", "normal")  # a train from the other leg holds the merge
     layer.advance_to(1.0)
     locks.bookkeeping(1.0, tr)

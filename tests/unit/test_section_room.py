@@ -205,6 +205,7 @@ def test_a_train_from_a_branch_takes_the_points_onto_a_full_room_only_with_the_n
     assert locks.tracks is not None
     locks.sections["branch"] = [RouteSection(S2, 0, 2000.0 + GAP_M, 3000.0 + GAP_M, 2000.0 + GAP_M)]
     locks.section_requests["branch"] = {}
+    locks.joins_of["branch"] = frozenset({"merge"})  # the branch joins the track between S1 and S2 there
     locks.section_requests["through"][S1] = locks.tracks.request(0.0, ("through",), S1, 0)
     locks.tracks.request(0.0, ("oncoming",), S2, 1)  # S2 is held the other way
     layer.advance_to(1.0)
@@ -228,6 +229,7 @@ def test_a_train_with_the_points_set_onto_the_room_from_a_branch_takes_the_room(
     assert locks.tracks is not None
     locks.sections["branch"] = [RouteSection(S2, 0, 2000.0 + GAP_M, 3000.0 + GAP_M, 2000.0 + GAP_M)]
     locks.section_requests["branch"] = {}
+    locks.joins_of["branch"] = frozenset({"merge"})
     branch.locks["merge"] = locks.interlocking.request(("branch",), "merge", "reverse")
     layer.advance_to(1.0)
     locks.bookkeeping(1.0, second)
