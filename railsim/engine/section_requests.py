@@ -19,9 +19,10 @@ entering single track therefore reserves every section up to the next place wher
 train — all of them at once or none (:meth:`SectionRequests._request_run`, :meth:`TrackSections.request_all`). The
 track between two sections is such a passing place for a train only if it holds the train clear of both (rear
 ``clearance_m`` past the first, front the overlap before the second's protection point) beside the trains of the
-same direction already bound to wait there. Granted one section alone, two opposing groups each held one
-section and waited at the short piece between for the other's (Jena-Ost: three trams leaving the terminus and
-two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
+same direction already bound to wait there — or, too short for that even alone, where every train of the other
+direction waits there clear of the next section (:meth:`~railsim.engine.section_room.SectionRoom._other_way_clear`).
+Granted one section alone, two opposing groups each held one section and waited at the short piece between for
+the other's (Jena-Ost: three trams leaving the terminus and two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
 is entered only when it is reserved to the next passing place.
 
 **Room between sections.** The trains that take that room (:meth:`SectionRequests._waiting_between`) are every
@@ -495,9 +496,8 @@ class SectionRequests(TerminusRoom):
             if done or any(s.section_id == nxt.section_id for s in run):
                 break
             if nxt.end_m > reach.end_m:  # (one inside a section kept through the reversal belongs to its run)
-                if self._passing_room_m(tr, reach, nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
-                    reach, nxt
-                ):
+                fits = self._passing_room_m(tr, reach, nxt) >= tr.trip.vehicle.length_m
+                if (fits or self._other_way_clear(tr, reach, nxt)) and not self._others_run_on(reach, nxt):
                     break
                 reach = nxt
             run.append(nxt)

@@ -20,6 +20,12 @@ own. A flat crossing right before such points is asked for only when the points 
 may come to stand in the crossing's exit). Only points where another track joins the train's route count here
 (:meth:`SectionRoom.note_joins`): at facing points the other train goes away from it.
 
+**Too short one way.** A track that cannot hold a train clear of the section behind it even alone (its platform
+there keeps its rear inside ``clearance_m``) is a passing place for it all the same while every train of the other
+way, running from the next section into that one, waits there clear of the next section
+(:meth:`SectionRoom._other_way_clear`): each of them is granted its section alone only while the track holds it,
+and lets it go there, so no two opposing trains each hold the section the other waits for.
+
 **Who stands in front.** A train holding a section cannot pass the trains in front of it that go through it the
 same way, however many stand between it and the section (:meth:`SectionRoom._trains_in_front`): each of them is let
 through as it asks (:meth:`railsim.engine.events.tracks.TrackSections.let_through`).
@@ -35,6 +41,7 @@ from collections.abc import Iterator
 from typing import Any
 
 from railsim.engine.events.interlocking import Interlocking
+from railsim.engine.events.tracks import OWN_DIRECTION
 from railsim.engine.section_walk import SectionWalker
 from railsim.engine.single_track import RouteSection
 from railsim.engine.stop_timing import separation_margin_m
@@ -48,6 +55,7 @@ class SectionRoom(SectionWalker):
     fleet: Any  # the fleet (trains by id)
     interlocking: Interlocking
     joins_of: dict[str, frozenset[str]]  # train id -> points where another track joins its route (note_joins)
+    other_way_clear: dict[tuple[str, int, str, int], bool]  # (_other_way_clear)
 
     def note_joins(self, graph: Any) -> None:
         """Find on every train's route the points where another track joins it (trailing points: the edge after
@@ -104,6 +112,52 @@ class SectionRoom(SectionWalker):
                 front_m = stop.mark_m
                 break
         return front_m - (after_m + self.settings.clearance_m)
+
+    def _other_way_clear(self, tr: TrainRuntime, sec: RouteSection, nxt: RouteSection) -> bool:
+        """True if the track between ``sec`` and ``nxt`` cannot hold ``tr`` clear of ``sec`` even alone, while
+        every train running the other way from ``nxt``'s section straight into ``sec``'s can wait there clear of
+        ``nxt``'s (:meth:`_other_way_fits`). A train granted ``sec`` alone then waits there holding it, but no
+        opposing train holding ``nxt`` waits for it there: each is granted ``nxt`` alone only while that track
+        holds it, and lets it go there. The track is a passing place for ``tr`` all the same
+        (:meth:`~railsim.engine.section_requests.SectionRequests._run_from`). A tram standing at Jena's Löbstedt
+        towards Lobeda has its rear 6 m past the end of the single track from Zwätzen, 4 m short of
+        ``clearance_m``; asking for both sections, the unit turning at Zwätzen Schleife held the one beyond
+        Löbstedt from its arrival to its departure 343 s later, and the opposing tram waited 248 s for it."""
+        if sec.direction >= OWN_DIRECTION or nxt.direction >= OWN_DIRECTION:
+            return False
+        if self._stand_room_m(tr, sec.end_m, nxt) >= tr.trip.vehicle.length_m:
+            return False  # it fits there alone: the room beside the other trains of its way decides
+        key = (sec.section_id, sec.direction, nxt.section_id, nxt.direction)
+        clear = self.other_way_clear.get(key)
+        if clear is None:
+            clear = self.other_way_clear[key] = self._other_way_fits(sec, nxt)
+        return clear
+
+    def _other_way_fits(self, sec: RouteSection, nxt: RouteSection) -> bool:
+        """True if some train runs the other way through ``nxt``'s section, and each such train runs on from it
+        into ``sec``'s with no other single-track section between (it ends nowhere between the two, nor leaves that
+        track by another section) and, alone on the track between the two, stands clear of ``nxt``'s (its rear
+        ``clearance_m`` past it) where it waits for ``sec``'s (:meth:`_stand_room_m`). Only then does every train
+        of the other way standing there count in the room its followers ask for ``nxt``'s section alone against
+        (:meth:`~railsim.engine.section_requests.SectionRequests._waiting_between`): a train whose trip ended on a
+        short loop track stood in the section behind it, behind a train waiting on the loop for the section the
+        train across, not clear of it, held (``tests/sumo/test_single_track.py``)."""
+        found = False
+        for other_id, theirs in self.sections.items():
+            track = [s for s in theirs if s.section_id.startswith("track:")]
+            for k, came in enumerate(track):
+                if came.section_id != nxt.section_id or came.direction == nxt.direction:
+                    continue
+                then = track[k + 1] if k + 1 < len(track) else None
+                if then is None or then.section_id != sec.section_id or then.direction == sec.direction:
+                    return False  # it ends between the two, leaves that track for another section, or turns
+                if came.direction >= OWN_DIRECTION or then.direction >= OWN_DIRECTION:
+                    return False  # it reverses there: it holds both alone
+                other = self.fleet.trains[other_id]
+                if self._stand_room_m(other, came.end_m, then) < other.trip.vehicle.length_m:
+                    return False
+                found = True
+        return found
 
     def _trains_in_front(self, ahead_id: str, sec: RouteSection) -> Iterator[str]:
         """``ahead_id`` (the train in front) and the trains in front of it in turn (``TrackSections.in_front``, as

@@ -19,6 +19,9 @@ way. Each case below is one a simpler count missed, from Jena's and Potsdam's tr
   yet (Potsdam, crossing ``1137879547`` before the section beyond Platz der Einheit/West, every 720 s);
 * the room ends at a platform in it that the waiting train cannot draw clear of (it stays there after its dwell:
   Potsdam, Platz der Einheit/West, 53 m before the overlap, every 720 s);
+* a track that cannot hold the train clear of the first section even alone (its platform there leaves the rear
+  inside ``clearance_m``) is a passing place all the same while every train of the other way waits there clear of
+  the next section: the opposing trains let that section go there (Jena, Löbstedt towards Lobeda);
 * a train from a branch joining the room takes the points onto it only while the room holds it beside the trains
   bound to wait there, a train granted the first section among them, and a train with those points set for it
   counts as in the room (Potsdam, merge ``30566579``, every 720 s);
@@ -269,3 +272,50 @@ def test_a_train_stopped_with_its_front_in_a_crossing_asks_for_it_at_once() -> N
     assert locks.section_requests["t"][CROSSING].granted
     other = locks.tracks.request(2.0, ("across",), CROSSING, 1)  # a tram of the other movement waits for it
     assert not other.granted
+
+
+def _passing(up_platform_m: float | None) -> tuple[RouteLocks, Any]:
+    """S1 ends at 2,000 m and S2's protection point is 66 m on (36 m to the overlap: room for a 27 m tram), with a
+    platform 33 m past S1's end: the down tram waiting there stays at it (it cannot draw its 27 m and 50 m margin
+    clear), its rear 6 m past S1, 4 m short of ``clearance_m``. An up tram runs S2 then S1 the other way, with
+    room between them clear of S2 (or a platform at ``up_platform_m`` that leaves it short of that too)."""
+    down_stops = [_stop("A", 0.0, 30.0, origin=True), _stop("B", 2033.0, 20.0), _stop("C", 6000.0, 1.0, True, True)]
+    up_stops = [_stop("D", 0.0, 30.0, origin=True), _stop("E", 6000.0, 1.0, destination=True)]
+    if up_platform_m is not None:
+        up_stops.insert(1, _stop("F", up_platform_m, 20.0))
+    down, up = _with_margin(_train("down", 500.0, down_stops)), _with_margin(_train("up", 100.0, up_stops))
+    for t in (down, up):
+        t.trip.vehicle.length_m = 27.0
+    _, locks = _locks(down, up)
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    locks.sections["down"] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0), RouteSection(S2, 0, 2066.0, 2400.0, 2066.0)]
+    locks.sections["up"] = [RouteSection(S2, 1, 1000.0, 1334.0, 1000.0), RouteSection(S1, 1, 1400.0, 2400.0, 1400.0)]
+    for t in (down, up):
+        locks.section_requests[t.train_id] = {}
+    return locks, down
+
+
+def test_a_track_the_other_way_waits_clear_on_is_a_passing_place_though_this_way_stands_short() -> None:
+    locks, down = _passing(None)
+    assert locks._stand_room_m(down, 2000.0, locks.sections["down"][1]) < 27.0  # it stands 4 m short of clear
+    locks.bookkeeping(1.0, down)
+    assert set(locks.section_requests["down"]) == {S1}, "asked for both sections, though every up tram lets S2 go there"
+    locks.sections.pop("up")  # nobody runs the other way from S2 into S1: the rule has nothing to rest on
+    locks.other_way_clear.clear()
+    locks.section_requests["down"] = {}
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    locks.bookkeeping(2.0, down)
+    assert set(locks.section_requests["down"]) == {S1, S2}
+
+
+def test_a_track_neither_way_waits_clear_on_is_no_passing_place() -> None:
+    locks, down = _passing(1370.0)  # the up tram stays at a platform 36 m past S2, its rear 1 m short of clear
+    locks.bookkeeping(1.0, down)
+    assert set(locks.section_requests["down"]) == {S1, S2}, "asked for S1 alone where both ways would stand in it"
+
+
+def test_a_track_a_train_of_the_other_way_ends_on_is_no_passing_place_for_one_standing_short() -> None:
+    locks, down = _passing(None)
+    locks.sections["up"] = locks.sections["up"][:1]  # the up tram's trip ends between S2 and S1: it could stand in S2
+    locks.bookkeeping(1.0, down)
+    assert set(locks.section_requests["down"]) == {S1, S2}, "asked for S1 alone where an up tram may stay in S2"
