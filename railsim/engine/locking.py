@@ -126,6 +126,9 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         # train id -> switch id -> where on its route the points its lock is for lie (a route over them twice)
         self._lock_pass: dict[str, dict[str, float]] = {}
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
+        self.joins_of: dict[str, frozenset[str]] = {}  # train id -> points where another track joins its route
+        # (section, direction, next section, direction) -> every train the other way waits clear of the next (SectionRoom)
+        self.other_way_clear: dict[tuple[str, int, str, int], bool] = {}
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
         self._indexes: dict[int, RouteSwitches] = {}  # id(route's switches) -> their look-ups (the walk)
         self._walks: dict[str, SwitchWalk] = {}  # train id -> where its walk over its route's switches stands

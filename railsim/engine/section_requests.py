@@ -19,9 +19,10 @@ entering single track therefore reserves every section up to the next place wher
 train — all of them at once or none (:meth:`SectionRequests._request_run`, :meth:`TrackSections.request_all`). The
 track between two sections is such a passing place for a train only if it holds the train clear of both (rear
 ``clearance_m`` past the first, front the overlap before the second's protection point) beside the trains of the
-same direction already bound to wait there. Granted one section alone, two opposing groups each held one
-section and waited at the short piece between for the other's (Jena-Ost: three trams leaving the terminus and
-two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
+same direction already bound to wait there — or, too short for that even alone, where every train of the other
+direction waits there clear of the next section (:meth:`~railsim.engine.section_room.SectionRoom._other_way_clear`).
+Granted one section alone, two opposing groups each held one section and waited at the short piece between for
+the other's (Jena-Ost: three trams leaving the terminus and two coming in, a 78 m one-way piece between the two sections with room for one tram). So a single-track section
 is entered only when it is reserved to the next passing place.
 
 **Room between sections.** The trains that take that room (:meth:`SectionRequests._waiting_between`) are every
@@ -38,7 +39,9 @@ the whole run as soon as the room no longer holds its train (:meth:`SectionReque
 :meth:`TrackSections.extend`; the Jena-Ost tram had asked 400 s before it was granted). And where a train in
 front (come in from a branch) waits for a section the train behind it holds the same way, it is let through
 at once (:meth:`SectionRequests._let_ahead_through`): the train behind cannot pass it, and the opposing train
-served first would wait for the one behind.
+served first would wait for the one behind. The room itself ends where the first train waiting there stands,
+a train on a branch with its points set onto it counts as in it, and a train from a branch takes those points
+only while the room holds it: :mod:`railsim.engine.section_room`.
 
 **A section twice on one route** (a turnback path out through single track to a reversal and back) is asked
 for each time through (:meth:`SectionRequests.pass_m`): the request of the way out, released behind the train,
@@ -58,11 +61,11 @@ keep to it: a train does not ask for a section beyond the train in front of it b
 front bound into it there, which nobody else asks for the same way), asks for no less than the trains of its
 direction already waiting for the section (:meth:`SectionRequests._others_run_on`), and when it asks for a run
 through several sections, the trains of its direction holding the first one alone ask for the rest at that moment
-(:meth:`SectionRequests._bring_forward`). Each closed a circular wait on Jena's peak: a tram granted less than the tram behind it left first and waited between
-the sections behind an opposing tram that waited for the one behind. A train whose trip ends beyond its last
+(:meth:`SectionRequests._bring_forward`). Each closed a circular wait on Jena's peak: a tram granted less than the
+tram behind it left first and waited between the sections behind an opposing tram that waited for the one behind. A train whose trip ends beyond its last
 section (a terminus: its unit turns there or leaves service) lets the trains leaving that terminus go first
 (``yields``, :class:`~railsim.engine.events.tracks.TrackSections`), and is let in only while the terminus has room
-for it (:meth:`SectionRequests._room_beyond`: its platform, or the whole turning loop or turnback track its unit
+for it (:mod:`railsim.engine.terminus_room`: its platform, or the whole turning loop or turnback track its unit
 turns on, beside the units standing there).
 
 **A crossing is entered only with its exit clear** (:meth:`SectionRequests._crossing_exit_blocked`): it is asked
@@ -88,7 +91,7 @@ from railsim.engine.coupling import COUPLED_STATES, FormationBook
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import OWN_DIRECTION, SectionRequest, TrackSections
 from railsim.engine.fleet import Fleet
-from railsim.engine.section_walk import SectionWalk, SectionWalker, ShortEntries
+from railsim.engine.section_walk import SectionWalk, ShortEntries
 from railsim.engine.settings import EngineSettings
 from railsim.engine.single_track import (
     REVERSING,
@@ -100,14 +103,14 @@ from railsim.engine.single_track import (
     section_map,
 )
 from railsim.engine.stop_timing import separation_margin_m, stop_before
+from railsim.engine.terminus_room import TerminusRoom
 from railsim.engine.train import TrainRuntime
 from railsim.engine.wiring import set_once
 
-TERMINUS_DEPARTURE_HORIZON_S = 300.0  # a departure from a terminus due this soon takes room there (_room_beyond)
 SAME_PLACE_M = 1.0  # two routes' chainages of one point, each summed over its own edges, agree to this (_ahead_through)
 
 
-class SectionRequests(SectionWalker):
+class SectionRequests(TerminusRoom):
     """The single-track part of :class:`~railsim.engine.locking.RouteLocks` (its base class): the sections and
     crossings each train contests, its requests for them and their release. It reads the fleet, the formations and
     the settings its subclass holds."""
@@ -143,6 +146,7 @@ class SectionRequests(SectionWalker):
         if not shared:
             return
         self.tracks = TrackSections(self.events, sorted(shared), room_beyond=self._room_beyond)
+        self.note_joins(graph)
         clear_m = self.settings.protection_margin_m + self.settings.clearance_m
         for k, (tid, sections) in enumerate(per_train.items()):
             # a train reversing in a section gets a direction nobody else has: it holds the section alone, and so
@@ -228,32 +232,35 @@ class SectionRequests(SectionWalker):
     def _let_ahead_through(
         self, t: float, tr: TrainRuntime, ahead: Any, walk: SectionWalk | None = None, short: ShortEntries | None = None
     ) -> None:
-        """The train in front (``ahead``, in ``tr``'s frame) waits for a section ``tr`` holds the same way and has
-        not passed yet: it is granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot
-        pass through before it. A tram coming in from a branch between two sections stood in front of the tram
-        granted both and waited for the second behind an opposing request, which waited for the tram behind
-        (Potsdam, Platz der Einheit)."""
+        """A train in front of ``tr`` (``ahead``, in ``tr``'s frame, or one in front of it in turn:
+        :meth:`_trains_in_front`) waits for a section ``tr`` holds the same way and has not passed yet: it is
+        granted the section at once (:meth:`TrackSections.let_through`), for ``tr`` cannot pass through before it.
+        A tram coming in from a branch between two sections stood in front of the tram granted both and waited for
+        the second behind an opposing request, which waited for the tram behind (Potsdam, Platz der Einheit); the
+        second time a tram from the same branch, not yet asking (it had its platform to serve first), stood between
+        the two."""
         assert self.tracks is not None
         if ahead is None:
             return
-        theirs = self.section_requests.get(ahead.train_id, {})
         for sec in self._sections_held(tr, walk, short):
             mine = self.section_requests[tr.train_id].get(sec.section_id)
-            other = theirs.get(sec.section_id)
             if (
                 mine is None
-                or other is None
                 or not mine.granted
-                or other.granted
                 or tr.train_id in mine.released_by
-                or ahead.train_id in other.released_by
-                or other.direction != mine.direction
                 or not sec.section_id.startswith("track:")
                 or sec.end_m <= tr.front_m
-                or ahead.front_m > sec.end_m
             ):
                 continue
-            self.tracks.let_through(t, other)
+            for front_id in self._trains_in_front(ahead.train_id, sec):
+                other = self.section_requests.get(front_id, {}).get(sec.section_id)
+                if (
+                    other is not None
+                    and not other.granted
+                    and front_id not in other.released_by
+                    and other.direction == mine.direction
+                ):
+                    self.tracks.let_through(t, other, mine.holder_ids)
 
     def _behind_first(self, tr: TrainRuntime, sec: RouteSection, ahead: Any) -> bool:
         """True if the train in front (``ahead``, in this train's frame) stands between this train and the
@@ -309,10 +316,9 @@ class SectionRequests(SectionWalker):
         nxt = next((x for x in self.sections[tr.train_id] if x.start_m > sec.start_m), None)
         if not sec.section_id.startswith("crossing:") or nxt is None:
             return False
-        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
         req = self.section_requests[tr.train_id].get(nxt.section_id)
         pending = req is None or not req.granted or self._stale(tr, req, nxt)
-        return room_m < tr.trip.vehicle.length_m and pending
+        return self._room_m(sec.end_m, nxt.guard_m) < tr.trip.vehicle.length_m and pending
 
     def _nose_in_crossing(self, tr: TrainRuntime, sec: RouteSection) -> bool:
         """True for a flat crossing the train's front has entered without asking for it (a halt a few centimetres
@@ -347,8 +353,14 @@ class SectionRequests(SectionWalker):
         where it will stand: at the end of its movement authority (the overlap before a section or points not yet
         its own) if that comes first — a tram went into crossing ``259782418`` behind trams still rolling up to the
         Ernst-Abbe-Platz stub they waited for, and the unit turning in the stub waited for the trams leaving
-        through that crossing."""
-        if ahead is None or not sec.section_id.startswith("crossing:"):
+        through that crossing. Nor is the exit clear while points the train would pass before it is clear of the
+        crossing (at its separation margin) are locked for or asked for by another train
+        (:meth:`_points_taken_beyond`)."""
+        if not sec.section_id.startswith("crossing:"):
+            return False
+        if self._points_taken_beyond(tr, sec):
+            return True
+        if ahead is None:
             return False
         room_m = self._ahead_rear_m(ahead) - separation_margin_m(tr) - (sec.end_m + self.settings.clearance_m)
         return room_m < tr.trip.vehicle.length_m
@@ -484,9 +496,8 @@ class SectionRequests(SectionWalker):
             if done or any(s.section_id == nxt.section_id for s in run):
                 break
             if nxt.end_m > reach.end_m:  # (one inside a section kept through the reversal belongs to its run)
-                if self._passing_room_m(tr, reach, nxt) >= tr.trip.vehicle.length_m and not self._others_run_on(
-                    reach, nxt
-                ):
+                fits = self._passing_room_m(tr, reach, nxt) >= tr.trip.vehicle.length_m
+                if (fits or self._other_way_clear(tr, reach, nxt)) and not self._others_run_on(reach, nxt):
                     break
                 reach = nxt
             run.append(nxt)
@@ -507,8 +518,9 @@ class SectionRequests(SectionWalker):
         ``clearance_m`` past the end of ``sec`` to where its authority ends before ``nxt`` (the overlap before its
         protection point), less the room of every other train that stands there or will stand there before it,
         waiting for ``nxt`` the way ``tr`` runs through it (:meth:`_waiting_between`), each its length and its
-        separation margin."""
-        room_m = (nxt.guard_m - self.settings.protection_margin_m) - (sec.end_m + self.settings.clearance_m)
+        separation margin. Its authority ends before a crossing right before ``nxt`` if it may not ask for that
+        crossing yet (:meth:`_wait_point_m`)."""
+        room_m = self._stand_room_m(tr, sec.end_m, nxt)
         gap_m = nxt.guard_m - sec.end_m
         for other in self._waiting_between(tr, sec, nxt, gap_m):
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
@@ -536,8 +548,8 @@ class SectionRequests(SectionWalker):
             on = reqs.get(nxt.section_id)
             if on is not None and (on.granted or other_id in on.released_by):
                 continue  # it runs on through nxt: it never waits between the two
-            if other.on_line and there.guard_m - other.front_m <= gap_m:
-                out.append(other)  # standing between the sections (or coming in from a branch joining there)
+            if other.on_line and (there.guard_m - other.front_m <= gap_m or self._joining(other, there.guard_m, gap_m)):
+                out.append(other)  # standing between the sections, or coming in from a branch joining there
                 continue
             if other_id not in through_sec:
                 continue
@@ -550,89 +562,17 @@ class SectionRequests(SectionWalker):
             out.append(other)
         return out
 
-    def _room_beyond(self, req: SectionRequest) -> bool:
-        """True if the terminus beyond ``req``'s section (its train's trip ends there: ``yields``) has room for it
-        (module docstring, "Terminus"): from ``clearance_m`` past the section's end to the end of its destination
-        platform — or, where its unit turns beyond the platform (round a loop, or by a reversal on a track beyond),
-        the whole track it has there up to where its next trip waits for the section (:meth:`_turning_track_m`,
-        less the overlap) — less the length and separation margin of every other train standing or bound to stand
-        there: the trains of its direction granted the section and not yet arrived, and the units on the line
-        within that reach before the section on their way out, not yet granted it. With nobody there a train
-        always fits. Counting the platform alone, one tram at a time turned at a loop that holds four (Jena,
-        Zwätzen Schleife)."""
-        tr = self.fleet.trains[req.holder_ids[0]]
-        last = next((s for s in self.sections[tr.train_id] if s.section_id == req.section_id), None)
-        if last is None or any(
-            s.end_m > last.end_m and s.section_id.startswith("track:") for s in self.sections[tr.train_id]
-        ):
-            return True  # not the section the train turns beyond (a group's earlier member)
-        room_m = tr.trip.stops[-1].served_end_m - (last.end_m + self.settings.clearance_m)
-        reach_m = room_m
-        loop_m = self._turning_track_m(tr, last)
-        if loop_m is not None and loop_m - self.settings.protection_margin_m - self.settings.clearance_m > room_m:
-            room_m = loop_m - self.settings.protection_margin_m - self.settings.clearance_m
-            reach_m = loop_m
-        used_m = 0.0
-        for other in self.fleet.active():
-            if other.train_id in req.holder_ids:
-                continue
-            theirs = next((s for s in self.sections.get(other.train_id, ()) if s.section_id == last.section_id), None)
-            if theirs is None:
-                continue
-            mine = self.section_requests[other.train_id].get(last.section_id)
-            if theirs.direction == last.direction:
-                there = mine is not None and mine.granted
-            else:
-                there = (mine is None or not mine.granted) and theirs.guard_m - other.front_m <= reach_m
-            if there:
-                used_m += other.trip.vehicle.length_m + separation_margin_m(other)
-        if loop_m is not None:
-            used_m += self._departures_due_m(last, reach_m)
-        return used_m == 0.0 or used_m + tr.trip.vehicle.length_m <= room_m
-
-    def _departures_due_m(self, last: RouteSection, reach_m: float) -> float:
-        """Room the trips starting at the terminus beyond ``last`` with a unit of their own (no unit turns into
-        them) will take: each not on the line yet and due within :data:`TERMINUS_DEPARTURE_HORIZON_S`, starting
-        within ``reach_m`` before the section the other way. Let in for the whole loop, turning trams found a
-        fresh departure put on in it ahead of them (Jena, Zwätzen Schleife)."""
-        now_s = self.clock.now_s
-        chained = {self.successor(tid) for tid in self.fleet.trains}
-        used_m = 0.0
-        for tid, other in self.fleet.trains.items():
-            if other.status != "scheduled" or tid in chained:
-                continue
-            if other.trip.depart_s + other.trip.departure_delay_s > now_s + TERMINUS_DEPARTURE_HORIZON_S:
-                continue
-            theirs = next((s for s in self.sections.get(tid, ()) if s.section_id == last.section_id), None)
-            if theirs is not None and theirs.direction != last.direction and theirs.guard_m <= reach_m:
-                used_m += other.trip.vehicle.length_m + separation_margin_m(other)
-        return used_m
-
-    def _turning_track_m(self, tr: TrainRuntime, last: RouteSection) -> float | None:
-        """The track a unit turning beyond ``last`` has between leaving the section and coming back to it: from
-        the section's end on ``tr``'s route, on to its arrival track and round its turning path (a loop, or a
-        reversal beyond the platform) to the protection point where its next trip enters the section again. Its
-        next trip's route starts at the start of ``tr``'s last edge (the turnback path first), which ties the two
-        frames together. None without a next trip, or where it turns inside the section (a stub: no track
-        beyond it)."""
-        succ_id = self.successor(tr.train_id)
-        if succ_id is None:
-            return None
-        back = next((s for s in self.sections.get(succ_id, ()) if s.section_id == last.section_id), None)
-        if back is None or back.start_m <= 0.0:
-            return None
-        return float(tr.view.edge_start_m[-1]) + back.guard_m - last.end_m
-
     def _section_guard_pending(self, tr: TrainRuntime, point_m: float) -> bool:
         """True if a section or crossing not yet reserved for the train has its protection point at or before
         this switch point: the train's authority ends before it, so the switch is not the train's yet. A train
         waiting at the near end of a section held the points at its far end, which the train in the section
         needed to leave it (Jena, points ``1831585450``; before, only a switch exactly at the protection point
-        was held back)."""
+        was held back). Nor are points that let the train in from a branch onto the track before a section while
+        that track has no room for it (:meth:`~railsim.engine.section_room.SectionRoom._joins_full_room`)."""
         reqs = self.section_requests.get(tr.train_id, {})
         for sec in self.sections.get(tr.train_id, ()):
             if sec.guard_m <= point_m + 1e-6 and sec.end_m > tr.front_m:
                 req = reqs.get(sec.section_id)
                 if req is None or not req.granted or self._stale(tr, req, sec):
                     return True
-        return False
+        return self.tracks is not None and self._joins_full_room(tr, point_m)

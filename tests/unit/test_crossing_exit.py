@@ -1,16 +1,41 @@
 """A flat crossing is asked for only with its exit clear: room for the train beyond it in front of the train
 ahead, constructed without SUMO. On Jena's tram peak a tram that went in behind a tram waiting for the next
 crossing stood in this one, and the opposing tram waited in that next crossing for this one (a deadlock at
-1,642.5 s).
+1,642.5 s). Nor while points right beyond it are another train's: at Potsdam's Platz der Einheit a tram from the
+Dortustraße branch held merge ``30566579`` right beyond crossing ``1137879547``, went in front of the tram granted
+the crossing and stopped at its platform, and that tram stood in the crossing (every 720 s and every 1,200 s).
 """
 
 from __future__ import annotations
 
 from types import SimpleNamespace
 
+from railsim.engine.events.log import EventLog
+from railsim.engine.events.tracks import TrackSections
 from railsim.engine.single_track import RouteSection
-from tests.unit.test_lock_requests import _crossing_locks
+from tests.unit.test_lock_requests import _crossing_locks, _stop, _train
+from tests.unit.test_single_track_order import _locks
 from tests.unit.test_terminus_room import TRAM_M, _tram
+
+
+def test_a_crossing_is_not_asked_for_while_the_points_right_beyond_it_are_another_trains() -> None:
+    merge = SimpleNamespace(switch_id="merge", leg="reverse", point_m=1520.5)  # 0.5 m past the crossing's end
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("Z", 3000.0, 1.0, destination=True)]
+    tr = _train("t", 1400.0, stops, switches=[merge])
+    tr.trip.vehicle.length_m = TRAM_M
+    layer, locks = _locks(tr, switches=("merge",))
+    locks.tracks = TrackSections(EventLog(), ["crossing:c"])
+    locks.sections["t"] = [RouteSection("crossing:c", 0, 1500.0, 1520.0, 1500.0)]
+    locks.section_requests["t"] = {}
+    locks.joins_of["t"] = frozenset({"merge"})  # another track joins the route there
+    locks.interlocking.request(("branch",), "merge", "normal")  # a train from the other leg holds the merge
+    layer.advance_to(1.0)
+    locks.bookkeeping(1.0, tr)
+    assert locks.section_requests["t"] == {}, "asked for a crossing while another train held the points beyond it"
+    locks.interlocking.release("branch", "merge")
+    layer.advance_to(2.0)
+    locks.bookkeeping(2.0, tr)
+    assert locks.section_requests["t"]["crossing:c"].granted
 
 
 def test_a_crossing_is_asked_for_only_with_room_beyond_it_in_front_of_the_train_ahead() -> None:

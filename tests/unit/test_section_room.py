@@ -11,6 +11,20 @@ way. Each case below is one a simpler count missed, from Jena's and Potsdam's tr
   both sections before it is granted);
 * a train in front waiting for a section the train behind it holds the same way is let through (it came in from a
   branch between the two sections: Potsdam, Platz der Einheit);
+* the trains further in front, standing between the train behind and the section it holds (the one directly in
+  front not asking yet, at its platform), are let through too, and so is a group whose other section the train
+  behind holds, however the requests of the other direction and the trains turning beyond rank there (Potsdam,
+  Platz der Einheit, every 720 s);
+* the room ends before a flat crossing right before the next section, which a train waiting there may not ask for
+  yet (Potsdam, crossing ``1137879547`` before the section beyond Platz der Einheit/West, every 720 s);
+* the room ends at a platform in it that the waiting train cannot draw clear of (it stays there after its dwell:
+  Potsdam, Platz der Einheit/West, 53 m before the overlap, every 720 s);
+* a track that cannot hold the train clear of the first section even alone (its platform there leaves the rear
+  inside ``clearance_m``) is a passing place all the same while every train of the other way waits there clear of
+  the next section: the opposing trains let that section go there (Jena, Löbstedt towards Lobeda);
+* a train from a branch joining the room takes the points onto it only while the room holds it beside the trains
+  bound to wait there, a train granted the first section among them, and a train with those points set for it
+  counts as in the room (Potsdam, merge ``30566579``, every 720 s);
 * no flat crossing inside a section is asked for before the section is granted (Potsdam, crossing ``4073068946``);
 * a train whose front has stopped a few centimetres inside a crossing asks for it at once, though the section
   beyond it is not its own yet (Potsdam, Platz der Einheit/West, 0.12 m into crossing ``1137879547``).
@@ -25,6 +39,7 @@ from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import TrackSections
 from railsim.engine.locking import RouteLocks
 from railsim.engine.single_track import RouteSection
+from tests.unit.test_lock_requests import _stop, _train
 from tests.unit.test_single_track_order import _locks, _runner
 
 S1, S2, CROSSING = "track:s1", "track:s2", "crossing:c"
@@ -115,6 +130,115 @@ def test_a_train_in_front_waiting_for_a_section_the_train_behind_holds_is_let_th
     assert not oncoming.granted
 
 
+def test_a_train_further_in_front_waiting_for_a_section_the_train_behind_holds_is_let_through() -> None:
+    front, middle, behind = _tram("front", 2080.0), _tram("middle", 2000.0), _tram("behind", 1920.0)
+    _, locks = _locks(front, middle, behind)
+    _sections(locks, front, middle, behind)
+    assert locks.tracks is not None
+    mine = locks.tracks.request(0.0, ("behind",), S2, 0)  # behind was granted S2 (with S1)
+    locks.section_requests["behind"][S2] = mine
+    oncoming = locks.tracks.request(1.0, ("oncoming",), S2, 1)
+    theirs = locks.tracks.request(2.0, ("front",), S2, 0)  # front came in from a branch and asks after it
+    locks.section_requests["front"][S2] = theirs
+    locks.tracks.set_in_front(2.5, "middle", "front")  # middle (no request yet: at its platform) stands behind front
+    ahead = SimpleNamespace(train_id="middle", front_m=2000.0, rear_m=1973.0)
+    locks.bookkeeping(3.0, behind, ahead)
+    assert theirs.granted, "a train two in front waited for a section the train behind them holds"
+    assert not oncoming.granted
+
+
+def test_a_group_whose_other_section_the_train_behind_holds_is_let_through() -> None:
+    room = {"ok": False}
+    tracks = TrackSections(EventLog(), [S1, S2], room_beyond=lambda req: room["ok"])
+    first = tracks.request_all(0.0, ("first",), [(S1, 1), (S2, 1)], yields=True)  # turning beyond: no room yet
+    second = tracks.request_all(1.0, ("second",), [(S1, 1), (S2, 1)], yields=True)
+    behind = tracks.request_all(2.0, ("behind",), [(S1, 1), (S2, 1)])  # runs on: granted both
+    oncoming = tracks.request_all(3.0, ("oncoming",), [(S2, 0), (S1, 0)])  # waits for behind
+    room["ok"] = True
+    tracks.set_in_front(4.0, "behind", "second")  # second stands in front of behind, first in front of second
+    assert all(r.granted for r in behind) and not any(r.granted for r in first + second + oncoming)
+    assert tracks.let_through(5.0, second[0], ("behind",)), "the other section, held by the train behind, stopped it"
+    assert tracks.let_through(5.0, first[0], ("behind",)), "the oncoming group, yielded to at S2, stopped it"
+    assert all(r.granted for r in first + second) and not any(r.granted for r in oncoming)
+
+
+def test_the_room_ends_before_a_crossing_asked_for_only_with_the_next_section() -> None:
+    tr = _tram("t", 500.0)
+    _, locks = _locks(tr)
+    locks.tracks = TrackSections(EventLog(), [S1, CROSSING, S2])
+    locks.sections["t"] = [
+        RouteSection(S1, 0, 1000.0, 2000.0, 1000.0),
+        RouteSection(CROSSING, 0, 2050.0, 2100.0, 2050.0),  # right before S2: asked for only once S2 is granted
+        RouteSection(S2, 0, 2100.0, 3100.0, 2100.0),  # 70 m of room before S2, 20 m before the crossing
+    ]
+    locks.section_requests["t"] = {}
+    locks.tracks.request(0.0, ("oncoming",), S2, 1)
+    locks.bookkeeping(1.0, tr)
+    assert set(locks.section_requests["t"]) == {S1, S2}, "asked for S1 alone with no room before the crossing"
+    assert not locks.section_requests["t"][S1].granted
+
+
+def test_the_room_ends_at_a_platform_the_waiting_train_cannot_draw_clear_of() -> None:
+    # S1 ends at 2,000 m, S2's protection point at 2,150 m; a platform at 2,100 m: a tram waiting there for S2 can
+    # draw only 30 m clear of it (27 m + its 50 m margin needed), so it stays there, 30 m short of the overlap
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("B", 2100.0, 20.0), _stop("C", 6000.0, 1.0, destination=True)]
+    standing, second = _with_margin(_train("standing", 2100.0, stops)), _with_margin(_train("second", 500.0, stops))
+    for t in (standing, second):
+        t.trip.vehicle.length_m = 27.0
+    _, locks = _locks(standing, second)
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    for t in (standing, second):
+        locks.sections[t.train_id] = [
+            RouteSection(S1, 0, 1000.0, 2000.0, 1000.0),
+            RouteSection(S2, 0, 2150.0, 3150.0, 2150.0),
+        ]
+        locks.section_requests[t.train_id] = {}
+    locks.bookkeeping(1.0, second)
+    assert set(locks.section_requests["second"]) == {S1, S2}, "counted the room up to the overlap past the platform"
+
+
+def test_a_train_from_a_branch_takes_the_points_onto_a_full_room_only_with_the_next_section() -> None:
+    merge = SimpleNamespace(switch_id="merge", leg="reverse", point_m=2010.0)  # the branch joins 10 m past S1's end
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    branch = _with_margin(_train("branch", 1900.0, stops, switches=[merge]))
+    branch.trip.vehicle.length_m = 27.0
+    through = _tram("through", 1500.0)  # granted S1 alone: it comes into the room between S1 and S2
+    layer, locks = _locks(branch, through, switches=("merge",))
+    _sections(locks, through)
+    assert locks.tracks is not None
+    locks.sections["branch"] = [RouteSection(S2, 0, 2000.0 + GAP_M, 3000.0 + GAP_M, 2000.0 + GAP_M)]
+    locks.section_requests["branch"] = {}
+    locks.joins_of["branch"] = frozenset({"merge"})  # the branch joins the track between S1 and S2 there
+    locks.section_requests["through"][S1] = locks.tracks.request(0.0, ("through",), S1, 0)
+    locks.tracks.request(0.0, ("oncoming",), S2, 1)  # S2 is held the other way
+    layer.advance_to(1.0)
+    locks.bookkeeping(1.0, branch)
+    assert "merge" not in branch.locks, "took the points onto a room the train granted S1 needs"
+    assert not locks.section_requests["branch"][S2].granted  # it waits on its branch for S2
+    through.front_m = 3500.0  # gone on through S2
+    layer.advance_to(2.0)
+    locks.bookkeeping(2.0, branch)
+    assert "merge" in branch.locks
+
+
+def test_a_train_with_the_points_set_onto_the_room_from_a_branch_takes_the_room() -> None:
+    merge = SimpleNamespace(switch_id="merge", leg="reverse", point_m=2010.0)
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    branch = _with_margin(_train("branch", 1900.0, stops, switches=[merge]))  # 110 m short of the merge
+    branch.trip.vehicle.length_m = 27.0
+    second = _tram("second", 500.0)
+    layer, locks = _locks(branch, second, switches=("merge",))
+    _sections(locks, second)
+    assert locks.tracks is not None
+    locks.sections["branch"] = [RouteSection(S2, 0, 2000.0 + GAP_M, 3000.0 + GAP_M, 2000.0 + GAP_M)]
+    locks.section_requests["branch"] = {}
+    locks.joins_of["branch"] = frozenset({"merge"})
+    branch.locks["merge"] = locks.interlocking.request(("branch",), "merge", "reverse")
+    layer.advance_to(1.0)
+    locks.bookkeeping(1.0, second)
+    assert set(locks.section_requests["second"]) == {S1, S2}, "left out a train with the points set onto the room"
+
+
 def test_no_crossing_inside_a_section_is_asked_for_before_the_section() -> None:
     tr = _tram("t", 600.0)
     _, locks = _locks(tr)
@@ -148,3 +272,50 @@ def test_a_train_stopped_with_its_front_in_a_crossing_asks_for_it_at_once() -> N
     assert locks.section_requests["t"][CROSSING].granted
     other = locks.tracks.request(2.0, ("across",), CROSSING, 1)  # a tram of the other movement waits for it
     assert not other.granted
+
+
+def _passing(up_platform_m: float | None) -> tuple[RouteLocks, Any]:
+    """S1 ends at 2,000 m and S2's protection point is 66 m on (36 m to the overlap: room for a 27 m tram), with a
+    platform 33 m past S1's end: the down tram waiting there stays at it (it cannot draw its 27 m and 50 m margin
+    clear), its rear 6 m past S1, 4 m short of ``clearance_m``. An up tram runs S2 then S1 the other way, with
+    room between them clear of S2 (or a platform at ``up_platform_m`` that leaves it short of that too)."""
+    down_stops = [_stop("A", 0.0, 30.0, origin=True), _stop("B", 2033.0, 20.0), _stop("C", 6000.0, 1.0, True, True)]
+    up_stops = [_stop("D", 0.0, 30.0, origin=True), _stop("E", 6000.0, 1.0, destination=True)]
+    if up_platform_m is not None:
+        up_stops.insert(1, _stop("F", up_platform_m, 20.0))
+    down, up = _with_margin(_train("down", 500.0, down_stops)), _with_margin(_train("up", 100.0, up_stops))
+    for t in (down, up):
+        t.trip.vehicle.length_m = 27.0
+    _, locks = _locks(down, up)
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    locks.sections["down"] = [RouteSection(S1, 0, 1000.0, 2000.0, 1000.0), RouteSection(S2, 0, 2066.0, 2400.0, 2066.0)]
+    locks.sections["up"] = [RouteSection(S2, 1, 1000.0, 1334.0, 1000.0), RouteSection(S1, 1, 1400.0, 2400.0, 1400.0)]
+    for t in (down, up):
+        locks.section_requests[t.train_id] = {}
+    return locks, down
+
+
+def test_a_track_the_other_way_waits_clear_on_is_a_passing_place_though_this_way_stands_short() -> None:
+    locks, down = _passing(None)
+    assert locks._stand_room_m(down, 2000.0, locks.sections["down"][1]) < 27.0  # it stands 4 m short of clear
+    locks.bookkeeping(1.0, down)
+    assert set(locks.section_requests["down"]) == {S1}, "asked for both sections, though every up tram lets S2 go there"
+    locks.sections.pop("up")  # nobody runs the other way from S2 into S1: the rule has nothing to rest on
+    locks.other_way_clear.clear()
+    locks.section_requests["down"] = {}
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    locks.bookkeeping(2.0, down)
+    assert set(locks.section_requests["down"]) == {S1, S2}
+
+
+def test_a_track_neither_way_waits_clear_on_is_no_passing_place() -> None:
+    locks, down = _passing(1370.0)  # the up tram stays at a platform 36 m past S2, its rear 1 m short of clear
+    locks.bookkeeping(1.0, down)
+    assert set(locks.section_requests["down"]) == {S1, S2}, "asked for S1 alone where both ways would stand in it"
+
+
+def test_a_track_a_train_of_the_other_way_ends_on_is_no_passing_place_for_one_standing_short() -> None:
+    locks, down = _passing(None)
+    locks.sections["up"] = locks.sections["up"][:1]  # the up tram's trip ends between S2 and S1: it could stand in S2
+    locks.bookkeeping(1.0, down)
+    assert set(locks.section_requests["down"]) == {S1, S2}, "asked for S1 alone where an up tram may stay in S2"

@@ -26,7 +26,7 @@ A waiting request for one section **widens** into such a group (:meth:`TrackSect
 when the room its train would wait in beyond the section has filled since it asked. And a waiting request is **let
 through** (:meth:`TrackSections.let_through`) ahead of the other direction's when the train side finds a train
 holding the section the same way standing behind it: that train cannot pass it, so the request is part of that
-grant. For the same reason a request of the other direction does not go first against a train whose follower
+grant — and so are the other sections of its group that train holds too, whichever requests rank first there. For the same reason a request of the other direction does not go first against a train whose follower
 holds the section that train waits for (:meth:`TrackSections._behind`): the follower leaves it only after that train
 has passed through, so the request would wait for the very train it kept waiting (Jena: a tram granted the approach
 behind a unit that had just turned in front of it, the unit waiting behind an opposing tram that waited for the
@@ -139,17 +139,19 @@ class TrackSections:
             self._serve(t_s, r.section_id)
         return new
 
-    def let_through(self, t_s: float, req: SectionRequest) -> bool:
+    def let_through(self, t_s: float, req: SectionRequest, behind: tuple[str, ...] = ()) -> bool:
         """Grant the waiting ``req`` at once, before the requests of the other direction it would wait for, as
         the caller found that a train holding the section ``req``'s way stands behind ``req``'s train and cannot
-        pass through before it (module docstring); the other sections of its group only if they are grantable.
-        True if granted."""
+        pass through before it (module docstring); the other sections of its group only if they are grantable,
+        or held their way by a train of ``behind`` (the train behind, holding them too: it cannot pass through
+        them before ``req``'s train either, whichever requests of the other direction go first there, nor before
+        the trains turning beyond them that asked earlier). True if granted."""
         sec = self._sections[req.section_id]
         if req not in sec.queue or not any(h.direction == req.direction for h in sec.holders):
             return False
         if any(h.direction != req.direction for h in sec.holders):
             return False
-        if any(not self._grantable(r) for r in req.group if r is not req):
+        if any(not self._grantable(r) and not self._held_behind(r, behind) for r in req.group if r is not req):
             return False
         for r in req.group or [req]:
             self._sections[r.section_id].queue.remove(r)
@@ -158,6 +160,14 @@ class TrackSections:
             self._changed(r.holder_ids)
             self.events.record(t_s, "section_reserved", r.section_id, trains=list(r.holder_ids), direction=r.direction)
         return True
+
+    def _held_behind(self, req: SectionRequest, behind: tuple[str, ...]) -> bool:
+        """``req`` waits in its section's queue, nobody holds the section the other way, and a train of ``behind``
+        holds it ``req``'s way (:meth:`let_through`)."""
+        sec = self._sections[req.section_id]
+        if req not in sec.queue or any(h.direction != req.direction for h in sec.holders):
+            return False
+        return any(not set(h.holder_ids).isdisjoint(behind) for h in sec.holders)
 
     def set_in_front(self, t_s: float, train_id: str, front_id: str | None) -> None:
         """The train side saw ``front_id`` (None: none) right in front of ``train_id``: when that changed, the
