@@ -43,6 +43,13 @@ VEHICLES: dict[str, dict[str, Any]] = {
     "tram": {"preset": "cq3_6car", "length_m": 27.0, "max_speed_kmh": 70.0},
 }
 
+# The moving-block separation margin written for each vehicle: how far behind the last known rear of the train ahead
+# a train's braking curve ends. Metro 50 m, Line 3's value. Trams run on sight, close up at platforms and round
+# city-centre loops, and slower: 20 m, the interlocking's default overlap (what a train may overrun its stopping
+# point by). With 50 m, five trams stood nose to tail round Potsdam's Platz der Einheit loop every 720 s, each too
+# close to the next to move (a deadlock); with 20 m the peak runs on (docs/results/2026-11-29-open-data-cities.md).
+SEPARATION_MARGIN_M: dict[str, int] = {"metro": 50, "tram": 20}
+
 
 def vehicle_for(vclass: str) -> str:
     return "tram" if vclass == "tram" else "metro"
@@ -267,7 +274,7 @@ def build_scenario(
         "vehicles": {vehicle: dict(VEHICLES[vehicle])},
         "controllers": {
             "ato": {"type": "ato"},
-            "sep": {"type": "separation", "params": {"margin_m": 50}},
+            "sep": {"type": "separation", "params": {"margin_m": SEPARATION_MARGIN_M[vehicle]}},
             "vc": {"type": "cacc"},
         },
         "roles": {"ato": "ato", "separation": "sep", "coupled": "vc"},

@@ -16,8 +16,9 @@ from pathlib import Path
 import pytest
 
 from network.geo import distance_m, utm_to_lonlat
+from railsim.engine.settings import EngineSettings
 from railsim.errors import ConfigError
-from railsim.timetable.builder import PlannedTrip, cut_to_routable, longest_routable
+from railsim.timetable.builder import PlannedTrip, build_scenario, cut_to_routable, longest_routable
 from railsim.timetable.gtfs import GtfsStop, read_trips
 from railsim.timetable.matching import WorldStation, match_stops, normalise
 from railsim.timetable.rotations import Leg, build_units
@@ -237,3 +238,14 @@ def test_timetable_command_line_errors_are_one_line_exit_2(
     code = main(["timetable", "import", *args, *world, "--from", "07:00", "--to", "08:00", "--out", "/tmp/x.yaml"])
     err = capsys.readouterr().err
     assert code == 2 and err.count("\n") == 1 and message in err, err
+
+
+def test_imported_trams_keep_the_overlap_behind_the_train_ahead_metro_and_rail_50_m(tmp_path: Path) -> None:
+    """The separation margin an import writes: the default overlap for trams (they close up on sight), 50 m else."""
+    trip = PlannedTrip("1", ("A", "Z"), (0.0, 600.0), (0.0, 600.0), "", "t1")
+    overlap_m = EngineSettings().protection_margin_m
+    for vclass, margin_m in (("tram", overlap_m), ("subway", 50.0), ("rail", 50.0)):
+        built = build_scenario(
+            [trip], name="x", net=tmp_path / "x.net.xml", stops_file=tmp_path / "x.add.xml", vclass=vclass, start_s=0.0
+        )
+        assert built.scenario["controllers"]["sep"]["params"]["margin_m"] == margin_m, vclass
