@@ -75,6 +75,7 @@ from railsim.engine.extensions.base import ExtensionSet
 from railsim.engine.fleet import Fleet
 from railsim.engine.lock_walk import WINDOW_SLACK_M, RouteSwitches, SwitchWalk, SwitchWalker, start_limit_of
 from railsim.engine.section_requests import SectionRequests
+from railsim.engine.section_room import joining_switches
 from railsim.engine.section_walk import SECTION_WALK_MIN, SectionWalk, ShortEntries
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.single_track import (
@@ -156,15 +157,10 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             margin_m = separation_margin_m(tr)
             if margin_m <= overlap_m:
                 continue
-            edges = tr.trip.route.edges
-            trailing = {
-                str(graph.edges[a, b]["switch"])
-                for a, b in zip(edges, edges[1:])
-                if graph.has_edge(a, b) and graph.edges[a, b].get("switch") and graph.in_degree(b) > 1
-            }
+            trailing = joining_switches(graph, tr.trip.route.edges)
             if trailing:
                 self.merge_margin_m[tid] = margin_m
-                self.merges_of[tid] = frozenset(trailing)
+                self.merges_of[tid] = trailing
 
     def _margin_m(self, train_id: str, switch_id: str) -> float:
         """How far before a switch not locked for it the train's authority ends: the overlap, or its separation

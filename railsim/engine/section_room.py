@@ -37,7 +37,7 @@ Bildungsforum joining the track between them, and a flat crossing right before e
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from typing import Any
 
 from railsim.engine.events.interlocking import Interlocking
@@ -46,6 +46,17 @@ from railsim.engine.section_walk import SectionWalker
 from railsim.engine.single_track import RouteSection
 from railsim.engine.stop_timing import separation_margin_m
 from railsim.engine.train import TrainRuntime
+
+
+def joining_switches(graph: Any, edges: Sequence[str]) -> frozenset[str]:
+    """The switches on a route of ``edges`` where another track joins it: trailing points, the edge after the
+    point having more than one way in (``graph``: the net's topology, a switch id on each connection through
+    points)."""
+    return frozenset(
+        str(graph.edges[a, b]["switch"])
+        for a, b in zip(edges, edges[1:])
+        if graph.has_edge(a, b) and graph.edges[a, b].get("switch") and graph.in_degree(b) > 1
+    )
 
 
 class SectionRoom(SectionWalker):
@@ -61,14 +72,9 @@ class SectionRoom(SectionWalker):
         """Find on every train's route the points where another track joins it (trailing points: the edge after
         the point has more than one way in): only there do trains from a branch come in front of it."""
         for tid, tr in self.fleet.trains.items():
-            edges = tr.trip.route.edges
-            joins = {
-                str(graph.edges[a, b]["switch"])
-                for a, b in zip(edges, edges[1:])
-                if graph.has_edge(a, b) and graph.edges[a, b].get("switch") and graph.in_degree(b) > 1
-            }
+            joins = joining_switches(graph, tr.trip.route.edges)
             if joins:
-                self.joins_of[tid] = frozenset(joins)
+                self.joins_of[tid] = joins
 
     def _joins_at(self, tr: TrainRuntime, point_m: float) -> bool:
         """True if the points at ``point_m`` on ``tr``'s route are points where another track joins it."""
