@@ -26,10 +26,18 @@ Stopping on the mark (exact discrete predictor)
     how far the train runs if it held a constant net deceleration from now on
     (:func:`controllers.braking.discrete_stop_distance_m`), and
 
-    * starts braking when, one step from now plus the jerk ramp's dead time, braking at ``b_plan`` would no
-      longer stop before the point;
+    * starts braking when, one step from now plus the jerk ramp, braking at ``b_plan`` would no longer stop
+      before the point — and, while cruise speeds the train up, when one more step of it would leave even service
+      braking short;
     * from then on solves, every step, for the constant deceleration that stops the front **exactly** on the
       point (:func:`controllers.braking.discrete_required_decel_mps2`) and commands it.
+
+    The jerk-limited ramp of the command from the present net acceleration ``a0`` down to ``−b`` lasts
+    ``(a0 + b)/J``; it counts as the dead-time model's half-ramp dead time (:mod:`controllers.braking`): ``a0``
+    held for ``(a0 + b)/(2J)``, the exact sum from the speed reached then, both for the onset and for the
+    deceleration solved. From full traction that ramp runs about as far as the braking after it (``v·(a0 + b)²
+    /(2·b·J)``, ``(a0 + b)/b`` times the ramp's run at the present speed, which is all a train cruising at zero net
+    acceleration needs), and more on a downhill grade, where ``b`` is smaller.
 
     Because the prediction is the plant's own difference equation at the observation's ``dt``, the stop is
     exact up to the resistance change during braking and the jerk ramp at the onset, and both are corrected by

@@ -35,8 +35,9 @@ time constant τ before it becomes the applied acceleration; resistance and grad
    The train halts in the first step ``n`` whose ``V_n ≤ 0`` (the plant clamps speed at zero), so it runs
    ``D(b) = dt·Σ_{j=1..n−1} V_j``. ``D`` is continuous and decreasing in ``b``; :func:`discrete_required_decel_mps2`
    inverts it by a bracketed secant (Illinois) search. The only model errors left are the resistance change while
-   braking (ρ is taken at the present speed; re-solving every step corrects it) and the jerk limit (ignored here;
-   ATO starts braking early by the ramp's dead time and plans below service braking).
+   braking (ρ is taken at the present speed; re-solving every step corrects it) and the jerk limit (not in the sum;
+   the ATO runs the dead-time model's half-ramp dead time first and sums from there, and plans below service
+   braking).
 
 **Defined once.** Each law is written once, compiled with numba, in :mod:`controllers.line_kernels` (the ATO and
 separation laws call them inside their own compiled code) — the braking curves, the net braking

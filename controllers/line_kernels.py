@@ -170,6 +170,17 @@ def _dead_time(speed: float, delay_s: float, a0: float) -> tuple[float, float, f
 
 
 @njit(cache=True)
+def _ramp_dead_run(speed: float, net_now: float, decel: float, jerk: float) -> tuple[float, float]:
+    """The jerk-limited ramp of the command from the net acceleration ``net_now`` down to ``−decel`` as the dead-time
+    model's half-ramp dead time (:mod:`controllers.braking`): ``(distance run in it [m], speed after it [m/s])``.
+    No ramp (already braking that hard, or no jerk limit): ``(0, speed)``."""
+    if jerk <= 0.0 or net_now + decel <= 0.0:
+        return 0.0, _mx(speed, 0.0)
+    v, t, v_after = _dead_time(speed, 0.5 * (net_now + decel) / jerk, net_now)
+    return v * t + 0.5 * net_now * t * t, v_after
+
+
+@njit(cache=True)
 def required_decel_mps2(speed: float, distance_m: float, delay_s: float, accel_now: float, target: float) -> float:
     """Constant deceleration [m/s²] that brings ``speed`` down to ``target`` within ``distance_m`` (dead-time model
     with a fixed delay): ``0`` when no braking is needed, ``inf`` when the dead time alone uses up the distance."""
@@ -418,8 +429,8 @@ def separation(
         # Inside the braking curve's allowance already (a predecessor appeared close, a long outage): emergency
         # only if service braking, predicted exactly for the plant plus the jerk ramp, no longer stops in time.
         rho = forces.resistance_n(mass, davis_a, davis_b, davis_c, v, grade) / (mass * rot)
-        ramp_m = 0.5 * v * _mx(a0 + service, 0.0) / jerk
-        if discrete_stop_distance_m(v, a0 - rho, b, dt_s, r) + ramp_m > free_m:
+        ramp_m, v_ramp = _ramp_dead_run(v, a0 - rho, b, jerk)
+        if discrete_stop_distance_m(v_ramp, a0 - rho, b, dt_s, r) + ramp_m > free_m:
             return -emergency_decel, True, _SEP_EMERGENCY, free_m, h
         phase = _SEP_BRAKE
     slope_s = delay + _mx(v + a0 * delay, 0.0) / b
@@ -531,7 +542,9 @@ def ato(
             and discrete_stop_distance_m(v, net_now, b_service_net, dt, r) > hard_m
         ):
             emergency = True
-    ramp_m = v * 0.5 * _mx(applied_now - (rho - b_plan), 0.0) / jerk if jerk > 0.0 else 0.0
+    # The jerk-limited ramp from the present net acceleration down to the planned braking, as the dead-time model
+    # has it (controllers.braking): the present acceleration held for half the ramp, then the stop sum from there.
+    ramp_m, v_ramp = _ramp_dead_run(v, net_now, b_plan, jerk)
     # One more step of cruise first: out of a restriction (or a station) close before a stop point, cruise asks
     # for full traction, and the train would be past the point where even service braking stops it in time (a
     # train leaving a 6.6 m/s junction curve 43 m before its mark overran it by 2.6 m: SUMO's routes_cross_twice
@@ -544,38 +557,36 @@ def ato(
     speeding_up = cruise_ahead > net_now + 1e-9
     net_next = net_now + (1.0 - r) * (cruise_ahead - net_now)  # the actuator's lag, no jerk cap: conservative
     v_next = v + dt * _mx(net_next, 0.0)
-    ramp_next_m = v_next * 0.5 * _mx(net_next + b_service_net, 0.0) / jerk if jerk > 0.0 else 0.0
-    if jerk > 0.0 and net_next > 0.0:  # still speeding up while the jerk-limited brake ramps down through zero:
-        t_up = (
-            net_next / jerk
-        )  # that run (net·t²/2) and the longer braking from the speed gained (v·Δv/b, Δv = net·t/2)
-        ramp_next_m += net_next * t_up * t_up / 2.0 + v_next * t_up * net_next / (2.0 * b_service_net)
+    ramp_next_m, v_ramp_next = _ramp_dead_run(v_next, net_next, b_service_net, jerk)
     for k in range(n_points):
         d = points[k] - x
         if lead_s > 0.0:
             d -= lead_s * v
         if standing and d <= stop_tol:
             return hold_applied, False, _HOLD
-        if v <= creep_speed and d <= creep_zone:
+        creeping = v <= creep_speed and d <= creep_zone
+        if creeping:
             v_target = _mn(v_target, creep_speed)
         if d <= 0.0:
             brake_net = -b_service_net
             phase = _STOP
             continue
         room_m = d - v * dt - ramp_m
-        triggered = room_m <= discrete_stop_distance_bound_m(v, net_now, b_plan, dt, r) and (
-            room_m <= discrete_stop_distance_m(v, net_now, b_plan, dt, r)
+        triggered = room_m <= discrete_stop_distance_bound_m(v_ramp, net_now, b_plan, dt, r) and (
+            room_m <= discrete_stop_distance_m(v_ramp, net_now, b_plan, dt, r)
         )
-        if not triggered and speeding_up:
+        if not triggered and speeding_up and not creeping:  # a creep's step is the creep speed's, not full traction
             room_next_m = d - v_next * dt - ramp_next_m
-            triggered = room_next_m <= discrete_stop_distance_bound_m(v_next, net_next, b_service_net, dt, r) and (
-                room_next_m <= discrete_stop_distance_m(v_next, net_next, b_service_net, dt, r)
+            triggered = room_next_m <= discrete_stop_distance_bound_m(v_ramp_next, net_next, b_service_net, dt, r) and (
+                room_next_m <= discrete_stop_distance_m(v_ramp_next, net_next, b_service_net, dt, r)
             )
         if triggered or braking_now:
             b_release = release_frac * b_plan
-            if not triggered and required_decel_surely_below(v, net_now, d, dt, r, b_release):
+            # solved past the ramp too: from full traction the ramp alone runs as far as the braking after it
+            solve_m, v_solve = (0.0, v) if braking_now else (ramp_m, v_ramp)
+            if not triggered and required_decel_surely_below(v_solve, net_now, d - solve_m, dt, r, b_release):
                 continue  # braking for something else, this point far off: no solve needed to stay released
-            b_req = discrete_required_decel_mps2(v, net_now, d, dt, tau, r, b_service_net)
+            b_req = discrete_required_decel_mps2(v_solve, net_now, d - solve_m, dt, tau, r, b_service_net)
             if (triggered or b_req >= b_release) and -b_req < brake_net:
                 brake_net = -b_req
                 phase = _STOP

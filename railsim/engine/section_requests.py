@@ -537,17 +537,10 @@ class SectionRequests(TerminusRoom):
         assert self.tracks is not None
         through_sec = set(self.tracks.holders(sec.section_id)) | set(self.tracks.queued(sec.section_id))
         out = []
-        for other_id, theirs in self.sections.items():
-            other = self.fleet.trains[other_id]
-            if other_id == tr.train_id or not (other.on_line or other_id in through_sec):
-                continue
-            there = next((s for s in theirs if s.section_id == nxt.section_id and s.direction == nxt.direction), None)
-            if there is None or other.front_m > there.guard_m:
-                continue
+        for other, theirs, there in self._bound_short_of(tr, nxt, through_sec):  # past nxt: never waits between
+            other_id = other.train_id
             reqs = self.section_requests.get(other_id, {})
             on = reqs.get(nxt.section_id)
-            if on is not None and (on.granted or other_id in on.released_by):
-                continue  # it runs on through nxt: it never waits between the two
             if other.on_line and (there.guard_m - other.front_m <= gap_m or self._joining(other, there.guard_m, gap_m)):
                 out.append(other)  # standing between the sections, or coming in from a branch joining there
                 continue

@@ -242,6 +242,24 @@ class SectionRoom(SectionWalker):
             room_m -= other.trip.vehicle.length_m + separation_margin_m(other)
         return room_m < tr.trip.vehicle.length_m
 
+    def _bound_short_of(
+        self, tr: TrainRuntime, nxt: RouteSection, also: frozenset[str] | set[str]
+    ) -> Iterator[tuple[TrainRuntime, list[RouteSection], RouteSection]]:
+        """The trains other than ``tr``, on the line or named in ``also``, whose routes run through ``nxt``'s section
+        the way ``tr`` does, whose fronts are not past its protection point and that are neither granted it nor run
+        on through it: each with its route's sections and its pass of ``nxt``'s."""
+        for other_id, theirs in self.sections.items():
+            other = self.fleet.trains[other_id]
+            if other_id == tr.train_id or not (other.on_line or other_id in also):
+                continue
+            there = next((s for s in theirs if s.section_id == nxt.section_id and s.direction == nxt.direction), None)
+            if there is None or other.front_m > there.guard_m:
+                continue
+            on = self.section_requests.get(other_id, {}).get(nxt.section_id)
+            if on is not None and (on.granted or other_id in on.released_by):
+                continue  # it runs on through nxt
+            yield other, theirs, there
+
     def _bound_for_room(self, tr: TrainRuntime, nxt: RouteSection, gap_m: float) -> list[TrainRuntime]:
         """The trains other than ``tr`` bound through ``nxt``'s section the way ``tr`` runs through it, not granted
         it, that stand within ``gap_m`` before its protection point with every points up to it set for them (in the
@@ -250,17 +268,9 @@ class SectionRoom(SectionWalker):
         two."""
         assert self.tracks is not None
         out = []
-        for other_id, theirs in self.sections.items():
-            other = self.fleet.trains[other_id]
-            if other_id == tr.train_id or not other.on_line:
-                continue
-            there = next((s for s in theirs if s.section_id == nxt.section_id and s.direction == nxt.direction), None)
-            if there is None or other.front_m > there.guard_m:
-                continue
+        for other, theirs, there in self._bound_short_of(tr, nxt, frozenset()):
+            other_id = other.train_id
             reqs = self.section_requests.get(other_id, {})
-            on = reqs.get(nxt.section_id)
-            if on is not None and (on.granted or other_id in on.released_by):
-                continue  # it runs on through nxt
             standing = there.guard_m - other.front_m <= gap_m and self._points_set(other, there.guard_m)
             if standing or self._joining(other, there.guard_m, gap_m):
                 out.append(other)

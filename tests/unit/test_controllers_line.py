@@ -208,9 +208,11 @@ def _stop(mark_m: float, before_m: float = 10.0, after_m: float = 20.0, **kw: ob
 
 @pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
 def test_ato_station_to_station(dt: float) -> None:
-    """1.5 km run: line speed reached and never exceeded, restriction obeyed with the rear rule, stop ±0.5 m."""
+    """1.6 km run: line speed reached and never exceeded, restriction obeyed with the rear rule, stop ±0.5 m.
+    (The 700 m from the restriction to the mark let the train come within 0.02 m/s of its 19.7 m/s target; at
+    1.5 km it turns to brake at 19.50 ± 0.01 m/s, on the edge of the "reached" test.)"""
     limit = SpeedLimit(600.0, 800.0, 12.0)
-    stop = _stop(1500.0)
+    stop = _stop(1600.0)
     tr = run_ato(dt, stop, limits=(limit,))
     v_max = max(tr.v_mps)
     assert v_max <= LINE_SPEED_MPS
@@ -326,6 +328,58 @@ def test_ato_holds_while_dwelling_and_before_departure_time() -> None:
         res = step(CQ3, state, ato.command(_standing_obs(x, 0.5 * k, dwelling)).accel_mps2, 0.5)
         state, x = res.state, x + res.advance_m
     assert state.speed_mps == 0.0 and x == 1000.0
+
+
+def _stop_from(v0: float, applied0: float, to_mark_m: float, grade: float) -> tuple[float, float]:
+    """The ATO alone from a running state (speed, applied acceleration) ``to_mark_m`` before a 3 m window
+    (mark − 2 … mark + 1), 0.5 s steps: ``(where it stands − the window's end, the same by braking at once)``."""
+    ato = create("ato", {}, CQ3)
+    mark = 1000.0 + to_mark_m
+    stop = StopTarget("B", mark_m=mark, window_start_m=mark - 2.0, window_end_m=mark + 1.0)
+
+    def run(brake_at_once: bool) -> float:
+        state, x = PlantState(v0, applied0, applied0), 1000.0
+        for _ in range(400):
+            own = OwnState("a", x, state.speed_mps, state.applied_accel_mps2, CQ3.length_m, grade)
+            obs = Observation(
+                t_s=0.0,
+                dt_s=0.5,
+                own=own,
+                vehicle=CQ3,
+                route_length_m=1e5,
+                line_speed_mps=LINE_SPEED_MPS,
+                next_stop=stop,
+            )
+            u = -CQ3.service_decel_mps2 if brake_at_once else ato.command(obs).accel_mps2
+            res = step(CQ3, state, u, 0.5, grade)
+            state, x = res.state, x + res.advance_m
+            if state.speed_mps == 0.0 and (brake_at_once or x >= stop.window_start_m):
+                break
+        return x - stop.window_end_m
+
+    return run(False), run(True)
+
+
+@pytest.mark.parametrize(
+    ("v0", "applied0", "to_mark_m", "grade"),
+    [
+        (5.968, 0.19, 35.162, 0.0),  # Jena's Winzerla: separation hands over 35 m short; 1.3 m past the window end
+        (5.0, 0.2, 89.0, -40.0),  # far enough to speed up first, then a 40 ‰ downhill: 8.9 m past
+        (7.0, 0.9, 77.0, -40.0),  # full traction down a 40 ‰ grade: 8.6 m past
+        (7.0, 0.0, 50.0, 0.0),  # coasting on the flat: 0.7 m past
+        (6.0, 0.45, 38.0, 0.0),  # 0.4 m past
+        (0.0, 0.0, 100.0, -20.0),  # a standing start down a 20 ‰ grade: 3.1 m past
+    ],
+)
+def test_ato_stops_in_the_window_from_any_state_service_braking_could(
+    v0: float, applied0: float, to_mark_m: float, grade: float
+) -> None:
+    """From a state where the service brake applied at once stops at least a metre short of the window's end, the
+    ATO stops on its mark. The ramp of the brake from positive traction, as long as the braking after it from
+    full traction, counts both for when braking starts and for how hard (the cases overran by the figures given)."""
+    ato_end_m, brake_end_m = _stop_from(v0, applied0, to_mark_m, grade)
+    assert brake_end_m <= -1.0  # the case is one service braking can stop
+    assert -1.5 <= ato_end_m <= -0.5  # on the mark (1 m before the window's end) ± 0.5 m
 
 
 @pytest.mark.parametrize("dt", [0.1, 0.5, 1.0])
@@ -455,6 +509,27 @@ def test_separation_emergency_when_predecessor_appears_too_close() -> None:
     own = OwnState("F", 0.0, 20.0, 0.0, CQ3.length_m)
     cmd = sep.command(Observation(0.0, 0.5, own, CQ3, 1e4, predecessor=pred_near))
     assert not cmd.emergency and cmd.accel_mps2 == -CQ3.service_decel_mps2
+
+
+@pytest.mark.parametrize(("v0", "applied0"), [(12.0, 0.9), (8.0, 0.9), (15.0, 0.6)])
+def test_separation_emergency_when_service_braking_from_traction_would_not_stop_in_time(
+    v0: float, applied0: float
+) -> None:
+    """A follower at full traction finds the train ahead standing 0.3 m closer than service braking, ramped down
+    from that traction by the jerk limit, would stop it (found by running the plant): it must brake in emergency.
+    The check used to allow the ramp only its run at the present speed (``v·T/2``); from full traction the ramp
+    also speeds the train up, and it chose service braking here (and overran by up to 2.2 m at 8 m/s)."""
+    state, service_m = PlantState(v0, applied0, applied0), 0.0
+    while state.speed_mps > 0.0:
+        res = step(CQ3, state, -CQ3.service_decel_mps2, 0.5)
+        state, service_m = res.state, service_m + res.advance_m
+    sep = create("separation", {}, CQ3)
+    free_m = service_m - 0.3
+    pred = PredecessorState("L", free_m + sep.params.margin_m + CQ3.length_m, 0.0, 0.0, CQ3.length_m, 0.0, 0.0)
+    own = OwnState("F", 0.0, v0, applied0, CQ3.length_m)
+    cmd = sep.command(Observation(0.0, 0.5, own, CQ3, 1e4, predecessor=pred))
+    assert cmd.info["free_m"] == pytest.approx(free_m)
+    assert cmd.emergency
 
 
 # ---------------------------------------------------------------------------------------------------- CACC
