@@ -128,6 +128,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         self._lock_pass: dict[str, dict[str, float]] = {}
         self.merges_of: dict[str, frozenset[str]] = {}  # train id -> switches that are merges on its route
         self.joins_of: dict[str, frozenset[str]] = {}  # train id -> points where another track joins its route
+        self.passes_by: dict[str, list[RouteSection]] = {}  # train id -> sections whose protection points it leaves by
         # (section, direction, next section, direction) -> every train the other way waits clear of the next (SectionRoom)
         self.other_way_clear: dict[tuple[str, int, str, int], bool] = {}
         self.merge_margin_m: dict[str, float] = {}  # train id -> authority margin before a merge not locked for it
@@ -189,6 +190,8 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         (:meth:`_gives_way`)."""
         if tr.train_id in self.sections:
             self._sections_bookkeeping(t, tr, ahead)
+        elif self.tracks is not None and tr.train_id in self.passes_by:  # others may stand in line behind it
+            self.tracks.set_in_front(t, tr.train_id, None if ahead is None else ahead.train_id)
         trip = tr.trip
         walk = self._walks.get(tr.train_id)
         if (  # the inputs SwitchWalk.remember_start_inputs noted (compared here: a call costs as much as it saves)
@@ -283,7 +286,7 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
             and not (behind is not None and rs.point_m > ahead.rear_m and not self._rides_with(tr, behind, rs))
             and not self.extensions.manages_lock(tr.train_id, sid)
             and not self.extensions.defers_lock(tr.train_id, sid)
-            and not (tr.train_id in self.sections and self._section_guard_pending(tr, rs.point_m))
+            and not (self._room_rules_apply(tr.train_id) and self._section_guard_pending(tr, rs.point_m))
         ):
             holders = self._lock_group(tr, rs)
             if holders is not None:

@@ -162,6 +162,7 @@ class SectionRequests(TerminusRoom):
             if mine:
                 self.sections[tid] = mine
                 self.section_requests[tid] = {}
+        self.note_passes()
 
     def wanted_by_others(self, tr: TrainRuntime) -> bool:
         """True if another train waits for a single-track section ``tr`` holds (a unit waiting in a turnback
@@ -270,8 +271,9 @@ class SectionRequests(TerminusRoom):
         opposing train that waited for the train behind (Jena, ``track:-47054577``). A section this train holds
         alone (:meth:`_held_alone`: it turns in it or beyond it) nobody asks for the same way: the train in front
         comes first there only where it runs through it too, until it has asked for its own time through it there
-        (:meth:`_ahead_through`)."""
-        if ahead is None or sec.guard_m <= ahead.rear_m:
+        (:meth:`_ahead_through`). A train in front that does not run through the section at all
+        (:meth:`_runs_through`) never comes first."""
+        if ahead is None or sec.guard_m <= ahead.rear_m or not self._runs_through(ahead.train_id, sec):
             return False
         theirs = self.section_requests.get(ahead.train_id, {}).get(sec.section_id)
         if self._held_alone(sec) and ahead.train_id in self.fleet.trains:
@@ -288,6 +290,16 @@ class SectionRequests(TerminusRoom):
         if f is not None and self.formations.manager.state(f.id) in COUPLED_STATES:
             return self.formations.leader_of(f).train_id != ahead.train_id
         return True
+
+    def _runs_through(self, train_id: str, sec: RouteSection) -> bool:
+        """True if ``train_id``'s route runs through ``sec``'s section the way ``sec`` runs, or through it at all
+        where ``sec`` is held alone (:meth:`_ahead_through` decides there). A train in front that leaves by another
+        way at the section's protection points never asks for it: a tram behind one leaving Platz der Einheit/West
+        for Dortustraße waited for it to ask, for good (all lines every 780 s: stalled)."""
+        return any(
+            s.section_id == sec.section_id and (s.direction == sec.direction or self._held_alone(sec))
+            for s in self.sections.get(train_id, ())
+        )
 
     @staticmethod
     def _held_alone(sec: RouteSection) -> bool:

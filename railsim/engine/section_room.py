@@ -20,6 +20,15 @@ own. A flat crossing right before such points is asked for only when the points 
 may come to stand in the crossing's exit). Only points where another track joins the train's route count here
 (:meth:`SectionRoom.note_joins`): at facing points the other train goes away from it.
 
+**Who leaves by another way.** A train that runs over that track and leaves it by a branch at the very points
+that protect the next section (:meth:`SectionRoom.note_passes`) cannot pass a train standing there waiting for
+the section: it takes room there as the trains bound through the section do, from a branch too. Left out, an
+opposing tram was granted the section behind it and stood in the section, waiting for the platform the leaving
+tram stood at. A train counts in that room from the moment it has asked for the points onto the track, not only
+once they are set for it (they may take seconds to throw, and the room was counted for it when it asked), and a
+train taking points onto the track must fit beyond the points of that kind right after them too, if it could not
+wait between the two.
+
 **Too short one way.** A track that cannot hold a train clear of the section behind it even alone (its platform
 there keeps its rear inside ``clearance_m``) is a passing place for it all the same while every train of the other
 way, running from the next section into that one, waits there clear of the next section
@@ -37,6 +46,7 @@ Bildungsforum joining the track between them, and a flat crossing right before e
 
 from __future__ import annotations
 
+from bisect import bisect_right
 from collections.abc import Iterator, Sequence
 from typing import Any
 
@@ -66,6 +76,7 @@ class SectionRoom(SectionWalker):
     fleet: Any  # the fleet (trains by id)
     interlocking: Interlocking
     joins_of: dict[str, frozenset[str]]  # train id -> points where another track joins its route (note_joins)
+    passes_by: dict[str, list[RouteSection]]  # train id -> sections whose protection points it leaves by (note_passes)
     other_way_clear: dict[tuple[str, int, str, int], bool]  # (_other_way_clear)
 
     def note_joins(self, graph: Any) -> None:
@@ -75,6 +86,47 @@ class SectionRoom(SectionWalker):
             joins = joining_switches(graph, tr.trip.route.edges)
             if joins:
                 self.joins_of[tid] = joins
+
+    def note_passes(self) -> None:
+        """Find on every train's route the single-track sections whose protection points it passes on another leg:
+        it runs over the track where trains wait for the section, and leaves it by another way right there. Each
+        is kept as a section of no length at that point in the train's chainage (``start_m = end_m = guard_m``).
+        Standing on that track behind a train waiting for the section, it cannot leave, so it takes room there as
+        the trains bound through the section do (:meth:`_bound_short_of`)."""
+        # the edge each protection point lies on (its end, at points) -> (section, direction) -> (how far past the
+        # edge's start the point lies, the edges routes run on into the section)
+        into: dict[str, dict[tuple[str, int], tuple[float, set[str]]]] = {}
+        for tid, secs in self.sections.items():
+            edges, starts = self._route_edges(tid)
+            for sec in secs:
+                i = max(bisect_right(starts, sec.guard_m - 1e-3) - 1, 0)
+                if sec.section_id.startswith("track:") and sec.direction < OWN_DIRECTION and i + 1 < len(edges):
+                    _, nexts = into.setdefault(edges[i], {}).setdefault(
+                        (sec.section_id, sec.direction), (sec.guard_m - starts[i], set())
+                    )
+                    nexts.add(edges[i + 1])
+        if not into:
+            return
+        for tid in self.fleet.trains:
+            edges, starts = self._route_edges(tid)
+            passes = [
+                RouteSection(sid, direction, starts[i] + at_m, starts[i] + at_m, starts[i] + at_m)
+                for i in range(len(edges) - 1)
+                for (sid, direction), (at_m, nexts) in into.get(edges[i], {}).items()
+                if edges[i + 1] not in nexts
+            ]
+            if passes:
+                self.passes_by[tid] = sorted(passes, key=lambda x: x.guard_m)
+
+    def _route_edges(self, train_id: str) -> tuple[Sequence[str], Sequence[float]]:
+        """The edges of ``train_id``'s route and where each starts (route chainage [m])."""
+        route = self.fleet.trains[train_id].trip.route
+        return route.edges, route.edge_start_m
+
+    def _room_rules_apply(self, train_id: str) -> bool:
+        """True if the room before single-track sections concerns ``train_id``: it runs through such a section or
+        leaves by another way at one's protection points (:meth:`note_passes`)."""
+        return train_id in self.sections or train_id in self.passes_by
 
     def _joins_at(self, tr: TrainRuntime, point_m: float) -> bool:
         """True if the points at ``point_m`` on ``tr``'s route are points where another track joins it."""
@@ -93,9 +145,11 @@ class SectionRoom(SectionWalker):
         ``nxt``'s own protection point, a tram was granted the section before Platz der Einheit/West alone while
         the room before crossing ``1137879547`` held only the tram already waiting there: it stood in the section,
         and the tram beyond waited for an opposing tram stuck behind it (every 720 s: deadlock at 1,116 s)."""
-        mine = self.sections[tr.train_id]
-        k = mine.index(nxt)
+        mine = self.sections.get(tr.train_id, [])
         point_m = nxt.guard_m
+        if nxt not in mine:
+            return point_m  # one it leaves by another way at its protection points (note_passes)
+        k = mine.index(nxt)
         while k > 0 and mine[k - 1].start_m >= after_m and mine[k - 1].section_id.startswith("crossing:"):
             if self._room_m(mine[k - 1].end_m, point_m) >= tr.trip.vehicle.length_m:
                 break
@@ -215,16 +269,24 @@ class SectionRoom(SectionWalker):
         at or before them) onto the track before its next section, not yet its own, and that track, from the points
         to where a train waiting for the section stops, cannot hold it beside the trains bound to wait there
         (:meth:`_bound_for_room`). A tram from Dortustraße took merge ``30566579`` in front of a tram that had been
-        granted the section beyond Brandenburger Straße alone, which then stood in it (every 720 s)."""
+        granted the section beyond Brandenburger Straße alone, which then stood in it (every 720 s).
+
+        The section is the train's next one, or one it leaves by another way at its protection points
+        (:meth:`note_passes`), whichever comes first after the points; and so must it beyond the points of that kind
+        right after these, too close for the train to wait between (:meth:`_joins_from`): a tram from Platz der
+        Einheit/Nord took points ``1137879547`` on the room from them, 18.5 m before merge ``30566579``, for which the
+        room was too short, and stood on them, shutting in the tram that needed them (every 700 s)."""
         if not self._joins_at(tr, point_m):
             return False
-        mine = self.sections[tr.train_id]
-        reqs = self.section_requests[tr.train_id]
+        mine = self.sections.get(tr.train_id, [])
+        reqs = self.section_requests.get(tr.train_id, {})
         nxt = next((s for s in mine if s.section_id.startswith("track:") and s.guard_m > point_m), None)
-        if nxt is None:
-            return False
-        req = reqs.get(nxt.section_id)
-        if req is not None and req.granted and not self._stale(tr, req, nxt):
+        req = reqs.get(nxt.section_id) if nxt is not None else None
+        if nxt is not None and req is not None and req.granted and not self._stale(tr, req, nxt):
+            nxt = None
+        passed = next((s for s in self.passes_by.get(tr.train_id, ()) if s.guard_m > point_m), None)
+        targets = [s for s in (nxt, passed) if s is not None]
+        if not targets:
             return False
         for s in mine:
             held = reqs.get(s.section_id)
@@ -236,6 +298,25 @@ class SectionRoom(SectionWalker):
                 and tr.train_id not in held.released_by
             ):
                 return False  # it comes through a section into this track: its room was counted when it asked
+        return any(self._full_for(tr, p_m, target) for target in targets for p_m in self._joins_from(tr, point_m))
+
+    def _joins_from(self, tr: TrainRuntime, point_m: float) -> list[float]:
+        """``point_m`` and the points after it where another track joins ``tr``'s route, as long as each lies too
+        close behind the one before for the train to wait between them: its front the overlap before the later
+        one, its rear ``clearance_m`` past the earlier one."""
+        joins = self.joins_of.get(tr.train_id, frozenset())
+        later = sorted({rs.point_m for rs in tr.trip.route.switches if rs.switch_id in joins and rs.point_m > point_m})
+        need_m = tr.trip.vehicle.length_m + self.settings.protection_margin_m + self.settings.clearance_m
+        out = [point_m]
+        for p_m in later:
+            if p_m - out[-1] >= need_m:
+                break
+            out.append(p_m)
+        return out
+
+    def _full_for(self, tr: TrainRuntime, point_m: float, nxt: RouteSection) -> bool:
+        """True if the track from ``point_m`` to where trains waiting for ``nxt`` stop cannot hold ``tr`` beside
+        the trains bound to wait there (:meth:`_bound_for_room`)."""
         gap_m = nxt.guard_m - point_m
         room_m = self._stand_room_m(tr, point_m, nxt)
         for other in self._bound_for_room(tr, nxt, gap_m):
@@ -248,11 +329,23 @@ class SectionRoom(SectionWalker):
         """The trains other than ``tr``, on the line or named in ``also``, whose routes run through ``nxt``'s section
         the way ``tr`` does, whose fronts are not past its protection point and that are neither granted it nor run
         on through it: each with its route's sections and its pass of ``nxt``'s."""
-        for other_id, theirs in self.sections.items():
+        for other_id in [*self.sections, *(k for k in self.passes_by if k not in self.sections)]:
             other = self.fleet.trains[other_id]
             if other_id == tr.train_id or not (other.on_line or other_id in also):
                 continue
+            theirs = self.sections.get(other_id, [])
             there = next((s for s in theirs if s.section_id == nxt.section_id and s.direction == nxt.direction), None)
+            if there is None:  # or it leaves by another way at nxt's protection points, still before them
+                there = next(
+                    (
+                        s
+                        for s in self.passes_by.get(other_id, ())
+                        if s.section_id == nxt.section_id
+                        and s.direction == nxt.direction
+                        and s.guard_m >= other.front_m
+                    ),
+                    None,
+                )
             if there is None or other.front_m > there.guard_m:
                 continue
             on = self.section_requests.get(other_id, {}).get(nxt.section_id)
@@ -265,13 +358,16 @@ class SectionRoom(SectionWalker):
         it, that stand within ``gap_m`` before its protection point with every points up to it set for them (in the
         track before it, not waiting at a branch's points), have the points set onto that track from a branch
         (:meth:`_joining`), or hold a section ending so close before that track that they cannot wait between the
-        two."""
+        two. Within ``gap_m`` up to the overlap more: the legs of a junction differ by a few metres (a tram 0.1 m past
+        merge ``30566579`` on its way to Platz der Einheit/West was 137.5 m short of the point in its route, 2.4 m more
+        than the tram joining there behind it was; left out, the tram joining filled the track)."""
         assert self.tracks is not None
         out = []
+        near_m = gap_m + self.settings.protection_margin_m
         for other, theirs, there in self._bound_short_of(tr, nxt, frozenset()):
             other_id = other.train_id
             reqs = self.section_requests.get(other_id, {})
-            standing = there.guard_m - other.front_m <= gap_m and self._points_set(other, there.guard_m)
+            standing = there.guard_m - other.front_m <= near_m and self._points_set(other, there.guard_m)
             if standing or self._joining(other, there.guard_m, gap_m):
                 out.append(other)
                 continue
@@ -290,25 +386,29 @@ class SectionRoom(SectionWalker):
         return out
 
     def _joining(self, tr: TrainRuntime, guard_m: float, gap_m: float) -> bool:
-        """True if ``tr`` has the points set from its branch onto the track within ``gap_m`` before ``guard_m`` (a
-        section's protection point): points there lie ahead of it, and every points up to ``guard_m`` are locked
-        for it. It comes into that track before any train the points are not set for. A tram from Dortustraße,
-        standing 15 m short of merge ``30566579`` with the points set for it, was left out of the room between
-        the two sections around Platz der Einheit/West, and the tram granted the first of them alone stood in it
-        (every 720 s)."""
+        """True if ``tr`` has the points from its branch onto the track within ``gap_m`` before ``guard_m`` (a
+        section's protection point) set or asked for: points there lie ahead of it, and every points up to
+        ``guard_m`` are locked for it or asked for by it. It comes into that track before any train the points are
+        not set for. A tram from Dortustraße, standing 15 m short of merge ``30566579`` with the points set for it,
+        was left out of the room between the two sections around Platz der Einheit/West, and the tram granted the
+        first of them alone stood in it (every 720 s). Points asked for count as set: it took them on the room it
+        found when it asked (:meth:`_joins_full_room`), and while they were thrown (6 s) two trams were granted the
+        section before that track on a room that left it out; the three filled it, the last stood in the section
+        (all lines every 720 s: deadlock at 4,222 s)."""
         reach_m = gap_m + self.settings.protection_margin_m  # the legs of a junction differ by a few metres
         points = self.joins_of.get(tr.train_id, frozenset())
         joins = any(
             rs.switch_id in points and tr.front_m < rs.point_m < guard_m and guard_m - rs.point_m <= reach_m
             for rs in tr.trip.route.switches
         )
-        return joins and self._points_set(tr, guard_m)
+        return joins and self._points_set(tr, guard_m, asked=True)
 
-    def _points_set(self, tr: TrainRuntime, until_m: float) -> bool:
-        """True if every points on ``tr``'s route between its front and ``until_m`` are locked for it."""
+    def _points_set(self, tr: TrainRuntime, until_m: float, asked: bool = False) -> bool:
+        """True if every points on ``tr``'s route between its front and ``until_m`` are locked for it (``asked``: or
+        asked for by it, being thrown or queued)."""
         for rs in tr.trip.route.switches:
             if tr.front_m < rs.point_m < until_m:
                 req = tr.locks.get(rs.switch_id)
-                if req is None or rs.switch_id in tr.released or not self.interlocking.is_granted(req):
+                if req is None or rs.switch_id in tr.released or not (asked or self.interlocking.is_granted(req)):
                     return False
         return True

@@ -25,6 +25,10 @@ way. Each case below is one a simpler count missed, from Jena's and Potsdam's tr
 * a train from a branch joining the room takes the points onto it only while the room holds it beside the trains
   bound to wait there, a train granted the first section among them, and a train with those points set for it
   counts as in the room (Potsdam, merge ``30566579``, every 720 s);
+* a train that has asked for those points counts from then on, set or not; a train leaving the room by a branch
+  at the next section's protection points counts as the trains bound through the section do (it cannot pass them);
+  and a train takes points onto the room only if it fits beyond the points right after them too, when it could not
+  wait between the two (Potsdam, Platz der Einheit/West, every 700 s and every 720 s);
 * no flat crossing inside a section is asked for before the section is granted (Potsdam, crossing ``4073068946``);
 * a train whose front has stopped a few centimetres inside a crossing asks for it at once, though the section
   beyond it is not its own yet (Potsdam, Platz der Einheit/West, 0.12 m into crossing ``1137879547``).
@@ -221,19 +225,21 @@ def test_a_train_from_a_branch_takes_the_points_onto_a_full_room_only_with_the_n
     assert "merge" in branch.locks
 
 
-def test_a_train_with_the_points_set_onto_the_room_from_a_branch_takes_the_room() -> None:
-    merge = SimpleNamespace(switch_id="merge", leg="reverse", point_m=2010.0)
-    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
-    branch = _with_margin(_train("branch", 1900.0, stops, switches=[merge]))  # 110 m short of the merge
-    branch.trip.vehicle.length_m = 27.0
-    second = _tram("second", 500.0)
-    layer, locks = _locks(branch, second, switches=("merge",))
+def _branch_onto_room(front_m: float) -> tuple[Any, Any, Any, RouteLocks]:
+    """A branch tram at ``front_m`` whose points ``j0`` (10 m past S1's end) bring it onto the room before S2, and a
+    tram ``second`` at 500 m bound through S1 and S2: ``(branch, second, layer, locks)``."""
+    branch, second = _branch("branch", front_m, 2010.0), _tram("second", 500.0)
+    layer, locks = _locks(branch, second, switches=("j0",))
     _sections(locks, second)
-    assert locks.tracks is not None
     locks.sections["branch"] = [RouteSection(S2, 0, 2000.0 + GAP_M, 3000.0 + GAP_M, 2000.0 + GAP_M)]
     locks.section_requests["branch"] = {}
-    locks.joins_of["branch"] = frozenset({"merge"})
-    branch.locks["merge"] = locks.interlocking.request(("branch",), "merge", "reverse")
+    locks.joins_of["branch"] = frozenset({"j0"})
+    return branch, second, layer, locks
+
+
+def test_a_train_with_the_points_set_onto_the_room_from_a_branch_takes_the_room() -> None:
+    branch, second, layer, locks = _branch_onto_room(1900.0)  # 110 m short of the points
+    branch.locks["j0"] = locks.interlocking.request(("branch",), "j0", "reverse")
     layer.advance_to(1.0)
     locks.bookkeeping(1.0, second)
     assert set(locks.section_requests["second"]) == {S1, S2}, "left out a train with the points set onto the room"
@@ -319,3 +325,111 @@ def test_a_track_a_train_of_the_other_way_ends_on_is_no_passing_place_for_one_st
     locks.sections["up"] = locks.sections["up"][:1]  # the up tram's trip ends between S2 and S1: it could stand in S2
     locks.bookkeeping(1.0, down)
     assert set(locks.section_requests["down"]) == {S1, S2}, "asked for S1 alone where an up tram may stay in S2"
+
+
+def _branch(tid: str, front_m: float, *points_m: float) -> Any:
+    """A tram on a branch whose points (``j0``, ``j1``, … at ``points_m``) bring it onto the track before S2."""
+    switches = [SimpleNamespace(switch_id=f"j{k}", leg="reverse", point_m=p) for k, p in enumerate(points_m)]
+    stops = [_stop("A", 0.0, 30.0, origin=True), _stop("C", 6000.0, 1.0, destination=True)]
+    tr = _with_margin(_train(tid, front_m, stops, switches=switches))
+    tr.trip.vehicle.length_m = 27.0
+    return tr
+
+
+def test_a_train_that_has_asked_for_the_points_onto_the_room_takes_it() -> None:
+    # the points are being thrown for the branch tram (or it is queued for them): it comes onto the track between
+    # S1 and S2 next, and a train asking for S1 now must count it. Counting only points already locked, two trams
+    # were granted the section before Platz der Einheit/West while the points from the Bildungsforum were thrown
+    # for a third: the three filled the track and the last stood in the section (Potsdam, every 720 s)
+    branch, second, layer, locks = _branch_onto_room(1990.0)
+    locks.interlocking.request(("other",), "j0", "normal")  # another train holds the points: the branch queues
+    branch.locks["j0"] = locks.interlocking.request(("branch",), "j0", "reverse")
+    layer.advance_to(1.0)
+    assert not locks.interlocking.is_granted(branch.locks["j0"])
+    locks.bookkeeping(1.0, second)
+    assert set(locks.section_requests["second"]) == {S1, S2}, "left out a train that had asked for the points"
+
+
+def test_a_train_leaving_by_another_way_at_the_protection_points_takes_the_room() -> None:
+    # a tram between the sections that leaves at S2's protection points by a branch cannot pass a train waiting for
+    # S2 in front of it: it stands on the track as those bound through S2 do. Left out, an opposing tram was granted
+    # the section behind it and stood in it, waiting for the platform the leaving tram stood at (Potsdam, 720 s)
+    leaving, second = _tram("leaving", 2080.0), _tram("second", 500.0)  # leaving: rear 43 m past S1's end
+    _, locks = _locks(leaving, second)
+    _sections(locks, second)
+    locks.passes_by["leaving"] = [RouteSection(S2, 0, 2100.0, 2100.0, 2100.0)]
+    locks.bookkeeping(1.0, second)
+    assert set(locks.section_requests["second"]) == {S1, S2}, "granted S1 alone beside a tram leaving by a branch"
+    leaving.front_m = 2140.0  # gone by its branch
+    third = _tram("third", 400.0)
+    locks.fleet.trains["third"] = third
+    locks.sections["third"] = list(locks.sections["second"])
+    locks.section_requests["third"] = {}
+    locks.bookkeeping(2.0, third)
+    s1, s2 = locks.sections["third"]
+    assert "leaving" not in [t.train_id for t in locks._waiting_between(third, s1, s2, GAP_M)]
+
+
+def _two_joins(first_m: float) -> tuple[Any, Any, Any, Any]:
+    """A branch tram at 2,050 m whose points ``j0`` (at ``first_m``) and ``j1`` (2,180 m) bring it onto the track
+    before S2 (protection point 2,300 m), where a tram waits for S2: from ``j1`` there is no room for it (13 m)."""
+    branch, standing = _branch("branch", 2050.0, first_m, 2180.0), _tram("standing", 2280.0)
+    layer, locks = _locks(branch, standing, switches=("j0", "j1"))
+    locks.tracks = TrackSections(EventLog(), [S1, S2])
+    for t in (branch, standing):
+        locks.sections[t.train_id] = [RouteSection(S2, 0, 2300.0, 3300.0, 2300.0)]
+        locks.section_requests[t.train_id] = {}
+    locks.joins_of["branch"] = frozenset({"j0", "j1"})
+    assert locks.tracks.request(0.0, ("oncoming",), S2, 1).granted  # the standing tram waits for S2
+    assert not locks._full_for(branch, first_m, locks.sections["branch"][0])
+    assert locks._full_for(branch, 2180.0, locks.sections["branch"][0])
+    layer.advance_to(1.0)
+    locks.bookkeeping(1.0, branch)
+    return branch, standing, layer, locks
+
+
+def test_a_train_takes_points_onto_the_room_only_if_it_fits_beyond_the_points_right_after_them() -> None:
+    # 20 m between the two points: it cannot wait between them. Taking the first on the room beyond them, it would
+    # stand on them (on Potsdam's points 1137879547, 18.5 m before merge 30566579, shutting in the tram that needed
+    # them: every 700 s)
+    branch, standing, layer, locks = _two_joins(2160.0)
+    assert "j0" not in branch.locks, "took the first points with no room beyond the second, 20 m after them"
+    standing.front_m = 3400.0  # gone through S2
+    layer.advance_to(2.0)
+    locks.bookkeeping(2.0, branch)
+    assert "j0" in branch.locks
+
+
+def test_a_train_takes_points_it_can_wait_beyond_whatever_the_room_beyond_later_points() -> None:
+    branch, _, _, _ = _two_joins(2100.0)  # 80 m between the two: it waits between them, clear of the first
+    assert "j0" in branch.locks, "held back 80 m before the points whose room it waits for"
+
+
+def test_the_trains_leaving_at_a_sections_protection_points_are_found_from_the_routes() -> None:
+    # S2 starts at the end of edge b (2,100 m); "through" runs b -> s2 into it, "leaving" b -> branch: it passes S2's
+    # protection points on another leg, at 2,300 m of its own route (its b starts 200 m later than through's)
+    through, leaving, far = _tram("through", 500.0), _tram("leaving", 500.0), _tram("far", 500.0)
+    through.trip.route.edges, through.trip.route.edge_start_m = ["a", "b", "s2"], [0.0, 1500.0, 2100.0]
+    leaving.trip.route.edges, leaving.trip.route.edge_start_m = ["x", "b", "branch"], [0.0, 1700.0, 2300.0]
+    far.trip.route.edges, far.trip.route.edge_start_m = ["x", "y"], [0.0, 1000.0]  # never near S2
+    _, locks = _locks(through, leaving, far)
+    locks.sections["through"] = [RouteSection(S2, 0, 2100.0, 3100.0, 2100.0)]
+    locks.note_passes()
+    assert locks.passes_by == {"leaving": [RouteSection(S2, 0, 2300.0, 2300.0, 2300.0)]}
+
+
+def test_a_train_on_the_track_a_few_metres_beyond_the_gap_in_its_own_route_counts_as_standing_there() -> None:
+    # the legs of a junction differ by a few metres: a tram 0.1 m past the merge onto the track before S2 was
+    # 2.4 m further from S2's protection point in its own route than the gap from the points a branch tram checks
+    # the room from; left out, the branch tram took the points and filled the track (Potsdam, every 700 s)
+    coming, branch = _tram("coming", 0.0), _branch("branch", 2050.0, 2165.0)
+    _, locks = _locks(coming, branch, switches=("j0",))
+    locks.tracks = TrackSections(EventLog(), [S2])
+    for t in (coming, branch):
+        locks.sections[t.train_id] = [RouteSection(S2, 0, 2300.0, 3300.0, 2300.0)]
+        locks.section_requests[t.train_id] = {}
+    gap_m = 2300.0 - 2165.0
+    coming.front_m = 2300.0 - gap_m - 2.4
+    assert [t.train_id for t in locks._bound_for_room(branch, locks.sections["branch"][0], gap_m)] == ["coming"]
+    coming.front_m = 2300.0 - gap_m - locks.settings.protection_margin_m - 1.0  # further back: still on its way
+    assert locks._bound_for_room(branch, locks.sections["branch"][0], gap_m) == []

@@ -7,13 +7,16 @@
 * A train asks for no less than the trains of its direction already waiting for the section (asking for the
   first of two sections alone, a tram left Jena-Ost ahead of trams waiting for both and blocked them).
 * A train does not ask for a section beyond the train in front before that train has (the tram behind was granted
-  both sections near Zwätzen, the one in front waited for it behind an opposing tram).
+  both sections near Zwätzen, the one in front waited for it behind an opposing tram) — unless the train in front
+  does not run through that section at all (it leaves before it, and never asks).
 * A train granted the first of two sections alone asks for the second as soon as a train behind it asks for
   both (granted later, it waited between the sections behind an opposing tram that waited for the one behind).
 * A train that comes to stand in front of a train of its direction (a unit turned there) takes that train's place
   against the other direction, and a request of the other direction does not go first against it while it waits for
   a section that train holds (the one behind leaves it only after it): a tram granted the approach behind a unit
   turned at Lobeda-West held the section an opposing tram waited for, and the unit waited behind that tram.
+* Nor does it where the train holding that section stands in a line of trains, each right behind the next, behind
+  this train: it leaves the section only after this train has moved on (Potsdam, Platz der Einheit/West).
 * A section a train holds alone (it turns in it, or beyond it) waits for the train in front only where that train
   runs through it there too, until it has asked for its own time through it: nobody asks for it the same way, so
   a unit bound out through single track to its reversal waited forever behind a tram in front (Jena, Lobeda-West).
@@ -118,6 +121,35 @@ def test_a_train_seen_in_front_of_an_earlier_waiting_request_is_served_at_once()
     assert tracks.in_front == {"holder": "front"}
 
 
+def test_an_opposing_group_waiting_for_a_train_in_line_behind_this_one_does_not_go_first() -> None:
+    # "holder" holds S2 the way to S1 and stands in a line behind "middle" (which leaves by a branch) and "head",
+    # which waits for S1. An opposing group for S1 and S2 asked earlier, but it waits for S2, which "holder" leaves
+    # only after "head" has moved on: "head" goes first. Served first come, first served, the group held S1's turn
+    # and "head" waited for it (Potsdam, Platz der Einheit/West, all lines every 680 s: deadlock at 3,244.5 s)
+    tracks = TrackSections(EventLog(), [S1, S2])
+    holder = tracks.request(0.0, ("holder",), S2, 0)
+    blocker = tracks.request(0.0, ("blocker",), S1, 1)  # S1 is busy for now
+    group = tracks.request_all(10.0, ("east",), [(S1, 1), (S2, 1)])  # waits for S1 and for S2 (held by "holder")
+    head = tracks.request(20.0, ("head",), S1, 0)
+    tracks.set_in_front(25.0, "holder", "middle")
+    tracks.set_in_front(25.0, "middle", "head")
+    tracks.release(30.0, "blocker", blocker)
+    assert head.granted, "the group waiting for the train in line behind it went first"
+    assert holder.granted and not any(r.granted for r in group)
+
+
+def test_a_line_that_does_not_reach_the_waiting_train_leaves_the_earlier_request_first() -> None:
+    tracks = TrackSections(EventLog(), [S1, S2])
+    tracks.request(0.0, ("holder",), S2, 0)
+    blocker = tracks.request(0.0, ("blocker",), S1, 1)
+    group = tracks.request_all(10.0, ("east",), [(S1, 1), (S2, 1)])
+    head = tracks.request(20.0, ("head",), S1, 0)
+    tracks.set_in_front(25.0, "holder", "middle")
+    tracks.set_in_front(25.0, "middle", "holder")  # a ring that never reaches "head" (and ends)
+    tracks.release(30.0, "blocker", blocker)
+    assert not head.granted and not any(r.granted for r in group)  # the group asked first; it waits for S2
+
+
 def test_a_train_bound_to_turn_beyond_the_section_lets_the_trains_leaving_go_first() -> None:
     tracks = TrackSections(EventLog(), [S1])
     leaving = tracks.request(0.0, ("leaving.000",), S1, 0)
@@ -189,6 +221,17 @@ def test_a_train_does_not_ask_for_a_section_beyond_the_train_in_front_before_it(
     locks.bookkeeping(1.0, front)
     locks.bookkeeping(2.0, behind, ahead)
     assert set(locks.section_requests["behind"]) == {S1, S2}
+
+
+def test_a_train_in_front_that_does_not_run_through_the_section_never_comes_first() -> None:
+    # the train in front leaves by another way at S1's protection points: it never asks for S1, so the train behind
+    # must not wait for it to (a tram behind one leaving Platz der Einheit/West for Dortustraße waited for good)
+    front, behind = _runner("front", 800.0), _runner("behind", 500.0)
+    _, locks = _locks(front, behind)
+    _two_sections(locks, behind, gap_m=40.0)
+    ahead = SimpleNamespace(train_id="front", rear_m=773.0)
+    locks.bookkeeping(1.0, behind, ahead)
+    assert set(locks.section_requests["behind"]) == {S1, S2}, "waited for a train in front that never asks"
 
 
 def test_a_section_held_alone_waits_for_the_train_in_front_only_where_it_runs_through_it() -> None:

@@ -30,7 +30,9 @@ grant — and so are the other sections of its group that train holds too, which
 holds the section that train waits for (:meth:`TrackSections._behind`): the follower leaves it only after that train
 has passed through, so the request would wait for the very train it kept waiting (Jena: a tram granted the approach
 behind a unit that had just turned in front of it, the unit waiting behind an opposing tram that waited for the
-follower). And a train that comes to stand in front of a train of its direction that asked earlier (a unit turned
+follower) — nor against a train that a holder of a section the request waits for stands in a line behind, each
+train right behind the next (:meth:`TrackSections._in_line`): that holder too leaves only after that train has moved
+on. And a train that comes to stand in front of a train of its direction that asked earlier (a unit turned
 back there) takes its place in the order between directions (:meth:`TrackSections._since`). Events (subject =
 section id): ``section_requested``, ``section_reserved``, ``section_released``.
 """
@@ -269,8 +271,27 @@ class TrackSections:
         train standing behind one of them holds it (:meth:`_behind`)."""
         for r in w.group or [w]:
             for h in self._sections[r.section_id].holders:
-                if h.direction != r.direction and (not set(h.holder_ids).isdisjoint(trains) or self._behind(h, trains)):
+                if h.direction != r.direction and (
+                    not set(h.holder_ids).isdisjoint(trains) or self._behind(h, trains) or self._in_line(h, trains)
+                ):
                     return True
+        return False
+
+    def _in_line(self, h: SectionRequest, trains: tuple[str, ...]) -> bool:
+        """True if a train holding ``h`` stands in a line behind one of ``trains``: following the trains in front
+        (``in_front``, as the train side last saw them) from it reaches one of them. It cannot leave the section
+        before that train has moved on, so a request waiting for ``h``'s section cannot be served before that
+        train's either. A tram holding the section beyond Platz der Einheit/West stood behind two trams at the
+        platform, the first waiting for the section before it, which an opposing group waiting for the first
+        tram's section had asked for earlier (Potsdam, all lines every 680 s: deadlock at 3,244.5 s)."""
+        for x in h.holder_ids:
+            seen = {x}
+            front = self.in_front.get(x)
+            while front is not None and front not in seen:
+                if front in trains:
+                    return True
+                seen.add(front)
+                front = self.in_front.get(front)
         return False
 
     def _behind(self, h: SectionRequest, trains: tuple[str, ...]) -> bool:
