@@ -292,12 +292,14 @@ class SectionRequests(TerminusRoom):
         return True
 
     def _runs_through(self, train_id: str, sec: RouteSection) -> bool:
-        """True if ``train_id``'s route runs through ``sec``'s section the way ``sec`` runs, or through it at all
-        where ``sec`` is held alone (:meth:`_ahead_through` decides there). A train in front that leaves by another
-        way at the section's protection points never asks for it: a tram behind one leaving Platz der Einheit/West
-        for Dortustraße waited for it to ask, for good (all lines every 780 s: stalled)."""
+        """True if ``train_id``'s route runs through ``sec``'s section the way ``sec`` runs or reversing inside it
+        (a direction of its own), or through it at all where ``sec`` is held alone (:meth:`_ahead_through` decides
+        there). A train in front that leaves by another way at the section's protection points never asks for it:
+        a tram behind one leaving Platz der Einheit/West for Dortustraße waited for it to ask, for good (all lines
+        every 780 s: stalled)."""
         return any(
-            s.section_id == sec.section_id and (s.direction == sec.direction or self._held_alone(sec))
+            s.section_id == sec.section_id
+            and (s.direction == sec.direction or self._held_alone(s) or self._held_alone(sec))
             for s in self.sections.get(train_id, ())
         )
 

@@ -35,7 +35,7 @@ import numpy as np
 
 from railsim.engine.events import EventLayer, Interlocking, Switch
 from railsim.engine.events.log import EventLog
-from railsim.engine.events.tracks import TrackSections
+from railsim.engine.events.tracks import OWN_DIRECTION, TrackSections
 from railsim.engine.extensions import ExtensionSet
 from railsim.engine.locking import RouteLocks
 from railsim.engine.settings import EngineSettings
@@ -232,6 +232,20 @@ def test_a_train_in_front_that_does_not_run_through_the_section_never_comes_firs
     ahead = SimpleNamespace(train_id="front", rear_m=773.0)
     locks.bookkeeping(1.0, behind, ahead)
     assert set(locks.section_requests["behind"]) == {S1, S2}, "waited for a train in front that never asks"
+
+
+def test_a_train_in_front_reversing_inside_the_section_still_comes_first() -> None:
+    # the train in front runs into S1 and reverses there (a direction of its own): it does run through S1, so the
+    # train behind waits until it has gone in; asking first, it could be granted S1 while the train in front
+    # still waited for it
+    front, behind = _runner("front", 800.0), _runner("behind", 500.0)
+    _, locks = _locks(front, behind)
+    _two_sections(locks, behind, gap_m=40.0)
+    locks.sections["front"] = [RouteSection(S1, OWN_DIRECTION + 1, 1000.0, 2000.0, 1000.0)]
+    locks.section_requests["front"] = {}
+    ahead = SimpleNamespace(train_id="front", rear_m=773.0)
+    locks.bookkeeping(1.0, behind, ahead)
+    assert locks.section_requests["behind"] == {}, "asked before the train in front reversing in the section"
 
 
 def test_a_section_held_alone_waits_for_the_train_in_front_only_where_it_runs_through_it() -> None:
