@@ -1,5 +1,6 @@
 # Two commands on a fresh machine: `make demo` and `make test`. Both bootstrap .venv from this repo's files.
 # `make check` is the developer's loop: lint and the unit tier (tests/unit/, no process started, about a minute).
+# `make native` compiles the step loop (railsim/native.py); demo, test and bench do it first.
 # The interpreter .venv is made with, chosen only when .venv is made: the fastest build of python3's version on
 # this machine (railsim/interpreter.py; `make PY=/path/to/python` chooses yourself, `make clean` drops .venv).
 PY      ?= $$(python3 railsim/interpreter.py)
@@ -14,7 +15,7 @@ OUT     ?= out/demo
 WORKERS ?= 2
 PYTEST  := $(BIN)/python -m pytest -q -n $(WORKERS) --dist worksteal
 
-.PHONY: venv pyc warm demo lint check test test-fast format bench clean
+.PHONY: venv pyc warm native demo lint check test test-fast format bench clean
 
 $(STAMP): pyproject.toml constraints.txt
 	test -x $(BIN)/python || $(PY) -m venv $(VENV)
@@ -37,7 +38,12 @@ pyc: $(STAMP)
 warm: pyc
 	$(BIN)/python -m tests.warm
 
-demo: $(STAMP)
+# Compile the step loop's modules to C with mypyc into build/native/ (railsim/native.py; a few minutes of one core,
+# nothing when they are up to date). Without a C compiler it says so and railsim runs interpreted.
+native: $(STAMP)
+	-@$(BIN)/python -m railsim.compile_core --if-stale
+
+demo: $(STAMP) native
 	$(BIN)/railsim network build chongqing_line3 --out $(OUT)/network
 	$(BIN)/railsim run $(SCENARIO) --out $(OUT)
 
@@ -55,11 +61,11 @@ check: $(STAMP)
 	$(PYTEST) tests/unit
 
 test: $(STAMP)
-	$(MAKE) --no-print-directory -j2 lint warm
+	$(MAKE) --no-print-directory -j2 lint warm native
 	$(PYTEST) --durations=25
 
 test-fast: $(STAMP)
-	$(MAKE) --no-print-directory -j2 lint warm
+	$(MAKE) --no-print-directory -j2 lint warm native
 	$(PYTEST) tests/unit tests/sumo
 
 # Format the tree (`make test` checks it is formatted).
@@ -67,7 +73,7 @@ format: $(STAMP)
 	$(BIN)/ruff check --fix .
 	$(BIN)/ruff format .
 
-bench: $(STAMP)
+bench: $(STAMP) native
 	$(BIN)/python benchmarks/engine.py
 
 clean:

@@ -129,24 +129,18 @@ def _per_train_step(marks: list[tuple[float, float]], n_trains: int, warmup_step
 
 
 def _railsim(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict]) -> None:
-    from railsim.engine import sumo
+    from io_floor import time_sumo_steps  # benchmarks/io_floor.py
+
     from railsim.engine.loop import Simulation
 
     marks: list[tuple[float, float]] = []
-    sumo_cpu: list[float] = []  # CPU time of SUMO's own step (libsumo runs in this process), per step
-    sumo_step = sumo.SumoBridge.step
-
-    def timed_sumo_step(bridge: Any) -> None:
-        c0 = time.process_time()
-        sumo_step(bridge)
-        sumo_cpu.append(time.process_time() - c0)
+    sumo_cpu = time_sumo_steps()  # CPU time of SUMO's own step (libsumo runs in this process), per step
 
     class Timed(Simulation):
         def _step(self, t: float) -> None:
             marks.append((time.perf_counter(), time.process_time()))
             super()._step(t)
 
-    sumo.SumoBridge.step = timed_sumo_step  # type: ignore[method-assign]
     scn = _load(n_trains, horizon_s)
     with tempfile.TemporaryDirectory() as out:
         sim = Timed(scn, Path(out), progress=False)
@@ -185,9 +179,11 @@ def _io_floor(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[di
     from railsim.studies import baseline
 
     marks: list[tuple[float, float]] = []
-    sumo_cpu = add_engine_io(BUSY_OBJECTS_PER_TRAIN * n_trains if busy else 0)
+    sumo_cpu, engine_io = add_engine_io(BUSY_OBJECTS_PER_TRAIN * n_trains if busy else 0)
     res = baseline.run_sumo_only(
-        _load(n_trains, horizon_s), on_step=lambda _t: marks.append((time.perf_counter(), time.process_time()))
+        _load(n_trains, horizon_s),
+        on_step=lambda _t: marks.append((time.perf_counter(), time.process_time())),
+        before_step=engine_io,
     )
     steps = len(marks) - 1 - warmup_steps
     q.put(

@@ -7,6 +7,7 @@ line is a call here (``railsim.scenario.load``, ``railsim.api.run``, ``network.b
 
 __version__ = "0.1.0"
 
-from railsim import kernel_cache as _kernel_cache
+from railsim import kernel_cache as _kernel_cache, native as _native
 
 _kernel_cache.configure()  # before any kernel compiles: numba's cache keyed on the kernel sources
+_native.activate()  # before any engine module loads: the compiled core when it is built and up to date

@@ -38,7 +38,20 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, settings
 
-from tests.helpers import session_shared_dir, shared_run
+# This process runs railsim's interpreted modules, the readable reference: unit tests hand engine functions
+# stand-ins (a namespace for a train) that the compiled core's classes would refuse. Its children — every SUMO run,
+# the golden tier's included — run the compiled core when it is built (railsim/native.py): RAILSIM_NATIVE is set
+# only while railsim imports here, and the environment the children inherit is the caller's.
+_NATIVE_ENV = os.environ.get("RAILSIM_NATIVE")
+os.environ["RAILSIM_NATIVE"] = "0"
+import railsim  # noqa: E402, F401
+
+if _NATIVE_ENV is None:
+    del os.environ["RAILSIM_NATIVE"]
+else:
+    os.environ["RAILSIM_NATIVE"] = _NATIVE_ENV
+
+from tests.helpers import session_shared_dir, shared_run  # noqa: E402
 
 settings.register_profile("local", deadline=None)
 settings.register_profile(

@@ -17,7 +17,7 @@ and its result (or ``SystemExit``) the exit code, ``atexit`` handlers run, outpu
 A child forked from the server is what a fresh interpreter would be, or the server is not used:
 
 * an environment that differs in anything read while the interpreter starts or the modules import (``PYTHON*``,
-  ``NUMBA_*``, ``SUMO_HOME``, ``MPLBACKEND``, ``OMP_*``/``OPENBLAS_*``/``MKL_*``) gets a server started with it;
+  ``NUMBA_*``, ``SUMO_HOME``, ``MPLBACKEND``, ``RAILSIM_NATIVE``, ``OMP_*``/``OPENBLAS_*``/``MKL_*``) gets a server started with it;
 * a server whose imports wrote anything to stderr (a warning a fresh process would print on every run), no
   ``os.fork`` (not POSIX), or a server that died: :func:`run` falls back to :func:`subprocess.run`.
 
@@ -41,7 +41,17 @@ from pathlib import Path
 from typing import IO, Any
 
 # environment variables read when an interpreter starts or its modules import: a different value needs a real start
-START_UP_PREFIXES = ("PYTHON", "NUMBA_", "OMP_", "OPENBLAS_", "MKL_", "SUMO_HOME", "MPLBACKEND", "LD_")
+START_UP_PREFIXES = (
+    "PYTHON",
+    "NUMBA_",
+    "OMP_",
+    "OPENBLAS_",
+    "MKL_",
+    "SUMO_HOME",
+    "MPLBACKEND",
+    "LD_",
+    "RAILSIM_NATIVE",
+)
 # what the server imports before it forks (what ``railsim run``/``plot``/``report``/``validate`` import)
 PRELOAD = (
     "railsim.cli.main",

@@ -113,8 +113,9 @@ def normalise(path: Path, tmp_root: Path) -> bytes:
     return text.encode("utf-8")
 
 
-def run_outputs(case: Case, workdir: Path) -> int:
-    """Run one case in a child process, its outputs into ``workdir/out``; return its exit code."""
+def run_outputs(case: Case, workdir: Path, reference: bool = False) -> int:
+    """Run one case in a child process, its outputs into ``workdir/out``; return its exit code. ``reference``: on
+    railsim's interpreted modules instead of the compiled core (:mod:`railsim.native`)."""
     workdir.mkdir(parents=True, exist_ok=True)
     scenario = case.scenario(workdir) if callable(case.scenario) else ROOT / case.scenario
     out = workdir / "out"
@@ -122,6 +123,7 @@ def run_outputs(case: Case, workdir: Path) -> int:
         ["run", str(scenario), "--out", str(out), "--seed", str(case.seed), "--no-progress"],
         cache_dir=workdir / "cache",
         timeout=900,
+        reference=reference,
     )
     if res.returncode not in (0, 1) or "Traceback" in res.stderr or not (out / "summary.json").is_file():
         raise RuntimeError(f"golden case {case.name} failed (exit {res.returncode}):\n{res.stderr[-3000:]}")

@@ -34,14 +34,19 @@ def railsim_cmd() -> list[str]:
     return [sys.executable, "-m", "railsim.cli.main"]
 
 
-def run_railsim(args: list[str], cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+def run_railsim(
+    args: list[str], cache_dir: Path | None = None, timeout: float = 600, reference: bool = False
+) -> subprocess.CompletedProcess:
     """``python -m railsim.cli.main ARGS`` in a child process (forked from :mod:`tests.forkserver`), from the
-    clone's folder; its exit code and text output as :func:`subprocess.run` gives them."""
+    clone's folder; its exit code and text output as :func:`subprocess.run` gives them. ``reference``: on railsim's
+    interpreted modules (``RAILSIM_NATIVE=0``), not the compiled core (:mod:`railsim.native`)."""
     from tests import forkserver
 
     env = dict(os.environ)
     if cache_dir is not None:
         env["RAILSIM_CACHE"] = str(cache_dir)
+    if reference:
+        env["RAILSIM_NATIVE"] = "0"
     return forkserver.run(args, env=env, cwd=ROOT, timeout=timeout)
 
 
@@ -51,10 +56,17 @@ def ok_stdout(res: subprocess.CompletedProcess) -> str:
     return str(res.stdout)
 
 
-def run_python(code: str, cache_dir: Path | None = None, timeout: float = 600) -> subprocess.CompletedProcess:
+def run_python(
+    code: str, cache_dir: Path | None = None, timeout: float = 600, reference: bool = False
+) -> subprocess.CompletedProcess:
+    """``python -c CODE`` in a child process from the clone's folder. ``reference``: the child loads railsim's
+    interpreted modules (``RAILSIM_NATIVE=0``, :mod:`railsim.native`) — for code that patches or subclasses the
+    engine's internals to watch them, which the compiled core's classes do not allow."""
     env = dict(os.environ)
     if cache_dir is not None:
         env["RAILSIM_CACHE"] = str(cache_dir)
+    if reference:
+        env["RAILSIM_NATIVE"] = "0"
     return subprocess.run(
         [sys.executable, "-c", code], capture_output=True, text=True, timeout=timeout, env=env, cwd=ROOT
     )
@@ -225,9 +237,13 @@ def route_view(route_id: str, edges: tuple[str, ...], lengths_m: tuple[float, ..
 
 def runtime_train(cls: type[T], train_id: str, view: Any, length_m: float, **fields: Any) -> T:
     """A train of class ``cls`` (:class:`~railsim.engine.train.TrainRuntime` or a subclass) on ``view``, its trip and
-    vehicle plain objects with the id and length only, no controllers; ``fields`` go to the constructor."""
+    vehicle plain objects with the id and length only, no controllers; ``fields`` are set on it (its resident fields
+    through their properties)."""
     trip = SimpleNamespace(trip_id=train_id, vehicle=SimpleNamespace(length_m=length_m))
-    return cls(trip=trip, view=view, controllers={}, **fields)  # type: ignore[arg-type]
+    tr = cls(trip=trip, view=view, controllers={})  # type: ignore[arg-type]
+    for name, value in fields.items():
+        setattr(tr, name, value)
+    return tr
 
 
 def standing_train(train_id: str, front_m: float = 0.0, **fields: Any) -> SimpleNamespace:

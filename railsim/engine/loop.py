@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from mypy_extensions import mypyc_attr
 
 from railsim.engine import primary_delays, timed
 from railsim.engine.control import ControlStage
@@ -63,6 +64,7 @@ __all__ = ["EngineSettings", "Simulation", "TrainRuntime", "run"]
 log = logging.getLogger(__name__)
 
 
+@mypyc_attr(allow_interpreted_subclasses=True)  # benchmarks and tests time its steps in a subclass
 class Simulation:
     """Builds the world, the trains and the ports for a scenario, and runs the step loop. Use :func:`run`."""
 

@@ -10,7 +10,7 @@ change, not when they are read:
 * **when the slot is given** (the first time the train is read): its whole row, from the train;
 * **a field written on the train** — ``depart_chainage_m`` (insertion, a unit's next trip) and ``reversing`` (a
   turnback set up, a reversal done) are properties of ``TrainRuntime`` that write their slot's column too
-  (:func:`railsim.engine.train.resident`);
+  (:class:`railsim.engine.train.TrainRuntime`, "Resident fields");
 * **the speeds handed to SUMO** (:meth:`SlotStore.sent`, called with the very list the engine hands the bridge);
 * **the truth pass's own outputs**: the compiled pass writes each train's edge pointer, chainage and memory of the
   check into its row (:func:`railsim.engine.truth_kernel.truth_pass`).

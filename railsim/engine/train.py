@@ -8,7 +8,6 @@ where the loop itself must call it.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from operator import attrgetter
 from typing import Any, Protocol
 
 from railsim.engine import slot_columns
@@ -71,7 +70,7 @@ class TrainRuntime:
     stale_max_s: float = 0.0
     degraded: bool = False
     stops_served: int = 0
-    depart_chainage_m: float = 0.0
+    _depart_chainage_m: float = 0.0
     sumo_stopped_now: bool = False
     held_for_route: bool = False  # its dwell is over, but its route beyond the stop is not set (it stays there)
     dwell_until_s: float | None = None  # its dwell lasts at least until then (passenger demand, passenger_dwell)
@@ -87,7 +86,7 @@ class TrainRuntime:
     sumo_id: str = ""  # the SUMO vehicle: the trip id, or the unit id when trips are chained (rotations)
     unit_id: str | None = None  # the rolling-stock unit running this trip (rotations), else None
     sumo_edge: str = ""  # SUMO's edge of the train this step
-    reversing: bool = False  # on its way to / at its reversal stop: SUMO may flip it (railsim.engine.turnback)
+    _reversing: bool = False  # on its way to / at its reversal stop: SUMO may flip it (railsim.engine.turnback)
     hold_until_s: float | None = None  # a reversing unit stands at least until then (early for its departure)
     start_front_m: float = 0.0  # front chainage where the trip came on the line (inserted or handed over)
     edge_i: int = 0  # the route edge under the front this step (RouteView.edge_near from last step's)
@@ -128,27 +127,33 @@ class TrainRuntime:
         self.sent_speed_mps = max(advance_m / dt_s, 0.0)
         return self.sent_speed_mps
 
+    # Resident fields: a write sets the train's value and, once the train has a slot, its column in the slot store
+    # (railsim.engine.slots), so the truth pass reads the store and never a stale copy. For fields written rarely.
+    @property
+    def depart_chainage_m(self) -> float:
+        """Route chainage of the front where the train left its last stop (resident: ``slot_columns.DEPART_M``)."""
+        return self._depart_chainage_m
+
+    @depart_chainage_m.setter
+    def depart_chainage_m(self, value: float) -> None:
+        self._depart_chainage_m = value
+        store = self.store
+        if store is not None:
+            store.write(slot_columns.DEPART_M, self.slot, value)
+
+    @property
+    def reversing(self) -> bool:
+        """On its way to / at its reversal stop (resident: ``slot_columns.REVERSING``)."""
+        return self._reversing
+
+    @reversing.setter
+    def reversing(self, value: bool) -> None:
+        self._reversing = value
+        store = self.store
+        if store is not None:
+            store.write(slot_columns.REVERSING, self.slot, value)
+
     @property
     def on_line(self) -> bool:
         """Inserted and not yet arrived or removed."""
         return self.status in ("inserting", "running")
-
-
-def resident(name: str, column: int) -> None:
-    """Make the field ``name`` of :class:`TrainRuntime` *resident*: a write sets the train's value and, once the train
-    has a slot, column ``column`` of its row in the slot store (:mod:`railsim.engine.slots`), so the truth pass reads
-    the store and never a stale copy. For fields written rarely and read little elsewhere: reading one costs a C
-    getter (~30 ns more than a plain attribute)."""
-    private = "_" + name
-
-    def write(tr: TrainRuntime, value: Any) -> None:
-        setattr(tr, private, value)
-        store = tr.store
-        if store is not None:
-            store.write(column, tr.slot, value)
-
-    setattr(TrainRuntime, name, property(attrgetter(private), write, doc=f"(resident in the slot store) {name}"))
-
-
-resident("depart_chainage_m", slot_columns.DEPART_M)
-resident("reversing", slot_columns.REVERSING)

@@ -17,12 +17,17 @@ from railsim.engine.sumo import StopSpec, SumoBridge, SumoConfig, VTypeSpec
 from railsim.engine.trips import make_stops
 
 
-def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None) -> dict[str, Any]:
+def run_sumo_only(
+    scenario: Any,
+    on_step: Callable[[float], None] | None = None,
+    before_step: Callable[[SumoBridge], None] | None = None,
+) -> dict[str, Any]:
     """Drive every trip of ``scenario`` with SUMO alone (see the module docstring); return wall time and counts.
 
     A trip that starts in motion (``services[].start``) is inserted like the engine inserts it: on its route
     trimmed to the edge that holds its start chainage, at its start speed, with the stops still ahead of it.
-    ``on_step(t)`` is called before every SUMO step (``benchmarks/scale.py`` takes its per-step clock there).
+    ``on_step(t)`` is called before every SUMO step (``benchmarks/scale.py`` takes its per-step clock there), then
+    ``before_step(bridge)`` (``benchmarks/io_floor.py`` adds the engine's traffic with SUMO there).
     """
     from network.world import load_world, sumo_args
     from railsim import scenario as scn_mod
@@ -98,6 +103,8 @@ def run_sumo_only(scenario: Any, on_step: Callable[[float], None] | None = None)
                 k += 1
             if on_step is not None:
                 on_step(t)
+            if before_step is not None:
+                before_step(bridge)
             bridge.step()
             steps += 1
             arrived += len(bridge.arrived_ids())

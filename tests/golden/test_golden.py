@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from tests.golden import CASES, accepted, blas_variants, differing, hash_outputs
+from tests.golden import CASES, accepted, blas_variants, differing, hash_outputs, run_outputs
 
 
 @pytest.mark.parametrize("case", CASES, ids=[c.name for c in CASES])
@@ -32,4 +32,15 @@ def test_outputs_are_byte_identical_to_golden(case, golden_run: Callable[[str], 
             for v in blas_variants().get(case.name, [])
         )
         + "; if the change is intended, run `python -m tests.golden --update` and say why"
+    )
+
+
+def test_the_interpreted_modules_give_the_compiled_cores_bytes(tmp_path: Path) -> None:
+    """The suite's golden runs load the compiled core (railsim.native) when it is built; its source is also the
+    interpreted reference, which a machine without a C compiler runs: the demo on it gives the golden bytes too."""
+    case = next(c for c in CASES if c.name == "demo_line3_peak")
+    got = hash_outputs(case.name, tmp_path, run_outputs(case, tmp_path, reference=True))
+    expected, *variants = accepted(case.name)
+    assert got == expected or got in variants, (
+        f"the interpreted demo differs from golden.json in {differing(got, expected)}"
     )

@@ -31,7 +31,7 @@ def test_outputs_with_the_edge_memory_forced_on_are_golden(name: str, tmp_path: 
     scenario = case.scenario(tmp_path) if callable(case.scenario) else ROOT / case.scenario
     out = tmp_path / "out"
     args = ["run", str(scenario), "--out", str(out), "--seed", str(case.seed), "--no-progress"]
-    res = run_python(CHILD.replace("ARGS", repr(args)), cache_dir=tmp_path / "cache", timeout=900)
+    res = run_python(CHILD.replace("ARGS", repr(args)), cache_dir=tmp_path / "cache", timeout=900, reference=True)
     assert res.returncode in (0, 1) and "Traceback" not in res.stderr, res.stderr[-3000:]
     got = hash_outputs(name, tmp_path, res.returncode)
     expected = load_golden()[name]

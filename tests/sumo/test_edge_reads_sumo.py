@@ -71,7 +71,7 @@ print(json.dumps(counts))
 
 
 def _checked_run(scenario: Path) -> dict:
-    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))))
+    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))), reference=True)
     assert res.returncode == 0, res.stderr + res.stdout
     return json.loads(res.stdout.strip().splitlines()[-1])
 

@@ -59,7 +59,7 @@ print(json.dumps(rows))
 def test_free_run_plan_on_plain_values_is_the_observed_plan(scenario, tmp_path_factory) -> None:
     """Every distinct trip's planned arrivals and departures are the same floats both ways (JSON keeps all 17
     digits), and a plan reaches the trip's destination (so the comparison covers whole runs)."""
-    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))))
+    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))), reference=True)
     assert res.returncode == 0, res.stderr[-3000:]
     rows = json.loads(res.stdout.strip().splitlines()[-1])
     assert rows
@@ -92,7 +92,7 @@ def test_the_set_up_is_frozen_for_the_run_and_released_after(tmp_path_factory) -
     """railsim.engine.heap: while the loop runs, everything the set-up built sits in the collector's permanent
     generation (full collections do not walk it again), and the run gives it back when it ends."""
     code = HEAP_CHILD.replace("SCENARIO", repr(str(DATA / "scenarios" / "mini_line.yaml")))
-    res = run_python(code)
+    res = run_python(code, reference=True)
     assert res.returncode == 0, res.stderr[-3000:]
     got = json.loads(res.stdout.strip().splitlines()[-1])
     assert got["before"] == 0 and got["after"] == 0
@@ -145,7 +145,7 @@ def test_compiled_line_step_decides_what_the_roles_one_by_one_decide(sensor_nois
             .replace("WORKDIR", repr(str(tmp_path / mode)))
             .replace("MODE", repr(mode))
         )
-        res = run_python(code, cache_dir=tmp_path / "cache")
+        res = run_python(code, cache_dir=tmp_path / "cache", reference=True)
         assert res.returncode == 0, res.stderr[-3000:]
         runs[mode] = json.loads(res.stdout.strip().splitlines()[-1])
     assert runs["as_run"]["compiled"] > 1000 and runs["roles"]["compiled"] == 0
@@ -190,7 +190,7 @@ def test_every_situation_is_read_at_t_before_any_train_is_stepped(tmp_path) -> N
     scenario = tmp_path / "mini.yaml"
     scenario.write_text(yaml.safe_dump(mini_line(), sort_keys=False), encoding="utf-8")
     code = AT_T_CHILD.replace("SCENARIO", repr(str(scenario))).replace("WORKDIR", repr(str(tmp_path / "out")))
-    res = run_python(code, cache_dir=tmp_path / "cache")
+    res = run_python(code, cache_dir=tmp_path / "cache", reference=True)
     assert res.returncode == 0, res.stderr[-3000:]
     calls = json.loads(res.stdout.strip().splitlines()[-1])
     by_step: dict[float, list[tuple[str, str]]] = {}

@@ -56,7 +56,9 @@ print(json.dumps([run(False), run(True)]))
     [(DATA / "scenarios" / "mini_line.yaml", 1500.0), (ROOT / "scenarios" / "chongqing_line3_peak_vc.yaml", 3600.0)],
 )
 def test_run_through_the_entry_point_is_the_run_through_the_dispatcher(scenario: Path, duration_s: float) -> None:
-    res = run_python(CHILD.replace("sys.argv[1]", repr(str(scenario))).replace("sys.argv[2]", repr(duration_s)))
+    res = run_python(
+        CHILD.replace("sys.argv[1]", repr(str(scenario))).replace("sys.argv[2]", repr(duration_s)), reference=True
+    )
     assert res.returncode == 0, res.stderr[-3000:]
     fast, slow = json.loads(res.stdout.strip().splitlines()[-1])
     assert fast["step"] == "entry" and slow["step"] == "dispatcher"

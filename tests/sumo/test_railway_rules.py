@@ -97,7 +97,7 @@ def _run_patched(patch: str, scn: Path, out: Path, cache: Path) -> Any:
         + "\nfrom railsim.cli.main import main\n"
         + f"sys.exit(main(['run', {str(scn)!r}, '--out', {str(out)!r}, '--no-progress']))\n"
     )
-    return run_python(code, cache_dir=cache, timeout=300)
+    return run_python(code, cache_dir=cache, timeout=300, reference=True)
 
 
 # ---- safe insertion ------------------------------------------------------------------------------------------

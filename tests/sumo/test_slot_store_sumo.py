@@ -52,7 +52,7 @@ print(json.dumps(seen))
 
 
 def _probe(scenario: Path) -> dict:
-    res = run_python(CHILD.replace("SCENARIO", repr(str(scenario))))
+    res = run_python(CHILD.replace("SCENARIO", repr(str(scenario))), reference=True)
     assert res.returncode == 0, res.stderr[-3000:]
     return json.loads(res.stdout.strip().splitlines()[-1])
 

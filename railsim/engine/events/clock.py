@@ -105,7 +105,7 @@ class EventLayer:
         log: an existing log to append to (a new one by default).
     """
 
-    def __init__(self, t0_s: float = 0.0, *, rng: np.random.Generator, log: EventLog | None = None) -> None:
+    def __init__(self, t0_s: float, rng: np.random.Generator, log: EventLog | None = None) -> None:
         t0_s = float(t0_s)
         if not math.isfinite(t0_s):
             raise ValueError(f"start time must be finite, got {t0_s!r}")

@@ -575,10 +575,12 @@ class Channel:
         self._fold_delays()
         acc = self._delays
         lost = self.lost_random + self.lost_outage
+        mean_s: float | None = None
+        std_s: float | None = None
+        lo: float | None = None
+        hi: float | None = None
         if acc.n:
             mean_s, std_s, lo, hi = acc.mean, math.sqrt(acc.m2 / acc.n), acc.lo, acc.hi
-        else:
-            mean_s = std_s = lo = hi = None  # type: ignore[assignment]
         return ChannelStats(
             self.name,
             self.sent,
