@@ -18,6 +18,8 @@ For each N the script runs, in separate processes (libsumo hosts one simulation 
   (``benchmarks/io_floor.py``: the ids, the bridge's reading and one ``setSpeed`` per train; SUMO keeps driving). No
   railsim logic at all: what any controller driving SUMO train by train through libsumo costs at the least (the
   floor under the railsim column);
+* **railsim_interpreted**: the railsim side again on its interpreted modules (``RAILSIM_NATIVE=0``; the railsim
+  side runs the compiled core when it is built, ``core`` says: :mod:`railsim.native`);
 * **io_floor_busy**: the io floor with unrelated Python work between two steps (summing a field over
   ``BUSY_OBJECTS_PER_TRAIN`` small dicts per train: a working set growing with N like the engine's per-train
   objects). It measures how much dearer
@@ -131,6 +133,7 @@ def _per_train_step(marks: list[tuple[float, float]], n_trains: int, warmup_step
 def _railsim(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dict]) -> None:
     from io_floor import time_sumo_steps  # benchmarks/io_floor.py
 
+    from railsim import native
     from railsim.engine.loop import Simulation
 
     marks: list[tuple[float, float]] = []
@@ -154,6 +157,7 @@ def _railsim(n_trains: int, horizon_s: float, warmup_steps: int, q: mp.Queue[dic
             * sum(sumo_cpu[warmup_steps : warmup_steps + steps])
             / (steps * n_trains),
             "on_line_at_end": len(on_line),
+            "core": native.STATUS,
             "collisions": len(sim.safety.collisions),
             "failure": sim.failure(),
         }
@@ -216,6 +220,7 @@ def main() -> None:
         floor = in_process(_io_floor, n, args.horizon_s, args.warmup_steps)
         busy = in_process(_io_floor_busy, n, args.horizon_s, args.warmup_steps)
         ours = in_process(_railsim, n, args.horizon_s, args.warmup_steps)
+        interp = in_process(_railsim, n, args.horizon_s, args.warmup_steps, env={"RAILSIM_NATIVE": "0"})
         rows.append(
             {
                 "n_trains": n,
@@ -229,6 +234,10 @@ def main() -> None:
                 # railsim's own per train-step: its whole step less SUMO's step inside it
                 "railsim_own_cpu_us_per_train_step": ours["cpu_us_per_train_step"]
                 - ours["sumo_step_cpu_us_per_train_step"],
+                # the same on railsim's interpreted modules (RAILSIM_NATIVE=0), in the same run
+                "railsim_interpreted": interp,
+                "interpreted_own_cpu_us_per_train_step": interp["cpu_us_per_train_step"]
+                - interp["sumo_step_cpu_us_per_train_step"],
             }
         )
         print(
@@ -236,7 +245,8 @@ def main() -> None:
             f"SUMO's step {ours['sumo_step_cpu_us_per_train_step']:.1f}), sumo {sumo['us_per_train_step']:.1f} us "
             f"(cpu {sumo['cpu_us_per_train_step']:.1f}), io floor cpu {floor['cpu_us_per_train_step']:.1f} "
             f"(SUMO's step {floor['sumo_step_cpu_us_per_train_step']:.1f}; busy between steps "
-            f"{busy['sumo_step_cpu_us_per_train_step']:.1f}) per train-step",
+            f"{busy['sumo_step_cpu_us_per_train_step']:.1f}); interpreted railsim cpu "
+            f"{interp['cpu_us_per_train_step']:.1f} per train-step",
             flush=True,
         )
     first, last = rows[0]["railsim"], rows[-1]["railsim"]
@@ -245,6 +255,7 @@ def main() -> None:
         "python": platform.python_version(),
         "horizon_s": args.horizon_s,
         "warmup_steps": args.warmup_steps,
+        "core": first["core"],  # railsim.native: the compiled core, or why not
         "rows": rows,
         "linearity": {
             "n": [sizes[0], sizes[-1]],
