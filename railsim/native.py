@@ -9,8 +9,10 @@ and the interpreted module stays the readable reference (the unit tier runs it i
 suite, the golden tier included, runs in a child process on the compiled core and must give the same bytes).
 
 What is compiled: :data:`MODULES` — the loop, the control stage, the train's state and the plant, the truth pass,
-occupancy, stops, berths, comms, the event clock, safety, the watchdog, recording and the SUMO bridge. Their
-classes become *native*: their attributes are the annotated ones (none can be added at run time), their methods
+occupancy, stops, berths, comms, the event clock and log, safety, the watchdog, recording, the SUMO bridge, the
+route locks (their switch walk and authority ends are mypyc *traits*, the parts a class may have besides its one
+base class), the single-track sections and crossings, the interlocking, formations and the trips. Their classes
+become *native*: their attributes are the annotated ones (none can be added at run time), their methods
 cannot be patched, an interpreted subclass needs ``@mypyc_attr(allow_interpreted_subclasses=True)``, and a value
 of the wrong type handed to an annotated parameter raises :class:`TypeError` instead of being duck-typed.
 
@@ -61,6 +63,22 @@ MODULES: tuple[str, ...] = (
     "railsim.engine.sumo",
     "railsim.engine.slots",
     "railsim.engine.routeview",
+    "railsim.engine.locking",
+    "railsim.engine.lock_walk",
+    "railsim.engine.section_requests",
+    "railsim.engine.terminus_room",
+    "railsim.engine.section_room",
+    "railsim.engine.section_walk",
+    "railsim.engine.authority",
+    "railsim.engine.events.tracks",
+    "railsim.engine.events.interlocking",
+    "railsim.engine.events.log",
+    "railsim.engine.single_track",
+    "railsim.engine.stop_timing",
+    "railsim.engine.trips",
+    "railsim.engine.coupling",
+    "railsim.engine.insertion_reach",
+    "railsim.engine.events.formations",
 )
 ROOT = Path(__file__).resolve().parent.parent
 BUILD_DIR = ROOT / "build" / "native"

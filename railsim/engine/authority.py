@@ -38,6 +38,8 @@ from bisect import bisect_right
 from math import inf, nextafter
 from typing import Any
 
+from mypy_extensions import trait
+
 from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.log import EventLog
 from railsim.engine.events.tracks import SectionRequest, TrackSections
@@ -102,6 +104,7 @@ class AuthorityMemo:
         self.lock_state = -1
 
 
+@trait  # a part of RouteLocks (railsim.engine.locking), compiled as a mypyc trait (railsim/native.py)
 class AuthorityEnds:
     """The authority ends of every train (module docstring): a base class of
     :class:`~railsim.engine.locking.RouteLocks`, which provides the state they are worked out from."""

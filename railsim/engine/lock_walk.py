@@ -46,6 +46,8 @@ from __future__ import annotations
 from bisect import bisect_right
 from typing import Any
 
+from mypy_extensions import trait
+
 from railsim.engine.settings import INF, EngineSettings
 from railsim.engine.train import TrainRuntime
 
@@ -133,6 +135,7 @@ def start_limit_of(trip: Any, start_front_m: float) -> float:
     return start_m - trip.vehicle.length_m
 
 
+@trait  # a part of RouteLocks (railsim.engine.locking), compiled as a mypyc trait (railsim/native.py)
 class SwitchWalker:
     """The walks of every train (module docstring); :class:`~railsim.engine.locking.RouteLocks` provides the
     settings, the record of which time over a switch each lock is for, and its reading (``_lock_pass_m``)."""

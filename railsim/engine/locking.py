@@ -97,7 +97,7 @@ class Clock(Protocol):
         """Now [s]."""
 
 
-class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
+class RouteLocks(SectionRequests, SwitchWalker, AuthorityEnds):
     """Requests, authority and releases of switch locks for every train."""
 
     def __init__(
@@ -169,6 +169,10 @@ class RouteLocks(SwitchWalker, SectionRequests, AuthorityEnds):
         if switch_id in self.merges_of.get(train_id, ()) and not self.extensions.manages_lock(train_id, switch_id):
             return self.merge_margin_m[train_id]
         return self.settings.protection_margin_m
+
+    def _authority_end_of(self, tr: TrainRuntime) -> float:
+        """The single-track part's view of :meth:`AuthorityEnds.authority_end_m`."""
+        return self.authority_end_m(tr)
 
     def bookkeeping(self, t: float, tr: TrainRuntime, ahead: Any = None) -> None:
         """Request locks ahead, detect a pass without a lock, release behind the rear.

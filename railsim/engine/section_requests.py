@@ -124,8 +124,11 @@ class SectionRequests(TerminusRoom):
     section_requests: dict[str, dict[str, SectionRequest]]  # train id -> section id -> request
     clock: Any  # the event layer's time (now_s)
     continues: Callable[[str], bool]  # does the unit of this trip run a next trip? (rotations)
-    authority_end_m: Callable[[TrainRuntime], float]  # where a train's movement authority ends (RouteLocks)
     successor: Callable[[str], str | None]  # the trip the unit of this trip runs next (rotations), or None
+
+    def _authority_end_of(self, tr: TrainRuntime) -> float:
+        """Where a train's movement authority ends (RouteLocks': its AuthorityEnds)."""
+        raise NotImplementedError
 
     def set_up_shared_track(self, graph: Any, successor: Callable[[str], str | None]) -> None:
         """Find the single-track sections the scenario's trains use in both directions and the flat crossings they
@@ -385,7 +388,7 @@ class SectionRequests(TerminusRoom):
         rear_m = float(ahead.rear_m)
         other = self.fleet.trains.get(ahead.train_id)
         if other is not None:
-            end_m = self.authority_end_m(other) + (ahead.front_m - other.front_m)
+            end_m = self._authority_end_of(other) + (ahead.front_m - other.front_m)
             rear_m = min(rear_m, end_m - (ahead.front_m - ahead.rear_m))
         return rear_m
 

@@ -48,7 +48,7 @@ from __future__ import annotations
 
 from bisect import bisect_right
 from collections.abc import Iterator, Sequence
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from railsim.engine.events.interlocking import Interlocking
 from railsim.engine.events.tracks import OWN_DIRECTION
@@ -56,6 +56,9 @@ from railsim.engine.section_walk import SectionWalker
 from railsim.engine.single_track import RouteSection
 from railsim.engine.stop_timing import separation_margin_m
 from railsim.engine.train import TrainRuntime
+
+if TYPE_CHECKING:
+    from railsim.engine.fleet import Fleet
 
 
 def joining_switches(graph: Any, edges: Sequence[str]) -> frozenset[str]:
@@ -73,7 +76,7 @@ class SectionRoom(SectionWalker):
     """The room before a section (module docstring): a base class of
     :class:`~railsim.engine.section_requests.SectionRequests`, which holds the fleet and the interlocking."""
 
-    fleet: Any  # the fleet (trains by id)
+    fleet: Fleet  # the fleet (trains by id)
     interlocking: Interlocking
     joins_of: dict[str, frozenset[str]]  # train id -> points where another track joins its route (note_joins)
     passes_by: dict[str, list[RouteSection]]  # train id -> sections whose protection points it leaves by (note_passes)
