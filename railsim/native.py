@@ -18,8 +18,8 @@ of the wrong type handed to an annotated parameter raises :class:`TypeError` ins
 
 Build: ``python -m railsim.compile_core`` (``make native``; ``make demo`` and ``make test`` call it) compiles them
 into ``build/native/`` and writes a stamp with the hash of their sources and the interpreter's version; with
-``--if-stale`` it does nothing when the stamp already matches; ``--status`` says what this interpreter loads. About two minutes of one core; it needs a C
-compiler and the Python headers (a machine without them runs interpreted).
+``--if-stale`` it does nothing when the stamp already matches; ``--status`` says what this interpreter loads. About
+three minutes of one core; it needs a C compiler and the Python headers (a machine without them runs interpreted).
 
 Use: importing :mod:`railsim` calls :func:`activate`, which puts a finder in front of the import system that loads
 those modules from ``build/native/`` when the stamp matches the sources in the tree. Otherwise — never built, a
