@@ -16,14 +16,18 @@ run it varies by ±10 % and more). Two measures are offered:
 
 Both sides run in ``git worktree`` s made side by side in a temporary folder and removed at the end: ``base`` at
 that commit, ``head`` at this checkout's HEAD with its uncommitted changes applied and its untracked files (those
-git does not ignore) copied. Alike folders matter to a count: the same code run from this checkout and from a fresh
+git does not ignore) copied. ``--core compiled`` (the default: what ``make demo`` runs) builds each side's compiled
+core in its worktree first (:mod:`railsim.native`; about three minutes, both at once) and checks that every run
+loaded it; ``--core interpreted`` runs both on their interpreted modules (``RAILSIM_NATIVE=0``), and is the only
+choice for a base older than the compiled core. Alike folders matter to a count: the same code run from this checkout and from a fresh
 worktree differed by 0.1-0.5 % (paths, and the caches already in the folder). Each side imports its own
 ``railsim`` (``PYTHONPATH``) and runs its own copy of the scenario file (``--scenario`` is a path inside the tree;
 an absolute path is used by both). Both sides use this checkout's virtual environment.
 Prints one JSON object: each side's runs and value, and ``ratio`` = this tree ÷ base (below 1: this tree does
 less).
 
-    .venv/bin/python benchmarks/ab.py BASE [--measure instructions|cpu] [--duration-s 1500] [--reps 3] [--keep DIR]
+    .venv/bin/python benchmarks/ab.py BASE [--measure instructions|cpu] [--core compiled|interpreted]
+        [--duration-s 1500] [--reps 3] [--keep DIR]
 """
 
 from __future__ import annotations
@@ -48,14 +52,14 @@ DEFAULT_SCENARIO = "scenarios/chongqing_line3_peak.yaml"
 CHILD = """
 import json, sys, tempfile, time
 from pathlib import Path
-from railsim import api, scenario
+from railsim import api, native, scenario
 scn = scenario.load(sys.argv[1], {"simulation.duration_s": float(sys.argv[2])})
 with tempfile.TemporaryDirectory() as out:
     c0 = time.process_time()
     s = api.run(scn, Path(out), seed=int(sys.argv[3]), progress=False)
     cpu_s = time.process_time() - c0
 print(json.dumps({"cpu_s": cpu_s, "n_arrived": s.get("n_arrived"), "collisions": s.get("collisions"),
-                  "status": s.get("status")}))
+                  "status": s.get("status"), "core": native.STATUS}))
 """
 
 
@@ -109,21 +113,47 @@ def _carry_changes(tree: Path) -> None:
         shutil.copy2(ROOT / name, tree / name)
 
 
-def _run_side(tree: Path, scenario: str, duration_s: float, seed: int, cg_out: Path | None) -> dict[str, Any]:
-    """One run of the side in ``tree`` (under cachegrind when ``cg_out`` is given): the child's line, and the
-    instruction count."""
-    cmd = [sys.executable, "-c", CHILD, scenario, repr(duration_s), str(seed)]
-    if cg_out is not None:
-        cmd = ["valgrind", "--tool=cachegrind", "--cache-sim=no", f"--cachegrind-out-file={cg_out}", *cmd]
+def _core_env(tree: Path, core: str) -> dict[str, str]:
+    """The environment of a process of the side in ``tree``: its own ``railsim``, string hashing fixed, and the
+    compiled core or the interpreted modules (``RAILSIM_NATIVE``)."""
     # string hashing fixed: sets and dicts of ids then hold the same layout in every run, and two runs of the same
     # code differ in a count only by what other threads do (OpenBLAS's)
     env = {**os.environ, "PYTHONPATH": str(tree), "PYTHONHASHSEED": "0"}
-    done = subprocess.run(cmd, cwd=tree, env=env, capture_output=True, text=True)
+    env.pop("RAILSIM_NATIVE", None)
+    if core == "interpreted":
+        env["RAILSIM_NATIVE"] = "0"
+    return env
+
+
+def _build_core(name: str, tree: Path) -> None:
+    """Compile the side's core in its worktree (``python -m railsim.compile_core``); :class:`AbError` if it has
+    none or the build fails."""
+    if not (tree / "railsim" / "compile_core.py").is_file():
+        raise AbError(f"{name} has no compiled core (railsim/compile_core.py): compare with --core interpreted")
+    print(f"ab: {name}: building its compiled core", file=sys.stderr, flush=True)
+    cmd = [sys.executable, "-m", "railsim.compile_core"]
+    done = subprocess.run(cmd, cwd=tree, env=_core_env(tree, "compiled"), capture_output=True, text=True)
+    if done.returncode != 0:
+        tail = (done.stderr.strip().splitlines() or ["no output"])[-1]
+        raise AbError(f"the compiled core of {name} did not build (exit {done.returncode}): {tail}")
+
+
+def _run_side(
+    tree: Path, scenario: str, duration_s: float, seed: int, cg_out: Path | None, core: str = "interpreted"
+) -> dict[str, Any]:
+    """One run of the side in ``tree`` (under cachegrind when ``cg_out`` is given) on ``core``: the child's line,
+    and the instruction count."""
+    cmd = [sys.executable, "-c", CHILD, scenario, repr(duration_s), str(seed)]
+    if cg_out is not None:
+        cmd = ["valgrind", "--tool=cachegrind", "--cache-sim=no", f"--cachegrind-out-file={cg_out}", *cmd]
+    done = subprocess.run(cmd, cwd=tree, env=_core_env(tree, core), capture_output=True, text=True)
     lines = [ln for ln in done.stdout.splitlines() if ln.startswith("{")]
     if done.returncode != 0 or not lines:
         tail = (done.stderr.strip().splitlines() or ["no output"])[-1]
         raise AbError(f"the run in {tree} failed (exit {done.returncode}): {tail}")
     res: dict[str, Any] = json.loads(lines[-1])
+    if core == "compiled" and not str(res.get("core", "")).startswith("compiled"):
+        raise AbError(f"the run in {tree} did not load its compiled core: {res.get('core')}")
     if cg_out is not None:
         res["instructions"] = summary_instructions(cg_out.read_text())
     return res
@@ -134,7 +164,7 @@ def _side(tree: Path, args: argparse.Namespace, name: str, work: Path) -> list[d
     runs = []
     for k in range(args.runs):
         print(f"ab: {name}: run {k + 1}/{args.runs} under valgrind", file=sys.stderr, flush=True)
-        runs.append(_run_side(tree, args.scenario, args.duration_s, args.seed, work / f"cg_{name}_{k}.out"))
+        runs.append(_run_side(tree, args.scenario, args.duration_s, args.seed, work / f"cg_{name}_{k}.out", args.core))
     return runs
 
 
@@ -142,6 +172,10 @@ def compare(sides: dict[str, Path], args: argparse.Namespace, work: Path) -> dic
     """Both sides (``base`` and ``head``, each a tree) measured: ``{"base": ..., "head": ..., "ratio": head /
     base}``."""
     out: dict[str, Any] = {}
+    if args.core == "compiled":  # both at once: a build is one core's work
+        with ThreadPoolExecutor(max_workers=2) as pool:
+            for built in [pool.submit(_build_core, name, tree) for name, tree in sides.items()]:
+                built.result()
     if args.measure == "instructions":
         with ThreadPoolExecutor(max_workers=args.jobs) as pool:
             futures = {name: pool.submit(_side, tree, args, name, work) for name, tree in sides.items()}
@@ -152,11 +186,11 @@ def compare(sides: dict[str, Path], args: argparse.Namespace, work: Path) -> dic
         runs_of: dict[str, list[dict[str, Any]]] = {name: [] for name in sides}
         for name, tree in sides.items():  # compiles the side's kernels (a fresh worktree has none cached)
             print(f"ab: {name}: warm-up run", file=sys.stderr, flush=True)
-            _run_side(tree, args.scenario, args.duration_s, args.seed, None)
+            _run_side(tree, args.scenario, args.duration_s, args.seed, None, args.core)
         for k in range(args.reps):
             for name, tree in sides.items():
                 print(f"ab: {name}: run {k + 1}/{args.reps}", file=sys.stderr, flush=True)
-                runs_of[name].append(_run_side(tree, args.scenario, args.duration_s, args.seed, None))
+                runs_of[name].append(_run_side(tree, args.scenario, args.duration_s, args.seed, None, args.core))
         for name, runs in runs_of.items():
             out[name] = {"runs": runs, "value": statistics.median(r["cpu_s"] for r in runs)}
         out["pair_ratios"] = [h["cpu_s"] / b["cpu_s"] for b, h in zip(runs_of["base"], runs_of["head"], strict=True)]
@@ -173,6 +207,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n", 1)[0])
     ap.add_argument("base", help="the commit to compare this working tree with (any git revision)")
     ap.add_argument("--measure", choices=("instructions", "cpu"), default="instructions")
+    ap.add_argument("--core", choices=("compiled", "interpreted"), default="compiled", help="what both sides run")
     ap.add_argument("--scenario", default=DEFAULT_SCENARIO, help="path inside each tree, or absolute")
     ap.add_argument("--duration-s", type=float, default=1500.0, help="the scenario's horizon for both sides")
     ap.add_argument("--seed", type=int, default=1)
@@ -214,6 +249,7 @@ def main(argv: list[str] | None = None) -> int:
     report = {
         "benchmark": "ab",
         "measure": args.measure,
+        "core": args.core,
         "scenario": args.scenario,
         "duration_s": args.duration_s,
         "seed": args.seed,

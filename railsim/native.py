@@ -24,7 +24,8 @@ three minutes of one core; it needs a C compiler and the Python headers (a machi
 Use: importing :mod:`railsim` calls :func:`activate`, which puts a finder in front of the import system that loads
 those modules from ``build/native/`` when the stamp matches the sources in the tree. Otherwise — never built, a
 source edited since, another interpreter — the interpreted modules load, and a build that is there but out of date
-says so once on stderr. ``RAILSIM_NATIVE=0`` asks for the interpreted modules. :data:`STATUS` says which ran.
+says so once on stderr when the first of them is imported (the build itself, which imports none, says nothing).
+``RAILSIM_NATIVE=0`` asks for the interpreted modules. :data:`STATUS` says which ran.
 """
 
 from __future__ import annotations
@@ -78,6 +79,8 @@ MODULES: tuple[str, ...] = (
     "railsim.engine.trips",
     "railsim.engine.coupling",
     "railsim.engine.insertion_reach",
+    "railsim.engine.settings",
+    "railsim.physics.vehicle",
     "railsim.engine.events.formations",
 )
 ROOT = Path(__file__).resolve().parent.parent
@@ -145,38 +148,56 @@ def activate(build_dir: Path = BUILD_DIR) -> str:
     """Load the compiled modules from ``build_dir`` from now on if the build matches the sources (module
     docstring); returns and sets :data:`STATUS`. Call it before any of :data:`MODULES` is imported."""
     global STATUS
-    if any(isinstance(f, _NativeFinder) for f in sys.meta_path):
+    if any(isinstance(f, (_NativeFinder, _StaleNotice)) for f in sys.meta_path):
         return STATUS
-    STATUS = _activate(build_dir)
+    STATUS, finder = _activate(build_dir)
+    if finder is not None:
+        sys.meta_path.insert(0, finder)
     return STATUS
 
 
-def _activate(build_dir: Path) -> str:
+def _activate(build_dir: Path) -> tuple[str, importlib.abc.MetaPathFinder | None]:
+    """The status, and the finder to put in front of the import system: the compiled modules', or the notice
+    that the build is out of date."""
     if os.environ.get(ENV, "1") == "0":
-        return f"interpreted ({ENV}=0)"
+        return f"interpreted ({ENV}=0)", None
     stamp = _stamp(build_dir)
     if stamp is None:
-        return "interpreted (the compiled core is not built: make native)"
+        return "interpreted (the compiled core is not built: make native)", None
     try:
         current = fingerprint()
     except OSError as exc:  # an installed copy without its sources: nothing to compare with
-        return f"interpreted (sources unreadable: {exc})"
+        return f"interpreted (sources unreadable: {exc})", None
     if {k: stamp.get(k) for k in current} != current:
         what = "interpreter" if stamp.get("sources_sha256") == current["sources_sha256"] else "sources"
-        print(
+        notice = _StaleNotice(
             f"railsim: the compiled core in {build_dir} was built for other {what}; running interpreted "
-            "(make native rebuilds it)",
-            file=sys.stderr,
+            "(make native rebuilds it)"
         )
-        return f"interpreted (the compiled core is out of date: other {what})"
+        return f"interpreted (the compiled core is out of date: other {what})", notice
     files = _extension_files(build_dir)
     if files is None:
-        return "interpreted (the compiled core's build folder is incomplete: make native)"
+        return "interpreted (the compiled core's build folder is incomplete: make native)", None
     loaded = [m for m in MODULES if m in sys.modules]
     if loaded:
-        return f"interpreted ({', '.join(loaded)} imported before railsim.native.activate)"
-    sys.meta_path.insert(0, _NativeFinder(files))
-    return f"compiled ({len(MODULES)} modules, {build_dir})"
+        return f"interpreted ({', '.join(loaded)} imported before railsim.native.activate)", None
+    return f"compiled ({len(MODULES)} modules, {build_dir})", _NativeFinder(files)
+
+
+class _StaleNotice(importlib.abc.MetaPathFinder):
+    """Says once on stderr that the build is out of date, when the first of :data:`MODULES` is imported: the build
+    itself, which imports none of them, says nothing. Finds nothing itself."""
+
+    def __init__(self, message: str) -> None:
+        self.message: str | None = message
+
+    def find_spec(
+        self, fullname: str, path: Sequence[str] | None, target: ModuleType | None = None
+    ) -> importlib.machinery.ModuleSpec | None:
+        if self.message is not None and fullname in MODULES:
+            print(self.message, file=sys.stderr)
+            self.message = None
+        return None
 
 
 # --------------------------------------------------------------------------------------------------- the build

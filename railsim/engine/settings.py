@@ -6,7 +6,7 @@ overlap is ``protection_margin_m``); the named constants below are rules that ar
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from typing import Any
 
 INF = float("inf")
@@ -44,6 +44,11 @@ class EngineSettings:
     desync_tolerance_m: float = 0.05  # railsim's chainage and SUMO's lane position may differ this much
     stall_timeout_s: float = 300.0  # a train standing this long with no reason (no stop, no hold) stalls the run
     platform_berths: bool = True  # a train does not run into a platform the train ahead stands on (platforms.py)
+
+    def __reduce__(self) -> tuple[type[EngineSettings], tuple[Any, ...]]:
+        """Pickled and copied as a call of the constructor with the fields in order (compiled by
+        :mod:`railsim.native`, a frozen dataclass has no way to set its fields back one by one)."""
+        return (type(self), tuple(getattr(self, f.name) for f in fields(self)))
 
     def with_interlocking(self, spec: Any) -> EngineSettings:
         """These settings with a scenario's ``interlocking:`` knobs (an ``InterlockingSpec``) applied."""

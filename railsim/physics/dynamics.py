@@ -134,7 +134,7 @@ def flags_from_mask(mask: int) -> frozenset[str]:
     return _MASK_SETS[int(mask)]
 
 
-@dataclass(slots=True)
+@dataclass(slots=True, init=False)
 class PlantState:
     """What the plant remembers between steps.
 
@@ -142,12 +142,19 @@ class PlantState:
     ``u_{k−1}``. A train inserted at rest starts with both at 0.
 
     A value: each step makes a new one and nothing changes one in place. It is not declared frozen because one is
-    made per train and step, and a frozen dataclass's constructor costs three times a plain one's.
+    made per train and step, and a frozen dataclass's constructor costs three times a plain one's; its
+    constructor is written out because the one ``dataclass`` generates stays interpreted in the compiled core
+    (:mod:`railsim.native`), a Python call per train and step.
     """
 
     speed_mps: float
-    applied_accel_mps2: float = 0.0
-    target_accel_mps2: float = 0.0
+    applied_accel_mps2: float
+    target_accel_mps2: float
+
+    def __init__(self, speed_mps: float, applied_accel_mps2: float = 0.0, target_accel_mps2: float = 0.0) -> None:
+        self.speed_mps = speed_mps
+        self.applied_accel_mps2 = applied_accel_mps2
+        self.target_accel_mps2 = target_accel_mps2
 
 
 @dataclass(frozen=True, slots=True)

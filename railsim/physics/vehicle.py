@@ -21,7 +21,7 @@ data pack; see that file's comments).
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, fields, replace
 from functools import lru_cache
 from importlib import resources
 from typing import Any
@@ -70,6 +70,11 @@ class VehicleParams:
     def net_to_applied(self, net_accel_mps2: float, speed_mps: float, gradient_permille: float = 0.0) -> float:
         """Applied specific force [m/s²] that yields ``net_accel_mps2`` once resistance and gradient act."""
         return net_accel_mps2 + self.resistance_n(speed_mps, gradient_permille) / self.effective_mass_kg
+
+    def __reduce__(self) -> tuple[type[VehicleParams], tuple[Any, ...]]:
+        """Pickled and copied as a call of the constructor with the fields in order (compiled by
+        :mod:`railsim.native`, a frozen dataclass has no way to set its fields back one by one)."""
+        return (type(self), tuple(getattr(self, f.name) for f in fields(self)))
 
     def with_overrides(self, **changes: Any) -> VehicleParams:
         """Return a copy with some fields replaced (scenario overrides on top of a preset)."""

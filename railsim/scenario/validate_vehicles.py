@@ -24,7 +24,15 @@ from railsim.physics.vehicle import VehicleParams, preset, preset_names
 from railsim.scenario.model import PLANT_KINDS, REQUIRED_ROLES, ROLES, ControllerSpec, PlantSpec, ServiceSpec
 from railsim.scenario.validate import Checker, did_you_mean, short_repr
 
-VEHICLE_FIELDS = {f.name: f for f in dataclasses.fields(VehicleParams) if f.name != "name"}
+
+def _type_name(f: dataclasses.Field[Any]) -> str:
+    """A dataclass field's type as written ("float", "int", "str"): the annotation's text under postponed
+    annotations, the class itself where the dataclass is compiled (railsim.native: VehicleParams is)."""
+    return f.type if isinstance(f.type, str) else str(getattr(f.type, "__name__", f.type))
+
+
+# VehicleParams' fields a scenario may set, and the type of each ("float", "int", "str")
+VEHICLE_FIELDS = {f.name: _type_name(f) for f in dataclasses.fields(VehicleParams) if f.name != "name"}
 # Lower bounds of vehicle fields: ("gt"|"ge", bound). Fields not listed only need the right type.
 _VEHICLE_BOUNDS: dict[str, tuple[str, float]] = {
     "length_m": ("gt", 0.0),
@@ -81,9 +89,9 @@ def vehicle(ck: Checker, key: str, body: Any, path: str) -> tuple[VehicleParams,
             )
         base = preset(preset_name)
         # Presets are our data, but coerce anyway: PyYAML reads "1.0e9" as a string.
-        for fname, f in VEHICLE_FIELDS.items():
+        for fname, ftype in VEHICLE_FIELDS.items():
             v = getattr(base, fname)
-            values[fname] = int(v) if f.type == "int" else float(v) if f.type == "float" else v
+            values[fname] = int(v) if ftype == "int" else float(v) if ftype == "float" else v
     else:
         missing = [f for f in fields if f not in body and not (f == "max_speed_mps" and "max_speed_kmh" in body)]
         if missing:
@@ -99,7 +107,7 @@ def vehicle(ck: Checker, key: str, body: Any, path: str) -> tuple[VehicleParams,
             values["max_speed_mps"] = ck.number(v, fpath, gt=0.0) / _KMH_PER_MPS
             continue
         kind, bound = _VEHICLE_BOUNDS.get(fname, ("", 0.0))
-        ftype = VEHICLE_FIELDS[fname].type
+        ftype = VEHICLE_FIELDS[fname]
         if ftype == "int":
             values[fname] = ck.integer(v, fpath, ge=int(bound) if kind == "ge" else None)
         elif ftype == "float":

@@ -29,7 +29,8 @@ def test_an_unknown_revision_is_refused(capsys: pytest.CaptureFixture[str]) -> N
 
 def test_a_failed_side_removes_its_worktree(capsys: pytest.CaptureFixture[str], tmp_path: Path) -> None:
     before = _worktrees()
-    assert load_ab().main(["HEAD", "--measure", "cpu", "--scenario", str(tmp_path / "missing.yaml")]) == 2
+    argv = ["HEAD", "--measure", "cpu", "--core", "interpreted", "--scenario", str(tmp_path / "missing.yaml")]
+    assert load_ab().main(argv) == 2
     err = capsys.readouterr().err.strip().splitlines()[-1]
     assert err.startswith("ab: the run in ") and "failed (exit" in err
     assert _worktrees() == before

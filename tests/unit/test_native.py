@@ -20,14 +20,14 @@ def _stamped(tmp_path: Path, **changes: str) -> Path:
 
 def test_without_a_build_the_interpreted_modules_load(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     monkeypatch.delenv(native.ENV, raising=False)
-    assert native._activate(tmp_path / "none") == "interpreted (the compiled core is not built: make native)"
+    assert native._activate(tmp_path / "none") == ("interpreted (the compiled core is not built: make native)", None)
 
 
 def test_asked_for_by_the_environment_the_interpreted_modules_load(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.setenv(native.ENV, "0")
-    assert native._activate(_stamped(tmp_path)) == "interpreted (RAILSIM_NATIVE=0)"
+    assert native._activate(_stamped(tmp_path)) == ("interpreted (RAILSIM_NATIVE=0)", None)
 
 
 @pytest.mark.parametrize(("field", "what"), [("sources_sha256", "sources"), ("python", "interpreter")])
@@ -35,16 +35,21 @@ def test_a_build_for_other_sources_or_another_interpreter_is_not_loaded_and_says
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch, capsys: pytest.CaptureFixture[str], field: str, what: str
 ) -> None:
     monkeypatch.delenv(native.ENV, raising=False)
-    status = native._activate(_stamped(tmp_path, **{field: "other"}))
+    status, notice = native._activate(_stamped(tmp_path, **{field: "other"}))
     assert status == f"interpreted (the compiled core is out of date: other {what})"
+    assert notice is not None and capsys.readouterr().err == ""  # nothing yet: no engine module imported
+    assert notice.find_spec("json", None) is None and capsys.readouterr().err == ""
+    assert notice.find_spec("railsim.engine.loop", None) is None  # it finds nothing: the sources load
     assert f"was built for other {what}; running interpreted" in capsys.readouterr().err
+    notice.find_spec("railsim.engine.control", None)
+    assert capsys.readouterr().err == ""  # once
 
 
 def test_a_matching_stamp_without_its_extension_modules_is_not_loaded(
     tmp_path: Path, monkeypatch: pytest.MonkeyPatch
 ) -> None:
     monkeypatch.delenv(native.ENV, raising=False)
-    assert native._activate(_stamped(tmp_path)).startswith(
+    assert native._activate(_stamped(tmp_path))[0].startswith(
         "interpreted (the compiled core's build folder is incomplete"
     )
 
