@@ -11,10 +11,13 @@ suite, the golden tier included, runs in a child process on the compiled core an
 What is compiled: :data:`MODULES` — the loop, the control stage, the train's state and the plant, the truth pass,
 occupancy, stops, berths, comms, the event clock and log, safety, the watchdog, recording, the SUMO bridge, the
 route locks (their switch walk and authority ends are mypyc *traits*, the parts a class may have besides its one
-base class), the single-track sections and crossings, the interlocking, formations and the trips. Their classes
-become *native*: their attributes are the annotated ones (none can be added at run time), their methods
-cannot be patched, an interpreted subclass needs ``@mypyc_attr(allow_interpreted_subclasses=True)``, and a value
-of the wrong type handed to an annotated parameter raises :class:`TypeError` instead of being duck-typed.
+base class), the single-track sections and crossings, the interlocking, formations, the trips, the engine's settings
+and the vehicle's parameters. Their classes become *native*: their attributes are the annotated ones (none can be
+added at run time), their methods cannot be patched, an interpreted subclass needs
+``@mypyc_attr(allow_interpreted_subclasses=True)``, and a value of the wrong type handed to an annotated parameter
+raises :class:`TypeError` instead of being duck-typed (an ``int`` given for a ``float`` becomes a ``float``). A
+dataclass keeps its generated methods interpreted (write a hot constructor out), its fields' ``type`` is the class
+rather than its name, and a frozen one unpickles only through ``__reduce__`` (a constructor call).
 
 Build: ``python -m railsim.compile_core`` (``make native``; ``make demo`` and ``make test`` call it) compiles them
 into ``build/native/`` and writes a stamp with the hash of their sources and the interpreter's version; with
