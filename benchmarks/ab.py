@@ -19,8 +19,8 @@ that commit, ``head`` at this checkout's HEAD with its uncommitted changes appli
 git does not ignore) copied. ``--core compiled`` (the default: what ``make demo`` runs) builds each side's compiled
 core in its worktree first (:mod:`railsim.native`; about three minutes, both at once) and checks that every run
 loaded it; ``--core interpreted`` runs both on their interpreted modules (``RAILSIM_NATIVE=0``), and is the only
-choice for a base older than the compiled core. Alike folders matter to a count: the same code run from this checkout and from a fresh
-worktree differed by 0.1-0.5 % (paths, and the caches already in the folder). Each side imports its own
+choice for a base older than the compiled core. Alike folders matter to a count: the same code run from this
+checkout and from a fresh worktree differed by 0.1-0.5 % (paths, and the caches already in the folder). Each side imports its own
 ``railsim`` (``PYTHONPATH``) and runs its own copy of the scenario file (``--scenario`` is a path inside the tree;
 an absolute path is used by both). Both sides use this checkout's virtual environment.
 Prints one JSON object: each side's runs and value, and ``ratio`` = this tree ÷ base (below 1: this tree does
@@ -139,7 +139,7 @@ def _build_core(name: str, tree: Path) -> None:
 
 
 def _run_side(
-    tree: Path, scenario: str, duration_s: float, seed: int, cg_out: Path | None, core: str = "interpreted"
+    tree: Path, scenario: str, duration_s: float, seed: int, cg_out: Path | None, core: str
 ) -> dict[str, Any]:
     """One run of the side in ``tree`` (under cachegrind when ``cg_out`` is given) on ``core``: the child's line,
     and the instruction count."""

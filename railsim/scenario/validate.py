@@ -39,6 +39,12 @@ _ID_RE = re.compile(r"^[A-Za-z0-9_][A-Za-z0-9_\-]*$")
 # ---- wording ---------------------------------------------------------------------------------------------------
 
 
+def field_type_name(f: dataclasses.Field[Any]) -> str:
+    """A dataclass field's type as written ("float", "int", "str"): the annotation's text under postponed
+    annotations, the class itself where the dataclass is compiled (railsim.native compiles VehicleParams)."""
+    return f.type if isinstance(f.type, str) else str(getattr(f.type, "__name__", f.type))
+
+
 def join_path(path: str, key: Any) -> str:
     """``path.key`` (just ``key`` at the top level)."""
     return f"{path}.{key}" if path else str(key)
@@ -235,7 +241,7 @@ class Checker:
         """
         self.plausible_tree(dict(values), path)
         cls = getattr(importlib.import_module(module), cls_name)
-        types = {f.name: str(f.type) for f in dataclasses.fields(cls)}
+        types = {f.name: field_type_name(f) for f in dataclasses.fields(cls)}
         names = set(types)
         for key in values:
             if key not in names:

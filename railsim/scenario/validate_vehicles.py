@@ -22,17 +22,10 @@ from typing import Any
 
 from railsim.physics.vehicle import VehicleParams, preset, preset_names
 from railsim.scenario.model import PLANT_KINDS, REQUIRED_ROLES, ROLES, ControllerSpec, PlantSpec, ServiceSpec
-from railsim.scenario.validate import Checker, did_you_mean, short_repr
-
-
-def _type_name(f: dataclasses.Field[Any]) -> str:
-    """A dataclass field's type as written ("float", "int", "str"): the annotation's text under postponed
-    annotations, the class itself where the dataclass is compiled (railsim.native: VehicleParams is)."""
-    return f.type if isinstance(f.type, str) else str(getattr(f.type, "__name__", f.type))
-
+from railsim.scenario.validate import Checker, did_you_mean, field_type_name, short_repr
 
 # VehicleParams' fields a scenario may set, and the type of each ("float", "int", "str")
-VEHICLE_FIELDS = {f.name: _type_name(f) for f in dataclasses.fields(VehicleParams) if f.name != "name"}
+VEHICLE_FIELDS = {f.name: field_type_name(f) for f in dataclasses.fields(VehicleParams) if f.name != "name"}
 # Lower bounds of vehicle fields: ("gt"|"ge", bound). Fields not listed only need the right type.
 _VEHICLE_BOUNDS: dict[str, tuple[str, float]] = {
     "length_m": ("gt", 0.0),
@@ -145,14 +138,14 @@ def vehicle_plant(ck: Checker, body: Mapping[str, Any], path: str) -> PlantSpec 
     else:
         from railsim.physics.monorail import MonorailParams as plant_cls  # type: ignore[assignment]
 
-    fields_ = {f.name: f for f in dataclasses.fields(plant_cls)}
+    fields_ = {f.name: field_type_name(f) for f in dataclasses.fields(plant_cls)}
     extra = ("wind",) if kind == "multipoint" else ()
     m = dict(ck.mapping(params_in, f"{path}.plant_params", (), (*fields_, *extra)))
     params: dict[str, Any] = {}
     if "wind" in m:
         params["wind"] = _plant_wind(ck, m.pop("wind"), f"{path}.plant_params.wind")
     for name, v in m.items():
-        ftype = str(fields_[name].type)
+        ftype = fields_[name]
         if name == "n_cars":
             params[name] = ck.integer(v, f"{path}.plant_params.{name}", ge=1)
         elif ftype == "str":
