@@ -9,11 +9,11 @@ and the interpreted module stays the readable reference (the unit tier runs it i
 suite, the golden tier included, runs in a child process on the compiled core and must give the same bytes).
 
 What is compiled: :data:`MODULES` — the loop, the control stage, the train's state and the plant, the truth pass,
-occupancy, stops, berths, comms, the event clock and log, safety, the watchdog, recording, the SUMO bridge, the
-route locks (their switch walk and authority ends are mypyc *traits*, the parts a class may have besides its one
-base class), the single-track sections and crossings, the interlocking, formations, the trips, the engine's settings
-and the vehicle's parameters. Their classes become *native*: their attributes are the annotated ones (none can be
-added at run time), their methods cannot be patched, an interpreted subclass needs
+occupancy, stops, berths, comms (and its messages in flight), the event clock and log, safety, the watchdog,
+recording, the SUMO bridge, the route locks (their switch walk and authority ends are mypyc *traits*, the parts a
+class may have besides its one base class), the single-track sections and crossings, the interlocking, formations, the
+trips, the engine's settings and the vehicle's parameters. Their classes become *native*: their attributes are the
+annotated ones (none can be added at run time), their methods cannot be patched, an interpreted subclass needs
 ``@mypyc_attr(allow_interpreted_subclasses=True)``, and a value of the wrong type handed to an annotated parameter
 raises :class:`TypeError` instead of being duck-typed (an ``int`` given for a ``float`` becomes a ``float``). A
 dataclass keeps its generated methods interpreted (write a hot constructor out), its fields' ``type`` is the class
@@ -55,6 +55,7 @@ MODULES: tuple[str, ...] = (
     "railsim.engine.stops",
     "railsim.engine.knowledge",
     "railsim.engine.events.comms",
+    "railsim.engine.events.in_flight",
     "railsim.engine.events.clock",
     "railsim.engine.occupancy",
     "railsim.engine.truth",

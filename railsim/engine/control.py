@@ -220,17 +220,20 @@ class ControlStage:
         train."""
         rears = rears if rears is not None else [ASK] * len(active)
         sits = [self._situation(t, tr, ahead[tr.train_id], rear) for tr, rear in zip(active, rears)]
-        return [self._decide(t, tr, ahead[tr.train_id], sit) for tr, sit in zip(active, sits)]
+        drivers = bool(self.extensions.overriding("drives"))  # (asked once a step, not train by train)
+        return [self._decide(t, tr, ahead[tr.train_id], sit, drivers) for tr, sit in zip(active, sits)]
 
-    def _decide(self, t: float, tr: TrainRuntime, a: Ahead | None, sit: Situation) -> float:
-        """One train's roles now, then its command and plant step; the speed for SUMO."""
+    def _decide(self, t: float, tr: TrainRuntime, a: Ahead | None, sit: Situation, drivers: bool) -> float:
+        """One train's roles now, then its command and plant step; the speed for SUMO. ``drivers``: an installed
+        extension may drive trains (:meth:`ExtensionSet.driver_of` is asked)."""
         f = self.formations.of_follower.get(tr.train_id)
         fstate = self.formations.manager.state(f.id) if f is not None else "free"
         leader = self.formations.leader_of(f) if f is not None else None
         ato = tr.controllers["ato"]
         if fstate in COUPLED_STATES and tr.controllers.get("ato_closing") is not None and not tr.degraded:
             ato = tr.controllers["ato_closing"]
-        driver = self.extensions.driver_of(tr.train_id)  # an extension flying a plan for this train, or None
+        # an extension flying a plan for this train, or None
+        driver = self.extensions.driver_of(tr.train_id) if drivers else None
         vc_role = (
             f is not None
             and fstate in COUPLED_STATES

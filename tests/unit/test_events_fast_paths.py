@@ -6,6 +6,9 @@
   one batch, and the engine's reports go in flight channel by channel when no one watches the deliveries. The
   reference (:class:`_ReferenceChannel`) draws, decides and delivers one message after another, each its own light
   delivery, in the order the reports were sent (a train's ground report, then its radio reports).
+- Messages of random delays stay with their channel (a :class:`~railsim.engine.events.clock.Source`) until the
+  layer has it deliver them: against the reference with delivery times that tie with each other and with timed
+  events scheduled before and after them (:func:`_ties_program`).
 
 Each case compares, at every point where something reads a mailbox (between steps, and inside timed events placed
 before, at and after the deliveries), every receiver's ``latest`` of every sender, the channels' counters and
@@ -304,3 +307,59 @@ def test_constant_delay_statistics_are_welfords_one_by_one() -> None:
         for d in delays:
             one_by_one.add(d)
         assert vars(folded) == vars(one_by_one)
+
+
+def _ties_program(layer: EventLayer, channel_type: type[Channel], watch: bool, seed: int) -> list[Any]:
+    """Messages put in flight by hand at times that tie with each other, with timed reads (scheduled before and
+    after the messages went in flight, so with smaller and larger event ids) and with a simpy process started at
+    the same time (its first event is URGENT), on two channels: every read's snapshot and the final counters."""
+    rng = np.random.default_rng(seed)
+    channels = {name: channel_type(layer, name, DelaySpec("uniform", low_s=0.0, high_s=1.0)) for name in ("t2g", "t2t")}
+    seen: list[Any] = []
+    if watch:
+        channels["t2t"].subscribe(lambda m: seen.append(("delivered", m.seq, layer.now_s)))
+
+    def read(label: str) -> Any:
+        return lambda ts: seen.append((label, ts, _snapshot(channels)))
+
+    def proc(label: str) -> Any:
+        seen.append((label, layer.now_s, _snapshot(channels)))
+        yield layer.env.timeout(0.0)
+        seen.append((label + "/after", layer.now_s, _snapshot(channels)))
+
+    grid = [0.1, 0.2, 0.2, 0.3, 0.5]  # delivery offsets: ties on purpose
+    t = 0.0
+    for step in range(12):
+        for when in rng.choice(grid, size=2):
+            layer.at(t + float(when), read(f"early{step}"), None)
+        for name, ch in channels.items():
+            senders = [str(s) for s in rng.choice(_TRAINS, size=int(rng.integers(1, 6)))]
+            offsets = [float(x) for x in rng.choice(grid, size=len(senders))]
+            ch.sent += len(senders)
+            msgs = []
+            for sender, off in zip(senders, offsets):
+                ch._seq += 1
+                msgs.append(Message(sender, "ground", (name, step), t, t + off, off, ch._seq, name))
+            ch.post(msgs)
+        for when in rng.choice(grid, size=2):
+            layer.at(t + float(when), read(f"late{step}"), None)
+        if step % 3 == 0:
+            layer.at(t + float(rng.choice(grid)), lambda _ts, s=step: layer.env.process(proc(f"proc{s}")), None)
+        t = round(t + float(rng.choice([0.1, 0.2])), 9)
+        layer.advance_to(t)
+        seen.append(("step", layer.now_s, _snapshot(channels)))
+    layer.advance_to(t + 5.0)
+    seen.append(("end", _snapshot(channels), [ch.stats() for ch in channels.values()]))
+    return seen
+
+
+@pytest.mark.parametrize("watch", [False, True])
+@pytest.mark.parametrize("seed", range(6))
+def test_messages_in_flight_take_their_place_among_events_at_the_same_time(watch: bool, seed: int) -> None:
+    """A channel's messages in flight (kept by the channel, :class:`railsim.engine.events.clock.Source`) are
+    delivered where one light delivery per message would be: ties with each other and with timed events broken
+    by event id, a process's first (urgent) event before them."""
+    fast = _ties_program(EventLayer(0.0, rng=np.random.default_rng(seed)), Channel, watch, seed)
+    reference = _ties_program(_ReferenceLayer(0.0, rng=np.random.default_rng(seed)), _ReferenceChannel, watch, seed)
+    assert fast == reference
+    assert fast[-1][2][0].overtaken + fast[-1][2][1].overtaken > 0, "no message overtaken: test too weak"

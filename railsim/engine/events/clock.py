@@ -38,6 +38,13 @@ plain tuples beside simpy's queue. Each takes an event id from simpy's own count
 :meth:`EventLayer.advance_to` merges the two queues by ``(time, priority, event id)`` — exactly the order simpy
 would have run the same calls as timeouts scheduled at those moments, with ``now_s`` standing at the call's time.
 
+A channel with random delays has thousands of messages in flight; it keeps them itself, as a :class:`Source`
+(:meth:`EventLayer.add_source`): each message still takes its event id when it goes in flight, and the source tells
+the layer the ``(time, id)`` of its next delivery. When that is the earliest thing due, the layer asks the source to
+deliver everything of its own that sorts before the next thing that is not (the heads of the heap, of simpy's
+queue and, where someone watches deliveries, of the other sources) — in one call, without a heap entry per message.
+Nothing else happens in between, so the order is the one a light delivery per message would give.
+
 Randomness
 ----------
 The layer holds the scenario's ``numpy.random.Generator``. Modules that draw random numbers ask for their
@@ -51,6 +58,7 @@ import math
 from collections.abc import Callable, Generator, Iterable
 from dataclasses import dataclass, field
 from heapq import heappop, heappush
+from itertools import islice
 
 import numpy as np
 import simpy
@@ -79,6 +87,24 @@ class TimeoutAt(simpy.Event):
         self._ok = True
         self._value = value
         env.schedule_at(self, t_s)
+
+
+class Source:
+    """Timed deliveries kept by their owner in their own order (a channel's messages in flight, see "Light
+    deliveries"), each with an event id from simpy's counter. ``head_t``/``head_eid``: the time and id of the next
+    one (``head_t`` infinite: none); ``watched``: someone outside sees each delivery (then the layer has it deliver
+    one at a time, the clock at its time)."""
+
+    def __init__(self) -> None:
+        self.head_t = math.inf
+        self.head_eid = 0
+        self.watched_now = False
+
+    def deliver_before(self, limit_t: float, limit_p: int, limit_eid: int, until_s: float, one: bool) -> None:
+        """Deliver, in ``(time, id)`` order, those due at or before ``until_s`` that sort before ``(limit_t,
+        limit_p, limit_eid)`` (time, priority, id of the next thing that is not this source's); only the first of
+        them if ``one``. Afterwards ``head_t``/``head_eid`` name the next one left."""
+        raise NotImplementedError
 
 
 @dataclass(eq=False)
@@ -116,6 +142,7 @@ class EventLayer:
         self.rng = rng
         # light deliveries: (time, priority, simpy event id, callback, value), see "Light deliveries"
         self._light: list[tuple[float, EventPriority, int, Callable[[object], object], object]] = []
+        self._sources: list[Source] = []  # deliveries their owners keep (:meth:`add_source`)
 
     @property
     def now_s(self) -> float:
@@ -137,25 +164,72 @@ class EventLayer:
             raise ValueError(f"time goes forward only: asked to advance to {t_s!r} s, now is {env.now!r} s")
         light = self._light
         queue = env._queue
-        if (not light or light[0][0] > t_s) and (not queue or queue[0][0] > t_s):
+        sources = self._sources
+        if (not light or light[0][0] > t_s) and (not queue or queue[0][0] > t_s) and self._sources_after(t_s):
             env._now = t_s
             return
         while True:
-            if light and light[0][0] <= t_s:
+            # the earliest of the heap's head, simpy's head and each source's next delivery, by (time, priority, id)
+            kind = 0
+            best_t, best_p, best_e = math.inf, 0, 0
+            if light:
                 head = light[0]
-                if queue:  # simpy's head first if it sorts before: (time, priority, id), ids are unique
-                    q = queue[0]
-                    if q[0] < head[0] or (q[0] == head[0] and (q[1], q[2]) < (head[1], head[2])):
-                        env.step()
-                        continue
+                kind, best_t, best_p, best_e = 1, head[0], head[1], head[2]
+            if queue:
+                q = queue[0]
+                if kind == 0 or _before(q[0], q[1], q[2], best_t, best_p, best_e):
+                    kind, best_t, best_p, best_e = 2, q[0], q[1], q[2]
+            src: Source | None = None
+            for s in sources:
+                if s.head_t <= t_s and (kind == 0 or _before(s.head_t, NORMAL, s.head_eid, best_t, best_p, best_e)):
+                    kind, best_t, best_p, best_e, src = 3, s.head_t, NORMAL, s.head_eid, s
+            if kind == 0 or best_t > t_s:
+                break
+            if kind == 1:
                 when, _, _, callback, value = heappop(light)
                 env._now = when  # as simpy's step sets it: the call sees the clock at its own time
                 callback(value)
-            elif queue and queue[0][0] <= t_s:
+            elif kind == 2:
                 env.step()
             else:
-                break
+                assert src is not None
+                self._drain(src, t_s)
         env._now = t_s
+
+    def _sources_after(self, t_s: float) -> bool:
+        """Is every source's next delivery after ``t_s``?"""
+        for s in self._sources:
+            if s.head_t <= t_s:
+                return False
+        return True
+
+    def _drain(self, src: Source, t_s: float) -> None:
+        """Let ``src`` deliver what it has before the next thing that is not its own: the heap's head, simpy's
+        head and, if ``src`` or another source is watched, that source's next delivery."""
+        limit_t, limit_p, limit_e = math.inf, 0, 0
+        light = self._light
+        queue = self.env._queue
+        if light:
+            limit_t, limit_p, limit_e = light[0][0], light[0][1], light[0][2]
+        if queue:
+            q = queue[0]
+            if _before(q[0], q[1], q[2], limit_t, limit_p, limit_e):
+                limit_t, limit_p, limit_e = q[0], q[1], q[2]
+        for s in self._sources:
+            if s is not src and (s.watched_now or src.watched_now):
+                if _before(s.head_t, NORMAL, s.head_eid, limit_t, limit_p, limit_e):
+                    limit_t, limit_p, limit_e = s.head_t, NORMAL, s.head_eid
+        src.deliver_before(limit_t, limit_p, limit_e, t_s, src.watched_now)
+
+    def add_source(self, source: Source) -> None:
+        """Have :meth:`advance_to` run ``source``'s deliveries in their place among the rest (see "Light
+        deliveries")."""
+        self._sources.append(source)
+
+    def next_eids(self, n: int) -> list[int]:
+        """The next ``n`` event ids from simpy's counter (the tie-break of equal times), as scheduling ``n`` events
+        one after another takes them."""
+        return list(islice(self.env._eid, n))
 
     def deliver_at(self, t_s: float, callback: Callable[[object], object], value: object) -> None:
         """Call ``callback(value)`` at exactly ``t_s`` (≥ now), in simpy's order (see "Light deliveries")."""
@@ -241,3 +315,8 @@ class EventLayer:
                 self.log.record(t_s, handle.kind, handle.subject, n=n)
             callback(t_s)
             n += 1
+
+
+def _before(t1: float, p1: int, e1: int, t2: float, p2: int, e2: int) -> bool:
+    """Does ``(t1, p1, e1)`` sort before ``(t2, p2, e2)`` (simpy's order of events: time, priority, id)?"""
+    return t1 < t2 or (t1 == t2 and (p1 < p2 or (p1 == p2 and e1 < e2)))

@@ -23,7 +23,9 @@ take their event ids (the tie-break of equal times) exactly as one send after an
 
 The radio every step costs little per message. Messages due at one time — every message of a constant delay
 sent at once, the zero-delay "perfect communication" included — take consecutive event ids, so they travel as one
-light delivery that delivers them in turn; a constant-delay channel that loses nothing (no ``loss_prob``, no
+light delivery that delivers them in turn; messages of random delays stay with the channel, each batch sorted by
+(time, event id), and the event layer has them delivered, all that are due before the next other thing, in one
+call (:mod:`railsim.engine.events.in_flight`); a constant-delay channel that loses nothing (no ``loss_prob``, no
 outage) moves its stream past the loss uniforms without reading them (they could not lose a message); the delay
 statistics are folded in delivery order, a block at a time and when read (:meth:`Channel.stats`). The mailboxes, the
 counters, the statistics and the streams are those of one message after another
@@ -66,6 +68,7 @@ import numpy as np
 import simpy
 
 from railsim.engine.events.clock import EventLayer
+from railsim.engine.events.in_flight import InFlight
 from railsim.errors import ConfigError
 
 DelayDist = Literal["constant", "uniform", "normal", "lognormal", "exponential"]
@@ -334,6 +337,9 @@ class Channel:
             raise ConfigError(None, f"comms.{name}.loss_prob", f"expected a probability in [0, 1], got {loss_prob!r}")
         self._layer = layer
         self._env = layer.env
+        # messages of differing delivery times, delivered when the layer asks (registered at the first of them)
+        self._in_flight = InFlight(self._deliver_quietly, self._deliver_at)
+        self._source = False
         self.name = name
         self.delay = delay
         self.loss_prob = float(loss_prob)
@@ -449,11 +455,54 @@ class Channel:
         live = [m for m in msgs if m is not None]
         if not live:
             return
-        when_s = live[0].delivered_s
-        if len(live) > 1 and all(m.delivered_s == when_s for m in live):
+        when_s = live[0][4]  # (delivered_s: by index, a plain tuple read in compiled code)
+        if len(live) > 1 and all(m[4] == when_s for m in live):
             self._layer.deliver_at(when_s, self._on_batch, live)  # type: ignore[arg-type]
         else:
-            self._layer.deliver_all(self._on_delivery, [(m.delivered_s, m) for m in live])  # type: ignore[arg-type]
+            self._fly(live)
+
+    def _fly(self, live: list[Message]) -> None:
+        """Messages of differing delivery times in flight: each takes its event id now, in this order, as a timed
+        delivery of its own would; :class:`~railsim.engine.events.in_flight.InFlight` keeps them in order and the
+        layer has it deliver them."""
+        layer = self._layer
+        if not self._source:
+            layer.add_source(self._in_flight)
+            self._source = True
+        times = [m[4] for m in live]  # delivered_s
+        if not min(times) >= self._env.now:
+            raise ValueError(f"time {min(times)!r} s is before now ({self._env.now!r} s)")
+        self._in_flight.add(times, layer.next_eids(len(live)), live)
+
+    def _deliver_at(self, t_s: float, msg: Message) -> None:
+        """One message delivered with the clock at its time (someone watches each delivery)."""
+        self._env._now = t_s
+        self._on_delivery(msg)
+
+    def _deliver_quietly(self, msgs: list[Message]) -> None:
+        """:meth:`_on_delivery` of each message in turn, with no subscriber to tell."""
+        self._keep(msgs)
+        self._unfolded += [m[5] for m in msgs]  # delay_s
+        if len(self._unfolded) >= _BLOCK:
+            self._fold_delays()
+
+    def _keep(self, msgs: list[Message]) -> None:
+        """The mailboxes and the overtaken count after delivering ``msgs`` in turn: a receiver keeps the newest-sent
+        message of each sender."""
+        box: dict[str, Message] = {}
+        box_of: str | None = None
+        overtaken = 0
+        for msg in msgs:
+            sender, receiver, _, sent_s, _, _, seq, _ = msg
+            if receiver is not box_of:
+                box_of = receiver
+                box = self.mailbox(receiver)
+            current = box.get(sender)
+            if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
+                box[sender] = msg
+            else:
+                overtaken += 1
+        self.overtaken += overtaken
 
     def out(self, train_id: str, t_s: float) -> bool:
         """Is ``train_id`` cut off this channel at ``t_s`` (an outage window covers it)?"""
@@ -501,31 +550,13 @@ class Channel:
             for msg in msgs:
                 self._on_delivery(msg)
             return
-        box: dict[str, Message] = {}
-        box_of = None
-        overtaken = 0
-        delay_s = msgs[0].delay_s
-        same_delay = True
-        for msg in msgs:
-            sender, receiver, _, sent_s, _, d_s, seq, _ = msg
-            if receiver is not box_of:
-                box_of = receiver
-                box = self.mailbox(receiver)
-            current = box.get(sender)
-            if current is None or sent_s > current[3] or (sent_s == current[3] and seq > current[6]):
-                box[sender] = msg
-            else:
-                overtaken += 1
-            if d_s != delay_s:
-                same_delay = False
-        self.overtaken += overtaken
-        if same_delay:
+        delay_s = msgs[0][5]
+        if all(m[5] == delay_s for m in msgs):  # (delay_s) every message of a constant delay: counted at once
+            self._keep(msgs)
             self._fold_delays()
             self._delays.add_same(delay_s, len(msgs))
         else:
-            self._unfolded += [msg.delay_s for msg in msgs]
-            if len(self._unfolded) >= _BLOCK:
-                self._fold_delays()
+            self._deliver_quietly(msgs)
 
     # ------------------------------------------------------------------ outages
     def _outage_window(self, outage: Outage) -> Generator[simpy.Event, None, None]:
@@ -569,6 +600,7 @@ class Channel:
     def subscribe(self, callback: Callable[[Message], object]) -> None:
         """Call ``callback(message)`` at every delivery (overtaken messages included), in delivery order."""
         self._subscribers.append(callback)
+        self._in_flight.watched_now = True
 
     def stats(self) -> ChannelStats:
         """Counters and delay statistics so far."""
