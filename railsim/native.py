@@ -8,16 +8,17 @@ annotated ``float`` and ``int`` locals is unboxed. Nothing is written twice: the
 and the interpreted module stays the readable reference (the unit tier runs it in-process; every SUMO run of the
 suite, the golden tier included, runs in a child process on the compiled core and must give the same bytes).
 
-What is compiled: :data:`MODULES` — the loop, the control stage, the train's state and the plant, the truth pass,
-occupancy, stops, berths, comms (and its messages in flight), the event clock and log, safety, the watchdog,
-recording, the SUMO bridge, the route locks (their switch walk and authority ends are mypyc *traits*, the parts a
-class may have besides its one base class), the single-track sections and crossings, the interlocking, formations, the
-trips, the engine's settings and the vehicle's parameters. Their classes become *native*: their attributes are the
-annotated ones (none can be added at run time), their methods cannot be patched, an interpreted subclass needs
-``@mypyc_attr(allow_interpreted_subclasses=True)``, and a value of the wrong type handed to an annotated parameter
-raises :class:`TypeError` instead of being duck-typed (an ``int`` given for a ``float`` becomes a ``float``). A
-dataclass keeps its generated methods interpreted (write a hot constructor out), its fields' ``type`` is the class
-rather than its name, and a frozen one unpickles only through ``__reduce__`` (a constructor call).
+What is compiled: :data:`MODULES` — the loop, the control stage and the trains' situations, the train's state and the
+plant, the truth pass, occupancy, stops, berths, comms (and its messages in flight), the event clock and log, safety,
+the watchdog, recording, the SUMO bridge, the route locks (their switch walk and authority ends are mypyc *traits*,
+the parts a class may have besides its one base class), the single-track sections and crossings, the interlocking,
+formations, the trips, the engine's settings, the scenario's disturbances and the vehicle's parameters. Their classes
+become *native*: their attributes are the annotated ones (none can be added at run time), their methods cannot be
+patched, an interpreted subclass needs ``@mypyc_attr(allow_interpreted_subclasses=True)``, and a value of the wrong
+type handed to an annotated parameter raises :class:`TypeError` instead of being duck-typed (an ``int`` given for a
+``float`` becomes a ``float``). A dataclass keeps its generated methods interpreted (write a hot constructor out), its
+fields' ``type`` is the class rather than its name, and a frozen one unpickles only through ``__reduce__`` (a
+constructor call).
 
 Build: ``python -m railsim.compile_core`` (``make native``; ``make demo`` and ``make test`` call it) compiles them
 into ``build/native/`` and writes a stamp with the hash of their sources and the interpreter's version; with
@@ -52,6 +53,7 @@ MODULES: tuple[str, ...] = (
     "railsim.physics.dynamics",
     "railsim.engine.train",
     "railsim.engine.control",
+    "railsim.engine.situation",
     "railsim.engine.stops",
     "railsim.engine.knowledge",
     "railsim.engine.events.comms",
@@ -84,6 +86,7 @@ MODULES: tuple[str, ...] = (
     "railsim.engine.coupling",
     "railsim.engine.insertion_reach",
     "railsim.engine.settings",
+    "railsim.engine.disturbances",
     "railsim.physics.vehicle",
     "railsim.engine.events.formations",
 )

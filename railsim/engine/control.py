@@ -71,6 +71,7 @@ from railsim.engine.occupancy import Ahead
 from railsim.engine.platforms import Berths
 from railsim.engine.safety import SafetyMonitor
 from railsim.engine.settings import INF, EngineSettings
+from railsim.engine.situation import RouteSpans, Situation
 from railsim.engine.stops import StopBook
 from railsim.engine.train import TrainRuntime
 from railsim.physics import dynamics, plant_kernel
@@ -78,16 +79,6 @@ from railsim.physics import dynamics, plant_kernel
 log = logging.getLogger(__name__)
 _NO_PACK = np.zeros(0)  # no separation law this step (the fused line step does not read it)
 PLAN_EVENTS = ("leader_plan_lost", "leader_plan_restored")  # a coupled controller's use of its leader's plan
-# What a train knows of itself at a step: own position and speed (with sensor noise), gradient, speed limits,
-# the next stop (its TripStop) and, for it, (mark behind any leader, window start, window end, dwelling) or
-# None, the end of movement authority, and the length of the formation behind it (a restriction holds until the
-# formation's rear clears it: the limits' ends move on by it, see ``_base``), the limits as the compiled
-# line step's array (made once per restriction window, with it), and what the ground reports of the rear of the
-# train ahead, (rear, age), NaN: ask (Knowledge.ground_rears).
-_Target = tuple[float, float, float, bool] | None
-Situation = tuple[
-    float, float, float, tuple[SpeedLimit, ...], Any, _Target, float | None, float, np.ndarray, tuple[float, float]
-]
 
 
 class ControlStage:
@@ -128,13 +119,11 @@ class ControlStage:
         self._line_in: dict[str, tuple[Any, Any, Any, tuple[np.ndarray, np.ndarray, np.ndarray]]] = {}
         self._coupled_in: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # per follower: (CACC packed, its array)
         self._step: Any = self._first_step  # the compiled step, then its entry point (railsim.engine.kernel_entry)
-        # per train: [route view, gradient, its span lo, hi, restriction window, from lo, from hi, to lo, to hi,
-        # the window as the kernels' array]
-        self._route_memo: dict[str, list[Any]] = {}
+        self._route_memo: dict[str, RouteSpans] = {}  # per train: its gradient and restriction window, kept
 
     # ------------------------------------------------------------------ observation
     def _situation(self, t: float, tr: TrainRuntime, a: Ahead | None, rear: tuple[float, float]) -> Situation:
-        """What the train knows of itself now (noise drawn here, position then speed), see :data:`Situation`."""
+        """What the train knows of itself now (noise drawn here, position then speed), see :class:`Situation`."""
         veh = tr.trip.vehicle
         stop, offset = self.stops.current(tr)
         own_pos = tr.front_m
@@ -151,15 +140,15 @@ class ControlStage:
         from_m, to_m = front_m - veh.length_m - tail_m, front_m + self.settings.lookahead_m
         # the gradient and the restriction window, kept while the train stays where they hold (RouteView's spans)
         kept = self._route_memo.get(tr.train_id)
-        if kept is None or kept[0] is not view:
-            kept = self._route_memo[tr.train_id] = [view, 0.0, math.nan, math.nan, (), *(math.nan,) * 4, None]
-        if not kept[2] <= front_m < kept[3]:
-            kept[1], kept[2], kept[3] = view.gradient_span(front_m)
-        grad = kept[1]
-        if not (kept[5] <= from_m < kept[6] and kept[7] <= to_m < kept[8]):
-            kept[4], kept[5], kept[6], kept[7], kept[8] = view.limits_window(from_m, to_m)
-            kept[9] = kernel_entry.checked_array(limits_array_cached(kept[4]), 2)
-        limits = kept[4]
+        if kept is None or kept.view is not view:
+            kept = self._route_memo[tr.train_id] = RouteSpans(view)
+        if not kept.grad_lo_m <= front_m < kept.grad_hi_m:
+            kept.grad, kept.grad_lo_m, kept.grad_hi_m = view.gradient_span(front_m)
+        grad = kept.grad
+        if not (kept.from_lo_m <= from_m < kept.from_hi_m and kept.to_lo_m <= to_m < kept.to_hi_m):
+            kept.limits, kept.from_lo_m, kept.from_hi_m, kept.to_lo_m, kept.to_hi_m = view.limits_window(from_m, to_m)
+            kept.limits_arr = kernel_entry.checked_array(limits_array_cached(kept.limits), 2)
+        limits = kept.limits
         # halted inside the window: hold until SUMO registers the stop (~1 s) and through the dwell
         target = None
         if stop is not None:
@@ -171,7 +160,7 @@ class ControlStage:
             )
         authority = self.locks.authority_end_m(tr)
         authority = self.berths.authority_end_m(t, tr, stop, a, authority)
-        return own_pos, own_v, grad, limits, stop, target, authority, tail_m, kept[9], rear
+        return Situation(own_pos, own_v, grad, limits, stop, target, authority, tail_m, kept.limits_arr, rear)
 
     def _coupled_behind(self, train_id: str, ahead_id: str) -> bool:
         """Is ``train_id`` coupling or coupled behind ``ahead_id`` (a formation partner in a coupled state), or on
@@ -183,7 +172,9 @@ class ControlStage:
 
     def _base(self, t: float, tr: TrainRuntime, sit: Situation) -> dict[str, Any]:
         """The fields every observation of this train shares this step."""
-        own_pos, own_v, grad, limits, stop, target, authority, tail_m = sit[:8]
+        own_pos, own_v, grad, limits, stop, target, authority, tail_m = (
+            sit.own_pos_m, sit.own_v_mps, sit.grad, sit.limits, sit.stop, sit.target, sit.authority_m, sit.tail_m
+        )  # fmt: skip
         veh = tr.trip.vehicle
         if tail_m > 0.0:  # every end moved on by the formation's length behind the front unit
             limits = tuple(SpeedLimit(lim.start_m, lim.end_m + tail_m, lim.speed_mps) for lim in limits)
@@ -248,7 +239,7 @@ class ControlStage:
                 assert f is not None and leader is not None
                 return self._coupled_step(t, tr, a, ato, sit, f, leader)
         commands = self._role_commands(t, tr, a, sit, ato, driver, vc_role, fstate, f, leader)
-        return self._finish(t, tr, commands, sit[2])
+        return self._finish(t, tr, commands, sit.grad)
 
     def _is_line_train(self, tr: TrainRuntime, a: Ahead | None, ato: Any) -> bool:
         """No formation role and no plan flown (the caller checked), the line ATO, the line separation if a train is
@@ -279,7 +270,9 @@ class ControlStage:
         (:class:`~controllers.ato.Ato`, :class:`~controllers.separation.Separation`) are asked on plain values
         (their ``decide``); every other controller gets its :class:`Observation`, built from the same values
         (``base``, only when one is needed)."""
-        own_pos, own_v, grad, limits, _, target, authority, tail_m = sit[:8]
+        own_pos, own_v, grad, limits, target, authority, tail_m = (
+            sit.own_pos_m, sit.own_v_mps, sit.grad, sit.limits, sit.target, sit.authority_m, sit.tail_m
+        )  # fmt: skip
         veh = tr.trip.vehicle
         applied_now = tr.plant.applied_accel_mps2
         base: dict[str, Any] | None = None
@@ -334,8 +327,8 @@ class ControlStage:
         (all that moving-block separation reads): the situation's (:meth:`Knowledge.ground_rears`), or asked of the
         knowledge here where that pass has none (a NaN rear, :data:`~railsim.engine.knowledge.ASK`); the train's
         staleness record follows it."""
-        known: tuple[float, float] | None = sit[9]
-        if sit[9][0] != sit[9][0]:  # NaN: ask
+        known: tuple[float, float] | None = sit.rear
+        if sit.rear[0] != sit.rear[0]:  # NaN: ask
             known = self.knowledge.known_rear_age(tr, self.trains[a.train_id], "t2g", "ground", ahead=True)
         if known is not None and known[1] > tr.stale_max_s:
             tr.stale_max_s = known[1]
@@ -361,7 +354,7 @@ class ControlStage:
         tracking = self._vc_tracking(tr)
         ctl = tr.controllers["coupled"]
         if type(ctl) is Cacc:
-            own_pos, own_v, grad = sit[0], sit[1], sit[2]
+            own_pos, own_v, grad = sit.own_pos_m, sit.own_v_mps, sit.grad
             applied_now = tr.plant.applied_accel_mps2
             vc_cmd = ctl.decide(
                 tr.trip.vehicle, self.dt, own_pos, own_v, applied_now, grad, pred, float(f.target_gap_m), tracking
@@ -452,7 +445,7 @@ class ControlStage:
         non-finite winning command comes back unstepped and goes to :meth:`_apply`, which records it and brakes."""
         known = self._known_rear(tr, a, sit) if a is not None else None
         out = self._step(*self._line_args(tr, ato, sit, known, line_step_kernel.NO_COUPLED))
-        return self._stepped(t, tr, out, sit[2])
+        return self._stepped(t, tr, out, sit.grad)
 
     def _coupled_step(
         self, t: float, tr: TrainRuntime, a: Ahead | None, ato: Ato, sit: Situation, f: Any, leader: TrainRuntime
@@ -473,7 +466,7 @@ class ControlStage:
         known = self._known_rear(tr, a, sit) if a is not None and a.train_id != leader.train_id else None
         out = self._step(*self._line_args(tr, ato, sit, known, coupled))
         self._vc_commanded(t, tr, leader, pred, {"target_gap_m": out[9]})
-        return self._stepped(t, tr, out, sit[2])
+        return self._stepped(t, tr, out, sit.grad)
 
     def _coupled_inputs(self, tr: TrainRuntime, cacc_p: np.ndarray) -> np.ndarray:
         """The follower's coupled-role array for the compiled step (:func:`line_step_kernel.coupled_inputs`), kept
@@ -495,7 +488,8 @@ class ControlStage:
     ) -> tuple[Any, ...]:
         """The inputs of :func:`~railsim.engine.line_step_kernel.step`: the packed laws and plant, the situation,
         the plant state, the known rear of the train ahead, and the coupled role's inputs (``NO_COUPLED``: none)."""
-        x, v, grad, _, _, target, authority, tail_m, limits_arr, _ = sit
+        target = sit.target
+        authority = sit.authority_m
         veh = tr.trip.vehicle
         plant = tr.plant
         ato_p, sep_p, plant_p = self._line_inputs(tr, ato, veh)
@@ -507,15 +501,15 @@ class ControlStage:
             plant_p,
             self._method_i,
             self.dt,
-            x,
-            v,
+            sit.own_pos_m,
+            sit.own_v_mps,
             plant.speed_mps,
             plant.applied_accel_mps2,
             plant.target_accel_mps2,
             veh.length_m,
-            grad,
+            sit.grad,
             tr.view.line_speed_mps,
-            limits_arr,
+            sit.limits_arr,
             target is not None,
             mark_m,
             window_start_m,
@@ -523,7 +517,7 @@ class ControlStage:
             dwelling,
             authority is not None,
             authority if authority is not None else 0.0,
-            tail_m,
+            sit.tail_m,
             known is not None,
             rear_m,
             age_s,

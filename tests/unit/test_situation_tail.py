@@ -82,7 +82,7 @@ def _first_difference(seed: int) -> str | None:
             tr.status = str(rng.choice(["running", "running", "scheduled", "arrived"]))
             tr.vc_target_gap_m = None if rng.random() < 0.5 else float(rng.uniform(10.0, 60.0))
         for tr in trains:
-            got = stage._situation(0.0, tr, None, ASK)[7]  # type: ignore[arg-type]
+            got = stage._situation(0.0, tr, None, ASK).tail_m  # type: ignore[arg-type]
             want = FormationBook.tail_m(book, tr)  # type: ignore[arg-type]
             if got != want:
                 return f"{tr.train_id}: {got} != {want}"
