@@ -92,8 +92,8 @@ class TimeoutAt(simpy.Event):
 class Source:
     """Timed deliveries kept by their owner in their own order (a channel's messages in flight, see "Light
     deliveries"), each with an event id from simpy's counter. ``head_t``/``head_eid``: the time and id of the next
-    one (``head_t`` infinite: none); ``watched``: someone outside sees each delivery (then the layer has it deliver
-    one at a time, the clock at its time)."""
+    one (``head_t`` infinite: none); ``watched_now``: someone outside sees each delivery (then the layer has it
+    deliver one at a time, the clock at its time)."""
 
     def __init__(self) -> None:
         self.head_t = math.inf

@@ -60,9 +60,6 @@ class InFlight(Source):
         self._deliver_one = deliver_one
         self._batches: list[_Batch] = []
 
-    def __len__(self) -> int:
-        return sum(len(b.items) - b.pos for b in self._batches)
-
     def add(self, times: list[float], eids: list[int], items: list[Any]) -> None:
         """Messages sent at once: their delivery times and event ids (increasing, in the order sent)."""
         order = sorted(range(len(items)), key=times.__getitem__)  # stable: equal times keep their ids' order
